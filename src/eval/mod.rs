@@ -1,0 +1,149 @@
+//! Evaluation: leave-one-out (the paper's protocol) and in-sample ΔE00 statistics.
+
+pub mod plot;
+
+use crate::colorimetry::delta_e00_xyz;
+use crate::model::{fit, Kind, ModelError};
+use crate::training::TrainingSet;
+use rayon::prelude::*;
+use serde::Serialize;
+
+/// How predictions are made for the statistics.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Protocol {
+    /// Fit on N−1 patches, predict the one left out, for every patch.
+    LeaveOneOut,
+    /// Fit on all patches, predict each of them.
+    InSample,
+}
+
+/// ΔE00 of one patch.
+#[derive(Debug, Clone, Serialize, PartialEq)]
+pub struct PatchError {
+    pub label: String,
+    #[serde(rename = "dE00")]
+    pub de00: f64,
+}
+
+/// Summary statistics of ΔE00 over the patches.
+#[derive(Debug, Clone, Copy, Serialize, PartialEq)]
+pub struct Stats {
+    pub mean: f64,
+    pub median: f64,
+    pub p95: f64,
+    pub max: f64,
+}
+
+impl Stats {
+    /// Mean, median, 95th percentile (linear interpolation between order statistics, as numpy's
+    /// default) and maximum. `values` must not be empty.
+    pub fn of(values: &[f64]) -> Stats {
+        assert!(!values.is_empty());
+        let mut v = values.to_vec();
+        v.sort_by(|a, b| a.total_cmp(b));
+        let pct = |q: f64| {
+            let pos = q * (v.len() - 1) as f64;
+            let lo = pos.floor() as usize;
+            let hi = pos.ceil() as usize;
+            v[lo] + (pos - lo as f64) * (v[hi] - v[lo])
+        };
+        Stats {
+            mean: v.iter().sum::<f64>() / v.len() as f64,
+            median: pct(0.5),
+            p95: pct(0.95),
+            max: v[v.len() - 1],
+        }
+    }
+}
+
+/// The evaluation of one model kind and order on one training set.
+#[derive(Debug, Clone, Serialize, PartialEq)]
+pub struct EvalResult {
+    pub illuminant: String,
+    pub model: String,
+    pub order: u8,
+    pub terms: usize,
+    #[serde(flatten)]
+    pub stats: Stats,
+    pub per_patch: Vec<PatchError>,
+}
+
+/// Predicted XYZ for every patch under `protocol`.
+pub fn predict(
+    kind: Kind,
+    order: u8,
+    data: &TrainingSet,
+    protocol: Protocol,
+) -> Result<Vec<[f64; 3]>, ModelError> {
+    match protocol {
+        Protocol::InSample => Ok(fit(kind, order, data)?.apply_all_f64(&data.rgb)),
+        Protocol::LeaveOneOut => (0..data.len())
+            .into_par_iter()
+            .map(|i| {
+                let rest: Vec<usize> = (0..data.len()).filter(|&j| j != i).collect();
+                let m = fit(kind, order, &data.subset(&rest))?;
+                Ok(m.apply_f64(data.rgb[i]))
+            })
+            .collect(),
+    }
+}
+
+/// ΔE00 statistics of `kind` at `order` on `data`; `illuminant` labels the result.
+pub fn evaluate(
+    kind: Kind,
+    order: u8,
+    data: &TrainingSet,
+    protocol: Protocol,
+    illuminant: &str,
+) -> Result<EvalResult, ModelError> {
+    let order = kind.effective_order(order);
+    let min = match protocol {
+        Protocol::LeaveOneOut => 2,
+        Protocol::InSample => 1,
+    };
+    if data.len() < min {
+        return Err(ModelError::TooFewPatches {
+            kind,
+            order,
+            terms: crate::model::terms(kind, order).len(),
+            patches: data.len().saturating_sub(min - 1),
+        });
+    }
+    let pred = predict(kind, order, data, protocol)?;
+    let per_patch: Vec<PatchError> = data
+        .labels
+        .iter()
+        .zip(&pred)
+        .zip(&data.xyz)
+        .map(|((label, p), t)| PatchError {
+            label: label.clone(),
+            de00: delta_e00_xyz(*p, *t, data.white_xyz),
+        })
+        .collect();
+    let values: Vec<f64> = per_patch.iter().map(|p| p.de00).collect();
+    Ok(EvalResult {
+        illuminant: illuminant.to_string(),
+        model: kind.name().to_string(),
+        order,
+        terms: crate::model::terms(kind, order).len(),
+        stats: Stats::of(&values),
+        per_patch,
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn stats_match_numpy_conventions() {
+        let s = Stats::of(&[4.0, 1.0, 3.0, 2.0]);
+        assert_eq!(s.mean, 2.5);
+        assert_eq!(s.median, 2.5);
+        assert_eq!(s.max, 4.0);
+        // numpy.percentile([1,2,3,4], 95) = 3.85
+        assert!((s.p95 - 3.85).abs() < 1e-12);
+        let s = Stats::of(&[7.0]);
+        assert_eq!((s.mean, s.median, s.p95, s.max), (7.0, 7.0, 7.0, 7.0));
+    }
+}

@@ -1,0 +1,1 @@
+//! Plots (placeholder until the plot module lands).

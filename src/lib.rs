@@ -1,0 +1,37 @@
+//! # nsrm — camera colour correction on the GPU
+//!
+//! Maps a camera's linear raw RGB to CIE XYZ with one of four regression models — linear (LRM),
+//! polynomial (PRM), root-polynomial (RPRM) and normalised-signal polynomial (NSRM, the paper
+//! "Camera Color Correction Using Normalized Signal Polynomial Regression") — fitted on chart patches
+//! on the CPU and applied per pixel by a WGSL compute shader through wgpu, or on the CPU.
+//!
+//! Data flows one way:
+//!
+//! ```text
+//! spectra ─► spectral::simulate ─► TrainingSet ─► model::fit ─► Model ─► apply (cpu / gpu)
+//! measured CSV ─────────────────────┘       └─► eval::evaluate (leave-one-out ΔE00)
+//! ```
+//!
+//! ```
+//! use nsrm::{model::{fit, Kind}, spectral::{simulate, Camera, Grid, Illuminant, Reflectances}};
+//! let data = simulate(
+//!     &Camera::from_name_or_path("nikon-d5100")?,
+//!     &Illuminant::from_name_or_path("D65")?,
+//!     &Reflectances::from_name_or_path("cc24")?,
+//!     &Grid::default(),
+//! )?;
+//! let model = fit(Kind::Nsrm, 3, &data)?;
+//! let xyz = model.apply_f64(data.rgb[0]);
+//! assert!((xyz[1] - data.xyz[0][1]).abs() < 1.0);
+//! # Ok::<(), Box<dyn std::error::Error>>(())
+//! ```
+#![forbid(unsafe_code)]
+
+pub mod colorimetry;
+pub mod eval;
+pub mod model;
+pub mod spectral;
+pub mod training;
+
+pub use model::{Kind, Model};
+pub use training::TrainingSet;

@@ -1,0 +1,204 @@
+//! The model file: a versioned JSON document written by `nsrm fit` and read by `nsrm apply`,
+//! `nsrm export-shader` and [`Model::load`].
+//!
+//! ```json
+//! {
+//!   "format": "nsrm-model", "version": 1,
+//!   "kind": "nsrm", "order": 3,
+//!   "terms": ["1", "r", "g", "r^2", "g^2", "r*g", "r^3", "g^3", "r*g^2", "r^2*g"],
+//!   "matrix": [[...10 values...], [...], [...]],
+//!   "input":  {"signal": "linear camera RGB, not white-balanced", "camera_scale": "..."},
+//!   "output": {"space": "CIE XYZ", "xyz_scale": 100.0, "reference_white": [95.04, 100.0, 108.9]},
+//!   "training": {"source": "spectral", "camera": "...", "illuminant": "...", "reflectances": "...",
+//!                "grid": "400:700:10", "patches": ["patch1", ...]}
+//! }
+//! ```
+
+use super::{Kind, Model, ModelError, MAX_ORDER};
+use crate::training::Provenance;
+use serde::{Deserialize, Serialize};
+use std::path::Path;
+
+/// The `format` field of every model file.
+pub const FORMAT: &str = "nsrm-model";
+/// The version written; files of a newer version are refused.
+pub const VERSION: u32 = 1;
+
+#[derive(Debug, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct Input {
+    signal: String,
+    camera_scale: String,
+}
+
+#[derive(Debug, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct Output {
+    space: String,
+    /// Y of the perfect white in the model's output.
+    xyz_scale: f64,
+    reference_white: [f64; 3],
+}
+
+#[derive(Debug, Serialize, Deserialize)]
+struct Training {
+    #[serde(flatten)]
+    provenance: Provenance,
+    #[serde(default)]
+    patch_labels: Vec<String>,
+}
+
+#[derive(Debug, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct ModelFile {
+    format: String,
+    version: u32,
+    kind: String,
+    order: u8,
+    terms: Vec<String>,
+    matrix: Vec<Vec<f64>>,
+    input: Input,
+    output: Output,
+    training: Training,
+}
+
+impl Model {
+    /// The model as a JSON document (see the [module docs](self)).
+    pub fn to_json(&self) -> String {
+        let l = self.terms.len();
+        let file = ModelFile {
+            format: FORMAT.into(),
+            version: VERSION,
+            kind: self.kind.name().into(),
+            order: self.order,
+            terms: self.term_names(),
+            matrix: (0..3).map(|i| self.matrix[i * l..(i + 1) * l].to_vec()).collect(),
+            input: Input {
+                signal: "linear camera RGB, not white-balanced (raw channel ratios)".into(),
+                camera_scale: "the perfect white under the training illuminant has G = 1".into(),
+            },
+            output: Output {
+                space: "CIE XYZ (1931 2°), relative to the training illuminant".into(),
+                xyz_scale: self.white_xyz[1],
+                reference_white: self.white_xyz,
+            },
+            training: Training {
+                provenance: self.provenance.clone(),
+                patch_labels: self.patches.clone(),
+            },
+        };
+        let mut s = serde_json::to_string_pretty(&file).expect("a model serialises");
+        s.push('\n');
+        s
+    }
+
+    /// Parses and validates a model document; `origin` names it in errors.
+    pub fn from_json(text: &str, origin: &str) -> Result<Model, ModelError> {
+        let bad = |why: String| ModelError::Invalid(format!("{origin}: {why}"));
+        let f: ModelFile = serde_json::from_str(text).map_err(|err| ModelError::Parse {
+            path: origin.to_string(),
+            err,
+        })?;
+        if f.format != FORMAT {
+            return Err(bad(format!("format is `{}`, expected `{FORMAT}`", f.format)));
+        }
+        if f.version == 0 || f.version > VERSION {
+            return Err(bad(format!(
+                "version {} is not supported (this build reads up to {VERSION})",
+                f.version
+            )));
+        }
+        let kind = Kind::parse(&f.kind).map_err(|e| bad(e.to_string()))?;
+        if !(1..=MAX_ORDER).contains(&f.order) {
+            return Err(bad(format!("order {} is out of range (1..=4)", f.order)));
+        }
+        if f.matrix.len() != 3 {
+            return Err(bad(format!("the matrix has {} rows, expected 3", f.matrix.len())));
+        }
+        let flat: Vec<f64> = f.matrix.concat();
+        let mut model = Model::from_matrix(kind, f.order, flat).map_err(|e| match e {
+            ModelError::Invalid(why) => bad(why),
+            e => e,
+        })?;
+        let l = model.terms.len();
+        if let Some(r) = f.matrix.iter().position(|r| r.len() != l) {
+            return Err(bad(format!(
+                "matrix row {r} has {} values, expected {l}",
+                f.matrix[r].len()
+            )));
+        }
+        if f.terms != model.term_names() {
+            return Err(bad(format!(
+                "the term list {:?} does not match {} order {}: {:?}",
+                f.terms,
+                kind,
+                model.order,
+                model.term_names()
+            )));
+        }
+        let w = f.output.reference_white;
+        if w.iter().any(|v| !v.is_finite()) || w[1] <= 0.0 {
+            return Err(bad(format!("invalid reference white {w:?}")));
+        }
+        if !(f.output.xyz_scale.is_finite() && f.output.xyz_scale > 0.0) {
+            return Err(bad(format!("invalid xyz_scale {}", f.output.xyz_scale)));
+        }
+        model.white_xyz = w;
+        model.provenance = f.training.provenance;
+        model.patches = f.training.patch_labels;
+        Ok(model)
+    }
+
+    /// Reads and validates a model file.
+    pub fn load(path: &Path) -> Result<Model, ModelError> {
+        let origin = path.display().to_string();
+        let text = std::fs::read_to_string(path).map_err(|err| ModelError::Io {
+            path: origin.clone(),
+            err,
+        })?;
+        Model::from_json(&text, &origin)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn model() -> Model {
+        let mut m = Model::from_matrix(Kind::Nsrm, 3, (0..30).map(|i| i as f64 * 0.5).collect())
+            .unwrap();
+        m.white_xyz = [95.0, 100.0, 108.0];
+        m.patches = vec!["a".into(), "b".into()];
+        m.provenance.source = "spectral".into();
+        m.provenance.illuminant = Some("builtin:D65".into());
+        m
+    }
+
+    #[test]
+    fn round_trip() {
+        let m = model();
+        let back = Model::from_json(&m.to_json(), "m.json").unwrap();
+        assert_eq!(back, m);
+    }
+
+    #[test]
+    fn invalid_files_are_refused_clearly() {
+        let good = model().to_json();
+        let cases = [
+            (good.replace("\"nsrm\"", "\"xyz\""), "unknown model kind"),
+            (good.replace("\"order\": 3", "\"order\": 7"), "order 7"),
+            (good.replace("\"version\": 1", "\"version\": 9"), "version 9"),
+            (good.replace("\"r^2*g\"", "\"g^2*r\""), "term list"),
+            (good.replacen("0.5,", "NaN,", 1), "not a model file"),
+            (good.replacen("0.5,", "", 1), "values"),
+            ("{".to_string(), "not a model file"),
+            (good.replace("nsrm-model", "other"), "format"),
+        ];
+        for (text, want) in cases {
+            let e = Model::from_json(&text, "m.json").unwrap_err().to_string();
+            assert!(e.contains(want) && e.contains("m.json"), "{want}: {e}");
+        }
+        let e = Model::load(Path::new("/nonexistent/m.json")).unwrap_err().to_string();
+        assert!(e.contains("cannot read"), "{e}");
+    }
+}

@@ -1,0 +1,412 @@
+//! The four colour-correction models: their terms ([`terms`]), the least-squares fit, the
+//! [`Model`] value with its JSON file ([`file`]), and the f64 CPU reference apply path.
+//!
+//! # Pixel policy (identical on every path: f64 reference, fast CPU, GPU shaders)
+//! * **NaN / ±Inf** in any channel propagate: the output is not finite. Nothing is clamped or hidden.
+//! * **NSRM with `s = R+G+B ≤ 0`** (black, or noise around black): the output is `(0, 0, 0)`. The
+//!   chromaticities are undefined there, and `s·(α,β,γ)` tends to 0 as `s → 0⁺`.
+//! * **Negative channels**: LRM and PRM take them as they are; RPRM uses sign-preserving roots
+//!   (`sign(x)·|x|^(1/d)`), so the output stays finite; NSRM uses them in `r, g` as long as `s > 0`.
+//! * **Values far outside the training range** (HDR highlights) are not clamped: LRM, RPRM and NSRM
+//!   scale exactly with exposure, `f(kS) = k·f(S)` for `k > 0`; PRM extrapolates its polynomial.
+
+pub mod file;
+pub mod terms;
+
+pub use terms::{term_name, terms, Term, MAX_ORDER};
+
+use crate::training::{Provenance, TrainingSet};
+use nalgebra::DMatrix;
+
+/// Errors from fitting, loading or validating a model.
+#[derive(Debug, thiserror::Error)]
+pub enum ModelError {
+    #[error("unknown model kind `{0}` (expected lrm, prm, rprm or nsrm)")]
+    UnknownKind(String),
+    #[error("order {0} is out of range (1..=4)")]
+    Order(u8),
+    #[error("{kind} order {order} has {terms} terms but only {patches} patches were given: a least-squares fit needs at least as many patches as terms")]
+    TooFewPatches {
+        kind: Kind,
+        order: u8,
+        terms: usize,
+        patches: usize,
+    },
+    #[error("training patch `{label}` has non-finite data (RGB {rgb:?}, XYZ {xyz:?})")]
+    NonFinite {
+        label: String,
+        rgb: [f64; 3],
+        xyz: [f64; 3],
+    },
+    #[error("training patch `{label}`: R+G+B = {sum} ≤ 0, so NSRM's chromaticities are undefined")]
+    NonPositiveSignal { label: String, sum: f64 },
+    #[error("the fit produced a non-finite matrix (the training data is degenerate)")]
+    Degenerate,
+    #[error("{0}")]
+    Invalid(String),
+    #[error("{path}: cannot read: {err}")]
+    Io {
+        path: String,
+        #[source]
+        err: std::io::Error,
+    },
+    #[error("{path}: not a model file: {err}")]
+    Parse {
+        path: String,
+        #[source]
+        err: serde_json::Error,
+    },
+}
+
+/// The model families of the paper.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord)]
+pub enum Kind {
+    /// Linear regression, `p = (R, G, B)`.
+    Lrm,
+    /// Polynomial regression.
+    Prm,
+    /// Root-polynomial regression (Finlayson, Mackiewicz & Hurlbert 2015).
+    Rprm,
+    /// Normalised-signal polynomial regression.
+    Nsrm,
+}
+
+impl Kind {
+    pub const ALL: [Kind; 4] = [Kind::Lrm, Kind::Prm, Kind::Rprm, Kind::Nsrm];
+
+    /// Lower-case name: `lrm`, `prm`, `rprm`, `nsrm`.
+    pub fn name(self) -> &'static str {
+        match self {
+            Kind::Lrm => "lrm",
+            Kind::Prm => "prm",
+            Kind::Rprm => "rprm",
+            Kind::Nsrm => "nsrm",
+        }
+    }
+
+    /// Parses a name, case-insensitively.
+    pub fn parse(s: &str) -> Result<Kind, ModelError> {
+        Kind::ALL
+            .into_iter()
+            .find(|k| k.name().eq_ignore_ascii_case(s.trim()))
+            .ok_or_else(|| ModelError::UnknownKind(s.to_string()))
+    }
+
+    /// The order a model of this kind really has when `order` is asked for: LRM is always 1.
+    pub fn effective_order(self, order: u8) -> u8 {
+        if self == Kind::Lrm {
+            1
+        } else {
+            order
+        }
+    }
+
+    /// Whether `f(kS) = k·f(S)` for every `k > 0`.
+    pub fn exposure_invariant(self) -> bool {
+        self != Kind::Prm
+    }
+}
+
+impl std::fmt::Display for Kind {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(&self.name().to_uppercase())
+    }
+}
+
+/// A fitted model: kind, order, and the 3×L matrix over its terms.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Model {
+    pub kind: Kind,
+    pub order: u8,
+    /// The terms, from [`terms::terms`] (cached here).
+    pub terms: Vec<Term>,
+    /// Row-major 3×L: `matrix[i * L + j]` weighs term `j` for output channel `i`.
+    pub matrix: Vec<f64>,
+    /// The Lab reference white of the training data (XYZ, same scale as the output).
+    pub white_xyz: [f64; 3],
+    /// Where the training data came from.
+    pub provenance: Provenance,
+    /// The training patch labels.
+    pub patches: Vec<String>,
+}
+
+impl Model {
+    /// A model from a matrix, checking its shape and values.
+    pub fn from_matrix(kind: Kind, order: u8, matrix: Vec<f64>) -> Result<Model, ModelError> {
+        if !(1..=MAX_ORDER).contains(&order) {
+            return Err(ModelError::Order(order));
+        }
+        let order = kind.effective_order(order);
+        let terms = terms(kind, order);
+        if matrix.len() != 3 * terms.len() {
+            return Err(ModelError::Invalid(format!(
+                "{kind} order {order} needs a 3×{} matrix, got {} values",
+                terms.len(),
+                matrix.len()
+            )));
+        }
+        if matrix.iter().any(|v| !v.is_finite()) {
+            return Err(ModelError::Invalid("the matrix holds a non-finite value".into()));
+        }
+        Ok(Model {
+            kind,
+            order,
+            terms,
+            matrix,
+            white_xyz: crate::colorimetry::D65_WHITE_XYZ,
+            provenance: Provenance::default(),
+            patches: Vec::new(),
+        })
+    }
+
+    /// Number of terms L.
+    pub fn len_terms(&self) -> usize {
+        self.terms.len()
+    }
+
+    /// Term names in order.
+    pub fn term_names(&self) -> Vec<String> {
+        self.terms.iter().map(|t| term_name(self.kind, t)).collect()
+    }
+
+    /// Row `i` (output channel) of the matrix.
+    pub fn row(&self, i: usize) -> &[f64] {
+        let l = self.terms.len();
+        &self.matrix[i * l..(i + 1) * l]
+    }
+
+    /// Replaces the matrix (same kind and order), e.g. to swap a model at run time.
+    pub fn set_matrix(&mut self, matrix: Vec<f64>) -> Result<(), ModelError> {
+        let m = Model::from_matrix(self.kind, self.order, matrix)?;
+        self.matrix = m.matrix;
+        Ok(())
+    }
+
+    /// Applies the model to one camera RGB in f64: the reference every faster path is checked
+    /// against. Follows the pixel policy in the [module docs](self).
+    pub fn apply_f64(&self, rgb: [f64; 3]) -> [f64; 3] {
+        let mut p = vec![0.0; self.terms.len()];
+        self.apply_f64_with(rgb, &mut p)
+    }
+
+    /// [`apply_f64`](Self::apply_f64) with a caller-provided term buffer (length L).
+    pub fn apply_f64_with(&self, rgb: [f64; 3], p: &mut [f64]) -> [f64; 3] {
+        let scale = match features(self.kind, &self.terms, rgb, p) {
+            Some(s) => s,
+            None => return [0.0; 3],
+        };
+        let mut out = [0.0; 3];
+        for (i, o) in out.iter_mut().enumerate() {
+            *o = scale * self.row(i).iter().zip(p.iter()).map(|(m, x)| m * x).sum::<f64>();
+        }
+        out
+    }
+
+    /// Applies the f64 reference to many pixels.
+    pub fn apply_all_f64(&self, rgb: &[[f64; 3]]) -> Vec<[f64; 3]> {
+        let mut p = vec![0.0; self.terms.len()];
+        rgb.iter().map(|&x| self.apply_f64_with(x, &mut p)).collect()
+    }
+}
+
+/// Writes the term values of `rgb` into `p` and returns the output scale (`s` for NSRM, 1
+/// otherwise), or `None` when NSRM's `s ≤ 0` (the output is then 0 by the pixel policy).
+pub fn features(kind: Kind, terms: &[Term], rgb: [f64; 3], p: &mut [f64]) -> Option<f64> {
+    if kind == Kind::Nsrm {
+        let s = rgb[0] + rgb[1] + rgb[2];
+        if s <= 0.0 {
+            return None;
+        }
+        terms::expand(terms, [rgb[0] / s, rgb[1] / s, 0.0], p);
+        Some(s)
+    } else {
+        terms::expand(terms, rgb, p);
+        Some(1.0)
+    }
+}
+
+/// Least-squares fit of `kind` at `order` to a training set, by SVD (never the normal equations).
+///
+/// LRM, PRM and RPRM fit `XYZ ≈ M·p(RGB)`. NSRM fits the normalised targets
+/// `(α, β, γ) = XYZ / s ≈ M·p(r, g)`, `s = R+G+B`, as in the paper.
+pub fn fit(kind: Kind, order: u8, data: &TrainingSet) -> Result<Model, ModelError> {
+    if !(1..=MAX_ORDER).contains(&order) {
+        return Err(ModelError::Order(order));
+    }
+    let order = kind.effective_order(order);
+    let terms = terms(kind, order);
+    let l = terms.len();
+    let n = data.len();
+    if n < l {
+        return Err(ModelError::TooFewPatches {
+            kind,
+            order,
+            terms: l,
+            patches: n,
+        });
+    }
+    let mut a = DMatrix::<f64>::zeros(n, l);
+    let mut b = DMatrix::<f64>::zeros(n, 3);
+    let mut p = vec![0.0; l];
+    for i in 0..n {
+        let (rgb, xyz) = (data.rgb[i], data.xyz[i]);
+        if rgb.iter().chain(&xyz).any(|v| !v.is_finite()) {
+            return Err(ModelError::NonFinite {
+                label: data.labels[i].clone(),
+                rgb,
+                xyz,
+            });
+        }
+        let scale = features(kind, &terms, rgb, &mut p).ok_or_else(|| {
+            ModelError::NonPositiveSignal {
+                label: data.labels[i].clone(),
+                sum: rgb.iter().sum(),
+            }
+        })?;
+        for (j, v) in p.iter().enumerate() {
+            a[(i, j)] = *v;
+        }
+        for k in 0..3 {
+            b[(i, k)] = xyz[k] / scale;
+        }
+    }
+    let x = lstsq(a, &b)?;
+    let mut matrix = vec![0.0; 3 * l];
+    for i in 0..3 {
+        for j in 0..l {
+            matrix[i * l + j] = x[(j, i)];
+        }
+    }
+    if matrix.iter().any(|v| !v.is_finite()) {
+        return Err(ModelError::Degenerate);
+    }
+    Ok(Model {
+        kind,
+        order,
+        terms,
+        matrix,
+        white_xyz: data.white_xyz,
+        provenance: data.provenance.clone(),
+        patches: data.labels.clone(),
+    })
+}
+
+/// Minimum-norm least-squares solution of `A·X ≈ B` by SVD, with numpy's default cut-off for
+/// small singular values (`σ ≤ ε·max(n, l)·σ_max`).
+fn lstsq(a: DMatrix<f64>, b: &DMatrix<f64>) -> Result<DMatrix<f64>, ModelError> {
+    let (n, l) = a.shape();
+    let svd = a.svd(true, true);
+    let smax = svd.singular_values.max();
+    let eps = f64::EPSILON * n.max(l) as f64 * smax;
+    svd.solve(b, eps).map_err(|_| ModelError::Degenerate)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn synthetic(n: usize) -> TrainingSet {
+        // A deterministic spread of positive RGBs and an XYZ that no model reproduces exactly.
+        let mut rgb = Vec::new();
+        let mut xyz = Vec::new();
+        let mut labels = Vec::new();
+        let mut state = 12345u64;
+        let mut rnd = || {
+            state = state
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            ((state >> 11) as f64) / ((1u64 << 53) as f64)
+        };
+        for i in 0..n {
+            let c = [0.05 + rnd(), 0.05 + rnd(), 0.05 + rnd()];
+            let x = [
+                40.0 * c[0] + 30.0 * c[1] + 10.0 * c[2] + 5.0 * (c[0] * c[1]).sqrt(),
+                20.0 * c[0] + 70.0 * c[1] + 5.0 * c[2],
+                2.0 * c[0] + 10.0 * c[1] + 90.0 * c[2] + 3.0 * c[2] * c[2],
+            ];
+            rgb.push(c);
+            xyz.push(x);
+            labels.push(format!("p{i}"));
+        }
+        TrainingSet {
+            labels,
+            rgb,
+            xyz,
+            white_xyz: [95.0, 100.0, 108.0],
+            provenance: Provenance::default(),
+        }
+    }
+
+    #[test]
+    fn lrm_recovers_an_exact_linear_map() {
+        let mut ts = synthetic(30);
+        let m = [[41.0, 35.8, 18.0], [21.3, 71.5, 7.2], [1.9, 11.9, 95.0]];
+        ts.xyz = ts
+            .rgb
+            .iter()
+            .map(|c| crate::colorimetry::spaces::apply(&m, *c))
+            .collect();
+        let model = fit(Kind::Lrm, 3, &ts).unwrap();
+        assert_eq!(model.order, 1);
+        for i in 0..3 {
+            for j in 0..3 {
+                assert!((model.row(i)[j] - m[i][j]).abs() < 1e-9);
+            }
+        }
+    }
+
+    #[test]
+    fn too_few_patches_and_bad_data_are_refused() {
+        let ts = synthetic(12);
+        let e = fit(Kind::Prm, 3, &ts).unwrap_err();
+        assert!(matches!(e, ModelError::TooFewPatches { terms: 19, patches: 12, .. }), "{e}");
+        assert!(e.to_string().contains("19 terms"));
+        let mut bad = synthetic(30);
+        bad.xyz[3][1] = f64::NAN;
+        assert!(matches!(fit(Kind::Lrm, 1, &bad), Err(ModelError::NonFinite { .. })));
+        let mut bad = synthetic(30);
+        bad.rgb[5] = [0.0, 0.0, 0.0];
+        assert!(matches!(
+            fit(Kind::Nsrm, 3, &bad),
+            Err(ModelError::NonPositiveSignal { .. })
+        ));
+        assert!(matches!(fit(Kind::Nsrm, 5, &bad), Err(ModelError::Order(5))));
+    }
+
+    #[test]
+    fn every_kind_and_order_fits_and_beats_lrm_in_sample() {
+        let ts = synthetic(60);
+        let err = |m: &Model| -> f64 {
+            ts.rgb
+                .iter()
+                .zip(&ts.xyz)
+                .map(|(c, x)| {
+                    let y = m.apply_f64(*c);
+                    (0..3).map(|k| (y[k] - x[k]).powi(2)).sum::<f64>()
+                })
+                .sum()
+        };
+        let lrm = err(&fit(Kind::Lrm, 1, &ts).unwrap());
+        for kind in [Kind::Prm, Kind::Rprm] {
+            for order in 2..=4 {
+                let m = fit(kind, order, &ts).unwrap();
+                assert!(err(&m) < lrm, "{kind} {order}");
+            }
+        }
+        for order in 1..=4 {
+            fit(Kind::Nsrm, order, &ts).unwrap();
+        }
+    }
+
+    #[test]
+    fn nsrm_policy_for_non_positive_signal() {
+        let ts = synthetic(30);
+        let m = fit(Kind::Nsrm, 3, &ts).unwrap();
+        assert_eq!(m.apply_f64([0.0, 0.0, 0.0]), [0.0; 3]);
+        assert_eq!(m.apply_f64([0.1, -0.2, 0.05]), [0.0; 3]);
+        assert!(m.apply_f64([f64::NAN, 0.1, 0.1])[0].is_nan());
+        assert!(!m.apply_f64([f64::INFINITY, 0.1, 0.1])[0].is_finite());
+        let r = fit(Kind::Rprm, 3, &ts).unwrap();
+        assert!(r.apply_f64([-0.01, 0.2, 0.3]).iter().all(|v| v.is_finite()));
+    }
+}

@@ -1,0 +1,443 @@
+//! Spectral data and the synthetic camera.
+//!
+//! Reads spectral CSV tables (first column wavelength in nm, then one named column per spectrum),
+//! resamples them onto a wavelength [`Grid`] by linear interpolation (zero outside a table's range),
+//! and integrates camera RGB and CIE XYZ with a Riemann sum ([`simulate`]).
+//!
+//! Scales (see [`simulate`]): XYZ so that the perfect white under the illuminant has `Y = 100`;
+//! camera RGB so that the perfect white has `G = 1`, channel ratios kept (raw, not white-balanced).
+
+mod builtin;
+mod csv;
+
+pub use builtin::{
+    builtin_camera, builtin_illuminant, builtin_reflectances, cie1931_cmf, CAMERAS, ILLUMINANTS,
+    REFLECTANCES,
+};
+pub use csv::parse_csv;
+
+use crate::training::{Provenance, TrainingSet};
+use std::path::Path;
+
+/// Errors from reading spectral data or simulating a camera.
+#[derive(Debug, thiserror::Error)]
+pub enum SpectralError {
+    #[error("{source_name}: cannot read: {err}")]
+    Io {
+        source_name: String,
+        #[source]
+        err: std::io::Error,
+    },
+    #[error("{source_name}: the file is empty (expected a header `wavelength_nm,NAME,...` and rows)")]
+    Empty { source_name: String },
+    #[error("{source_name}: the header has no spectrum columns after the wavelength column")]
+    NoColumns { source_name: String },
+    #[error("{source_name}: line {line}: {found} cells, expected {expected} (as in the header)")]
+    Ragged {
+        source_name: String,
+        line: usize,
+        found: usize,
+        expected: usize,
+    },
+    #[error("{source_name}: line {line}, column `{column}`: `{cell}` is not a number")]
+    NotANumber {
+        source_name: String,
+        line: usize,
+        column: String,
+        cell: String,
+    },
+    #[error("{source_name}: line {line}, column `{column}`: value is not finite")]
+    NonFinite {
+        source_name: String,
+        line: usize,
+        column: String,
+    },
+    #[error("{source_name}: line {line}: wavelength {wavelength} nm does not increase (previous {previous} nm)")]
+    NonIncreasing {
+        source_name: String,
+        line: usize,
+        wavelength: f64,
+        previous: f64,
+    },
+    #[error("{source_name}: has no data rows")]
+    NoRows { source_name: String },
+    #[error("{source_name}: duplicate column name `{column}`")]
+    DuplicateColumn { source_name: String, column: String },
+    #[error("{source_name}: a camera file needs exactly 3 spectrum columns (R, G, B), found {found}")]
+    CameraColumns { source_name: String, found: usize },
+    #[error("{source_name}: an illuminant file needs exactly 1 spectrum column, found {found}")]
+    IlluminantColumns { source_name: String, found: usize },
+    #[error("invalid grid `{spec}`: {why} (expected START:END:STEP in nm, e.g. 400:700:10)")]
+    Grid { spec: String, why: String },
+    #[error("{what}: the perfect white integrates to {value} (no overlap between the spectra and the grid?)")]
+    DegenerateWhite { what: String, value: f64 },
+    #[error("unknown {what} `{name}` (built-in: {known}); to read a file, give a path to an existing CSV")]
+    UnknownName {
+        what: &'static str,
+        name: String,
+        known: String,
+    },
+}
+
+/// A wavelength grid, `start..=end` in steps of `step` nm.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Grid {
+    pub start: f64,
+    pub end: f64,
+    pub step: f64,
+}
+
+impl Default for Grid {
+    /// The paper's grid: 400–700 nm in 10 nm steps.
+    fn default() -> Self {
+        Grid {
+            start: 400.0,
+            end: 700.0,
+            step: 10.0,
+        }
+    }
+}
+
+impl Grid {
+    /// Parses `START:END:STEP` (nm).
+    pub fn parse(spec: &str) -> Result<Grid, SpectralError> {
+        let err = |why: &str| SpectralError::Grid {
+            spec: spec.to_string(),
+            why: why.to_string(),
+        };
+        let parts: Vec<&str> = spec.split(':').collect();
+        if parts.len() != 3 {
+            return Err(err("three numbers separated by `:` are needed"));
+        }
+        let mut v = [0.0; 3];
+        for (slot, p) in v.iter_mut().zip(&parts) {
+            *slot = p
+                .trim()
+                .parse::<f64>()
+                .map_err(|_| err(&format!("`{p}` is not a number")))?;
+            if !slot.is_finite() {
+                return Err(err("values must be finite"));
+            }
+        }
+        let g = Grid {
+            start: v[0],
+            end: v[1],
+            step: v[2],
+        };
+        if g.step <= 0.0 {
+            return Err(err("STEP must be positive"));
+        }
+        if g.end < g.start {
+            return Err(err("END must not be below START"));
+        }
+        if g.len() > 100_000 {
+            return Err(err("more than 100000 samples"));
+        }
+        Ok(g)
+    }
+
+    /// Number of samples.
+    pub fn len(&self) -> usize {
+        ((self.end - self.start) / self.step + 1e-9).floor() as usize + 1
+    }
+
+    /// Always false: a grid has at least one sample.
+    pub fn is_empty(&self) -> bool {
+        false
+    }
+
+    /// The sample wavelengths.
+    pub fn wavelengths(&self) -> Vec<f64> {
+        (0..self.len())
+            .map(|i| self.start + i as f64 * self.step)
+            .collect()
+    }
+}
+
+impl std::fmt::Display for Grid {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(f, "{}:{}:{}", self.start, self.end, self.step)
+    }
+}
+
+/// A table of spectra sampled at common wavelengths.
+#[derive(Debug, Clone, PartialEq)]
+pub struct SpectralTable {
+    /// Where it came from (a file path or `builtin:NAME`), for messages and provenance.
+    pub source_name: String,
+    /// Strictly increasing wavelengths in nm.
+    pub wavelengths: Vec<f64>,
+    /// Column names, one per spectrum.
+    pub names: Vec<String>,
+    /// `values[j][i]`: spectrum `j` at `wavelengths[i]`.
+    pub values: Vec<Vec<f64>>,
+}
+
+impl SpectralTable {
+    /// Reads a CSV file.
+    pub fn read(path: &Path) -> Result<SpectralTable, SpectralError> {
+        let source_name = path.display().to_string();
+        let text = std::fs::read_to_string(path).map_err(|err| SpectralError::Io {
+            source_name: source_name.clone(),
+            err,
+        })?;
+        parse_csv(&text, &source_name)
+    }
+
+    /// Linear interpolation of spectrum `j` at wavelength `w`; zero outside the table's range.
+    pub fn value_at(&self, j: usize, w: f64) -> f64 {
+        let wl = &self.wavelengths;
+        let v = &self.values[j];
+        let n = wl.len();
+        if n == 0 || w < wl[0] || w > wl[n - 1] {
+            return 0.0;
+        }
+        // First index with wl[i] >= w.
+        let i = wl.partition_point(|&x| x < w);
+        if wl[i] == w {
+            return v[i];
+        }
+        let (w0, w1) = (wl[i - 1], wl[i]);
+        let t = (w - w0) / (w1 - w0);
+        v[i - 1] + t * (v[i] - v[i - 1])
+    }
+
+    /// Every spectrum resampled onto `grid`.
+    pub fn resample(&self, grid: &Grid) -> Vec<Vec<f64>> {
+        let ws = grid.wavelengths();
+        (0..self.names.len())
+            .map(|j| ws.iter().map(|&w| self.value_at(j, w)).collect())
+            .collect()
+    }
+}
+
+/// A camera: three spectral sensitivities (R, G, B), in that column order.
+#[derive(Debug, Clone)]
+pub struct Camera(pub SpectralTable);
+
+impl Camera {
+    pub fn new(table: SpectralTable) -> Result<Camera, SpectralError> {
+        if table.names.len() != 3 {
+            return Err(SpectralError::CameraColumns {
+                source_name: table.source_name,
+                found: table.names.len(),
+            });
+        }
+        Ok(Camera(table))
+    }
+
+    /// A built-in name (`nikon-d5100`) or a path to a CSV file.
+    pub fn from_name_or_path(spec: &str) -> Result<Camera, SpectralError> {
+        let table = match builtin_camera(spec) {
+            Some(t) => t,
+            None => table_from_path(spec, "camera", CAMERAS)?,
+        };
+        Camera::new(table)
+    }
+}
+
+/// An illuminant: one spectral power distribution.
+#[derive(Debug, Clone)]
+pub struct Illuminant(pub SpectralTable);
+
+impl Illuminant {
+    pub fn new(table: SpectralTable) -> Result<Illuminant, SpectralError> {
+        if table.names.len() != 1 {
+            return Err(SpectralError::IlluminantColumns {
+                source_name: table.source_name,
+                found: table.names.len(),
+            });
+        }
+        Ok(Illuminant(table))
+    }
+
+    /// A built-in name (`D65`, `FL3.15`, `FL7`, `TL865`, `LED-B5`, `LED-YAG`) or a CSV path.
+    pub fn from_name_or_path(spec: &str) -> Result<Illuminant, SpectralError> {
+        let table = match builtin_illuminant(spec) {
+            Some(t) => t,
+            None => table_from_path(spec, "illuminant", ILLUMINANTS)?,
+        };
+        Illuminant::new(table)
+    }
+
+    /// A short display name: the built-in name, or the file stem.
+    pub fn display_name(&self) -> String {
+        display_name(&self.0.source_name)
+    }
+}
+
+/// Reflectances, one spectrum per patch (column names are the patch labels).
+#[derive(Debug, Clone)]
+pub struct Reflectances(pub SpectralTable);
+
+impl Reflectances {
+    /// A built-in name (`rawtoaces-190`, `cc24`) or a CSV path.
+    pub fn from_name_or_path(spec: &str) -> Result<Reflectances, SpectralError> {
+        let table = match builtin_reflectances(spec) {
+            Some(t) => t,
+            None => table_from_path(spec, "reflectance set", REFLECTANCES)?,
+        };
+        Ok(Reflectances(table))
+    }
+}
+
+/// The name shown for a table: `D65` for `builtin:D65`, the file stem for a path.
+pub fn display_name(source_name: &str) -> String {
+    if let Some(n) = source_name.strip_prefix("builtin:") {
+        return n.to_string();
+    }
+    Path::new(source_name)
+        .file_stem()
+        .map(|s| s.to_string_lossy().into_owned())
+        .unwrap_or_else(|| source_name.to_string())
+}
+
+fn table_from_path(
+    spec: &str,
+    what: &'static str,
+    known: &[(&str, &str)],
+) -> Result<SpectralTable, SpectralError> {
+    let path = Path::new(spec);
+    if !path.exists() {
+        return Err(SpectralError::UnknownName {
+            what,
+            name: spec.to_string(),
+            known: known
+                .iter()
+                .map(|(n, _)| *n)
+                .collect::<Vec<_>>()
+                .join(", "),
+        });
+    }
+    SpectralTable::read(path)
+}
+
+fn riemann(a: &[f64], b: &[f64], c: &[f64], step: f64) -> f64 {
+    a.iter()
+        .zip(b)
+        .zip(c)
+        .map(|((x, y), z)| x * y * z)
+        .sum::<f64>()
+        * step
+}
+
+/// Simulates camera RGB and CIE 1931 2° XYZ for each reflectance under `illuminant`.
+///
+/// `XYZ_k = Σ_λ E(λ) ρ(λ) x̄_k(λ) Δλ`, scaled so the perfect white (ρ = 1) has `Y = 100`.
+/// `RGB_k = Σ_λ E(λ) ρ(λ) c_k(λ) Δλ`, scaled so the perfect white has `G = 1` (one factor for all
+/// three channels: the camera's raw channel ratios are kept).
+pub fn simulate(
+    camera: &Camera,
+    illuminant: &Illuminant,
+    reflectances: &Reflectances,
+    grid: &Grid,
+) -> Result<TrainingSet, SpectralError> {
+    let cmf = cie1931_cmf().resample(grid);
+    let cam = camera.0.resample(grid);
+    let e = illuminant.0.resample(grid).remove(0);
+    let refl = reflectances.0.resample(grid);
+    let ones = vec![1.0; grid.len()];
+
+    let y_white = riemann(&e, &ones, &cmf[1], grid.step);
+    if !(y_white > 0.0 && y_white.is_finite()) {
+        return Err(SpectralError::DegenerateWhite {
+            what: format!("illuminant {} (Y)", illuminant.0.source_name),
+            value: y_white,
+        });
+    }
+    let g_white = riemann(&e, &ones, &cam[1], grid.step);
+    if !(g_white > 0.0 && g_white.is_finite()) {
+        return Err(SpectralError::DegenerateWhite {
+            what: format!(
+                "camera {} green under {}",
+                camera.0.source_name, illuminant.0.source_name
+            ),
+            value: g_white,
+        });
+    }
+    let kx = 100.0 / y_white;
+    let kc = 1.0 / g_white;
+    let white_xyz = [
+        kx * riemann(&e, &ones, &cmf[0], grid.step),
+        100.0,
+        kx * riemann(&e, &ones, &cmf[2], grid.step),
+    ];
+    let mut rgb = Vec::with_capacity(refl.len());
+    let mut xyz = Vec::with_capacity(refl.len());
+    for r in &refl {
+        rgb.push([
+            kc * riemann(&e, r, &cam[0], grid.step),
+            kc * riemann(&e, r, &cam[1], grid.step),
+            kc * riemann(&e, r, &cam[2], grid.step),
+        ]);
+        xyz.push([
+            kx * riemann(&e, r, &cmf[0], grid.step),
+            kx * riemann(&e, r, &cmf[1], grid.step),
+            kx * riemann(&e, r, &cmf[2], grid.step),
+        ]);
+    }
+    Ok(TrainingSet {
+        labels: reflectances.0.names.clone(),
+        rgb,
+        xyz,
+        white_xyz,
+        provenance: Provenance {
+            source: "spectral".into(),
+            camera: Some(camera.0.source_name.clone()),
+            illuminant: Some(illuminant.0.source_name.clone()),
+            reflectances: Some(reflectances.0.source_name.clone()),
+            grid: Some(grid.to_string()),
+            patches: None,
+        },
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn grid_parse_and_len() {
+        let g = Grid::parse("400:700:10").unwrap();
+        assert_eq!(g.len(), 31);
+        assert_eq!(g.wavelengths()[30], 700.0);
+        assert!(Grid::parse("400:700").is_err());
+        assert!(Grid::parse("400:700:0").is_err());
+        assert!(Grid::parse("700:400:10").is_err());
+        assert!(Grid::parse("a:700:10").is_err());
+        assert_eq!(Grid::parse("380:780:5").unwrap().len(), 81);
+    }
+
+    #[test]
+    fn interpolation_and_zero_outside() {
+        let t = parse_csv("nm,a\n400,1\n410,3\n", "t").unwrap();
+        assert_eq!(t.value_at(0, 400.0), 1.0);
+        assert_eq!(t.value_at(0, 405.0), 2.0);
+        assert_eq!(t.value_at(0, 410.0), 3.0);
+        assert_eq!(t.value_at(0, 399.0), 0.0);
+        assert_eq!(t.value_at(0, 411.0), 0.0);
+    }
+
+    #[test]
+    fn white_scaling() {
+        let cam = Camera::from_name_or_path("nikon-d5100").unwrap();
+        let ill = Illuminant::from_name_or_path("D65").unwrap();
+        let refl = Reflectances::from_name_or_path("cc24").unwrap();
+        let ts = simulate(&cam, &ill, &refl, &Grid::default()).unwrap();
+        // D65 white point, 2° observer, on a 10 nm grid: close to (95.04, 100, 108.88).
+        assert!((ts.white_xyz[0] - 95.04).abs() < 0.3, "{:?}", ts.white_xyz);
+        assert!((ts.white_xyz[2] - 108.88).abs() < 0.5, "{:?}", ts.white_xyz);
+        assert_eq!(ts.labels.len(), 24);
+        // Every patch is darker than the perfect white.
+        for (rgb, xyz) in ts.rgb.iter().zip(&ts.xyz) {
+            assert!(rgb[1] > 0.0 && rgb[1] < 1.0);
+            assert!(xyz[1] > 0.0 && xyz[1] < 100.0);
+        }
+    }
+
+    #[test]
+    fn unknown_name_is_clear() {
+        let e = Illuminant::from_name_or_path("D66").unwrap_err().to_string();
+        assert!(e.contains("D65") && e.contains("D66"), "{e}");
+    }
+}

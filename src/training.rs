@@ -1,0 +1,389 @@
+//! Training data: camera RGB and reference XYZ per patch, simulated ([`crate::spectral::simulate`])
+//! or measured by a user ([`TrainingSet::read_measured`]), and patch selection (`--patches`).
+
+use crate::colorimetry::lab_to_xyz;
+use serde::{Deserialize, Serialize};
+use std::path::Path;
+
+/// Errors from reading measured training data or selecting patches.
+#[derive(Debug, thiserror::Error)]
+pub enum TrainingError {
+    #[error("{source_name}: cannot read: {err}")]
+    Io {
+        source_name: String,
+        #[source]
+        err: std::io::Error,
+    },
+    #[error("{source_name}: the file is empty")]
+    Empty { source_name: String },
+    #[error("{source_name}: header must be `label,R,G,B,X,Y,Z` or `label,R,G,B,L,a,b`, found `{found}`")]
+    Header { source_name: String, found: String },
+    #[error("{source_name}: Lab training data needs a reference white (`--white X,Y,Z` or an illuminant name)")]
+    NeedsWhite { source_name: String },
+    #[error("{source_name}: line {line}: {found} cells, expected 7")]
+    Ragged {
+        source_name: String,
+        line: usize,
+        found: usize,
+    },
+    #[error("{source_name}: line {line}, column `{column}`: `{cell}` is not a finite number")]
+    NotANumber {
+        source_name: String,
+        line: usize,
+        column: String,
+        cell: String,
+    },
+    #[error("{source_name}: line {line}: duplicate label `{label}`")]
+    DuplicateLabel {
+        source_name: String,
+        line: usize,
+        label: String,
+    },
+    #[error("{source_name}: has no patches")]
+    NoRows { source_name: String },
+    #[error("invalid patch selection `{spec}`: {why}")]
+    Patches { spec: String, why: String },
+    #[error("invalid white `{spec}`: {why}")]
+    White { spec: String, why: String },
+}
+
+/// Where a training set came from; written into model files.
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+pub struct Provenance {
+    /// `spectral` (simulated from spectra) or `measured` (a user's CSV).
+    pub source: String,
+    #[serde(skip_serializing_if = "Option::is_none", default)]
+    pub camera: Option<String>,
+    #[serde(skip_serializing_if = "Option::is_none", default)]
+    pub illuminant: Option<String>,
+    #[serde(skip_serializing_if = "Option::is_none", default)]
+    pub reflectances: Option<String>,
+    #[serde(skip_serializing_if = "Option::is_none", default)]
+    pub grid: Option<String>,
+    /// The `--patches` selection, if one was applied.
+    #[serde(skip_serializing_if = "Option::is_none", default)]
+    pub patches: Option<String>,
+}
+
+/// Patches with camera RGB and reference XYZ, and the reference white (for Lab).
+#[derive(Debug, Clone, PartialEq)]
+pub struct TrainingSet {
+    pub labels: Vec<String>,
+    /// Linear camera RGB (perfect white: G = 1 for simulated data).
+    pub rgb: Vec<[f64; 3]>,
+    /// CIE XYZ (perfect white: Y = 100 for simulated data).
+    pub xyz: Vec<[f64; 3]>,
+    /// XYZ of the perfect white under the illuminant: the Lab reference white.
+    pub white_xyz: [f64; 3],
+    pub provenance: Provenance,
+}
+
+impl TrainingSet {
+    /// Number of patches.
+    pub fn len(&self) -> usize {
+        self.labels.len()
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.labels.is_empty()
+    }
+
+    /// The patches at `indices`, in that order.
+    pub fn subset(&self, indices: &[usize]) -> TrainingSet {
+        TrainingSet {
+            labels: indices.iter().map(|&i| self.labels[i].clone()).collect(),
+            rgb: indices.iter().map(|&i| self.rgb[i]).collect(),
+            xyz: indices.iter().map(|&i| self.xyz[i]).collect(),
+            white_xyz: self.white_xyz,
+            provenance: self.provenance.clone(),
+        }
+    }
+
+    /// Keeps the patches chosen by `spec` (see [`select_patches`]).
+    pub fn select(&self, spec: &str) -> Result<TrainingSet, TrainingError> {
+        let idx = select_patches(&self.labels, spec)?;
+        let mut out = self.subset(&idx);
+        if spec.trim() != "all" {
+            out.provenance.patches = Some(spec.trim().to_string());
+        }
+        Ok(out)
+    }
+
+    /// Reads measured patches: a CSV with header `label,R,G,B,X,Y,Z`, or `label,R,G,B,L,a,b` with a
+    /// reference white (`white`, XYZ) that the Lab values are relative to.
+    ///
+    /// For XYZ data the reference white for ΔE00 is `white` when given, else D65 scaled to the
+    /// data (`Y = 100`).
+    pub fn read_measured(path: &Path, white: Option<[f64; 3]>) -> Result<TrainingSet, TrainingError> {
+        let source_name = path.display().to_string();
+        let text = std::fs::read_to_string(path).map_err(|err| TrainingError::Io {
+            source_name: source_name.clone(),
+            err,
+        })?;
+        Self::parse_measured(&text, &source_name, white)
+    }
+
+    /// [`read_measured`](Self::read_measured) on text.
+    pub fn parse_measured(
+        text: &str,
+        source_name: &str,
+        white: Option<[f64; 3]>,
+    ) -> Result<TrainingSet, TrainingError> {
+        let src = || source_name.to_string();
+        let mut lines = text
+            .lines()
+            .enumerate()
+            .map(|(i, l)| (i + 1, l.trim_end_matches('\r')))
+            .filter(|(_, l)| !l.trim().is_empty() && !l.trim_start().starts_with('#'));
+        let (_, header) = lines
+            .next()
+            .ok_or_else(|| TrainingError::Empty { source_name: src() })?;
+        let cols: Vec<String> = header
+            .trim_start_matches('\u{feff}')
+            .split(',')
+            .map(|s| s.trim().to_string())
+            .collect();
+        let is = |names: [&str; 7]| {
+            cols.len() == 7
+                && cols
+                    .iter()
+                    .zip(names)
+                    .all(|(c, n)| c.eq_ignore_ascii_case(n))
+        };
+        let lab = if is(["label", "R", "G", "B", "X", "Y", "Z"]) {
+            false
+        } else if cols.len() == 7
+            && cols[0].eq_ignore_ascii_case("label")
+            && cols[1..4]
+                .iter()
+                .zip(["R", "G", "B"])
+                .all(|(c, n)| c.eq_ignore_ascii_case(n))
+            && cols[4] == "L"
+            && cols[5] == "a"
+            && cols[6] == "b"
+        {
+            true
+        } else {
+            return Err(TrainingError::Header {
+                source_name: src(),
+                found: header.to_string(),
+            });
+        };
+        if lab && white.is_none() {
+            return Err(TrainingError::NeedsWhite { source_name: src() });
+        }
+        let white_xyz = white.unwrap_or(crate::colorimetry::D65_WHITE_XYZ);
+        let mut labels: Vec<String> = Vec::new();
+        let mut rgb = Vec::new();
+        let mut xyz = Vec::new();
+        for (line, row) in lines {
+            let cells: Vec<&str> = row.split(',').map(str::trim).collect();
+            if cells.len() != 7 {
+                return Err(TrainingError::Ragged {
+                    source_name: src(),
+                    line,
+                    found: cells.len(),
+                });
+            }
+            let mut v = [0.0; 6];
+            for k in 0..6 {
+                let cell = cells[k + 1];
+                v[k] = cell
+                    .parse::<f64>()
+                    .ok()
+                    .filter(|x| x.is_finite())
+                    .ok_or_else(|| TrainingError::NotANumber {
+                        source_name: src(),
+                        line,
+                        column: cols[k + 1].clone(),
+                        cell: cell.to_string(),
+                    })?;
+            }
+            let label = cells[0].to_string();
+            if labels.contains(&label) {
+                return Err(TrainingError::DuplicateLabel {
+                    source_name: src(),
+                    line,
+                    label,
+                });
+            }
+            labels.push(label);
+            rgb.push([v[0], v[1], v[2]]);
+            let t = [v[3], v[4], v[5]];
+            xyz.push(if lab { lab_to_xyz(t, white_xyz) } else { t });
+        }
+        if labels.is_empty() {
+            return Err(TrainingError::NoRows { source_name: src() });
+        }
+        Ok(TrainingSet {
+            labels,
+            rgb,
+            xyz,
+            white_xyz,
+            provenance: Provenance {
+                source: "measured".into(),
+                reflectances: Some(source_name.to_string()),
+                ..Default::default()
+            },
+        })
+    }
+}
+
+/// Parses `X,Y,Z` (three finite numbers, Y > 0).
+pub fn parse_white(spec: &str) -> Result<[f64; 3], TrainingError> {
+    let err = |why: &str| TrainingError::White {
+        spec: spec.to_string(),
+        why: why.to_string(),
+    };
+    let v: Vec<f64> = spec
+        .split(',')
+        .map(|s| s.trim().parse::<f64>())
+        .collect::<Result<_, _>>()
+        .map_err(|_| err("expected three numbers X,Y,Z"))?;
+    if v.len() != 3 {
+        return Err(err("expected three numbers X,Y,Z"));
+    }
+    if v.iter().any(|x| !x.is_finite()) || v[1] <= 0.0 {
+        return Err(err("values must be finite and Y positive"));
+    }
+    Ok([v[0], v[1], v[2]])
+}
+
+/// Splits a chart label such as `B12` into its column letters and row number.
+fn split_label(label: &str) -> Option<(&str, u32)> {
+    let pos = label.find(|c: char| c.is_ascii_digit())?;
+    let (col, row) = label.split_at(pos);
+    if col.is_empty() || !col.chars().all(|c| c.is_ascii_alphabetic()) {
+        return None;
+    }
+    Some((col, row.parse().ok()?))
+}
+
+/// Column letters as a number: A = 1, …, Z = 26, AA = 27.
+fn column_index(col: &str) -> u32 {
+    col.chars().fold(0, |acc, c| {
+        acc * 26 + (c.to_ascii_uppercase() as u32 - 'A' as u32 + 1)
+    })
+}
+
+/// Chooses patches by `spec`, returning indices into `labels` in the labels' own order.
+///
+/// * `all` — every patch;
+/// * `B2:M9` — a rectangle of chart labels: columns B..M × rows 2..9 (every label in it must exist);
+/// * `A1,C3,patch7` — a list of labels.
+pub fn select_patches(labels: &[String], spec: &str) -> Result<Vec<usize>, TrainingError> {
+    let spec_t = spec.trim();
+    let err = |why: String| TrainingError::Patches {
+        spec: spec.to_string(),
+        why,
+    };
+    if spec_t.eq_ignore_ascii_case("all") {
+        return Ok((0..labels.len()).collect());
+    }
+    if let Some((a, b)) = spec_t.split_once(':') {
+        let (ca, ra) = split_label(a.trim())
+            .ok_or_else(|| err(format!("`{a}` is not a chart label like B2")))?;
+        let (cb, rb) = split_label(b.trim())
+            .ok_or_else(|| err(format!("`{b}` is not a chart label like M9")))?;
+        let (c0, c1) = (column_index(ca), column_index(cb));
+        let (c0, c1) = (c0.min(c1), c0.max(c1));
+        let (r0, r1) = (ra.min(rb), ra.max(rb));
+        let idx: Vec<usize> = labels
+            .iter()
+            .enumerate()
+            .filter(|(_, l)| {
+                split_label(l).is_some_and(|(c, r)| {
+                    let c = column_index(c);
+                    c >= c0 && c <= c1 && r >= r0 && r <= r1
+                })
+            })
+            .map(|(i, _)| i)
+            .collect();
+        let expected = ((c1 - c0 + 1) * (r1 - r0 + 1)) as usize;
+        if idx.len() != expected {
+            return Err(err(format!(
+                "the rectangle holds {expected} patches but the data has {} of them (labels must be column letter + row number, e.g. B2)",
+                idx.len()
+            )));
+        }
+        return Ok(idx);
+    }
+    let mut idx = Vec::new();
+    for name in spec_t.split(',').map(str::trim).filter(|s| !s.is_empty()) {
+        let i = labels
+            .iter()
+            .position(|l| l == name)
+            .ok_or_else(|| err(format!("no patch named `{name}`")))?;
+        if idx.contains(&i) {
+            return Err(err(format!("`{name}` is listed twice")));
+        }
+        idx.push(i);
+    }
+    if idx.is_empty() {
+        return Err(err("no patches named".into()));
+    }
+    idx.sort_unstable();
+    Ok(idx)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn sg_labels() -> Vec<String> {
+        let mut v = Vec::new();
+        for c in 'A'..='N' {
+            for r in 1..=10 {
+                v.push(format!("{c}{r}"));
+            }
+        }
+        v
+    }
+
+    #[test]
+    fn rectangle_selects_inner_96() {
+        let l = sg_labels();
+        let idx = select_patches(&l, "B2:M9").unwrap();
+        assert_eq!(idx.len(), 96);
+        assert_eq!(l[idx[0]], "B2");
+        assert_eq!(l[idx[95]], "M9");
+        assert!(!idx.iter().any(|&i| l[i].starts_with('A') || l[i].ends_with("10")));
+        assert_eq!(select_patches(&l, "all").unwrap().len(), 140);
+        assert_eq!(select_patches(&l, "C3, A1").unwrap(), vec![0, 22]);
+        assert!(select_patches(&l, "B2:P9").is_err());
+        assert!(select_patches(&l, "Z9").is_err());
+        assert!(select_patches(&l, "A1,A1").is_err());
+    }
+
+    #[test]
+    fn measured_xyz_and_lab() {
+        let t = "label,R,G,B,X,Y,Z\np1,0.1,0.2,0.3,10,20,30\np2,0.3,0.2,0.1,30,20,10\n";
+        let ts = TrainingSet::parse_measured(t, "m.csv", None).unwrap();
+        assert_eq!(ts.len(), 2);
+        assert_eq!(ts.xyz[1], [30.0, 20.0, 10.0]);
+        let t = "label,R,G,B,L,a,b\np1,0.1,0.2,0.3,100,0,0\n";
+        assert!(TrainingSet::parse_measured(t, "m.csv", None)
+            .unwrap_err()
+            .to_string()
+            .contains("white"));
+        let w = [95.047, 100.0, 108.883];
+        let ts = TrainingSet::parse_measured(t, "m.csv", Some(w)).unwrap();
+        for k in 0..3 {
+            assert!((ts.xyz[0][k] - w[k]).abs() < 1e-9);
+        }
+        let bad = "label,R,G,B,X,Y,Z\np1,0.1,x,0.3,10,20,30\n";
+        let e = TrainingSet::parse_measured(bad, "m.csv", None).unwrap_err().to_string();
+        assert!(e.contains("line 2") && e.contains("`G`"), "{e}");
+        let bad = "label,R,G,B,X,Y\n";
+        assert!(TrainingSet::parse_measured(bad, "m.csv", None).is_err());
+        let bad = "label,R,G,B,X,Y,Z\n";
+        assert!(TrainingSet::parse_measured(bad, "m.csv", None).is_err());
+    }
+
+    #[test]
+    fn white_parse() {
+        assert_eq!(parse_white("95,100,108").unwrap(), [95.0, 100.0, 108.0]);
+        assert!(parse_white("95,100").is_err());
+        assert!(parse_white("95,0,108").is_err());
+    }
+}

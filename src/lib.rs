@@ -27,11 +27,14 @@
 //! ```
 #![forbid(unsafe_code)]
 
+pub mod atomic;
 pub mod colorimetry;
 pub mod eval;
+pub mod frame;
 pub mod model;
 pub mod spectral;
 pub mod training;
 
+pub use frame::{Frame, Layout};
 pub use model::{Kind, Model};
 pub use training::TrainingSet;

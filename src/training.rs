@@ -16,7 +16,9 @@ pub enum TrainingError {
     },
     #[error("{source_name}: the file is empty")]
     Empty { source_name: String },
-    #[error("{source_name}: header must be `label,R,G,B,X,Y,Z` or `label,R,G,B,L,a,b`, found `{found}`")]
+    #[error(
+        "{source_name}: header must be `label,R,G,B,X,Y,Z` or `label,R,G,B,L,a,b`, found `{found}`"
+    )]
     Header { source_name: String, found: String },
     #[error("{source_name}: Lab training data needs a reference white (`--white X,Y,Z` or an illuminant name)")]
     NeedsWhite { source_name: String },
@@ -114,7 +116,10 @@ impl TrainingSet {
     ///
     /// For XYZ data the reference white for ΔE00 is `white` when given, else D65 scaled to the
     /// data (`Y = 100`).
-    pub fn read_measured(path: &Path, white: Option<[f64; 3]>) -> Result<TrainingSet, TrainingError> {
+    pub fn read_measured(
+        path: &Path,
+        white: Option<[f64; 3]>,
+    ) -> Result<TrainingSet, TrainingError> {
         let source_name = path.display().to_string();
         let text = std::fs::read_to_string(path).map_err(|err| TrainingError::Io {
             source_name: source_name.clone(),
@@ -347,7 +352,9 @@ mod tests {
         assert_eq!(idx.len(), 96);
         assert_eq!(l[idx[0]], "B2");
         assert_eq!(l[idx[95]], "M9");
-        assert!(!idx.iter().any(|&i| l[i].starts_with('A') || l[i].ends_with("10")));
+        assert!(!idx
+            .iter()
+            .any(|&i| l[i].starts_with('A') || l[i].ends_with("10")));
         assert_eq!(select_patches(&l, "all").unwrap().len(), 140);
         assert_eq!(select_patches(&l, "C3, A1").unwrap(), vec![0, 22]);
         assert!(select_patches(&l, "B2:P9").is_err());
@@ -372,7 +379,9 @@ mod tests {
             assert!((ts.xyz[0][k] - w[k]).abs() < 1e-9);
         }
         let bad = "label,R,G,B,X,Y,Z\np1,0.1,x,0.3,10,20,30\n";
-        let e = TrainingSet::parse_measured(bad, "m.csv", None).unwrap_err().to_string();
+        let e = TrainingSet::parse_measured(bad, "m.csv", None)
+            .unwrap_err()
+            .to_string();
         assert!(e.contains("line 2") && e.contains("`G`"), "{e}");
         let bad = "label,R,G,B,X,Y\n";
         assert!(TrainingSet::parse_measured(bad, "m.csv", None).is_err());

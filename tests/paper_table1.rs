@@ -7,7 +7,8 @@ use nsrm::spectral::{simulate, Camera, Grid, Illuminant, Reflectances};
 use std::path::PathBuf;
 
 fn sg_path() -> Option<PathBuf> {
-    let p = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../shared/data/colorchecker_sg_140.csv");
+    let p =
+        PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../shared/data/colorchecker_sg_140.csv");
     if p.exists() {
         Some(p)
     } else {
@@ -43,10 +44,25 @@ fn sg_inner_96_d65_order_3_leave_one_out() {
     ];
     for (kind, mean, median, max) in want {
         let r = evaluate(kind, 3, &data, Protocol::LeaveOneOut, "D65").unwrap();
-        eprintln!("{kind}: {:.4} / {:.4} / {:.4}", r.stats.mean, r.stats.median, r.stats.max);
+        eprintln!(
+            "{kind}: {:.4} / {:.4} / {:.4}",
+            r.stats.mean, r.stats.median, r.stats.max
+        );
         assert_eq!(r.per_patch.len(), 96);
-        assert!((r.stats.mean - mean).abs() <= 0.01, "{kind} mean {}", r.stats.mean);
-        assert!((r.stats.median - median).abs() <= 0.01, "{kind} median {}", r.stats.median);
-        assert!((r.stats.max - max).abs() <= 0.01, "{kind} max {}", r.stats.max);
+        assert!(
+            (r.stats.mean - mean).abs() <= 0.01,
+            "{kind} mean {}",
+            r.stats.mean
+        );
+        assert!(
+            (r.stats.median - median).abs() <= 0.01,
+            "{kind} median {}",
+            r.stats.median
+        );
+        assert!(
+            (r.stats.max - max).abs() <= 0.01,
+            "{kind} max {}",
+            r.stats.max
+        );
     }
 }

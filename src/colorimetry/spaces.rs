@@ -56,14 +56,10 @@ impl OutputSpace {
         match self {
             OutputSpace::Xyz => None,
             OutputSpace::LinearSrgb => Some(([[0.64, 0.33], [0.30, 0.60], [0.15, 0.06]], D65)),
-            OutputSpace::Acescg => Some((
-                [[0.713, 0.293], [0.165, 0.830], [0.128, 0.044]],
-                ACES,
-            )),
-            OutputSpace::Aces2065_1 => Some((
-                [[0.7347, 0.2653], [0.0, 1.0], [0.0001, -0.0770]],
-                ACES,
-            )),
+            OutputSpace::Acescg => Some(([[0.713, 0.293], [0.165, 0.830], [0.128, 0.044]], ACES)),
+            OutputSpace::Aces2065_1 => {
+                Some(([[0.7347, 0.2653], [0.0, 1.0], [0.0001, -0.0770]], ACES))
+            }
         }
     }
 
@@ -152,7 +148,8 @@ pub fn mul(a: &Mat3, b: &Mat3) -> Mat3 {
 
 /// The inverse of a 3×3 matrix (cofactors; the matrices here are well conditioned).
 pub fn invert(m: &Mat3) -> Mat3 {
-    let c = |r0: usize, r1: usize, c0: usize, c1: usize| m[r0][c0] * m[r1][c1] - m[r0][c1] * m[r1][c0];
+    let c =
+        |r0: usize, r1: usize, c0: usize, c1: usize| m[r0][c0] * m[r1][c1] - m[r0][c1] * m[r1][c0];
     let cof = [
         [c(1, 2, 1, 2), -c(1, 2, 0, 2), c(1, 2, 0, 1)],
         [-c(0, 2, 1, 2), c(0, 2, 0, 2), -c(0, 2, 0, 1)],

@@ -72,7 +72,9 @@ impl Model {
             kind: self.kind.name().into(),
             order: self.order,
             terms: self.term_names(),
-            matrix: (0..3).map(|i| self.matrix[i * l..(i + 1) * l].to_vec()).collect(),
+            matrix: (0..3)
+                .map(|i| self.matrix[i * l..(i + 1) * l].to_vec())
+                .collect(),
             input: Input {
                 signal: "linear camera RGB, not white-balanced (raw channel ratios)".into(),
                 camera_scale: "the perfect white under the training illuminant has G = 1".into(),
@@ -100,7 +102,10 @@ impl Model {
             err,
         })?;
         if f.format != FORMAT {
-            return Err(bad(format!("format is `{}`, expected `{FORMAT}`", f.format)));
+            return Err(bad(format!(
+                "format is `{}`, expected `{FORMAT}`",
+                f.format
+            )));
         }
         if f.version == 0 || f.version > VERSION {
             return Err(bad(format!(
@@ -113,7 +118,10 @@ impl Model {
             return Err(bad(format!("order {} is out of range (1..=4)", f.order)));
         }
         if f.matrix.len() != 3 {
-            return Err(bad(format!("the matrix has {} rows, expected 3", f.matrix.len())));
+            return Err(bad(format!(
+                "the matrix has {} rows, expected 3",
+                f.matrix.len()
+            )));
         }
         let flat: Vec<f64> = f.matrix.concat();
         let mut model = Model::from_matrix(kind, f.order, flat).map_err(|e| match e {
@@ -165,8 +173,8 @@ mod tests {
     use super::*;
 
     fn model() -> Model {
-        let mut m = Model::from_matrix(Kind::Nsrm, 3, (0..30).map(|i| i as f64 * 0.5).collect())
-            .unwrap();
+        let mut m =
+            Model::from_matrix(Kind::Nsrm, 3, (0..30).map(|i| i as f64 * 0.5).collect()).unwrap();
         m.white_xyz = [95.0, 100.0, 108.0];
         m.patches = vec!["a".into(), "b".into()];
         m.provenance.source = "spectral".into();
@@ -187,7 +195,10 @@ mod tests {
         let cases = [
             (good.replace("\"nsrm\"", "\"xyz\""), "unknown model kind"),
             (good.replace("\"order\": 3", "\"order\": 7"), "order 7"),
-            (good.replace("\"version\": 1", "\"version\": 9"), "version 9"),
+            (
+                good.replace("\"version\": 1", "\"version\": 9"),
+                "version 9",
+            ),
             (good.replace("\"r^2*g\"", "\"g^2*r\""), "term list"),
             (good.replacen("0.5,", "NaN,", 1), "not a model file"),
             (good.replacen("0.5,", "", 1), "values"),
@@ -198,7 +209,9 @@ mod tests {
             let e = Model::from_json(&text, "m.json").unwrap_err().to_string();
             assert!(e.contains(want) && e.contains("m.json"), "{want}: {e}");
         }
-        let e = Model::load(Path::new("/nonexistent/m.json")).unwrap_err().to_string();
+        let e = Model::load(Path::new("/nonexistent/m.json"))
+            .unwrap_err()
+            .to_string();
         assert!(e.contains("cannot read"), "{e}");
     }
 }

@@ -146,7 +146,9 @@ impl Model {
             )));
         }
         if matrix.iter().any(|v| !v.is_finite()) {
-            return Err(ModelError::Invalid("the matrix holds a non-finite value".into()));
+            return Err(ModelError::Invalid(
+                "the matrix holds a non-finite value".into(),
+            ));
         }
         Ok(Model {
             kind,
@@ -197,15 +199,37 @@ impl Model {
         };
         let mut out = [0.0; 3];
         for (i, o) in out.iter_mut().enumerate() {
-            *o = scale * self.row(i).iter().zip(p.iter()).map(|(m, x)| m * x).sum::<f64>();
+            *o = scale
+                * self
+                    .row(i)
+                    .iter()
+                    .zip(p.iter())
+                    .map(|(m, x)| m * x)
+                    .sum::<f64>();
         }
         out
+    }
+
+    /// Applies the f64 reference to every pixel of a frame in place (alpha untouched): the oracle
+    /// for the fast CPU path and the GPU shaders. Each pixel is widened to f64, corrected, and
+    /// rounded once to f32.
+    pub fn apply_frame_f64(&self, frame: &mut crate::frame::Frame) {
+        let ch = frame.layout.channels();
+        let mut p = vec![0.0; self.terms.len()];
+        for px in frame.data.chunks_exact_mut(ch) {
+            let out = self.apply_f64_with([px[0] as f64, px[1] as f64, px[2] as f64], &mut p);
+            for k in 0..3 {
+                px[k] = out[k] as f32;
+            }
+        }
     }
 
     /// Applies the f64 reference to many pixels.
     pub fn apply_all_f64(&self, rgb: &[[f64; 3]]) -> Vec<[f64; 3]> {
         let mut p = vec![0.0; self.terms.len()];
-        rgb.iter().map(|&x| self.apply_f64_with(x, &mut p)).collect()
+        rgb.iter()
+            .map(|&x| self.apply_f64_with(x, &mut p))
+            .collect()
     }
 }
 
@@ -257,12 +281,11 @@ pub fn fit(kind: Kind, order: u8, data: &TrainingSet) -> Result<Model, ModelErro
                 xyz,
             });
         }
-        let scale = features(kind, &terms, rgb, &mut p).ok_or_else(|| {
-            ModelError::NonPositiveSignal {
+        let scale =
+            features(kind, &terms, rgb, &mut p).ok_or_else(|| ModelError::NonPositiveSignal {
                 label: data.labels[i].clone(),
                 sum: rgb.iter().sum(),
-            }
-        })?;
+            })?;
         for (j, v) in p.iter().enumerate() {
             a[(i, j)] = *v;
         }
@@ -359,18 +382,34 @@ mod tests {
     fn too_few_patches_and_bad_data_are_refused() {
         let ts = synthetic(12);
         let e = fit(Kind::Prm, 3, &ts).unwrap_err();
-        assert!(matches!(e, ModelError::TooFewPatches { terms: 19, patches: 12, .. }), "{e}");
+        assert!(
+            matches!(
+                e,
+                ModelError::TooFewPatches {
+                    terms: 19,
+                    patches: 12,
+                    ..
+                }
+            ),
+            "{e}"
+        );
         assert!(e.to_string().contains("19 terms"));
         let mut bad = synthetic(30);
         bad.xyz[3][1] = f64::NAN;
-        assert!(matches!(fit(Kind::Lrm, 1, &bad), Err(ModelError::NonFinite { .. })));
+        assert!(matches!(
+            fit(Kind::Lrm, 1, &bad),
+            Err(ModelError::NonFinite { .. })
+        ));
         let mut bad = synthetic(30);
         bad.rgb[5] = [0.0, 0.0, 0.0];
         assert!(matches!(
             fit(Kind::Nsrm, 3, &bad),
             Err(ModelError::NonPositiveSignal { .. })
         ));
-        assert!(matches!(fit(Kind::Nsrm, 5, &bad), Err(ModelError::Order(5))));
+        assert!(matches!(
+            fit(Kind::Nsrm, 5, &bad),
+            Err(ModelError::Order(5))
+        ));
     }
 
     #[test]

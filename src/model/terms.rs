@@ -104,7 +104,10 @@ fn gcd(a: u8, b: u8) -> u8 {
 ///
 /// Panics if `order` is out of range; [`super::Model`] and the fit check it first.
 pub fn terms(kind: Kind, order: u8) -> Vec<Term> {
-    assert!((1..=MAX_ORDER).contains(&order), "order {order} out of range");
+    assert!(
+        (1..=MAX_ORDER).contains(&order),
+        "order {order} out of range"
+    );
     let mono = |e: &[u8; 3], root| Term { exps: *e, root };
     match kind {
         Kind::Lrm => MONOMIALS[0].iter().map(|e| mono(e, 1)).collect(),

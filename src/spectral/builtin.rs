@@ -15,7 +15,10 @@ pub const ILLUMINANTS: &[(&str, &str)] = &[
     ("FL7", include_str!("../../assets/illuminant_FL7.csv")),
     ("TL865", include_str!("../../assets/illuminant_TL865.csv")),
     ("LED-B5", include_str!("../../assets/illuminant_LED-B5.csv")),
-    ("LED-YAG", include_str!("../../assets/illuminant_LED-YAG.csv")),
+    (
+        "LED-YAG",
+        include_str!("../../assets/illuminant_LED-YAG.csv"),
+    ),
 ];
 
 /// Built-in reflectance sets: (name, CSV text).
@@ -24,7 +27,10 @@ pub const REFLECTANCES: &[(&str, &str)] = &[
         "rawtoaces-190",
         include_str!("../../assets/rawtoaces_190_patches.csv"),
     ),
-    ("cc24", include_str!("../../assets/cc24_babelcolor_average.csv")),
+    (
+        "cc24",
+        include_str!("../../assets/cc24_babelcolor_average.csv"),
+    ),
 ];
 
 const CMF: &str = include_str!("../../assets/cie1931_2deg_cmf.csv");
@@ -69,7 +75,10 @@ mod tests {
             }
         }
         assert_eq!(cie1931_cmf().names.len(), 3);
-        assert_eq!(builtin_reflectances("rawtoaces-190").unwrap().names.len(), 190);
+        assert_eq!(
+            builtin_reflectances("rawtoaces-190").unwrap().names.len(),
+            190
+        );
         assert_eq!(builtin_reflectances("CC24").unwrap().names.len(), 24);
         assert_eq!(builtin_camera("nikon-d5100").unwrap().names.len(), 3);
         for (n, _) in ILLUMINANTS {

@@ -28,7 +28,9 @@ pub enum SpectralError {
         #[source]
         err: std::io::Error,
     },
-    #[error("{source_name}: the file is empty (expected a header `wavelength_nm,NAME,...` and rows)")]
+    #[error(
+        "{source_name}: the file is empty (expected a header `wavelength_nm,NAME,...` and rows)"
+    )]
     Empty { source_name: String },
     #[error("{source_name}: the header has no spectrum columns after the wavelength column")]
     NoColumns { source_name: String },
@@ -63,7 +65,9 @@ pub enum SpectralError {
     NoRows { source_name: String },
     #[error("{source_name}: duplicate column name `{column}`")]
     DuplicateColumn { source_name: String, column: String },
-    #[error("{source_name}: a camera file needs exactly 3 spectrum columns (R, G, B), found {found}")]
+    #[error(
+        "{source_name}: a camera file needs exactly 3 spectrum columns (R, G, B), found {found}"
+    )]
     CameraColumns { source_name: String, found: usize },
     #[error("{source_name}: an illuminant file needs exactly 1 spectrum column, found {found}")]
     IlluminantColumns { source_name: String, found: usize },
@@ -302,11 +306,7 @@ fn table_from_path(
         return Err(SpectralError::UnknownName {
             what,
             name: spec.to_string(),
-            known: known
-                .iter()
-                .map(|(n, _)| *n)
-                .collect::<Vec<_>>()
-                .join(", "),
+            known: known.iter().map(|(n, _)| *n).collect::<Vec<_>>().join(", "),
         });
     }
     SpectralTable::read(path)
@@ -437,7 +437,9 @@ mod tests {
 
     #[test]
     fn unknown_name_is_clear() {
-        let e = Illuminant::from_name_or_path("D66").unwrap_err().to_string();
+        let e = Illuminant::from_name_or_path("D66")
+            .unwrap_err()
+            .to_string();
         assert!(e.contains("D65") && e.contains("D66"), "{e}");
     }
 }

@@ -1,0 +1,123 @@
+//! Options shared by several subcommands: where the training data comes from.
+
+use anyhow::{Context, Result};
+use clap::Args as ClapArgs;
+use nsrm::model::Kind;
+use nsrm::spectral::{simulate, Camera, Grid, Illuminant, Reflectances};
+use nsrm::training::{parse_white, TrainingSet};
+use std::path::PathBuf;
+
+/// An error in how the command was called (exit status 2).
+#[derive(Debug, thiserror::Error)]
+#[error("{0}")]
+pub struct UsageError(pub String);
+
+/// Where training patches come from: simulated from spectra, or measured (`--training`).
+#[derive(Debug, Clone, ClapArgs)]
+pub struct TrainingArgs {
+    /// Camera sensitivities: a built-in name (nikon-d5100) or a CSV file (wavelength, R, G, B).
+    #[arg(long, default_value = "nikon-d5100", value_name = "NAME|FILE")]
+    pub camera: String,
+    /// Reflectances, one column per patch: a built-in name (rawtoaces-190, cc24) or a CSV file,
+    /// e.g. a ColorChecker SG (columns A1..N10).
+    #[arg(long, default_value = "rawtoaces-190", value_name = "NAME|FILE")]
+    pub reflectances: String,
+    /// Which patches to use: `all`, a list of labels (A1,C3,…), or a rectangle of chart labels
+    /// such as B2:M9 (columns B..M × rows 2..9: the SG's inner 96).
+    #[arg(long, default_value = "all", value_name = "SPEC")]
+    pub patches: String,
+    /// Wavelength grid for the Riemann sums, START:END:STEP in nm.
+    #[arg(long, default_value = "400:700:10", value_name = "START:END:STEP")]
+    pub grid: String,
+    /// Measured patches instead of spectra: a CSV `label,R,G,B,X,Y,Z` or `label,R,G,B,L,a,b`.
+    #[arg(long, value_name = "FILE", conflicts_with_all = ["camera", "reflectances", "grid"])]
+    pub training: Option<PathBuf>,
+    /// Reference white of measured data: `X,Y,Z` or an illuminant name/file (its perfect white,
+    /// Y = 100). Needed for Lab data; XYZ data defaults to D65.
+    #[arg(long, value_name = "X,Y,Z|ILLUMINANT", requires = "training")]
+    pub white: Option<String>,
+}
+
+impl TrainingArgs {
+    /// Builds the training set for `illuminant` (ignored with `--training`).
+    pub fn load(&self, illuminant: &str) -> Result<TrainingSet> {
+        let data = match &self.training {
+            Some(path) => {
+                let white = self.white.as_deref().map(white_point).transpose()?;
+                TrainingSet::read_measured(path, white)?
+            }
+            None => {
+                let grid = Grid::parse(&self.grid).map_err(|e| UsageError(e.to_string()))?;
+                let camera = Camera::from_name_or_path(&self.camera)
+                    .with_context(|| format!("loading camera `{}`", self.camera))?;
+                let ill = Illuminant::from_name_or_path(illuminant)
+                    .with_context(|| format!("loading illuminant `{illuminant}`"))?;
+                let refl = Reflectances::from_name_or_path(&self.reflectances)
+                    .with_context(|| format!("loading reflectances `{}`", self.reflectances))?;
+                simulate(&camera, &ill, &refl, &grid)
+                    .with_context(|| format!("simulating the camera under {illuminant}"))?
+            }
+        };
+        Ok(data.select(&self.patches)?)
+    }
+}
+
+/// `X,Y,Z`, or the perfect white (Y = 100) of a named illuminant on the default grid.
+fn white_point(spec: &str) -> Result<[f64; 3]> {
+    if spec.contains(',') {
+        return Ok(parse_white(spec)?);
+    }
+    let ill = Illuminant::from_name_or_path(spec)?;
+    let white = nsrm::spectral::Reflectances(nsrm::spectral::SpectralTable {
+        source_name: "perfect white".into(),
+        wavelengths: vec![300.0, 900.0],
+        names: vec!["white".into()],
+        values: vec![vec![1.0, 1.0]],
+    });
+    let camera = Camera::from_name_or_path("nikon-d5100")?;
+    let ts = simulate(&camera, &ill, &white, &Grid::default())?;
+    Ok(ts.xyz[0])
+}
+
+/// Parses `lrm,prm,rprm,nsrm`.
+pub fn parse_models(spec: &str) -> Result<Vec<Kind>> {
+    let mut v = Vec::new();
+    for s in spec.split(',').filter(|s| !s.trim().is_empty()) {
+        let k = Kind::parse(s).map_err(|e| UsageError(e.to_string()))?;
+        if !v.contains(&k) {
+            v.push(k);
+        }
+    }
+    if v.is_empty() {
+        return Err(UsageError("--models names no model".into()).into());
+    }
+    Ok(v)
+}
+
+/// Parses `--orders`: `3`, `1-4` or `1,3`.
+pub fn parse_orders(spec: &str) -> Result<Vec<u8>> {
+    let bad = || {
+        UsageError(format!(
+            "--orders `{spec}`: expected N, A-B or a list, within 1..4"
+        ))
+    };
+    let mut v = Vec::new();
+    for part in spec.split(',') {
+        let part = part.trim();
+        let (a, b) = match part.split_once('-') {
+            Some((a, b)) => (a.trim(), b.trim()),
+            None => (part, part),
+        };
+        let a: u8 = a.parse().map_err(|_| bad())?;
+        let b: u8 = b.parse().map_err(|_| bad())?;
+        if a < 1 || b > 4 || a > b {
+            return Err(bad().into());
+        }
+        for o in a..=b {
+            if !v.contains(&o) {
+                v.push(o);
+            }
+        }
+    }
+    Ok(v)
+}

@@ -1,0 +1,60 @@
+//! Argument parsing and dispatch. Each subcommand lives in its own file; flags are documented once
+//! (their doc comments) and clap turns them into `--help`.
+//!
+//! Exit status: 0 success, 1 failure (a message with its context on stderr), 2 usage error.
+
+mod common;
+mod eval;
+mod fit;
+mod terms;
+
+use clap::{Parser, Subcommand};
+use std::process::ExitCode;
+
+/// Camera colour correction: fit LRM / PRM / RPRM / NSRM models on chart spectra or measured
+/// patches, evaluate them as the NSRM paper does, and apply them to linear raw frames on the GPU.
+#[derive(Debug, Parser)]
+#[command(name = "nsrm", version, propagate_version = true)]
+struct Cli {
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Debug, Subcommand)]
+enum Command {
+    /// Leave-one-out (or in-sample) ΔE00 of the models; without flags, the paper's experiment on
+    /// built-in data (D5100, rawtoaces-190, D65/TL865/LED-B5), printed like its Table 1.
+    Eval(eval::Args),
+    /// Fit one model and write it as a JSON model file.
+    Fit(fit::Args),
+    /// List the terms of a model kind and order (the single definition the shaders use).
+    Terms(terms::Args),
+}
+
+/// Parses the command line, runs the subcommand, and maps errors to exit codes.
+pub fn main() -> ExitCode {
+    let cli = match Cli::try_parse() {
+        Ok(c) => c,
+        Err(e) => {
+            let code = if e.use_stderr() { 2 } else { 0 };
+            let _ = e.print();
+            return ExitCode::from(code);
+        }
+    };
+    let result = match cli.command {
+        Command::Eval(a) => eval::run(a),
+        Command::Fit(a) => fit::run(a),
+        Command::Terms(a) => terms::run(a),
+    };
+    match result {
+        Ok(code) => code,
+        Err(e) => {
+            eprintln!("nsrm: error: {e:#}");
+            if e.downcast_ref::<common::UsageError>().is_some() {
+                ExitCode::from(2)
+            } else {
+                ExitCode::from(1)
+            }
+        }
+    }
+}

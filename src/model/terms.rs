@@ -185,13 +185,12 @@ pub fn expand(terms: &[Term], vars: [f64; 3], out: &mut [f64]) {
     debug_assert_eq!(terms.len(), out.len());
     for (t, o) in terms.iter().zip(out.iter_mut()) {
         let mut v = 1.0;
-        for c in 0..3 {
-            let e = t.exps[c];
+        for (&x, &e) in vars.iter().zip(&t.exps) {
             if e > 0 {
                 let base = if t.root == 1 {
-                    vars[c]
+                    x
                 } else {
-                    signed_root(vars[c], t.root)
+                    signed_root(x, t.root)
                 };
                 v *= base.powi(e as i32);
             }

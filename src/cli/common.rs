@@ -68,15 +68,7 @@ fn white_point(spec: &str) -> Result<[f64; 3]> {
         return Ok(parse_white(spec)?);
     }
     let ill = Illuminant::from_name_or_path(spec)?;
-    let white = nsrm::spectral::Reflectances(nsrm::spectral::SpectralTable {
-        source_name: "perfect white".into(),
-        wavelengths: vec![300.0, 900.0],
-        names: vec!["white".into()],
-        values: vec![vec![1.0, 1.0]],
-    });
-    let camera = Camera::from_name_or_path("nikon-d5100")?;
-    let ts = simulate(&camera, &ill, &white, &Grid::default())?;
-    Ok(ts.xyz[0])
+    Ok(nsrm::spectral::white_xyz(&ill, &Grid::default())?)
 }
 
 /// Parses `lrm,prm,rprm,nsrm`.

@@ -312,6 +312,25 @@ fn table_from_path(
     SpectralTable::read(path)
 }
 
+/// XYZ of the perfect white (ρ = 1) under `illuminant` on `grid`, scaled to `Y = 100`.
+pub fn white_xyz(illuminant: &Illuminant, grid: &Grid) -> Result<[f64; 3], SpectralError> {
+    let cmf = cie1931_cmf().resample(grid);
+    let e = illuminant.0.resample(grid).remove(0);
+    let ones = vec![1.0; grid.len()];
+    let y = riemann(&e, &ones, &cmf[1], grid.step);
+    if !(y > 0.0 && y.is_finite()) {
+        return Err(SpectralError::DegenerateWhite {
+            what: format!("illuminant {} (Y)", illuminant.0.source_name),
+            value: y,
+        });
+    }
+    Ok([
+        100.0 * riemann(&e, &ones, &cmf[0], grid.step) / y,
+        100.0,
+        100.0 * riemann(&e, &ones, &cmf[2], grid.step) / y,
+    ])
+}
+
 fn riemann(a: &[f64], b: &[f64], c: &[f64], step: f64) -> f64 {
     a.iter()
         .zip(b)
@@ -338,13 +357,8 @@ pub fn simulate(
     let refl = reflectances.0.resample(grid);
     let ones = vec![1.0; grid.len()];
 
+    let white_xyz = white_xyz(illuminant, grid)?;
     let y_white = riemann(&e, &ones, &cmf[1], grid.step);
-    if !(y_white > 0.0 && y_white.is_finite()) {
-        return Err(SpectralError::DegenerateWhite {
-            what: format!("illuminant {} (Y)", illuminant.0.source_name),
-            value: y_white,
-        });
-    }
     let g_white = riemann(&e, &ones, &cam[1], grid.step);
     if !(g_white > 0.0 && g_white.is_finite()) {
         return Err(SpectralError::DegenerateWhite {
@@ -357,11 +371,6 @@ pub fn simulate(
     }
     let kx = 100.0 / y_white;
     let kc = 1.0 / g_white;
-    let white_xyz = [
-        kx * riemann(&e, &ones, &cmf[0], grid.step),
-        100.0,
-        kx * riemann(&e, &ones, &cmf[2], grid.step),
-    ];
     let mut rgb = Vec::with_capacity(refl.len());
     let mut xyz = Vec::with_capacity(refl.len());
     for r in &refl {

@@ -31,6 +31,7 @@ pub mod atomic;
 pub mod colorimetry;
 pub mod eval;
 pub mod frame;
+pub mod gpu;
 pub mod model;
 pub mod spectral;
 pub mod training;

@@ -5,6 +5,7 @@
 
 mod common;
 mod eval;
+mod export_shader;
 mod fit;
 mod terms;
 
@@ -25,6 +26,9 @@ enum Command {
     /// Leave-one-out (or in-sample) ΔE00 of the models; without flags, the paper's experiment on
     /// built-in data (D5100, rawtoaces-190, D65/TL865/LED-B5), printed like its Table 1.
     Eval(eval::Args),
+    /// Write a self-contained compute shader (WGSL, GLSL, HLSL, MSL or SPIR-V) with a model's
+    /// matrix baked in.
+    ExportShader(export_shader::Args),
     /// Fit one model and write it as a JSON model file.
     Fit(fit::Args),
     /// List the terms of a model kind and order (the single definition the shaders use).
@@ -43,6 +47,7 @@ pub fn main() -> ExitCode {
     };
     let result = match cli.command {
         Command::Eval(a) => eval::run(a),
+        Command::ExportShader(a) => export_shader::run(a),
         Command::Fit(a) => fit::run(a),
         Command::Terms(a) => terms::run(a),
     };

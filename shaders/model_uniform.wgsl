@@ -1,0 +1,9 @@
+// The model's 3×L matrix as a uniform: column j (the weights of term j for X, Y, Z) in
+// `model.m[j].xyz`, 16-byte stride (naga rejects `array<f32, N>` in a uniform).
+// `N_TERMS` is generated from `nsrm::model::terms(kind, order)`; `set_model` rewrites this buffer.
+
+struct ModelMatrix {
+    m: array<vec4<f32>, N_TERMS>,
+}
+
+@group(0) @binding(0) var<uniform> model: ModelMatrix;

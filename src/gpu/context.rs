@@ -1,0 +1,101 @@
+//! Instance, adapter and device: backend and adapter selection (see the [module docs](super)).
+
+use super::{GpuError, GpuOptions};
+
+/// An opened adapter with its device and queue.
+#[derive(Debug)]
+pub struct GpuContext {
+    pub instance: wgpu::Instance,
+    pub adapter: wgpu::Adapter,
+    pub device: wgpu::Device,
+    pub queue: wgpu::Queue,
+}
+
+/// The backends to look at: `WGPU_BACKEND` if set, else Vulkan / Metal / DX12.
+pub fn backends() -> wgpu::Backends {
+    wgpu::Backends::from_env().unwrap_or(wgpu::Backends::PRIMARY)
+}
+
+/// `name (Backend, DeviceType)`, e.g. `llvmpipe (LLVM 15.0.6, 256 bits) (Vulkan, Cpu)`.
+pub fn describe(info: &wgpu::AdapterInfo) -> String {
+    format!("{} ({:?}, {:?})", info.name, info.backend, info.device_type)
+}
+
+impl GpuContext {
+    /// Opens the adapter `opts` (or `NSRM_ADAPTER`) names, else the default one, and a device
+    /// with the adapter's limits and (where offered) timestamp queries.
+    ///
+    /// ```no_run
+    /// let ctx = nsrm::gpu::GpuContext::new(&nsrm::gpu::GpuOptions::default())?;
+    /// println!("{}", ctx.adapter_name());
+    /// # Ok::<(), nsrm::gpu::GpuError>(())
+    /// ```
+    pub fn new(opts: &GpuOptions) -> Result<GpuContext, GpuError> {
+        let backends = backends();
+        let mut desc = wgpu::InstanceDescriptor::new_without_display_handle();
+        desc.backends = backends;
+        desc.flags = wgpu::InstanceFlags::from_build_config().with_env();
+        let instance = wgpu::Instance::new(desc);
+        let wanted = opts
+            .adapter
+            .clone()
+            .or_else(|| std::env::var("NSRM_ADAPTER").ok())
+            .filter(|s| !s.trim().is_empty());
+        let adapter = match wanted {
+            Some(w) => {
+                let adapters = pollster::block_on(instance.enumerate_adapters(backends));
+                if adapters.is_empty() {
+                    return Err(GpuError::NoAdapter {
+                        detail: format!("backends {backends:?}"),
+                    });
+                }
+                let needle = w.trim().to_lowercase();
+                let names: Vec<String> = adapters.iter().map(|a| describe(&a.get_info())).collect();
+                match names
+                    .iter()
+                    .position(|n| n.to_lowercase().contains(&needle))
+                {
+                    Some(i) => adapters.into_iter().nth(i).expect("index from position"),
+                    None => {
+                        return Err(GpuError::AdapterNotFound {
+                            wanted: w,
+                            available: names,
+                        })
+                    }
+                }
+            }
+            None => pollster::block_on(
+                instance.request_adapter(&wgpu::RequestAdapterOptions {
+                    power_preference: wgpu::PowerPreference::from_env()
+                        .unwrap_or(wgpu::PowerPreference::HighPerformance),
+                    force_fallback_adapter: false,
+                    compatible_surface: None,
+                    apply_limit_buckets: false,
+                }),
+            )
+            .map_err(|e| GpuError::NoAdapter {
+                detail: e.to_string(),
+            })?,
+        };
+        let wanted_features =
+            wgpu::Features::TIMESTAMP_QUERY | wgpu::Features::TIMESTAMP_QUERY_INSIDE_ENCODERS;
+        let (device, queue) =
+            pollster::block_on(adapter.request_device(&wgpu::DeviceDescriptor {
+                label: Some("nsrm"),
+                required_features: adapter.features() & wanted_features,
+                required_limits: adapter.limits(),
+                ..Default::default()
+            }))?;
+        Ok(GpuContext {
+            instance,
+            adapter,
+            device,
+            queue,
+        })
+    }
+
+    /// `name (Backend, DeviceType)`, e.g. `llvmpipe (LLVM 15.0.6, 256 bits) (Vulkan, Cpu)`.
+    pub fn adapter_name(&self) -> String {
+        describe(&self.adapter.get_info())
+    }
+}

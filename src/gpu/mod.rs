@@ -1,0 +1,192 @@
+//! Applying models on the GPU with wgpu: adapter and device setup ([`GpuContext`]), the
+//! [`Corrector`] (one model's pipeline and uniform, recording into a caller's encoder), the
+//! frame [`Engine`] built on it (tiling, double-buffered upload / compute / read-back), shader
+//! generation ([`shader`]) and export to other languages ([`export`]).
+//!
+//! The shaders follow the pixel policy of [`crate::model`] exactly: NaN / Inf propagate, NSRM
+//! with `s = R+G+B ≤ 0` gives 0, negative channels are allowed (RPRM's roots keep the sign),
+//! nothing is clamped. They compute in f32; against the f64 reference the relative error per
+//! value stays within 1e-5 (see `tests/gpu.rs`).
+//!
+//! # Adapter selection
+//! * Backends: `WGPU_BACKEND` (e.g. `vulkan`, `gl`, `metal`, `dx12`) if set, else the primary
+//!   backends (Vulkan, Metal, DX12; not GL, where Mesa shows llvmpipe a second time).
+//! * Adapter: the default one (`WGPU_POWER_PREF=low|high` is honoured), unless
+//!   [`GpuOptions::adapter`] or else the `NSRM_ADAPTER` environment variable names a
+//!   substring of the wanted adapter's name (case-insensitive, e.g. `llvmpipe`, `nvidia`).
+//! * The device gets the adapter's own limits and, where offered, timestamp queries.
+//!
+//! ```no_run
+//! use nsrm::gpu::{open, DeviceChoice, GpuOptions};
+//! # fn main() -> Result<(), Box<dyn std::error::Error>> {
+//! # let model: nsrm::Model = unimplemented!();
+//! # let mut frame: nsrm::Frame = unimplemented!();
+//! match open(DeviceChoice::Auto, &GpuOptions::default())? {
+//!     Some(mut engine) => engine.apply(&model, &mut frame)?,
+//!     None => model.apply_frame_f64(&mut frame), // no adapter: the CPU path
+//! }
+//! # Ok(()) }
+//! ```
+
+mod context;
+mod corrector;
+pub mod demo;
+mod engine;
+pub mod export;
+pub mod shader;
+
+pub use context::GpuContext;
+pub use corrector::Corrector;
+pub use engine::{Engine, GpuTiming, DEFAULT_TILE_PIXELS, OUTPUT_SENTINEL_BITS};
+pub use shader::{Target, TexelFormat};
+
+/// The driver hint every "no adapter" error carries.
+pub const NO_ADAPTER_HINT: &str =
+    "no GPU adapter found: install a Vulkan driver (e.g. apt-get install mesa-vulkan-drivers libvulkan1)";
+
+/// Errors of the GPU path.
+#[derive(Debug, thiserror::Error)]
+pub enum GpuError {
+    /// No adapter on the enabled backends.
+    #[error("{NO_ADAPTER_HINT} ({detail})")]
+    NoAdapter { detail: String },
+    /// Adapters exist, but none matches the requested name.
+    #[error("no GPU adapter matches `{wanted}`; available: {}", available.join("; "))]
+    AdapterNotFound {
+        wanted: String,
+        available: Vec<String>,
+    },
+    #[error("cannot open the GPU device: {0}")]
+    RequestDevice(#[from] wgpu::RequestDeviceError),
+    /// naga rejected a shader (a bug in the generated source, or an unsupported target).
+    #[error("shader error ({stage}): {message}")]
+    Shader {
+        stage: &'static str,
+        message: String,
+    },
+    /// A shader could not be translated to another language.
+    #[error("cannot translate the shader to {lang}: {message}")]
+    Export { lang: String, message: String },
+    /// The model is not usable (inconsistent terms / matrix, or not finite in f32).
+    #[error("invalid model: {0}")]
+    InvalidModel(String),
+    /// `set_model` with a model of another kind or order than the corrector was built for.
+    #[error("this corrector is for {expected}; {got} needs a new one")]
+    ModelMismatch { expected: String, got: String },
+    /// Buffers, textures or sizes that the corrector cannot take.
+    #[error("{0}")]
+    Usage(String),
+    /// wgpu reported a validation or out-of-memory error.
+    #[error("wgpu error: {0}")]
+    Wgpu(String),
+    #[error("GPU read-back failed: {0}")]
+    Map(#[from] wgpu::BufferAsyncError),
+    #[error("GPU read-back failed: {0}")]
+    MapRange(#[from] wgpu::MapRangeError),
+    #[error("waiting for the GPU failed: {0}")]
+    Poll(#[from] wgpu::PollError),
+    #[error("cannot encode the image: {0}")]
+    Image(#[from] image::ImageError),
+    #[error(transparent)]
+    Write(#[from] crate::atomic::WriteError),
+}
+
+/// Options for [`Engine::new`] / [`open`].
+#[derive(Debug, Clone, Default, PartialEq, Eq)]
+pub struct GpuOptions {
+    /// A substring of the adapter's name (case-insensitive); `None`: the `NSRM_ADAPTER`
+    /// environment variable, else the default adapter.
+    pub adapter: Option<String>,
+    /// Pixels per tile streamed through the GPU; `None`: 1 Mpixel (capped so one tile fits in
+    /// a storage binding). Small values are for tests.
+    pub tile_pixels: Option<usize>,
+}
+
+/// Where to apply a model.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub enum DeviceChoice {
+    /// The GPU if an adapter exists, else the CPU.
+    Auto,
+    /// The GPU, or an error.
+    Gpu,
+    /// The CPU.
+    Cpu,
+}
+
+impl DeviceChoice {
+    /// Parses `auto`, `gpu` or `cpu` (case-insensitive).
+    ///
+    /// ```
+    /// use nsrm::gpu::DeviceChoice;
+    /// assert_eq!(DeviceChoice::parse("GPU"), Some(DeviceChoice::Gpu));
+    /// assert_eq!(DeviceChoice::parse("tpu"), None);
+    /// ```
+    pub fn parse(s: &str) -> Option<DeviceChoice> {
+        match s.trim().to_ascii_lowercase().as_str() {
+            "auto" => Some(DeviceChoice::Auto),
+            "gpu" => Some(DeviceChoice::Gpu),
+            "cpu" => Some(DeviceChoice::Cpu),
+            _ => None,
+        }
+    }
+
+    /// `auto`, `gpu` or `cpu`.
+    pub fn name(self) -> &'static str {
+        match self {
+            DeviceChoice::Auto => "auto",
+            DeviceChoice::Gpu => "gpu",
+            DeviceChoice::Cpu => "cpu",
+        }
+    }
+}
+
+/// Opens the engine the choice asks for.
+///
+/// * `Auto`: `Ok(Some(engine))` if an adapter exists, `Ok(None)` if there is none (the caller
+///   says once that it runs on the CPU reference path); other failures (an adapter name that
+///   matches nothing, a device that cannot be opened) are errors.
+/// * `Gpu`: the engine, or an error ([`GpuError::NoAdapter`] names the driver to install).
+/// * `Cpu`: `Ok(None)`.
+///
+/// ```
+/// use nsrm::gpu::{open, DeviceChoice, GpuOptions};
+/// assert!(open(DeviceChoice::Cpu, &GpuOptions::default()).unwrap().is_none());
+/// ```
+pub fn open(choice: DeviceChoice, opts: &GpuOptions) -> Result<Option<Engine>, GpuError> {
+    match choice {
+        DeviceChoice::Cpu => Ok(None),
+        DeviceChoice::Gpu => Engine::new(opts).map(Some),
+        DeviceChoice::Auto => match Engine::new(opts) {
+            Ok(e) => Ok(Some(e)),
+            Err(GpuError::NoAdapter { .. }) => Ok(None),
+            Err(e) => Err(e),
+        },
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn device_choice_parses() {
+        for c in [DeviceChoice::Auto, DeviceChoice::Gpu, DeviceChoice::Cpu] {
+            assert_eq!(DeviceChoice::parse(c.name()), Some(c));
+        }
+        assert_eq!(DeviceChoice::parse(" Auto "), Some(DeviceChoice::Auto));
+        assert_eq!(DeviceChoice::parse(""), None);
+    }
+
+    #[test]
+    fn no_adapter_error_names_the_driver() {
+        let e = GpuError::NoAdapter {
+            detail: "backends: VULKAN".into(),
+        };
+        assert!(e.to_string().starts_with(
+            "no GPU adapter found: install a Vulkan driver (e.g. apt-get install mesa-vulkan-drivers libvulkan1)"
+        ));
+        assert!(open(DeviceChoice::Cpu, &GpuOptions::default())
+            .unwrap()
+            .is_none());
+    }
+}

@@ -1,0 +1,483 @@
+//! WGSL generation: the hand-written sources in `shaders/` (bindings, indexing, pixel policy)
+//! plus the term expansion generated from [`crate::model::terms()`], the one definition of every
+//! model's terms.
+//!
+//! A shader is assembled from
+//! 1. a generated header of constants (`CHANNELS`, `WORKGROUP_SIZE`, `ROW_GROUPS`, `TILE_SIZE`,
+//!    `N_TERMS`),
+//! 2. the model's coefficients: `shaders/model_uniform.wgsl` (a uniform the [`Corrector`]
+//!    rewrites to swap models) or, for exported shaders, a generated `const` array,
+//! 3. the kind's file (`shaders/{lrm,prm,rprm,nsrm}.wgsl`: `fn correct`, the pixel policy),
+//! 4. the frame file (`shaders/frame_{buffer,in_place,texture}.wgsl`: bindings and `main`),
+//! 5. the generated `fn model_terms(x) -> vec3<f32>`: `Σ_j M[:, j] · term_j(x)`.
+//!
+//! [`Corrector`]: super::Corrector
+
+use super::GpuError;
+use crate::frame::Layout;
+use crate::model::{term_name, terms, Kind, Model, Term};
+use std::fmt::Write as _;
+
+/// Threads per workgroup of the buffer shaders (one pixel each).
+pub const WORKGROUP_SIZE: u32 = 256;
+/// Workgroups per dispatch row of the buffer shaders: a dispatch of `G` workgroups is
+/// `(G, 1, 1)` when `G <= ROW_GROUPS`, else `(ROW_GROUPS, ceil(G / ROW_GROUPS), 1)`.
+pub const ROW_GROUPS: u32 = 256;
+/// Side of the square workgroup of the texture shader.
+pub const TILE_SIZE: u32 = 16;
+/// The entry point of every shader.
+pub const ENTRY_POINT: &str = "main";
+
+/// The hand-written WGSL sources, by file name.
+pub const SOURCES: [(&str, &str); 8] = [
+    (
+        "model_uniform.wgsl",
+        include_str!("../../shaders/model_uniform.wgsl"),
+    ),
+    (
+        "frame_buffer.wgsl",
+        include_str!("../../shaders/frame_buffer.wgsl"),
+    ),
+    (
+        "frame_in_place.wgsl",
+        include_str!("../../shaders/frame_in_place.wgsl"),
+    ),
+    (
+        "frame_texture.wgsl",
+        include_str!("../../shaders/frame_texture.wgsl"),
+    ),
+    ("lrm.wgsl", include_str!("../../shaders/lrm.wgsl")),
+    ("prm.wgsl", include_str!("../../shaders/prm.wgsl")),
+    ("rprm.wgsl", include_str!("../../shaders/rprm.wgsl")),
+    ("nsrm.wgsl", include_str!("../../shaders/nsrm.wgsl")),
+];
+
+fn source(name: &str) -> &'static str {
+    SOURCES
+        .iter()
+        .find(|(n, _)| *n == name)
+        .map(|(_, s)| *s)
+        .expect("every shader file is listed in SOURCES")
+}
+
+/// The format of the texture a texture-target [`Corrector`](super::Corrector) writes.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub enum TexelFormat {
+    Rgba32Float,
+    Rgba16Float,
+}
+
+impl TexelFormat {
+    /// The WGSL texel format name.
+    pub fn wgsl(self) -> &'static str {
+        match self {
+            TexelFormat::Rgba32Float => "rgba32float",
+            TexelFormat::Rgba16Float => "rgba16float",
+        }
+    }
+
+    /// The wgpu texture format.
+    pub fn texture_format(self) -> wgpu::TextureFormat {
+        match self {
+            TexelFormat::Rgba32Float => wgpu::TextureFormat::Rgba32Float,
+            TexelFormat::Rgba16Float => wgpu::TextureFormat::Rgba16Float,
+        }
+    }
+
+    /// The texel format of a wgpu format, if a corrector can write it.
+    pub fn from_texture_format(f: wgpu::TextureFormat) -> Option<TexelFormat> {
+        match f {
+            wgpu::TextureFormat::Rgba32Float => Some(TexelFormat::Rgba32Float),
+            wgpu::TextureFormat::Rgba16Float => Some(TexelFormat::Rgba16Float),
+            _ => None,
+        }
+    }
+}
+
+/// What a shader reads and writes.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub enum Target {
+    /// Packed f32 storage buffers: `src` (read) → `dst` (written), or one buffer corrected in
+    /// place (`in_place`).
+    Buffer { layout: Layout, in_place: bool },
+    /// A float texture read with `textureLoad` → a write-only storage texture of `format`.
+    Texture { format: TexelFormat },
+}
+
+impl Target {
+    /// Every target the engine and the embedding API use.
+    pub const ALL: [Target; 6] = [
+        Target::Buffer {
+            layout: Layout::Rgb,
+            in_place: false,
+        },
+        Target::Buffer {
+            layout: Layout::Rgba,
+            in_place: false,
+        },
+        Target::Buffer {
+            layout: Layout::Rgb,
+            in_place: true,
+        },
+        Target::Buffer {
+            layout: Layout::Rgba,
+            in_place: true,
+        },
+        Target::Texture {
+            format: TexelFormat::Rgba32Float,
+        },
+        Target::Texture {
+            format: TexelFormat::Rgba16Float,
+        },
+    ];
+
+    /// The frame file this target uses.
+    pub fn frame_file(self) -> &'static str {
+        match self {
+            Target::Buffer {
+                in_place: false, ..
+            } => "frame_buffer.wgsl",
+            Target::Buffer { in_place: true, .. } => "frame_in_place.wgsl",
+            Target::Texture { .. } => "frame_texture.wgsl",
+        }
+    }
+
+    /// The workgroup size of the target's entry point.
+    pub fn workgroup_size(self) -> [u32; 3] {
+        match self {
+            Target::Buffer { .. } => [WORKGROUP_SIZE, 1, 1],
+            Target::Texture { .. } => [TILE_SIZE, TILE_SIZE, 1],
+        }
+    }
+
+    fn channels(self) -> u32 {
+        match self {
+            Target::Buffer { layout, .. } => layout.channels() as u32,
+            Target::Texture { .. } => 4,
+        }
+    }
+
+    fn describe(self) -> String {
+        match self {
+            Target::Buffer { layout, in_place } => format!(
+                "{} f32 storage buffer{}",
+                layout.name(),
+                if in_place { ", in place" } else { "s" }
+            ),
+            Target::Texture { format } => format!("texture -> {} storage texture", format.wgsl()),
+        }
+    }
+}
+
+/// Where the matrix comes from.
+#[derive(Debug, Clone, Copy)]
+pub enum Coefficients<'a> {
+    /// The uniform of `shaders/model_uniform.wgsl` (binding 0), rewritten to swap models.
+    Uniform,
+    /// Baked into the shader as constants (exported, self-contained shaders).
+    Baked(&'a Model),
+}
+
+/// The kind's hand-written file.
+pub fn kind_file(kind: Kind) -> &'static str {
+    match kind {
+        Kind::Lrm => "lrm.wgsl",
+        Kind::Prm => "prm.wgsl",
+        Kind::Rprm => "rprm.wgsl",
+        Kind::Nsrm => "nsrm.wgsl",
+    }
+}
+
+/// The WGSL literal of an f32 that reads back as the same f32.
+fn f32_literal(v: f32) -> String {
+    let s = format!("{v:?}");
+    if s.contains(['.', 'e', 'E']) {
+        format!("{s}f")
+    } else {
+        format!("{s}.0f")
+    }
+}
+
+/// The matrix as `L` columns `(m[0][j], m[1][j], m[2][j], 0)` in f32, the layout of the uniform.
+pub fn matrix_columns(model: &Model) -> Vec<[f32; 4]> {
+    let l = model.terms.len();
+    (0..l)
+        .map(|j| {
+            [
+                model.matrix[j] as f32,
+                model.matrix[l + j] as f32,
+                model.matrix[2 * l + j] as f32,
+                0.0,
+            ]
+        })
+        .collect()
+}
+
+/// Checks a model is usable by a shader: its terms are those of its kind and order, its
+/// matrix is 3×L and finite in f32.
+pub fn check_model(model: &Model) -> Result<(), GpuError> {
+    let bad = |m: String| Err(GpuError::InvalidModel(m));
+    if !(1..=crate::model::MAX_ORDER).contains(&model.order) {
+        return bad(format!("order {} is out of range (1..=4)", model.order));
+    }
+    if model.terms != terms(model.kind, model.order) {
+        return bad(format!(
+            "the terms do not match {} order {}",
+            model.kind, model.order
+        ));
+    }
+    if model.matrix.len() != 3 * model.terms.len() {
+        return bad(format!(
+            "{} order {} needs a 3×{} matrix, got {} values",
+            model.kind,
+            model.order,
+            model.terms.len(),
+            model.matrix.len()
+        ));
+    }
+    if model.matrix.iter().any(|v| !(*v as f32).is_finite()) {
+        return bad("the matrix holds a value that is not finite in f32".into());
+    }
+    Ok(())
+}
+
+/// The generated term expansion: `fn model_terms(x: vec3<f32>) -> vec3<f32>` returning
+/// `Σ_j M[:, j] · term_j(x)`, with `x` = (R, G, B) (LRM, PRM, RPRM) or (r, g, 0) (NSRM).
+///
+/// Roots are computed once per channel (`q2 = sroot2(x)`, `q3 = sroot3(x)`, `q4 = sroot4(x)`,
+/// from `shaders/rprm.wgsl`) and shared by every term; each term is the product of its
+/// channels' factors, as [`crate::model::terms::expand`] computes it in f64.
+pub fn model_terms_fn(kind: Kind, order: u8, coefficients: Coefficients<'_>) -> String {
+    let order = kind.effective_order(order);
+    let list = terms(kind, order);
+    let cols = match coefficients {
+        Coefficients::Uniform => None,
+        Coefficients::Baked(m) => Some(matrix_columns(m)),
+    };
+    let mut s = String::new();
+    let _ = writeln!(
+        s,
+        "// Generated from nsrm::model::terms({kind:?}, {order}): {} terms.",
+        list.len()
+    );
+    let _ = writeln!(s, "fn model_terms(x: vec3<f32>) -> vec3<f32> {{");
+    for root in 2..=4u8 {
+        if list.iter().any(|t| t.root == root) {
+            let _ = writeln!(s, "    let q{root} = sroot{root}(x);");
+        }
+    }
+    let _ = writeln!(s, "    var acc = vec3<f32>(0.0);");
+    for (j, t) in list.iter().enumerate() {
+        let coef = match &cols {
+            None => format!("model.m[{j}].xyz"),
+            Some(c) => format!(
+                "vec3<f32>({}, {}, {})",
+                f32_literal(c[j][0]),
+                f32_literal(c[j][1]),
+                f32_literal(c[j][2])
+            ),
+        };
+        let _ = writeln!(
+            s,
+            "    acc += {coef} * {}; // {}",
+            term_expr(t),
+            term_name(kind, t)
+        );
+    }
+    let _ = writeln!(s, "    return acc;");
+    let _ = writeln!(s, "}}");
+    s
+}
+
+/// The WGSL expression of one term over `x` and the per-channel roots `q2`, `q3`, `q4`.
+fn term_expr(t: &Term) -> String {
+    let base = match t.root {
+        1 => "x".to_string(),
+        r => format!("q{r}"),
+    };
+    let mut factors = Vec::new();
+    for (c, &e) in t.exps.iter().enumerate() {
+        let comp = ["x", "y", "z"][c];
+        for _ in 0..e {
+            factors.push(format!("{base}.{comp}"));
+        }
+    }
+    if factors.is_empty() {
+        "1.0".into()
+    } else {
+        format!("({})", factors.join(" * "))
+    }
+}
+
+/// The complete WGSL source of the correction shader for `kind` at `order`, `target`, with the
+/// matrix from `coefficients`. The entry point is [`ENTRY_POINT`].
+pub fn wgsl(kind: Kind, order: u8, target: Target, coefficients: Coefficients<'_>) -> String {
+    let order = kind.effective_order(order);
+    let n_terms = terms(kind, order).len();
+    let mut s = String::new();
+    let _ = writeln!(
+        s,
+        "// nsrm: {kind} order {order} ({n_terms} terms) colour correction, {}.",
+        target.describe()
+    );
+    let _ = writeln!(
+        s,
+        "// Assembled by nsrm::gpu::shader from shaders/*.wgsl and the terms of nsrm::model::terms."
+    );
+    if let Coefficients::Baked(m) = coefficients {
+        let _ = writeln!(
+            s,
+            "// Self-contained: the fitted matrix is baked in (white XYZ {:?}).",
+            m.white_xyz
+        );
+    }
+    let _ = writeln!(s);
+    let _ = writeln!(s, "const CHANNELS: u32 = {}u;", target.channels());
+    let _ = writeln!(s, "const WORKGROUP_SIZE: u32 = {WORKGROUP_SIZE}u;");
+    let _ = writeln!(s, "const ROW_GROUPS: u32 = {ROW_GROUPS}u;");
+    let _ = writeln!(s, "const TILE_SIZE: u32 = {TILE_SIZE}u;");
+    let _ = writeln!(s, "const N_TERMS: u32 = {n_terms}u;");
+    let _ = writeln!(s);
+    if let Coefficients::Uniform = coefficients {
+        let _ = writeln!(s, "// ---- shaders/model_uniform.wgsl");
+        s.push_str(source("model_uniform.wgsl"));
+        let _ = writeln!(s);
+    }
+    let _ = writeln!(s, "// ---- shaders/{}", kind_file(kind));
+    s.push_str(source(kind_file(kind)));
+    let _ = writeln!(s);
+    let _ = writeln!(s, "// ---- shaders/{}", target.frame_file());
+    let frame = source(target.frame_file());
+    match target {
+        Target::Texture { format } => s.push_str(&frame.replace("TEXEL_FORMAT", format.wgsl())),
+        Target::Buffer { .. } => s.push_str(frame),
+    }
+    let _ = writeln!(s);
+    s.push_str(&model_terms_fn(kind, order, coefficients));
+    s
+}
+
+/// Parses and validates WGSL with naga (all validation flags, default capabilities).
+pub fn validate(src: &str) -> Result<(naga::Module, naga::valid::ModuleInfo), GpuError> {
+    let module = naga::front::wgsl::parse_str(src).map_err(|e| GpuError::Shader {
+        stage: "WGSL parse",
+        message: e.emit_to_string(src),
+    })?;
+    let info = naga::valid::Validator::new(
+        naga::valid::ValidationFlags::all(),
+        naga::valid::Capabilities::default(),
+    )
+    .validate(&module)
+    .map_err(|e| GpuError::Shader {
+        stage: "WGSL validation",
+        message: e.emit_to_string(src),
+    })?;
+    Ok((module, info))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::model::MAX_ORDER;
+
+    fn model(kind: Kind, order: u8) -> Model {
+        let l = terms(kind, kind.effective_order(order)).len();
+        let matrix = (0..3 * l).map(|i| 0.5 + i as f64 * 0.25).collect();
+        Model::from_matrix(kind, order, matrix).unwrap()
+    }
+
+    #[test]
+    fn every_generated_variant_validates_with_naga() {
+        let mut seen_files = std::collections::HashSet::new();
+        for kind in Kind::ALL {
+            for order in 1..=MAX_ORDER {
+                let m = model(kind, order);
+                for target in Target::ALL {
+                    for coef in [Coefficients::Uniform, Coefficients::Baked(&m)] {
+                        let src = wgsl(kind, order, target, coef);
+                        let (module, _) = validate(&src).unwrap_or_else(|e| {
+                            panic!("{kind} {order} {target:?}: {e}\n{src}");
+                        });
+                        assert_eq!(module.entry_points.len(), 1);
+                        let ep = &module.entry_points[0];
+                        assert_eq!(ep.name, ENTRY_POINT);
+                        assert_eq!(ep.stage, naga::ShaderStage::Compute);
+                        assert_eq!(ep.workgroup_size, target.workgroup_size());
+                        for (name, text) in SOURCES {
+                            if src.contains(text.trim())
+                                || (name == "frame_texture.wgsl"
+                                    && matches!(target, Target::Texture { .. }))
+                            {
+                                seen_files.insert(name);
+                            }
+                        }
+                        let uniform = module
+                            .global_variables
+                            .iter()
+                            .any(|(_, g)| g.space == naga::AddressSpace::Uniform);
+                        assert_eq!(uniform, matches!(coef, Coefficients::Uniform));
+                    }
+                }
+            }
+        }
+        // Every hand-written file took part in some validated variant.
+        assert_eq!(seen_files.len(), SOURCES.len(), "{seen_files:?}");
+    }
+
+    #[test]
+    fn generated_expansion_follows_the_term_table() {
+        let src = model_terms_fn(Kind::Rprm, 3, Coefficients::Uniform);
+        assert!(src.contains("let q2 = sroot2(x);"));
+        assert!(src.contains("let q3 = sroot3(x);"));
+        assert!(!src.contains("sroot4"));
+        assert!(src.contains("acc += model.m[6].xyz * (q3.x * q3.y * q3.y); // cbrt(R*G^2)"));
+        assert_eq!(src.matches("acc +=").count(), 13);
+        let src = model_terms_fn(Kind::Nsrm, 2, Coefficients::Uniform);
+        assert!(src.contains("acc += model.m[0].xyz * 1.0; // 1"));
+        assert!(src.contains("acc += model.m[5].xyz * (x.x * x.y); // r*g"));
+        for (kind, counts) in [
+            (Kind::Prm, [3, 9, 19, 34]),
+            (Kind::Rprm, [3, 6, 13, 22]),
+            (Kind::Nsrm, [3, 6, 10, 15]),
+        ] {
+            for (o, n) in (1..=4).zip(counts) {
+                let src = model_terms_fn(kind, o, Coefficients::Uniform);
+                assert_eq!(src.matches("acc +=").count(), n, "{kind} {o}");
+            }
+        }
+    }
+
+    #[test]
+    fn baked_literals_round_trip_in_f32() {
+        for v in [1.0f32, -0.0, 0.1, 1e-7, 3.4e38, -123456.79, 1e20] {
+            let lit = f32_literal(v);
+            let back: f32 = lit.trim_end_matches('f').parse().unwrap();
+            assert_eq!(back.to_bits(), v.to_bits(), "{lit}");
+        }
+        let m = model(Kind::Lrm, 1);
+        let src = wgsl(
+            Kind::Lrm,
+            1,
+            Target::Buffer {
+                layout: Layout::Rgb,
+                in_place: true,
+            },
+            Coefficients::Baked(&m),
+        );
+        assert!(src.contains("vec3<f32>(0.5f, 1.25f, 2.0f)"), "{src}");
+    }
+
+    #[test]
+    fn bad_models_are_refused() {
+        let mut m = model(Kind::Nsrm, 2);
+        assert!(check_model(&m).is_ok());
+        m.matrix.pop();
+        assert!(matches!(check_model(&m), Err(GpuError::InvalidModel(_))));
+        let mut m = model(Kind::Prm, 2);
+        m.matrix[0] = 1e300;
+        assert!(check_model(&m).is_err());
+        let mut m = model(Kind::Prm, 2);
+        m.order = 3;
+        assert!(check_model(&m).is_err());
+    }
+}

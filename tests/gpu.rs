@@ -1,0 +1,738 @@
+//! The GPU path against the f64 CPU reference (`Model::apply_frame_f64`).
+//!
+//! Without an adapter these tests print `SKIP: no GPU adapter ...` and pass, unless `CI=true`,
+//! where they fail with the driver message.
+//!
+//! Tolerance per value: `|gpu − ref| ≤ 1e-5 · max(|ref|, floor)`, where the floor for output
+//! channel `i` of a pixel is the magnitude of its summands, `floor_i = |s| · Σ_j |M_ij · p_j|`
+//! (`p` the pixel's terms, `s` NSRM's scale or 1; computed in f64), and at least 1e-30. Where
+//! nothing cancels, `floor_i = |ref_i|` and the test is a plain relative error; where the terms
+//! cancel to near 0 (e.g. Z of a saturated red), f32 summation cannot do better than the
+//! rounding of the summands, and that is what the floor allows. A NaN reference needs a NaN;
+//! an infinite reference needs a non-finite value (Inf of the same sign, or NaN); alpha must
+//! come back bit for bit; no value may be the engine's unwritten-output sentinel.
+
+use nsrm::gpu::{self, Corrector, DeviceChoice, Engine, GpuError, GpuOptions, Target, TexelFormat};
+use nsrm::model::{fit, Kind, Model, MAX_ORDER};
+use nsrm::spectral::{simulate, Camera, Grid, Illuminant, Reflectances};
+use nsrm::{Frame, Layout, TrainingSet};
+use std::sync::OnceLock;
+
+const SKIP: &str = "SKIP: no GPU adapter (install mesa-vulkan-drivers libvulkan1)";
+const REL_TOL: f64 = 1e-5;
+
+/// The engine, or `None` (after one loud line) when there is no adapter; with `CI=true` a
+/// missing adapter fails the test.
+fn engine(tile_pixels: Option<usize>) -> Option<Engine> {
+    let opts = GpuOptions {
+        adapter: None,
+        tile_pixels,
+    };
+    match Engine::new(&opts) {
+        Ok(mut e) => {
+            e.set_poison_output(true);
+            Some(e)
+        }
+        Err(e @ GpuError::NoAdapter { .. }) => {
+            if std::env::var("CI").is_ok_and(|v| v == "true") {
+                panic!("CI=true and {e}");
+            }
+            eprintln!("{SKIP}");
+            None
+        }
+        Err(e) => panic!("cannot open the GPU engine: {e}"),
+    }
+}
+
+fn training() -> &'static TrainingSet {
+    static DATA: OnceLock<TrainingSet> = OnceLock::new();
+    DATA.get_or_init(|| {
+        simulate(
+            &Camera::from_name_or_path("nikon-d5100").unwrap(),
+            &Illuminant::from_name_or_path("D65").unwrap(),
+            &Reflectances::from_name_or_path("rawtoaces-190").unwrap(),
+            &Grid::default(),
+        )
+        .unwrap()
+    })
+}
+
+fn model(kind: Kind, order: u8) -> Model {
+    fit(kind, order, training()).unwrap()
+}
+
+/// A seeded LCG.
+struct Rng(u64);
+
+impl Rng {
+    fn next_u32(&mut self) -> u32 {
+        self.0 = self
+            .0
+            .wrapping_mul(6364136223846793005)
+            .wrapping_add(1442695040888963407);
+        (self.0 >> 32) as u32
+    }
+    fn unit(&mut self) -> f32 {
+        (self.next_u32() >> 8) as f32 / (1u32 << 24) as f32
+    }
+    fn range(&mut self, a: f32, b: f32) -> f32 {
+        a + (b - a) * self.unit()
+    }
+}
+
+/// A random frame mixing ordinary pixels with the pixel policy's edge cases: a zero channel,
+/// all-zero pixels, a slightly negative channel, HDR (×100), tiny (×1e-6), NaN and ±Inf.
+/// Alpha gets random bit patterns (NaN payloads included).
+fn random_frame(width: usize, height: usize, layout: Layout, seed: u64) -> Frame {
+    let mut rng = Rng(seed);
+    let ch = layout.channels();
+    let mut data = Vec::with_capacity(width * height * ch);
+    for _ in 0..width * height {
+        let mut px = [
+            rng.range(0.02, 1.0),
+            rng.range(0.02, 1.0),
+            rng.range(0.02, 1.0),
+        ];
+        let c = (rng.next_u32() % 3) as usize;
+        match rng.next_u32() % 16 {
+            0 => px[c] = 0.0,
+            1 => px = [0.0; 3],
+            2 => {
+                px = [
+                    rng.range(0.2, 1.0),
+                    rng.range(0.2, 1.0),
+                    rng.range(0.2, 1.0),
+                ];
+                px[c] = -rng.range(0.0, 0.02);
+            }
+            3 => px.iter_mut().for_each(|v| *v *= 100.0),
+            4 => px.iter_mut().for_each(|v| *v *= 1e-6),
+            5 => px[c] = f32::NAN,
+            6 => {
+                px[c] = if rng.next_u32() % 2 == 0 {
+                    f32::INFINITY
+                } else {
+                    f32::NEG_INFINITY
+                }
+            }
+            _ => {}
+        }
+        data.extend_from_slice(&px);
+        if ch == 4 {
+            data.push(f32::from_bits(rng.next_u32()));
+        }
+    }
+    Frame::from_data(width, height, layout, data).unwrap()
+}
+
+/// The floor of each output channel of a pixel: `|s| · Σ_j |M_ij · p_j|`.
+fn summand_floor(model: &Model, px: &[f32]) -> [f64; 3] {
+    let mut p = vec![0.0; model.terms.len()];
+    let rgb = [px[0] as f64, px[1] as f64, px[2] as f64];
+    let Some(scale) = nsrm::model::features(model.kind, &model.terms, rgb, &mut p) else {
+        return [1e-30; 3];
+    };
+    let mut f = [0.0; 3];
+    for (i, fi) in f.iter_mut().enumerate() {
+        let sum: f64 = model
+            .row(i)
+            .iter()
+            .zip(&p)
+            .map(|(m, x)| (m * x).abs())
+            .sum();
+        *fi = (scale.abs() * sum).max(1e-30);
+    }
+    f
+}
+
+/// Checks `gpu` against `reference` (see the module docs); returns the largest error
+/// `|gpu − ref| / max(|ref|, floor)` over finite values, and the largest plain relative error
+/// `|gpu − ref| / |ref|` over values with `|ref| ≥ floor / 10` (no strong cancellation).
+fn compare_stats(
+    what: &str,
+    model: &Model,
+    input: &Frame,
+    gpu: &Frame,
+    reference: &Frame,
+    rel_tol: f64,
+) -> (f64, f64) {
+    let ch = input.layout.channels();
+    let mut worst = 0.0f64;
+    let mut worst_plain = 0.0f64;
+    for (i, ((g, r), x)) in gpu
+        .data
+        .chunks_exact(ch)
+        .zip(reference.data.chunks_exact(ch))
+        .zip(input.data.chunks_exact(ch))
+        .enumerate()
+    {
+        let floor = summand_floor(model, x);
+        for k in 0..ch {
+            let (gv, rv) = (g[k], r[k]);
+            let at = || {
+                format!("{what}: pixel {i} channel {k}: input {x:?}, gpu {g:?}, reference {r:?}")
+            };
+            assert_ne!(
+                gv.to_bits(),
+                gpu::OUTPUT_SENTINEL_BITS,
+                "{}: not written",
+                at()
+            );
+            if k == 3 {
+                assert_eq!(gv.to_bits(), x[3].to_bits(), "{}: alpha changed", at());
+                continue;
+            }
+            if rv.is_nan() {
+                assert!(gv.is_nan(), "{}: NaN expected", at());
+            } else if rv.is_infinite() {
+                assert!(
+                    gv.is_nan() || gv == rv,
+                    "{}: non-finite value expected",
+                    at()
+                );
+            } else {
+                assert!(gv.is_finite(), "{}: finite value expected", at());
+                let diff = (gv as f64 - rv as f64).abs();
+                let err = diff / (rv as f64).abs().max(floor[k]);
+                assert!(err <= rel_tol, "{}: relative error {err:e}", at());
+                worst = worst.max(err);
+                if (rv as f64).abs() >= floor[k] / 10.0 {
+                    worst_plain = worst_plain.max(diff / (rv as f64).abs());
+                }
+            }
+        }
+    }
+    (worst, worst_plain)
+}
+
+fn compare(
+    what: &str,
+    model: &Model,
+    input: &Frame,
+    gpu: &Frame,
+    reference: &Frame,
+    rel_tol: f64,
+) -> f64 {
+    compare_stats(what, model, input, gpu, reference, rel_tol).0
+}
+
+fn check_kind(kind: Kind) {
+    let Some(mut big_tiles) = engine(None) else {
+        return;
+    };
+    let Some(mut small_tiles) = engine(Some(1000)) else {
+        return;
+    };
+    let orders = if kind == Kind::Lrm {
+        1..=1
+    } else {
+        1..=MAX_ORDER
+    };
+    for order in orders {
+        let m = model(kind, order);
+        let (mut worst, mut worst_plain) = (0.0f64, 0.0f64);
+        for layout in [Layout::Rgb, Layout::Rgba] {
+            for (i, (w, h)) in [(1, 1), (7, 13), (4097, 3), (100, 37)]
+                .into_iter()
+                .enumerate()
+            {
+                let input = random_frame(w, h, layout, 1000 * order as u64 + i as u64);
+                let mut reference = input.clone();
+                m.apply_frame_f64(&mut reference);
+                let mut out = input.clone();
+                let engine = if w * h > 1000 {
+                    &mut small_tiles
+                } else {
+                    &mut big_tiles
+                };
+                engine.apply(&m, &mut out).unwrap();
+                let what = format!("{kind} order {order} {} {w}×{h}", layout.name());
+                let (w, p) = compare_stats(&what, &m, &input, &out, &reference, REL_TOL);
+                worst = worst.max(w);
+                worst_plain = worst_plain.max(p);
+            }
+        }
+        eprintln!(
+            "{kind} order {order}: GPU vs f64: max error (floored) {worst:.2e}, max plain relative error {worst_plain:.2e}"
+        );
+    }
+}
+
+#[test]
+fn lrm_matches_the_f64_reference() {
+    check_kind(Kind::Lrm);
+}
+
+#[test]
+fn prm_matches_the_f64_reference_every_order() {
+    check_kind(Kind::Prm);
+}
+
+#[test]
+fn rprm_matches_the_f64_reference_every_order() {
+    check_kind(Kind::Rprm);
+}
+
+#[test]
+fn nsrm_matches_the_f64_reference_every_order() {
+    check_kind(Kind::Nsrm);
+}
+
+#[test]
+fn frames_larger_than_one_dispatch_row_and_many_tiles() {
+    let Some(mut e) = engine(None) else { return };
+    // 120 000 pixels: 469 workgroups, dispatched as 256 × 2.
+    let m = model(Kind::Nsrm, 2);
+    let input = random_frame(400, 300, Layout::Rgb, 7);
+    let mut reference = input.clone();
+    m.apply_frame_f64(&mut reference);
+    let mut out = input.clone();
+    e.apply(&m, &mut out).unwrap();
+    compare("NSRM 2 400×300", &m, &input, &out, &reference, REL_TOL);
+    // The same frame through 7-pixel tiles (17 143 tiles, both buffer sets cycling).
+    let Some(mut tiny) = engine(Some(7)) else {
+        return;
+    };
+    let input = random_frame(97, 61, Layout::Rgba, 8);
+    let mut reference = input.clone();
+    m.apply_frame_f64(&mut reference);
+    let mut out = input.clone();
+    tiny.apply(&m, &mut out).unwrap();
+    compare(
+        "NSRM 2 97×61 in 7-pixel tiles",
+        &m,
+        &input,
+        &out,
+        &reference,
+        REL_TOL,
+    );
+}
+
+#[test]
+fn models_swap_and_pipelines_are_reused() {
+    let Some(mut e) = engine(Some(500)) else {
+        return;
+    };
+    let a = model(Kind::Rprm, 3);
+    let mut b = a.clone();
+    b.matrix
+        .iter_mut()
+        .enumerate()
+        .for_each(|(i, v)| *v *= 1.0 + 0.01 * i as f64);
+    for (round, m) in [&a, &b, &a].into_iter().enumerate() {
+        let input = random_frame(33, 40, Layout::Rgba, 50 + round as u64);
+        let mut reference = input.clone();
+        m.apply_frame_f64(&mut reference);
+        let mut out = input.clone();
+        e.apply(m, &mut out).unwrap();
+        compare(
+            &format!("swap round {round}"),
+            m,
+            &input,
+            &out,
+            &reference,
+            REL_TOL,
+        );
+    }
+    // Empty frames are fine.
+    let mut empty = Frame::new(0, 5, Layout::Rgb);
+    e.apply(&a, &mut empty).unwrap();
+    // A frame whose data does not match its size is refused, not read out of bounds.
+    let mut bad = Frame::new(2, 2, Layout::Rgb);
+    bad.data.pop();
+    assert!(matches!(e.apply(&a, &mut bad), Err(GpuError::Usage(_))));
+}
+
+#[test]
+fn exposure_invariance_on_the_gpu() {
+    let Some(mut e) = engine(None) else { return };
+    let mut rng = Rng(99);
+    let data: Vec<f32> = (0..3 * 2000).map(|_| rng.range(0.01, 1.0)).collect();
+    let base = Frame::from_data(50, 40, Layout::Rgb, data).unwrap();
+    for kind in [Kind::Nsrm, Kind::Rprm, Kind::Lrm] {
+        let m = model(kind, 3);
+        let mut out = base.clone();
+        e.apply(&m, &mut out).unwrap();
+        for k in [0.01f32, 0.37, 8.0, 100.0] {
+            let mut scaled = base.clone();
+            scaled.data.iter_mut().for_each(|v| *v *= k);
+            let scaled_input = scaled.clone();
+            e.apply(&m, &mut scaled).unwrap();
+            let want = Frame {
+                data: out.data.iter().map(|v| v * k).collect(),
+                ..out.clone()
+            };
+            // Both sides carry f32 rounding (k·S is rounded before the model sees it).
+            let worst = compare(
+                &format!("{kind} exposure ×{k}"),
+                &m,
+                &scaled_input,
+                &scaled,
+                &want,
+                2e-5,
+            );
+            eprintln!("{kind} exposure ×{k}: max relative deviation {worst:.2e}");
+        }
+    }
+}
+
+#[test]
+fn timing_and_bandwidth_are_reported() {
+    let Some(mut e) = engine(None) else { return };
+    e.set_poison_output(false);
+    eprintln!("adapter: {}", e.adapter_name());
+    // 2 Mpixel RGBA by default (two tiles, so upload, compute and read-back overlap);
+    // NSRM_GPU_TEST_MPIXELS=16 for a longer run.
+    let mpx: usize = std::env::var("NSRM_GPU_TEST_MPIXELS")
+        .ok()
+        .and_then(|v| v.parse().ok())
+        .unwrap_or(2);
+    let mut frame = random_frame(1024, 1024 * mpx, Layout::Rgba, 3);
+    let n = frame.pixels() as f64 / 1e6;
+    for kind in [Kind::Nsrm, Kind::Rprm] {
+        let m = model(kind, 3);
+        e.apply(&m, &mut frame).unwrap(); // warm-up: pipeline and buffers
+        let t = e.timed_apply(&m, &mut frame).unwrap();
+        assert!(t.total_seconds > 0.0);
+        if e.has_timestamps() {
+            let k = t.kernel_seconds.expect("timestamps are supported");
+            assert!(k > 0.0 && k.is_finite());
+            eprintln!(
+                "{kind} 3, {n:.1} Mpixel RGBA: kernel {:.1} Mpixel/s, with upload and read-back {:.1} Mpixel/s",
+                n / k,
+                n / t.total_seconds
+            );
+        } else {
+            assert!(t.kernel_seconds.is_none());
+        }
+    }
+    match e.copy_bandwidth(64 << 20).unwrap() {
+        Some(bw) => {
+            assert!(bw > 0.0 && bw.is_finite());
+            eprintln!("buffer copy: {:.2} GB/s", bw / 1e9);
+        }
+        None => eprintln!("buffer copy: no timestamps inside encoders"),
+    }
+}
+
+#[test]
+fn open_follows_the_device_choice() {
+    assert!(gpu::open(DeviceChoice::Cpu, &GpuOptions::default())
+        .unwrap()
+        .is_none());
+    let Some(e) = engine(None) else { return };
+    let auto = gpu::open(DeviceChoice::Auto, &GpuOptions::default()).unwrap();
+    assert_eq!(auto.map(|a| a.adapter_name()), Some(e.adapter_name()));
+    assert!(gpu::open(DeviceChoice::Gpu, &GpuOptions::default())
+        .unwrap()
+        .is_some());
+    // The adapter chosen by a name substring (case-insensitive).
+    let name = e.adapter_name();
+    let part = name.split_whitespace().next().unwrap().to_uppercase();
+    let opts = GpuOptions {
+        adapter: Some(part),
+        tile_pixels: None,
+    };
+    assert_eq!(
+        gpu::open(DeviceChoice::Gpu, &opts)
+            .unwrap()
+            .unwrap()
+            .adapter_name(),
+        name
+    );
+    let opts = GpuOptions {
+        adapter: Some("no-such-adapter-xyz".into()),
+        tile_pixels: None,
+    };
+    for choice in [DeviceChoice::Auto, DeviceChoice::Gpu] {
+        let err = gpu::open(choice, &opts).unwrap_err();
+        assert!(matches!(err, GpuError::AdapterNotFound { .. }), "{err}");
+        assert!(err.to_string().contains(&name), "{err}");
+    }
+}
+
+/// Runs a corrector on the caller's own encoder and buffers, in place and src → dst, with a
+/// chunk smaller than the whole buffer (offsets into the middle of a buffer).
+#[test]
+fn corrector_records_into_the_callers_encoder_on_buffers() {
+    let Some(e) = engine(None) else { return };
+    let ctx = e.context();
+    let (dev, queue) = (&ctx.device, &ctx.queue);
+    let m = model(Kind::Nsrm, 3);
+    for layout in [Layout::Rgb, Layout::Rgba] {
+        let input = random_frame(64, 10, layout, 11);
+        let mut reference = input.clone();
+        m.apply_frame_f64(&mut reference);
+        let bytes: &[u8] = bytemuck::cast_slice(&input.data);
+        let size = bytes.len() as u64;
+        use wgpu::BufferUsages as U;
+        let make = |usage| {
+            dev.create_buffer(&wgpu::BufferDescriptor {
+                label: None,
+                size,
+                usage,
+                mapped_at_creation: false,
+            })
+        };
+        let a = make(U::STORAGE | U::COPY_DST | U::COPY_SRC);
+        let b = make(U::STORAGE | U::COPY_SRC);
+        queue.write_buffer(&a, 0, bytes);
+        let sep = Corrector::new(
+            dev,
+            &m,
+            Target::Buffer {
+                layout,
+                in_place: false,
+            },
+        )
+        .unwrap();
+        let inplace = Corrector::new(
+            dev,
+            &m,
+            Target::Buffer {
+                layout,
+                in_place: true,
+            },
+        )
+        .unwrap();
+        let mut enc = dev.create_command_encoder(&Default::default());
+        sep.record_buffers(dev, &mut enc, a.slice(..), b.slice(..), None)
+            .unwrap();
+        // In place on the second half (an aligned offset: 320 pixels × 12 or 16 bytes).
+        let half = size / 2;
+        inplace
+            .record_in_place(dev, &mut enc, a.slice(half..), None)
+            .unwrap();
+        queue.submit([enc.finish()]);
+        let out_b = read_buffer(dev, queue, &b);
+        let out_a = read_buffer(dev, queue, &a);
+        let sep_frame = Frame::from_data(64, 10, layout, out_b).unwrap();
+        compare(
+            "corrector src→dst",
+            &m,
+            &input,
+            &sep_frame,
+            &reference,
+            REL_TOL,
+        );
+        let n = out_a.len() / 2;
+        let bits = |d: &[f32]| d.iter().map(|v| v.to_bits()).collect::<Vec<_>>();
+        assert!(
+            bits(&out_a[..n]) == bits(&input.data[..n]),
+            "the first half is untouched"
+        );
+        let second = |d: &[f32]| Frame::from_data(64, 5, layout, d[n..].to_vec()).unwrap();
+        compare(
+            "corrector in place",
+            &m,
+            &second(&input.data),
+            &second(&out_a),
+            &second(&reference.data),
+            REL_TOL,
+        );
+        // Misuse is an error, not a panic.
+        let mut enc = dev.create_command_encoder(&Default::default());
+        let odd = sep.record_buffers(dev, &mut enc, a.slice(4..), b.slice(4..), None);
+        assert!(matches!(odd, Err(GpuError::Usage(_))), "{odd:?}");
+        assert!(inplace
+            .record_buffers(dev, &mut enc, a.slice(..), b.slice(..), None)
+            .is_err());
+    }
+    // Swapping in a model of another kind is refused.
+    let c = Corrector::new(
+        dev,
+        &m,
+        Target::Buffer {
+            layout: Layout::Rgb,
+            in_place: true,
+        },
+    )
+    .unwrap();
+    let err = c.set_model(queue, &model(Kind::Rprm, 3)).unwrap_err();
+    assert!(matches!(err, GpuError::ModelMismatch { .. }), "{err}");
+    c.set_model(queue, &model(Kind::Nsrm, 3)).unwrap();
+}
+
+#[test]
+fn corrector_on_textures() {
+    let Some(e) = engine(None) else { return };
+    let ctx = e.context();
+    let (dev, queue) = (&ctx.device, &ctx.queue);
+    let m = model(Kind::Rprm, 2);
+    let (w, h) = (37u32, 21u32);
+    let input = random_frame(w as usize, h as usize, Layout::Rgba, 21);
+    let mut reference = input.clone();
+    m.apply_frame_f64(&mut reference);
+    let src = nsrm::gpu::demo::upload_rgba32f(dev, queue, &input).unwrap();
+    for (format, tol) in [
+        (TexelFormat::Rgba32Float, REL_TOL),
+        (TexelFormat::Rgba16Float, 1e-3),
+    ] {
+        let dst = dev.create_texture(&wgpu::TextureDescriptor {
+            label: None,
+            size: wgpu::Extent3d {
+                width: w,
+                height: h,
+                depth_or_array_layers: 1,
+            },
+            mip_level_count: 1,
+            sample_count: 1,
+            dimension: wgpu::TextureDimension::D2,
+            format: format.texture_format(),
+            usage: wgpu::TextureUsages::STORAGE_BINDING | wgpu::TextureUsages::COPY_SRC,
+            view_formats: &[],
+        });
+        let c = Corrector::new(dev, &m, Target::Texture { format }).unwrap();
+        let mut enc = dev.create_command_encoder(&Default::default());
+        c.record_textures(dev, &mut enc, &src, &dst, None).unwrap();
+        queue.submit([enc.finish()]);
+        let out = nsrm::gpu::demo::read_texture_rgba_f32(dev, queue, &dst).unwrap();
+        let got = Frame::from_data(w as usize, h as usize, Layout::Rgba, out).unwrap();
+        if format == TexelFormat::Rgba32Float {
+            compare("texture rgba32float", &m, &input, &got, &reference, tol);
+        } else {
+            // Half floats: compare finite, in-range values; alpha goes through f16 too.
+            let mut worst = 0.0f64;
+            for (g, r) in got.data.chunks_exact(4).zip(reference.data.chunks_exact(4)) {
+                for k in 0..3 {
+                    let rv = r[k] as f64;
+                    if rv.is_finite() && rv.abs() < 60000.0 && rv.abs() > 1e-3 {
+                        let err = (g[k] as f64 - rv).abs() / rv.abs();
+                        assert!(err <= tol, "rgba16float {g:?} vs {r:?}");
+                        worst = worst.max(err);
+                    } else if rv.is_nan() {
+                        assert!(g[k].is_nan());
+                    }
+                }
+            }
+            eprintln!("rgba16float output: max relative error {worst:.2e}");
+        }
+    }
+}
+
+fn read_buffer(dev: &wgpu::Device, queue: &wgpu::Queue, buf: &wgpu::Buffer) -> Vec<f32> {
+    let rb = dev.create_buffer(&wgpu::BufferDescriptor {
+        label: None,
+        size: buf.size(),
+        usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
+        mapped_at_creation: false,
+    });
+    let mut enc = dev.create_command_encoder(&Default::default());
+    enc.copy_buffer_to_buffer(buf, 0, &rb, 0, buf.size());
+    queue.submit([enc.finish()]);
+    rb.map_async(wgpu::MapMode::Read, .., |r| r.unwrap());
+    dev.poll(wgpu::PollType::wait_indefinitely()).unwrap();
+    let v = bytemuck::cast_slice(&rb.get_mapped_range(..).unwrap()).to_vec();
+    rb.unmap();
+    v
+}
+
+/// The embedding demo (the code path of `examples/embed.rs`): chart → texture → Corrector
+/// pass → display render pass → PNG, against the f64 CPU path (±1 of 255 per channel: the
+/// corrected texture is half float and the GPU's unorm conversion rounds on its own).
+#[test]
+fn embed_demo_png_matches_the_cpu_path() {
+    let Some(e) = engine(None) else { return };
+    let ctx = e.context();
+    let data = simulate(
+        &Camera::from_name_or_path("nikon-d5100").unwrap(),
+        &Illuminant::from_name_or_path("D65").unwrap(),
+        &Reflectances::from_name_or_path("cc24").unwrap(),
+        &Grid::default(),
+    )
+    .unwrap();
+    let m = fit(Kind::Nsrm, 3, &data).unwrap();
+    let frame = gpu::demo::chart_frame(&data, 6, 8);
+    assert_eq!((frame.width, frame.height), (48, 32));
+    let rgba8 = gpu::demo::render_corrected(&ctx.device, &ctx.queue, &m, &frame).unwrap();
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("embed.png");
+    gpu::demo::save_png(&path, 48, 32, &rgba8).unwrap();
+    let png = image::open(&path).unwrap().to_rgba8();
+    assert_eq!(png.dimensions(), (48, 32));
+    assert_eq!(png.as_raw(), &rgba8);
+    let cpu = gpu::demo::cpu_srgb8(&m, &frame);
+    let mut exact = 0;
+    for (i, (g, c)) in png.as_raw().iter().zip(&cpu).enumerate() {
+        assert!(g.abs_diff(*c) <= 1, "byte {i}: GPU {g}, CPU {c}");
+        exact += (g == c) as usize;
+    }
+    // Not a flat picture: the 24 patches differ.
+    let mut colours: Vec<&[u8]> = png.as_raw().chunks_exact(4).collect();
+    colours.sort();
+    colours.dedup();
+    assert!(colours.len() >= 20, "{} distinct colours", colours.len());
+    eprintln!(
+        "embed demo: {exact} of {} bytes equal to the CPU path, the rest within 1",
+        cpu.len()
+    );
+}
+
+/// An exported (baked, uniform-free) WGSL shader runs as-is and matches the reference.
+#[test]
+fn exported_wgsl_runs_and_matches_the_reference() {
+    let Some(e) = engine(None) else { return };
+    let ctx = e.context();
+    let (dev, queue) = (&ctx.device, &ctx.queue);
+    for (kind, order, layout) in [
+        (Kind::Nsrm, 4, Layout::Rgba),
+        (Kind::Rprm, 3, Layout::Rgb),
+        (Kind::Prm, 2, Layout::Rgba),
+    ] {
+        let m = model(kind, order);
+        let src = String::from_utf8(
+            gpu::export::export(&m, layout, gpu::export::ShaderLang::Wgsl).unwrap(),
+        )
+        .unwrap();
+        let input = random_frame(300, 5, layout, 77);
+        let mut reference = input.clone();
+        m.apply_frame_f64(&mut reference);
+        let buf = dev.create_buffer(&wgpu::BufferDescriptor {
+            label: None,
+            size: (input.data.len() * 4) as u64,
+            usage: wgpu::BufferUsages::STORAGE
+                | wgpu::BufferUsages::COPY_DST
+                | wgpu::BufferUsages::COPY_SRC,
+            mapped_at_creation: false,
+        });
+        queue.write_buffer(&buf, 0, bytemuck::cast_slice(&input.data));
+        let module = dev.create_shader_module(wgpu::ShaderModuleDescriptor {
+            label: None,
+            source: wgpu::ShaderSource::Wgsl(src.into()),
+        });
+        let pipeline = dev.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+            label: None,
+            layout: None,
+            module: &module,
+            entry_point: Some("main"),
+            compilation_options: Default::default(),
+            cache: None,
+        });
+        let bg = dev.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: None,
+            layout: &pipeline.get_bind_group_layout(0),
+            entries: &[wgpu::BindGroupEntry {
+                binding: 1,
+                resource: buf.as_entire_binding(),
+            }],
+        });
+        let mut enc = dev.create_command_encoder(&Default::default());
+        {
+            let mut pass = enc.begin_compute_pass(&Default::default());
+            pass.set_pipeline(&pipeline);
+            pass.set_bind_group(0, &bg, &[]);
+            // 1500 pixels: 6 workgroups of 256.
+            pass.dispatch_workgroups(6, 1, 1);
+        }
+        queue.submit([enc.finish()]);
+        let out = Frame::from_data(300, 5, layout, read_buffer(dev, queue, &buf)).unwrap();
+        compare(
+            &format!("exported {kind} {order}"),
+            &m,
+            &input,
+            &out,
+            &reference,
+            REL_TOL,
+        );
+    }
+}

@@ -1,0 +1,153 @@
+//! `nsrm export-shader` end to end (no GPU needed): fit a model file, export it in every
+//! language, and read each output back with naga.
+
+use std::path::Path;
+use std::process::Command;
+
+fn nsrm(args: &[&str]) -> std::process::Output {
+    Command::new(env!("CARGO_BIN_EXE_nsrm"))
+        .args(args)
+        .output()
+        .expect("run nsrm")
+}
+
+fn validate(module: &naga::Module) {
+    naga::valid::Validator::new(
+        naga::valid::ValidationFlags::all(),
+        naga::valid::Capabilities::default(),
+    )
+    .validate(module)
+    .unwrap();
+}
+
+fn fit(dir: &Path, kind: &str, order: &str) -> String {
+    let model = dir.join(format!("{kind}{order}.json"));
+    let out = nsrm(&[
+        "fit",
+        "--model",
+        kind,
+        "--order",
+        order,
+        "-o",
+        model.to_str().unwrap(),
+    ]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    model.to_str().unwrap().to_string()
+}
+
+#[test]
+fn export_shader_writes_every_language() {
+    let dir = tempfile::tempdir().unwrap();
+    let model = fit(dir.path(), "rprm", "3");
+    for (lang, layout) in [
+        ("wgsl", "rgb"),
+        ("glsl", "rgba"),
+        ("hlsl", "rgba"),
+        ("msl", "rgb"),
+        ("spirv", "rgba"),
+    ] {
+        let path = dir.path().join(format!("out.{lang}"));
+        let p = path.to_str().unwrap();
+        let args = [
+            "export-shader",
+            "--model",
+            &model,
+            "--lang",
+            lang,
+            "--layout",
+            layout,
+            "-o",
+            p,
+        ];
+        let out = nsrm(&args);
+        assert!(
+            out.status.success(),
+            "{lang}: {}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        let bytes = std::fs::read(&path).unwrap();
+        match lang {
+            "wgsl" => {
+                let text = String::from_utf8(bytes).unwrap();
+                assert!(text.contains("const CHANNELS: u32 = 3u;"));
+                assert!(!text.contains("var<uniform>"));
+                let m = naga::front::wgsl::parse_str(&text).unwrap();
+                validate(&m);
+            }
+            "glsl" => {
+                let text = String::from_utf8(bytes).unwrap();
+                let m = naga::front::glsl::Frontend::default()
+                    .parse(&naga::ShaderStage::Compute.into(), &text)
+                    .unwrap();
+                validate(&m);
+            }
+            "spirv" => {
+                let m = naga::front::spv::parse_u8_slice(&bytes, &Default::default()).unwrap();
+                validate(&m);
+                assert_eq!(m.entry_points[0].name, "main");
+            }
+            _ => {
+                let text = String::from_utf8(bytes).unwrap();
+                assert!(text.contains("main"), "{lang}");
+            }
+        }
+        // An existing output is kept unless --overwrite is given.
+        let again = nsrm(&args);
+        assert_eq!(again.status.code(), Some(1));
+        assert!(String::from_utf8_lossy(&again.stderr).contains("--overwrite"));
+        let mut with = args.to_vec();
+        with.push("--overwrite");
+        assert!(nsrm(&with).status.success());
+    }
+    // No temporary files left behind.
+    for entry in std::fs::read_dir(dir.path()).unwrap() {
+        let name = entry.unwrap().file_name();
+        assert!(!name.to_string_lossy().ends_with(".tmp"), "{name:?}");
+    }
+}
+
+#[test]
+fn export_shader_usage_errors_exit_2() {
+    let dir = tempfile::tempdir().unwrap();
+    let model = fit(dir.path(), "nsrm", "2");
+    let out_path = dir.path().join("x");
+    let o = out_path.to_str().unwrap();
+    let bad_lang = nsrm(&[
+        "export-shader",
+        "--model",
+        &model,
+        "--lang",
+        "cuda",
+        "-o",
+        o,
+    ]);
+    assert_eq!(bad_lang.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&bad_lang.stderr).contains("wgsl, glsl"));
+    let bad_layout = nsrm(&[
+        "export-shader",
+        "--model",
+        &model,
+        "--lang",
+        "wgsl",
+        "--layout",
+        "bgr",
+        "-o",
+        o,
+    ]);
+    assert_eq!(bad_layout.status.code(), Some(2));
+    let missing = nsrm(&[
+        "export-shader",
+        "--model",
+        dir.path().join("none.json").to_str().unwrap(),
+        "--lang",
+        "wgsl",
+        "-o",
+        o,
+    ]);
+    assert_eq!(missing.status.code(), Some(1));
+    assert!(!out_path.exists());
+}

@@ -1,1 +1,97 @@
-fn main() {}
+//! Criterion benches of the fast CPU path (`nsrm::model::fast`): LRM, PRM 3, RPRM 3 and NSRM 3 on
+//! one thread and on rayon's global pool, beside a memcpy of the same bytes (the ceiling a
+//! per-pixel kernel can reach). Throughput is in pixels (`elem/s`).
+//!
+//! The frame (2048×2048 packed RGB f32, 48 MiB each way) is larger than the caches; the kernels
+//! write into a separate pre-faulted frame, the memcpy into a separate pre-faulted buffer, both
+//! in the fast path's 64 Ki-pixel chunks. `cargo bench --bench kernels`; `nsrm bench` measures the
+//! same in one run and prints ratios.
+
+use criterion::{criterion_group, criterion_main, Criterion, Throughput};
+use nsrm::model::fast::{FastModel, Threads, CHUNK_PIXELS};
+use nsrm::model::{fit, Kind};
+use nsrm::spectral::{simulate, Camera, Grid, Illuminant, Reflectances};
+use nsrm::{Frame, Layout};
+use rayon::prelude::*;
+use std::hint::black_box;
+use std::time::Duration;
+
+const WIDTH: usize = 2048;
+const HEIGHT: usize = 2048;
+
+/// Camera RGB in 0..1 with a few highlights, fixed seed.
+fn input() -> Frame {
+    let mut state = 0x5eed_u64;
+    let mut next = || {
+        state = state.wrapping_add(0x9e37_79b9_7f4a_7c15);
+        let mut z = state;
+        z = (z ^ (z >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
+        z = (z ^ (z >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
+        ((z ^ (z >> 31)) >> 40) as f32 / (1u32 << 24) as f32
+    };
+    let mut f = Frame::new(WIDTH, HEIGHT, Layout::Rgb);
+    for px in f.data.chunks_exact_mut(3) {
+        let gain = if next() < 0.02 { 4.0 } else { 1.0 };
+        for v in px.iter_mut() {
+            *v = next() * gain;
+        }
+    }
+    f
+}
+
+fn memcpy_chunked(src: &[f32], dst: &mut [f32], threads: Threads) {
+    let n = CHUNK_PIXELS * 3;
+    match threads {
+        Threads::All => src
+            .par_chunks(n)
+            .zip(dst.par_chunks_mut(n))
+            .for_each(|(s, d)| d.copy_from_slice(s)),
+        Threads::Single => src
+            .chunks(n)
+            .zip(dst.chunks_mut(n))
+            .for_each(|(s, d)| d.copy_from_slice(s)),
+    }
+}
+
+fn kernels(c: &mut Criterion) {
+    let data = simulate(
+        &Camera::from_name_or_path("nikon-d5100").unwrap(),
+        &Illuminant::from_name_or_path("D65").unwrap(),
+        &Reflectances::from_name_or_path("rawtoaces-190").unwrap(),
+        &Grid::default(),
+    )
+    .unwrap();
+    let src = input();
+    let mut dst = Frame::new(WIDTH, HEIGHT, Layout::Rgb);
+    dst.data.iter_mut().for_each(|v| *v = 1.0); // pre-fault
+
+    let mut g = c.benchmark_group("kernels_2048x2048_rgb");
+    g.throughput(Throughput::Elements((WIDTH * HEIGHT) as u64));
+    g.sample_size(10);
+    g.warm_up_time(Duration::from_millis(500));
+    g.measurement_time(Duration::from_secs(3));
+    let threads = [("1t", Threads::Single), ("all", Threads::All)];
+    for (name, th) in threads {
+        g.bench_function(format!("memcpy/{name}"), |b| {
+            b.iter(|| memcpy_chunked(black_box(&src.data), &mut dst.data, th))
+        });
+    }
+    for (kind, order) in [
+        (Kind::Lrm, 1),
+        (Kind::Prm, 3),
+        (Kind::Rprm, 3),
+        (Kind::Nsrm, 3),
+    ] {
+        let model = fit(kind, order, &data).unwrap();
+        let fast = FastModel::new(&model).unwrap();
+        for (name, th) in threads {
+            g.bench_function(format!("{}{order}/{name}", kind.name()), |b| {
+                b.iter(|| fast.apply_into(black_box(&src), &mut dst, th).unwrap())
+            });
+        }
+    }
+    g.finish();
+}
+
+criterion_group!(benches, kernels);
+criterion_main!(benches);

@@ -32,6 +32,7 @@ pub mod colorimetry;
 pub mod eval;
 pub mod frame;
 pub mod gpu;
+pub mod io;
 pub mod model;
 pub mod spectral;
 pub mod training;

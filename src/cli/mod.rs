@@ -3,10 +3,13 @@
 //!
 //! Exit status: 0 success, 1 failure (a message with its context on stderr), 2 usage error.
 
+mod apply;
+mod bench;
 mod common;
 mod eval;
 mod export_shader;
 mod fit;
+mod render_chart;
 mod terms;
 
 use clap::{Parser, Subcommand};
@@ -23,6 +26,11 @@ struct Cli {
 
 #[derive(Debug, Subcommand)]
 enum Command {
+    /// Colour-correct linear camera-raw EXR/TIFF frames with a model file (batch, GPU or CPU).
+    Apply(apply::Args),
+    /// Per-pixel throughput of each model on the CPU (one thread, all threads) and the GPU, as a
+    /// fraction of a memcpy of the same bytes.
+    Bench(bench::Args),
     /// Leave-one-out (or in-sample) ΔE00 of the models; without flags, the paper's experiment on
     /// built-in data (D5100, rawtoaces-190, D65/TL865/LED-B5), printed like its Table 1.
     Eval(eval::Args),
@@ -33,6 +41,8 @@ enum Command {
     Fit(fit::Args),
     /// List the terms of a model kind and order (the single definition the shaders use).
     Terms(terms::Args),
+    /// Render a synthetic linear camera-RGB chart frame (EXR/TIFF) with its patch layout.
+    RenderChart(render_chart::Args),
 }
 
 /// Parses the command line, runs the subcommand, and maps errors to exit codes.
@@ -46,10 +56,13 @@ pub fn main() -> ExitCode {
         }
     };
     let result = match cli.command {
+        Command::Apply(a) => apply::run(a),
+        Command::Bench(a) => bench::run(a),
         Command::Eval(a) => eval::run(a),
         Command::ExportShader(a) => export_shader::run(a),
         Command::Fit(a) => fit::run(a),
         Command::Terms(a) => terms::run(a),
+        Command::RenderChart(a) => render_chart::run(a),
     };
     match result {
         Ok(code) => code,

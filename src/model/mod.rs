@@ -10,6 +10,7 @@
 //! * **Values far outside the training range** (HDR highlights) are not clamped: LRM, RPRM and NSRM
 //!   scale exactly with exposure, `f(kS) = k·f(S)` for `k > 0`; PRM extrapolates its polynomial.
 
+pub mod fast;
 pub mod file;
 pub mod terms;
 

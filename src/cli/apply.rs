@@ -1,0 +1,577 @@
+//! `nsrm apply`: batch colour correction of linear camera-raw EXR/TIFF frames.
+//!
+//! Pipeline: `--jobs` decode workers → one correction stage (the GPU engine, or the multi-threaded
+//! fast CPU path) → `--jobs` encode workers, joined by bounded channels so decoding, correcting
+//! and encoding overlap and at most a few frames are held in memory.
+
+use super::common::UsageError;
+use anyhow::{Context, Result};
+use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
+use nsrm::colorimetry::spaces::{Mat3, OutputSpace};
+use nsrm::gpu::{DeviceChoice, Engine, GpuOptions};
+use nsrm::io::batch::{self, Planned, Shard};
+use nsrm::io::{
+    self as fio, preview, Decoded, ExrCompression, FileFormat, ReadOptions, WriteOptions,
+};
+use nsrm::model::fast::{FastModel, Threads};
+use nsrm::Model;
+use std::io::IsTerminal;
+use std::path::{Path, PathBuf};
+use std::process::ExitCode;
+use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
+use std::sync::mpsc::sync_channel;
+use std::sync::{Arc, Mutex};
+use std::time::{Duration, Instant};
+
+#[derive(Debug, clap::Args)]
+pub struct Args {
+    /// Model file written by `nsrm fit`.
+    #[arg(long, value_name = "FILE")]
+    model: PathBuf,
+    /// Where to correct: `gpu`, `cpu`, or `auto` (the GPU when an adapter exists, else the CPU).
+    #[arg(long, default_value = "auto", value_name = "auto|gpu|cpu")]
+    device: String,
+    /// GPU adapter: a substring of its name (case-insensitive); default `NSRM_ADAPTER`, else the
+    /// system's choice.
+    #[arg(long, value_name = "NAME")]
+    adapter: Option<String>,
+    /// Output directory (created if missing); default: beside each input.
+    #[arg(
+        short = 'o',
+        long = "output-dir",
+        visible_alias = "output",
+        value_name = "DIR"
+    )]
+    output_dir: Option<PathBuf>,
+    /// Appended to each output's name (before a trailing frame number: plate.0101.exr →
+    /// plate_xyz.0101.exr). Default: `_` and the output space (`_xyz`, `_acescg`, …).
+    #[arg(long, value_name = "S")]
+    suffix: Option<String>,
+    /// Output file format: `exr` (float, or half with --half; keeps every channel and
+    /// attribute of an EXR input) or `tiff` (32-bit float RGB/RGBA).
+    #[arg(long, default_value = "exr", value_name = "exr|tiff")]
+    format: String,
+    /// Replace existing outputs (never inputs).
+    #[arg(long, conflicts_with = "skip_existing")]
+    overwrite: bool,
+    /// Skip inputs whose output already exists (for re-running a partly done batch).
+    #[arg(long)]
+    skip_existing: bool,
+    /// Go on after a file fails (the run still exits with status 1); default: stop at the first.
+    #[arg(long)]
+    continue_on_error: bool,
+    /// Decode and encode workers (each holds a frame in memory); default: the number of CPUs.
+    #[arg(short = 'j', long, value_name = "N")]
+    jobs: Option<usize>,
+    /// Convert only the K-th of N slices of the sorted input list (K from 1: files i with
+    /// i % N == K-1). With Slurm `--array=1-N`: `--shard $SLURM_ARRAY_TASK_ID/N`.
+    #[arg(long, value_name = "K/N")]
+    shard: Option<String>,
+    /// EXR layer holding the camera RGB: channels NAME.R, NAME.G, NAME.B (or a part NAME).
+    #[arg(long, value_name = "NAME")]
+    layer: Option<String>,
+    /// Write the corrected R, G, B as half floats (EXR only).
+    #[arg(long)]
+    half: bool,
+    /// EXR compression: `keep` (the input's if lossless, else zip), none, rle, zips, zip, piz.
+    /// Noisy float data compresses little; `none` or `piz` encode fastest.
+    #[arg(long, default_value = "keep", value_name = "C")]
+    compression: String,
+    /// xyz, linear-srgb, acescg or aces2065-1. Pixels are scene-linear with the perfect white
+    /// at Y = 1 (RGB spaces: white = 1, 1, 1 after Bradford adaptation from the training white).
+    #[arg(long, default_value = "xyz", value_name = "SPACE")]
+    output_space: String,
+    /// Also write an 8-bit sRGB PNG of each frame here, for a quick look.
+    #[arg(long, value_name = "DIR")]
+    preview: Option<PathBuf>,
+    /// Print where the time went (decode, correct, encode; frames/s, Mpixel/s).
+    #[arg(long)]
+    timing: bool,
+    /// Print each input and its output, convert nothing.
+    #[arg(long)]
+    dry_run: bool,
+    /// Files, directories (their .exr/.tif/.tiff files) or glob patterns ('shots/*.exr').
+    #[arg(required = true, value_name = "INPUT")]
+    inputs: Vec<String>,
+}
+
+/// What happened to one input.
+#[derive(Debug, Clone)]
+enum Outcome {
+    Converted,
+    Skipped(String),
+    Failed(String),
+}
+
+/// One conversion to run.
+#[derive(Debug, Clone)]
+struct Job {
+    input: PathBuf,
+    output: PathBuf,
+    preview: Option<PathBuf>,
+}
+
+/// The correction step: one engine, driven from one thread (the GPU engine takes `&mut`).
+enum Corrector {
+    /// The multi-threaded f32 CPU path (falls back to the f64 reference for hand-made models).
+    Cpu(Option<Box<FastModel>>),
+    Gpu(Box<Engine>),
+}
+
+impl Corrector {
+    fn open(device: DeviceChoice, adapter: Option<&str>, model: &Model) -> Result<Corrector> {
+        let opts = GpuOptions {
+            adapter: adapter.map(str::to_string),
+            tile_pixels: None,
+        };
+        let engine = nsrm::gpu::open(device, &opts)
+            .with_context(|| format!("--device {}", device.name()))?;
+        Ok(match engine {
+            Some(e) => Corrector::Gpu(Box::new(e)),
+            None => {
+                if device == DeviceChoice::Auto {
+                    eprintln!(
+                        "nsrm apply: no GPU adapter found; correcting on the CPU \
+                         (for the GPU install a Vulkan driver, e.g. mesa-vulkan-drivers libvulkan1)"
+                    );
+                }
+                Corrector::Cpu(FastModel::new(model).ok().map(Box::new))
+            }
+        })
+    }
+
+    fn describe(&self) -> String {
+        match self {
+            Corrector::Cpu(Some(f)) => format!("CPU ({} kernel)", f.kernel_name()),
+            Corrector::Cpu(None) => "CPU (f64 reference)".into(),
+            Corrector::Gpu(e) => format!("GPU {}", e.adapter_name()),
+        }
+    }
+
+    fn apply(&mut self, model: &Model, d: &mut Decoded) -> Result<()> {
+        for f in d.frames_mut() {
+            match self {
+                Corrector::Cpu(Some(fast)) => fast.apply(f, Threads::All),
+                Corrector::Cpu(None) => model.apply_frame_f64(f),
+                Corrector::Gpu(e) => e.apply(model, f)?,
+            }
+        }
+        Ok(())
+    }
+}
+
+/// Seconds spent in each stage (summed over workers) and pixels converted.
+#[derive(Debug, Default)]
+struct Timing {
+    decode: Duration,
+    correct: Duration,
+    encode: Duration,
+    pixels: usize,
+    frames: usize,
+}
+
+pub fn run(a: Args) -> Result<ExitCode> {
+    let space = OutputSpace::parse(&a.output_space).ok_or_else(|| {
+        UsageError(format!(
+            "unknown --output-space `{}` (expected xyz, linear-srgb, acescg or aces2065-1)",
+            a.output_space
+        ))
+    })?;
+    let format = FileFormat::parse(&a.format).ok_or_else(|| {
+        UsageError(format!(
+            "unknown --format `{}` (expected exr or tiff)",
+            a.format
+        ))
+    })?;
+    let compression = ExrCompression::parse(&a.compression).ok_or_else(|| {
+        UsageError(format!(
+            "unknown --compression `{}` (expected keep, none, rle, zips, zip or piz)",
+            a.compression
+        ))
+    })?;
+    if a.half && format != FileFormat::Exr {
+        return Err(UsageError("--half applies to EXR output only".into()).into());
+    }
+    let device = DeviceChoice::parse(&a.device).ok_or_else(|| {
+        UsageError(format!(
+            "unknown --device `{}` (expected auto, gpu or cpu)",
+            a.device
+        ))
+    })?;
+    if a.jobs == Some(0) {
+        return Err(UsageError("--jobs must be at least 1".into()).into());
+    }
+    let shard = a
+        .shard
+        .as_deref()
+        .map(Shard::parse)
+        .transpose()
+        .map_err(|e| UsageError(e.to_string()))?;
+    let suffix = a
+        .suffix
+        .clone()
+        .unwrap_or_else(|| format!("_{}", space.name()));
+
+    let model = Model::load(&a.model)
+        .with_context(|| format!("loading the model {}", a.model.display()))?;
+    let out_model = fio::output_model(&model, space)?;
+
+    let all = batch::expand_inputs(&a.inputs).map_err(|e| UsageError(e.to_string()))?;
+    let plan = batch::plan(&all, a.output_dir.as_deref(), &suffix, format)
+        .map_err(|e| UsageError(e.to_string()))?;
+    let plan: Vec<Planned> = match shard {
+        Some(s) => s.select(&plan),
+        None => plan,
+    };
+    let scope = match shard {
+        Some(s) => format!("shard {s}: {} of {} inputs", plan.len(), all.len()),
+        None => format!("{} inputs", plan.len()),
+    };
+    let jobs: Vec<Job> = plan
+        .into_iter()
+        .map(|p| {
+            let preview = a.preview.as_ref().map(|dir| {
+                let name = p.output.with_extension("png");
+                dir.join(name.file_name().unwrap_or_default())
+            });
+            Job {
+                input: p.input,
+                output: p.output,
+                preview,
+            }
+        })
+        .collect();
+    let mut previews = std::collections::HashMap::new();
+    for j in &jobs {
+        if let Some(p) = &j.preview {
+            if let Some(other) = previews.insert(p.clone(), &j.input) {
+                return Err(UsageError(format!(
+                    "{} and {} would both have the preview {}; use -o or separate runs",
+                    other.display(),
+                    j.input.display(),
+                    p.display()
+                ))
+                .into());
+            }
+        }
+    }
+    if a.dry_run {
+        println!("# {scope}; model {}", a.model.display());
+        for j in &jobs {
+            match &j.preview {
+                Some(p) => println!(
+                    "{} -> {} (+ {})",
+                    j.input.display(),
+                    j.output.display(),
+                    p.display()
+                ),
+                None => println!("{} -> {}", j.input.display(), j.output.display()),
+            }
+        }
+        return Ok(ExitCode::SUCCESS);
+    }
+    if jobs.is_empty() {
+        eprintln!("nsrm apply: nothing to do ({scope})");
+        return Ok(ExitCode::SUCCESS);
+    }
+
+    // Output directories exist and can be written before any frame is decoded.
+    let mut dirs: Vec<PathBuf> = jobs
+        .iter()
+        .flat_map(|j| {
+            [
+                j.output.parent(),
+                j.preview.as_deref().and_then(Path::parent),
+            ]
+        })
+        .flatten()
+        .map(|d| {
+            if d.as_os_str().is_empty() {
+                PathBuf::from(".")
+            } else {
+                d.to_path_buf()
+            }
+        })
+        .collect();
+    dirs.sort();
+    dirs.dedup();
+    for d in &dirs {
+        ensure_writable_dir(d)?;
+    }
+
+    // Existing outputs: skipped, replaced, or failures found before any work.
+    let mut outcomes: Vec<Option<Outcome>> = vec![None; jobs.len()];
+    for (i, j) in jobs.iter().enumerate() {
+        if j.output.exists() {
+            if a.skip_existing {
+                outcomes[i] = Some(Outcome::Skipped(format!(
+                    "{} exists (--skip-existing)",
+                    j.output.display()
+                )));
+            } else if !a.overwrite {
+                outcomes[i] = Some(Outcome::Failed(format!(
+                    "{}: already exists (pass --overwrite to replace it, or --skip-existing)",
+                    j.output.display()
+                )));
+            }
+        } else if let Some(p) = j.preview.as_ref().filter(|p| p.exists() && !a.overwrite) {
+            outcomes[i] = Some(Outcome::Failed(format!(
+                "{}: preview already exists (pass --overwrite to replace it)",
+                p.display()
+            )));
+        }
+    }
+    let early_failure = outcomes
+        .iter()
+        .any(|o| matches!(o, Some(Outcome::Failed(_))));
+    let start = Instant::now();
+    let mut timing = Timing::default();
+    let mut corrector_name = String::new();
+    if !early_failure || a.continue_on_error {
+        let mut corrector = Corrector::open(device, a.adapter.as_deref(), &out_model)?;
+        corrector_name = corrector.describe();
+        let todo: Vec<usize> = (0..jobs.len()).filter(|&i| outcomes[i].is_none()).collect();
+        let workers = a.jobs.unwrap_or_else(|| {
+            std::thread::available_parallelism()
+                .map(|n| n.get())
+                .unwrap_or(2)
+        });
+        let settings = Settings {
+            read: ReadOptions {
+                layer: a.layer.clone(),
+            },
+            write: WriteOptions {
+                format,
+                half: a.half,
+                compression,
+                space,
+                overwrite: a.overwrite,
+            },
+            to_srgb: fio::to_linear_srgb(model.white_xyz, space),
+            workers: workers.min(todo.len()).max(1),
+            continue_on_error: a.continue_on_error,
+        };
+        let pb = progress_bar(todo.len());
+        let done = run_pipeline(
+            &jobs,
+            &todo,
+            &mut corrector,
+            &out_model,
+            &settings,
+            &pb,
+            &mut timing,
+        );
+        pb.finish_and_clear();
+        for (i, o) in done {
+            outcomes[i] = Some(o);
+        }
+    }
+    let wall = start.elapsed();
+
+    // Summary.
+    let count = |f: fn(&Outcome) -> bool| outcomes.iter().flatten().filter(|o| f(o)).count();
+    let converted = count(|o| matches!(o, Outcome::Converted));
+    let skipped = count(|o| matches!(o, Outcome::Skipped(_)));
+    let failed = count(|o| matches!(o, Outcome::Failed(_)));
+    let not_attempted = outcomes.iter().filter(|o| o.is_none()).count();
+    eprintln!(
+        "nsrm apply: {converted} converted, {skipped} skipped, {failed} failed{} ({scope}; {}; output {} {}{})",
+        if not_attempted > 0 {
+            format!(", {not_attempted} not attempted")
+        } else {
+            String::new()
+        },
+        if corrector_name.is_empty() { "no correction run".to_string() } else { corrector_name },
+        space.name(),
+        format.name(),
+        if a.half { " half" } else { "" },
+    );
+    for (j, o) in jobs.iter().zip(&outcomes) {
+        match o {
+            Some(Outcome::Failed(why)) => eprintln!("  failed: {}: {why}", j.input.display()),
+            Some(Outcome::Skipped(why)) => eprintln!("  skipped: {}: {why}", j.input.display()),
+            _ => {}
+        }
+    }
+    if not_attempted > 0 {
+        eprintln!(
+            "  {not_attempted} not attempted: stopped after the first failure (pass --continue-on-error to go on)"
+        );
+    }
+    if a.timing {
+        print_timing(&timing, wall);
+    }
+    Ok(if failed > 0 {
+        ExitCode::from(1)
+    } else {
+        ExitCode::SUCCESS
+    })
+}
+
+/// Creates `dir` if needed and checks a file can be created in it.
+fn ensure_writable_dir(dir: &Path) -> Result<()> {
+    std::fs::create_dir_all(dir)
+        .with_context(|| format!("cannot create the output directory {}", dir.display()))?;
+    let probe = nsrm::atomic::temp_path_for(&dir.join("nsrm-write-probe"));
+    std::fs::File::create_new(&probe)
+        .with_context(|| format!("cannot write in the output directory {}", dir.display()))?;
+    std::fs::remove_file(&probe).with_context(|| format!("cannot remove {}", probe.display()))?;
+    Ok(())
+}
+
+struct Settings {
+    read: ReadOptions,
+    write: WriteOptions,
+    to_srgb: Mat3,
+    workers: usize,
+    continue_on_error: bool,
+}
+
+fn progress_bar(n: usize) -> ProgressBar {
+    if !std::io::stderr().is_terminal() {
+        return ProgressBar::hidden();
+    }
+    let pb = ProgressBar::with_draw_target(Some(n as u64), ProgressDrawTarget::stderr());
+    pb.set_style(
+        ProgressStyle::with_template(
+            "{spinner} [{elapsed_precise}] {bar:30} {pos}/{len} frames  {msg}  ETA {eta}",
+        )
+        .unwrap_or_else(|_| ProgressStyle::default_bar()),
+    );
+    pb.enable_steady_tick(Duration::from_millis(200));
+    pb
+}
+
+/// Runs `todo` (indices into `jobs`) through decode → correct → encode; returns each one's
+/// outcome (jobs not started after a stop are left out).
+fn run_pipeline(
+    jobs: &[Job],
+    todo: &[usize],
+    corrector: &mut Corrector,
+    model: &Model,
+    s: &Settings,
+    pb: &ProgressBar,
+    timing: &mut Timing,
+) -> Vec<(usize, Outcome)> {
+    let stop = AtomicBool::new(false);
+    let next = AtomicUsize::new(0);
+    let results: Mutex<Vec<(usize, Outcome)>> = Mutex::new(Vec::new());
+    let shared_timing = Mutex::new(Timing::default());
+    let started = Instant::now();
+    let fail = |i: usize, why: String| {
+        pb.suspend(|| eprintln!("nsrm apply: failed: {why}"));
+        if !s.continue_on_error {
+            stop.store(true, Ordering::SeqCst);
+        }
+        results
+            .lock()
+            .unwrap_or_else(|e| e.into_inner())
+            .push((i, Outcome::Failed(why)));
+        pb.inc(1);
+    };
+    std::thread::scope(|scope| {
+        let (dec_tx, dec_rx) = sync_channel::<(usize, Decoded)>(s.workers);
+        let (enc_tx, enc_rx) = sync_channel::<(usize, Decoded)>(s.workers);
+        let enc_rx = Arc::new(Mutex::new(enc_rx));
+        for _ in 0..s.workers {
+            let tx = dec_tx.clone();
+            let (stop, next, fail, shared_timing) = (&stop, &next, &fail, &shared_timing);
+            scope.spawn(move || loop {
+                if stop.load(Ordering::SeqCst) {
+                    break;
+                }
+                let k = next.fetch_add(1, Ordering::SeqCst);
+                let Some(&i) = todo.get(k) else { break };
+                let t = Instant::now();
+                match Decoded::read(&jobs[i].input, &s.read) {
+                    Ok(d) => {
+                        lock(shared_timing).decode += t.elapsed();
+                        if tx.send((i, d)).is_err() {
+                            break;
+                        }
+                    }
+                    Err(e) => fail(i, e.to_string()),
+                }
+            });
+        }
+        drop(dec_tx);
+        for _ in 0..s.workers {
+            let rx = Arc::clone(&enc_rx);
+            let (fail, results, shared_timing) = (&fail, &results, &shared_timing);
+            scope.spawn(move || loop {
+                let msg = lock(&rx).recv();
+                let Ok((i, d)) = msg else { break };
+                let t = Instant::now();
+                let pixels = d.pixels();
+                match encode(&jobs[i], d, s) {
+                    Ok(()) => {
+                        let mut tm = lock(shared_timing);
+                        tm.encode += t.elapsed();
+                        tm.pixels += pixels;
+                        tm.frames += 1;
+                        let rate = tm.pixels as f64 / started.elapsed().as_secs_f64().max(1e-9);
+                        drop(tm);
+                        lock(results).push((i, Outcome::Converted));
+                        pb.set_message(format!("{:.1} Mpixel/s", rate / 1e6));
+                        pb.inc(1);
+                    }
+                    Err(e) => fail(i, e.to_string()),
+                }
+            });
+        }
+        for (i, mut d) in dec_rx {
+            let t = Instant::now();
+            match corrector.apply(model, &mut d) {
+                Ok(()) => {
+                    lock(&shared_timing).correct += t.elapsed();
+                    if enc_tx.send((i, d)).is_err() {
+                        break;
+                    }
+                }
+                Err(e) => fail(i, format!("{}: correcting: {e:#}", jobs[i].input.display())),
+            }
+        }
+        drop(enc_tx);
+    });
+    let t = shared_timing
+        .into_inner()
+        .unwrap_or_else(|e| e.into_inner());
+    *timing = t;
+    results.into_inner().unwrap_or_else(|e| e.into_inner())
+}
+
+fn lock<T>(m: &Mutex<T>) -> std::sync::MutexGuard<'_, T> {
+    m.lock().unwrap_or_else(|e| e.into_inner())
+}
+
+/// Writes the output (and its preview, after the output succeeded).
+fn encode(job: &Job, d: Decoded, s: &Settings) -> Result<(), fio::IoError> {
+    let png = match &job.preview {
+        Some(_) => Some(preview::encode_png(&d.frame, &s.to_srgb)?),
+        None => None,
+    };
+    d.write(&job.output, &s.write)?;
+    if let (Some(path), Some(png)) = (&job.preview, png) {
+        nsrm::atomic::write_atomic(path, &png, s.write.overwrite)?;
+    }
+    Ok(())
+}
+
+fn print_timing(t: &Timing, wall: Duration) {
+    let w = wall.as_secs_f64().max(1e-9);
+    eprintln!(
+        "timing: wall {:.3} s; decode {:.3} s, correct {:.3} s, encode {:.3} s (decode and encode summed over workers; the stages overlap)",
+        w,
+        t.decode.as_secs_f64(),
+        t.correct.as_secs_f64(),
+        t.encode.as_secs_f64()
+    );
+    eprintln!(
+        "timing: {} frames, {:.2} Mpixel: {:.2} frames/s, {:.2} Mpixel/s (correction alone {:.1} Mpixel/s)",
+        t.frames,
+        t.pixels as f64 / 1e6,
+        t.frames as f64 / w,
+        t.pixels as f64 / 1e6 / w,
+        t.pixels as f64 / 1e6 / t.correct.as_secs_f64().max(1e-9)
+    );
+}

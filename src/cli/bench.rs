@@ -1,0 +1,500 @@
+//! `nsrm bench`: per-pixel throughput of the apply paths, as a fraction of a memcpy of the same
+//! bytes measured in the same run.
+//!
+//! * CPU (`cpu-1`: one thread; `cpu-all`: rayon's global pool): the fast path
+//!   ([`FastModel::apply_into`]) from the input frame into a separate, pre-faulted output frame.
+//!   Its reference is a memcpy of the same bytes into a separate pre-faulted buffer, done the same
+//!   way (`copy_from_slice` over the same 64 Ki-pixel chunks, one thread for `cpu-1`, the pool for
+//!   `cpu-all`). Kernel and memcpy repetitions alternate, so both see the same machine state; the
+//!   ratio is median / median.
+//! * GPU: [`Engine::timed_apply`] — kernel time from timestamp queries (when the adapter has
+//!   them) and end-to-end time including upload and read-back. Its reference is the device's own
+//!   buffer-to-buffer copy of the frame's bytes ([`Engine::copy_bandwidth`]).
+
+use super::common::{parse_models, UsageError};
+use anyhow::{Context, Result};
+use clap::ValueEnum;
+use nsrm::gpu::{Engine, GpuOptions};
+use nsrm::model::fast::{FastModel, Threads, CHUNK_PIXELS};
+use nsrm::model::{fit, Kind, Model};
+use nsrm::spectral::{simulate, Camera, Grid, Illuminant, Reflectances};
+use nsrm::{Frame, Layout};
+use rayon::prelude::*;
+use serde::Serialize;
+use std::process::ExitCode;
+use std::time::Instant;
+
+#[derive(Debug, clap::Args)]
+pub struct Args {
+    /// Frame size, WIDTHxHEIGHT. The default (8.4 Mpixel, 100 MB of RGB f32 each way) is much
+    /// larger than the caches and keeps the whole run (lavapipe included) under a minute.
+    #[arg(long, default_value = "4096x2048", value_name = "WxH")]
+    size: String,
+    /// Pixel layout: packed RGB or RGBA f32.
+    #[arg(long, value_enum, default_value_t = LayoutArg::Rgb)]
+    layout: LayoutArg,
+    /// Models to time, comma-separated.
+    #[arg(long, default_value = "lrm,prm,rprm,nsrm", value_name = "LIST")]
+    models: String,
+    /// Order of PRM, RPRM and NSRM (LRM is always linear).
+    #[arg(long, default_value_t = 3)]
+    order: u8,
+    /// Where to run: `cpu` (one thread and all threads), `gpu`, or `all`.
+    #[arg(long, value_enum, default_value_t = DeviceArg::All)]
+    device: DeviceArg,
+    /// Timed repetitions per CPU measurement, after one warm-up; the median is reported.
+    #[arg(long, default_value_t = 7, value_name = "N")]
+    reps: usize,
+    /// Timed repetitions per GPU measurement; default the smaller of --reps and 3 (a software
+    /// adapter such as lavapipe is slow).
+    #[arg(long, value_name = "N")]
+    gpu_reps: Option<usize>,
+    /// Print one JSON object instead of the table.
+    #[arg(long)]
+    json: bool,
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+enum LayoutArg {
+    Rgb,
+    Rgba,
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+enum DeviceArg {
+    Cpu,
+    Gpu,
+    All,
+}
+
+/// One measured (model, device).
+#[derive(Debug, Clone, Serialize)]
+struct Row {
+    model: &'static str,
+    order: u8,
+    device: &'static str,
+    /// CPU: the fast path; GPU: kernel only (timestamps), else end-to-end.
+    mpix_s: f64,
+    /// `mpix_s` over the memcpy reference in Mpixel/s (`null`: the GPU copy could not be timed).
+    ratio_to_memcpy: Option<f64>,
+    /// The reference itself (same bytes, same threads / device), in Mpixel/s.
+    memcpy_mpix_s: Option<f64>,
+    /// GPU: upload + compute + read-back.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    end_to_end_mpix_s: Option<f64>,
+    /// GPU: whether `mpix_s` is kernel-only (`timestamps`) or end-to-end (`none`).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    kernel_timing: Option<&'static str>,
+}
+
+#[derive(Debug, Serialize)]
+struct Report {
+    size: [usize; 2],
+    layout: &'static str,
+    /// Multi-threaded memcpy of the frame's bytes (the cpu-all reference), Mpixel/s.
+    memcpy_mpix_s: f64,
+    /// Single-threaded memcpy (the cpu-1 reference), Mpixel/s.
+    memcpy_1t_mpix_s: f64,
+    /// One single `copy_from_slice` of the whole frame (glibc may use streaming stores), Mpixel/s.
+    memcpy_whole_1t_mpix_s: f64,
+    memcpy_method: &'static str,
+    threads: usize,
+    reps: usize,
+    gpu_reps: usize,
+    adapter: Option<String>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    gpu_error: Option<String>,
+    /// The GPU's buffer copy of the frame's bytes, Mpixel/s.
+    gpu_copy_mpix_s: Option<f64>,
+    results: Vec<Row>,
+    /// NSRM throughput / RPRM throughput per device (> 1: NSRM is cheaper).
+    nsrm_over_rprm: serde_json::Map<String, serde_json::Value>,
+}
+
+const MEMCPY_METHOD: &str = "copy_from_slice of the same bytes into a separate pre-faulted buffer, \
+    in the fast path's 64 Ki-pixel chunks (one thread / rayon pool); repetitions alternate with the kernel's";
+
+pub fn run(a: Args) -> Result<ExitCode> {
+    let (width, height) = parse_size(&a.size)?;
+    let kinds = parse_models(&a.models)?;
+    if !(1..=4).contains(&a.order) {
+        return Err(UsageError(format!("--order {} is out of range (1..4)", a.order)).into());
+    }
+    if a.reps == 0 || a.gpu_reps == Some(0) {
+        return Err(UsageError("--reps and --gpu-reps must be at least 1".into()).into());
+    }
+    let layout = match a.layout {
+        LayoutArg::Rgb => Layout::Rgb,
+        LayoutArg::Rgba => Layout::Rgba,
+    };
+    let reps = a.reps;
+    let gpu_reps = a.gpu_reps.unwrap_or(reps.min(3));
+    let (cpu, gpu) = match a.device {
+        DeviceArg::Cpu => (true, false),
+        DeviceArg::Gpu => (false, true),
+        DeviceArg::All => (true, true),
+    };
+    let threads = rayon::current_num_threads();
+    let pixels = width * height;
+    let ch = layout.channels();
+    let bpp = 4 * ch;
+    let say = |s: String| {
+        if !a.json {
+            println!("{s}");
+        }
+    };
+
+    let models = fit_models(&kinds, a.order)?;
+    let input = random_frame(width, height, layout, 0x5eed_0005);
+    let mut output = Frame::new(width, height, layout);
+    prefault(&mut output.data);
+
+    say(format!(
+        "nsrm bench: {width}×{height} {} f32 ({:.2} Mpixel, {:.1} MB in + {:.1} MB out), {threads} threads, \
+         median of {reps} CPU / {gpu_reps} GPU repetitions after a warm-up",
+        layout.name(),
+        pixels as f64 / 1e6,
+        (pixels * bpp) as f64 / 1e6,
+        (pixels * bpp) as f64 / 1e6,
+    ));
+    say(format!("memcpy reference: {MEMCPY_METHOD}."));
+
+    let mpix = |secs: f64| pixels as f64 / secs / 1e6;
+    let mut results = Vec::new();
+    let mut memcpy_all = Vec::new();
+    let mut memcpy_one = Vec::new();
+
+    // The plain memcpy figures (also when only the GPU is timed: they frame the numbers).
+    memcpy_all.extend(time_reps(reps, || {
+        memcpy_chunked(&input.data, &mut output.data, ch, Threads::All)
+    }));
+    memcpy_one.extend(time_reps(reps, || {
+        memcpy_chunked(&input.data, &mut output.data, ch, Threads::Single)
+    }));
+    let whole = median(&time_reps(reps, || {
+        output.data.copy_from_slice(&input.data)
+    }));
+
+    if cpu {
+        say(String::new());
+        say(format!(
+            "{:<8} {:<8} {:>10} {:>9} {:>16}",
+            "model", "device", "Mpixel/s", "× memcpy", "memcpy Mpixel/s"
+        ));
+        for model in &models {
+            let fast = FastModel::new(model).context("preparing the fast CPU path")?;
+            for (device, th) in [("cpu-1", Threads::Single), ("cpu-all", Threads::All)] {
+                let mut k_times = Vec::with_capacity(reps);
+                let mut m_times = Vec::with_capacity(reps);
+                fast.apply_into(&input, &mut output, th)?; // warm-up
+                for _ in 0..reps {
+                    m_times.push(time(|| {
+                        memcpy_chunked(&input.data, &mut output.data, ch, th)
+                    }));
+                    let t = Instant::now();
+                    fast.apply_into(&input, &mut output, th)?;
+                    k_times.push(t.elapsed().as_secs_f64());
+                }
+                match th {
+                    Threads::Single => memcpy_one.extend(&m_times),
+                    Threads::All => memcpy_all.extend(&m_times),
+                }
+                let (k, m) = (mpix(median(&k_times)), mpix(median(&m_times)));
+                let row = Row {
+                    model: model.kind.name(),
+                    order: model.order,
+                    device,
+                    mpix_s: k,
+                    ratio_to_memcpy: Some(k / m),
+                    memcpy_mpix_s: Some(m),
+                    end_to_end_mpix_s: None,
+                    kernel_timing: None,
+                };
+                say(format!(
+                    "{:<8} {:<8} {:>10.1} {:>9.2} {:>16.1}",
+                    label(model),
+                    device,
+                    k,
+                    k / m,
+                    m
+                ));
+                results.push(row);
+            }
+        }
+    }
+
+    let mut adapter = None;
+    let mut gpu_error = None;
+    let mut gpu_copy = None;
+    if gpu {
+        say(String::new());
+        match Engine::new(&GpuOptions::default()) {
+            Err(e) => {
+                say(format!("GPU: unavailable ({e})"));
+                gpu_error = Some(e.to_string());
+            }
+            Ok(mut engine) => {
+                let name = engine.adapter_name();
+                let copy = engine
+                    .copy_bandwidth((pixels * bpp) as u64)
+                    .context("timing the GPU buffer copy")?
+                    .map(|bytes_s| bytes_s / bpp as f64 / 1e6);
+                say(format!(
+                    "GPU: {name}; kernel time {}; reference: its buffer copy of the frame's bytes, {}",
+                    if engine.has_timestamps() {
+                        "from timestamp queries"
+                    } else {
+                        "NOT available (no timestamp queries): Mpixel/s is end-to-end"
+                    },
+                    match copy {
+                        Some(c) => format!("{c:.1} Mpixel/s ({:.2} GB/s)", c * bpp as f64 / 1e3),
+                        None => "not measurable (no timestamp queries)".into(),
+                    }
+                ));
+                say(format!(
+                    "{:<8} {:<8} {:>10} {:>9} {:>16}",
+                    "model", "device", "Mpixel/s", "× copy", "end-to-end Mp/s"
+                ));
+                let mut work = input.clone();
+                for model in &models {
+                    let mut kernel = Vec::new();
+                    let mut total = Vec::new();
+                    for rep in 0..=gpu_reps {
+                        // Every repetition corrects the same input (the engine works in place).
+                        work.data.copy_from_slice(&input.data);
+                        let t = engine
+                            .timed_apply(model, &mut work)
+                            .with_context(|| format!("{} on the GPU", label(model)))?;
+                        if rep > 0 {
+                            total.push(t.total_seconds);
+                            if let Some(k) = t.kernel_seconds {
+                                kernel.push(k);
+                            }
+                        }
+                    }
+                    let e2e = mpix(median(&total));
+                    let (k, timing) = if kernel.len() == total.len() {
+                        (mpix(median(&kernel)), "timestamps")
+                    } else {
+                        (e2e, "none")
+                    };
+                    let ratio = copy.map(|c| k / c);
+                    say(format!(
+                        "{:<8} {:<8} {:>10.1} {:>9} {:>16.1}",
+                        label(model),
+                        "gpu",
+                        k,
+                        ratio.map_or("n/a".into(), |r| format!("{r:.2}")),
+                        e2e
+                    ));
+                    results.push(Row {
+                        model: model.kind.name(),
+                        order: model.order,
+                        device: "gpu",
+                        mpix_s: k,
+                        ratio_to_memcpy: ratio,
+                        memcpy_mpix_s: copy,
+                        end_to_end_mpix_s: Some(e2e),
+                        kernel_timing: Some(timing),
+                    });
+                }
+                adapter = Some(name);
+                gpu_copy = copy;
+            }
+        }
+    }
+
+    let memcpy_all = mpix(median(&memcpy_all));
+    let memcpy_one = mpix(median(&memcpy_one));
+    let memcpy_whole = mpix(whole);
+    say(String::new());
+    say(format!(
+        "memcpy: {memcpy_one:.1} Mpixel/s on 1 thread (the cpu-1 reference), {memcpy_all:.1} on {threads} \
+         threads (the cpu-all reference), {memcpy_whole:.1} as one whole-frame copy_from_slice on 1 thread; \
+         × memcpy above uses the copies interleaved with each row's repetitions"
+    ));
+
+    let mut ratio = serde_json::Map::new();
+    let find = |kind: Kind, device: &str| {
+        results
+            .iter()
+            .find(|r| r.model == kind.name() && r.device == device)
+            .map(|r| r.mpix_s)
+    };
+    for device in ["cpu-1", "cpu-all", "gpu"] {
+        if let (Some(n), Some(r)) = (find(Kind::Nsrm, device), find(Kind::Rprm, device)) {
+            ratio.insert(device.into(), serde_json::json!(n / r));
+        }
+    }
+    if !ratio.is_empty() {
+        say(format!(
+            "\nNSRM/RPRM cost ratio (NSRM {o} throughput / RPRM {o} throughput; > 1: NSRM is cheaper).",
+            o = a.order
+        ));
+        if a.order == 3 {
+            say("The paper: NSRM 29 add, 40 mul, 2 div vs RPRM 36 add, 56 mul, 3 sqrt, 7 cbrt per pixel (this \
+                 RPRM kernel takes 3 sqrt + 3 cbrt: per-channel roots)."
+                .into());
+        }
+        for (device, v) in &ratio {
+            let v = v.as_f64().unwrap_or(f64::NAN);
+            let memory_bound = results
+                .iter()
+                .filter(|r| r.device == device && (r.model == "nsrm" || r.model == "rprm"))
+                .all(|r| r.ratio_to_memcpy.is_some_and(|x| x > 0.85));
+            let verdict = if v > 1.05 {
+                "NSRM cheaper: the paper's claim holds here"
+            } else if v >= 0.95 {
+                if memory_bound {
+                    "a tie: both run at memory speed, the arithmetic is hidden"
+                } else {
+                    "a tie within noise"
+                }
+            } else {
+                "RPRM faster here: the claim does not hold on this device"
+            };
+            say(format!("  {device:<8} {v:.2}  {verdict}"));
+        }
+    }
+
+    if a.json {
+        let report = Report {
+            size: [width, height],
+            layout: layout.name(),
+            memcpy_mpix_s: memcpy_all,
+            memcpy_1t_mpix_s: memcpy_one,
+            memcpy_whole_1t_mpix_s: memcpy_whole,
+            memcpy_method: MEMCPY_METHOD,
+            threads,
+            reps,
+            gpu_reps,
+            adapter,
+            gpu_error,
+            gpu_copy_mpix_s: gpu_copy,
+            results,
+            nsrm_over_rprm: ratio,
+        };
+        println!("{}", serde_json::to_string(&report)?);
+    }
+    Ok(ExitCode::SUCCESS)
+}
+
+/// `LRM`, `PRM3`, …
+fn label(m: &Model) -> String {
+    if m.kind == Kind::Lrm {
+        "LRM".into()
+    } else {
+        format!("{}{}", m.kind, m.order)
+    }
+}
+
+/// `WxH` (or `W×H`), both at least 1.
+fn parse_size(spec: &str) -> Result<(usize, usize)> {
+    let bad = || {
+        UsageError(format!(
+            "--size `{spec}`: expected WIDTHxHEIGHT, e.g. 6000x4000"
+        ))
+    };
+    let (w, h) = spec.split_once(['x', 'X', '×']).ok_or_else(bad)?;
+    let w: usize = w.trim().parse().map_err(|_| bad())?;
+    let h: usize = h.trim().parse().map_err(|_| bad())?;
+    if w == 0 || h == 0 || w.checked_mul(h).and_then(|p| p.checked_mul(16)).is_none() {
+        return Err(bad().into());
+    }
+    Ok((w, h))
+}
+
+/// The models, fitted on built-in simulated data (Nikon D5100, D65, rawtoaces-190).
+fn fit_models(kinds: &[Kind], order: u8) -> Result<Vec<Model>> {
+    let data = simulate(
+        &Camera::from_name_or_path("nikon-d5100")?,
+        &Illuminant::from_name_or_path("D65")?,
+        &Reflectances::from_name_or_path("rawtoaces-190")?,
+        &Grid::default(),
+    )
+    .context("simulating the training data")?;
+    kinds
+        .iter()
+        .map(|&k| fit(k, order, &data).with_context(|| format!("fitting {k}")))
+        .collect()
+}
+
+/// Camera RGB in a realistic range, fixed seed: channels 0..1 with a camera-like balance, 2 % of
+/// pixels highlights up to ×8, alpha 1. Generated in parallel, the same for any thread count.
+fn random_frame(width: usize, height: usize, layout: Layout, seed: u64) -> Frame {
+    let ch = layout.channels();
+    let mut frame = Frame::new(width, height, layout);
+    frame
+        .data
+        .par_chunks_mut(CHUNK_PIXELS * ch)
+        .enumerate()
+        .for_each(|(i, chunk)| {
+            let mut state = seed ^ (i as u64).wrapping_mul(0x9e37_79b9_7f4a_7c15);
+            let mut next = || {
+                state = state.wrapping_add(0x9e37_79b9_7f4a_7c15);
+                let mut z = state;
+                z = (z ^ (z >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
+                z = (z ^ (z >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
+                ((z ^ (z >> 31)) >> 40) as f32 / (1u32 << 24) as f32
+            };
+            for px in chunk.chunks_exact_mut(ch) {
+                let gain = if next() < 0.02 {
+                    1.0 + 7.0 * next()
+                } else {
+                    1.0
+                };
+                for (c, balance) in [0.55f32, 1.0, 0.75].into_iter().enumerate() {
+                    px[c] = next() * balance * gain;
+                }
+                if ch == 4 {
+                    px[3] = 1.0;
+                }
+            }
+        });
+    frame
+}
+
+/// Writes every page so that no timing includes page faults.
+fn prefault(data: &mut [f32]) {
+    data.par_iter_mut().for_each(|v| *v = 1.0);
+}
+
+/// The memcpy reference: the same chunks as the fast path, on one thread or the pool.
+fn memcpy_chunked(src: &[f32], dst: &mut [f32], ch: usize, threads: Threads) {
+    let n = CHUNK_PIXELS * ch;
+    match threads {
+        Threads::All => src
+            .par_chunks(n)
+            .zip(dst.par_chunks_mut(n))
+            .for_each(|(s, d)| d.copy_from_slice(s)),
+        Threads::Single => src
+            .chunks(n)
+            .zip(dst.chunks_mut(n))
+            .for_each(|(s, d)| d.copy_from_slice(s)),
+    }
+}
+
+fn time(f: impl FnOnce()) -> f64 {
+    let t = Instant::now();
+    f();
+    t.elapsed().as_secs_f64()
+}
+
+/// One warm-up, then `reps` timed runs.
+fn time_reps(reps: usize, mut f: impl FnMut()) -> Vec<f64> {
+    f();
+    (0..reps).map(|_| time(&mut f)).collect()
+}
+
+fn median(v: &[f64]) -> f64 {
+    let mut v = v.to_vec();
+    v.sort_by(f64::total_cmp);
+    let n = v.len();
+    if n == 0 {
+        f64::NAN
+    } else if n % 2 == 1 {
+        v[n / 2]
+    } else {
+        0.5 * (v[n / 2 - 1] + v[n / 2])
+    }
+}

@@ -1,0 +1,362 @@
+//! Synthetic chart frames: each patch of a [`TrainingSet`] drawn as a square of its simulated
+//! linear camera RGB, in a grid on a black background, with an optional exposure multiplier and
+//! seeded Gaussian noise. A layout ([`ChartLayout`], written as JSON beside the frame) says
+//! where each patch is and what its true RGB and XYZ are, so a corrected chart can be checked.
+
+use super::IoError;
+use crate::frame::{Frame, Layout};
+use crate::training::{Provenance, TrainingSet};
+use serde::{Deserialize, Serialize};
+use std::path::{Path, PathBuf};
+
+/// The `format` field of a chart layout file.
+pub const FORMAT: &str = "nsrm-chart";
+
+/// How a chart is drawn.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ChartOptions {
+    /// Side of a patch in pixels.
+    pub patch_size: usize,
+    /// Black pixels between patches and around the chart.
+    pub gap: usize,
+    /// Patches per row; `None`: about 3:2 landscape.
+    pub columns: Option<usize>,
+    /// Multiplies the camera RGB (and the reference XYZ in the layout).
+    pub exposure: f64,
+    /// Standard deviation of additive Gaussian noise on every pixel value (camera RGB units,
+    /// the perfect white having G = 1); 0 for none.
+    pub noise: f64,
+    /// Seed of the noise: the same seed gives the same frame, bit for bit.
+    pub seed: u64,
+}
+
+impl Default for ChartOptions {
+    fn default() -> Self {
+        ChartOptions {
+            patch_size: 32,
+            gap: 4,
+            columns: None,
+            exposure: 1.0,
+            noise: 0.0,
+            seed: 1,
+        }
+    }
+}
+
+/// One patch of a rendered chart.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct PatchRect {
+    pub label: String,
+    /// Top-left pixel (x to the right, y down, from the frame's top-left).
+    pub x: usize,
+    pub y: usize,
+    pub width: usize,
+    pub height: usize,
+    /// Noise-free camera RGB of the patch (after exposure).
+    pub rgb: [f64; 3],
+    /// Reference XYZ (after exposure; the unexposed perfect white has Y = 100).
+    pub xyz: [f64; 3],
+}
+
+/// Where the patches of a rendered chart are, and how it was rendered.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct ChartLayout {
+    pub format: String,
+    pub version: u32,
+    pub width: usize,
+    pub height: usize,
+    pub columns: usize,
+    pub patch_size: usize,
+    pub gap: usize,
+    pub exposure: f64,
+    pub noise: f64,
+    pub seed: u64,
+    /// The reference white of the training data (XYZ, Y = 100).
+    pub white_xyz: [f64; 3],
+    pub provenance: Provenance,
+    pub patches: Vec<PatchRect>,
+}
+
+impl ChartLayout {
+    /// Reads a layout file written by [`write()`].
+    pub fn read(path: &Path) -> Result<ChartLayout, IoError> {
+        let text = std::fs::read_to_string(path).map_err(|err| IoError::Read {
+            path: path.to_path_buf(),
+            err,
+        })?;
+        let l: ChartLayout = serde_json::from_str(&text).map_err(|e| {
+            IoError::Invalid(format!("{}: not a chart layout: {e}", path.display()))
+        })?;
+        if l.format != FORMAT {
+            return Err(IoError::Invalid(format!(
+                "{}: format `{}`, expected `{FORMAT}`",
+                path.display(),
+                l.format
+            )));
+        }
+        Ok(l)
+    }
+
+    /// The mean of each channel of `frame` over the inner part of patch `i` (a margin of a
+    /// quarter of the patch is left out on each side, so blur or misregistration at edges does
+    /// not count).
+    pub fn patch_mean(&self, frame: &Frame, i: usize) -> [f64; 3] {
+        let p = &self.patches[i];
+        let (mx, my) = (p.width / 4, p.height / 4);
+        let ch = frame.layout.channels();
+        let mut sum = [0.0f64; 3];
+        let mut n = 0usize;
+        for y in p.y + my..p.y + p.height - my {
+            for x in p.x + mx..p.x + p.width - mx {
+                let px = &frame.data[(y * frame.width + x) * ch..][..3];
+                for k in 0..3 {
+                    sum[k] += px[k] as f64;
+                }
+                n += 1;
+            }
+        }
+        sum.map(|s| s / n.max(1) as f64)
+    }
+}
+
+/// The layout file written beside `chart`: `NAME.patches.json` for `NAME.exr`.
+pub fn layout_path(chart: &Path) -> PathBuf {
+    chart.with_extension("patches.json")
+}
+
+/// Renders the chart of `data`.
+pub fn render(data: &TrainingSet, opts: &ChartOptions) -> Result<(Frame, ChartLayout), IoError> {
+    if data.is_empty() {
+        return Err(IoError::Invalid("the chart has no patches".into()));
+    }
+    if opts.patch_size == 0 {
+        return Err(IoError::Invalid("--patch-size must be at least 1".into()));
+    }
+    if !(opts.exposure.is_finite() && opts.exposure > 0.0) {
+        return Err(IoError::Invalid(format!(
+            "exposure {} must be a positive number",
+            opts.exposure
+        )));
+    }
+    if !(opts.noise.is_finite() && opts.noise >= 0.0) {
+        return Err(IoError::Invalid(format!(
+            "noise {} must be zero or positive",
+            opts.noise
+        )));
+    }
+    let n = data.len();
+    let columns = match opts.columns {
+        Some(0) => return Err(IoError::Invalid("--columns must be at least 1".into())),
+        Some(c) => c.min(n),
+        None => ((1.5 * n as f64).sqrt().ceil() as usize).clamp(1, n),
+    };
+    let rows = n.div_ceil(columns);
+    let pitch = opts.patch_size + opts.gap;
+    let width = columns * pitch + opts.gap;
+    let height = rows * pitch + opts.gap;
+    if width.checked_mul(height).is_none_or(|p| p > 1 << 28) {
+        return Err(IoError::Invalid(format!(
+            "a {width}×{height} chart is too big"
+        )));
+    }
+    let mut frame = Frame::new(width, height, Layout::Rgb);
+    let mut patches = Vec::with_capacity(n);
+    for i in 0..n {
+        let (x, y) = (
+            opts.gap + (i % columns) * pitch,
+            opts.gap + (i / columns) * pitch,
+        );
+        let rgb = data.rgb[i].map(|v| v * opts.exposure);
+        let value = rgb.map(|v| v as f32);
+        for yy in y..y + opts.patch_size {
+            let row = &mut frame.data[(yy * width + x) * 3..(yy * width + x + opts.patch_size) * 3];
+            for px in row.chunks_exact_mut(3) {
+                px.copy_from_slice(&value);
+            }
+        }
+        patches.push(PatchRect {
+            label: data.labels[i].clone(),
+            x,
+            y,
+            width: opts.patch_size,
+            height: opts.patch_size,
+            rgb,
+            xyz: data.xyz[i].map(|v| v * opts.exposure),
+        });
+    }
+    if opts.noise > 0.0 {
+        let mut rng = Gaussian::new(opts.seed);
+        for v in frame.data.iter_mut() {
+            *v = (*v as f64 + opts.noise * rng.next()) as f32;
+        }
+    }
+    Ok((
+        frame,
+        ChartLayout {
+            format: FORMAT.into(),
+            version: 1,
+            width,
+            height,
+            columns,
+            patch_size: opts.patch_size,
+            gap: opts.gap,
+            exposure: opts.exposure,
+            noise: opts.noise,
+            seed: opts.seed,
+            white_xyz: data.white_xyz,
+            provenance: data.provenance.clone(),
+            patches,
+        },
+    ))
+}
+
+/// Writes a rendered chart: the frame at `dest` (camera RGB, so no `colorInteropID`) as a
+/// float EXR, or a 32-bit float TIFF when `dest` ends in `.tif`/`.tiff`, and its layout as JSON
+/// at [`layout_path`]. Both atomically; neither replaces an existing file unless `overwrite`.
+pub fn write(
+    frame: &Frame,
+    layout: &ChartLayout,
+    dest: &Path,
+    overwrite: bool,
+) -> Result<(), IoError> {
+    let layout_file = layout_path(dest);
+    crate::atomic::check_clobber(dest, overwrite)?;
+    crate::atomic::check_clobber(&layout_file, overwrite)?;
+    let json = serde_json::to_string_pretty(layout)
+        .map_err(|e| IoError::Invalid(format!("serialising the chart layout: {e}")))?;
+    if super::FileFormat::from_extension(dest) == Some(super::FileFormat::Tiff) {
+        super::tif::write(frame, None, dest, overwrite)?;
+    } else {
+        let describe = format!(
+            "nsrm chart: {} patches; camera {}; illuminant {}; reflectances {}; linear camera RGB (perfect white G = {})",
+            layout.patches.len(),
+            layout.provenance.camera.as_deref().unwrap_or("?"),
+            layout.provenance.illuminant.as_deref().unwrap_or("?"),
+            layout.provenance.reflectances.as_deref().unwrap_or("?"),
+            layout.exposure,
+        );
+        let layout_name = layout_file
+            .file_name()
+            .map(|s| s.to_string_lossy().into_owned())
+            .unwrap_or_default();
+        super::openexr::write_new(
+            frame,
+            None,
+            dest,
+            &super::openexr::NewExr {
+                half: false,
+                compression: super::ExrCompression::Keep,
+                space: None,
+                text: &[("comments", &describe), ("nsrmChartLayout", &layout_name)],
+                overwrite,
+            },
+        )?;
+    }
+    crate::atomic::write_atomic(&layout_file, json.as_bytes(), overwrite)?;
+    Ok(())
+}
+
+/// Standard normal deviates from SplitMix64 and the Box–Muller transform: small, seeded and the
+/// same on every platform.
+struct Gaussian {
+    state: u64,
+    spare: Option<f64>,
+}
+
+impl Gaussian {
+    fn new(seed: u64) -> Gaussian {
+        Gaussian {
+            state: seed,
+            spare: None,
+        }
+    }
+
+    fn next_u64(&mut self) -> u64 {
+        self.state = self.state.wrapping_add(0x9e37_79b9_7f4a_7c15);
+        let mut z = self.state;
+        z = (z ^ (z >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
+        z = (z ^ (z >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
+        z ^ (z >> 31)
+    }
+
+    /// Uniform in (0, 1].
+    fn uniform(&mut self) -> f64 {
+        ((self.next_u64() >> 11) + 1) as f64 / (1u64 << 53) as f64
+    }
+
+    fn next(&mut self) -> f64 {
+        if let Some(s) = self.spare.take() {
+            return s;
+        }
+        let (u1, u2) = (self.uniform(), self.uniform());
+        let r = (-2.0 * u1.ln()).sqrt();
+        let t = std::f64::consts::TAU * u2;
+        self.spare = Some(r * t.sin());
+        r * t.cos()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn data() -> TrainingSet {
+        TrainingSet {
+            labels: (0..5).map(|i| format!("p{i}")).collect(),
+            rgb: (0..5).map(|i| [0.1 * i as f64, 0.2, 0.3]).collect(),
+            xyz: (0..5).map(|i| [10.0 * i as f64, 20.0, 30.0]).collect(),
+            white_xyz: [95.0, 100.0, 108.0],
+            provenance: Provenance::default(),
+        }
+    }
+
+    #[test]
+    fn patches_hold_their_rgb() {
+        let opts = ChartOptions {
+            patch_size: 6,
+            gap: 2,
+            columns: Some(2),
+            exposure: 2.0,
+            ..Default::default()
+        };
+        let (f, l) = render(&data(), &opts).unwrap();
+        assert_eq!((f.width, f.height), (2 * 8 + 2, 3 * 8 + 2));
+        assert_eq!(l.patches.len(), 5);
+        for (i, p) in l.patches.iter().enumerate() {
+            let m = l.patch_mean(&f, i);
+            for k in 0..3 {
+                assert!((m[k] - p.rgb[k]).abs() < 1e-6);
+            }
+            assert!((p.rgb[0] - 0.2 * i as f64).abs() < 1e-12);
+            assert_eq!(p.xyz[1], 40.0);
+        }
+        // The gap is black.
+        assert_eq!(&f.data[..3], &[0.0, 0.0, 0.0]);
+    }
+
+    #[test]
+    fn noise_is_seeded_and_about_the_right_size() {
+        let opts = ChartOptions {
+            patch_size: 40,
+            noise: 0.01,
+            seed: 7,
+            ..Default::default()
+        };
+        let (a, _) = render(&data(), &opts).unwrap();
+        let (b, _) = render(&data(), &opts).unwrap();
+        assert_eq!(a, b);
+        let (c, _) = render(&data(), &ChartOptions { seed: 8, ..opts }).unwrap();
+        assert_ne!(a, c);
+        let (clean, _) = render(&data(), &ChartOptions { noise: 0.0, ..opts }).unwrap();
+        let d: Vec<f64> = a
+            .data
+            .iter()
+            .zip(&clean.data)
+            .map(|(x, y)| (*x - *y) as f64)
+            .collect();
+        let mean = d.iter().sum::<f64>() / d.len() as f64;
+        let sd = (d.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / d.len() as f64).sqrt();
+        assert!(mean.abs() < 1e-3, "{mean}");
+        assert!((sd - 0.01).abs() < 5e-4, "{sd}");
+    }
+}

@@ -1,0 +1,457 @@
+//! Frames in and out: linear camera-raw OpenEXR and TIFF files, read into a [`Frame`] with
+//! everything the correction does not touch kept aside, and written back with that pass-through
+//! data unchanged.
+//!
+//! * **OpenEXR** (via the `exr` crate): half, float or uint channels; scanline or tiled; single- or
+//!   multi-part; any compression the crate decodes. The colour channels are found by name: `R`,
+//!   `G`, `B` (and `A`, which passes through), or `NAME.R`, … / a part named `NAME` when a layer is
+//!   asked for ([`ReadOptions::layer`]). Every other channel, every part, every mip/rip level and
+//!   the header attributes are kept and written back; only `R`, `G`, `B` change (to float, or
+//!   half when asked), plus the colour attributes (see [`WriteOptions`]).
+//! * **TIFF** (via the `tiff` crate): RGB or RGBA, 16-bit unsigned (scaled to `[0, 1]`) or 16/32-bit
+//!   float, taken as linear. Anything else (8-bit, palette, CMYK, grey, signed or 32-bit integer
+//!   samples) is refused with the file name and the reason.
+//!
+//! Writers never leave a partial file: they write a temporary file beside the destination and
+//! move it into place only when complete ([`crate::atomic`]).
+//!
+//! [`batch`] expands command-line inputs (files, directories, globs), slices them for `--shard`
+//! and names outputs; [`chart`] renders a synthetic chart frame; [`preview`] writes sRGB PNGs.
+
+pub mod batch;
+pub mod chart;
+mod openexr;
+pub mod preview;
+mod tif;
+
+use crate::atomic::WriteError;
+use crate::colorimetry::spaces::{self, Mat3, OutputSpace};
+use crate::frame::Frame;
+use crate::model::Model;
+use std::path::{Path, PathBuf};
+
+/// Errors from reading, writing or listing frames.
+#[derive(Debug, thiserror::Error)]
+pub enum IoError {
+    #[error("{}: cannot read: {err}", path.display())]
+    Read {
+        path: PathBuf,
+        #[source]
+        err: std::io::Error,
+    },
+    #[error("{}: not an OpenEXR or TIFF file (its first bytes are neither signature)", path.display())]
+    UnknownFormat { path: PathBuf },
+    #[error("{}: unreadable OpenEXR file: {err}", path.display())]
+    Exr {
+        path: PathBuf,
+        #[source]
+        err: ::exr::error::Error,
+    },
+    #[error("{}: unreadable TIFF file: {err}", path.display())]
+    Tiff {
+        path: PathBuf,
+        #[source]
+        err: ::tiff::TiffError,
+    },
+    #[error("{}: unsupported: {why}", path.display())]
+    Unsupported { path: PathBuf, why: String },
+    #[error("{}: {why}", path.display())]
+    Channels { path: PathBuf, why: String },
+    #[error("{}: cannot encode: {why}", path.display())]
+    Encode { path: PathBuf, why: String },
+    #[error(transparent)]
+    Write(#[from] WriteError),
+    #[error("input `{spec}`: {why}")]
+    NoMatch { spec: String, why: String },
+    #[error("--shard `{spec}`: {why}")]
+    Shard { spec: String, why: String },
+    #[error("{0}")]
+    Invalid(String),
+}
+
+/// File formats frames are read from and written to.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub enum FileFormat {
+    Exr,
+    Tiff,
+}
+
+impl FileFormat {
+    /// Parses `exr` / `tiff` (also `tif`).
+    pub fn parse(s: &str) -> Option<FileFormat> {
+        match s.trim().to_ascii_lowercase().as_str() {
+            "exr" | "openexr" => Some(FileFormat::Exr),
+            "tif" | "tiff" => Some(FileFormat::Tiff),
+            _ => None,
+        }
+    }
+
+    /// The format a file name's extension names (`.exr`, `.tif`, `.tiff`, any case).
+    pub fn from_extension(path: &Path) -> Option<FileFormat> {
+        FileFormat::parse(path.extension()?.to_str()?)
+    }
+
+    /// The format of a file by its signature (first four bytes).
+    pub fn sniff(path: &Path) -> Result<FileFormat, IoError> {
+        use std::io::Read;
+        let mut magic = [0u8; 4];
+        let mut read = || -> std::io::Result<usize> {
+            let mut f = std::fs::File::open(path)?;
+            let mut n = 0;
+            while n < 4 {
+                match f.read(&mut magic[n..])? {
+                    0 => break,
+                    k => n += k,
+                }
+            }
+            Ok(n)
+        };
+        let n = read().map_err(|err| IoError::Read {
+            path: path.to_path_buf(),
+            err,
+        })?;
+        match &magic[..n] {
+            [0x76, 0x2f, 0x31, 0x01] => Ok(FileFormat::Exr),
+            [b'I', b'I', 42 | 43, 0] | [b'M', b'M', 0, 42 | 43] => Ok(FileFormat::Tiff),
+            _ => Err(IoError::UnknownFormat {
+                path: path.to_path_buf(),
+            }),
+        }
+    }
+
+    /// The extension written: `exr` or `tif`.
+    pub fn extension(self) -> &'static str {
+        match self {
+            FileFormat::Exr => "exr",
+            FileFormat::Tiff => "tif",
+        }
+    }
+
+    /// `OpenEXR` / `TIFF`.
+    pub fn name(self) -> &'static str {
+        match self {
+            FileFormat::Exr => "OpenEXR",
+            FileFormat::Tiff => "TIFF",
+        }
+    }
+}
+
+/// How inputs are read.
+#[derive(Debug, Clone, Default)]
+pub struct ReadOptions {
+    /// The EXR layer holding the camera RGB: channels `NAME.R`, `NAME.G`, `NAME.B` (and
+    /// `NAME.A`), or `R`, `G`, `B` in a part named `NAME`. `None`: channels `R`, `G`, `B`.
+    pub layer: Option<String>,
+}
+
+/// Lossless EXR compressions an output may be written with.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum ExrCompression {
+    /// The input's compression when it is lossless (else ZIP); ZIP for TIFF inputs.
+    #[default]
+    Keep,
+    None,
+    Rle,
+    /// ZIP, one scanline per block.
+    Zips,
+    /// ZIP, 16 scanlines per block.
+    Zip,
+    Piz,
+}
+
+impl ExrCompression {
+    /// Every choice with its command-line name.
+    pub const ALL: [(ExrCompression, &'static str); 6] = [
+        (ExrCompression::Keep, "keep"),
+        (ExrCompression::None, "none"),
+        (ExrCompression::Rle, "rle"),
+        (ExrCompression::Zips, "zips"),
+        (ExrCompression::Zip, "zip"),
+        (ExrCompression::Piz, "piz"),
+    ];
+
+    /// Parses `keep`, `none`, `rle`, `zips`, `zip` or `piz`.
+    pub fn parse(s: &str) -> Option<ExrCompression> {
+        Self::ALL
+            .iter()
+            .find(|(_, n)| n.eq_ignore_ascii_case(s.trim()))
+            .map(|(c, _)| *c)
+    }
+}
+
+/// How outputs are written.
+#[derive(Debug, Clone, Copy)]
+pub struct WriteOptions {
+    pub format: FileFormat,
+    /// EXR only: write the corrected `R`, `G`, `B` as half floats instead of 32-bit floats.
+    pub half: bool,
+    /// EXR only: the compression of every part written. Lossy input compressions (DWA, B44,
+    /// PXR24) are never reused: re-encoding would alter the pass-through channels again.
+    pub compression: ExrCompression,
+    /// The space the pixels are in (they must already be; see [`output_model`]). Sets the EXR
+    /// attribute `colorInteropID` to [`OutputSpace::interop_id`] and the `chromaticities`
+    /// attribute to the space's primaries and white (removed for XYZ).
+    pub space: OutputSpace,
+    /// Replace an existing destination.
+    pub overwrite: bool,
+}
+
+/// A decoded input: the camera RGB to correct, and everything needed to write the file back.
+#[derive(Debug)]
+pub struct Decoded {
+    /// The input file.
+    pub path: PathBuf,
+    /// The format it was read as.
+    pub format: FileFormat,
+    /// Full-resolution camera RGB ([`crate::Layout::Rgb`]; alpha is kept aside).
+    pub frame: Frame,
+    /// Lower mip/rip levels of a multi-resolution EXR, largest first (usually empty). They are
+    /// corrected like the frame.
+    pub levels: Vec<Frame>,
+    container: Container,
+}
+
+#[derive(Debug)]
+enum Container {
+    Exr(Box<openexr::ExrContainer>),
+    Tiff(tif::TiffContainer),
+}
+
+impl Decoded {
+    /// The frame and every lower resolution level: what a corrector must process.
+    pub fn frames_mut(&mut self) -> impl Iterator<Item = &mut Frame> {
+        std::iter::once(&mut self.frame).chain(self.levels.iter_mut())
+    }
+
+    /// Total pixels over the frame and its levels.
+    pub fn pixels(&self) -> usize {
+        self.frame.pixels() + self.levels.iter().map(Frame::pixels).sum::<usize>()
+    }
+
+    /// Whether the input has an alpha channel (passed through unchanged).
+    pub fn has_alpha(&self) -> bool {
+        match &self.container {
+            Container::Exr(c) => c.has_alpha(),
+            Container::Tiff(c) => c.alpha.is_some(),
+        }
+    }
+
+    /// Names of the EXR channels passed through untouched besides alpha (other layers, depth,
+    /// normals, …), `part/name` for parts other than the corrected one. Empty for TIFF.
+    pub fn extra_channels(&self) -> Vec<String> {
+        match &self.container {
+            Container::Exr(c) => c.extra_channels(),
+            Container::Tiff(_) => Vec::new(),
+        }
+    }
+
+    /// Decodes `path` (EXR or TIFF, told by its signature, not its name).
+    pub fn read(path: &Path, opts: &ReadOptions) -> Result<Decoded, IoError> {
+        match FileFormat::sniff(path)? {
+            FileFormat::Exr => openexr::read(path, opts),
+            FileFormat::Tiff => {
+                if let Some(layer) = &opts.layer {
+                    return Err(IoError::Channels {
+                        path: path.to_path_buf(),
+                        why: format!("a TIFF has no layers, but --layer `{layer}` was given"),
+                    });
+                }
+                tif::read(path)
+            }
+        }
+    }
+
+    /// Writes the (corrected) pixels to `dest` atomically, with the pass-through data of the
+    /// input. Writing a TIFF refuses an EXR input that has channels other than RGB(A), since a
+    /// TIFF cannot carry them.
+    pub fn write(self, dest: &Path, opts: &WriteOptions) -> Result<(), IoError> {
+        crate::atomic::check_clobber(dest, opts.overwrite)?;
+        match (opts.format, self.container) {
+            (FileFormat::Exr, Container::Exr(c)) => c.write(self.frame, self.levels, dest, opts),
+            (FileFormat::Exr, Container::Tiff(c)) => openexr::write_new(
+                &self.frame,
+                c.alpha.as_deref(),
+                dest,
+                &openexr::NewExr::output(opts),
+            ),
+            (FileFormat::Tiff, Container::Exr(c)) => {
+                let extra = c.extra_channels();
+                if !extra.is_empty() {
+                    return Err(IoError::Encode {
+                        path: dest.to_path_buf(),
+                        why: format!(
+                            "the input {} has channels a TIFF cannot carry ({}); write OpenEXR instead",
+                            self.path.display(),
+                            extra.join(", ")
+                        ),
+                    });
+                }
+                let alpha = c.alpha_f32();
+                tif::write(&self.frame, alpha.as_deref(), dest, opts.overwrite)
+            }
+            (FileFormat::Tiff, Container::Tiff(c)) => {
+                tif::write(&self.frame, c.alpha.as_deref(), dest, opts.overwrite)
+            }
+        }
+    }
+}
+
+/// Writes a new EXR holding `frame` (RGB or RGBA, f32 channels, or half with `opts.half`), with
+/// `colorInteropID` and `chromaticities` for `opts.space`. Atomic; refuses to replace `dest`
+/// unless `opts.overwrite`.
+pub fn write_exr(frame: &Frame, dest: &Path, opts: &WriteOptions) -> Result<(), IoError> {
+    crate::atomic::check_clobber(dest, opts.overwrite)?;
+    let (rgb, alpha) = split_alpha(frame);
+    openexr::write_new(&rgb, alpha.as_deref(), dest, &openexr::NewExr::output(opts))
+}
+
+/// Writes a 32-bit float TIFF holding `frame` (RGB or RGBA). Atomic.
+pub fn write_tiff(frame: &Frame, dest: &Path, overwrite: bool) -> Result<(), IoError> {
+    crate::atomic::check_clobber(dest, overwrite)?;
+    let (rgb, alpha) = split_alpha(frame);
+    tif::write(&rgb, alpha.as_deref(), dest, overwrite)
+}
+
+/// Reads an EXR or TIFF into one frame (RGB, or RGBA when the file has alpha); pass-through
+/// data is dropped. For tests and quick looks; batch conversion uses [`Decoded`].
+pub fn read_frame(path: &Path, opts: &ReadOptions) -> Result<Frame, IoError> {
+    let d = Decoded::read(path, opts)?;
+    let alpha = match &d.container {
+        Container::Exr(c) => c.alpha_f32(),
+        Container::Tiff(c) => c.alpha.clone(),
+    };
+    Ok(match alpha {
+        None => d.frame,
+        Some(a) => {
+            let mut data = Vec::with_capacity(d.frame.pixels() * 4);
+            for (px, a) in d.frame.data.chunks_exact(3).zip(a) {
+                data.extend_from_slice(px);
+                data.push(a);
+            }
+            Frame {
+                width: d.frame.width,
+                height: d.frame.height,
+                layout: crate::Layout::Rgba,
+                data,
+            }
+        }
+    })
+}
+
+fn split_alpha(frame: &Frame) -> (Frame, Option<Vec<f32>>) {
+    match frame.layout {
+        crate::Layout::Rgb => (frame.clone(), None),
+        crate::Layout::Rgba => {
+            let mut rgb = Vec::with_capacity(frame.pixels() * 3);
+            let mut a = Vec::with_capacity(frame.pixels());
+            for px in frame.data.chunks_exact(4) {
+                rgb.extend_from_slice(&px[..3]);
+                a.push(px[3]);
+            }
+            (
+                Frame {
+                    width: frame.width,
+                    height: frame.height,
+                    layout: crate::Layout::Rgb,
+                    data: rgb,
+                },
+                Some(a),
+            )
+        }
+    }
+}
+
+/// The 3×3 matrix from the model's XYZ (perfect white at `Y = white[1]`, usually 100) to the
+/// frames written: scene-linear with the perfect white at `Y = 1`, in `space` (Bradford-adapted
+/// from the training white to the space's white for RGB spaces).
+pub fn output_matrix(white_xyz: [f64; 3], space: OutputSpace) -> Mat3 {
+    let m = space.from_xyz(white_xyz);
+    let k = 1.0 / white_xyz[1];
+    m.map(|row| row.map(|v| v * k))
+}
+
+/// The model with [`output_matrix`] folded into its matrix: it maps camera RGB straight to the
+/// output space (white `Y = 1`), on every apply path, with no extra pass over the pixels. This
+/// is exact for all four kinds (each output is a linear combination of the same terms).
+pub fn output_model(model: &Model, space: OutputSpace) -> Result<Model, IoError> {
+    let w = model.white_xyz;
+    if !(w.iter().all(|v| v.is_finite()) && w[1] > 0.0) {
+        return Err(IoError::Invalid(format!(
+            "the model's reference white {w:?} has no positive Y; cannot scale the output"
+        )));
+    }
+    let p = output_matrix(w, space);
+    let l = model.len_terms();
+    let mut folded = vec![0.0; 3 * l];
+    for i in 0..3 {
+        for j in 0..l {
+            folded[i * l + j] = (0..3).map(|k| p[i][k] * model.matrix[k * l + j]).sum();
+        }
+    }
+    let mut out = model.clone();
+    out.set_matrix(folded)
+        .map_err(|e| IoError::Invalid(format!("folding the output space into the model: {e}")))?;
+    Ok(out)
+}
+
+/// The matrix from pixels in `space` (as written by `nsrm apply`, white `Y = 1`, scene white
+/// `white_xyz`) to linear sRGB (D65, white = 1): for previews.
+pub fn to_linear_srgb(white_xyz: [f64; 3], space: OutputSpace) -> Mat3 {
+    let srgb = spaces::OutputSpace::LinearSrgb.from_xyz(white_xyz);
+    if space == OutputSpace::Xyz {
+        return srgb;
+    }
+    spaces::mul(&srgb, &spaces::invert(&space.from_xyz(white_xyz)))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::model::Kind;
+
+    #[test]
+    fn output_model_matches_matrix_after_model() {
+        let mut m =
+            Model::from_matrix(Kind::Rprm, 2, (0..18).map(|i| 0.1 * i as f64).collect()).unwrap();
+        m.white_xyz = [96.4, 100.0, 82.5];
+        for space in OutputSpace::ALL.map(|(s, _)| s) {
+            let folded = output_model(&m, space).unwrap();
+            let p = output_matrix(m.white_xyz, space);
+            let rgb = [0.3, 0.5, 0.2];
+            let want = spaces::apply(&p, m.apply_f64(rgb));
+            let got = folded.apply_f64(rgb);
+            for k in 0..3 {
+                assert!((want[k] - got[k]).abs() < 1e-12, "{space:?}");
+            }
+        }
+        // The training white maps to Y = 1 (XYZ) or to (1, 1, 1) (RGB spaces).
+        let w = [96.4, 100.0, 82.5];
+        assert_eq!(output_matrix(w, OutputSpace::Xyz)[1][1], 0.01);
+        let rgb = spaces::apply(&output_matrix(w, OutputSpace::Acescg), w);
+        assert!(rgb.iter().all(|v| (v - 1.0).abs() < 1e-9), "{rgb:?}");
+    }
+
+    #[test]
+    fn preview_matrix_inverts_the_space() {
+        let w = [95.047, 100.0, 108.883];
+        let x = [0.2, 0.3, 0.4];
+        let direct = spaces::apply(&to_linear_srgb(w, OutputSpace::Xyz), x);
+        for space in [OutputSpace::Acescg, OutputSpace::Aces2065_1] {
+            let in_space = spaces::apply(&space.from_xyz(w), x);
+            let back = spaces::apply(&to_linear_srgb(w, space), in_space);
+            for k in 0..3 {
+                assert!((back[k] - direct[k]).abs() < 1e-9);
+            }
+        }
+    }
+
+    #[test]
+    fn format_names() {
+        assert_eq!(FileFormat::parse("TIFF"), Some(FileFormat::Tiff));
+        assert_eq!(
+            FileFormat::from_extension(Path::new("a/b.EXR")),
+            Some(FileFormat::Exr)
+        );
+        assert_eq!(FileFormat::from_extension(Path::new("a/b.png")), None);
+    }
+}

@@ -1,0 +1,508 @@
+//! OpenEXR in and out through the `exr` crate, keeping everything but the corrected `R`, `G`, `B`.
+
+use super::{Container, Decoded, ExrCompression, FileFormat, IoError, ReadOptions, WriteOptions};
+use crate::atomic::{check_clobber, commit, temp_path_for, WriteError};
+use crate::colorimetry::spaces::OutputSpace;
+use crate::frame::{Frame, Layout};
+use ::exr::compression::Compression;
+use ::exr::image::{
+    AnyChannel, AnyChannels, AnyImage, Blocks, Encoding, FlatSamples, Image, Layer, Levels,
+};
+use ::exr::math::Vec2;
+use ::exr::meta::attribute::{AttributeValue, Chromaticities, IntegerBounds, LineOrder, Text};
+use ::exr::meta::header::{ImageAttributes, LayerAttributes};
+use ::exr::prelude::f16;
+use ::exr::prelude::traits::*;
+use std::io::{BufWriter, Write};
+use std::path::Path;
+
+/// The standard attribute naming the colour space of the pixels (ASWF colour interop).
+pub const COLOR_INTEROP_ID: &str = "colorInteropID";
+
+/// A decoded EXR minus its camera RGB samples (moved into the frames while they are corrected).
+#[derive(Debug)]
+pub(crate) struct ExrContainer {
+    image: AnyImage,
+    /// The part holding the camera RGB.
+    layer: usize,
+    /// Indices of `R`, `G`, `B` in that part's (sorted) channel list.
+    rgb: [usize; 3],
+    alpha: Option<usize>,
+}
+
+fn exr_err(path: &Path, err: ::exr::error::Error) -> IoError {
+    IoError::Exr {
+        path: path.to_path_buf(),
+        err,
+    }
+}
+
+pub(super) fn read(path: &Path, opts: &ReadOptions) -> Result<Decoded, IoError> {
+    let image: AnyImage = ::exr::image::read::read()
+        .no_deep_data()
+        .all_resolution_levels()
+        .all_channels()
+        .all_layers()
+        .all_attributes()
+        .from_file(path)
+        .map_err(|e| exr_err(path, e))?;
+    let (layer, rgb, alpha) =
+        locate(&image, opts.layer.as_deref()).map_err(|why| IoError::Channels {
+            path: path.to_path_buf(),
+            why,
+        })?;
+    let mut container = ExrContainer {
+        image,
+        layer,
+        rgb,
+        alpha,
+    };
+    let mut frames = container.take_frames(path)?;
+    let frame = frames.remove(0);
+    Ok(Decoded {
+        path: path.to_path_buf(),
+        format: FileFormat::Exr,
+        frame,
+        levels: frames,
+        container: Container::Exr(Box::new(container)),
+    })
+}
+
+/// Finds the part and channel indices of the camera RGB.
+fn locate(
+    image: &AnyImage,
+    want: Option<&str>,
+) -> Result<(usize, [usize; 3], Option<usize>), String> {
+    let find = |li: usize, prefix: &str| -> Option<([usize; 3], Option<usize>)> {
+        let list = &image.layer_data[li].channel_data.list;
+        let idx = |n: &str| {
+            let name = format!("{prefix}{n}");
+            list.iter().position(|c| c.name.eq(name.as_str()))
+        };
+        Some(([idx("R")?, idx("G")?, idx("B")?], idx("A")))
+    };
+    let parts = image.layer_data.len();
+    let part_name = |li: usize| {
+        image.layer_data[li]
+            .attributes
+            .layer_name
+            .as_ref()
+            .map(|t| t.to_string())
+    };
+    match want {
+        Some(name) => {
+            for li in 0..parts {
+                if part_name(li).as_deref() == Some(name) {
+                    if let Some((rgb, a)) = find(li, "") {
+                        return Ok((li, rgb, a));
+                    }
+                }
+            }
+            let prefix = format!("{name}.");
+            for li in 0..parts {
+                if let Some((rgb, a)) = find(li, &prefix) {
+                    return Ok((li, rgb, a));
+                }
+            }
+            Err(format!(
+                "no layer `{name}` with R, G and B channels ({})",
+                describe(image)
+            ))
+        }
+        None => {
+            for li in 0..parts {
+                if let Some((rgb, a)) = find(li, "") {
+                    return Ok((li, rgb, a));
+                }
+            }
+            let list = &image.layer_data[0].channel_data.list;
+            let missing: Vec<&str> = ["R", "G", "B"]
+                .into_iter()
+                .filter(|n| !list.iter().any(|c| c.name.eq(n)))
+                .collect();
+            Err(format!(
+                "no {} channel{} ({})",
+                missing.join(", "),
+                if missing.len() == 1 { "" } else { "s" },
+                describe(image)
+            ))
+        }
+    }
+}
+
+/// `channels: …; layers with R, G, B: … (pick one with --layer)` for error messages.
+fn describe(image: &AnyImage) -> String {
+    let mut names = Vec::new();
+    let mut layers: Vec<String> = Vec::new();
+    for l in &image.layer_data {
+        let part = l.attributes.layer_name.as_ref().map(|t| t.to_string());
+        let list: Vec<String> = l
+            .channel_data
+            .list
+            .iter()
+            .map(|c| c.name.to_string())
+            .collect();
+        for n in &list {
+            names.push(match &part {
+                Some(p) if image.layer_data.len() > 1 => format!("{p}/{n}"),
+                _ => n.clone(),
+            });
+            if let Some(prefix) = n.strip_suffix(".R") {
+                let has = |c: &str| list.iter().any(|m| *m == format!("{prefix}.{c}"));
+                if has("G") && has("B") && !layers.iter().any(|x| x == prefix) {
+                    layers.push(prefix.to_string());
+                }
+            }
+        }
+        if let Some(p) = part {
+            let has = |c: &str| list.iter().any(|m| m == c);
+            if has("R") && has("G") && has("B") && !layers.contains(&p) {
+                layers.push(p);
+            }
+        }
+    }
+    const SHOWN: usize = 24;
+    let mut s = if names.is_empty() {
+        "the file has no channels".to_string()
+    } else if names.len() > SHOWN {
+        format!(
+            "channels: {}, … ({} in all)",
+            names[..SHOWN].join(", "),
+            names.len()
+        )
+    } else {
+        format!("channels: {}", names.join(", "))
+    };
+    if !layers.is_empty() {
+        s += &format!(
+            "; layers with R, G, B: {} (pick one with --layer)",
+            layers.join(", ")
+        );
+    }
+    s
+}
+
+fn push_f32(out: &mut [f32], stride: usize, offset: usize, samples: &FlatSamples) {
+    let dst = out.iter_mut().skip(offset).step_by(stride);
+    match samples {
+        FlatSamples::F16(v) => dst.zip(v).for_each(|(d, s)| *d = s.to_f32()),
+        FlatSamples::F32(v) => dst.zip(v).for_each(|(d, s)| *d = *s),
+        FlatSamples::U32(v) => dst.zip(v).for_each(|(d, s)| *d = *s as f32),
+    }
+}
+
+fn samples_of(frame: &Frame, c: usize, half: bool) -> FlatSamples {
+    let it = frame
+        .data
+        .chunks_exact(frame.layout.channels())
+        .map(|px| px[c]);
+    if half {
+        FlatSamples::F16(it.map(f16::from_f32).collect())
+    } else {
+        FlatSamples::F32(it.collect())
+    }
+}
+
+impl ExrContainer {
+    fn part(&self) -> &Layer<AnyChannels<Levels<FlatSamples>>> {
+        &self.image.layer_data[self.layer]
+    }
+
+    /// Moves the camera RGB of every resolution level into frames, leaving empty sample
+    /// vectors in the image (refilled by [`ExrContainer::write`]).
+    fn take_frames(&mut self, path: &Path) -> Result<Vec<Frame>, IoError> {
+        let part = self.part();
+        let list = &part.channel_data.list;
+        for &c in &self.rgb {
+            if list[c].sampling != Vec2(1, 1) {
+                return Err(IoError::Unsupported {
+                    path: path.to_path_buf(),
+                    why: format!(
+                        "channel `{}` is subsampled ({}×{}); colour channels must be full resolution",
+                        list[c].name, list[c].sampling.0, list[c].sampling.1
+                    ),
+                });
+            }
+        }
+        let sizes: Vec<Vec2<usize>> = part
+            .levels_with_resolution(&list[self.rgb[0]].sample_data)
+            .map(|(_, size)| size)
+            .collect();
+        let mut frames = Vec::with_capacity(sizes.len());
+        for (k, size) in sizes.iter().enumerate() {
+            let n = size.0 * size.1;
+            let mut data = vec![0.0f32; 3 * n];
+            for (ci, &c) in self.rgb.iter().enumerate() {
+                let levels = list[c].sample_data.levels_as_slice();
+                let samples =
+                    levels
+                        .get(k)
+                        .filter(|s| s.len() == n)
+                        .ok_or_else(|| IoError::Unsupported {
+                            path: path.to_path_buf(),
+                            why: format!(
+                                "channel `{}` level {k} does not hold {}×{} samples",
+                                list[c].name, size.0, size.1
+                            ),
+                        })?;
+                push_f32(&mut data, 3, ci, samples);
+            }
+            frames.push(Frame {
+                width: size.0,
+                height: size.1,
+                layout: Layout::Rgb,
+                data,
+            });
+        }
+        let rgb = self.rgb;
+        let list = &mut self.image.layer_data[self.layer].channel_data.list;
+        for c in rgb {
+            for s in list[c].sample_data.levels_as_slice_mut() {
+                *s = FlatSamples::F32(Vec::new());
+            }
+        }
+        Ok(frames)
+    }
+
+    pub(super) fn has_alpha(&self) -> bool {
+        self.alpha.is_some()
+    }
+
+    /// The alpha channel's full-resolution samples as f32.
+    pub(super) fn alpha_f32(&self) -> Option<Vec<f32>> {
+        let a = &self.part().channel_data.list[self.alpha?];
+        let s = &a.sample_data.levels_as_slice()[0];
+        let mut out = vec![0.0; s.len()];
+        push_f32(&mut out, 1, 0, s);
+        Some(out)
+    }
+
+    pub(super) fn extra_channels(&self) -> Vec<String> {
+        let mut out = Vec::new();
+        for (li, l) in self.image.layer_data.iter().enumerate() {
+            for (ci, c) in l.channel_data.list.iter().enumerate() {
+                if li == self.layer && (self.rgb.contains(&ci) || self.alpha == Some(ci)) {
+                    continue;
+                }
+                if li == self.layer {
+                    out.push(c.name.to_string());
+                } else {
+                    let part = l
+                        .attributes
+                        .layer_name
+                        .as_ref()
+                        .map(|t| t.to_string())
+                        .unwrap_or_else(|| format!("part {li}"));
+                    out.push(format!("{part}/{}", c.name));
+                }
+            }
+        }
+        out
+    }
+
+    /// Puts the corrected frames back and writes the whole image to `dest`.
+    pub(super) fn write(
+        self: Box<Self>,
+        frame: Frame,
+        levels: Vec<Frame>,
+        dest: &Path,
+        opts: &WriteOptions,
+    ) -> Result<(), IoError> {
+        let ExrContainer {
+            mut image,
+            layer,
+            rgb,
+            ..
+        } = *self;
+        let frames: Vec<Frame> = std::iter::once(frame).chain(levels).collect();
+        let list = &mut image.layer_data[layer].channel_data.list;
+        for (ci, &c) in rgb.iter().enumerate() {
+            let slots = list[c].sample_data.levels_as_slice_mut();
+            if slots.len() != frames.len() {
+                return Err(IoError::Encode {
+                    path: dest.to_path_buf(),
+                    why: format!(
+                        "{} resolution levels given for {} in the file",
+                        frames.len(),
+                        slots.len()
+                    ),
+                });
+            }
+            for (slot, f) in slots.iter_mut().zip(&frames) {
+                *slot = samples_of(f, ci, opts.half);
+            }
+        }
+        drop(frames);
+        for l in image.layer_data.iter_mut() {
+            l.encoding.compression = chosen(opts.compression, l.encoding.compression);
+        }
+        set_colour_attributes(&mut image, layer, Some(opts.space));
+        write_image(&image, dest, opts.overwrite)
+    }
+}
+
+/// The compression to write with: the one asked for, or with [`ExrCompression::Keep`] the
+/// input's when it is lossless and writable, else ZIP. Re-encoding with a lossy codec would
+/// change the pass-through channels again.
+fn chosen(want: ExrCompression, input: Compression) -> Compression {
+    match want {
+        ExrCompression::Keep => match input {
+            Compression::Uncompressed
+            | Compression::RLE
+            | Compression::ZIP1
+            | Compression::ZIP16
+            | Compression::PIZ => input,
+            _ => Compression::ZIP16,
+        },
+        ExrCompression::None => Compression::Uncompressed,
+        ExrCompression::Rle => Compression::RLE,
+        ExrCompression::Zips => Compression::ZIP1,
+        ExrCompression::Zip => Compression::ZIP16,
+        ExrCompression::Piz => Compression::PIZ,
+    }
+}
+
+/// Sets `colorInteropID` on the corrected part and the image's `chromaticities` to match
+/// `space` (removed for XYZ, and when `space` is `None`: camera RGB has no standard primaries).
+fn set_colour_attributes(image: &mut AnyImage, layer: usize, space: Option<OutputSpace>) {
+    let key = Text::from(COLOR_INTEROP_ID);
+    image.attributes.other.remove(&key);
+    let attrs = &mut image.layer_data[layer].attributes.other;
+    match space {
+        Some(s) => {
+            attrs.insert(key, AttributeValue::Text(Text::from(s.interop_id())));
+        }
+        None => {
+            attrs.remove(&key);
+        }
+    }
+    image.attributes.chromaticities = space.and_then(|s| s.primaries()).map(|(p, w)| {
+        let v = |xy: [f64; 2]| Vec2(xy[0] as f32, xy[1] as f32);
+        Chromaticities {
+            red: v(p[0]),
+            green: v(p[1]),
+            blue: v(p[2]),
+            white: v(w),
+        }
+    });
+}
+
+/// How [`write_new`] writes a new EXR.
+#[derive(Debug, Clone, Copy)]
+pub(super) struct NewExr<'a> {
+    pub half: bool,
+    pub compression: ExrCompression,
+    /// `None`: camera RGB (no `colorInteropID`, no `chromaticities`).
+    pub space: Option<OutputSpace>,
+    /// Extra text attributes (`comments` goes to the standard attribute).
+    pub text: &'a [(&'a str, &'a str)],
+    pub overwrite: bool,
+}
+
+impl NewExr<'static> {
+    /// The settings of a corrected output.
+    pub(super) fn output(opts: &WriteOptions) -> NewExr<'static> {
+        NewExr {
+            half: opts.half,
+            compression: opts.compression,
+            space: Some(opts.space),
+            text: &[],
+            overwrite: opts.overwrite,
+        }
+    }
+}
+
+/// Writes a new single-part scanline EXR (ZIP) with `R`, `G`, `B` (and `A`) from `rgb` and
+/// `alpha`, colour attributes for `space` and extra text attributes.
+pub(super) fn write_new(
+    rgb: &Frame,
+    alpha: Option<&[f32]>,
+    dest: &Path,
+    how: &NewExr<'_>,
+) -> Result<(), IoError> {
+    let NewExr {
+        half,
+        compression,
+        space,
+        text,
+        overwrite,
+    } = *how;
+    let mut list = ::exr::prelude::SmallVec::new();
+    for (ci, name) in ["R", "G", "B"].into_iter().enumerate() {
+        list.push(AnyChannel::new(
+            name,
+            Levels::Singular(samples_of(rgb, ci, half)),
+        ));
+    }
+    if let Some(a) = alpha {
+        let s = if half {
+            FlatSamples::F16(a.iter().map(|&v| f16::from_f32(v)).collect())
+        } else {
+            FlatSamples::F32(a.to_vec())
+        };
+        list.push(AnyChannel::new("A", Levels::Singular(s)));
+    }
+    let size = Vec2(rgb.width, rgb.height);
+    let mut attributes = LayerAttributes::default();
+    for (k, v) in text {
+        let (Some(k), Some(v)) = (Text::new_or_none(k), Text::new_or_none(v)) else {
+            return Err(IoError::Encode {
+                path: dest.to_path_buf(),
+                why: format!("attribute `{k}` cannot be stored in an EXR header"),
+            });
+        };
+        if k.eq("comments") {
+            attributes.comments = Some(v);
+        } else {
+            attributes.other.insert(k, AttributeValue::Text(v));
+        }
+    }
+    let layer = Layer::new(
+        size,
+        attributes,
+        Encoding {
+            compression: chosen(compression, Compression::ZIP16),
+            blocks: Blocks::ScanLines,
+            line_order: LineOrder::Increasing,
+        },
+        AnyChannels::sort(list),
+    );
+    let mut image = Image::from_layers(
+        ImageAttributes::new(IntegerBounds::from_dimensions(size)),
+        ::exr::prelude::SmallVec::from_vec(vec![layer]),
+    );
+    set_colour_attributes(&mut image, 0, space);
+    write_image(&image, dest, overwrite)
+}
+
+/// Writes `image` to a temporary file beside `dest`, then moves it into place.
+fn write_image(image: &AnyImage, dest: &Path, overwrite: bool) -> Result<(), IoError> {
+    check_clobber(dest, overwrite)?;
+    let tmp = temp_path_for(dest);
+    let io_err = |err: std::io::Error| {
+        IoError::Write(WriteError::Io {
+            path: dest.to_path_buf(),
+            err,
+        })
+    };
+    let result = (|| -> Result<(), IoError> {
+        let file = std::fs::File::create_new(&tmp).map_err(io_err)?;
+        let mut w = BufWriter::new(file);
+        image.write().to_buffered(&mut w).map_err(|e| match e {
+            ::exr::error::Error::Io(err) => io_err(err),
+            other => IoError::Encode {
+                path: dest.to_path_buf(),
+                why: other.to_string(),
+            },
+        })?;
+        w.flush().map_err(io_err)?;
+        let file = w.into_inner().map_err(|e| io_err(e.into_error()))?;
+        file.sync_all().map_err(io_err)
+    })();
+    if let Err(e) = result {
+        let _ = std::fs::remove_file(&tmp);
+        return Err(e);
+    }
+    commit(&tmp, dest, overwrite)?;
+    Ok(())
+}

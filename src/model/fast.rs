@@ -1,0 +1,924 @@
+//! The fast CPU apply path: f32, vectorised by the compiler, multi-threaded with rayon.
+//!
+//! [`apply_frame`] (every thread of rayon's global pool) and [`apply_frame_single`] (the calling
+//! thread only) correct a [`Frame`] in place; [`FastModel`] holds the prepared kernel for repeated
+//! use, and [`FastModel::apply_into`] writes into a second frame (the input is left alone).
+//!
+//! # How it is fast (without `unsafe`)
+//! * A frame is cut into chunks of [`CHUNK_PIXELS`] pixels (one rayon task each), a chunk into
+//!   blocks of [`LANES`] pixels. A block is de-interleaved into one fixed-size array per channel
+//!   (`[f32; LANES]`), the model is evaluated lane by lane in straight-line code with no branches
+//!   (the NSRM `s ≤ 0` rule is a select), and the result is interleaved back. The channel count
+//!   (3 or 4) is a const generic, so all indexing is by constants and the compiler emits packed
+//!   SIMD without bounds checks. The last partial block goes through a zero-padded copy.
+//! * One monomorphised kernel per model shape: LRM (also PRM 1 and RPRM 1, the same three terms),
+//!   PRM 3, RPRM 3 and NSRM 3 are written out by hand; every other kind/order (and any other term
+//!   list) runs a generic kernel driven by a product plan built once from the model's
+//!   [`Term`] list: every term is one multiplication of two earlier values, so it is as cheap in
+//!   arithmetic as the hand-written kernels and still allocation-free per pixel.
+//! * RPRM: the sign-preserving square, cube and fourth roots are computed once per channel and the
+//!   terms are products of them (`∛(R G²) = ∛R·(∛G)²`, exactly how [`super::terms::expand`]
+//!   defines them). The cube root needs no libm and no division ([`cbrt_s`]): a bit-pattern first
+//!   guess of `x^(-1/3)`, two Newton steps, `x·z²` and one Newton correction (max relative error
+//!   1.4e-7, about 1 ulp, over all f32 including subnormals; `±0 → ±0`, `±∞ → ±∞`, NaN → NaN).
+//!
+//! # Accuracy
+//! Every kernel follows the [pixel policy](super) exactly (NaN/Inf propagate, NSRM `s ≤ 0 → 0`,
+//! negative channels allowed, nothing clamped). Values are the f64 reference
+//! ([`Model::apply_frame_f64`]) to f32 precision: `tests/fast.rs` checks every kind, order and
+//! layout against it.
+
+use crate::frame::{Frame, Layout};
+use crate::model::terms::{terms, Term};
+use crate::model::{Kind, Model};
+use rayon::prelude::*;
+use std::collections::HashMap;
+
+/// Pixels per block: one `[f32; LANES]` array per channel (two AVX or four SSE registers).
+pub const LANES: usize = 8;
+
+/// Pixels per rayon task (64 Ki pixels: 768 KiB of packed RGB f32).
+pub const CHUNK_PIXELS: usize = 1 << 16;
+
+/// The most values (inputs, roots, partial products, terms) a generic plan may hold.
+const MAX_SLOTS: usize = 128;
+
+type Lanes = [f32; LANES];
+
+/// Errors of the fast path.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+pub enum FastError {
+    /// The model's matrix does not have 3 × (number of terms) entries.
+    #[error("the model has {terms} terms but a matrix of {values} values (expected {expected})", expected = 3 * .terms)]
+    MatrixShape { terms: usize, values: usize },
+    /// A term the fast path cannot evaluate (a root above 4, a zero root, or an NSRM term in `b`).
+    #[error("term {index} ({exps:?} under root {root}) is not supported by the fast path")]
+    UnsupportedTerm {
+        index: usize,
+        exps: [u8; 3],
+        root: u8,
+    },
+    /// The term list needs more intermediate values than the generic kernel holds.
+    #[error("the term list needs {needed} intermediate values; the fast path holds {MAX_SLOTS}")]
+    TooManyTerms { needed: usize },
+    /// Source and destination frames differ in size or layout.
+    #[error("source frame is {src_w}×{src_h} {src_layout}, destination {dst_w}×{dst_h} {dst_layout}: they must match")]
+    FrameMismatch {
+        src_w: usize,
+        src_h: usize,
+        src_layout: &'static str,
+        dst_w: usize,
+        dst_h: usize,
+        dst_layout: &'static str,
+    },
+    /// A frame whose data length does not match its size and layout.
+    #[error("a {width}×{height} {layout} frame needs {expected} floats, its data holds {len}")]
+    FrameLength {
+        width: usize,
+        height: usize,
+        layout: &'static str,
+        expected: usize,
+        len: usize,
+    },
+}
+
+/// How many threads an apply call uses.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Threads {
+    /// The calling thread only.
+    Single,
+    /// Every thread of rayon's current pool (the global pool unless called inside `install`).
+    All,
+}
+
+/// Corrects `frame` in place with every thread of rayon's global pool (alpha untouched).
+///
+/// Models the fast path cannot take (hand-made term lists with roots above 4, or a matrix of the
+/// wrong size) fall back to the f64 reference [`Model::apply_frame_f64`]; models from
+/// [`super::fit`] or a model file always take the fast path.
+pub fn apply_frame(model: &Model, frame: &mut Frame) {
+    apply_with(model, frame, Threads::All)
+}
+
+/// [`apply_frame`] on the calling thread only.
+pub fn apply_frame_single(model: &Model, frame: &mut Frame) {
+    apply_with(model, frame, Threads::Single)
+}
+
+fn apply_with(model: &Model, frame: &mut Frame, threads: Threads) {
+    match FastModel::new(model) {
+        Ok(f) => f.apply(frame, threads),
+        Err(_) => model.apply_frame_f64(frame),
+    }
+}
+
+/// Which monomorphised kernel a model runs.
+#[derive(Debug, Clone)]
+enum Kernel {
+    Linear(Linear),
+    Prm3(Prm3),
+    Rprm3(Rprm3),
+    Nsrm3(Nsrm3),
+    Plan(Box<Plan>),
+}
+
+/// A model prepared for the fast path: f32 matrix and the kernel chosen for its term list.
+#[derive(Debug, Clone)]
+pub struct FastModel {
+    kind: Kind,
+    order: u8,
+    kernel: Kernel,
+}
+
+impl FastModel {
+    /// Prepares `model`: a hand-written kernel when its terms are the standard list of LRM, PRM 3,
+    /// RPRM 3 or NSRM 3 (or of PRM / RPRM order 1), otherwise a product plan built from its terms.
+    pub fn new(model: &Model) -> Result<FastModel, FastError> {
+        let l = model.terms.len();
+        if model.matrix.len() != 3 * l {
+            return Err(FastError::MatrixShape {
+                terms: l,
+                values: model.matrix.len(),
+            });
+        }
+        let standard =
+            |kind: Kind, order: u8| model.kind == kind && model.terms == terms(kind, order);
+        let linear = [Kind::Lrm, Kind::Prm, Kind::Rprm]
+            .into_iter()
+            .any(|k| standard(k, 1));
+        let kernel = if linear {
+            Kernel::Linear(Linear {
+                m: rows(&model.matrix),
+            })
+        } else if standard(Kind::Prm, 3) {
+            Kernel::Prm3(Prm3 {
+                m: rows(&model.matrix),
+            })
+        } else if standard(Kind::Rprm, 3) {
+            Kernel::Rprm3(Rprm3 {
+                m: rows(&model.matrix),
+            })
+        } else if standard(Kind::Nsrm, 3) {
+            Kernel::Nsrm3(Nsrm3 {
+                m: rows(&model.matrix),
+            })
+        } else {
+            Kernel::Plan(Box::new(Plan::new(
+                model.kind,
+                &model.terms,
+                &model.matrix,
+            )?))
+        };
+        Ok(FastModel {
+            kind: model.kind,
+            order: model.order,
+            kernel,
+        })
+    }
+
+    /// The model kind.
+    pub fn kind(&self) -> Kind {
+        self.kind
+    }
+
+    /// The model order.
+    pub fn order(&self) -> u8 {
+        self.order
+    }
+
+    /// The kernel's name: `linear`, `prm3`, `rprm3`, `nsrm3` or `plan` (the generic one).
+    pub fn kernel_name(&self) -> &'static str {
+        match self.kernel {
+            Kernel::Linear(_) => "linear",
+            Kernel::Prm3(_) => "prm3",
+            Kernel::Rprm3(_) => "rprm3",
+            Kernel::Nsrm3(_) => "nsrm3",
+            Kernel::Plan(_) => "plan",
+        }
+    }
+
+    /// Corrects `frame` in place (alpha untouched). Whole pixels only: should the data length not
+    /// be a multiple of the channel count, the trailing partial pixel is left as it is.
+    pub fn apply(&self, frame: &mut Frame, threads: Threads) {
+        let ch = frame.layout.channels();
+        let whole = frame.data.len() - frame.data.len() % ch;
+        let data = &mut frame.data[..whole];
+        match frame.layout {
+            Layout::Rgb => self.dispatch_in_place::<3>(data, threads),
+            Layout::Rgba => self.dispatch_in_place::<4>(data, threads),
+        }
+    }
+
+    /// Corrects `src` into `dst` (same size and layout; alpha copied), leaving `src` unchanged.
+    pub fn apply_into(
+        &self,
+        src: &Frame,
+        dst: &mut Frame,
+        threads: Threads,
+    ) -> Result<(), FastError> {
+        if (src.width, src.height, src.layout) != (dst.width, dst.height, dst.layout) {
+            return Err(FastError::FrameMismatch {
+                src_w: src.width,
+                src_h: src.height,
+                src_layout: src.layout.name(),
+                dst_w: dst.width,
+                dst_h: dst.height,
+                dst_layout: dst.layout.name(),
+            });
+        }
+        for f in [src, &*dst] {
+            let expected = f.pixels() * f.layout.channels();
+            if f.data.len() != expected {
+                return Err(FastError::FrameLength {
+                    width: f.width,
+                    height: f.height,
+                    layout: f.layout.name(),
+                    expected,
+                    len: f.data.len(),
+                });
+            }
+        }
+        match src.layout {
+            Layout::Rgb => self.dispatch_into::<3>(&src.data, &mut dst.data, threads),
+            Layout::Rgba => self.dispatch_into::<4>(&src.data, &mut dst.data, threads),
+        }
+        Ok(())
+    }
+
+    fn dispatch_in_place<const C: usize>(&self, data: &mut [f32], threads: Threads) {
+        match &self.kernel {
+            Kernel::Linear(k) => in_place::<_, C>(k, data, threads),
+            Kernel::Prm3(k) => in_place::<_, C>(k, data, threads),
+            Kernel::Rprm3(k) => in_place::<_, C>(k, data, threads),
+            Kernel::Nsrm3(k) => in_place::<_, C>(k, data, threads),
+            Kernel::Plan(k) => in_place::<_, C>(&**k, data, threads),
+        }
+    }
+
+    fn dispatch_into<const C: usize>(&self, src: &[f32], dst: &mut [f32], threads: Threads) {
+        match &self.kernel {
+            Kernel::Linear(k) => into::<_, C>(k, src, dst, threads),
+            Kernel::Prm3(k) => into::<_, C>(k, src, dst, threads),
+            Kernel::Rprm3(k) => into::<_, C>(k, src, dst, threads),
+            Kernel::Nsrm3(k) => into::<_, C>(k, src, dst, threads),
+            Kernel::Plan(k) => into::<_, C>(&**k, src, dst, threads),
+        }
+    }
+}
+
+/// The row-major 3×L f64 matrix as three f32 rows of a fixed length.
+fn rows<const L: usize>(matrix: &[f64]) -> [[f32; L]; 3] {
+    debug_assert_eq!(matrix.len(), 3 * L);
+    let mut m = [[0.0; L]; 3];
+    for (k, row) in m.iter_mut().enumerate() {
+        for (j, v) in row.iter_mut().enumerate() {
+            *v = matrix[k * L + j] as f32;
+        }
+    }
+    m
+}
+
+// ---------------------------------------------------------------------------------------------
+// Drivers: chunks over threads, blocks within a chunk, (de-)interleaving.
+// ---------------------------------------------------------------------------------------------
+
+/// A kernel evaluates one block of `LANES` pixels given as channel arrays (R, G, B).
+trait BlockKernel: Sync {
+    /// Per-task scratch space (allocated once per chunk, never per pixel).
+    type Scratch;
+    fn scratch(&self) -> Self::Scratch;
+    fn block(&self, x: &[Lanes; 3], scratch: &mut Self::Scratch) -> [Lanes; 3];
+}
+
+/// De-interleaves one block of `C`-channel pixels.
+#[inline(always)]
+fn load<const C: usize>(blk: &[f32]) -> [Lanes; C] {
+    let blk = &blk[..C * LANES];
+    let mut x = [[0.0; LANES]; C];
+    for i in 0..LANES {
+        for c in 0..C {
+            x[c][i] = blk[i * C + c];
+        }
+    }
+    x
+}
+
+/// Interleaves one block back: channels 0..3 from `y`, channel 3 (alpha) from `alpha`.
+#[inline(always)]
+fn store<const C: usize>(y: &[Lanes; 3], alpha: &[Lanes; C], blk: &mut [f32]) {
+    let blk = &mut blk[..C * LANES];
+    for i in 0..LANES {
+        for c in 0..C {
+            blk[i * C + c] = if c < 3 { y[c][i] } else { alpha[c][i] };
+        }
+    }
+}
+
+#[inline(always)]
+fn rgb_of<const C: usize>(x: &[Lanes; C]) -> [Lanes; 3] {
+    [x[0], x[1], x[2]]
+}
+
+fn in_place<K: BlockKernel, const C: usize>(k: &K, data: &mut [f32], threads: Threads) {
+    let n = CHUNK_PIXELS * C;
+    match threads {
+        Threads::All => data
+            .par_chunks_mut(n)
+            .for_each(|chunk| chunk_in_place::<K, C>(k, chunk)),
+        Threads::Single => data
+            .chunks_mut(n)
+            .for_each(|chunk| chunk_in_place::<K, C>(k, chunk)),
+    }
+}
+
+fn into<K: BlockKernel, const C: usize>(k: &K, src: &[f32], dst: &mut [f32], threads: Threads) {
+    let n = CHUNK_PIXELS * C;
+    match threads {
+        Threads::All => src
+            .par_chunks(n)
+            .zip(dst.par_chunks_mut(n))
+            .for_each(|(s, d)| chunk_into::<K, C>(k, s, d)),
+        Threads::Single => src
+            .chunks(n)
+            .zip(dst.chunks_mut(n))
+            .for_each(|(s, d)| chunk_into::<K, C>(k, s, d)),
+    }
+}
+
+fn chunk_in_place<K: BlockKernel, const C: usize>(k: &K, data: &mut [f32]) {
+    let mut scratch = k.scratch();
+    let mut blocks = data.chunks_exact_mut(C * LANES);
+    for blk in &mut blocks {
+        let x = load::<C>(blk);
+        let y = k.block(&rgb_of(&x), &mut scratch);
+        store::<C>(&y, &x, blk);
+    }
+    let rem = blocks.into_remainder();
+    if !rem.is_empty() {
+        let mut buf = [[0.0f32; LANES]; 4];
+        let buf = buf.as_flattened_mut();
+        buf[..rem.len()].copy_from_slice(rem);
+        let x = load::<C>(buf);
+        let y = k.block(&rgb_of(&x), &mut scratch);
+        store::<C>(&y, &x, buf);
+        rem.copy_from_slice(&buf[..rem.len()]);
+    }
+}
+
+fn chunk_into<K: BlockKernel, const C: usize>(k: &K, src: &[f32], dst: &mut [f32]) {
+    let mut scratch = k.scratch();
+    let mut s_blocks = src.chunks_exact(C * LANES);
+    let mut d_blocks = dst.chunks_exact_mut(C * LANES);
+    for (s, d) in (&mut s_blocks).zip(&mut d_blocks) {
+        let x = load::<C>(s);
+        let y = k.block(&rgb_of(&x), &mut scratch);
+        store::<C>(&y, &x, d);
+    }
+    let (s_rem, d_rem) = (s_blocks.remainder(), d_blocks.into_remainder());
+    if !s_rem.is_empty() {
+        let mut buf = [[0.0f32; LANES]; 4];
+        let buf = buf.as_flattened_mut();
+        buf[..s_rem.len()].copy_from_slice(s_rem);
+        let x = load::<C>(buf);
+        let y = k.block(&rgb_of(&x), &mut scratch);
+        store::<C>(&y, &x, buf);
+        d_rem.copy_from_slice(&buf[..d_rem.len()]);
+    }
+}
+
+// ---------------------------------------------------------------------------------------------
+// Scalar building blocks (inlined into the lane loops, so they must stay branch-free).
+// ---------------------------------------------------------------------------------------------
+
+/// `Σ_j m[j]·t[j]`, summed in term order.
+#[inline(always)]
+fn dot<const L: usize>(m: &[f32; L], t: &[f32; L]) -> f32 {
+    let mut acc = m[0] * t[0];
+    for j in 1..L {
+        acc += m[j] * t[j];
+    }
+    acc
+}
+
+/// Sign-preserving square root: `sign(x)·√|x|`.
+#[inline(always)]
+fn sqrt_s(x: f32) -> f32 {
+    x.abs().sqrt().copysign(x)
+}
+
+/// Sign-preserving fourth root.
+#[inline(always)]
+fn root4_s(x: f32) -> f32 {
+    x.abs().sqrt().sqrt().copysign(x)
+}
+
+/// Bit pattern behind the first guess of `a^(-1/3)` (minimises the guess's worst relative error,
+/// 3.4 %, over the normal f32 range).
+const RCBRT_MAGIC: u32 = 0x54a2_3400;
+/// Magnitudes outside `[1e-30, 1e30]` are scaled by `2^±96` first, so subnormals get a good first
+/// guess and the residual `y³ − a` cannot overflow.
+const CBRT_TINY: f32 = 1.0e-30;
+const CBRT_HUGE: f32 = 1.0e30;
+const TWO_96: f32 = 79_228_162_514_264_337_593_543_950_336.0; // 2^96
+const TWO_M96: f32 = 1.262_177_4e-29; // 2^-96
+const TWO_32: f32 = 4_294_967_296.0; // 2^32 = ∛(2^96)
+const TWO_M32: f32 = 2.328_306_4e-10; // 2^-32
+
+/// `x/3` for `x < 2³¹` in shifts and adds only (`x/4·(1+1/4)(1+1/16)(1+1/256)(1+1/65536)`, low by
+/// at most 6 units): a float-to-int conversion would not vectorise on baseline x86-64.
+#[inline(always)]
+fn third(x: u32) -> u32 {
+    let mut t = x >> 2;
+    t += t >> 2;
+    t += t >> 4;
+    t += t >> 8;
+    t += t >> 16;
+    t
+}
+
+/// Sign-preserving cube root without libm, branch-free: `z ≈ a^(-1/3)` from the bit pattern, two
+/// division-free Newton steps `z ← z·(4 − a·z³)/3` (3.4 % → 2e-5), `y = a·z²`, and one Newton
+/// correction of `y` itself, `y ← y − (y³ − a)·z²/3`. Max relative error 1.4e-7 (about 1 ulp);
+/// `±0 → ±0`, `±∞ → ±∞`, NaN → NaN.
+#[inline(always)]
+pub fn cbrt_s(x: f32) -> f32 {
+    let a = x.abs();
+    let tiny = a < CBRT_TINY;
+    let huge = a > CBRT_HUGE;
+    let pre = if tiny {
+        TWO_96
+    } else if huge {
+        TWO_M96
+    } else {
+        1.0
+    };
+    let post = if tiny {
+        TWO_M32
+    } else if huge {
+        TWO_32
+    } else {
+        1.0
+    };
+    let s = a * pre;
+    let mut z = f32::from_bits(RCBRT_MAGIC.wrapping_sub(third(s.to_bits())));
+    for _ in 0..2 {
+        z = z * (4.0 - s * z * z * z) * (1.0 / 3.0);
+    }
+    let z2 = z * z;
+    let y = s * z2;
+    let y = y - (y * y * y - s) * (z2 * (1.0 / 3.0));
+    let y = y * post;
+    // ±∞ → ±∞ and NaN → NaN (the iteration would not keep them); ±0 → ±0 comes out of a·z².
+    let y = if a.is_finite() { y } else { a };
+    y.copysign(x)
+}
+
+/// NSRM's `s = R+G+B` and `1/s`, and whether the pixel takes the `s ≤ 0 → 0` rule.
+#[inline(always)]
+fn nsrm_signal(r: f32, g: f32, b: f32) -> (f32, f32, f32, bool) {
+    let s = r + g + b;
+    // NaN is not ≤ 0: it goes through and propagates.
+    let black = s <= 0.0;
+    (s, r / s, g / s, black)
+}
+
+// ---------------------------------------------------------------------------------------------
+// Hand-written kernels. Term order is exactly `terms(kind, order)` (tests/fast.rs checks each
+// against the f64 reference).
+// ---------------------------------------------------------------------------------------------
+
+/// LRM, PRM 1, RPRM 1: `(R, G, B)`.
+#[derive(Debug, Clone)]
+struct Linear {
+    m: [[f32; 3]; 3],
+}
+
+impl BlockKernel for Linear {
+    type Scratch = ();
+    fn scratch(&self) {}
+    #[inline(always)]
+    fn block(&self, x: &[Lanes; 3], _: &mut ()) -> [Lanes; 3] {
+        let mut y = [[0.0; LANES]; 3];
+        for i in 0..LANES {
+            let t = [x[0][i], x[1][i], x[2][i]];
+            for k in 0..3 {
+                y[k][i] = dot(&self.m[k], &t);
+            }
+        }
+        y
+    }
+}
+
+/// PRM 3: `R G B R² G² B² RG GB RB R³ G³ B³ RG² RB² GB² R²G G²B R²B RGB`.
+#[derive(Debug, Clone)]
+struct Prm3 {
+    m: [[f32; 19]; 3],
+}
+
+impl BlockKernel for Prm3 {
+    type Scratch = ();
+    fn scratch(&self) {}
+    #[inline(always)]
+    fn block(&self, x: &[Lanes; 3], _: &mut ()) -> [Lanes; 3] {
+        let mut y = [[0.0; LANES]; 3];
+        for i in 0..LANES {
+            let (r, g, b) = (x[0][i], x[1][i], x[2][i]);
+            let (r2, g2, b2) = (r * r, g * g, b * b);
+            let (rg, gb) = (r * g, g * b);
+            let t = [
+                r,
+                g,
+                b,
+                r2,
+                g2,
+                b2,
+                rg,
+                gb,
+                r * b,
+                r2 * r,
+                g2 * g,
+                b2 * b,
+                r * g2,
+                r * b2,
+                g * b2,
+                r2 * g,
+                g2 * b,
+                r2 * b,
+                rg * b,
+            ];
+            for k in 0..3 {
+                y[k][i] = dot(&self.m[k], &t);
+            }
+        }
+        y
+    }
+}
+
+/// RPRM 3: `R G B √(RG) √(GB) √(RB) ∛(RG²) ∛(RB²) ∛(GB²) ∛(R²G) ∛(G²B) ∛(R²B) ∛(RGB)`, from three
+/// square roots and three cube roots.
+#[derive(Debug, Clone)]
+struct Rprm3 {
+    m: [[f32; 13]; 3],
+}
+
+impl BlockKernel for Rprm3 {
+    type Scratch = ();
+    fn scratch(&self) {}
+    #[inline(always)]
+    fn block(&self, x: &[Lanes; 3], _: &mut ()) -> [Lanes; 3] {
+        let mut y = [[0.0; LANES]; 3];
+        for i in 0..LANES {
+            let (r, g, b) = (x[0][i], x[1][i], x[2][i]);
+            let (sr, sg, sb) = (sqrt_s(r), sqrt_s(g), sqrt_s(b));
+            let (cr, cg, cb) = (cbrt_s(r), cbrt_s(g), cbrt_s(b));
+            let (cr2, cg2, cb2) = (cr * cr, cg * cg, cb * cb);
+            let t = [
+                r,
+                g,
+                b,
+                sr * sg,
+                sg * sb,
+                sr * sb,
+                cr * cg2,
+                cr * cb2,
+                cg * cb2,
+                cr2 * cg,
+                cg2 * cb,
+                cr2 * cb,
+                cr * cg * cb,
+            ];
+            for k in 0..3 {
+                y[k][i] = dot(&self.m[k], &t);
+            }
+        }
+        y
+    }
+}
+
+/// NSRM 3: `s·M·(1 r g r² g² rg r³ g³ rg² r²g)`, `r = R/s`, `g = G/s`, `s = R+G+B`.
+#[derive(Debug, Clone)]
+struct Nsrm3 {
+    m: [[f32; 10]; 3],
+}
+
+impl BlockKernel for Nsrm3 {
+    type Scratch = ();
+    fn scratch(&self) {}
+    #[inline(always)]
+    fn block(&self, x: &[Lanes; 3], _: &mut ()) -> [Lanes; 3] {
+        let mut y = [[0.0; LANES]; 3];
+        let m = &self.m;
+        for i in 0..LANES {
+            let (s, r, g, black) = nsrm_signal(x[0][i], x[1][i], x[2][i]);
+            let rg = r * g;
+            for k in 0..3 {
+                // Horner in r and g over the terms 1 r g r² g² rg r³ g³ rg² r²g: 28 mul, 27 add.
+                let m = &m[k];
+                let pr = r * (m[1] + r * (m[3] + r * m[6]));
+                let pg = g * (m[2] + g * (m[4] + g * m[7]));
+                let pm = rg * (m[5] + g * m[8] + r * m[9]);
+                let v = s * ((m[0] + pr) + (pg + pm));
+                y[k][i] = if black { 0.0 } else { v };
+            }
+        }
+        y
+    }
+}
+
+// ---------------------------------------------------------------------------------------------
+// The generic kernel: a product plan over lane arrays.
+// ---------------------------------------------------------------------------------------------
+
+/// Slot 0 holds 1.0 in every lane.
+const ONE: usize = 0;
+
+/// Every term of any list as products of two earlier values, evaluated a block at a time.
+#[derive(Debug, Clone)]
+struct Plan {
+    nsrm: bool,
+    /// `(channel, root, slot)`: the per-channel roots to compute first.
+    bases: Vec<(usize, u8, usize)>,
+    /// `(dst, a, b)`: `v[dst] = v[a]·v[b]`, in dependency order.
+    steps: Vec<(usize, usize, usize)>,
+    /// The slot of each term.
+    term_slots: Vec<usize>,
+    /// Number of slots used.
+    slots: usize,
+    /// Row-major 3×L matrix in f32.
+    m: Vec<f32>,
+}
+
+impl Plan {
+    fn new(kind: Kind, terms: &[Term], matrix: &[f64]) -> Result<Plan, FastError> {
+        let nsrm = kind == Kind::Nsrm;
+        let mut bases = Vec::new();
+        let mut steps = Vec::new();
+        // (exponents, root) → slot; the empty monomial is the constant 1 whatever the root.
+        let mut known: HashMap<([u8; 3], u8), usize> = HashMap::new();
+        let mut slots = 1;
+        let mut term_slots = Vec::with_capacity(terms.len());
+        for (index, t) in terms.iter().enumerate() {
+            let unsupported = FastError::UnsupportedTerm {
+                index,
+                exps: t.exps,
+                root: t.root,
+            };
+            if !(1..=4).contains(&t.root) || (nsrm && t.exps[2] != 0) {
+                return Err(unsupported);
+            }
+            let slot = plan_monomial(
+                t.exps, t.root, &mut known, &mut bases, &mut steps, &mut slots,
+            );
+            term_slots.push(slot);
+        }
+        if slots > MAX_SLOTS {
+            return Err(FastError::TooManyTerms { needed: slots });
+        }
+        Ok(Plan {
+            nsrm,
+            bases,
+            steps,
+            term_slots,
+            slots,
+            m: matrix.iter().map(|&v| v as f32).collect(),
+        })
+    }
+}
+
+/// The slot holding `Π_c root(x_c)^exps[c]`, adding the steps that compute it (memoised).
+fn plan_monomial(
+    exps: [u8; 3],
+    root: u8,
+    known: &mut HashMap<([u8; 3], u8), usize>,
+    bases: &mut Vec<(usize, u8, usize)>,
+    steps: &mut Vec<(usize, usize, usize)>,
+    slots: &mut usize,
+) -> usize {
+    if exps == [0; 3] {
+        return ONE;
+    }
+    if let Some(&s) = known.get(&(exps, root)) {
+        return s;
+    }
+    let degree: u8 = exps.iter().sum();
+    let slot = if degree == 1 {
+        let c = exps.iter().position(|&e| e == 1).unwrap_or(0);
+        let s = *slots;
+        bases.push((c, root, s));
+        s
+    } else {
+        // Split into the larger half and the rest: x^4 = x²·x², R²G = (RG)·R, so the product
+        // tree is shallow and shares sub-products between terms.
+        let mut half = [0u8; 3];
+        let mut left = degree / 2;
+        for c in 0..3 {
+            let take = exps[c].min(left);
+            half[c] = take;
+            left -= take;
+        }
+        let rest = [exps[0] - half[0], exps[1] - half[1], exps[2] - half[2]];
+        let a = plan_monomial(half, root, known, bases, steps, slots);
+        let b = plan_monomial(rest, root, known, bases, steps, slots);
+        let s = *slots;
+        steps.push((s, a, b));
+        s
+    };
+    *slots += 1;
+    known.insert((exps, root), slot);
+    slot
+}
+
+impl BlockKernel for Plan {
+    type Scratch = Vec<Lanes>;
+
+    fn scratch(&self) -> Vec<Lanes> {
+        let mut v = vec![[0.0; LANES]; self.slots.max(1)];
+        v[ONE] = [1.0; LANES];
+        v
+    }
+
+    fn block(&self, x: &[Lanes; 3], v: &mut Vec<Lanes>) -> [Lanes; 3] {
+        let mut scale = [1.0f32; LANES];
+        let mut black = [false; LANES];
+        let mut vars = *x;
+        if self.nsrm {
+            for i in 0..LANES {
+                let (s, r, g, k) = nsrm_signal(x[0][i], x[1][i], x[2][i]);
+                scale[i] = s;
+                vars[0][i] = r;
+                vars[1][i] = g;
+                black[i] = k;
+            }
+        }
+        for &(c, root, slot) in &self.bases {
+            let src = vars[c];
+            let dst = &mut v[slot];
+            match root {
+                1 => *dst = src,
+                2 => {
+                    for i in 0..LANES {
+                        dst[i] = sqrt_s(src[i]);
+                    }
+                }
+                3 => {
+                    for i in 0..LANES {
+                        dst[i] = cbrt_s(src[i]);
+                    }
+                }
+                _ => {
+                    for i in 0..LANES {
+                        dst[i] = root4_s(src[i]);
+                    }
+                }
+            }
+        }
+        for &(d, a, b) in &self.steps {
+            let (va, vb) = (v[a], v[b]);
+            let dst = &mut v[d];
+            for i in 0..LANES {
+                dst[i] = va[i] * vb[i];
+            }
+        }
+        let l = self.term_slots.len();
+        let mut y = [[0.0; LANES]; 3];
+        for (k, yk) in y.iter_mut().enumerate() {
+            let row = &self.m[k * l..(k + 1) * l];
+            for (j, (&mkj, &slot)) in row.iter().zip(&self.term_slots).enumerate() {
+                let t = &v[slot];
+                if j == 0 {
+                    for i in 0..LANES {
+                        yk[i] = mkj * t[i];
+                    }
+                } else {
+                    for i in 0..LANES {
+                        yk[i] += mkj * t[i];
+                    }
+                }
+            }
+            if self.nsrm {
+                for i in 0..LANES {
+                    let v = scale[i] * yk[i];
+                    yk[i] = if black[i] { 0.0 } else { v };
+                }
+            }
+        }
+        y
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::model::MAX_ORDER;
+
+    #[test]
+    fn cbrt_is_accurate_and_keeps_special_values() {
+        let mut worst = 0.0f64;
+        let mut x = f32::MIN_POSITIVE / 1024.0;
+        while x < f32::MAX / 1.01 {
+            for v in [x, -x] {
+                let got = cbrt_s(v) as f64;
+                let want = (v as f64).cbrt();
+                worst = worst.max((got / want - 1.0).abs());
+            }
+            x *= 1.000_37;
+        }
+        assert!(worst < 1.5e-7, "cbrt worst relative error {worst:e}");
+        assert_eq!(cbrt_s(0.0).to_bits(), 0.0f32.to_bits());
+        assert_eq!(cbrt_s(-0.0).to_bits(), (-0.0f32).to_bits());
+        assert_eq!(cbrt_s(f32::INFINITY), f32::INFINITY);
+        assert_eq!(cbrt_s(f32::NEG_INFINITY), f32::NEG_INFINITY);
+        assert!(cbrt_s(f32::NAN).is_nan());
+        assert_eq!(cbrt_s(-8.0), -2.0);
+        assert_eq!(cbrt_s(27.0), 3.0);
+    }
+
+    #[test]
+    fn every_standard_model_gets_a_kernel_and_plans_fit() {
+        for kind in Kind::ALL {
+            for order in 1..=MAX_ORDER {
+                let order = kind.effective_order(order);
+                let t = terms(kind, order);
+                let m = Model::from_matrix(kind, order, vec![0.5; 3 * t.len()]).unwrap();
+                let f = FastModel::new(&m).unwrap();
+                let expect = match (kind, order) {
+                    (Kind::Lrm, _) | (Kind::Prm, 1) | (Kind::Rprm, 1) => "linear",
+                    (Kind::Prm, 3) => "prm3",
+                    (Kind::Rprm, 3) => "rprm3",
+                    (Kind::Nsrm, 3) => "nsrm3",
+                    _ => "plan",
+                };
+                assert_eq!(f.kernel_name(), expect, "{kind} {order}");
+                // The generic plan can also take every standard list (used by the tests).
+                let plan = Plan::new(kind, &t, &m.matrix).unwrap();
+                assert!(plan.slots <= MAX_SLOTS);
+                // One multiplication per non-linear monomial, at most.
+                assert!(
+                    plan.steps.len() <= t.len() + 8,
+                    "{kind} {order}: {}",
+                    plan.steps.len()
+                );
+            }
+        }
+    }
+
+    #[test]
+    fn bad_models_are_refused() {
+        let mut m = Model::from_matrix(Kind::Rprm, 2, vec![1.0; 18]).unwrap();
+        m.matrix.pop();
+        assert!(matches!(
+            FastModel::new(&m),
+            Err(FastError::MatrixShape {
+                terms: 6,
+                values: 17
+            })
+        ));
+        let mut m = Model::from_matrix(Kind::Rprm, 2, vec![1.0; 18]).unwrap();
+        m.terms[4].root = 5;
+        let e = FastModel::new(&m).unwrap_err();
+        assert!(
+            matches!(
+                e,
+                FastError::UnsupportedTerm {
+                    index: 4,
+                    root: 5,
+                    ..
+                }
+            ),
+            "{e}"
+        );
+        // apply_frame falls back to the reference for it.
+        let mut f = Frame::from_data(1, 1, Layout::Rgb, vec![0.2, 0.3, 0.4]).unwrap();
+        let mut g = f.clone();
+        apply_frame(&m, &mut f);
+        m.apply_frame_f64(&mut g);
+        assert_eq!(f, g);
+    }
+
+    #[test]
+    fn apply_into_checks_shapes() {
+        let m = Model::from_matrix(
+            Kind::Lrm,
+            1,
+            vec![1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0],
+        )
+        .unwrap();
+        let f = FastModel::new(&m).unwrap();
+        let src = Frame::new(4, 3, Layout::Rgb);
+        let mut dst = Frame::new(3, 4, Layout::Rgb);
+        assert!(matches!(
+            f.apply_into(&src, &mut dst, Threads::All),
+            Err(FastError::FrameMismatch { .. })
+        ));
+        let mut dst = Frame::new(4, 3, Layout::Rgb);
+        dst.data.pop();
+        assert!(matches!(
+            f.apply_into(&src, &mut dst, Threads::Single),
+            Err(FastError::FrameLength {
+                expected: 36,
+                len: 35,
+                ..
+            })
+        ));
+    }
+}

@@ -1,0 +1,359 @@
+//! The fast CPU path against the f64 reference (`Model::apply_frame_f64`), for every kind, order
+//! and layout, on frames full of awkward pixels.
+//!
+//! Accuracy criterion, per pixel and output channel `k` (`ref` = the f64 reference rounded to f32):
+//! * reference NaN ⇒ fast NaN; reference ±∞ ⇒ fast the same ±∞; reference finite ⇒ fast finite and
+//!   `|fast_k − ref_k| ≤ REL·max(|ref_X|, |ref_Y|, |ref_Z|) + TERM_REL·T_k + ABS_FLOOR`:
+//!   - `REL = 1e-5`, relative to the pixel's largest output component (the three components of one
+//!     colour share a scale);
+//!   - `T_k = |s|·Σ_j |m_kj·p_j|` (f64), the size of the summands of output `k`. Where the model
+//!     cancels (summands much larger than the result: PRM extrapolating HDR values, the fitted
+//!     RPRM 3/4 and PRM 3/4 whose coefficients run into the thousands), no f32 evaluation can be
+//!     within 1e-5 of the result — rounding the coefficients alone to f32 moves it by 6e-8·T_k —
+//!     so the bound allows `TERM_REL = 1e-6` of `T_k` (measured worst: 4.5e-7·T_k). For
+//!     well-conditioned pixels (`T_k ≤ 10·max|ref|`) this stays within 2e-5 of the result;
+//!   - an absolute floor `ABS_FLOOR = 1e-30` that only matters for pixels whose reference is
+//!     exactly 0 (all-zero input; NSRM with `s ≤ 0`).
+//!
+//!   `cargo test --test fast -- --nocapture` prints the worst `err/max|ref|` and `err/T_k` per model.
+//! * Alpha is bit-for-bit unchanged.
+//! * One thread, all threads, in place and into a second frame give bit-identical results.
+
+use nsrm::model::fast::{apply_frame, apply_frame_single, FastModel, Threads};
+use nsrm::model::{features, fit, terms, Kind, Model, MAX_ORDER};
+use nsrm::spectral::{simulate, Camera, Grid, Illuminant, Reflectances};
+use nsrm::{Frame, Layout, TrainingSet};
+use std::sync::OnceLock;
+
+const REL: f64 = 1e-5;
+const TERM_REL: f64 = 1e-6;
+const ABS_FLOOR: f64 = 1e-30;
+
+/// SplitMix64: a fixed-seed generator (no extra dependency).
+struct Rng(u64);
+
+impl Rng {
+    fn next_u64(&mut self) -> u64 {
+        self.0 = self.0.wrapping_add(0x9e37_79b9_7f4a_7c15);
+        let mut z = self.0;
+        z = (z ^ (z >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
+        z = (z ^ (z >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
+        z ^ (z >> 31)
+    }
+    /// Uniform in [0, 1).
+    fn f(&mut self) -> f32 {
+        (self.next_u64() >> 40) as f32 / (1u64 << 24) as f32
+    }
+    fn below(&mut self, n: u64) -> usize {
+        (self.next_u64() % n) as usize
+    }
+}
+
+fn training() -> &'static TrainingSet {
+    static DATA: OnceLock<TrainingSet> = OnceLock::new();
+    DATA.get_or_init(|| {
+        simulate(
+            &Camera::from_name_or_path("nikon-d5100").unwrap(),
+            &Illuminant::from_name_or_path("D65").unwrap(),
+            &Reflectances::from_name_or_path("rawtoaces-190").unwrap(),
+            &Grid::default(),
+        )
+        .unwrap()
+    })
+}
+
+/// Every kind at every order, fitted on simulated chart data (realistic coefficients, including
+/// PRM 4's large ones of both signs).
+fn fitted_models() -> Vec<Model> {
+    let mut v = Vec::new();
+    for kind in Kind::ALL {
+        for order in 1..=MAX_ORDER {
+            if kind == Kind::Lrm && order > 1 {
+                continue;
+            }
+            v.push(fit(kind, order, training()).unwrap());
+        }
+    }
+    v
+}
+
+/// One pixel of a given flavour.
+fn pixel(rng: &mut Rng, flavour: usize) -> [f32; 3] {
+    let mut p = [rng.f(), rng.f(), rng.f()];
+    let c = rng.below(3);
+    match flavour {
+        0 | 1 => {}                                        // ordinary 0..1
+        2 => p[c] = 0.0,                                   // a zero channel
+        3 => p = [0.0; 3],                                 // black
+        4 => p[c] = -0.02 * rng.f(),                       // slight negative (noise around black)
+        5 => p.iter_mut().for_each(|v| *v *= 100.0),       // HDR highlight
+        6 => p.iter_mut().for_each(|v| *v *= 1e-6),        // tiny
+        7 => p[c] = f32::NAN,                              // NaN
+        8 => p[c] = f32::INFINITY,                         // +Inf
+        9 => p[c] = f32::NEG_INFINITY,                     // −Inf
+        10 => p = [-0.01 * rng.f(), -0.01 * rng.f(), 0.0], // s < 0
+        11 => p[c] = -0.0,                                 // negative zero
+        12 => p = [1e-3 + rng.f(), 0.0, 0.0],              // a single channel
+        _ => p.iter_mut().for_each(|v| *v *= 4.0),         // mild highlight
+    }
+    p
+}
+
+fn random_frame(width: usize, height: usize, layout: Layout, seed: u64) -> Frame {
+    let mut rng = Rng(seed);
+    let ch = layout.channels();
+    let mut data = Vec::with_capacity(width * height * ch);
+    for _ in 0..width * height {
+        let flavour = rng.below(14);
+        data.extend_from_slice(&pixel(&mut rng, flavour));
+        if ch == 4 {
+            // Alpha of any value, NaN included: it must come back bit for bit.
+            let a = match rng.below(4) {
+                0 => f32::NAN,
+                1 => -rng.f(),
+                _ => rng.f(),
+            };
+            data.push(a);
+        }
+    }
+    Frame::from_data(width, height, layout, data).unwrap()
+}
+
+/// `T_k = |scale|·Σ_j |m_kj·p_j|` in f64: the size of the summands of output channel `k`.
+fn term_magnitude(model: &Model, rgb: [f64; 3]) -> [f64; 3] {
+    let mut p = vec![0.0; model.terms.len()];
+    match features(model.kind, &model.terms, rgb, &mut p) {
+        None => [0.0; 3],
+        Some(s) => [0, 1, 2].map(|k| {
+            s.abs()
+                * model
+                    .row(k)
+                    .iter()
+                    .zip(&p)
+                    .map(|(m, v)| (m * v).abs())
+                    .sum::<f64>()
+        }),
+    }
+}
+
+/// Worst error measures over the finite pixels; panics on any violation.
+fn compare(model: &Model, input: &Frame, fast: &Frame, what: &str) -> Worst {
+    let mut reference = input.clone();
+    model.apply_frame_f64(&mut reference);
+    let ch = input.layout.channels();
+    let mut worst = Worst::default();
+    for (i, ((r, f), x)) in reference
+        .data
+        .chunks_exact(ch)
+        .zip(fast.data.chunks_exact(ch))
+        .zip(input.data.chunks_exact(ch))
+        .enumerate()
+    {
+        let ctx = || {
+            format!(
+                "{what}: {} {} pixel {i} input {x:?}: reference {r:?}, fast {f:?}",
+                model.kind, model.order
+            )
+        };
+        if ch == 4 {
+            assert_eq!(f[3].to_bits(), x[3].to_bits(), "alpha changed: {}", ctx());
+        }
+        let scale = r[..3].iter().map(|v| (*v as f64).abs()).fold(0.0, f64::max);
+        let tm = term_magnitude(model, [x[0] as f64, x[1] as f64, x[2] as f64]);
+        for k in 0..3 {
+            let (rv, fv) = (r[k] as f64, f[k] as f64);
+            if rv.is_nan() {
+                assert!(fv.is_nan(), "expected NaN: {}", ctx());
+            } else if rv.is_infinite() {
+                assert_eq!(fv, rv, "expected {rv}: {}", ctx());
+            } else {
+                assert!(fv.is_finite(), "expected finite: {}", ctx());
+                let err = (fv - rv).abs();
+                assert!(
+                    err <= REL * scale + TERM_REL * tm[k] + ABS_FLOOR,
+                    "error {err:e} > bound (summands T_k = {:e}): {}",
+                    tm[k],
+                    ctx()
+                );
+                if scale > 0.0 {
+                    worst.to_ref = worst.to_ref.max(err / scale);
+                }
+                if tm[k] > 0.0 {
+                    worst.to_terms = worst.to_terms.max(err / tm[k]);
+                }
+            }
+        }
+    }
+    worst
+}
+
+#[derive(Debug, Default, Clone, Copy)]
+struct Worst {
+    to_ref: f64,
+    to_terms: f64,
+}
+
+impl Worst {
+    fn max(self, o: Worst) -> Worst {
+        Worst {
+            to_ref: self.to_ref.max(o.to_ref),
+            to_terms: self.to_terms.max(o.to_terms),
+        }
+    }
+}
+
+/// All paths (all threads, one thread, in place, into) agree bit for bit; returns the in-place,
+/// all-threads result.
+fn run_all_paths(model: &Model, input: &Frame) -> Frame {
+    let mut all = input.clone();
+    apply_frame(model, &mut all);
+    let mut single = input.clone();
+    apply_frame_single(model, &mut single);
+    let fast = FastModel::new(model).unwrap();
+    let mut into = Frame::new(input.width, input.height, input.layout);
+    into.data.iter_mut().for_each(|v| *v = 7.0);
+    fast.apply_into(input, &mut into, Threads::Single).unwrap();
+    let mut into_all = Frame::new(input.width, input.height, input.layout);
+    fast.apply_into(input, &mut into_all, Threads::All).unwrap();
+    let bits = |f: &Frame| f.data.iter().map(|v| v.to_bits()).collect::<Vec<u32>>();
+    let b = bits(&all);
+    assert_eq!(
+        b,
+        bits(&single),
+        "{} {}: one thread vs all",
+        model.kind,
+        model.order
+    );
+    assert_eq!(
+        b,
+        bits(&into),
+        "{} {}: into vs in place",
+        model.kind,
+        model.order
+    );
+    assert_eq!(
+        b,
+        bits(&into_all),
+        "{} {}: into (all threads)",
+        model.kind,
+        model.order
+    );
+    all
+}
+
+#[test]
+fn every_kind_order_and_layout_matches_the_f64_reference() {
+    let sizes = [(1, 1), (7, 13), (4097, 3), (5, 1), (300, 257)];
+    let mut report = Vec::new();
+    for model in fitted_models() {
+        let mut worst = Worst::default();
+        for layout in [Layout::Rgb, Layout::Rgba] {
+            for (n, &(w, h)) in sizes.iter().enumerate() {
+                let input = random_frame(w, h, layout, 1000 + n as u64);
+                let out = run_all_paths(&model, &input);
+                let what = format!("{w}×{h} {}", layout.name());
+                worst = worst.max(compare(&model, &input, &out, &what));
+            }
+        }
+        report.push(format!(
+            "{} {}: {} kernel, worst error / max|ref| = {:.2e}, / T_k = {:.2e}",
+            model.kind,
+            model.order,
+            FastModel::new(&model).unwrap().kernel_name(),
+            worst.to_ref,
+            worst.to_terms
+        ));
+    }
+    // Visible with --nocapture; BENCHMARKS.md quotes these.
+    println!("{}", report.join("\n"));
+}
+
+#[test]
+fn random_matrices_and_the_generic_plan_on_every_term_list() {
+    // Matrices with entries of both signs, independent of any training data; also a model whose
+    // term list is a permutation of the standard one, which must take the generic kernel.
+    let mut rng = Rng(77);
+    for kind in Kind::ALL {
+        for order in 1..=MAX_ORDER {
+            let order = kind.effective_order(order);
+            let l = terms(kind, order).len();
+            let matrix: Vec<f64> = (0..3 * l).map(|_| (rng.f() as f64 - 0.3) * 50.0).collect();
+            let model = Model::from_matrix(kind, order, matrix).unwrap();
+            let input = random_frame(31, 9, Layout::Rgb, 5 + order as u64);
+            let out = run_all_paths(&model, &input);
+            compare(&model, &input, &out, "random matrix");
+
+            let mut shuffled = model.clone();
+            shuffled.terms.reverse();
+            let fast = FastModel::new(&shuffled).unwrap();
+            assert_eq!(fast.kernel_name(), "plan");
+            let out = run_all_paths(&shuffled, &input);
+            compare(&shuffled, &input, &out, "reversed term list");
+        }
+    }
+}
+
+#[test]
+fn nsrm_policy_and_exposure_scaling() {
+    let model = fit(Kind::Nsrm, 3, training()).unwrap();
+    let mut f = Frame::from_data(
+        5,
+        1,
+        Layout::Rgb,
+        vec![
+            0.0,
+            0.0,
+            0.0, // black → 0
+            0.1,
+            -0.2,
+            0.05, // s < 0 → 0
+            f32::NAN,
+            0.1,
+            0.1, // NaN propagates
+            0.2,
+            0.3,
+            0.4, // ordinary
+            20.0,
+            30.0,
+            40.0, // ×100: NSRM scales exactly with exposure
+        ],
+    )
+    .unwrap();
+    apply_frame(&model, &mut f);
+    assert_eq!(&f.data[0..6], &[0.0; 6]);
+    assert!(f.data[6..9].iter().all(|v| v.is_nan()));
+    for k in 0..3 {
+        let (lo, hi) = (f.data[9 + k] as f64, f.data[12 + k] as f64);
+        assert!((hi - 100.0 * lo).abs() <= 1e-5 * hi.abs(), "{lo} {hi}");
+    }
+}
+
+#[test]
+fn empty_frame_is_fine() {
+    let model = fit(Kind::Rprm, 3, training()).unwrap();
+    let mut f = Frame::new(0, 0, Layout::Rgba);
+    apply_frame(&model, &mut f);
+    apply_frame_single(&model, &mut f);
+    assert!(f.data.is_empty());
+}
+
+mod properties {
+    use super::*;
+    use proptest::prelude::*;
+
+    proptest! {
+        #![proptest_config(ProptestConfig::with_cases(64))]
+        /// Any finite pixel, any kind and order: within the bound of the reference.
+        #[test]
+        fn any_finite_pixel(
+            r in -1.0f32..200.0, g in -1.0f32..200.0, b in -1.0f32..200.0,
+            k in 0usize..4, order in 1u8..=4,
+        ) {
+            let kind = Kind::ALL[k];
+            let model = fit(kind, order, training()).unwrap();
+            let input = Frame::from_data(1, 1, Layout::Rgb, vec![r, g, b]).unwrap();
+            let out = run_all_paths(&model, &input);
+            compare(&model, &input, &out, "proptest");
+        }
+    }
+}

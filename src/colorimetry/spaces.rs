@@ -64,10 +64,28 @@ impl OutputSpace {
     }
 
     /// The matrix taking XYZ relative to `scene_white` (any scale) to this space, adapting the
-    /// scene white to the space's white with Bradford; identity for [`OutputSpace::Xyz`].
+    /// scene white to the space's white with Bradford.
+    ///
+    /// [`OutputSpace::Xyz`] is D65-referred XYZ (its interop ID says so): the identity when the scene
+    /// white is D65 to within [`D65_XY_TOLERANCE`] in xy (e.g. D65 integrated on a coarse grid),
+    /// otherwise a Bradford adaptation from the scene white to D65.
     pub fn from_xyz(self, scene_white: [f64; 3]) -> Mat3 {
         match self.primaries() {
-            None => IDENTITY,
+            None => {
+                let sum: f64 = scene_white.iter().sum();
+                let xy = [scene_white[0] / sum, scene_white[1] / sum];
+                let d = (xy[0] - D65_XY[0]).hypot(xy[1] - D65_XY[1]);
+                if d <= D65_XY_TOLERANCE {
+                    IDENTITY
+                } else {
+                    let sw = [
+                        scene_white[0] / scene_white[1],
+                        1.0,
+                        scene_white[2] / scene_white[1],
+                    ];
+                    bradford(sw, xy_to_xyz(D65_XY))
+                }
+            }
             Some((prim, white)) => {
                 let to_xyz = rgb_to_xyz(prim, white);
                 let from_xyz = invert(&to_xyz);
@@ -82,6 +100,12 @@ impl OutputSpace {
         }
     }
 }
+
+/// CIE D65 chromaticity (2° observer).
+pub const D65_XY: [f64; 2] = [0.3127, 0.3290];
+
+/// How far (xy distance) a scene white may be from D65 and still count as D65 for XYZ output.
+pub const D65_XY_TOLERANCE: f64 = 1e-3;
 
 /// The identity matrix.
 pub const IDENTITY: Mat3 = [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]];
@@ -197,7 +221,14 @@ mod tests {
                 assert!((rgb[k] - 1.0).abs() < 1e-9, "{space:?}: {rgb:?}");
             }
         }
-        assert_eq!(OutputSpace::Xyz.from_xyz([1.0, 1.0, 1.0]), IDENTITY);
+        // XYZ output is D65-referred: identity for a D65 white, Bradford to D65 otherwise.
+        assert_eq!(OutputSpace::Xyz.from_xyz([95.04, 100.0, 108.88]), IDENTITY);
+        let a = OutputSpace::Xyz.from_xyz([96.42, 100.0, 82.52]);
+        let w = apply(&a, [0.9642, 1.0, 0.8252]);
+        let d65 = xy_to_xyz(D65_XY);
+        for k in 0..3 {
+            assert!((w[k] - d65[k]).abs() < 1e-9, "{w:?}");
+        }
     }
 
     #[test]

@@ -362,8 +362,8 @@ fn split_alpha(frame: &Frame) -> (Frame, Option<Vec<f32>>) {
 }
 
 /// The 3×3 matrix from the model's XYZ (perfect white at `Y = white[1]`, usually 100) to the
-/// frames written: scene-linear with the perfect white at `Y = 1`, in `space` (Bradford-adapted
-/// from the training white to the space's white for RGB spaces).
+/// frames written: scene-linear with the perfect white at `Y = 1`, in `space`, Bradford-adapted
+/// from the training white to the space's white (D65 for XYZ; see [`OutputSpace::from_xyz`]).
 pub fn output_matrix(white_xyz: [f64; 3], space: OutputSpace) -> Mat3 {
     let m = space.from_xyz(white_xyz);
     let k = 1.0 / white_xyz[1];
@@ -398,9 +398,6 @@ pub fn output_model(model: &Model, space: OutputSpace) -> Result<Model, IoError>
 /// `white_xyz`) to linear sRGB (D65, white = 1): for previews.
 pub fn to_linear_srgb(white_xyz: [f64; 3], space: OutputSpace) -> Mat3 {
     let srgb = spaces::OutputSpace::LinearSrgb.from_xyz(white_xyz);
-    if space == OutputSpace::Xyz {
-        return srgb;
-    }
     spaces::mul(&srgb, &spaces::invert(&space.from_xyz(white_xyz)))
 }
 
@@ -424,9 +421,13 @@ mod tests {
                 assert!((want[k] - got[k]).abs() < 1e-12, "{space:?}");
             }
         }
-        // The training white maps to Y = 1 (XYZ) or to (1, 1, 1) (RGB spaces).
+        // The training white maps to D65 with Y = 1 (XYZ, D65-referred) or to (1, 1, 1) (RGB).
         let w = [96.4, 100.0, 82.5];
-        assert_eq!(output_matrix(w, OutputSpace::Xyz)[1][1], 0.01);
+        let xyz = spaces::apply(&output_matrix(w, OutputSpace::Xyz), w);
+        let d65 = spaces::xy_to_xyz(spaces::D65_XY);
+        assert!((0..3).all(|k| (xyz[k] - d65[k]).abs() < 1e-9), "{xyz:?}");
+        let d65_grid = [95.04, 100.0, 108.88];
+        assert_eq!(output_matrix(d65_grid, OutputSpace::Xyz)[1][1], 0.01);
         let rgb = spaces::apply(&output_matrix(w, OutputSpace::Acescg), w);
         assert!(rgb.iter().all(|v| (v - 1.0).abs() < 1e-9), "{rgb:?}");
     }

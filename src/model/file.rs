@@ -190,6 +190,18 @@ mod tests {
     }
 
     #[test]
+    fn round_trip_is_bit_exact_for_arbitrary_values() {
+        let mut m = model();
+        let mut x = 0.123_456_789_f64;
+        for v in m.matrix.iter_mut() {
+            x = (x * 3.987_654_321).fract() + 1e-3;
+            *v = (x - 0.5) * 1e3 / 7.0;
+        }
+        let back = Model::from_json(&m.to_json(), "m.json").unwrap();
+        assert_eq!(back.matrix, m.matrix);
+    }
+
+    #[test]
     fn invalid_files_are_refused_clearly() {
         let good = model().to_json();
         let cases = [

@@ -11,6 +11,11 @@
 //!   (the NSRM `s ≤ 0` rule is a select), and the result is interleaved back. The channel count
 //!   (3 or 4) is a const generic, so all indexing is by constants and the compiler emits packed
 //!   SIMD without bounds checks. The last partial block goes through a zero-padded copy.
+//! * Kernels first build lane arrays (terms, or NSRM's `s, r, g`), then combine them with the
+//!   matrix in one straight pass per output channel (`combine`), the shape LLVM vectorises best.
+//! * The chunk loops are compiled twice with the `multiversion` crate, for baseline x86-64 and for
+//!   AVX2 + FMA, and the CPU is detected once at run time (safe code: no intrinsics). Only the FMA
+//!   clone fuses multiply-adds (`madd`); the baseline never calls libm's software `fmaf`.
 //! * One monomorphised kernel per model shape: LRM (also PRM 1 and RPRM 1, the same three terms),
 //!   PRM 3, RPRM 3 and NSRM 3 are written out by hand; every other kind/order (and any other term
 //!   list) runs a generic kernel driven by a product plan built once from the model's
@@ -287,7 +292,9 @@ trait BlockKernel: Sync {
     /// Per-task scratch space (allocated once per chunk, never per pixel).
     type Scratch;
     fn scratch(&self) -> Self::Scratch;
-    fn block(&self, x: &[Lanes; 3], scratch: &mut Self::Scratch) -> [Lanes; 3];
+    /// `fma`: whether the code is being compiled for a target with fused multiply-add (a
+    /// compile-time constant in each multiversioned clone; see [`madd`]).
+    fn block(&self, x: &[Lanes; 3], scratch: &mut Self::Scratch, fma: bool) -> [Lanes; 3];
 }
 
 /// De-interleaves one block of `C`-channel pixels.
@@ -345,12 +352,17 @@ fn into<K: BlockKernel, const C: usize>(k: &K, src: &[f32], dst: &mut [f32], thr
     }
 }
 
+// Compiled twice: for the baseline target and for x86-64 with AVX2 + FMA, chosen at run time
+// (the `multiversion` crate detects the CPU once; no `unsafe` here).
+#[multiversion::multiversion(targets("x86_64+avx2+fma"))]
 fn chunk_in_place<K: BlockKernel, const C: usize>(k: &K, data: &mut [f32]) {
+    const FMA: bool = multiversion::target::selected_target!().supports_feature_str("fma");
+    let fma = FMA;
     let mut scratch = k.scratch();
     let mut blocks = data.chunks_exact_mut(C * LANES);
     for blk in &mut blocks {
         let x = load::<C>(blk);
-        let y = k.block(&rgb_of(&x), &mut scratch);
+        let y = k.block(&rgb_of(&x), &mut scratch, fma);
         store::<C>(&y, &x, blk);
     }
     let rem = blocks.into_remainder();
@@ -359,19 +371,24 @@ fn chunk_in_place<K: BlockKernel, const C: usize>(k: &K, data: &mut [f32]) {
         let buf = buf.as_flattened_mut();
         buf[..rem.len()].copy_from_slice(rem);
         let x = load::<C>(buf);
-        let y = k.block(&rgb_of(&x), &mut scratch);
+        let y = k.block(&rgb_of(&x), &mut scratch, fma);
         store::<C>(&y, &x, buf);
         rem.copy_from_slice(&buf[..rem.len()]);
     }
 }
 
+// Compiled twice: for the baseline target and for x86-64 with AVX2 + FMA, chosen at run time
+// (the `multiversion` crate detects the CPU once; no `unsafe` here).
+#[multiversion::multiversion(targets("x86_64+avx2+fma"))]
 fn chunk_into<K: BlockKernel, const C: usize>(k: &K, src: &[f32], dst: &mut [f32]) {
+    const FMA: bool = multiversion::target::selected_target!().supports_feature_str("fma");
+    let fma = FMA;
     let mut scratch = k.scratch();
     let mut s_blocks = src.chunks_exact(C * LANES);
     let mut d_blocks = dst.chunks_exact_mut(C * LANES);
     for (s, d) in (&mut s_blocks).zip(&mut d_blocks) {
         let x = load::<C>(s);
-        let y = k.block(&rgb_of(&x), &mut scratch);
+        let y = k.block(&rgb_of(&x), &mut scratch, fma);
         store::<C>(&y, &x, d);
     }
     let (s_rem, d_rem) = (s_blocks.remainder(), d_blocks.into_remainder());
@@ -380,7 +397,7 @@ fn chunk_into<K: BlockKernel, const C: usize>(k: &K, src: &[f32], dst: &mut [f32
         let buf = buf.as_flattened_mut();
         buf[..s_rem.len()].copy_from_slice(s_rem);
         let x = load::<C>(buf);
-        let y = k.block(&rgb_of(&x), &mut scratch);
+        let y = k.block(&rgb_of(&x), &mut scratch, fma);
         store::<C>(&y, &x, buf);
         d_rem.copy_from_slice(&buf[..d_rem.len()]);
     }
@@ -390,14 +407,32 @@ fn chunk_into<K: BlockKernel, const C: usize>(k: &K, src: &[f32], dst: &mut [f32
 // Scalar building blocks (inlined into the lane loops, so they must stay branch-free).
 // ---------------------------------------------------------------------------------------------
 
-/// `Σ_j m[j]·t[j]`, summed in term order.
+/// `a·b + c`: one fused multiply-add where the target has FMA (`fma` is a compile-time constant
+/// there), a multiply and an add otherwise (never libm's slow software `fmaf`).
 #[inline(always)]
-fn dot<const L: usize>(m: &[f32; L], t: &[f32; L]) -> f32 {
-    let mut acc = m[0] * t[0];
-    for j in 1..L {
-        acc += m[j] * t[j];
+fn madd(a: f32, b: f32, c: f32, fma: bool) -> f32 {
+    if fma {
+        a.mul_add(b, c)
+    } else {
+        a * b + c
     }
-    acc
+}
+
+/// `y_k = Σ_j m[k][j]·t[j]` for k = 0..3 over lane arrays, summed in term order: the shape the
+/// vectoriser turns into packed multiply-adds.
+#[inline(always)]
+fn combine<const L: usize>(m: &[[f32; L]; 3], t: &[Lanes; L], fma: bool) -> [Lanes; 3] {
+    let mut y = [[0.0; LANES]; 3];
+    for (yk, mk) in y.iter_mut().zip(m) {
+        for i in 0..LANES {
+            let mut acc = mk[0] * t[0][i];
+            for j in 1..L {
+                acc = madd(mk[j], t[j][i], acc, fma);
+            }
+            yk[i] = acc;
+        }
+    }
+    y
 }
 
 /// Sign-preserving square root: `sign(x)·√|x|`.
@@ -479,15 +514,8 @@ impl BlockKernel for Linear {
     type Scratch = ();
     fn scratch(&self) {}
     #[inline(always)]
-    fn block(&self, x: &[Lanes; 3], _: &mut ()) -> [Lanes; 3] {
-        let mut y = [[0.0; LANES]; 3];
-        for i in 0..LANES {
-            let t = [x[0][i], x[1][i], x[2][i]];
-            for k in 0..3 {
-                y[k][i] = dot(&self.m[k], &t);
-            }
-        }
-        y
+    fn block(&self, x: &[Lanes; 3], _: &mut (), fma: bool) -> [Lanes; 3] {
+        combine(&self.m, x, fma)
     }
 }
 
@@ -501,13 +529,13 @@ impl BlockKernel for Prm3 {
     type Scratch = ();
     fn scratch(&self) {}
     #[inline(always)]
-    fn block(&self, x: &[Lanes; 3], _: &mut ()) -> [Lanes; 3] {
-        let mut y = [[0.0; LANES]; 3];
+    fn block(&self, x: &[Lanes; 3], _: &mut (), fma: bool) -> [Lanes; 3] {
+        let mut t = [[0.0; LANES]; 19];
         for i in 0..LANES {
             let (r, g, b) = (x[0][i], x[1][i], x[2][i]);
             let (r2, g2, b2) = (r * r, g * g, b * b);
             let (rg, gb) = (r * g, g * b);
-            let t = [
+            let v = [
                 r,
                 g,
                 b,
@@ -528,11 +556,11 @@ impl BlockKernel for Prm3 {
                 r2 * b,
                 rg * b,
             ];
-            for k in 0..3 {
-                y[k][i] = dot(&self.m[k], &t);
+            for (tj, vj) in t.iter_mut().zip(v) {
+                tj[i] = vj;
             }
         }
-        y
+        combine(&self.m, &t, fma)
     }
 }
 
@@ -547,14 +575,14 @@ impl BlockKernel for Rprm3 {
     type Scratch = ();
     fn scratch(&self) {}
     #[inline(always)]
-    fn block(&self, x: &[Lanes; 3], _: &mut ()) -> [Lanes; 3] {
-        let mut y = [[0.0; LANES]; 3];
+    fn block(&self, x: &[Lanes; 3], _: &mut (), fma: bool) -> [Lanes; 3] {
+        let mut t = [[0.0; LANES]; 13];
         for i in 0..LANES {
             let (r, g, b) = (x[0][i], x[1][i], x[2][i]);
             let (sr, sg, sb) = (sqrt_s(r), sqrt_s(g), sqrt_s(b));
             let (cr, cg, cb) = (cbrt_s(r), cbrt_s(g), cbrt_s(b));
             let (cr2, cg2, cb2) = (cr * cr, cg * cg, cb * cb);
-            let t = [
+            let v = [
                 r,
                 g,
                 b,
@@ -569,11 +597,11 @@ impl BlockKernel for Rprm3 {
                 cr2 * cb,
                 cr * cg * cb,
             ];
-            for k in 0..3 {
-                y[k][i] = dot(&self.m[k], &t);
+            for (tj, vj) in t.iter_mut().zip(v) {
+                tj[i] = vj;
             }
         }
-        y
+        combine(&self.m, &t, fma)
     }
 }
 
@@ -587,20 +615,34 @@ impl BlockKernel for Nsrm3 {
     type Scratch = ();
     fn scratch(&self) {}
     #[inline(always)]
-    fn block(&self, x: &[Lanes; 3], _: &mut ()) -> [Lanes; 3] {
-        let mut y = [[0.0; LANES]; 3];
-        let m = &self.m;
+    fn block(&self, x: &[Lanes; 3], _: &mut (), fma: bool) -> [Lanes; 3] {
+        // Lane arrays first (s, r, g, R·g), then one straight pass per output channel: the shape
+        // the vectoriser turns into packed code.
+        let (mut s, mut r, mut g, mut rg) =
+            ([0.0; LANES], [0.0; LANES], [0.0; LANES], [0.0; LANES]);
         for i in 0..LANES {
-            let (s, r, g, black) = nsrm_signal(x[0][i], x[1][i], x[2][i]);
-            let rg = r * g;
-            for k in 0..3 {
-                // Horner in r and g over the terms 1 r g r² g² rg r³ g³ rg² r²g: 28 mul, 27 add.
-                let m = &m[k];
-                let pr = r * (m[1] + r * (m[3] + r * m[6]));
-                let pg = g * (m[2] + g * (m[4] + g * m[7]));
-                let pm = rg * (m[5] + g * m[8] + r * m[9]);
-                let v = s * ((m[0] + pr) + (pg + pm));
-                y[k][i] = if black { 0.0 } else { v };
+            let (si, ri, gi, _) = nsrm_signal(x[0][i], x[1][i], x[2][i]);
+            s[i] = si;
+            r[i] = ri;
+            g[i] = gi;
+            rg[i] = x[0][i] * gi;
+        }
+        let mut y = [[0.0; LANES]; 3];
+        for (k, yk) in y.iter_mut().enumerate() {
+            let m = &self.m[k];
+            for i in 0..LANES {
+                // s·(m0 + r·A + g·B + r·g·C) with s·r = R, s·g = G: the terms 1 r g r² g² rg r³ g³
+                // rg² r²g as m0·s + R·A + G·B + (R·g)·C, A = m1 + r(m3 + r·m6),
+                // B = m2 + g(m4 + g·m7), C = m5 + g·m8 + r·m9: 9 multiply-adds and 1 multiply.
+                let (ri, gi) = (r[i], g[i]);
+                let a = madd(ri, madd(ri, m[6], m[3], fma), m[1], fma);
+                let b = madd(gi, madd(gi, m[7], m[4], fma), m[2], fma);
+                let c = madd(ri, m[9], madd(gi, m[8], m[5], fma), fma);
+                let v = madd(x[0][i], a, m[0] * s[i], fma);
+                let v = madd(x[1][i], b, v, fma);
+                let v = madd(rg[i], c, v, fma);
+                // NaN is not ≤ 0: it goes through and propagates.
+                yk[i] = if s[i] <= 0.0 { 0.0 } else { v };
             }
         }
         y
@@ -720,7 +762,7 @@ impl BlockKernel for Plan {
     }
 
     #[inline(always)]
-    fn block(&self, x: &[Lanes; 3], v: &mut Vec<Lanes>) -> [Lanes; 3] {
+    fn block(&self, x: &[Lanes; 3], v: &mut Vec<Lanes>, _fma: bool) -> [Lanes; 3] {
         let mut scale = [1.0f32; LANES];
         let mut black = [false; LANES];
         let mut vars = *x;

@@ -1,5 +1,5 @@
-//! The four colour-correction models: their terms ([`terms`]), the least-squares fit, the
-//! [`Model`] value with its JSON file ([`file`]), and the f64 CPU reference apply path.
+//! The four colour-correction models: their terms ([`mod@terms`]), the least-squares fit, the
+//! [`Model`] value with its JSON file ([`mod@file`]), and the f64 CPU reference apply path.
 //!
 //! # Pixel policy (identical on every path: f64 reference, fast CPU, GPU shaders)
 //! * **NaN / ±Inf** in any channel propagate: the output is not finite. Nothing is clamped or hidden.

@@ -576,13 +576,15 @@ impl BlockKernel for Rprm3 {
     fn scratch(&self) {}
     #[inline(always)]
     fn block(&self, x: &[Lanes; 3], _: &mut (), fma: bool) -> [Lanes; 3] {
-        let mut t = [[0.0; LANES]; 13];
+        // Per lane: the roots, the terms and their three sums (keeping the 13 terms in registers
+        // measured faster here than lane arrays of terms).
+        let mut y = [[0.0; LANES]; 3];
         for i in 0..LANES {
             let (r, g, b) = (x[0][i], x[1][i], x[2][i]);
             let (sr, sg, sb) = (sqrt_s(r), sqrt_s(g), sqrt_s(b));
             let (cr, cg, cb) = (cbrt_s(r), cbrt_s(g), cbrt_s(b));
             let (cr2, cg2, cb2) = (cr * cr, cg * cg, cb * cb);
-            let v = [
+            let t = [
                 r,
                 g,
                 b,
@@ -597,11 +599,15 @@ impl BlockKernel for Rprm3 {
                 cr2 * cb,
                 cr * cg * cb,
             ];
-            for (tj, vj) in t.iter_mut().zip(v) {
-                tj[i] = vj;
+            for (yk, mk) in y.iter_mut().zip(&self.m) {
+                let mut acc = mk[0] * t[0];
+                for j in 1..13 {
+                    acc = madd(mk[j], t[j], acc, fma);
+                }
+                yk[i] = acc;
             }
         }
-        combine(&self.m, &t, fma)
+        y
     }
 }
 

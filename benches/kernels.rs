@@ -8,11 +8,10 @@
 //! same in one run and prints ratios.
 
 use criterion::{criterion_group, criterion_main, Criterion, Throughput};
-use nsrm::model::fast::{FastModel, Threads, CHUNK_PIXELS};
+use nsrm::model::fast::{memcpy_chunked, FastModel, Threads};
 use nsrm::model::{fit, Kind};
 use nsrm::spectral::{simulate, Camera, Grid, Illuminant, Reflectances};
 use nsrm::{Frame, Layout};
-use rayon::prelude::*;
 use std::hint::black_box;
 use std::time::Duration;
 
@@ -39,20 +38,6 @@ fn input() -> Frame {
     f
 }
 
-fn memcpy_chunked(src: &[f32], dst: &mut [f32], threads: Threads) {
-    let n = CHUNK_PIXELS * 3;
-    match threads {
-        Threads::All => src
-            .par_chunks(n)
-            .zip(dst.par_chunks_mut(n))
-            .for_each(|(s, d)| d.copy_from_slice(s)),
-        Threads::Single => src
-            .chunks(n)
-            .zip(dst.chunks_mut(n))
-            .for_each(|(s, d)| d.copy_from_slice(s)),
-    }
-}
-
 fn kernels(c: &mut Criterion) {
     let data = simulate(
         &Camera::from_name_or_path("nikon-d5100").unwrap(),
@@ -73,7 +58,7 @@ fn kernels(c: &mut Criterion) {
     let threads = [("1t", Threads::Single), ("all", Threads::All)];
     for (name, th) in threads {
         g.bench_function(format!("memcpy/{name}"), |b| {
-            b.iter(|| memcpy_chunked(black_box(&src.data), &mut dst.data, th))
+            b.iter(|| memcpy_chunked(black_box(&src.data), &mut dst.data, 3, th))
         });
     }
     for (kind, order) in [

@@ -1,7 +1,8 @@
 //! Writing outputs without losing anything: a temporary file in the destination's directory,
 //! renamed into place only when complete, and no replacement of an existing file unless asked.
 
-use std::io::Write;
+use std::fs::File;
+use std::io::{BufWriter, Write};
 use std::path::{Path, PathBuf};
 
 /// Errors from writing an output file.
@@ -69,24 +70,44 @@ pub fn commit(tmp: &Path, dest: &Path, overwrite: bool) -> Result<(), WriteError
     })
 }
 
-/// Writes `bytes` to `dest` atomically (temp file + fsync + rename).
-pub fn write_atomic(dest: &Path, bytes: &[u8], overwrite: bool) -> Result<(), WriteError> {
+/// Writes `dest` atomically through an encoder: `write` fills a buffered writer on a fresh
+/// temporary file beside `dest`; the file is then flushed, synced and moved into place
+/// ([`commit`]). On any error the temporary file is removed and `dest` is untouched.
+pub fn write_with<E: From<WriteError>>(
+    dest: &Path,
+    overwrite: bool,
+    write: impl FnOnce(&mut BufWriter<File>) -> Result<(), E>,
+) -> Result<(), E> {
     check_clobber(dest, overwrite)?;
     let tmp = temp_path_for(dest);
-    let io = |err| WriteError::Io {
-        path: dest.to_path_buf(),
-        err,
+    let io = |err| {
+        E::from(WriteError::Io {
+            path: dest.to_path_buf(),
+            err,
+        })
     };
-    let write = || -> std::io::Result<()> {
-        let mut f = std::fs::File::create(&tmp)?;
-        f.write_all(bytes)?;
-        f.sync_all()
-    };
-    if let Err(e) = write() {
+    let result = (|| -> Result<(), E> {
+        let mut w = BufWriter::new(File::create_new(&tmp).map_err(io)?);
+        write(&mut w)?;
+        w.flush().map_err(io)?;
+        let file = w.into_inner().map_err(|e| io(e.into_error()))?;
+        file.sync_all().map_err(io)
+    })();
+    if let Err(e) = result {
         let _ = std::fs::remove_file(&tmp);
-        return Err(io(e));
+        return Err(e);
     }
-    commit(&tmp, dest, overwrite)
+    Ok(commit(&tmp, dest, overwrite)?)
+}
+
+/// Writes `bytes` to `dest` atomically (temp file + fsync + rename).
+pub fn write_atomic(dest: &Path, bytes: &[u8], overwrite: bool) -> Result<(), WriteError> {
+    write_with(dest, overwrite, |w| {
+        w.write_all(bytes).map_err(|err| WriteError::Io {
+            path: dest.to_path_buf(),
+            err,
+        })
+    })
 }
 
 #[cfg(test)]

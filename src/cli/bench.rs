@@ -15,7 +15,7 @@ use super::common::{parse_models, UsageError};
 use anyhow::{Context, Result};
 use clap::ValueEnum;
 use nsrm::gpu::{Engine, GpuOptions};
-use nsrm::model::fast::{FastModel, Threads, CHUNK_PIXELS};
+use nsrm::model::fast::{memcpy_chunked, FastModel, Threads, CHUNK_PIXELS};
 use nsrm::model::{fit, Kind, Model};
 use nsrm::spectral::{simulate, Camera, Grid, Illuminant, Reflectances};
 use nsrm::{Frame, Layout};
@@ -457,21 +457,6 @@ fn random_frame(width: usize, height: usize, layout: Layout, seed: u64) -> Frame
 /// Writes every page so that no timing includes page faults.
 fn prefault(data: &mut [f32]) {
     data.par_iter_mut().for_each(|v| *v = 1.0);
-}
-
-/// The memcpy reference: the same chunks as the fast path, on one thread or the pool.
-fn memcpy_chunked(src: &[f32], dst: &mut [f32], ch: usize, threads: Threads) {
-    let n = CHUNK_PIXELS * ch;
-    match threads {
-        Threads::All => src
-            .par_chunks(n)
-            .zip(dst.par_chunks_mut(n))
-            .for_each(|(s, d)| d.copy_from_slice(s)),
-        Threads::Single => src
-            .chunks(n)
-            .zip(dst.chunks_mut(n))
-            .for_each(|(s, d)| d.copy_from_slice(s)),
-    }
 }
 
 fn time(f: impl FnOnce()) -> f64 {

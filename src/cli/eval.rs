@@ -13,7 +13,11 @@ pub struct Args {
     training: TrainingArgs,
     /// Illuminant: a built-in name (D65, FL3.15, FL7, TL865, LED-B5, LED-YAG) or a CSV file.
     /// Repeatable; default D65, TL865 and LED-B5 (the paper's).
-    #[arg(long = "illuminant", value_name = "NAME|FILE", conflicts_with = "training")]
+    #[arg(
+        long = "illuminant",
+        value_name = "NAME|FILE",
+        conflicts_with = "training"
+    )]
     illuminants: Vec<String>,
     /// Models to evaluate, comma-separated.
     #[arg(long, default_value = "lrm,prm,rprm,nsrm", value_name = "LIST")]

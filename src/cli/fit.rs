@@ -11,7 +11,12 @@ pub struct Args {
     #[command(flatten)]
     training: TrainingArgs,
     /// Illuminant the chart is lit by: a built-in name or a CSV file.
-    #[arg(long, default_value = "D65", value_name = "NAME|FILE", conflicts_with = "training")]
+    #[arg(
+        long,
+        default_value = "D65",
+        value_name = "NAME|FILE",
+        conflicts_with = "training"
+    )]
     illuminant: String,
     /// Model kind: lrm, prm, rprm or nsrm.
     #[arg(long, default_value = "nsrm")]

@@ -1,7 +1,7 @@
 //! OpenEXR in and out through the `exr` crate, keeping everything but the corrected `R`, `G`, `B`.
 
 use super::{Container, Decoded, ExrCompression, FileFormat, IoError, ReadOptions, WriteOptions};
-use crate::atomic::{check_clobber, commit, temp_path_for, WriteError};
+use crate::atomic::WriteError;
 use crate::colorimetry::spaces::OutputSpace;
 use crate::frame::{Frame, Layout};
 use ::exr::compression::Compression;
@@ -13,7 +13,6 @@ use ::exr::meta::attribute::{AttributeValue, Chromaticities, IntegerBounds, Line
 use ::exr::meta::header::{ImageAttributes, LayerAttributes};
 use ::exr::prelude::f16;
 use ::exr::prelude::traits::*;
-use std::io::{BufWriter, Write};
 use std::path::Path;
 
 /// The standard attribute naming the colour space of the pixels (ASWF colour interop).
@@ -477,32 +476,16 @@ pub(super) fn write_new(
 
 /// Writes `image` to a temporary file beside `dest`, then moves it into place.
 fn write_image(image: &AnyImage, dest: &Path, overwrite: bool) -> Result<(), IoError> {
-    check_clobber(dest, overwrite)?;
-    let tmp = temp_path_for(dest);
-    let io_err = |err: std::io::Error| {
-        IoError::Write(WriteError::Io {
-            path: dest.to_path_buf(),
-            err,
-        })
-    };
-    let result = (|| -> Result<(), IoError> {
-        let file = std::fs::File::create_new(&tmp).map_err(io_err)?;
-        let mut w = BufWriter::new(file);
-        image.write().to_buffered(&mut w).map_err(|e| match e {
-            ::exr::error::Error::Io(err) => io_err(err),
+    crate::atomic::write_with(dest, overwrite, |w| {
+        image.write().to_buffered(w).map_err(|e| match e {
+            ::exr::error::Error::Io(err) => IoError::Write(WriteError::Io {
+                path: dest.to_path_buf(),
+                err,
+            }),
             other => IoError::Encode {
                 path: dest.to_path_buf(),
                 why: other.to_string(),
             },
-        })?;
-        w.flush().map_err(io_err)?;
-        let file = w.into_inner().map_err(|e| io_err(e.into_error()))?;
-        file.sync_all().map_err(io_err)
-    })();
-    if let Err(e) = result {
-        let _ = std::fs::remove_file(&tmp);
-        return Err(e);
-    }
-    commit(&tmp, dest, overwrite)?;
-    Ok(())
+        })
+    })
 }

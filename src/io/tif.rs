@@ -1,9 +1,9 @@
 //! TIFF in (16-bit unsigned, 16/32/64-bit float; RGB or RGBA; linear) and out (32-bit float).
 
 use super::{Container, Decoded, FileFormat, IoError};
-use crate::atomic::{check_clobber, commit, temp_path_for, WriteError};
+use crate::atomic::{check_clobber, WriteError};
 use crate::frame::{Frame, Layout};
-use std::io::{BufReader, BufWriter, Write};
+use std::io::BufReader;
 use std::path::Path;
 use tiff::decoder::{Decoder, DecodingResult, Limits};
 use tiff::encoder::{colortype, Compression, DeflateLevel, TiffEncoder};
@@ -182,37 +182,24 @@ pub(super) fn write(
             .flat_map(|p| [p[0], p[1], p[2]])
             .collect(),
     };
-    let tmp = temp_path_for(dest);
-    let result = (|| -> Result<(), IoError> {
-        let file = std::fs::File::create_new(&tmp).map_err(io_err)?;
-        let mut out = BufWriter::new(file);
-        {
-            let mut enc = TiffEncoder::new(&mut out)
-                .map_err(tiff_err)?
-                .with_compression(Compression::Deflate(DeflateLevel::Balanced));
-            match alpha {
-                None => enc
-                    .write_image::<colortype::RGB32Float>(w, h, &rgb_data)
-                    .map_err(tiff_err)?,
-                Some(a) => {
-                    let mut data = Vec::with_capacity(a.len() * 4);
-                    for (px, a) in rgb_data.chunks_exact(3).zip(a) {
-                        data.extend_from_slice(px);
-                        data.push(*a);
-                    }
-                    enc.write_image::<colortype::RGBA32Float>(w, h, &data)
-                        .map_err(tiff_err)?
+    crate::atomic::write_with(dest, overwrite, |out| {
+        let mut enc = TiffEncoder::new(out)
+            .map_err(tiff_err)?
+            .with_compression(Compression::Deflate(DeflateLevel::Balanced));
+        match alpha {
+            None => enc
+                .write_image::<colortype::RGB32Float>(w, h, &rgb_data)
+                .map_err(tiff_err)?,
+            Some(a) => {
+                let mut data = Vec::with_capacity(a.len() * 4);
+                for (px, a) in rgb_data.chunks_exact(3).zip(a) {
+                    data.extend_from_slice(px);
+                    data.push(*a);
                 }
+                enc.write_image::<colortype::RGBA32Float>(w, h, &data)
+                    .map_err(tiff_err)?
             }
         }
-        out.flush().map_err(io_err)?;
-        let file = out.into_inner().map_err(|e| io_err(e.into_error()))?;
-        file.sync_all().map_err(io_err)
-    })();
-    if let Err(e) = result {
-        let _ = std::fs::remove_file(&tmp);
-        return Err(e);
-    }
-    commit(&tmp, dest, overwrite)?;
-    Ok(())
+        Ok(())
+    })
 }

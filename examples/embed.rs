@@ -8,7 +8,8 @@
 //!    pass (→ `rgba16float` XYZ) and a small render pass that draws the corrected texture as
 //!    sRGB (XYZ → linear sRGB → sRGB encoding in the fragment shader) to an offscreen target,
 //!    all in one encoder and one submit ([`nsrm::gpu::demo::render_corrected`]),
-//! 4. reads the target back, saves it as PNG and compares it with the f64 CPU path.
+//! 4. reads the target back, saves it as PNG and compares it with the f64 CPU path (exit status 1
+//!    if any byte differs by more than 1/255; CI runs this example).
 //!
 //! ```text
 //! cargo run --example embed [-- OUT.png]     (default: $TMPDIR/nsrm-embed.png)
@@ -78,6 +79,10 @@ fn main() -> Result<()> {
         model.kind,
         model.order,
         out.display()
+    );
+    anyhow::ensure!(
+        max_diff <= 1,
+        "the GPU picture differs from the CPU path by {max_diff}/255 (at most 1 expected)"
     );
     Ok(())
 }

@@ -5,7 +5,7 @@
 use criterion::{criterion_group, criterion_main, Criterion};
 use nsrm::eval::{evaluate, Protocol};
 use nsrm::model::{fit, Kind, MAX_ORDER};
-use nsrm::spectral::{simulate, Camera, Grid, Illuminant, Reflectances};
+use nsrm::spectral::{simulate_named, Grid};
 use std::hint::black_box;
 use std::time::Duration;
 
@@ -19,13 +19,7 @@ fn combos() -> Vec<(Kind, u8)> {
 }
 
 fn fitting(c: &mut Criterion) {
-    let all = simulate(
-        &Camera::from_name_or_path("nikon-d5100").unwrap(),
-        &Illuminant::from_name_or_path("D65").unwrap(),
-        &Reflectances::from_name_or_path("rawtoaces-190").unwrap(),
-        &Grid::default(),
-    )
-    .unwrap();
+    let all = simulate_named("nikon-d5100", "D65", "rawtoaces-190", &Grid::default()).unwrap();
     let data = all.subset(&(0..96).collect::<Vec<_>>());
 
     let mut g = c.benchmark_group("fit_96_patches");

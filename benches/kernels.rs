@@ -10,7 +10,7 @@
 use criterion::{criterion_group, criterion_main, Criterion, Throughput};
 use nsrm::model::fast::{memcpy_chunked, FastModel, Threads};
 use nsrm::model::{fit, Kind};
-use nsrm::spectral::{simulate, Camera, Grid, Illuminant, Reflectances};
+use nsrm::spectral::{simulate_named, Grid};
 use nsrm::{Frame, Layout};
 use std::hint::black_box;
 use std::time::Duration;
@@ -39,13 +39,7 @@ fn input() -> Frame {
 }
 
 fn kernels(c: &mut Criterion) {
-    let data = simulate(
-        &Camera::from_name_or_path("nikon-d5100").unwrap(),
-        &Illuminant::from_name_or_path("D65").unwrap(),
-        &Reflectances::from_name_or_path("rawtoaces-190").unwrap(),
-        &Grid::default(),
-    )
-    .unwrap();
+    let data = simulate_named("nikon-d5100", "D65", "rawtoaces-190", &Grid::default()).unwrap();
     let src = input();
     let mut dst = Frame::new(WIDTH, HEIGHT, Layout::Rgb);
     dst.data.iter_mut().for_each(|v| *v = 1.0); // pre-fault

@@ -3,16 +3,11 @@
 //! `cargo run --example 01_fit_nsrm`
 
 use nsrm::model::{fit, Kind};
-use nsrm::spectral::{simulate, Camera, Grid, Illuminant, Reflectances};
+use nsrm::spectral::{simulate_named, Grid};
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
     // Camera RGB and CIE XYZ of the 190 rawtoaces patches under D65 (perfect white: G = 1, Y = 100).
-    let data = simulate(
-        &Camera::from_name_or_path("nikon-d5100")?,
-        &Illuminant::from_name_or_path("D65")?,
-        &Reflectances::from_name_or_path("rawtoaces-190")?,
-        &Grid::default(),
-    )?;
+    let data = simulate_named("nikon-d5100", "D65", "rawtoaces-190", &Grid::default())?;
     let model = fit(Kind::Nsrm, 3, &data)?;
     println!(
         "{} order {}: terms {:?}",

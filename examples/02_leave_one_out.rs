@@ -5,20 +5,14 @@
 
 use nsrm::eval::{evaluate, Protocol};
 use nsrm::model::Kind;
-use nsrm::spectral::{simulate, Camera, Grid, Illuminant, Reflectances};
+use nsrm::spectral::{simulate_named, Grid};
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
     let args: Vec<String> = std::env::args().skip(1).collect();
     let refl = args.first().map(String::as_str).unwrap_or("rawtoaces-190");
     let patches = args.get(1).map(String::as_str).unwrap_or("all");
     for ill in ["D65", "TL865", "LED-B5"] {
-        let data = simulate(
-            &Camera::from_name_or_path("nikon-d5100")?,
-            &Illuminant::from_name_or_path(ill)?,
-            &Reflectances::from_name_or_path(refl)?,
-            &Grid::default(),
-        )?
-        .select(patches)?;
+        let data = simulate_named("nikon-d5100", ill, refl, &Grid::default())?.select(patches)?;
         for kind in Kind::ALL {
             let r = evaluate(kind, 3, &data, Protocol::LeaveOneOut, ill)?;
             println!(

@@ -29,7 +29,7 @@
 use anyhow::{Context, Result};
 use nsrm::gpu::demo;
 use nsrm::model::{fit, Kind};
-use nsrm::spectral::{simulate, Camera, Grid, Illuminant, Reflectances};
+use nsrm::spectral::{simulate_named, Grid};
 use std::path::PathBuf;
 
 fn main() -> Result<()> {
@@ -39,12 +39,7 @@ fn main() -> Result<()> {
         .unwrap_or_else(|| std::env::temp_dir().join("nsrm-embed.png"));
 
     // 1. The chart and the model.
-    let data = simulate(
-        &Camera::from_name_or_path("nikon-d5100")?,
-        &Illuminant::from_name_or_path("D65")?,
-        &Reflectances::from_name_or_path("cc24")?,
-        &Grid::default(),
-    )?;
+    let data = simulate_named("nikon-d5100", "D65", "cc24", &Grid::default())?;
     let model = fit(Kind::Nsrm, 3, &data)?;
     let frame = demo::chart_frame(&data, 6, 48);
 

@@ -152,10 +152,10 @@ fn fit_writes_a_model_that_loads_and_refuses_to_clobber() {
 fn measured_training_data_round_trip() {
     // Simulated patches written as a measured CSV give the same figures as the spectra.
     let d = tempdir("measured");
-    let data = nsrm::spectral::simulate(
-        &nsrm::spectral::Camera::from_name_or_path("nikon-d5100").unwrap(),
-        &nsrm::spectral::Illuminant::from_name_or_path("D65").unwrap(),
-        &nsrm::spectral::Reflectances::from_name_or_path("cc24").unwrap(),
+    let data = nsrm::spectral::simulate_named(
+        "nikon-d5100",
+        "D65",
+        "cc24",
         &nsrm::spectral::Grid::default(),
     )
     .unwrap();

@@ -21,7 +21,7 @@
 
 use nsrm::model::fast::{apply_frame, apply_frame_single, FastModel, Threads};
 use nsrm::model::{features, fit, terms, Kind, Model, MAX_ORDER};
-use nsrm::spectral::{simulate, Camera, Grid, Illuminant, Reflectances};
+use nsrm::spectral::{simulate_named, Grid};
 use nsrm::{Frame, Layout, TrainingSet};
 use std::sync::OnceLock;
 
@@ -52,13 +52,7 @@ impl Rng {
 fn training() -> &'static TrainingSet {
     static DATA: OnceLock<TrainingSet> = OnceLock::new();
     DATA.get_or_init(|| {
-        simulate(
-            &Camera::from_name_or_path("nikon-d5100").unwrap(),
-            &Illuminant::from_name_or_path("D65").unwrap(),
-            &Reflectances::from_name_or_path("rawtoaces-190").unwrap(),
-            &Grid::default(),
-        )
-        .unwrap()
+        simulate_named("nikon-d5100", "D65", "rawtoaces-190", &Grid::default()).unwrap()
     })
 }
 

@@ -14,7 +14,7 @@
 
 use nsrm::gpu::{self, Corrector, DeviceChoice, Engine, GpuError, GpuOptions, Target, TexelFormat};
 use nsrm::model::{fit, Kind, Model, MAX_ORDER};
-use nsrm::spectral::{simulate, Camera, Grid, Illuminant, Reflectances};
+use nsrm::spectral::{simulate_named, Grid};
 use nsrm::{Frame, Layout, TrainingSet};
 use std::sync::OnceLock;
 
@@ -47,13 +47,7 @@ fn engine(tile_pixels: Option<usize>) -> Option<Engine> {
 fn training() -> &'static TrainingSet {
     static DATA: OnceLock<TrainingSet> = OnceLock::new();
     DATA.get_or_init(|| {
-        simulate(
-            &Camera::from_name_or_path("nikon-d5100").unwrap(),
-            &Illuminant::from_name_or_path("D65").unwrap(),
-            &Reflectances::from_name_or_path("rawtoaces-190").unwrap(),
-            &Grid::default(),
-        )
-        .unwrap()
+        simulate_named("nikon-d5100", "D65", "rawtoaces-190", &Grid::default()).unwrap()
     })
 }
 
@@ -634,13 +628,7 @@ fn read_buffer(dev: &wgpu::Device, queue: &wgpu::Queue, buf: &wgpu::Buffer) -> V
 fn embed_demo_png_matches_the_cpu_path() {
     let Some(e) = engine(None) else { return };
     let ctx = e.context();
-    let data = simulate(
-        &Camera::from_name_or_path("nikon-d5100").unwrap(),
-        &Illuminant::from_name_or_path("D65").unwrap(),
-        &Reflectances::from_name_or_path("cc24").unwrap(),
-        &Grid::default(),
-    )
-    .unwrap();
+    let data = simulate_named("nikon-d5100", "D65", "cc24", &Grid::default()).unwrap();
     let m = fit(Kind::Nsrm, 3, &data).unwrap();
     let frame = gpu::demo::chart_frame(&data, 6, 8);
     assert_eq!((frame.width, frame.height), (48, 32));

@@ -578,14 +578,8 @@ fn writes_are_atomic_and_never_clobber() {
 #[test]
 fn chart_layout_round_trips() {
     use nsrm::io::chart::{layout_path, render, write, ChartLayout, ChartOptions};
-    use nsrm::spectral::{simulate, Camera, Grid, Illuminant, Reflectances};
-    let data = simulate(
-        &Camera::from_name_or_path("nikon-d5100").unwrap(),
-        &Illuminant::from_name_or_path("D65").unwrap(),
-        &Reflectances::from_name_or_path("cc24").unwrap(),
-        &Grid::default(),
-    )
-    .unwrap();
+    use nsrm::spectral::{simulate_named, Grid};
+    let data = simulate_named("nikon-d5100", "D65", "cc24", &Grid::default()).unwrap();
     let (frame, layout) = render(
         &data,
         &ChartOptions {

@@ -2,7 +2,7 @@
 //! leave-one-out with a direct refit.
 
 use nsrm::model::{fit, Kind, Model};
-use nsrm::spectral::{simulate, Camera, Grid, Illuminant, Reflectances};
+use nsrm::spectral::{simulate_named, Grid};
 use nsrm::TrainingSet;
 use proptest::prelude::*;
 use std::sync::OnceLock;
@@ -10,13 +10,7 @@ use std::sync::OnceLock;
 fn data() -> &'static TrainingSet {
     static D: OnceLock<TrainingSet> = OnceLock::new();
     D.get_or_init(|| {
-        simulate(
-            &Camera::from_name_or_path("nikon-d5100").unwrap(),
-            &Illuminant::from_name_or_path("D65").unwrap(),
-            &Reflectances::from_name_or_path("rawtoaces-190").unwrap(),
-            &Grid::default(),
-        )
-        .unwrap()
+        simulate_named("nikon-d5100", "D65", "rawtoaces-190", &Grid::default()).unwrap()
     })
 }
 

@@ -28,10 +28,10 @@ fn mutate(base: &str, edits: &[(usize, u8)]) -> String {
 }
 
 fn model_json() -> String {
-    let data = nsrm::spectral::simulate(
-        &nsrm::spectral::Camera::from_name_or_path("nikon-d5100").unwrap(),
-        &nsrm::spectral::Illuminant::from_name_or_path("D65").unwrap(),
-        &nsrm::spectral::Reflectances::from_name_or_path("cc24").unwrap(),
+    let data = nsrm::spectral::simulate_named(
+        "nikon-d5100",
+        "D65",
+        "cc24",
         &nsrm::spectral::Grid::default(),
     )
     .unwrap();

@@ -17,7 +17,7 @@ use clap::ValueEnum;
 use nsrm::gpu::{Engine, GpuOptions};
 use nsrm::model::fast::{memcpy_chunked, FastModel, Threads, CHUNK_PIXELS};
 use nsrm::model::{fit, Kind, Model};
-use nsrm::spectral::{simulate, Camera, Grid, Illuminant, Reflectances};
+use nsrm::spectral::{simulate_named, Grid};
 use nsrm::{Frame, Layout};
 use rayon::prelude::*;
 use serde::Serialize;
@@ -406,13 +406,8 @@ fn parse_size(spec: &str) -> Result<(usize, usize)> {
 
 /// The models, fitted on built-in simulated data (Nikon D5100, D65, rawtoaces-190).
 fn fit_models(kinds: &[Kind], order: u8) -> Result<Vec<Model>> {
-    let data = simulate(
-        &Camera::from_name_or_path("nikon-d5100")?,
-        &Illuminant::from_name_or_path("D65")?,
-        &Reflectances::from_name_or_path("rawtoaces-190")?,
-        &Grid::default(),
-    )
-    .context("simulating the training data")?;
+    let data = simulate_named("nikon-d5100", "D65", "rawtoaces-190", &Grid::default())
+        .context("simulating the training data")?;
     kinds
         .iter()
         .map(|&k| fit(k, order, &data).with_context(|| format!("fitting {k}")))

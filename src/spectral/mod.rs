@@ -340,6 +340,22 @@ fn riemann(a: &[f64], b: &[f64], c: &[f64], step: f64) -> f64 {
         * step
 }
 
+/// [`simulate`] with the camera, illuminant and reflectances given as built-in names or CSV paths
+/// (as on the command line), e.g. `simulate_named("nikon-d5100", "D65", "rawtoaces-190", &grid)`.
+pub fn simulate_named(
+    camera: &str,
+    illuminant: &str,
+    reflectances: &str,
+    grid: &Grid,
+) -> Result<TrainingSet, SpectralError> {
+    simulate(
+        &Camera::from_name_or_path(camera)?,
+        &Illuminant::from_name_or_path(illuminant)?,
+        &Reflectances::from_name_or_path(reflectances)?,
+        grid,
+    )
+}
+
 /// Simulates camera RGB and CIE 1931 2° XYZ for each reflectance under `illuminant`.
 ///
 /// `XYZ_k = Σ_λ E(λ) ρ(λ) x̄_k(λ) Δλ`, scaled so the perfect white (ρ = 1) has `Y = 100`.

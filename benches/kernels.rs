@@ -18,29 +18,9 @@ use std::time::Duration;
 const WIDTH: usize = 2048;
 const HEIGHT: usize = 2048;
 
-/// Camera RGB in 0..1 with a few highlights, fixed seed.
-fn input() -> Frame {
-    let mut state = 0x5eed_u64;
-    let mut next = || {
-        state = state.wrapping_add(0x9e37_79b9_7f4a_7c15);
-        let mut z = state;
-        z = (z ^ (z >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
-        ((z ^ (z >> 31)) >> 40) as f32 / (1u32 << 24) as f32
-    };
-    let mut f = Frame::new(WIDTH, HEIGHT, Layout::Rgb);
-    for px in f.data.chunks_exact_mut(3) {
-        let gain = if next() < 0.02 { 4.0 } else { 1.0 };
-        for v in px.iter_mut() {
-            *v = next() * gain;
-        }
-    }
-    f
-}
-
 fn kernels(c: &mut Criterion) {
     let data = simulate_named("nikon-d5100", "D65", "rawtoaces-190", &Grid::default()).unwrap();
-    let src = input();
+    let src = Frame::synthetic_camera_rgb(WIDTH, HEIGHT, Layout::Rgb, 0x5eed);
     let mut dst = Frame::new(WIDTH, HEIGHT, Layout::Rgb);
     dst.data.iter_mut().for_each(|v| *v = 1.0); // pre-fault
 

@@ -15,7 +15,7 @@ use super::common::{parse_models, UsageError};
 use anyhow::{Context, Result};
 use clap::ValueEnum;
 use nsrm::gpu::{Engine, GpuOptions};
-use nsrm::model::fast::{memcpy_chunked, FastModel, Threads, CHUNK_PIXELS};
+use nsrm::model::fast::{memcpy_chunked, FastModel, Threads};
 use nsrm::model::{fit, Kind, Model};
 use nsrm::spectral::{simulate_named, Grid};
 use nsrm::{Frame, Layout};
@@ -145,7 +145,7 @@ pub fn run(a: Args) -> Result<ExitCode> {
     };
 
     let models = fit_models(&kinds, a.order)?;
-    let input = random_frame(width, height, layout, 0x5eed_0005);
+    let input = Frame::synthetic_camera_rgb(width, height, layout, 0x5eed_0005);
     let mut output = Frame::new(width, height, layout);
     prefault(&mut output.data);
 
@@ -412,41 +412,6 @@ fn fit_models(kinds: &[Kind], order: u8) -> Result<Vec<Model>> {
         .iter()
         .map(|&k| fit(k, order, &data).with_context(|| format!("fitting {k}")))
         .collect()
-}
-
-/// Camera RGB in a realistic range, fixed seed: channels 0..1 with a camera-like balance, 2 % of
-/// pixels highlights up to ×8, alpha 1. Generated in parallel, the same for any thread count.
-fn random_frame(width: usize, height: usize, layout: Layout, seed: u64) -> Frame {
-    let ch = layout.channels();
-    let mut frame = Frame::new(width, height, layout);
-    frame
-        .data
-        .par_chunks_mut(CHUNK_PIXELS * ch)
-        .enumerate()
-        .for_each(|(i, chunk)| {
-            let mut state = seed ^ (i as u64).wrapping_mul(0x9e37_79b9_7f4a_7c15);
-            let mut next = || {
-                state = state.wrapping_add(0x9e37_79b9_7f4a_7c15);
-                let mut z = state;
-                z = (z ^ (z >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
-                z = (z ^ (z >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
-                ((z ^ (z >> 31)) >> 40) as f32 / (1u32 << 24) as f32
-            };
-            for px in chunk.chunks_exact_mut(ch) {
-                let gain = if next() < 0.02 {
-                    1.0 + 7.0 * next()
-                } else {
-                    1.0
-                };
-                for (c, balance) in [0.55f32, 1.0, 0.75].into_iter().enumerate() {
-                    px[c] = next() * balance * gain;
-                }
-                if ch == 4 {
-                    px[3] = 1.0;
-                }
-            }
-        });
-    frame
 }
 
 /// Writes every page so that no timing includes page faults.

@@ -12,12 +12,7 @@ fn nsrm(args: &[&str]) -> std::process::Output {
 }
 
 fn validate(module: &naga::Module) {
-    naga::valid::Validator::new(
-        naga::valid::ValidationFlags::all(),
-        naga::valid::Capabilities::default(),
-    )
-    .validate(module)
-    .unwrap();
+    nsrm::gpu::shader::validate_module(module).unwrap();
 }
 
 fn fit(dir: &Path, kind: &str, order: &str) -> String {

@@ -195,12 +195,7 @@ mod tests {
     use crate::model::Kind;
 
     fn validate(module: &naga::Module) {
-        naga::valid::Validator::new(
-            naga::valid::ValidationFlags::all(),
-            naga::valid::Capabilities::default(),
-        )
-        .validate(module)
-        .unwrap();
+        shader::validate_module(module).unwrap();
     }
 
     #[test]

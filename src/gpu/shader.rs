@@ -363,16 +363,24 @@ pub fn validate(src: &str) -> Result<(naga::Module, naga::valid::ModuleInfo), Gp
         stage: "WGSL parse",
         message: e.emit_to_string(src),
     })?;
-    let info = naga::valid::Validator::new(
-        naga::valid::ValidationFlags::all(),
-        naga::valid::Capabilities::default(),
-    )
-    .validate(&module)
-    .map_err(|e| GpuError::Shader {
+    let info = validate_module(&module).map_err(|e| GpuError::Shader {
         stage: "WGSL validation",
         message: e.emit_to_string(src),
     })?;
     Ok((module, info))
+}
+
+/// Validates a naga module (from any front end) with the flags every shader here is held to:
+/// all validation flags, default capabilities.
+pub fn validate_module(
+    module: &naga::Module,
+) -> Result<naga::valid::ModuleInfo, Box<naga::WithSpan<naga::valid::ValidationError>>> {
+    naga::valid::Validator::new(
+        naga::valid::ValidationFlags::all(),
+        naga::valid::Capabilities::default(),
+    )
+    .validate(module)
+    .map_err(Box::new)
 }
 
 #[cfg(test)]

@@ -162,6 +162,41 @@ impl Model {
         })
     }
 
+    /// The model family.
+    pub fn kind(&self) -> Kind {
+        self.kind
+    }
+
+    /// The order (LRM is always 1).
+    pub fn order(&self) -> u8 {
+        self.order
+    }
+
+    /// The terms, derived from (kind, order).
+    pub fn terms(&self) -> &[Term] {
+        &self.terms
+    }
+
+    /// Row-major 3×L: `matrix()[i * L + j]` weighs term `j` for output channel `i`.
+    pub fn matrix(&self) -> &[f64] {
+        &self.matrix
+    }
+
+    /// The Lab reference white of the training data (XYZ, same scale as the output).
+    pub fn white_xyz(&self) -> [f64; 3] {
+        self.white_xyz
+    }
+
+    /// Where the training data came from.
+    pub fn provenance(&self) -> &Provenance {
+        &self.provenance
+    }
+
+    /// The training patch labels.
+    pub fn patches(&self) -> &[String] {
+        &self.patches
+    }
+
     /// Number of terms L.
     pub fn len_terms(&self) -> usize {
         self.terms.len()

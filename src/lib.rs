@@ -33,6 +33,7 @@ pub mod eval;
 pub mod frame;
 pub mod gpu;
 pub mod io;
+pub mod limits;
 pub mod model;
 pub mod spectral;
 pub mod training;

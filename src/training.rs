@@ -11,7 +11,6 @@ pub enum TrainingError {
     #[error("{source_name}: cannot read: {err}")]
     Io {
         source_name: String,
-        #[source]
         err: std::io::Error,
     },
     #[error("{source_name}: the file is empty")]
@@ -121,7 +120,7 @@ impl TrainingSet {
         white: Option<[f64; 3]>,
     ) -> Result<TrainingSet, TrainingError> {
         let source_name = path.display().to_string();
-        let text = std::fs::read_to_string(path).map_err(|err| TrainingError::Io {
+        let text = crate::limits::read_text(path).map_err(|err| TrainingError::Io {
             source_name: source_name.clone(),
             err,
         })?;

@@ -385,7 +385,7 @@ fn usage_and_setup_errors() {
             2,
             "unknown --output-space",
         ),
-        (&["--suffix", "", "chart.exr"], 2, "onto an input"),
+        (&["--suffix", "", "chart.exr"], 2, "onto that input itself"),
         (&["--format", "tiff", "--half", "chart.exr"], 2, "--half"),
         (
             &["-o", "file/sub", "chart.exr"],
@@ -439,7 +439,10 @@ fn usage_and_setup_errors() {
     );
     let err = String::from_utf8_lossy(&out.stderr);
     assert_eq!(out.status.code(), Some(2), "{err}");
-    assert!(err.contains("would both have the preview"), "{err}");
+    assert!(
+        err.contains("would both be written to prev/x_xyz.png"),
+        "{err}"
+    );
     assert!(files_in(&d.join("a")) == ["x.exr"] && !d.join("prev").exists());
     // Only files we expect: no temporary files anywhere.
     assert!(files_in(d).iter().all(|f| !f.ends_with(".tmp")));

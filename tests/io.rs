@@ -255,6 +255,7 @@ fn layers_by_name_in_one_part() {
         &src,
         &ReadOptions {
             layer: Some("specular".into()),
+            ..Default::default()
         },
     )
     .unwrap_err();
@@ -264,6 +265,7 @@ fn layers_by_name_in_one_part() {
         &src,
         &ReadOptions {
             layer: Some("beauty".into()),
+            ..Default::default()
         },
     )
     .unwrap();
@@ -319,7 +321,14 @@ fn multi_part_files_keep_every_part() {
     );
     image.write().to_file(&src).unwrap();
     for layer in [None, Some("beauty".to_string())] {
-        let d = Decoded::read(&src, &ReadOptions { layer }).unwrap();
+        let d = Decoded::read(
+            &src,
+            &ReadOptions {
+                layer,
+                ..Default::default()
+            },
+        )
+        .unwrap();
         assert_eq!(d.frame.data[0..3], [0.1, 0.2, 0.0]);
         assert_eq!(d.frame.data[5], 1.0, "u32 samples are read as their value");
         assert_eq!(d.extra_channels(), ["depth/Z"]);
@@ -488,6 +497,7 @@ fn tiff_in_u16_and_f32_and_out_f32() {
         &f32_path,
         &ReadOptions {
             layer: Some("beauty".into()),
+            ..Default::default()
         },
     )
     .unwrap_err();

@@ -9,9 +9,9 @@ use anyhow::{Context, Result};
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 use nsrm::colorimetry::spaces::{Mat3, OutputSpace};
 use nsrm::gpu::{DeviceChoice, Engine, GpuOptions};
-use nsrm::io::batch::{self, Planned, Shard};
+use nsrm::io::batch::{self, Action, BatchPlan, Existing, Job, PlanError, PlanOptions, Shard};
 use nsrm::io::{
-    self as fio, preview, Decoded, ExrCompression, FileFormat, ReadOptions, WriteOptions,
+    self as fio, preview, Decoded, ExrCompression, FileFormat, Limits, ReadOptions, WriteOptions,
 };
 use nsrm::model::fast::{FastModel, Threads};
 use nsrm::Model;
@@ -90,9 +90,18 @@ pub struct Args {
     /// Print each input and its output, convert nothing.
     #[arg(long)]
     dry_run: bool,
+    /// Most pixels a frame may have (width × height); a file whose header claims more is refused
+    /// before anything is allocated. Default 268435456 (16384 × 16384).
+    #[arg(long, value_name = "N", default_value_t = nsrm::io::DEFAULT_MAX_PIXELS)]
+    max_pixels: u64,
+    /// Remove the nsrm temporary files (`.NAME.nsrm-PID-RANDOM.tmp`) found in the output
+    /// directories, left by a run that was killed; without it they are only reported. Make sure
+    /// no other nsrm is writing there.
+    #[arg(long)]
+    remove_stale_temporaries: bool,
     /// Files, directories (their .exr/.tif/.tiff files) or glob patterns ('shots/*.exr').
     #[arg(required = true, value_name = "INPUT")]
-    inputs: Vec<String>,
+    inputs: Vec<PathBuf>,
 }
 
 /// What happened to one input.
@@ -101,14 +110,6 @@ enum Outcome {
     Converted,
     Skipped(String),
     Failed(String),
-}
-
-/// One conversion to run.
-#[derive(Debug, Clone)]
-struct Job {
-    input: PathBuf,
-    output: PathBuf,
-    preview: Option<PathBuf>,
 }
 
 /// The correction step: one engine, driven from one thread (the GPU engine takes `&mut`).
@@ -170,7 +171,63 @@ struct Timing {
     frames: usize,
 }
 
-pub fn run(a: Args) -> Result<ExitCode> {
+/// The signals that stop a batch cleanly, with their exit statuses (128 + number).
+const STOP_SIGNALS: [(i32, &str); 3] = [
+    (signal_hook::consts::SIGINT, "SIGINT"),
+    (signal_hook::consts::SIGTERM, "SIGTERM"),
+    (signal_hook::consts::SIGHUP, "SIGHUP"),
+];
+
+/// Set by SIGINT, SIGTERM or SIGHUP (to the signal's number): no new file is started, the
+/// files in flight finish or are dropped, this run's temporaries are removed, the summary is
+/// printed and the exit status is 128 + the signal. A second signal ends the process at once.
+#[derive(Clone)]
+struct Interrupt {
+    signal: Arc<AtomicUsize>,
+}
+
+impl Interrupt {
+    fn install() -> Result<Interrupt> {
+        let signal = Arc::new(AtomicUsize::new(0));
+        let again = Arc::new(AtomicBool::new(false));
+        for (sig, name) in STOP_SIGNALS {
+            // Registered first, so it runs before the flag is set: only a second signal exits.
+            signal_hook::flag::register_conditional_shutdown(sig, 128 + sig, Arc::clone(&again))
+                .and_then(|_| signal_hook::flag::register(sig, Arc::clone(&again)))
+                .and_then(|_| {
+                    signal_hook::flag::register_usize(sig, Arc::clone(&signal), sig as usize)
+                })
+                .with_context(|| format!("installing the {name} handler"))?;
+        }
+        Ok(Interrupt { signal })
+    }
+
+    /// The signal received, if any: its name and the exit status it gives.
+    fn received(&self) -> Option<(&'static str, u8)> {
+        let n = self.signal.load(Ordering::SeqCst);
+        STOP_SIGNALS
+            .iter()
+            .find(|(sig, _)| *sig as usize == n)
+            .map(|(sig, name)| (*name, (128 + sig) as u8))
+    }
+
+    fn stopped(&self) -> bool {
+        self.signal.load(Ordering::SeqCst) != 0
+    }
+}
+
+/// Everything `apply` needs from its flags, checked before any file is touched.
+struct Request {
+    space: OutputSpace,
+    format: FileFormat,
+    compression: ExrCompression,
+    device: DeviceChoice,
+    shard: Option<Shard>,
+    suffix: String,
+    existing: Existing,
+}
+
+fn parse_request(a: &Args) -> Result<Request> {
     let space = OutputSpace::parse(&a.output_space).ok_or_else(|| {
         UsageError(format!(
             "unknown --output-space `{}` (expected xyz, linear-srgb, acescg or aces2065-1)",
@@ -201,6 +258,9 @@ pub fn run(a: Args) -> Result<ExitCode> {
     if a.jobs == Some(0) {
         return Err(UsageError("--jobs must be at least 1".into()).into());
     }
+    if a.max_pixels == 0 {
+        return Err(UsageError("--max-pixels must be at least 1".into()).into());
+    }
     let shard = a
         .shard
         .as_deref()
@@ -211,126 +271,99 @@ pub fn run(a: Args) -> Result<ExitCode> {
         .suffix
         .clone()
         .unwrap_or_else(|| format!("_{}", space.name()));
+    batch::validate_suffix(&suffix).map_err(|e| UsageError(e.to_string()))?;
+    let existing = if a.overwrite {
+        Existing::Overwrite
+    } else if a.skip_existing {
+        Existing::Skip
+    } else {
+        Existing::Refuse
+    };
+    Ok(Request {
+        space,
+        format,
+        compression,
+        device,
+        shard,
+        suffix,
+        existing,
+    })
+}
 
+/// `nsrm apply`: plan (every path checked, nothing written yet) → run (the pipeline, stopped
+/// cleanly by a signal) → report (the summary and the exit status).
+pub fn run(a: Args) -> Result<ExitCode> {
+    let req = parse_request(&a)?;
     let model = Model::load(&a.model)
         .with_context(|| format!("loading the model {}", a.model.display()))?;
-    let out_model = fio::output_model(&model, space)?;
+    let out_model = fio::output_model(&model, req.space)?;
 
+    // Plan.
     let all = batch::expand_inputs(&a.inputs).map_err(|e| UsageError(e.to_string()))?;
-    let plan = batch::plan(&all, a.output_dir.as_deref(), &suffix, format)
-        .map_err(|e| UsageError(e.to_string()))?;
-    let plan: Vec<Planned> = match shard {
-        Some(s) => s.select(&plan),
-        None => plan,
-    };
-    let scope = match shard {
-        Some(s) => format!("shard {s}: {} of {} inputs", plan.len(), all.len()),
-        None => format!("{} inputs", plan.len()),
-    };
-    let jobs: Vec<Job> = plan
-        .into_iter()
-        .map(|p| {
-            let preview = a.preview.as_ref().map(|dir| {
-                let name = p.output.with_extension("png");
-                dir.join(name.file_name().unwrap_or_default())
-            });
-            Job {
-                input: p.input,
-                output: p.output,
-                preview,
-            }
-        })
-        .collect();
-    let mut previews = std::collections::HashMap::new();
-    for j in &jobs {
-        if let Some(p) = &j.preview {
-            if let Some(other) = previews.insert(p.clone(), &j.input) {
-                return Err(UsageError(format!(
-                    "{} and {} would both have the preview {}; use -o or separate runs",
-                    other.display(),
-                    j.input.display(),
-                    p.display()
-                ))
-                .into());
-            }
-        }
-    }
+    let plan = batch::plan_batch(
+        &all,
+        &PlanOptions {
+            out_dir: a.output_dir.as_deref(),
+            suffix: &req.suffix,
+            format: req.format,
+            preview_dir: a.preview.as_deref(),
+            existing: req.existing,
+            shard: req.shard,
+            create_dirs: !a.dry_run,
+        },
+    )
+    .map_err(|e| match e {
+        PlanError::Usage(why) => anyhow::Error::new(UsageError(why)),
+        PlanError::Setup(why) => anyhow::anyhow!(why),
+    })?;
+    let scope = plan.scope();
+    report_stale(&plan, a.remove_stale_temporaries && !a.dry_run);
     if a.dry_run {
         println!("# {scope}; model {}", a.model.display());
-        for j in &jobs {
+        for j in &plan.jobs {
+            let what = match &j.action {
+                Action::Convert => String::new(),
+                Action::Skip(why) => format!("  # skip: {why}"),
+                Action::Fail(why) => format!("  # would fail: {why}"),
+            };
             match &j.preview {
                 Some(p) => println!(
-                    "{} -> {} (+ {})",
+                    "{} -> {} (+ {}){what}",
                     j.input.display(),
                     j.output.display(),
                     p.display()
                 ),
-                None => println!("{} -> {}", j.input.display(), j.output.display()),
+                None => println!("{} -> {}{what}", j.input.display(), j.output.display()),
             }
         }
         return Ok(ExitCode::SUCCESS);
     }
-    if jobs.is_empty() {
+    if plan.jobs.is_empty() {
         eprintln!("nsrm apply: nothing to do ({scope})");
         return Ok(ExitCode::SUCCESS);
     }
 
-    // Output directories exist and can be written before any frame is decoded.
-    let mut dirs: Vec<PathBuf> = jobs
+    // Run.
+    let interrupt = Interrupt::install()?;
+    let mut outcomes: Vec<Option<Outcome>> = plan
+        .jobs
         .iter()
-        .flat_map(|j| {
-            [
-                j.output.parent(),
-                j.preview.as_deref().and_then(Path::parent),
-            ]
-        })
-        .flatten()
-        .map(|d| {
-            if d.as_os_str().is_empty() {
-                PathBuf::from(".")
-            } else {
-                d.to_path_buf()
-            }
+        .map(|j| match &j.action {
+            Action::Convert => None,
+            Action::Skip(why) => Some(Outcome::Skipped(why.clone())),
+            Action::Fail(why) => Some(Outcome::Failed(why.clone())),
         })
         .collect();
-    dirs.sort();
-    dirs.dedup();
-    for d in &dirs {
-        ensure_writable_dir(d)?;
-    }
-
-    // Existing outputs: skipped, replaced, or failures found before any work.
-    let mut outcomes: Vec<Option<Outcome>> = vec![None; jobs.len()];
-    for (i, j) in jobs.iter().enumerate() {
-        if j.output.exists() {
-            if a.skip_existing {
-                outcomes[i] = Some(Outcome::Skipped(format!(
-                    "{} exists (--skip-existing)",
-                    j.output.display()
-                )));
-            } else if !a.overwrite {
-                outcomes[i] = Some(Outcome::Failed(format!(
-                    "{}: already exists (pass --overwrite to replace it, or --skip-existing)",
-                    j.output.display()
-                )));
-            }
-        } else if let Some(p) = j.preview.as_ref().filter(|p| p.exists() && !a.overwrite) {
-            outcomes[i] = Some(Outcome::Failed(format!(
-                "{}: preview already exists (pass --overwrite to replace it)",
-                p.display()
-            )));
-        }
-    }
     let early_failure = outcomes
         .iter()
         .any(|o| matches!(o, Some(Outcome::Failed(_))));
     let start = Instant::now();
     let mut timing = Timing::default();
     let mut corrector_name = String::new();
-    if !early_failure || a.continue_on_error {
-        let mut corrector = Corrector::open(device, a.adapter.as_deref(), &out_model)?;
+    if (!early_failure || a.continue_on_error) && !interrupt.stopped() {
+        let mut corrector = Corrector::open(req.device, a.adapter.as_deref(), &out_model)?;
         corrector_name = corrector.describe();
-        let todo: Vec<usize> = (0..jobs.len()).filter(|&i| outcomes[i].is_none()).collect();
+        let todo = plan.to_convert();
         let workers = a.jobs.unwrap_or_else(|| {
             std::thread::available_parallelism()
                 .map(|n| n.get())
@@ -339,21 +372,25 @@ pub fn run(a: Args) -> Result<ExitCode> {
         let settings = Settings {
             read: ReadOptions {
                 layer: a.layer.clone(),
+                limits: Limits {
+                    max_pixels: a.max_pixels,
+                },
             },
             write: WriteOptions {
-                format,
+                format: req.format,
                 half: a.half,
-                compression,
-                space,
+                compression: req.compression,
+                space: req.space,
                 overwrite: a.overwrite,
             },
-            to_srgb: fio::to_linear_srgb(model.white_xyz, space),
+            to_srgb: fio::to_linear_srgb(model.white_xyz, req.space),
             workers: workers.min(todo.len()).max(1),
             continue_on_error: a.continue_on_error,
+            interrupt: interrupt.clone(),
         };
         let pb = progress_bar(todo.len());
         let done = run_pipeline(
-            &jobs,
+            &plan.jobs,
             &todo,
             &mut corrector,
             &out_model,
@@ -367,33 +404,43 @@ pub fn run(a: Args) -> Result<ExitCode> {
         }
     }
     let wall = start.elapsed();
+    let removed = nsrm::atomic::remove_temporaries();
 
-    // Summary.
+    // Report.
     let count = |f: fn(&Outcome) -> bool| outcomes.iter().flatten().filter(|o| f(o)).count();
     let converted = count(|o| matches!(o, Outcome::Converted));
     let skipped = count(|o| matches!(o, Outcome::Skipped(_)));
     let failed = count(|o| matches!(o, Outcome::Failed(_)));
     let not_attempted = outcomes.iter().filter(|o| o.is_none()).count();
+    let signal = interrupt.received();
     eprintln!(
-        "nsrm apply: {converted} converted, {skipped} skipped, {failed} failed{} ({scope}; {}; output {} {}{})",
+        "nsrm apply: {}{converted} converted, {skipped} skipped, {failed} failed{} ({scope}; {}; output {} {}{})",
+        match signal {
+            Some((name, _)) => format!("interrupted by {name}: "),
+            None => String::new(),
+        },
         if not_attempted > 0 {
             format!(", {not_attempted} not attempted")
         } else {
             String::new()
         },
         if corrector_name.is_empty() { "no correction run".to_string() } else { corrector_name },
-        space.name(),
-        format.name(),
+        req.space.name(),
+        req.format.name(),
         if a.half { " half" } else { "" },
     );
-    for (j, o) in jobs.iter().zip(&outcomes) {
+    for (j, o) in plan.jobs.iter().zip(&outcomes) {
         match o {
-            Some(Outcome::Failed(why)) => eprintln!("  failed: {}: {why}", j.input.display()),
-            Some(Outcome::Skipped(why)) => eprintln!("  skipped: {}: {why}", j.input.display()),
+            Some(Outcome::Failed(why)) => eprintln!("  failed: {}", naming(&j.input, why)),
+            Some(Outcome::Skipped(why)) => eprintln!("  skipped: {}", naming(&j.input, why)),
             _ => {}
         }
     }
-    if not_attempted > 0 {
+    if let Some((name, _)) = signal {
+        eprintln!(
+            "  stopped by {name}: {not_attempted} not attempted; {removed} temporary file(s) of this run removed"
+        );
+    } else if not_attempted > 0 {
         eprintln!(
             "  {not_attempted} not attempted: stopped after the first failure (pass --continue-on-error to go on)"
         );
@@ -401,22 +448,54 @@ pub fn run(a: Args) -> Result<ExitCode> {
     if a.timing {
         print_timing(&timing, wall);
     }
-    Ok(if failed > 0 {
-        ExitCode::from(1)
-    } else {
-        ExitCode::SUCCESS
+    Ok(match signal {
+        Some((_, status)) => ExitCode::from(status),
+        None if failed > 0 => ExitCode::from(1),
+        None => ExitCode::SUCCESS,
     })
 }
 
-/// Creates `dir` if needed and checks a file can be created in it.
-fn ensure_writable_dir(dir: &Path) -> Result<()> {
-    std::fs::create_dir_all(dir)
-        .with_context(|| format!("cannot create the output directory {}", dir.display()))?;
-    let probe = nsrm::atomic::temp_path_for(&dir.join("nsrm-write-probe"));
-    std::fs::File::create_new(&probe)
-        .with_context(|| format!("cannot write in the output directory {}", dir.display()))?;
-    std::fs::remove_file(&probe).with_context(|| format!("cannot remove {}", probe.display()))?;
-    Ok(())
+/// `input: why`, or `why` alone when it already starts with the input's name.
+fn naming(input: &Path, why: &str) -> String {
+    let name = input.display().to_string();
+    if why.starts_with(&name) {
+        why.to_string()
+    } else {
+        format!("{name}: {why}")
+    }
+}
+
+/// Reports nsrm temporaries found in the output directories (a killed run's), or removes them
+/// when asked.
+fn report_stale(plan: &BatchPlan, remove: bool) {
+    let n = plan.stale_temporaries.len();
+    if n == 0 {
+        return;
+    }
+    if remove {
+        let mut removed = 0;
+        for p in &plan.stale_temporaries {
+            match std::fs::remove_file(p) {
+                Ok(()) => removed += 1,
+                Err(e) => eprintln!("nsrm apply: cannot remove {}: {e}", p.display()),
+            }
+        }
+        eprintln!(
+            "nsrm apply: removed {removed} stale nsrm temporary file(s) (--remove-stale-temporaries)"
+        );
+        return;
+    }
+    eprintln!(
+        "nsrm apply: warning: {n} nsrm temporary file(s) in the output directories, left by a run \
+         that was killed or being written by another one now; kept (remove them with \
+         --remove-stale-temporaries once no other nsrm writes there):"
+    );
+    for p in plan.stale_temporaries.iter().take(10) {
+        eprintln!("  {}", p.display());
+    }
+    if n > 10 {
+        eprintln!("  … and {} more", n - 10);
+    }
 }
 
 struct Settings {
@@ -425,6 +504,7 @@ struct Settings {
     to_srgb: Mat3,
     workers: usize,
     continue_on_error: bool,
+    interrupt: Interrupt,
 }
 
 fn progress_bar(n: usize) -> ProgressBar {
@@ -453,6 +533,7 @@ fn run_pipeline(
     pb: &ProgressBar,
     timing: &mut Timing,
 ) -> Vec<(usize, Outcome)> {
+    let interrupt = &s.interrupt;
     let stop = AtomicBool::new(false);
     let next = AtomicUsize::new(0);
     let results: Mutex<Vec<(usize, Outcome)>> = Mutex::new(Vec::new());
@@ -477,7 +558,7 @@ fn run_pipeline(
             let tx = dec_tx.clone();
             let (stop, next, fail, shared_timing) = (&stop, &next, &fail, &shared_timing);
             scope.spawn(move || loop {
-                if stop.load(Ordering::SeqCst) {
+                if stop.load(Ordering::SeqCst) || interrupt.stopped() {
                     break;
                 }
                 let k = next.fetch_add(1, Ordering::SeqCst);
@@ -501,6 +582,10 @@ fn run_pipeline(
             scope.spawn(move || loop {
                 let msg = lock(&rx).recv();
                 let Ok((i, d)) = msg else { break };
+                if interrupt.stopped() {
+                    // Not started: left as not attempted.
+                    continue;
+                }
                 let t = Instant::now();
                 let pixels = d.pixels();
                 match encode(&jobs[i], d, s) {
@@ -520,6 +605,9 @@ fn run_pipeline(
             });
         }
         for (i, mut d) in dec_rx {
+            if interrupt.stopped() {
+                continue;
+            }
             let t = Instant::now();
             match corrector.apply(model, &mut d) {
                 Ok(()) => {

@@ -3,20 +3,28 @@
 
 use super::{FileFormat, IoError};
 use std::collections::{HashMap, HashSet};
+use std::ffi::OsString;
 use std::path::{Path, PathBuf};
 
 /// Whether a file name looks like a frame nsrm reads: `.exr`, `.tif`, `.tiff` (any case), not
-/// hidden (so `._x.exr` AppleDouble files and nsrm's own `.x.tmp` files are left out).
+/// hidden (so `._x.exr` AppleDouble files and nsrm's own `.x.tmp` files are left out). The
+/// rest of the name may be anything, UTF-8 or not.
 pub fn is_frame_name(path: &Path) -> bool {
     let hidden = path
         .file_name()
-        .and_then(|n| n.to_str())
-        .is_none_or(|n| n.starts_with('.'));
+        .is_none_or(|n| n.as_encoded_bytes().first() == Some(&b'.'));
     !hidden && FileFormat::from_extension(path).is_some()
 }
 
 fn has_glob_chars(s: &str) -> bool {
     s.contains(['*', '?', '['])
+}
+
+/// Whether a directory entry or glob match is taken: frame names that are not directories
+/// (a FIFO or a dangling link named `x.exr` is taken, and fails alone when read, so it is
+/// reported rather than silently left out).
+fn take_entry(p: &Path) -> bool {
+    is_frame_name(p) && !p.is_dir()
 }
 
 /// Expands inputs into a sorted, de-duplicated list of files:
@@ -25,20 +33,31 @@ fn has_glob_chars(s: &str) -> bool {
 /// * anything else is a glob pattern (`shots/*.exr`, `plate.[0-9]*.tif`), whose matches are
 ///   filtered to EXR/TIFF file names.
 ///
-/// An input that matches nothing is an error, naming it. Files reached twice (two patterns, or
-/// `./a.exr` and `a.exr`) are listed once. The list is sorted by path, so every machine given
-/// the same inputs sees the same order (see [`Shard`]).
-pub fn expand_inputs<S: AsRef<str>>(specs: &[S]) -> Result<Vec<PathBuf>, IoError> {
+/// An input that matches nothing is an error, naming it; one that exists but is neither a
+/// regular file nor a directory is an error saying what it is. Names need not be UTF-8 (only
+/// a glob pattern itself must be). Files reached twice (two patterns, or `./a.exr` and `a.exr`)
+/// are listed once. The list is sorted by path, so every machine given the same inputs sees
+/// the same order (see [`Shard`]).
+pub fn expand_inputs<S: AsRef<std::ffi::OsStr>>(specs: &[S]) -> Result<Vec<PathBuf>, IoError> {
     let mut found: Vec<PathBuf> = Vec::new();
     for spec in specs {
-        let spec = spec.as_ref();
-        let path = Path::new(spec);
+        let path = Path::new(spec.as_ref());
+        let shown = || path.display().to_string();
         let before = found.len();
-        if path.is_file() {
-            found.push(path.to_path_buf());
-            continue;
-        }
-        if path.is_dir() {
+        if let Ok(meta) = std::fs::metadata(path) {
+            if meta.is_file() {
+                found.push(path.to_path_buf());
+                continue;
+            }
+            if !meta.is_dir() {
+                return Err(IoError::NoMatch {
+                    spec: shown(),
+                    why: format!(
+                        "not a regular file (it is {})",
+                        crate::limits::file_kind(&meta)
+                    ),
+                });
+            }
             let entries = std::fs::read_dir(path).map_err(|err| IoError::Read {
                 path: path.to_path_buf(),
                 err,
@@ -49,40 +68,37 @@ pub fn expand_inputs<S: AsRef<str>>(specs: &[S]) -> Result<Vec<PathBuf>, IoError
                     err,
                 })?;
                 let p = e.path();
-                if is_frame_name(&p) && p.is_file() {
+                if take_entry(&p) {
                     found.push(p);
                 }
             }
             if found.len() == before {
                 return Err(IoError::NoMatch {
-                    spec: spec.to_string(),
+                    spec: shown(),
                     why: "the directory holds no .exr, .tif or .tiff files".into(),
                 });
             }
             continue;
         }
-        if !has_glob_chars(spec) {
+        if std::fs::symlink_metadata(path).is_ok() {
             return Err(IoError::NoMatch {
-                spec: spec.to_string(),
-                why: "no such file or directory".into(),
+                spec: shown(),
+                why: "a symbolic link to nothing (its target does not exist)".into(),
             });
         }
-        let paths = glob::glob(spec).map_err(|e| IoError::NoMatch {
-            spec: spec.to_string(),
-            why: format!("bad pattern: {e}"),
-        })?;
-        for p in paths {
-            let p = p.map_err(|e| IoError::Read {
-                path: e.path().to_path_buf(),
-                err: std::io::Error::new(e.error().kind(), e.error().to_string()),
-            })?;
-            if is_frame_name(&p) && p.is_file() {
-                found.push(p);
+        let pattern = match spec.as_ref().to_str() {
+            Some(p) if has_glob_chars(p) => p,
+            _ => {
+                return Err(IoError::NoMatch {
+                    spec: shown(),
+                    why: "no such file or directory".into(),
+                })
             }
-        }
+        };
+        glob_into(pattern, &mut found)?;
         if found.len() == before {
             return Err(IoError::NoMatch {
-                spec: spec.to_string(),
+                spec: shown(),
                 why: "the pattern matches no .exr, .tif or .tiff files".into(),
             });
         }
@@ -91,6 +107,54 @@ pub fn expand_inputs<S: AsRef<str>>(specs: &[S]) -> Result<Vec<PathBuf>, IoError
     let mut seen = HashSet::new();
     found.retain(|p| seen.insert(std::fs::canonicalize(p).unwrap_or_else(|_| p.clone())));
     Ok(found)
+}
+
+/// Adds the matches of a glob pattern. When only the last component has wildcards (the usual
+/// `dir/*.exr`), the directory is listed here so that names that are not UTF-8 are matched too
+/// (on their lossy form); otherwise the `glob` crate walks the pattern.
+fn glob_into(pattern: &str, found: &mut Vec<PathBuf>) -> Result<(), IoError> {
+    let bad = |e: glob::PatternError| IoError::NoMatch {
+        spec: pattern.to_string(),
+        why: format!("bad pattern: {e}"),
+    };
+    let (dir, last) = match pattern.rsplit_once('/') {
+        Some((d, l)) => (if d.is_empty() { "/" } else { d }, l),
+        None => (".", pattern),
+    };
+    if !has_glob_chars(dir) && !last.is_empty() {
+        let pat = glob::Pattern::new(last).map_err(bad)?;
+        let Ok(entries) = std::fs::read_dir(dir) else {
+            return Ok(());
+        };
+        let opts = glob::MatchOptions {
+            require_literal_leading_dot: true,
+            ..Default::default()
+        };
+        for e in entries.flatten() {
+            let name = e.file_name();
+            if pat.matches_with(&name.to_string_lossy(), opts) {
+                let p = if pattern.contains('/') {
+                    Path::new(dir).join(&name)
+                } else {
+                    PathBuf::from(&name)
+                };
+                if take_entry(&p) {
+                    found.push(p);
+                }
+            }
+        }
+        return Ok(());
+    }
+    for p in glob::glob(pattern).map_err(bad)? {
+        let p = p.map_err(|e| IoError::Read {
+            path: e.path().to_path_buf(),
+            err: std::io::Error::new(e.error().kind(), e.error().to_string()),
+        })?;
+        if take_entry(&p) {
+            found.push(p);
+        }
+    }
+    Ok(())
 }
 
 /// A deterministic slice of a batch: shard `index` of `count` (1-based, `1 ≤ index ≤ count`)
@@ -159,126 +223,409 @@ impl std::fmt::Display for Shard {
 
 /// The output file for `input`: `<stem><suffix>.<ext>` in `out_dir`, or beside the input. A
 /// frame number ending the stem stays at the end, so sequences stay sequences:
-/// `plate.0101.exr` → `plate_xyz.0101.exr`.
+/// `plate.0101.exr` → `plate_xyz.0101.exr`. Names are kept as they are (no lossy conversion:
+/// a non-UTF-8 stem gives a non-UTF-8 output name).
 pub fn output_path(
     input: &Path,
     out_dir: Option<&Path>,
     suffix: &str,
     format: FileFormat,
 ) -> PathBuf {
-    let stem = input
-        .file_stem()
-        .map(|s| s.to_string_lossy().into_owned())
-        .unwrap_or_default();
-    let name = match stem.rsplit_once('.') {
-        Some((base, frame))
-            if !base.is_empty()
-                && !frame.is_empty()
-                && frame.bytes().all(|b| b.is_ascii_digit()) =>
-        {
-            format!("{base}{suffix}.{frame}.{}", format.extension())
+    let stem = input.file_stem().unwrap_or_default();
+    let bytes = stem.as_encoded_bytes();
+    let split = bytes.iter().rposition(|&b| b == b'.').filter(|&dot| {
+        let frame = &bytes[dot + 1..];
+        dot > 0 && !frame.is_empty() && frame.iter().all(u8::is_ascii_digit)
+    });
+    let mut name = OsString::new();
+    match split {
+        Some(dot) => {
+            // Both halves are split at an ASCII '.', so each is valid in the OS encoding.
+            let s = stem.to_string_lossy();
+            if s.len() == bytes.len() {
+                name.push(&s[..dot]);
+                name.push(suffix);
+                name.push(&s[dot..]);
+            } else {
+                let path = Path::new(stem);
+                // Non-UTF-8: `Path::file_stem` on `base.frame` gives `base`, `extension` the frame.
+                name.push(path.file_stem().unwrap_or_default());
+                name.push(suffix);
+                name.push(".");
+                name.push(path.extension().unwrap_or_default());
+            }
         }
-        _ => format!("{stem}{suffix}.{}", format.extension()),
-    };
+        None => {
+            name.push(stem);
+            name.push(suffix);
+        }
+    }
+    name.push(".");
+    name.push(format.extension());
     match out_dir {
         Some(d) => d.join(name),
         None => input.with_file_name(name),
     }
 }
 
-/// One conversion of a batch.
+/// Checks that `--suffix` is a plain fragment of a file name: no path separator, no `..`, no
+/// NUL. (An empty suffix is allowed; the plan refuses it when an output would land on an input.)
+pub fn validate_suffix(suffix: &str) -> Result<(), PlanError> {
+    let bad = |why: &str| {
+        Err(PlanError::Usage(format!(
+            "--suffix `{suffix}`: {why}; it must be a plain part of a file name"
+        )))
+    };
+    if suffix.contains('/') || suffix.contains('\\') {
+        return bad("contains a path separator");
+    }
+    if suffix.contains("..") {
+        return bad("contains `..`");
+    }
+    if suffix.contains('\0') {
+        return bad("contains a NUL byte");
+    }
+    Ok(())
+}
+
+/// What to do about an output that already exists.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum Existing {
+    /// The input fails (`--overwrite` or `--skip-existing` is needed).
+    #[default]
+    Refuse,
+    /// The input is skipped (`--skip-existing`).
+    Skip,
+    /// The output is replaced (`--overwrite`): only a regular file, never an input.
+    Overwrite,
+}
+
+/// How a batch is planned.
+#[derive(Debug, Clone, Default)]
+pub struct PlanOptions<'a> {
+    /// Output directory; `None`: beside each input.
+    pub out_dir: Option<&'a Path>,
+    /// Appended to each output's stem (see [`output_path`], [`validate_suffix`]).
+    pub suffix: &'a str,
+    /// The format written (it gives the extension).
+    pub format: FileFormat,
+    /// Where sRGB PNG previews go, if anywhere.
+    pub preview_dir: Option<&'a Path>,
+    pub existing: Existing,
+    /// This run's slice of the inputs; collisions are checked over all of them.
+    pub shard: Option<Shard>,
+    /// Create the output and preview directories (and check they can be written) before the
+    /// paths are compared; `false` (a dry run) compares them as they would resolve.
+    pub create_dirs: bool,
+}
+
+/// What the plan says to do with one input.
 #[derive(Debug, Clone, PartialEq, Eq)]
-pub struct Planned {
+pub enum Action {
+    Convert,
+    /// Nothing to do, with the reason (the output exists and `--skip-existing`).
+    Skip(String),
+    /// Fails before any work, with the reason (the output exists, or is not a regular file).
+    Fail(String),
+}
+
+/// One input of the batch: where it goes and what to do.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct Job {
     pub input: PathBuf,
     pub output: PathBuf,
+    pub preview: Option<PathBuf>,
+    pub action: Action,
 }
 
-/// A path with its directory resolved (symlinks, `.`/`..`), for comparing outputs that may not
-/// exist yet.
-fn resolved(p: &Path) -> PathBuf {
-    if let Ok(c) = std::fs::canonicalize(p) {
-        return c;
+/// A checked batch: every output and preview resolved and compared with every input (by path
+/// after resolving symlinks and `..`, and by device and inode), no two sharing a destination,
+/// the policy for existing outputs applied, directories created.
+#[derive(Debug, Clone)]
+pub struct BatchPlan {
+    /// This run's jobs (this shard's), in input order.
+    pub jobs: Vec<Job>,
+    /// Inputs of the whole batch (all shards).
+    pub total_inputs: usize,
+    pub shard: Option<Shard>,
+    /// The output and preview directories.
+    pub dirs: Vec<PathBuf>,
+    /// Temporaries of nsrm's form found in those directories (left by a killed run, or being
+    /// written by another one): reported, never removed unless asked.
+    pub stale_temporaries: Vec<PathBuf>,
+}
+
+impl BatchPlan {
+    /// Indices of the jobs to convert.
+    pub fn to_convert(&self) -> Vec<usize> {
+        (0..self.jobs.len())
+            .filter(|&i| self.jobs[i].action == Action::Convert)
+            .collect()
     }
-    match (p.parent(), p.file_name()) {
-        (Some(dir), Some(name)) => {
-            let dir = if dir.as_os_str().is_empty() {
-                Path::new(".")
+
+    /// `12 inputs` or `shard 2/4: 3 of 12 inputs`.
+    pub fn scope(&self) -> String {
+        match self.shard {
+            Some(s) => format!(
+                "shard {s}: {} of {} inputs",
+                self.jobs.len(),
+                self.total_inputs
+            ),
+            None => format!("{} inputs", self.jobs.len()),
+        }
+    }
+}
+
+/// Why a batch cannot be planned.
+#[derive(Debug, thiserror::Error)]
+pub enum PlanError {
+    /// The options would lose data or contradict each other (exit status 2).
+    #[error("{0}")]
+    Usage(String),
+    /// A directory cannot be created or written.
+    #[error("{0}")]
+    Setup(String),
+}
+
+/// The path `p` will name once its missing directories exist: the longest existing prefix
+/// resolved (symlinks, `.`, `..`), the rest applied lexically (components that do not exist
+/// yet cannot be symlinks, so this is exact). Relative paths are taken from the current
+/// directory.
+pub fn resolve(p: &Path) -> PathBuf {
+    use std::path::Component;
+    let abs = if p.is_absolute() {
+        p.to_path_buf()
+    } else {
+        std::env::current_dir()
+            .map(|d| d.join(p))
+            .unwrap_or_else(|_| p.to_path_buf())
+    };
+    let comps: Vec<Component> = abs.components().collect();
+    for k in (0..=comps.len()).rev() {
+        let prefix: PathBuf = comps[..k].iter().collect();
+        let Ok(mut out) = std::fs::canonicalize(&prefix) else {
+            continue;
+        };
+        for c in &comps[k..] {
+            match c {
+                Component::ParentDir => {
+                    out.pop();
+                }
+                Component::Normal(n) => out.push(n),
+                _ => {}
+            }
+        }
+        return out;
+    }
+    abs
+}
+
+#[cfg(unix)]
+fn file_id(meta: &std::fs::Metadata) -> Option<(u64, u64)> {
+    use std::os::unix::fs::MetadataExt;
+    Some((meta.dev(), meta.ino()))
+}
+
+#[cfg(not(unix))]
+fn file_id(_: &std::fs::Metadata) -> Option<(u64, u64)> {
+    None
+}
+
+/// Creates `dir` if needed and checks a file can be created in it (a probe with a temporary's
+/// name, removed at once).
+pub fn ensure_writable_dir(dir: &Path) -> Result<(), PlanError> {
+    std::fs::create_dir_all(dir).map_err(|e| {
+        PlanError::Setup(format!(
+            "cannot create the output directory {}: {e}",
+            dir.display()
+        ))
+    })?;
+    let probe = crate::atomic::temp_path_for(&dir.join("nsrm-write-probe"));
+    std::fs::File::create_new(&probe).map_err(|e| {
+        PlanError::Setup(format!(
+            "cannot write in the output directory {}: {e}",
+            dir.display()
+        ))
+    })?;
+    std::fs::remove_file(&probe)
+        .map_err(|e| PlanError::Setup(format!("cannot remove {}: {e}", probe.display())))
+}
+
+/// Plans a batch: pairs every input with its output (see [`output_path`]) and preview, creates
+/// the directories (with `create_dirs`), and refuses a plan that could lose data: an output or
+/// preview that is an input of the batch (by resolved path or by device and inode, so also
+/// through symlinks, `..` and hard links), or two inputs sharing a destination. Existing
+/// destinations follow `existing`; one that is not a regular file always fails its input.
+pub fn plan_batch(inputs: &[PathBuf], o: &PlanOptions) -> Result<BatchPlan, PlanError> {
+    validate_suffix(o.suffix)?;
+    let format = o.format;
+    let preview_of = |output: &Path| {
+        o.preview_dir.map(|dir| {
+            let name = output.with_extension("png");
+            dir.join(name.file_name().unwrap_or_default())
+        })
+    };
+    let all: Vec<(PathBuf, Option<PathBuf>)> = inputs
+        .iter()
+        .map(|i| {
+            let out = output_path(i, o.out_dir, o.suffix, format);
+            let prev = preview_of(&out);
+            (out, prev)
+        })
+        .collect();
+    let mine: Vec<usize> = (0..inputs.len())
+        .filter(|&i| o.shard.is_none_or(|s| s.contains(i)))
+        .collect();
+
+    let mut dirs: Vec<PathBuf> = mine
+        .iter()
+        .flat_map(|&i| {
+            [
+                all[i].0.parent(),
+                all[i].1.as_deref().and_then(Path::parent),
+            ]
+        })
+        .flatten()
+        .map(|d| {
+            if d.as_os_str().is_empty() {
+                PathBuf::from(".")
             } else {
-                dir
-            };
-            std::fs::canonicalize(dir)
-                .map(|d| d.join(name))
-                .unwrap_or_else(|_| p.to_path_buf())
+                d.to_path_buf()
+            }
+        })
+        .collect();
+    dirs.sort();
+    dirs.dedup();
+    // Checked as the paths will resolve before anything is created (so a refused plan leaves
+    // nothing behind), and again once the directories exist.
+    check_destinations(inputs, &all)?;
+    if o.create_dirs {
+        for d in &dirs {
+            ensure_writable_dir(d)?;
         }
-        _ => p.to_path_buf(),
+        check_destinations(inputs, &all)?;
     }
+
+    let jobs = mine
+        .iter()
+        .map(|&i| {
+            let (output, preview) = all[i].clone();
+            let action = existing_action(&output, preview.as_deref(), o.existing);
+            Job {
+                input: inputs[i].clone(),
+                output,
+                preview,
+                action,
+            }
+        })
+        .collect();
+    let stale_temporaries = dirs
+        .iter()
+        .flat_map(|d| crate::atomic::stale_temporaries(d))
+        .collect();
+    Ok(BatchPlan {
+        jobs,
+        total_inputs: inputs.len(),
+        shard: o.shard,
+        dirs,
+        stale_temporaries,
+    })
 }
 
-/// Whether `a` and `b` are the same file (also through hard links), both existing.
-fn same_file(a: &Path, b: &Path) -> bool {
-    #[cfg(unix)]
-    {
-        use std::os::unix::fs::MetadataExt;
-        if let (Ok(x), Ok(y)) = (std::fs::metadata(a), std::fs::metadata(b)) {
-            return x.dev() == y.dev() && x.ino() == y.ino();
-        }
-        false
-    }
-    #[cfg(not(unix))]
-    {
-        match (std::fs::canonicalize(a), std::fs::canonicalize(b)) {
-            (Ok(x), Ok(y)) => x == y,
-            _ => false,
-        }
-    }
-}
-
-/// Pairs every input with its output (see [`output_path`]) and refuses a plan that could lose
-/// data: an output that is an input (of this batch, by path or hard link), or two inputs
-/// mapped to the same output.
-pub fn plan(
+/// Refuses outputs or previews that are inputs (by resolved path, or by device and inode when
+/// they exist) and destinations shared by two inputs.
+fn check_destinations(
     inputs: &[PathBuf],
-    out_dir: Option<&Path>,
-    suffix: &str,
-    format: FileFormat,
-) -> Result<Vec<Planned>, IoError> {
-    let input_keys: HashMap<PathBuf, &PathBuf> = inputs.iter().map(|p| (resolved(p), p)).collect();
-    let mut outputs: HashMap<PathBuf, &PathBuf> = HashMap::new();
-    let mut planned = Vec::with_capacity(inputs.len());
-    for input in inputs {
-        let output = output_path(input, out_dir, suffix, format);
-        let key = resolved(&output);
-        if let Some(other) = input_keys.get(&key) {
-            return Err(IoError::Invalid(format!(
-                "{}: the output for {} would be written onto an input file; choose another --suffix or -o",
-                output.display(),
-                if *other == input { "itself".to_string() } else { input.display().to_string() }
-            )));
+    all: &[(PathBuf, Option<PathBuf>)],
+) -> Result<(), PlanError> {
+    let mut by_path: HashMap<PathBuf, usize> = HashMap::with_capacity(inputs.len());
+    let mut by_id: HashMap<(u64, u64), usize> = HashMap::with_capacity(inputs.len());
+    for (i, input) in inputs.iter().enumerate() {
+        by_path.insert(resolve(input), i);
+        if let Some(id) = std::fs::metadata(input).ok().as_ref().and_then(file_id) {
+            by_id.insert(id, i);
         }
-        if output.exists() {
-            if let Some(i) = inputs.iter().find(|i| same_file(i, &output)) {
-                return Err(IoError::Invalid(format!(
-                    "{}: the output for {} is the input {} (a link to it); choose another --suffix or -o",
-                    output.display(),
-                    input.display(),
-                    i.display()
+    }
+    let onto_input = |dest: &Path, what: &str, i: usize| -> Result<(), PlanError> {
+        let hit = by_path.get(&resolve(dest)).copied().or_else(|| {
+            std::fs::metadata(dest)
+                .ok()
+                .as_ref()
+                .and_then(file_id)
+                .and_then(|id| by_id.get(&id).copied())
+        });
+        match hit {
+            None => Ok(()),
+            Some(k) => Err(PlanError::Usage(format!(
+                "{}: the {what} for {} would be written onto {}; choose another --suffix, -o or --preview",
+                dest.display(),
+                inputs[i].display(),
+                if k == i {
+                    "that input itself".to_string()
+                } else {
+                    format!("the input {}", inputs[k].display())
+                }
+            ))),
+        }
+    };
+    let mut dests: HashMap<PathBuf, (usize, &str)> = HashMap::with_capacity(2 * inputs.len());
+    for (i, (out, prev)) in all.iter().enumerate() {
+        for (dest, what) in [(Some(out), "output"), (prev.as_ref(), "preview")] {
+            let Some(dest) = dest else { continue };
+            onto_input(dest, what, i)?;
+            if let Some((k, other)) = dests.insert(resolve(dest), (i, what)) {
+                return Err(PlanError::Usage(format!(
+                    "{} and {} would both be written to {} (the {other} of one, the {what} of the other); \
+                     convert them in separate runs or to separate -o directories",
+                    inputs[k].display(),
+                    inputs[i].display(),
+                    dest.display()
                 )));
             }
         }
-        if let Some(prev) = outputs.insert(key, input) {
-            return Err(IoError::Invalid(format!(
-                "{} and {} would both be written to {}; convert them in separate runs or to separate -o directories",
-                prev.display(),
-                input.display(),
-                output.display()
-            )));
-        }
-        planned.push(Planned {
-            input: input.clone(),
-            output,
-        });
     }
-    Ok(planned)
+
+    Ok(())
+}
+
+fn existing_action(output: &Path, preview: Option<&Path>, existing: Existing) -> Action {
+    let not_regular = |p: &Path, what: &str| {
+        let meta = std::fs::metadata(p).ok()?;
+        (!meta.is_file()).then(|| {
+            Action::Fail(format!(
+                "{}: the {what} path is not a regular file (it is {}); nsrm never replaces one, \
+                 even with --overwrite",
+                p.display(),
+                crate::limits::file_kind(&meta)
+            ))
+        })
+    };
+    if let Some(a) = not_regular(output, "output") {
+        return a;
+    }
+    if let Some(a) = preview.and_then(|p| not_regular(p, "preview")) {
+        return a;
+    }
+    let exists = |p: &Path| std::fs::symlink_metadata(p).is_ok();
+    if exists(output) {
+        return match existing {
+            Existing::Skip => {
+                Action::Skip(format!("{} exists (--skip-existing)", output.display()))
+            }
+            Existing::Refuse => Action::Fail(format!(
+                "{}: already exists (pass --overwrite to replace it, or --skip-existing)",
+                output.display()
+            )),
+            Existing::Overwrite => Action::Convert,
+        };
+    }
+    match preview {
+        Some(p) if existing != Existing::Overwrite && exists(p) => Action::Fail(format!(
+            "{}: preview already exists (pass --overwrite to replace it)",
+            p.display()
+        )),
+        _ => Action::Convert,
+    }
 }
 
 #[cfg(test)]
@@ -329,6 +676,14 @@ mod tests {
         );
     }
 
+    fn opts(suffix: &str) -> PlanOptions<'_> {
+        PlanOptions {
+            suffix,
+            create_dirs: true,
+            ..Default::default()
+        }
+    }
+
     #[test]
     fn plan_refuses_collisions() {
         let dir = tempfile::tempdir().unwrap();
@@ -336,11 +691,121 @@ mod tests {
         let b = dir.path().join("a.tif");
         std::fs::write(&a, b"x").unwrap();
         std::fs::write(&b, b"x").unwrap();
-        let e = plan(&[a.clone(), b], None, "_xyz", FileFormat::Exr).unwrap_err();
+        let e = plan_batch(&[a.clone(), b], &opts("_xyz")).unwrap_err();
         assert!(e.to_string().contains("would both be written"), "{e}");
-        let e = plan(std::slice::from_ref(&a), None, "", FileFormat::Exr).unwrap_err();
-        assert!(e.to_string().contains("onto an input"), "{e}");
-        let p = plan(std::slice::from_ref(&a), None, "_xyz", FileFormat::Exr).unwrap();
-        assert_eq!(p[0].output, dir.path().join("a_xyz.exr"));
+        let e = plan_batch(std::slice::from_ref(&a), &opts("")).unwrap_err();
+        assert!(e.to_string().contains("onto that input itself"), "{e}");
+        let p = plan_batch(std::slice::from_ref(&a), &opts("_xyz")).unwrap();
+        assert_eq!(p.jobs[0].output, dir.path().join("a_xyz.exr"));
+        assert_eq!(p.jobs[0].action, Action::Convert);
+    }
+
+    #[test]
+    fn suffixes_are_name_fragments() {
+        for bad in ["/x", "a/b", "..", "_..", "a\\b"] {
+            assert!(validate_suffix(bad).is_err(), "{bad}");
+        }
+        for good in ["", "_xyz", ".v2", "-final"] {
+            validate_suffix(good).unwrap();
+        }
+    }
+
+    #[test]
+    fn outputs_are_compared_after_resolving_dirs_and_links() {
+        let dir = tempfile::tempdir().unwrap();
+        let d = dir.path();
+        let a = d.join("a.exr");
+        std::fs::write(&a, b"x").unwrap();
+        // -o through a directory that does not exist yet, back up with `..`.
+        let through = d.join("newdir/..");
+        let o = PlanOptions {
+            out_dir: Some(&through),
+            ..opts("")
+        };
+        let e = plan_batch(std::slice::from_ref(&a), &o).unwrap_err();
+        assert!(e.to_string().contains("onto that input itself"), "{e}");
+        // A dry run (no directories made) sees the same.
+        let o = PlanOptions {
+            create_dirs: false,
+            out_dir: Some(Path::new("/nonexistent-nsrm/zz/..")),
+            ..opts("")
+        };
+        plan_batch(std::slice::from_ref(&a), &o).unwrap();
+        #[cfg(unix)]
+        {
+            // An existing output that is a hard link or a symlink to an input.
+            let out = d.join("out");
+            std::fs::create_dir(&out).unwrap();
+            std::fs::hard_link(&a, out.join("a.exr")).unwrap();
+            let o = PlanOptions {
+                out_dir: Some(&out),
+                existing: Existing::Overwrite,
+                ..opts("")
+            };
+            let e = plan_batch(std::slice::from_ref(&a), &o).unwrap_err();
+            assert!(e.to_string().contains("onto that input itself"), "{e}");
+            std::fs::remove_file(out.join("a.exr")).unwrap();
+            std::os::unix::fs::symlink(&a, out.join("a.exr")).unwrap();
+            let e = plan_batch(std::slice::from_ref(&a), &o).unwrap_err();
+            assert!(e.to_string().contains("onto that input itself"), "{e}");
+            // A preview directory that is the inputs' directory cannot hit an input (.png),
+            // but a symlinked preview name can.
+            std::fs::remove_file(out.join("a.exr")).unwrap();
+            std::os::unix::fs::symlink(&a, out.join("a.png")).unwrap();
+            let o = PlanOptions {
+                out_dir: Some(&out),
+                preview_dir: Some(&out),
+                existing: Existing::Overwrite,
+                ..opts("")
+            };
+            let e = plan_batch(std::slice::from_ref(&a), &o).unwrap_err();
+            assert!(e.to_string().contains("the preview for"), "{e}");
+        }
+    }
+
+    #[test]
+    fn existing_outputs_follow_the_policy_and_non_files_always_fail() {
+        let dir = tempfile::tempdir().unwrap();
+        let d = dir.path();
+        let a = d.join("a.exr");
+        std::fs::write(&a, b"x").unwrap();
+        std::fs::write(d.join("a_x.exr"), b"old").unwrap();
+        let run = |existing| {
+            let o = PlanOptions {
+                existing,
+                ..opts("_x")
+            };
+            plan_batch(std::slice::from_ref(&a), &o).unwrap().jobs[0]
+                .action
+                .clone()
+        };
+        assert!(matches!(run(Existing::Refuse), Action::Fail(_)));
+        assert!(matches!(run(Existing::Skip), Action::Skip(_)));
+        assert_eq!(run(Existing::Overwrite), Action::Convert);
+        std::fs::remove_file(d.join("a_x.exr")).unwrap();
+        std::fs::create_dir(d.join("a_x.exr")).unwrap();
+        match run(Existing::Overwrite) {
+            Action::Fail(why) => assert!(
+                why.contains("not a regular file (it is a directory)"),
+                "{why}"
+            ),
+            other => panic!("{other:?}"),
+        }
+    }
+
+    #[cfg(unix)]
+    #[test]
+    fn non_utf8_names_are_kept() {
+        use std::os::unix::ffi::OsStrExt;
+        let name = std::ffi::OsStr::from_bytes(b"pl\xffte.0101.exr");
+        let out = output_path(Path::new(name), None, "_x", FileFormat::Exr);
+        assert_eq!(out.as_os_str().as_bytes(), b"pl\xffte_x.0101.exr");
+        let out = output_path(
+            Path::new(std::ffi::OsStr::from_bytes(b"\xff.exr")),
+            None,
+            "_x",
+            FileFormat::Tiff,
+        );
+        assert_eq!(out.as_os_str().as_bytes(), b"\xff_x.tif");
     }
 }

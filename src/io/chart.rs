@@ -80,7 +80,7 @@ pub struct ChartLayout {
 impl ChartLayout {
     /// Reads a layout file written by [`write()`].
     pub fn read(path: &Path) -> Result<ChartLayout, IoError> {
-        let text = std::fs::read_to_string(path).map_err(|err| IoError::Read {
+        let text = crate::limits::read_text(path).map_err(|err| IoError::Read {
             path: path.to_path_buf(),
             err,
         })?;

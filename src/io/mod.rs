@@ -30,27 +30,22 @@ use crate::frame::Frame;
 use crate::model::Model;
 use std::path::{Path, PathBuf};
 
-/// Errors from reading, writing or listing frames.
+/// Errors from reading, writing or listing frames. A cause is part of the message and not also
+/// the `source()`, so an `anyhow` chain (`{:#}`) never prints it twice.
 #[derive(Debug, thiserror::Error)]
 pub enum IoError {
     #[error("{}: cannot read: {err}", path.display())]
-    Read {
-        path: PathBuf,
-        #[source]
-        err: std::io::Error,
-    },
+    Read { path: PathBuf, err: std::io::Error },
     #[error("{}: not an OpenEXR or TIFF file (its first bytes are neither signature)", path.display())]
     UnknownFormat { path: PathBuf },
     #[error("{}: unreadable OpenEXR file: {err}", path.display())]
     Exr {
         path: PathBuf,
-        #[source]
         err: ::exr::error::Error,
     },
     #[error("{}: unreadable TIFF file: {err}", path.display())]
     Tiff {
         path: PathBuf,
-        #[source]
         err: ::tiff::TiffError,
     },
     #[error("{}: unsupported: {why}", path.display())]
@@ -67,11 +62,107 @@ pub enum IoError {
     Shard { spec: String, why: String },
     #[error("{0}")]
     Invalid(String),
+    /// A header asks for more than [`Limits`] allow, or more than the file can hold.
+    #[error("{}: {why}", path.display())]
+    TooLarge { path: PathBuf, why: String },
+    /// The file is damaged: missing, repeated or out-of-file data blocks, and the like.
+    #[error("{}: corrupt: {why}", path.display())]
+    Corrupt { path: PathBuf, why: String },
+}
+
+/// The default of [`Limits::max_pixels`] (and `--max-pixels`): 2²⁸ = 268 435 456 pixels
+/// (16384 × 16384, 32× an 8K UHD frame): 3 GiB of f32 RGB.
+pub const DEFAULT_MAX_PIXELS: u64 = 1 << 28;
+
+/// Bounds on what a frame's header may make a reader allocate. Checked from the header, before
+/// any pixel buffer exists; buffers whose size comes from a file are then allocated fallibly
+/// ([`try_filled`]), so a hostile or damaged file costs an error, never the process.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Limits {
+    /// Most pixels in one frame (width × height; for a multi-part / multi-level EXR, of all the
+    /// image data together).
+    pub max_pixels: u64,
+}
+
+impl Default for Limits {
+    fn default() -> Self {
+        Limits {
+            max_pixels: DEFAULT_MAX_PIXELS,
+        }
+    }
+}
+
+impl Limits {
+    /// Checks a `width × height` frame of `channels` samples of `bytes_per_sample` bytes against
+    /// [`max_pixels`](Self::max_pixels) and, when `stored_bytes` says how much of the file the
+    /// samples may take (uncompressed data: the file's length), against that. Returns the pixel
+    /// count.
+    pub fn check_frame(
+        &self,
+        path: &Path,
+        width: u64,
+        height: u64,
+        channels: u64,
+        bytes_per_sample: u64,
+        stored_bytes: Option<u64>,
+    ) -> Result<usize, IoError> {
+        let too = |why: String| IoError::TooLarge {
+            path: path.to_path_buf(),
+            why,
+        };
+        let pixels = width.checked_mul(height).filter(|&p| p <= self.max_pixels);
+        let Some(pixels) = pixels else {
+            return Err(too(format!(
+                "the header claims {width}×{height} pixels, more than the limit of {} \
+                 (--max-pixels)",
+                self.max_pixels
+            )));
+        };
+        let bytes = pixels
+            .checked_mul(channels)
+            .and_then(|s| s.checked_mul(bytes_per_sample));
+        if let (Some(have), Some(need)) = (stored_bytes, bytes) {
+            if need > have {
+                return Err(too(format!(
+                    "the header claims {width}×{height}×{channels} uncompressed samples \
+                     ({need} bytes), but the file holds only {have} bytes"
+                )));
+            }
+        }
+        match bytes.and_then(|b| isize::try_from(b).ok()) {
+            Some(_) => Ok(pixels as usize),
+            None => Err(too(format!(
+                "{width}×{height}×{channels} samples do not fit in this machine's memory"
+            ))),
+        }
+    }
+}
+
+/// A vector of `n` copies of `value`, allocated fallibly: an error naming `path` instead of an
+/// abort when memory runs out. For buffers whose size comes from a file.
+pub fn try_filled<T: Clone>(path: &Path, n: usize, value: T) -> Result<Vec<T>, IoError> {
+    let mut v = try_with_capacity(path, n)?;
+    v.resize(n, value);
+    Ok(v)
+}
+
+/// An empty vector with room for `n` elements, allocated fallibly (see [`try_filled`]).
+pub fn try_with_capacity<T>(path: &Path, n: usize) -> Result<Vec<T>, IoError> {
+    let mut v = Vec::new();
+    v.try_reserve_exact(n).map_err(|_| IoError::TooLarge {
+        path: path.to_path_buf(),
+        why: format!(
+            "not enough memory for {n} samples ({} bytes)",
+            n.saturating_mul(std::mem::size_of::<T>())
+        ),
+    })?;
+    Ok(v)
 }
 
 /// File formats frames are read from and written to.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default)]
 pub enum FileFormat {
+    #[default]
     Exr,
     Tiff,
 }
@@ -96,6 +187,8 @@ impl FileFormat {
         use std::io::Read;
         let mut magic = [0u8; 4];
         let mut read = || -> std::io::Result<usize> {
+            // Never open a FIFO (it would block) or read a device.
+            crate::limits::check_regular(path)?;
             let mut f = std::fs::File::open(path)?;
             let mut n = 0;
             while n < 4 {
@@ -142,6 +235,8 @@ pub struct ReadOptions {
     /// The EXR layer holding the camera RGB: channels `NAME.R`, `NAME.G`, `NAME.B` (and
     /// `NAME.A`), or `R`, `G`, `B` in a part named `NAME`. `None`: channels `R`, `G`, `B`.
     pub layer: Option<String>,
+    /// Bounds on the header's sizes, checked before allocating.
+    pub limits: Limits,
 }
 
 /// Lossless EXR compressions an output may be written with.
@@ -256,7 +351,7 @@ impl Decoded {
                         why: format!("a TIFF has no layers, but --layer `{layer}` was given"),
                     });
                 }
-                tif::read(path)
+                tif::read(path, &opts.limits)
             }
         }
     }

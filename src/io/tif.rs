@@ -23,7 +23,7 @@ fn unsupported(path: &Path, why: impl Into<String>) -> IoError {
     }
 }
 
-pub(super) fn read(path: &Path) -> Result<Decoded, IoError> {
+pub(super) fn read(path: &Path, limits: &super::Limits) -> Result<Decoded, IoError> {
     let tiff_err = |err| IoError::Tiff {
         path: path.to_path_buf(),
         err,
@@ -33,13 +33,14 @@ pub(super) fn read(path: &Path) -> Result<Decoded, IoError> {
         err,
     })?;
     // Frames are big: allow up to 16 GiB decoded (the default is 256 MiB).
-    let mut limits = Limits::default();
-    limits.decoding_buffer_size = 16 << 30;
-    limits.intermediate_buffer_size = 1 << 30;
+    let mut tiff_limits = Limits::default();
+    tiff_limits.decoding_buffer_size = 16 << 30;
+    tiff_limits.intermediate_buffer_size = 1 << 30;
     let mut dec = Decoder::new(BufReader::new(file))
         .map_err(tiff_err)?
-        .with_limits(limits);
+        .with_limits(tiff_limits);
     let (w, h) = dec.dimensions().map_err(tiff_err)?;
+    limits.check_frame(path, w.into(), h.into(), 1, 1, None)?;
     let ct = dec.colortype().map_err(tiff_err)?;
     let (channels, bits) = match ct {
         ColorType::RGB(b) => (3usize, b),

@@ -97,6 +97,8 @@ impl Model {
     /// Parses and validates a model document; `origin` names it in errors.
     pub fn from_json(text: &str, origin: &str) -> Result<Model, ModelError> {
         let bad = |why: String| ModelError::Invalid(format!("{origin}: {why}"));
+        // A UTF-8 byte-order mark (editors on Windows add one) is not JSON, but harmless.
+        let text = text.strip_prefix('\u{feff}').unwrap_or(text);
         let f: ModelFile = serde_json::from_str(text).map_err(|err| ModelError::Parse {
             path: origin.to_string(),
             err,
@@ -160,7 +162,7 @@ impl Model {
     /// Reads and validates a model file.
     pub fn load(path: &Path) -> Result<Model, ModelError> {
         let origin = path.display().to_string();
-        let text = std::fs::read_to_string(path).map_err(|err| ModelError::Io {
+        let text = crate::limits::read_text(path).map_err(|err| ModelError::Io {
             path: origin.clone(),
             err,
         })?;

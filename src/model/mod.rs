@@ -46,15 +46,10 @@ pub enum ModelError {
     #[error("{0}")]
     Invalid(String),
     #[error("{path}: cannot read: {err}")]
-    Io {
-        path: String,
-        #[source]
-        err: std::io::Error,
-    },
+    Io { path: String, err: std::io::Error },
     #[error("{path}: not a model file: {err}")]
     Parse {
         path: String,
-        #[source]
         err: serde_json::Error,
     },
 }

@@ -25,7 +25,6 @@ pub enum SpectralError {
     #[error("{source_name}: cannot read: {err}")]
     Io {
         source_name: String,
-        #[source]
         err: std::io::Error,
     },
     #[error(
@@ -181,7 +180,7 @@ impl SpectralTable {
     /// Reads a CSV file.
     pub fn read(path: &Path) -> Result<SpectralTable, SpectralError> {
         let source_name = path.display().to_string();
-        let text = std::fs::read_to_string(path).map_err(|err| SpectralError::Io {
+        let text = crate::limits::read_text(path).map_err(|err| SpectralError::Io {
             source_name: source_name.clone(),
             err,
         })?;

@@ -178,6 +178,7 @@ impl TrainingSet {
         }
         let white_xyz = white.unwrap_or(crate::colorimetry::D65_WHITE_XYZ);
         let mut labels: Vec<String> = Vec::new();
+        let mut seen: std::collections::HashSet<&str> = std::collections::HashSet::new();
         let mut rgb = Vec::new();
         let mut xyz = Vec::new();
         for (line, row) in lines {
@@ -203,15 +204,15 @@ impl TrainingSet {
                         cell: cell.to_string(),
                     })?;
             }
-            let label = cells[0].to_string();
-            if labels.contains(&label) {
+            // A hash set, not a scan of the labels so far: 10⁶ rows load in about a second.
+            if !seen.insert(cells[0]) {
                 return Err(TrainingError::DuplicateLabel {
                     source_name: src(),
                     line,
-                    label,
+                    label: cells[0].to_string(),
                 });
             }
-            labels.push(label);
+            labels.push(cells[0].to_string());
             rgb.push([v[0], v[1], v[2]]);
             let t = [v[3], v[4], v[5]];
             xyz.push(if lab { lab_to_xyz(t, white_xyz) } else { t });
@@ -263,10 +264,12 @@ fn split_label(label: &str) -> Option<(&str, u32)> {
     Some((col, row.parse().ok()?))
 }
 
-/// Column letters as a number: A = 1, …, Z = 26, AA = 27.
-fn column_index(col: &str) -> u32 {
-    col.chars().fold(0, |acc, c| {
-        acc * 26 + (c.to_ascii_uppercase() as u32 - 'A' as u32 + 1)
+/// Column letters as a number: A = 1, …, Z = 26, AA = 27; `None` past `u32` (checked, so a
+/// label such as `AAAAAAAA1` is an error, not an overflow).
+fn column_index(col: &str) -> Option<u32> {
+    col.chars().try_fold(0u32, |acc, c| {
+        acc.checked_mul(26)?
+            .checked_add(c.to_ascii_uppercase() as u32 - 'A' as u32 + 1)
     })
 }
 
@@ -289,22 +292,30 @@ pub fn select_patches(labels: &[String], spec: &str) -> Result<Vec<usize>, Train
             .ok_or_else(|| err(format!("`{a}` is not a chart label like B2")))?;
         let (cb, rb) = split_label(b.trim())
             .ok_or_else(|| err(format!("`{b}` is not a chart label like M9")))?;
-        let (c0, c1) = (column_index(ca), column_index(cb));
+        let too_long = |l: &str| err(format!("`{l}`: the column letters are too many to count"));
+        let c0 = column_index(ca).ok_or_else(|| too_long(a.trim()))?;
+        let c1 = column_index(cb).ok_or_else(|| too_long(b.trim()))?;
         let (c0, c1) = (c0.min(c1), c0.max(c1));
         let (r0, r1) = (ra.min(rb), ra.max(rb));
+        // In u64: both spans are at most 2^32, so the product cannot overflow.
+        let expected = (u64::from(c1 - c0) + 1) * (u64::from(r1 - r0) + 1);
+        if expected > labels.len() as u64 {
+            return Err(err(format!(
+                "the rectangle holds {expected} patches but the data has only {} patches",
+                labels.len()
+            )));
+        }
         let idx: Vec<usize> = labels
             .iter()
             .enumerate()
             .filter(|(_, l)| {
                 split_label(l).is_some_and(|(c, r)| {
-                    let c = column_index(c);
-                    c >= c0 && c <= c1 && r >= r0 && r <= r1
+                    column_index(c).is_some_and(|c| c >= c0 && c <= c1 && r >= r0 && r <= r1)
                 })
             })
             .map(|(i, _)| i)
             .collect();
-        let expected = ((c1 - c0 + 1) * (r1 - r0 + 1)) as usize;
-        if idx.len() != expected {
+        if idx.len() as u64 != expected {
             return Err(err(format!(
                 "the rectangle holds {expected} patches but the data has {} of them (labels must be column letter + row number, e.g. B2)",
                 idx.len()
@@ -312,13 +323,18 @@ pub fn select_patches(labels: &[String], spec: &str) -> Result<Vec<usize>, Train
         }
         return Ok(idx);
     }
+    let by_name: std::collections::HashMap<&str, usize> = labels
+        .iter()
+        .enumerate()
+        .map(|(i, l)| (l.as_str(), i))
+        .collect();
     let mut idx = Vec::new();
+    let mut listed = std::collections::HashSet::new();
     for name in spec_t.split(',').map(str::trim).filter(|s| !s.is_empty()) {
-        let i = labels
-            .iter()
-            .position(|l| l == name)
+        let i = *by_name
+            .get(name)
             .ok_or_else(|| err(format!("no patch named `{name}`")))?;
-        if idx.contains(&i) {
+        if !listed.insert(i) {
             return Err(err(format!("`{name}` is listed twice")));
         }
         idx.push(i);

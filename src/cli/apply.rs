@@ -294,8 +294,7 @@ fn parse_request(a: &Args) -> Result<Request> {
 /// cleanly by a signal) → report (the summary and the exit status).
 pub fn run(a: Args) -> Result<ExitCode> {
     let req = parse_request(&a)?;
-    let model = Model::load(&a.model)
-        .with_context(|| format!("loading the model {}", a.model.display()))?;
+    let model = Model::load(&a.model).context("--model")?;
     let out_model = fio::output_model(&model, req.space)?;
 
     // Plan.

@@ -398,8 +398,16 @@ fn parse_size(spec: &str) -> Result<(usize, usize)> {
     let (w, h) = spec.split_once(['x', 'X', '×']).ok_or_else(bad)?;
     let w: usize = w.trim().parse().map_err(|_| bad())?;
     let h: usize = h.trim().parse().map_err(|_| bad())?;
-    if w == 0 || h == 0 || w.checked_mul(h).and_then(|p| p.checked_mul(16)).is_none() {
+    if w == 0 || h == 0 {
         return Err(bad().into());
+    }
+    // The bench holds several f32 RGBA copies of the frame: bound it like a frame read.
+    let limit = nsrm::io::DEFAULT_MAX_PIXELS;
+    if (w as u64).checked_mul(h as u64).is_none_or(|p| p > limit) {
+        return Err(UsageError(format!(
+            "--size `{spec}`: {w}×{h} is more than the limit of {limit} pixels (16384×16384)"
+        ))
+        .into());
     }
     Ok((w, h))
 }

@@ -48,17 +48,16 @@ impl TrainingArgs {
             }
             None => {
                 let grid = Grid::parse(&self.grid).map_err(|e| UsageError(e.to_string()))?;
-                let camera = Camera::from_name_or_path(&self.camera)
-                    .with_context(|| format!("loading camera `{}`", self.camera))?;
-                let ill = Illuminant::from_name_or_path(illuminant)
-                    .with_context(|| format!("loading illuminant `{illuminant}`"))?;
+                let camera = Camera::from_name_or_path(&self.camera).context("--camera")?;
+                let ill = Illuminant::from_name_or_path(illuminant).context("--illuminant")?;
                 let refl = Reflectances::from_name_or_path(&self.reflectances)
-                    .with_context(|| format!("loading reflectances `{}`", self.reflectances))?;
+                    .context("--reflectances")?;
                 simulate(&camera, &ill, &refl, &grid)
                     .with_context(|| format!("simulating the camera under {illuminant}"))?
             }
         };
-        Ok(data.select(&self.patches)?)
+        data.select(&self.patches)
+            .map_err(|e| UsageError(e.to_string()).into())
     }
 }
 
@@ -86,12 +85,14 @@ pub fn parse_models(spec: &str) -> Result<Vec<Kind>> {
     Ok(v)
 }
 
-/// Parses `--orders`: `3`, `1-4` or `1,3`.
-pub fn parse_orders(spec: &str) -> Result<Vec<u8>> {
+/// Parses `--orders` (or `--order`, named by `flag` in messages): `3`, `1-4` or `1,3`.
+pub fn parse_orders(spec: &str, flag: &str) -> Result<Vec<u8>> {
     let bad = || {
-        UsageError(format!(
-            "--orders `{spec}`: expected N, A-B or a list, within 1..4"
-        ))
+        UsageError(if flag == "--order" {
+            format!("--order `{spec}`: expected a whole number within 1..4")
+        } else {
+            format!("{flag} `{spec}`: expected N, A-B or a list, within 1..4")
+        })
     };
     let mut v = Vec::new();
     for part in spec.split(',') {

@@ -45,8 +45,8 @@ pub struct Args {
 pub fn run(a: Args) -> Result<ExitCode> {
     let kinds = parse_models(&a.models)?;
     let orders = match &a.orders {
-        Some(s) => parse_orders(s)?,
-        None => parse_orders(&a.order.to_string())?,
+        Some(s) => parse_orders(s, "--orders")?,
+        None => parse_orders(&a.order.to_string(), "--order")?,
     };
     if let Some(p) = &a.plot {
         plot::Format::from_path(p).map_err(|e| UsageError(e.to_string()))?;

@@ -1,7 +1,7 @@
 //! `nsrm render-chart`: a synthetic linear camera-RGB frame of a chart, for testing `apply`.
 
 use super::common::{TrainingArgs, UsageError};
-use anyhow::{Context, Result};
+use anyhow::Result;
 use nsrm::io::chart::{self, ChartOptions};
 use std::path::PathBuf;
 use std::process::ExitCode;
@@ -60,17 +60,21 @@ pub fn run(a: Args) -> Result<ExitCode> {
     if a.patch_size == 0 || a.columns == Some(0) {
         return Err(UsageError("--patch-size and --columns must be at least 1".into()).into());
     }
-    let exposure_ok = a.exposure.is_finite() && a.exposure > 0.0;
-    let noise_ok = a.noise.is_finite() && a.noise >= 0.0;
-    if !(exposure_ok && noise_ok) {
-        return Err(
-            UsageError("--exposure must be positive and --noise zero or positive".into()).into(),
-        );
+    for (flag, v) in [("--patch-size", a.patch_size), ("--gap", a.gap)] {
+        if v > chart::MAX_PATCH_PIXELS {
+            return Err(UsageError(format!(
+                "{flag} {v} is too big: the limit is {} pixels",
+                chart::MAX_PATCH_PIXELS
+            ))
+            .into());
+        }
     }
+    chart::check_exposure_noise(a.exposure, a.noise).map_err(UsageError)?;
     nsrm::atomic::check_clobber(&a.output, a.overwrite)?;
     nsrm::atomic::check_clobber(&chart::layout_path(&a.output), a.overwrite)?;
     let data = a.training.load(&a.illuminant)?;
-    let (frame, layout) = chart::render(&data, &opts).context("rendering the chart")?;
+    let (frame, layout) =
+        chart::render(&data, &opts).map_err(|e| UsageError(format!("rendering the chart: {e}")))?;
     chart::write(&frame, &layout, &a.output, a.overwrite)?;
     eprintln!(
         "{} patches ({} columns, {} px) rendered to {} ({}×{}); layout in {}",

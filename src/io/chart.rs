@@ -124,6 +124,33 @@ pub fn layout_path(chart: &Path) -> PathBuf {
     chart.with_extension("patches.json")
 }
 
+/// The range of `--exposure`: a camera RGB of 1 times it stays a normal f32 (≈ 1.2e-38 to
+/// 3.4e38) with room for the patch values and the noise.
+pub const EXPOSURE_RANGE: (f64, f64) = (1e-30, 1e30);
+/// The largest `--noise` (standard deviation): noise draws up to ~40σ stay finite in f32.
+pub const MAX_NOISE: f64 = 1e30;
+/// The largest `--patch-size` and `--gap` in pixels.
+pub const MAX_PATCH_PIXELS: usize = 1 << 14;
+
+/// Checks `--exposure` and `--noise` against [`EXPOSURE_RANGE`] and [`MAX_NOISE`]; the message
+/// names the limit.
+pub fn check_exposure_noise(exposure: f64, noise: f64) -> Result<(), String> {
+    let (lo, hi) = EXPOSURE_RANGE;
+    if !(exposure.is_finite() && (lo..=hi).contains(&exposure)) {
+        return Err(format!(
+            "--exposure {exposure} is out of range: it must be within {lo:e}..{hi:e} (so that the \
+             pixels stay finite, non-zero 32-bit floats)"
+        ));
+    }
+    if !(noise.is_finite() && (0.0..=MAX_NOISE).contains(&noise)) {
+        return Err(format!(
+            "--noise {noise} is out of range: it must be within 0..{MAX_NOISE:e} (so that the \
+             pixels stay finite 32-bit floats)"
+        ));
+    }
+    Ok(())
+}
+
 /// Renders the chart of `data`.
 pub fn render(data: &TrainingSet, opts: &ChartOptions) -> Result<(Frame, ChartLayout), IoError> {
     if data.is_empty() {
@@ -132,18 +159,7 @@ pub fn render(data: &TrainingSet, opts: &ChartOptions) -> Result<(Frame, ChartLa
     if opts.patch_size == 0 {
         return Err(IoError::Invalid("--patch-size must be at least 1".into()));
     }
-    if !(opts.exposure.is_finite() && opts.exposure > 0.0) {
-        return Err(IoError::Invalid(format!(
-            "exposure {} must be a positive number",
-            opts.exposure
-        )));
-    }
-    if !(opts.noise.is_finite() && opts.noise >= 0.0) {
-        return Err(IoError::Invalid(format!(
-            "noise {} must be zero or positive",
-            opts.noise
-        )));
-    }
+    check_exposure_noise(opts.exposure, opts.noise).map_err(IoError::Invalid)?;
     let n = data.len();
     let columns = match opts.columns {
         Some(0) => return Err(IoError::Invalid("--columns must be at least 1".into())),
@@ -151,12 +167,23 @@ pub fn render(data: &TrainingSet, opts: &ChartOptions) -> Result<(Frame, ChartLa
         None => ((1.5 * n as f64).sqrt().ceil() as usize).clamp(1, n),
     };
     let rows = n.div_ceil(columns);
+    // Checked: --patch-size and --gap come from the command line.
+    let side = |k: usize| {
+        opts.patch_size
+            .checked_add(opts.gap)
+            .and_then(|pitch| pitch.checked_mul(k))
+            .and_then(|v| v.checked_add(opts.gap))
+    };
+    let (Some(width), Some(height)) = (side(columns), side(rows)) else {
+        return Err(IoError::Invalid(format!(
+            "a chart of {columns}×{rows} patches of {} px with {} px gaps is too big to count",
+            opts.patch_size, opts.gap
+        )));
+    };
     let pitch = opts.patch_size + opts.gap;
-    let width = columns * pitch + opts.gap;
-    let height = rows * pitch + opts.gap;
     if width.checked_mul(height).is_none_or(|p| p > 1 << 28) {
         return Err(IoError::Invalid(format!(
-            "a {width}×{height} chart is too big"
+            "a {width}×{height} chart is too big (the limit is 2^28 = 268435456 pixels)"
         )));
     }
     let mut frame = Frame::new(width, height, Layout::Rgb);
@@ -224,6 +251,9 @@ pub fn write(
     crate::atomic::check_clobber(&layout_file, overwrite)?;
     let json = serde_json::to_string_pretty(layout)
         .map_err(|e| IoError::Invalid(format!("serialising the chart layout: {e}")))?;
+    // Both files or neither: the layout is staged (written and synced) first, the frame written,
+    // then the layout moved into place; if that fails, the frame just written is removed.
+    let staged = crate::atomic::stage_bytes(&layout_file, json.as_bytes(), overwrite)?;
     if super::FileFormat::from_extension(dest) == Some(super::FileFormat::Tiff) {
         super::tif::write(frame, None, dest, overwrite)?;
     } else {
@@ -252,7 +282,10 @@ pub fn write(
             },
         )?;
     }
-    crate::atomic::write_atomic(&layout_file, json.as_bytes(), overwrite)?;
+    if let Err(e) = staged.commit() {
+        let _ = std::fs::remove_file(dest);
+        return Err(e.into());
+    }
     Ok(())
 }
 

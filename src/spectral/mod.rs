@@ -133,15 +133,19 @@ impl Grid {
         if g.end < g.start {
             return Err(err("END must not be below START"));
         }
-        if g.len() > 100_000 {
-            return Err(err("more than 100000 samples"));
+        // Counted in f64 before any integer conversion: `0:1e300:1e-300` is refused, not
+        // overflowed.
+        let n = ((g.end - g.start) / g.step + 1e-9).floor();
+        if !(n.is_finite() && n < 100_000.0) {
+            return Err(err("more than 100000 samples (the limit)"));
         }
         Ok(g)
     }
 
     /// Number of samples.
     pub fn len(&self) -> usize {
-        ((self.end - self.start) / self.step + 1e-9).floor() as usize + 1
+        // `as` saturates (NaN → 0); the addition must too for hand-made grids.
+        (((self.end - self.start) / self.step + 1e-9).floor() as usize).saturating_add(1)
     }
 
     /// Always false: a grid has at least one sample.

@@ -1,0 +1,182 @@
+//! Family 6: temporary files are this run's alone, and interruptions clean up. SIGINT, SIGTERM
+//! and SIGHUP sent to a child `nsrm apply` in the middle of a batch: it stops starting files,
+//! removes its temporaries, prints the summary and exits 130 / 143 / 129; every output present
+//! is complete. Stale temporaries of a killed run are reported and kept unless asked.
+
+mod hardening;
+use hardening::*;
+use std::path::Path;
+use std::process::{Command, Stdio};
+use std::time::{Duration, Instant};
+
+/// A batch of `n` copies of one frame in `dir/in`.
+fn batch(dir: &Path, n: usize) {
+    model(dir);
+    std::fs::create_dir(dir.join("in")).unwrap();
+    exr(&dir.join("in/f.0000.exr"), 256, 256);
+    for i in 1..n {
+        std::fs::copy(
+            dir.join("in/f.0000.exr"),
+            dir.join(format!("in/f.{i:04}.exr")),
+        )
+        .unwrap();
+    }
+}
+
+#[cfg(unix)]
+fn interrupt_run(signal: &str, status: i32) {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let n = 400;
+    batch(d, n);
+    let child = Command::new(env!("CARGO_BIN_EXE_nsrm"))
+        .current_dir(d)
+        .args([
+            "apply", "--model", "m.json", "--device", "cpu", "-j", "1", "-o", "out", "in",
+        ])
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    // Signal once the first output or temporary appears.
+    let t = Instant::now();
+    loop {
+        // Not the plan's write probe (made and removed before the handlers are installed).
+        let any = std::fs::read_dir(d.join("out"))
+            .map(|r| {
+                r.flatten()
+                    .any(|e| !e.file_name().to_string_lossy().contains("nsrm-write-probe"))
+            })
+            .unwrap_or(false);
+        if any {
+            break;
+        }
+        assert!(
+            t.elapsed() < Duration::from_secs(60),
+            "no output after 60 s"
+        );
+        std::thread::sleep(Duration::from_millis(2));
+    }
+    let ok = Command::new("kill")
+        .args([&format!("-{signal}"), &child.id().to_string()])
+        .status()
+        .unwrap();
+    assert!(ok.success());
+    let out = child.wait_with_output().unwrap();
+    let err = stderr(&out);
+    no_crash(&out, signal);
+    assert_eq!(out.status.code(), Some(status), "{signal}: {err}");
+    assert!(
+        err.contains(&format!("interrupted by SIG{signal}")),
+        "{err}"
+    );
+    assert!(err.contains("not attempted"), "{err}");
+    let names = names(&d.join("out"));
+    assert!(
+        names.iter().all(|n| !n.ends_with(".tmp")),
+        "temporaries left: {names:?}"
+    );
+    assert!(names.len() < n, "the batch was not stopped: {err}");
+    // Every output that exists is complete.
+    for name in &names {
+        let f = nsrm::io::read_frame(&d.join("out").join(name), &Default::default()).unwrap();
+        assert_eq!((f.width, f.height), (256, 256));
+    }
+    let converted: usize = err
+        .split("interrupted by")
+        .nth(1)
+        .and_then(|s| s.split(':').nth(1))
+        .and_then(|s| s.split_whitespace().next())
+        .and_then(|s| s.parse().ok())
+        .unwrap_or_else(|| panic!("no count in {err}"));
+    assert_eq!(converted, names.len(), "{err}");
+}
+
+#[cfg(unix)]
+#[test]
+fn sigint_stops_cleanly_with_130() {
+    interrupt_run("INT", 130);
+}
+
+#[cfg(unix)]
+#[test]
+fn sigterm_stops_cleanly_with_143() {
+    interrupt_run("TERM", 143);
+}
+
+#[cfg(unix)]
+#[test]
+fn sighup_stops_cleanly_with_129() {
+    interrupt_run("HUP", 129);
+}
+
+#[test]
+fn stale_temporaries_are_reported_and_removed_only_when_asked() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    batch(d, 2);
+    std::fs::create_dir(d.join("out")).unwrap();
+    let stale = d.join("out/.f_xyz.0000.exr.nsrm-1-0123456789abcdef.tmp");
+    let other = d.join("out/.notes.tmp");
+    std::fs::write(&stale, b"half a frame").unwrap();
+    std::fs::write(&other, b"someone else's").unwrap();
+    let args = [
+        "apply", "--model", "m.json", "--device", "cpu", "-o", "out", "in",
+    ];
+    let o = nsrm(d, &args);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(
+        stderr(&o).contains("1 nsrm temporary file(s)"),
+        "{}",
+        stderr(&o)
+    );
+    assert!(stderr(&o).contains(".f_xyz.0000.exr.nsrm-1-0123456789abcdef.tmp"));
+    assert!(stale.exists() && other.exists());
+    let mut with = args.to_vec();
+    with.extend(["--skip-existing", "--remove-stale-temporaries"]);
+    let o = nsrm(d, &with);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(stderr(&o).contains("removed 1 stale"), "{}", stderr(&o));
+    assert!(!stale.exists());
+    assert_eq!(std::fs::read(&other).unwrap(), b"someone else's");
+}
+
+#[test]
+fn render_chart_writes_frame_and_layout_together() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    // The layout's name is taken by a directory: the frame must not appear alone.
+    std::fs::create_dir(d.join("c.patches.json")).unwrap();
+    let o = nsrm(
+        d,
+        &[
+            "render-chart",
+            "--reflectances",
+            "cc24",
+            "--patch-size",
+            "2",
+            "-o",
+            "c.exr",
+            "--overwrite",
+        ],
+    );
+    no_crash(&o, "render-chart");
+    assert!(!o.status.success());
+    assert!(stderr(&o).contains("not a regular file"), "{}", stderr(&o));
+    assert_eq!(names(d), ["c.patches.json"]);
+    std::fs::remove_dir(d.join("c.patches.json")).unwrap();
+    let o = nsrm(
+        d,
+        &[
+            "render-chart",
+            "--reflectances",
+            "cc24",
+            "--patch-size",
+            "2",
+            "-o",
+            "c.exr",
+        ],
+    );
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert_eq!(names(d), ["c.exr", "c.patches.json"]);
+}

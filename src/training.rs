@@ -42,8 +42,12 @@ pub enum TrainingError {
     },
     #[error("{source_name}: has no patches")]
     NoRows { source_name: String },
+    /// The selection does not match the data (a label it lacks, a rectangle partly missing).
     #[error("invalid patch selection `{spec}`: {why}")]
     Patches { spec: String, why: String },
+    /// The selection is malformed whatever the data (a usage error).
+    #[error("invalid patch selection `{spec}`: {why}")]
+    PatchSpec { spec: String, why: String },
     #[error("invalid white `{spec}`: {why}")]
     White { spec: String, why: String },
 }
@@ -273,6 +277,9 @@ fn column_index(col: &str) -> Option<u32> {
     })
 }
 
+/// The most patches a `B2:M9` rectangle may hold (charts have hundreds).
+pub const MAX_RECTANGLE: u64 = 1 << 20;
+
 /// Chooses patches by `spec`, returning indices into `labels` in the labels' own order.
 ///
 /// * `all` — every patch;
@@ -284,21 +291,31 @@ pub fn select_patches(labels: &[String], spec: &str) -> Result<Vec<usize>, Train
         spec: spec.to_string(),
         why,
     };
+    let malformed = |why: String| TrainingError::PatchSpec {
+        spec: spec.to_string(),
+        why,
+    };
     if spec_t.eq_ignore_ascii_case("all") {
         return Ok((0..labels.len()).collect());
     }
     if let Some((a, b)) = spec_t.split_once(':') {
         let (ca, ra) = split_label(a.trim())
-            .ok_or_else(|| err(format!("`{a}` is not a chart label like B2")))?;
+            .ok_or_else(|| malformed(format!("`{a}` is not a chart label like B2")))?;
         let (cb, rb) = split_label(b.trim())
-            .ok_or_else(|| err(format!("`{b}` is not a chart label like M9")))?;
-        let too_long = |l: &str| err(format!("`{l}`: the column letters are too many to count"));
+            .ok_or_else(|| malformed(format!("`{b}` is not a chart label like M9")))?;
+        let too_long =
+            |l: &str| malformed(format!("`{l}`: the column letters are too many to count"));
         let c0 = column_index(ca).ok_or_else(|| too_long(a.trim()))?;
         let c1 = column_index(cb).ok_or_else(|| too_long(b.trim()))?;
         let (c0, c1) = (c0.min(c1), c0.max(c1));
         let (r0, r1) = (ra.min(rb), ra.max(rb));
         // In u64: both spans are at most 2^32, so the product cannot overflow.
         let expected = (u64::from(c1 - c0) + 1) * (u64::from(r1 - r0) + 1);
+        if expected > MAX_RECTANGLE {
+            return Err(malformed(format!(
+                "the rectangle holds {expected} patches, more than the limit of {MAX_RECTANGLE}"
+            )));
+        }
         if expected > labels.len() as u64 {
             return Err(err(format!(
                 "the rectangle holds {expected} patches but the data has only {} patches",

@@ -31,7 +31,7 @@ fn patch_specs_use_checked_arithmetic() {
     };
     usage_error(
         &fit("A1:B4294967295"),
-        "the rectangle holds 8589934590 patches",
+        "the rectangle holds 8589934590 patches, more than the limit of 1048576",
     );
     usage_error(&fit("AAAAAAAA1:B2"), "too many to count");
     usage_error(&fit("A1:B99999999999"), "not a chart label");

@@ -56,8 +56,10 @@ impl TrainingArgs {
                     .with_context(|| format!("simulating the camera under {illuminant}"))?
             }
         };
-        data.select(&self.patches)
-            .map_err(|e| UsageError(e.to_string()).into())
+        data.select(&self.patches).map_err(|e| match e {
+            e @ nsrm::training::TrainingError::PatchSpec { .. } => UsageError(e.to_string()).into(),
+            e => e.into(),
+        })
     }
 }
 

@@ -28,6 +28,7 @@
 #![forbid(unsafe_code)]
 
 pub mod atomic;
+pub mod chart;
 pub mod colorimetry;
 pub mod eval;
 pub mod frame;

@@ -68,6 +68,36 @@ pub struct Provenance {
     /// The `--patches` selection, if one was applied.
     #[serde(skip_serializing_if = "Option::is_none", default)]
     pub patches: Option<String>,
+    /// Patches read from a photographed chart (`--capture`).
+    #[serde(skip_serializing_if = "Option::is_none", default)]
+    pub capture: Option<CaptureProvenance>,
+}
+
+/// Where patches read from a chart capture came from.
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+pub struct CaptureProvenance {
+    /// The frame's file name.
+    pub frame: String,
+    /// SHA-256 of the frame file's bytes (hex).
+    pub sha256: String,
+    /// `cc24` or `sg`.
+    pub chart: String,
+    /// The reference values (a built-in name or a file).
+    pub reference: String,
+    /// `corners` or `detected`.
+    pub located: String,
+    /// Excluded patches with their flags, e.g. `19 white 9.5 (clipped)`.
+    pub excluded: Vec<String>,
+    /// How camera RGB was normalised before fitting.
+    pub exposure_normalisation: String,
+    /// Camera G of the perfect white implied by the neutral patches (median of 100 G / Y).
+    pub white_g: f64,
+    /// Flat-field compensation: `none`, `flat frame` or `neutral patches`, and the estimated
+    /// non-uniformity of the light (max/min over the chart).
+    pub flat: String,
+    pub light_nonuniformity: f64,
+    /// Median ΔE00 of the patches against the reference after the best 3×3 linear map.
+    pub reference_match_de00: f64,
 }
 
 /// Patches with camera RGB and reference XYZ, and the reference white (for Lab).

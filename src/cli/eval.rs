@@ -40,6 +40,12 @@ pub struct Args {
     /// Replace an existing plot file.
     #[arg(long)]
     overwrite: bool,
+    /// Evaluate on the chart photographed in this linear frame (EXR/TIFF): see `nsrm chart
+    /// extract` for the chart options.
+    #[arg(long, value_name = "FRAME", conflicts_with_all = ["training", "camera", "reflectances", "grid", "illuminants"])]
+    capture: Option<PathBuf>,
+    #[command(flatten)]
+    chart: super::capture::CaptureOptions,
 }
 
 pub fn run(a: Args) -> Result<ExitCode> {
@@ -51,7 +57,10 @@ pub fn run(a: Args) -> Result<ExitCode> {
     if let Some(p) = &a.plot {
         plot::Format::from_path(p).map_err(|e| UsageError(e.to_string()))?;
     }
-    let illuminants: Vec<String> = if a.training.training.is_some() {
+    let captured = super::capture::for_model(a.capture.as_deref(), &a.chart)?;
+    let illuminants: Vec<String> = if captured.is_some() {
+        vec!["capture".to_string()]
+    } else if a.training.training.is_some() {
         vec![a
             .training
             .white
@@ -70,9 +79,12 @@ pub fn run(a: Args) -> Result<ExitCode> {
     let mut results: Vec<EvalResult> = Vec::new();
     let mut n_patches = 0;
     for ill in &illuminants {
-        let data = a.training.load(ill)?;
+        let data = match &captured {
+            Some(c) => c.training_set().select(&a.training.patches)?,
+            None => a.training.load(ill)?,
+        };
         n_patches = data.len();
-        let ill_name = if a.training.training.is_some() {
+        let ill_name = if a.training.training.is_some() || captured.is_some() {
             ill.clone()
         } else {
             display_name(data.provenance.illuminant.as_deref().unwrap_or(ill))
@@ -96,6 +108,7 @@ pub fn run(a: Args) -> Result<ExitCode> {
             "protocol": match protocol { Protocol::LeaveOneOut => "leave-one-out", Protocol::InSample => "in-sample" },
             "camera": if a.training.training.is_some() { None } else { Some(&a.training.camera) },
             "reflectances": a.training.training.as_ref().map(|p| p.display().to_string()).unwrap_or_else(|| a.training.reflectances.clone()),
+            "capture": captured.as_ref().map(|c| c.provenance()),
             "patches": a.training.patches,
             "n_patches": n_patches,
             "grid": a.training.grid,
@@ -122,9 +135,10 @@ fn print_table(
     illuminants: &[String],
     results: &[EvalResult],
 ) {
-    let source = match &a.training.training {
-        Some(p) => format!("measured patches {}", p.display()),
-        None => format!(
+    let source = match (&a.capture, &a.training.training) {
+        (Some(p), _) => format!("patches read from {}", p.display()),
+        (_, Some(p)) => format!("measured patches {}", p.display()),
+        _ => format!(
             "camera {}, reflectances {}, grid {}",
             a.training.camera, a.training.reflectances, a.training.grid
         ),

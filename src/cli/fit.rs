@@ -30,6 +30,16 @@ pub struct Args {
     /// Replace an existing output file.
     #[arg(long)]
     overwrite: bool,
+    /// Fit on the chart photographed in this linear frame (EXR/TIFF) instead: see `nsrm chart
+    /// extract` for the chart options.
+    #[arg(long, value_name = "FRAME", conflicts_with_all = ["training", "camera", "reflectances", "grid"])]
+    capture: Option<PathBuf>,
+    #[command(flatten)]
+    chart: super::capture::CaptureOptions,
+    /// With --capture: an overlay PNG of the reading with a swatch panel (reference vs
+    /// corrected, ΔE00 per patch).
+    #[arg(long, value_name = "FILE.png", requires = "capture")]
+    overlay: Option<PathBuf>,
 }
 
 pub fn run(a: Args) -> Result<ExitCode> {
@@ -38,10 +48,28 @@ pub fn run(a: Args) -> Result<ExitCode> {
         return Err(UsageError(format!("--order {} is out of range (1..4)", a.order)).into());
     }
     nsrm::atomic::check_clobber(&a.output, a.overwrite)?;
-    let data = a.training.load(&a.illuminant)?;
+    if let Some(o) = &a.overlay {
+        nsrm::atomic::check_clobber(o, a.overwrite)?;
+    }
+    let captured = super::capture::for_model(a.capture.as_deref(), &a.chart)?;
+    let data = match &captured {
+        Some(c) => c.training_set().select(&a.training.patches)?,
+        None => a.training.load(&a.illuminant)?,
+    };
     let model = fit(kind, a.order, &data)
         .with_context(|| format!("fitting {kind} order {} on {} patches", a.order, data.len()))?;
     nsrm::atomic::write_atomic(&a.output, model.to_json().as_bytes(), a.overwrite)?;
+    if let (Some(c), Some(o)) = (&captured, &a.overlay) {
+        let sw = super::capture::swatches(c, &model);
+        super::capture::write_overlay(
+            &c.frame,
+            Some(&c.extraction),
+            &[],
+            Some((&sw, c.reference.white)),
+            o,
+            a.overwrite,
+        )?;
+    }
     eprintln!(
         "{} order {} ({} terms) fitted on {} patches, written to {}",
         kind,

@@ -5,11 +5,14 @@
 
 mod apply;
 mod bench;
+mod capture;
+mod chart;
 mod common;
 mod eval;
 mod export_shader;
 mod fit;
 mod render_chart;
+mod render_scene;
 mod terms;
 
 use clap::{Parser, Subcommand};
@@ -31,6 +34,10 @@ enum Command {
     /// Per-pixel throughput of each model on the CPU (one thread, all threads) and the GPU, as a
     /// fraction of a memcpy of the same bytes.
     Bench(bench::Args),
+    /// Read a photographed chart: `nsrm chart extract FRAME --chart cc24|sg -o patches.csv`;
+    /// `nsrm chart rate` measures detection on synthetic scenes.
+    #[command(subcommand)]
+    Chart(chart::Command),
     /// Leave-one-out (or in-sample) ΔE00 of the models; without flags, the paper's experiment on
     /// built-in data (D5100, rawtoaces-190, D65/TL865/LED-B5), printed like its Table 1.
     Eval(eval::Args),
@@ -43,6 +50,9 @@ enum Command {
     Terms(terms::Args),
     /// Render a synthetic linear camera-RGB chart frame (EXR/TIFF) with its patch layout.
     RenderChart(render_chart::Args),
+    /// Render a synthetic photo of a CC24 or SG chart (pose, clutter, uneven light, blur, noise)
+    /// with its ground truth.
+    RenderScene(render_scene::Args),
 }
 
 /// Parses the command line, runs the subcommand, and maps errors to exit codes.
@@ -58,11 +68,13 @@ pub fn main() -> ExitCode {
     let result = match cli.command {
         Command::Apply(a) => apply::run(a),
         Command::Bench(a) => bench::run(a),
+        Command::Chart(c) => chart::run(c),
         Command::Eval(a) => eval::run(a),
         Command::ExportShader(a) => export_shader::run(a),
         Command::Fit(a) => fit::run(a),
         Command::Terms(a) => terms::run(a),
         Command::RenderChart(a) => render_chart::run(a),
+        Command::RenderScene(a) => render_scene::run(a),
     };
     match result {
         Ok(code) => code,

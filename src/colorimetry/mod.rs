@@ -9,6 +9,14 @@ pub const D65_WHITE_XYZ: [f64; 3] = [95.047, 100.0, 108.883];
 const EPS: f64 = 216.0 / 24389.0;
 const KAPPA: f64 = 24389.0 / 27.0;
 
+/// CIE xyY → XYZ (same scale as `big_y`). A chromaticity with `y = 0` gives zeros.
+pub fn xyy_to_xyz(x: f64, y: f64, big_y: f64) -> [f64; 3] {
+    if y == 0.0 {
+        return [0.0; 3];
+    }
+    [x * big_y / y, big_y, (1.0 - x - y) * big_y / y]
+}
+
 /// CIE XYZ → CIELAB relative to the reference white `white` (same scale as `xyz`).
 pub fn xyz_to_lab(xyz: [f64; 3], white: [f64; 3]) -> [f64; 3] {
     let f = |t: f64| {

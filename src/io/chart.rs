@@ -289,15 +289,42 @@ pub fn write(
     Ok(())
 }
 
+/// Writes a camera-RGB frame (no colour space attribute) as a float EXR, or a 32-bit float TIFF
+/// when `dest` ends in `.tif`/`.tiff`, with `comments` in the EXR header. Atomic.
+pub fn write_camera_frame(
+    frame: &Frame,
+    dest: &Path,
+    comments: &str,
+    overwrite: bool,
+) -> Result<(), IoError> {
+    crate::atomic::check_clobber(dest, overwrite)?;
+    if super::FileFormat::from_extension(dest) == Some(super::FileFormat::Tiff) {
+        super::tif::write(frame, None, dest, overwrite)
+    } else {
+        super::openexr::write_new(
+            frame,
+            None,
+            dest,
+            &super::openexr::NewExr {
+                half: false,
+                compression: super::ExrCompression::Keep,
+                space: None,
+                text: &[("comments", comments)],
+                overwrite,
+            },
+        )
+    }
+}
+
 /// Standard normal deviates from SplitMix64 and the Box–Muller transform: small, seeded and the
 /// same on every platform.
-struct Gaussian {
+pub(crate) struct Gaussian {
     state: u64,
     spare: Option<f64>,
 }
 
 impl Gaussian {
-    fn new(seed: u64) -> Gaussian {
+    pub(crate) fn new(seed: u64) -> Gaussian {
         Gaussian {
             state: seed,
             spare: None,
@@ -313,11 +340,11 @@ impl Gaussian {
     }
 
     /// Uniform in (0, 1].
-    fn uniform(&mut self) -> f64 {
+    pub(crate) fn uniform(&mut self) -> f64 {
         ((self.next_u64() >> 11) + 1) as f64 / (1u64 << 53) as f64
     }
 
-    fn next(&mut self) -> f64 {
+    pub(crate) fn next(&mut self) -> f64 {
         if let Some(s) = self.spare.take() {
             return s;
         }

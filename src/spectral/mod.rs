@@ -416,6 +416,7 @@ pub fn simulate(
             reflectances: Some(reflectances.0.source_name.clone()),
             grid: Some(grid.to_string()),
             patches: None,
+            capture: None,
         },
     })
 }

@@ -1,0 +1,480 @@
+//! Reading the patches of a located chart: each patch is sampled over the central part of its
+//! cell, averaged robustly and flagged when it cannot be trusted.
+//!
+//! * **Sampled area**: the centred square of side [`ExtractOptions::sample_fraction`] (default
+//!   0.5) of the patch side — a quarter of the patch area — so blur, registration error up to a
+//!   quarter of a patch and the patch edges do not count. A pixel is in when its centre maps
+//!   inside that square.
+//! * **Robust mean**: per channel, the mean after dropping [`ExtractOptions::trim`] (10 %) of the
+//!   values at each end; the standard deviation and count are of all sampled pixels.
+//! * **Flags**: `clipped` (at least 0.5 % of the sampled pixels have a channel at or above the white
+//!   level: `--white-level`, else the level inferred from the frame by [`infer_white_level`]),
+//!   `dark` (the brightest channel's mean below [`ExtractOptions::dark_fraction`] of the white
+//!   level, or any channel's mean not positive), `nonuniform` (the means of the four quadrants of
+//!   the sampled area differ from the patch mean by more than [`ExtractOptions::nonuniform`] (4 %)
+//!   of it and by more than five standard errors: glare, dust, a finger, an edge).
+
+use super::reference::Reference;
+use super::{ChartError, ChartKind, Homography};
+use crate::colorimetry::delta_e00_xyz;
+use crate::frame::Frame;
+use serde::{Deserialize, Serialize};
+
+/// How patches are read.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ExtractOptions {
+    pub sample_fraction: f64,
+    pub trim: f64,
+    /// The sensor's clipping level; `None`: inferred from the frame.
+    pub white_level: Option<f64>,
+    pub dark_fraction: f64,
+    pub nonuniform: f64,
+}
+
+impl Default for ExtractOptions {
+    fn default() -> Self {
+        ExtractOptions {
+            sample_fraction: 0.5,
+            trim: 0.1,
+            white_level: None,
+            dark_fraction: 1e-3,
+            nonuniform: 0.04,
+        }
+    }
+}
+
+/// Why a patch is not used.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Flag {
+    Clipped,
+    Dark,
+    Nonuniform,
+}
+
+impl Flag {
+    pub fn name(self) -> &'static str {
+        match self {
+            Flag::Clipped => "clipped",
+            Flag::Dark => "dark",
+            Flag::Nonuniform => "nonuniform",
+        }
+    }
+}
+
+/// One patch as read.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct PatchReading {
+    pub label: String,
+    /// Robust mean camera RGB (after flat-field compensation when one was applied).
+    pub rgb: [f64; 3],
+    /// Standard deviation of the sampled pixels, per channel.
+    pub std: [f64; 3],
+    /// Pixels sampled.
+    pub count: usize,
+    pub flags: Vec<Flag>,
+    /// Reference XYZ (perfect white Y = 100).
+    pub xyz: [f64; 3],
+    /// Centre of the sampled area in the frame (pixels).
+    pub centre: [f64; 2],
+    /// Corners of the sampled area in the frame (pixels).
+    pub outline: [[f64; 2]; 4],
+    /// Flat-field factor divided out (1 without compensation).
+    pub flat: f64,
+}
+
+impl PatchReading {
+    pub fn usable(&self) -> bool {
+        self.flags.is_empty()
+    }
+}
+
+/// The patches of one chart in a frame.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Extraction {
+    pub chart: ChartKind,
+    /// Chart coordinates → frame pixels.
+    pub homography: Homography,
+    pub white_level: Option<f64>,
+    pub white_level_inferred: bool,
+    pub patches: Vec<PatchReading>,
+}
+
+impl Extraction {
+    /// Labels of the flagged patches, with their flags.
+    pub fn flagged(&self) -> Vec<String> {
+        self.patches
+            .iter()
+            .filter(|p| !p.usable())
+            .map(|p| {
+                let f: Vec<&str> = p.flags.iter().map(|f| f.name()).collect();
+                format!("{} ({})", p.label, f.join(", "))
+            })
+            .collect()
+    }
+
+    /// The unflagged patches as training data (`label,R,G,B,X,Y,Z`).
+    pub fn training_set(&self, reference: &Reference) -> crate::training::TrainingSet {
+        let ok: Vec<&PatchReading> = self.patches.iter().filter(|p| p.usable()).collect();
+        crate::training::TrainingSet {
+            labels: ok.iter().map(|p| p.label.clone()).collect(),
+            rgb: ok.iter().map(|p| p.rgb).collect(),
+            xyz: ok.iter().map(|p| p.xyz).collect(),
+            white_xyz: reference.white,
+            provenance: crate::training::Provenance {
+                source: "capture".into(),
+                reflectances: Some(reference.name.clone()),
+                ..Default::default()
+            },
+        }
+    }
+
+    /// The CSV that `--training` reads: unflagged patches only.
+    pub fn to_csv(&self) -> String {
+        let mut s = String::from("label,R,G,B,X,Y,Z\n");
+        for p in self.patches.iter().filter(|p| p.usable()) {
+            s.push_str(&format!(
+                "{},{},{},{},{},{},{}\n",
+                p.label, p.rgb[0], p.rgb[1], p.rgb[2], p.xyz[0], p.xyz[1], p.xyz[2]
+            ));
+        }
+        s
+    }
+}
+
+/// The clipping level of a frame: its largest value when at least 0.01 % of the pixels (and at
+/// least 4) sit within 0.1 % of it — a pile-up that unclipped scenes do not have; `None`
+/// otherwise.
+pub fn infer_white_level(frame: &Frame) -> Option<f64> {
+    let ch = frame.layout.channels();
+    let max = frame
+        .data
+        .chunks_exact(ch)
+        .flat_map(|p| p[..3].iter())
+        .copied()
+        .filter(|v| v.is_finite())
+        .fold(f32::MIN, f32::max);
+    if !(max > 0.0) {
+        return None;
+    }
+    let near = max * 0.999;
+    let n = frame
+        .data
+        .chunks_exact(ch)
+        .filter(|p| p[..3].iter().any(|&v| v >= near))
+        .count();
+    (n >= 4 && n as f64 >= 1e-4 * frame.pixels() as f64).then_some(max as f64)
+}
+
+/// Pixel values of one sampled area, with each pixel's quadrant.
+struct Samples {
+    values: [Vec<f32>; 3],
+    quadrant: Vec<u8>,
+}
+
+/// The pixels whose centres map (through `h`, chart → frame) into the square of side `side`
+/// (chart units) centred on `centre`. Errors when the square reaches outside the frame.
+fn gather(
+    frame: &Frame,
+    h: &Homography,
+    hinv: &Homography,
+    centre: [f64; 2],
+    side: f64,
+) -> Option<(Samples, [[f64; 2]; 4])> {
+    let r = side / 2.0;
+    let corners = [
+        [centre[0] - r, centre[1] - r],
+        [centre[0] + r, centre[1] - r],
+        [centre[0] + r, centre[1] + r],
+        [centre[0] - r, centre[1] + r],
+    ];
+    let img: Vec<[f64; 2]> = corners.iter().map(|c| h.apply(*c)).collect();
+    if corners.iter().any(|c| h.w(*c) <= 0.0) {
+        return None;
+    }
+    let (mut x0, mut y0, mut x1, mut y1) = (f64::MAX, f64::MAX, f64::MIN, f64::MIN);
+    for p in &img {
+        x0 = x0.min(p[0]);
+        y0 = y0.min(p[1]);
+        x1 = x1.max(p[0]);
+        y1 = y1.max(p[1]);
+    }
+    if !(x0 >= 0.0 && y0 >= 0.0 && x1 <= frame.width as f64 && y1 <= frame.height as f64) {
+        return None;
+    }
+    let ch = frame.layout.channels();
+    let mut s = Samples {
+        values: [Vec::new(), Vec::new(), Vec::new()],
+        quadrant: Vec::new(),
+    };
+    let (xa, xb) = (x0.floor() as usize, (x1.ceil() as usize).min(frame.width));
+    let (ya, yb) = (y0.floor() as usize, (y1.ceil() as usize).min(frame.height));
+    for y in ya..yb {
+        for x in xa..xb {
+            let q = hinv.apply([x as f64 + 0.5, y as f64 + 0.5]);
+            let (du, dv) = (q[0] - centre[0], q[1] - centre[1]);
+            if du.abs() < r && dv.abs() < r {
+                let px = &frame.data[(y * frame.width + x) * ch..][..3];
+                for k in 0..3 {
+                    s.values[k].push(px[k]);
+                }
+                s.quadrant
+                    .push(u8::from(du >= 0.0) | (u8::from(dv >= 0.0) << 1));
+            }
+        }
+    }
+    let outline = [img[0], img[1], img[2], img[3]];
+    Some((s, outline))
+}
+
+/// Mean of each channel over the sampled area of every cell (no trimming, no flags): for flat
+/// frames and detection scoring. `None` for cells outside the frame or without pixels.
+pub fn cell_means(
+    frame: &Frame,
+    kind: ChartKind,
+    h: &Homography,
+    side: f64,
+) -> Vec<Option<[f64; 3]>> {
+    let Some(hinv) = h.inverse() else {
+        return vec![None; kind.cells()];
+    };
+    (0..kind.cells())
+        .map(|i| {
+            let (s, _) = gather(frame, h, &hinv, kind.cell_centre(i), side)?;
+            let n = s.quadrant.len();
+            (n > 0).then(|| {
+                [0, 1, 2].map(|k| s.values[k].iter().map(|&v| v as f64).sum::<f64>() / n as f64)
+            })
+        })
+        .collect()
+}
+
+/// Side of the sampled square in chart units.
+pub fn sample_side(kind: ChartKind, opts: &ExtractOptions) -> f64 {
+    kind.patch_fraction() * opts.sample_fraction
+}
+
+/// Reads every patch of the chart that `h` (chart → frame pixels) places in `frame`.
+pub fn extract(
+    frame: &Frame,
+    reference: &Reference,
+    h: &Homography,
+    opts: &ExtractOptions,
+) -> Result<Extraction, ChartError> {
+    let kind = reference.chart;
+    if !(opts.sample_fraction > 0.0 && opts.sample_fraction <= 1.0) {
+        return Err(ChartError::Invalid(
+            "the sample fraction must be in (0, 1]".into(),
+        ));
+    }
+    if let Some(w) = opts.white_level {
+        if !(w.is_finite() && w > 0.0) {
+            return Err(ChartError::Invalid(format!(
+                "--white-level {w} must be a positive number"
+            )));
+        }
+    }
+    let hinv = h
+        .inverse()
+        .ok_or_else(|| ChartError::Geometry("the chart transform is singular".into()))?;
+    let (white_level, inferred) = match opts.white_level {
+        Some(w) => (Some(w), false),
+        None => (infer_white_level(frame), true),
+    };
+    let side = sample_side(kind, opts);
+    let labels = kind.labels();
+    let mut patches = Vec::with_capacity(kind.cells());
+    let mut outside = Vec::new();
+    let mut frame_max = 0.0f64;
+    for i in 0..kind.cells() {
+        let centre = kind.cell_centre(i);
+        let Some((s, outline)) = gather(frame, h, &hinv, centre, side) else {
+            outside.push(labels[i].clone());
+            continue;
+        };
+        let n = s.quadrant.len();
+        if n < 4 {
+            return Err(ChartError::Geometry(format!(
+                "patch {} covers {n} pixels in the frame; the chart is too small to read",
+                labels[i]
+            )));
+        }
+        let mut rgb = [0.0; 3];
+        let mut std = [0.0; 3];
+        let mut finite = true;
+        for k in 0..3 {
+            let v = &s.values[k];
+            finite &= v.iter().all(|x| x.is_finite());
+            let mean = v.iter().map(|&x| x as f64).sum::<f64>() / n as f64;
+            std[k] = (v.iter().map(|&x| (x as f64 - mean).powi(2)).sum::<f64>() / n as f64).sqrt();
+            let mut sorted = v.clone();
+            sorted.sort_by(f32::total_cmp);
+            let cut = ((n as f64) * opts.trim).floor() as usize;
+            let kept = &sorted[cut..n - cut];
+            rgb[k] = kept.iter().map(|&x| x as f64).sum::<f64>() / kept.len() as f64;
+        }
+        if !finite {
+            return Err(ChartError::Invalid(format!(
+                "patch {}: the frame has NaN or infinite values there",
+                labels[i]
+            )));
+        }
+        frame_max = frame_max.max(rgb[0].max(rgb[1]).max(rgb[2]));
+        let mut flags = Vec::new();
+        if let Some(w) = white_level {
+            let at = (0..n)
+                .filter(|&j| (0..3).any(|k| s.values[k][j] as f64 >= w * 0.999))
+                .count();
+            if at as f64 >= 0.005 * n as f64 {
+                flags.push(Flag::Clipped);
+            }
+        }
+        // Non-uniformity: quadrant means against the patch mean, per channel.
+        let mut qsum = [[0.0f64; 3]; 4];
+        let mut qn = [0usize; 4];
+        for j in 0..n {
+            let q = s.quadrant[j] as usize;
+            qn[q] += 1;
+            for k in 0..3 {
+                qsum[q][k] += s.values[k][j] as f64;
+            }
+        }
+        let nonuniform = (0..4).filter(|&q| qn[q] >= 2).any(|q| {
+            (0..3).any(|k| {
+                let m = qsum[q][k] / qn[q] as f64;
+                let dev = (m - rgb[k]).abs();
+                let se = std[k] / (qn[q] as f64).sqrt();
+                dev > opts.nonuniform * rgb[k].abs() && dev > 5.0 * se
+            })
+        });
+        if nonuniform {
+            flags.push(Flag::Nonuniform);
+        }
+        patches.push((
+            i,
+            PatchReading {
+                label: labels[i].clone(),
+                rgb,
+                std,
+                count: n,
+                flags,
+                xyz: reference.xyz[i],
+                centre: h.apply(centre),
+                outline,
+                flat: 1.0,
+            },
+        ));
+    }
+    if !outside.is_empty() {
+        return Err(ChartError::Geometry(format!(
+            "the chart is partly outside the frame: {} of {} patches ({}{}) are not in it",
+            outside.len(),
+            kind.cells(),
+            outside
+                .iter()
+                .take(6)
+                .cloned()
+                .collect::<Vec<_>>()
+                .join(", "),
+            if outside.len() > 6 { ", …" } else { "" }
+        )));
+    }
+    let level = white_level.unwrap_or(frame_max);
+    for (_, p) in patches.iter_mut() {
+        let m = p.rgb[0].max(p.rgb[1]).max(p.rgb[2]);
+        if m < opts.dark_fraction * level || p.rgb.iter().any(|&v| v <= 0.0) {
+            p.flags.push(Flag::Dark);
+        }
+    }
+    let patches: Vec<PatchReading> = patches.into_iter().map(|(_, p)| p).collect();
+    if patches.iter().all(|p| p.flags.contains(&Flag::Clipped)) {
+        return Err(ChartError::Implausible(
+            "every patch is clipped: the frame is overexposed".into(),
+        ));
+    }
+    Ok(Extraction {
+        chart: kind,
+        homography: *h,
+        white_level,
+        white_level_inferred: inferred && white_level.is_some(),
+        patches,
+    })
+}
+
+/// Least-squares 3×3 matrix taking `rgb` to `xyz` (weights `w`), or `None` when singular.
+pub fn linear_fit(rgb: &[[f64; 3]], xyz: &[[f64; 3]], w: &[f64]) -> Option<[[f64; 3]; 3]> {
+    use nalgebra::Matrix3;
+    let mut rr = Matrix3::<f64>::zeros();
+    let mut xr = Matrix3::<f64>::zeros();
+    for ((r, x), &wi) in rgb.iter().zip(xyz).zip(w) {
+        for a in 0..3 {
+            for b in 0..3 {
+                rr[(a, b)] += wi * r[a] * r[b];
+                xr[(a, b)] += wi * x[a] * r[b];
+            }
+        }
+    }
+    let m = xr * rr.try_inverse()?;
+    let out = [
+        [m[(0, 0)], m[(0, 1)], m[(0, 2)]],
+        [m[(1, 0)], m[(1, 1)], m[(1, 2)]],
+        [m[(2, 0)], m[(2, 1)], m[(2, 2)]],
+    ];
+    out.iter().flatten().all(|v| v.is_finite()).then_some(out)
+}
+
+/// How well patch colours match a reference: the median ΔE00 after the best 3×3 linear map
+/// from camera RGB to the reference XYZ (`rgb[i]` is cell `i`; `None` cells are skipped).
+/// A right chart in the right orientation scores a few ΔE00; a wrong one scores far more.
+pub fn match_score(rgb: &[Option<[f64; 3]>], reference: &Reference) -> Option<f64> {
+    let idx: Vec<usize> = (0..rgb.len())
+        .filter(|&i| rgb[i].is_some_and(|v| v.iter().all(|x| x.is_finite())))
+        .collect();
+    if idx.len() < 8 {
+        return None;
+    }
+    let r: Vec<[f64; 3]> = idx.iter().map(|&i| rgb[i].expect("filtered")).collect();
+    let x: Vec<[f64; 3]> = idx.iter().map(|&i| reference.xyz[i]).collect();
+    let w: Vec<f64> = x.iter().map(|v| 1.0 / (v[1] + 10.0)).collect();
+    let m = linear_fit(&r, &x, &w)?;
+    let mut de: Vec<f64> = r
+        .iter()
+        .zip(&x)
+        .map(|(ri, xi)| {
+            let p = crate::colorimetry::spaces::apply(&m, *ri);
+            let p = p.map(|v| v.max(0.0));
+            delta_e00_xyz(p, *xi, reference.white)
+        })
+        .collect();
+    de.sort_by(f64::total_cmp);
+    Some(de[de.len() / 2])
+}
+
+/// The median ΔE00 above which patch colours are taken not to match the reference.
+pub const MATCH_LIMIT: f64 = 8.0;
+
+/// Checks that the usable patches match the reference (see [`match_score`]); the median ΔE00.
+pub fn verify(ex: &Extraction, reference: &Reference) -> Result<f64, ChartError> {
+    let rgb: Vec<Option<[f64; 3]>> = ex
+        .patches
+        .iter()
+        .map(|p| p.usable().then_some(p.rgb))
+        .collect();
+    let usable = rgb.iter().filter(|v| v.is_some()).count();
+    if usable < 8 {
+        return Err(ChartError::Implausible(format!(
+            "only {usable} of {} patches are usable (the others are clipped, too dark or non-uniform)",
+            ex.patches.len()
+        )));
+    }
+    let score = match_score(&rgb, reference).ok_or_else(|| {
+        ChartError::Implausible("the patch colours are degenerate (all alike?)".into())
+    })?;
+    if score > MATCH_LIMIT {
+        return Err(ChartError::Implausible(format!(
+            "the patch colours do not match reference {} (median ΔE00 {score:.1} after the best linear map, limit {MATCH_LIMIT}): wrong chart, wrong --corners order, or not a chart",
+            reference.name
+        )));
+    }
+    Ok(score)
+}

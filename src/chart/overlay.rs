@@ -1,0 +1,246 @@
+//! The overlay picture of a chart reading: the frame as an sRGB preview (camera RGB shown as
+//! linear sRGB, white-balanced on the chart's neutrals when there is a reading, exposed so the
+//! brightest usable patch sits at 90 %), each sampled area outlined and labelled — green when
+//! used, red with its flags when not — the candidate regions of a failed detection (yellow:
+//! rejected, cyan: linked into a grid), and after a fit a swatch panel: reference (top half) vs
+//! corrected (bottom half) per patch, with its ΔE00.
+
+use super::detect::Candidate;
+use super::extract::Extraction;
+use crate::colorimetry::spaces::{apply, OutputSpace};
+use crate::frame::Frame;
+use crate::io::preview::srgb_oetf;
+use ab_glyph::{FontRef, PxScale};
+use image::{Rgb, RgbImage};
+use imageproc::drawing::{
+    draw_filled_rect_mut, draw_hollow_circle_mut, draw_line_segment_mut, draw_text_mut,
+};
+use imageproc::rect::Rect;
+
+const FONT: &[u8] = include_bytes!("../../assets/DejaVuSans.ttf");
+
+/// Long side of the picture (the frame is scaled down to it).
+pub const MAX_SIDE: usize = 1600;
+
+/// One patch of the swatch panel.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Swatch {
+    pub label: String,
+    pub reference_xyz: [f64; 3],
+    pub corrected_xyz: [f64; 3],
+    pub delta_e: f64,
+}
+
+fn font() -> FontRef<'static> {
+    FontRef::try_from_slice(FONT).expect("the embedded font parses (tested)")
+}
+
+fn srgb8(v: f64) -> u8 {
+    (srgb_oetf(v.clamp(0.0, 1.0)) * 255.0).round() as u8
+}
+
+/// Draws the overlay. `swatches`: (patches, reference white) after a fit.
+pub fn render(
+    frame: &Frame,
+    reading: Option<&Extraction>,
+    candidates: &[Candidate],
+    swatches: Option<(&[Swatch], [f64; 3])>,
+) -> RgbImage {
+    let s = frame.width.max(frame.height).div_ceil(MAX_SIDE).max(1);
+    let (w, h) = ((frame.width / s).max(1), (frame.height / s).max(1));
+    let ch = frame.layout.channels();
+    // White balance and exposure from the reading, else from the frame's 99th percentile.
+    let (gain, level) = match reading {
+        Some(ex) => {
+            let usable: Vec<_> = ex.patches.iter().filter(|p| p.usable()).collect();
+            let neutral: Vec<_> = usable
+                .iter()
+                .filter(|p| {
+                    let lab = crate::colorimetry::xyz_to_lab(p.xyz, [96.42, 100.0, 82.51]);
+                    lab[1].hypot(lab[2]) < 4.0
+                })
+                .collect();
+            let mut sum = [0.0; 3];
+            for p in &neutral {
+                for k in 0..3 {
+                    sum[k] += p.rgb[k];
+                }
+            }
+            let gain = if neutral.is_empty() || sum.iter().any(|&v| v <= 0.0) {
+                [1.0; 3]
+            } else {
+                [sum[1] / sum[0], 1.0, sum[1] / sum[2]]
+            };
+            let top = usable
+                .iter()
+                .map(|p| (0..3).map(|k| p.rgb[k] * gain[k]).fold(0.0, f64::max))
+                .fold(0.0, f64::max);
+            (gain, top)
+        }
+        None => {
+            let mut g: Vec<f32> = frame
+                .data
+                .chunks_exact(ch)
+                .step_by(7)
+                .map(|p| p[1])
+                .filter(|v| v.is_finite())
+                .collect();
+            g.sort_by(f32::total_cmp);
+            let p = g.get(g.len() * 99 / 100).copied().unwrap_or(1.0) as f64;
+            ([1.0; 3], p)
+        }
+    };
+    let k = if level > 0.0 { 0.9 / level } else { 1.0 };
+    let mut img = RgbImage::new(w as u32, h as u32);
+    for y in 0..h {
+        for x in 0..w {
+            let mut acc = [0.0f64; 3];
+            for yy in y * s..(y + 1) * s {
+                for xx in x * s..(x + 1) * s {
+                    let p = &frame.data[(yy * frame.width + xx) * ch..][..3];
+                    for c in 0..3 {
+                        acc[c] += p[c] as f64;
+                    }
+                }
+            }
+            let n = (s * s) as f64;
+            let px = [0, 1, 2].map(|c| srgb8(acc[c] / n * gain[c] * k));
+            img.put_pixel(x as u32, y as u32, Rgb(px));
+        }
+    }
+    let font = font();
+    let sc = 1.0 / s as f32;
+    for c in candidates {
+        let colour = if c.accepted {
+            Rgb([0, 230, 230])
+        } else {
+            Rgb([255, 220, 0])
+        };
+        draw_hollow_circle_mut(
+            &mut img,
+            (
+                (c.centre[0] as f32 * sc) as i32,
+                (c.centre[1] as f32 * sc) as i32,
+            ),
+            ((c.radius as f32 * sc) as i32).max(2),
+            colour,
+        );
+    }
+    if let Some(ex) = reading {
+        let text_px = (0.18
+            * ((ex.patches[0].outline[1][0] - ex.patches[0].outline[0][0])
+                .hypot(ex.patches[0].outline[1][1] - ex.patches[0].outline[0][1]))
+                as f32
+            * sc)
+            .clamp(9.0, 22.0);
+        for p in &ex.patches {
+            let colour = if p.usable() {
+                Rgb([0, 255, 0])
+            } else {
+                Rgb([255, 0, 0])
+            };
+            for q in 0..4 {
+                let (a, b) = (p.outline[q], p.outline[(q + 1) % 4]);
+                draw_line_segment_mut(
+                    &mut img,
+                    (a[0] as f32 * sc, a[1] as f32 * sc),
+                    (b[0] as f32 * sc, b[1] as f32 * sc),
+                    colour,
+                );
+            }
+            let short = p.label.split(' ').next().unwrap_or(&p.label).to_string();
+            let text = if p.usable() {
+                short
+            } else {
+                let f: Vec<&str> = p.flags.iter().map(|f| f.name()).collect();
+                format!("{short} {}", f.join(","))
+            };
+            draw_text_mut(
+                &mut img,
+                colour,
+                (p.centre[0] as f32 * sc) as i32 - (text_px as i32),
+                (p.centre[1] as f32 * sc) as i32 - (text_px as i32) / 2,
+                PxScale::from(text_px),
+                &font,
+                &text,
+            );
+        }
+    }
+    match swatches {
+        Some((sw, white)) if !sw.is_empty() => append_swatches(img, sw, white, &font),
+        _ => img,
+    }
+}
+
+/// The panel of swatches below the picture.
+fn append_swatches(img: RgbImage, sw: &[Swatch], white: [f64; 3], font: &FontRef) -> RgbImage {
+    let m = OutputSpace::LinearSrgb.from_xyz(white);
+    let to8 = |xyz: [f64; 3]| {
+        let rgb = apply(&m, xyz.map(|v| v / white[1]));
+        Rgb(rgb.map(srgb8))
+    };
+    let cell = 64u32;
+    let cols = (img.width() / cell).clamp(6, 24);
+    let rows = (sw.len() as u32).div_ceil(cols);
+    let panel_w = img.width().max(cols * cell);
+    let mut out = RgbImage::from_pixel(panel_w, img.height() + rows * cell + 24, Rgb([40, 40, 40]));
+    image::imageops::overlay(&mut out, &img, 0, 0);
+    let y0 = img.height() as i32 + 4;
+    draw_text_mut(
+        &mut out,
+        Rgb([230, 230, 230]),
+        4,
+        y0,
+        PxScale::from(14.0),
+        font,
+        "top: reference   bottom: corrected   (ΔE00)",
+    );
+    for (i, s) in sw.iter().enumerate() {
+        let (cx, cy) = ((i as u32 % cols) * cell, (i as u32 / cols) * cell);
+        let (x, y) = (cx as i32, y0 + 20 + cy as i32);
+        draw_filled_rect_mut(
+            &mut out,
+            Rect::at(x + 2, y + 2).of_size(cell - 4, cell / 2 - 2),
+            to8(s.reference_xyz),
+        );
+        draw_filled_rect_mut(
+            &mut out,
+            Rect::at(x + 2, y + cell as i32 / 2).of_size(cell - 4, cell / 2 - 4),
+            to8(s.corrected_xyz),
+        );
+        let short = s.label.split(' ').next().unwrap_or(&s.label);
+        let txt = format!("{short} {:.1}", s.delta_e);
+        let lum = s.reference_xyz[1] / white[1];
+        let colour = if lum > 0.4 {
+            Rgb([0, 0, 0])
+        } else {
+            Rgb([255, 255, 255])
+        };
+        draw_text_mut(
+            &mut out,
+            colour,
+            x + 4,
+            y + 4,
+            PxScale::from(12.0),
+            font,
+            &txt,
+        );
+    }
+    out
+}
+
+/// PNG bytes of an overlay.
+pub fn encode(img: &RgbImage) -> Result<Vec<u8>, crate::io::IoError> {
+    use image::codecs::png::PngEncoder;
+    use image::{ExtendedColorType, ImageEncoder};
+    let mut png = Vec::new();
+    PngEncoder::new(&mut png)
+        .write_image(
+            img.as_raw(),
+            img.width(),
+            img.height(),
+            ExtendedColorType::Rgb8,
+        )
+        .map_err(|e| crate::io::IoError::Invalid(format!("encoding the overlay PNG: {e}")))?;
+    Ok(png)
+}

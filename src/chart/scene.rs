@@ -1,0 +1,657 @@
+//! Synthetic captures of a chart: the chart (camera RGB simulated from its spectra) placed by a
+//! projective transform on a cluttered background, lit unevenly (vignetting and a linear light
+//! gradient), optionally partly occluded, blurred, with seeded sensor noise and clipping. The
+//! noise-free patch values and the pose are kept as ground truth ([`SceneTruth`]).
+
+use super::{ChartError, ChartKind, Homography};
+use crate::frame::{Frame, Layout};
+use crate::io::chart::Gaussian;
+use crate::spectral::{parse_csv, simulate, Camera, Grid, Illuminant, Reflectances};
+use rayon::prelude::*;
+use serde::{Deserialize, Serialize};
+use std::path::{Path, PathBuf};
+
+/// The `format` field of a scene truth file.
+pub const FORMAT: &str = "nsrm-scene";
+
+/// Camera RGB of a chart's patches and of its surroundings, perfect white `G = 1`.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ChartColours {
+    pub chart: ChartKind,
+    /// Camera RGB per cell (index `r * columns + c`).
+    pub rgb: Vec<[f64; 3]>,
+    /// Simulated XYZ per cell (perfect white Y = 100 under the illuminant).
+    pub xyz: Vec<[f64; 3]>,
+    /// Camera RGB of the perfect white.
+    pub white_rgb: [f64; 3],
+    pub camera: String,
+    pub illuminant: String,
+    pub reflectances: String,
+}
+
+impl ChartColours {
+    /// Simulates the chart: CC24 from the built-in BabelColor spectra (`reflectances` = `None`
+    /// or `cc24`), SG from a spectra file whose columns are the labels `A1` … `N10`.
+    pub fn simulate(
+        chart: ChartKind,
+        camera: &str,
+        illuminant: &str,
+        reflectances: Option<&str>,
+    ) -> Result<ChartColours, ChartError> {
+        let err = |e: crate::spectral::SpectralError| ChartError::Invalid(e.to_string());
+        let refl_name = match (chart, reflectances) {
+            (_, Some(r)) => r.to_string(),
+            (ChartKind::Cc24, None) => "cc24".to_string(),
+            (ChartKind::Sg, None) => {
+                return Err(ChartError::Invalid(
+                    "an SG scene needs its spectra: --reflectances FILE (e.g. ../shared/data/colorchecker_sg_140.csv)".into(),
+                ))
+            }
+        };
+        let cam = Camera::from_name_or_path(camera).map_err(err)?;
+        let ill = Illuminant::from_name_or_path(illuminant).map_err(err)?;
+        let refl = Reflectances::from_name_or_path(&refl_name).map_err(err)?;
+        let grid = Grid::default();
+        let data = simulate(&cam, &ill, &refl, &grid).map_err(err)?;
+        let mut rgb = vec![None; chart.cells()];
+        let mut xyz = vec![[0.0; 3]; chart.cells()];
+        let by_index = chart == ChartKind::Cc24 && data.len() == 24;
+        for (j, label) in data.labels.iter().enumerate() {
+            let i = if by_index {
+                Some(j)
+            } else {
+                chart.index_of(label)
+            };
+            if let Some(i) = i {
+                rgb[i] = Some(data.rgb[j]);
+                xyz[i] = data.xyz[j];
+            }
+        }
+        if rgb.iter().any(Option::is_none) {
+            return Err(ChartError::Invalid(format!(
+                "reflectances {refl_name}: their columns do not name every patch of a {} chart",
+                chart.name()
+            )));
+        }
+        let ones =
+            parse_csv("wavelength_nm,white\n300,1\n900,1\n", "perfect white").map_err(err)?;
+        let white = simulate(&cam, &ill, &Reflectances(ones), &grid).map_err(err)?;
+        Ok(ChartColours {
+            chart,
+            rgb: rgb.into_iter().map(|v| v.expect("checked")).collect(),
+            xyz,
+            white_rgb: white.rgb[0],
+            camera: cam.0.source_name.clone(),
+            illuminant: ill.0.source_name.clone(),
+            reflectances: refl.0.source_name.clone(),
+        })
+    }
+}
+
+/// How a scene is rendered.
+#[derive(Debug, Clone, PartialEq)]
+pub struct SceneOptions {
+    pub width: usize,
+    pub height: usize,
+    /// The patch-grid corners in the frame (as `--corners`); `None`: a seeded random pose.
+    pub corners: Option<[[f64; 2]; 4]>,
+    pub seed: u64,
+    /// Multiplies camera RGB (the perfect white, evenly lit, has `G = exposure`).
+    pub exposure: f64,
+    /// Values are clipped here.
+    pub white_level: f64,
+    /// Standard deviation of additive noise.
+    pub noise: f64,
+    /// Shot noise: variance added per unit of signal.
+    pub shot_noise: f64,
+    /// Gaussian blur σ in pixels (0: none).
+    pub blur: f64,
+    /// Light fall-off at the frame corners (0: none, 0.4: corners at 60 %).
+    pub vignetting: f64,
+    /// A linear light gradient across the frame (0.3: ±15 % around the middle).
+    pub gradient: f64,
+    /// Number of random shapes in the background.
+    pub clutter: usize,
+    /// An opaque object over a corner of the chart.
+    pub occlusion: bool,
+    /// Random pose: chart body area as a fraction of the frame, and the largest tilt.
+    pub min_area: f64,
+    pub max_area: f64,
+    pub max_tilt_deg: f64,
+    /// Reflectance of the chart body (neutral).
+    pub body_reflectance: f64,
+}
+
+impl Default for SceneOptions {
+    fn default() -> Self {
+        SceneOptions {
+            width: 1200,
+            height: 800,
+            corners: None,
+            seed: 1,
+            exposure: 1.0,
+            white_level: 1.0,
+            noise: 0.001,
+            shot_noise: 0.0,
+            blur: 0.0,
+            vignetting: 0.0,
+            gradient: 0.0,
+            clutter: 20,
+            occlusion: false,
+            min_area: 0.1,
+            max_area: 0.4,
+            max_tilt_deg: 30.0,
+            body_reflectance: 0.035,
+        }
+    }
+}
+
+impl SceneOptions {
+    /// A seeded scene inside the detection envelope: any rotation, tilt up to 30°, the chart
+    /// covering 5–40 % of the frame, exposure from just clipping the brightest patch down to
+    /// 1/16 of that, vignetting up to 40 %, a light gradient up to 30 %, blur σ up to 1.2 px,
+    /// noise (σ = 0.002 plus shot noise), 25 background shapes.
+    pub fn envelope(colours: &ChartColours, width: usize, height: usize, seed: u64) -> Self {
+        let mut g = Gaussian::new(seed ^ 0x05ee_d0f5_ce4e);
+        let brightest = colours.rgb.iter().flatten().copied().fold(0.0, f64::max);
+        let exposure = 1.0 / brightest * 2f64.powf(-4.0 * g.uniform());
+        SceneOptions {
+            width,
+            height,
+            corners: None,
+            seed,
+            exposure,
+            white_level: 1.0,
+            noise: 0.002,
+            shot_noise: 2e-5,
+            blur: 1.2 * g.uniform(),
+            vignetting: 0.4 * g.uniform(),
+            gradient: 0.3 * g.uniform(),
+            clutter: 25,
+            occlusion: false,
+            min_area: 0.05,
+            max_area: 0.4,
+            max_tilt_deg: 30.0,
+            body_reflectance: 0.035,
+        }
+    }
+
+    fn check(&self) -> Result<(), ChartError> {
+        let bad = |w: &str| Err(ChartError::Invalid(w.to_string()));
+        if self.width < 16 || self.height < 16 || self.width.saturating_mul(self.height) > 1 << 27 {
+            return bad("the frame must be 16×16 to 134 Mpixels");
+        }
+        let pos = |v: f64| v.is_finite() && v > 0.0;
+        let nonneg = |v: f64| v.is_finite() && v >= 0.0;
+        if !(pos(self.exposure) && pos(self.white_level)) {
+            return bad("exposure and white level must be positive");
+        }
+        if !(nonneg(self.noise)
+            && nonneg(self.shot_noise)
+            && nonneg(self.blur)
+            && self.blur <= 20.0)
+        {
+            return bad("noise, shot noise and blur (≤ 20 px) must be zero or positive");
+        }
+        if !(nonneg(self.vignetting)
+            && self.vignetting < 1.0
+            && nonneg(self.gradient)
+            && self.gradient < 1.0)
+        {
+            return bad("vignetting and gradient must be in [0, 1)");
+        }
+        if !(self.min_area > 0.0 && self.min_area <= self.max_area && self.max_area <= 0.9) {
+            return bad("chart area fractions must satisfy 0 < min ≤ max ≤ 0.9");
+        }
+        if !(nonneg(self.max_tilt_deg) && self.max_tilt_deg <= 60.0) {
+            return bad("the tilt must be 0..60°");
+        }
+        if self.clutter > 10_000 {
+            return bad("at most 10000 clutter shapes");
+        }
+        Ok(())
+    }
+}
+
+/// One patch of a scene, as it truly is.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct TruePatch {
+    pub label: String,
+    /// Noise-free camera RGB × exposure (the light normalised to 1 on average over the patches).
+    pub rgb: [f64; 3],
+    /// `rgb` × the light at the patch (before clipping): what an uncompensated reading sees.
+    pub rgb_lit: [f64; 3],
+    /// Simulated XYZ (perfect white Y = 100 under the illuminant).
+    pub xyz: [f64; 3],
+    /// Centre of the patch in the frame (pixels).
+    pub centre: [f64; 2],
+    /// The patch is partly hidden by the occluder.
+    pub occluded: bool,
+    /// Some channel of `rgb_lit` reaches the white level.
+    pub clipped: bool,
+}
+
+/// Ground truth of a rendered scene.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct SceneTruth {
+    pub format: String,
+    pub version: u32,
+    pub chart: ChartKind,
+    pub width: usize,
+    pub height: usize,
+    pub seed: u64,
+    /// Chart coordinates → frame pixels.
+    pub homography: Homography,
+    /// The patch-grid corners in the frame (what `--corners` takes).
+    pub corners: [[f64; 2]; 4],
+    pub body_corners: [[f64; 2]; 4],
+    pub area_fraction: f64,
+    pub rotation_deg: f64,
+    pub tilt_deg: f64,
+    pub exposure: f64,
+    pub white_level: f64,
+    pub noise: f64,
+    pub shot_noise: f64,
+    pub blur: f64,
+    pub vignetting: f64,
+    pub gradient: f64,
+    /// max/min of the light over the patch centres.
+    pub light_nonuniformity: f64,
+    pub camera: String,
+    pub illuminant: String,
+    pub reflectances: String,
+    pub patches: Vec<TruePatch>,
+}
+
+/// The truth file written beside a scene frame: `NAME.scene.json` for `NAME.exr`.
+pub fn truth_path(frame: &Path) -> PathBuf {
+    frame.with_extension("scene.json")
+}
+
+fn quad_area(q: &[[f64; 2]; 4]) -> f64 {
+    let mut a = 0.0;
+    for k in 0..4 {
+        let (p, n) = (q[k], q[(k + 1) % 4]);
+        a += p[0] * n[1] - n[0] * p[1];
+    }
+    (a / 2.0).abs()
+}
+
+/// A random pose: (homography chart → frame, rotation°, tilt°).
+fn random_pose(
+    kind: ChartKind,
+    opts: &SceneOptions,
+    g: &mut Gaussian,
+) -> Result<(Homography, f64, f64), ChartError> {
+    let (w, h) = (opts.width as f64, opts.height as f64);
+    let body = kind.body_corners();
+    let (cc, rr) = (kind.columns() as f64 / 2.0, kind.rows() as f64 / 2.0);
+    let theta = std::f64::consts::TAU * g.uniform();
+    let tilt = opts.max_tilt_deg.to_radians() * g.uniform();
+    let phi = std::f64::consts::TAU * g.uniform();
+    let area = opts.min_area + (opts.max_area - opts.min_area) * g.uniform();
+    let diag = (2.0 * (cc + kind.margin())).hypot(2.0 * (rr + kind.margin()));
+    let dist = 1.6 * diag;
+    // Rotation by `tilt` about the in-plane axis (cos φ, sin φ, 0), then by θ about the view axis.
+    let (ax, ay) = (phi.cos(), phi.sin());
+    let (ct, st) = (tilt.cos(), tilt.sin());
+    let rot_tilt = [
+        [ct + ax * ax * (1.0 - ct), ax * ay * (1.0 - ct), ay * st],
+        [ax * ay * (1.0 - ct), ct + ay * ay * (1.0 - ct), -ax * st],
+        [-ay * st, ax * st, ct],
+    ];
+    let project = |p: [f64; 2]| -> [f64; 2] {
+        let v = [p[0] - cc, p[1] - rr, 0.0];
+        let t: Vec<f64> = (0..3)
+            .map(|i| (0..3).map(|j| rot_tilt[i][j] * v[j]).sum())
+            .collect();
+        let (x, y) = (
+            theta.cos() * t[0] - theta.sin() * t[1],
+            theta.sin() * t[0] + theta.cos() * t[1],
+        );
+        let z = dist + t[2];
+        [dist * x / z, dist * y / z]
+    };
+    let mut q = body.map(project);
+    let s0 = (area * w * h / quad_area(&q)).sqrt();
+    let (mut x0, mut y0, mut x1, mut y1) = (f64::MAX, f64::MAX, f64::MIN, f64::MIN);
+    for p in &q {
+        x0 = x0.min(p[0]);
+        y0 = y0.min(p[1]);
+        x1 = x1.max(p[0]);
+        y1 = y1.max(p[1]);
+    }
+    let margin = 0.02 * w.min(h);
+    let fit = ((w - 2.0 * margin) / (x1 - x0)).min((h - 2.0 * margin) / (y1 - y0));
+    let s = s0.min(fit);
+    let (bw, bh) = ((x1 - x0) * s, (y1 - y0) * s);
+    let tx = margin + (w - 2.0 * margin - bw) * g.uniform() - x0 * s;
+    let ty = margin + (h - 2.0 * margin - bh) * g.uniform() - y0 * s;
+    for p in q.iter_mut() {
+        *p = [p[0] * s + tx, p[1] * s + ty];
+    }
+    let hom = Homography::from_points(&body, &q)?;
+    Ok((hom, theta.to_degrees(), tilt.to_degrees()))
+}
+
+enum Shape {
+    Rect {
+        c: [f64; 2],
+        half: [f64; 2],
+        cos: f64,
+        sin: f64,
+    },
+    Ellipse {
+        c: [f64; 2],
+        half: [f64; 2],
+        cos: f64,
+        sin: f64,
+    },
+}
+
+impl Shape {
+    fn contains(&self, p: [f64; 2]) -> bool {
+        let (c, half, cos, sin) = match self {
+            Shape::Rect { c, half, cos, sin } | Shape::Ellipse { c, half, cos, sin } => {
+                (c, half, cos, sin)
+            }
+        };
+        let (dx, dy) = (p[0] - c[0], p[1] - c[1]);
+        let (u, v) = (cos * dx + sin * dy, -sin * dx + cos * dy);
+        match self {
+            Shape::Rect { .. } => u.abs() <= half[0] && v.abs() <= half[1],
+            Shape::Ellipse { .. } => (u / half[0]).powi(2) + (v / half[1]).powi(2) <= 1.0,
+        }
+    }
+}
+
+/// Renders a scene: the frame, a flat frame (a grey card of reflectance 0.5 under the same
+/// light, same noise) and the truth.
+pub fn render(
+    colours: &ChartColours,
+    opts: &SceneOptions,
+) -> Result<(Frame, Frame, SceneTruth), ChartError> {
+    opts.check()?;
+    let kind = colours.chart;
+    let mut g = Gaussian::new(opts.seed);
+    let (w, h) = (opts.width, opts.height);
+    let (hom, rotation, tilt) = match opts.corners {
+        Some(c) => (Homography::from_points(&kind.grid_corners(), &c)?, 0.0, 0.0),
+        None => random_pose(kind, opts, &mut g)?,
+    };
+    let hinv = hom
+        .inverse()
+        .ok_or_else(|| ChartError::Geometry("the pose is singular".into()))?;
+    let white = colours.white_rgb;
+    // Background: a smooth two-colour gradient and random shapes of random colours.
+    let rand_rgb = |g: &mut Gaussian| {
+        let base = 0.03 + 0.8 * g.uniform();
+        let tint = [
+            0.6 + 0.8 * g.uniform(),
+            0.6 + 0.8 * g.uniform(),
+            0.6 + 0.8 * g.uniform(),
+        ];
+        [0, 1, 2].map(|k| (white[k] * base * tint[k]).min(0.95 * white[k]))
+    };
+    let bg0 = rand_rgb(&mut g);
+    let bg1 = rand_rgb(&mut g);
+    let mut shapes = Vec::with_capacity(opts.clutter);
+    let short = w.min(h) as f64;
+    for _ in 0..opts.clutter {
+        let c = [g.uniform() * w as f64, g.uniform() * h as f64];
+        let half = [
+            short * (0.01 + 0.12 * g.uniform()),
+            short * (0.01 + 0.12 * g.uniform()),
+        ];
+        let a = std::f64::consts::PI * g.uniform();
+        let shape = if g.uniform() < 0.5 {
+            Shape::Rect {
+                c,
+                half,
+                cos: a.cos(),
+                sin: a.sin(),
+            }
+        } else {
+            Shape::Ellipse {
+                c,
+                half,
+                cos: a.cos(),
+                sin: a.sin(),
+            }
+        };
+        shapes.push((shape, rand_rgb(&mut g)));
+    }
+    // Occluder: an ellipse of skin-like colour over a random corner of the patch grid.
+    let occluder = if opts.occlusion {
+        let corner = kind.grid_corners()[(g.uniform() * 4.0) as usize % 4];
+        let c = hom.apply(corner);
+        let pitch_px = {
+            let a = hom.apply([corner[0], corner[1]]);
+            let b = hom.apply([corner[0] + 1.0, corner[1]]);
+            (a[0] - b[0]).hypot(a[1] - b[1])
+        };
+        let ang = std::f64::consts::PI * g.uniform();
+        Some((
+            Shape::Ellipse {
+                c,
+                half: [0.9 * pitch_px, 0.45 * pitch_px],
+                cos: ang.cos(),
+                sin: ang.sin(),
+            },
+            colours.rgb[1].map(|v| v * 0.8),
+        ))
+    } else {
+        None
+    };
+    let body_rgb = white.map(|v| v * opts.body_reflectance);
+    let gpos = 0.5 * (1.0 - kind.patch_fraction());
+    let (cols, rows) = (kind.columns() as f64, kind.rows() as f64);
+    let m = kind.margin();
+    let light_dir = std::f64::consts::TAU * g.uniform();
+    let light_raw = |x: f64, y: f64| -> f64 {
+        let (nx, ny) = (x / w as f64 - 0.5, y / h as f64 - 0.5);
+        let r2 = (nx * nx + ny * ny) / 0.5;
+        (1.0 - opts.vignetting * r2)
+            * (1.0 + opts.gradient * (nx * light_dir.cos() + ny * light_dir.sin()))
+    };
+    let centres: Vec<[f64; 2]> = (0..kind.cells())
+        .map(|i| hom.apply(kind.cell_centre(i)))
+        .collect();
+    let light_mean =
+        centres.iter().map(|c| light_raw(c[0], c[1])).sum::<f64>() / centres.len() as f64;
+    if !(light_mean > 0.0) {
+        return Err(ChartError::Invalid(
+            "the light is not positive on the chart".into(),
+        ));
+    }
+    let light = |x: f64, y: f64| light_raw(x, y) / light_mean;
+    let body_q = kind.body_corners().map(|c| hom.apply(c));
+    let in_front = kind.body_corners().iter().all(|c| hom.w(*c) > 0.0);
+    let (bx0, by0, bx1, by1) = body_q.iter().fold(
+        (f64::MAX, f64::MAX, f64::MIN, f64::MIN),
+        |(a, b, c, d), p| (a.min(p[0]), b.min(p[1]), c.max(p[0]), d.max(p[1])),
+    );
+    // Reflected colour (camera RGB, unlit) at a point.
+    let scene_at = |p: [f64; 2], bg: [f64; 3]| -> [f64; 3] {
+        if let Some((o, rgb)) = &occluder {
+            if o.contains(p) {
+                return *rgb;
+            }
+        }
+        if !in_front || p[0] < bx0 || p[0] > bx1 || p[1] < by0 || p[1] > by1 {
+            return bg;
+        }
+        let q = hinv.apply(p);
+        if q[0] < -m || q[1] < -m || q[0] > cols + m || q[1] > rows + m {
+            return bg;
+        }
+        if q[0] >= 0.0 && q[1] >= 0.0 && q[0] < cols && q[1] < rows {
+            let (c, r) = (q[0].floor(), q[1].floor());
+            let (fu, fv) = (q[0] - c, q[1] - r);
+            if fu >= gpos && fu <= 1.0 - gpos && fv >= gpos && fv <= 1.0 - gpos {
+                return colours.rgb[r as usize * kind.columns() + c as usize];
+            }
+        }
+        body_rgb
+    };
+    let mut data = vec![0.0f32; w * h * 3];
+    data.par_chunks_mut(w * 3).enumerate().for_each(|(y, row)| {
+        for x in 0..w {
+            let (px, py) = (x as f64 + 0.5, y as f64 + 0.5);
+            let t = px / w as f64 * 0.7 + py / h as f64 * 0.3;
+            let mut bg = [0, 1, 2].map(|k| bg0[k] * (1.0 - t) + bg1[k] * t);
+            for (s, rgb) in shapes.iter().rev() {
+                if s.contains([px, py]) {
+                    bg = *rgb;
+                    break;
+                }
+            }
+            // Supersample near the chart (4×4), once elsewhere.
+            let near = px >= bx0 - 1.0 && px <= bx1 + 1.0 && py >= by0 - 1.0 && py <= by1 + 1.0;
+            let near = near || occluder.is_some();
+            let v = if near {
+                let mut acc = [0.0; 3];
+                for sy in 0..4 {
+                    for sx in 0..4 {
+                        let p = [
+                            x as f64 + (sx as f64 + 0.5) / 4.0,
+                            y as f64 + (sy as f64 + 0.5) / 4.0,
+                        ];
+                        let c = scene_at(p, bg);
+                        for k in 0..3 {
+                            acc[k] += c[k] / 16.0;
+                        }
+                    }
+                }
+                acc
+            } else {
+                bg
+            };
+            let l = light(px, py) * opts.exposure;
+            for k in 0..3 {
+                row[x * 3 + k] = (v[k] * l) as f32;
+            }
+        }
+    });
+    let mut frame = Frame::from_data(w, h, Layout::Rgb, data).expect("sized");
+    let mut flat = Frame::new(w, h, Layout::Rgb);
+    flat.data
+        .par_chunks_mut(w * 3)
+        .enumerate()
+        .for_each(|(y, row)| {
+            for x in 0..w {
+                let l = light(x as f64 + 0.5, y as f64 + 0.5) * opts.exposure * 0.5;
+                for k in 0..3 {
+                    row[x * 3 + k] = (white[k] * l) as f32;
+                }
+            }
+        });
+    if opts.blur > 0.0 {
+        blur(&mut frame, opts.blur);
+    }
+    for (f, salt) in [(&mut frame, 0u64), (&mut flat, 0x9e37_79b9)] {
+        let seed = opts.seed.wrapping_mul(0x2545_f491_4f6c_dd1d) ^ salt;
+        f.data
+            .par_chunks_mut(w * 3)
+            .enumerate()
+            .for_each(|(y, row)| {
+                let mut n = Gaussian::new(seed ^ (y as u64).wrapping_mul(0x9e37_79b9_7f4a_7c15));
+                for v in row.iter_mut() {
+                    let s = (*v as f64).max(0.0);
+                    let sd = (opts.noise * opts.noise + opts.shot_noise * s).sqrt();
+                    let nv = if sd > 0.0 { s + sd * n.next() } else { s };
+                    *v = nv.min(opts.white_level) as f32;
+                }
+            });
+    }
+    // Truth.
+    let side = kind.patch_fraction() * 0.5;
+    let patches = (0..kind.cells())
+        .map(|i| {
+            let (c, r) = kind.cell(i);
+            let cc = kind.cell_centre(i);
+            let centre = hom.apply(cc);
+            let rgb = colours.rgb[i].map(|v| v * opts.exposure);
+            let l = light(centre[0], centre[1]);
+            let rgb_lit = rgb.map(|v| v * l);
+            let occluded = occluder.as_ref().is_some_and(|(o, _)| {
+                (0..=4).any(|a| {
+                    (0..=4).any(|b| {
+                        let p = [
+                            cc[0] - side / 2.0 + side * a as f64 / 4.0,
+                            cc[1] - side / 2.0 + side * b as f64 / 4.0,
+                        ];
+                        o.contains(hom.apply(p))
+                    })
+                })
+            });
+            TruePatch {
+                label: kind.label(c, r),
+                rgb,
+                rgb_lit,
+                xyz: colours.xyz[i],
+                centre,
+                occluded,
+                clipped: rgb_lit.iter().any(|&v| v >= opts.white_level),
+            }
+        })
+        .collect::<Vec<_>>();
+    let lights: Vec<f64> = centres.iter().map(|c| light(c[0], c[1])).collect();
+    let lmax = lights.iter().copied().fold(f64::MIN, f64::max);
+    let lmin = lights.iter().copied().fold(f64::MAX, f64::min);
+    let truth = SceneTruth {
+        format: FORMAT.into(),
+        version: 1,
+        chart: kind,
+        width: w,
+        height: h,
+        seed: opts.seed,
+        homography: hom,
+        corners: kind.grid_corners().map(|c| hom.apply(c)),
+        body_corners: body_q,
+        area_fraction: quad_area(&body_q) / (w * h) as f64,
+        rotation_deg: rotation,
+        tilt_deg: tilt,
+        exposure: opts.exposure,
+        white_level: opts.white_level,
+        noise: opts.noise,
+        shot_noise: opts.shot_noise,
+        blur: opts.blur,
+        vignetting: opts.vignetting,
+        gradient: opts.gradient,
+        light_nonuniformity: lmax / lmin,
+        camera: colours.camera.clone(),
+        illuminant: colours.illuminant.clone(),
+        reflectances: colours.reflectances.clone(),
+        patches,
+    };
+    Ok((frame, flat, truth))
+}
+
+/// Gaussian blur of every channel (imageproc's separable filter).
+fn blur(frame: &mut Frame, sigma: f64) {
+    let (w, h) = (frame.width as u32, frame.height as u32);
+    let img: image::ImageBuffer<image::Rgb<f32>, Vec<f32>> =
+        image::ImageBuffer::from_raw(w, h, std::mem::take(&mut frame.data)).expect("sized");
+    let out = imageproc::filter::gaussian_blur_f32(&img, sigma as f32);
+    frame.data = out.into_raw();
+}
+
+impl SceneTruth {
+    /// Reads a truth file written beside a scene.
+    pub fn read(path: &Path) -> Result<SceneTruth, ChartError> {
+        let text = std::fs::read_to_string(path)
+            .map_err(|e| ChartError::Invalid(format!("{}: cannot read: {e}", path.display())))?;
+        let t: SceneTruth = serde_json::from_str(&text).map_err(|e| {
+            ChartError::Invalid(format!("{}: not a scene truth file: {e}", path.display()))
+        })?;
+        if t.format != FORMAT {
+            return Err(ChartError::Invalid(format!(
+                "{}: format `{}`, expected `{FORMAT}`",
+                path.display(),
+                t.format
+            )));
+        }
+        Ok(t)
+    }
+}

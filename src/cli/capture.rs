@@ -1,0 +1,319 @@
+//! Reading a photographed chart (shared by `chart extract`, `fit --capture`, `eval --capture`):
+//! the frame, its chart (by `--corners` or detection), the patch readings, flat-field
+//! compensation and the check against the reference.
+
+use super::common::UsageError;
+use anyhow::{anyhow, Context, Result};
+use nsrm::chart::detect::{detect, Candidate, DetectOptions, Detection};
+use nsrm::chart::extract::{extract, verify, ExtractOptions, Extraction};
+use nsrm::chart::flat::{self, Flat};
+use nsrm::chart::reference::{d50_white, Reference};
+use nsrm::chart::{homography_from_corners, overlay, parse_corners, ChartKind};
+use nsrm::training::{CaptureProvenance, TrainingSet};
+use nsrm::Frame;
+use sha2::{Digest, Sha256};
+use std::path::{Path, PathBuf};
+
+/// How the chart in a frame is read.
+#[derive(Debug, Clone, clap::Args)]
+pub struct CaptureOptions {
+    /// The chart photographed: cc24 (ColorChecker Classic) or sg (Digital ColorChecker SG).
+    #[arg(long, value_name = "cc24|sg")]
+    pub chart: Option<String>,
+    /// Reference values: cc24-after2014 (default for cc24), cc24-before2014, sg-after2014
+    /// (default for sg), sg-before2014, or a file: CSV `label` + `X,Y,Z` or `L,a,b`, or CGATS
+    /// (.cie/.txt: SAMPLE_ID + XYZ_X/Y/Z or LAB_L/A/B).
+    #[arg(long, value_name = "NAME|FILE")]
+    pub reference: Option<String>,
+    /// White of a reference file's values: `X,Y,Z` or D50 (needed for Lab; XYZ defaults to D50).
+    #[arg(long, value_name = "X,Y,Z|D50")]
+    pub reference_white: Option<String>,
+    /// The four outer corners of the patch grid in pixels, first patch's corner first, then
+    /// clockwise: "X,Y X,Y X,Y X,Y". Without it the chart is found automatically.
+    #[arg(long, value_name = "\"X,Y X,Y X,Y X,Y\"", allow_hyphen_values = true)]
+    pub corners: Option<String>,
+    /// EXR layer holding the camera RGB (as in `apply`).
+    #[arg(long, value_name = "NAME")]
+    pub layer: Option<String>,
+    /// Sensor clipping level (default: inferred from the frame).
+    #[arg(long, value_name = "V")]
+    pub white_level: Option<f64>,
+    /// Uneven-light compensation: a flat frame (grey card under the same light), or `neutrals`
+    /// (a smooth surface fitted to the chart's neutral patches).
+    #[arg(long, value_name = "FRAME|neutrals")]
+    pub flat: Option<String>,
+}
+
+/// A read chart.
+pub struct Capture {
+    pub frame: Frame,
+    pub frame_path: PathBuf,
+    pub sha256: String,
+    pub reference: Reference,
+    pub extraction: Extraction,
+    pub detection: Option<Detection>,
+    pub flat: Option<Flat>,
+    pub score: f64,
+}
+
+impl CaptureOptions {
+    /// The chart kind (usage error when missing or unknown).
+    pub fn kind(&self) -> Result<ChartKind> {
+        let c = self
+            .chart
+            .as_deref()
+            .ok_or_else(|| UsageError("--chart cc24|sg is required".into()))?;
+        Ok(ChartKind::parse(c).map_err(|e| UsageError(format!("--chart: {e}")))?)
+    }
+
+    /// True when any capture option is given.
+    pub fn any(&self) -> bool {
+        self.chart.is_some()
+            || self.reference.is_some()
+            || self.reference_white.is_some()
+            || self.corners.is_some()
+            || self.layer.is_some()
+            || self.white_level.is_some()
+            || self.flat.is_some()
+    }
+
+    /// Loads the reference (cheap; done before reading frames).
+    pub fn reference(&self) -> Result<Reference> {
+        let kind = self.kind()?;
+        let white = match self.reference_white.as_deref() {
+            None => None,
+            Some(s) if s.eq_ignore_ascii_case("d50") => Some(d50_white()),
+            Some(s) => Some(
+                nsrm::training::parse_white(s)
+                    .map_err(|e| UsageError(format!("--reference-white: {e}")))?,
+            ),
+        };
+        let spec = self
+            .reference
+            .clone()
+            .unwrap_or_else(|| kind.default_reference().to_string());
+        Reference::load(&spec, kind, white).context("--reference")
+    }
+
+    /// Reads the chart in `path`. On failure with `failure_overlay`, the frame and the rejected
+    /// detection candidates are drawn there.
+    pub fn read(&self, path: &Path, failure_overlay: Option<(&Path, bool)>) -> Result<Capture> {
+        let reference = self.reference()?;
+        let kind = reference.chart;
+        let corners = self
+            .corners
+            .as_deref()
+            .map(parse_corners)
+            .transpose()
+            .map_err(|e| UsageError(e.to_string()))?;
+        let opts = ExtractOptions {
+            white_level: self.white_level,
+            ..Default::default()
+        };
+        if let Some(w) = self.white_level {
+            if !(w.is_finite() && w > 0.0) {
+                return Err(UsageError(format!("--white-level {w} must be positive")).into());
+            }
+        }
+        let bytes = std::fs::read(path).with_context(|| format!("reading {}", path.display()))?;
+        let sha256 = hex(&Sha256::digest(&bytes));
+        drop(bytes);
+        let frame = nsrm::io::read_frame(
+            path,
+            &nsrm::io::ReadOptions {
+                layer: self.layer.clone(),
+            },
+        )?;
+        let (h, detection) = match corners {
+            Some(c) => (
+                homography_from_corners(kind, &c, frame.width, frame.height)
+                    .map_err(|e| UsageError(e.to_string()))?,
+                None,
+            ),
+            None => match detect(&frame, &reference, &DetectOptions::default()) {
+                Ok(d) => (d.homography, Some(d)),
+                Err(f) => {
+                    if let Some((p, overwrite)) = failure_overlay {
+                        write_overlay(&frame, None, &f.candidates, None, p, overwrite)?;
+                        eprintln!(
+                            "overlay with the {} rejected candidate regions written to {}",
+                            f.candidates.len(),
+                            p.display()
+                        );
+                    }
+                    return Err(anyhow!(f.error)).with_context(|| {
+                        format!("{}: looking for a {} chart", path.display(), kind.name())
+                    });
+                }
+            },
+        };
+        let mut ex = extract(&frame, &reference, &h, &opts)
+            .with_context(|| format!("{}: reading the patches", path.display()))?;
+        let flat = match self.flat.as_deref() {
+            None => None,
+            Some(s) if s.eq_ignore_ascii_case("neutrals") => {
+                Some(flat::from_neutrals(&ex, &reference)?)
+            }
+            Some(f) => {
+                let ff = nsrm::io::read_frame(Path::new(f), &Default::default())
+                    .with_context(|| format!("--flat {f}"))?;
+                Some(flat::from_flat_frame(
+                    &ff,
+                    (frame.width, frame.height),
+                    &ex,
+                    &opts,
+                )?)
+            }
+        };
+        if let Some(f) = &flat {
+            flat::apply(&mut ex, f);
+        }
+        let score = verify(&ex, &reference).with_context(|| format!("{}", path.display()))?;
+        let flagged = ex.flagged();
+        if !flagged.is_empty() {
+            eprintln!(
+                "warning: {} patch(es) excluded: {}",
+                flagged.len(),
+                flagged.join("; ")
+            );
+        }
+        Ok(Capture {
+            frame,
+            frame_path: path.to_path_buf(),
+            sha256,
+            reference,
+            extraction: ex,
+            detection,
+            flat,
+            score,
+        })
+    }
+}
+
+fn hex(b: &[u8]) -> String {
+    b.iter().map(|x| format!("{x:02x}")).collect()
+}
+
+impl Capture {
+    /// Camera G of the perfect white implied by the usable neutral patches.
+    pub fn white_g(&self) -> f64 {
+        let mut r: Vec<f64> = self
+            .extraction
+            .patches
+            .iter()
+            .filter(|p| p.usable() && p.xyz[1] > 1.0)
+            .filter(|p| {
+                let lab = nsrm::colorimetry::xyz_to_lab(p.xyz, self.reference.white);
+                lab[1].hypot(lab[2]) < 4.0
+            })
+            .map(|p| 100.0 * p.rgb[1] / p.xyz[1])
+            .collect();
+        r.sort_by(f64::total_cmp);
+        r.get(r.len() / 2).copied().unwrap_or(f64::NAN)
+    }
+
+    pub fn provenance(&self) -> CaptureProvenance {
+        CaptureProvenance {
+            frame: self
+                .frame_path
+                .file_name()
+                .map(|s| s.to_string_lossy().into_owned())
+                .unwrap_or_default(),
+            sha256: self.sha256.clone(),
+            chart: self.reference.chart.name().into(),
+            reference: self.reference.name.clone(),
+            located: if self.detection.is_some() { "detected" } else { "corners" }.into(),
+            excluded: self.extraction.flagged(),
+            exposure_normalisation:
+                "none: camera RGB as recorded (after flat-field division, factors of mean 1), so the model applies to this frame's raw values"
+                    .into(),
+            white_g: self.white_g(),
+            flat: self
+                .flat
+                .as_ref()
+                .map_or("none".to_string(), |f| f.method.clone()),
+            light_nonuniformity: self.flat.as_ref().map_or(1.0, |f| f.nonuniformity),
+            reference_match_de00: self.score,
+        }
+    }
+
+    /// The unflagged patches as training data, with the capture's provenance.
+    pub fn training_set(&self) -> TrainingSet {
+        let mut t = self.extraction.training_set(&self.reference);
+        t.provenance.capture = Some(self.provenance());
+        t
+    }
+
+    /// The full report (`--json`).
+    pub fn report(&self) -> serde_json::Value {
+        serde_json::json!({
+            "format": "nsrm-chart-reading",
+            "version": 1,
+            "frame": self.frame_path.display().to_string(),
+            "width": self.frame.width,
+            "height": self.frame.height,
+            "provenance": self.provenance(),
+            "reference_white": self.reference.white,
+            "homography": self.extraction.homography,
+            "corners": self.reference.chart.grid_corners().map(|c| self.extraction.homography.apply(c)),
+            "detection": self.detection.as_ref().map(|d| serde_json::json!({
+                "score_de00": d.score,
+                "runner_up_de00": d.runner_up,
+                "lattice_patches": d.lattice,
+                "mirrored": d.mirrored,
+                "downsample": d.downsample,
+                "candidates": d.candidates.len(),
+            })),
+            "white_level": self.extraction.white_level,
+            "white_level_inferred": self.extraction.white_level_inferred,
+            "patches": self.extraction.patches,
+        })
+    }
+}
+
+/// Writes an overlay PNG (atomically).
+pub fn write_overlay(
+    frame: &Frame,
+    reading: Option<&Extraction>,
+    candidates: &[Candidate],
+    swatches: Option<(&[overlay::Swatch], [f64; 3])>,
+    dest: &Path,
+    overwrite: bool,
+) -> Result<()> {
+    let img = overlay::render(frame, reading, candidates, swatches);
+    let png = overlay::encode(&img)?;
+    nsrm::atomic::write_atomic(dest, &png, overwrite)
+        .with_context(|| format!("writing the overlay {}", dest.display()))?;
+    Ok(())
+}
+
+/// `--capture FRAME` with its chart options, for `fit` and `eval`: the read capture, or `None`
+/// without `--capture` (then no chart option may be given).
+pub fn for_model(capture: Option<&Path>, o: &CaptureOptions) -> Result<Option<Capture>> {
+    match capture {
+        None if o.any() => Err(UsageError(
+            "--chart, --reference, --corners, --flat, … need --capture FRAME".into(),
+        )
+        .into()),
+        None => Ok(None),
+        Some(p) => Ok(Some(o.read(p, None)?)),
+    }
+}
+
+/// Swatches (reference vs the model's prediction) of the usable patches of a capture.
+pub fn swatches(cap: &Capture, model: &nsrm::Model) -> Vec<overlay::Swatch> {
+    cap.extraction
+        .patches
+        .iter()
+        .filter(|p| p.usable())
+        .map(|p| {
+            let c = model.apply_f64(p.rgb);
+            overlay::Swatch {
+                label: p.label.clone(),
+                reference_xyz: p.xyz,
+                corrected_xyz: c,
+                delta_e: nsrm::colorimetry::delta_e00_xyz(c, p.xyz, cap.reference.white),
+            }
+        })
+        .collect()
+}

@@ -1,0 +1,222 @@
+//! `nsrm chart`: read a photographed chart (`extract`), and measure detection over seeded
+//! synthetic scenes (`rate`).
+
+use super::capture::{write_overlay, CaptureOptions};
+use super::common::UsageError;
+use anyhow::{Context, Result};
+use nsrm::chart::detect::{detect, DetectOptions};
+use nsrm::chart::extract::{extract, ExtractOptions};
+use nsrm::chart::reference::Reference;
+use nsrm::chart::scene::{render, ChartColours, SceneOptions};
+use nsrm::chart::ChartKind;
+use std::path::PathBuf;
+use std::process::ExitCode;
+use std::time::Instant;
+
+#[derive(Debug, clap::Subcommand)]
+pub enum Command {
+    /// Read the patches of a chart in a linear frame and write them as `label,R,G,B,X,Y,Z`
+    /// (the format `--training` reads; flagged patches are left out with a warning).
+    Extract(ExtractArgs),
+    /// Detection rate (and time) over seeded synthetic scenes inside the detection envelope.
+    Rate(RateArgs),
+}
+
+#[derive(Debug, clap::Args)]
+pub struct ExtractArgs {
+    /// The frame: a linear camera-raw EXR or TIFF.
+    #[arg(value_name = "FRAME")]
+    frame: PathBuf,
+    #[command(flatten)]
+    capture: CaptureOptions,
+    /// The patches CSV to write.
+    #[arg(short, long, value_name = "FILE")]
+    output: PathBuf,
+    /// Also write the full report (every patch with std, count, flags; pose; detection) as JSON.
+    #[arg(long, value_name = "FILE")]
+    json: Option<PathBuf>,
+    /// Draw the sampled areas (or, when no chart is found, the rejected candidates) on an sRGB
+    /// preview of the frame.
+    #[arg(long, value_name = "FILE.png")]
+    overlay: Option<PathBuf>,
+    /// Replace existing output files.
+    #[arg(long)]
+    overwrite: bool,
+}
+
+#[derive(Debug, clap::Args)]
+pub struct RateArgs {
+    /// cc24 or sg.
+    #[arg(long, value_name = "cc24|sg")]
+    chart: String,
+    /// Spectra of the chart (SG: e.g. ../shared/data/colorchecker_sg_140.csv).
+    #[arg(long, value_name = "FILE")]
+    reflectances: Option<String>,
+    #[arg(long, default_value = "nikon-d5100", value_name = "NAME|FILE")]
+    camera: String,
+    #[arg(long, default_value = "D65", value_name = "NAME|FILE")]
+    illuminant: String,
+    /// Number of scenes.
+    #[arg(long, default_value_t = 200)]
+    scenes: u64,
+    /// First seed.
+    #[arg(long, default_value_t = 1)]
+    seed: u64,
+    #[arg(long, default_value_t = 1200)]
+    width: usize,
+    #[arg(long, default_value_t = 800)]
+    height: usize,
+    /// Print each failure.
+    #[arg(long)]
+    verbose: bool,
+}
+
+pub fn run(c: Command) -> Result<ExitCode> {
+    match c {
+        Command::Extract(a) => run_extract(a),
+        Command::Rate(a) => run_rate(a),
+    }
+}
+
+fn run_extract(a: ExtractArgs) -> Result<ExitCode> {
+    a.capture.kind()?;
+    for p in std::iter::once(&a.output).chain(&a.json).chain(&a.overlay) {
+        nsrm::atomic::check_clobber(p, a.overwrite)?;
+    }
+    if let Some(o) = &a.overlay {
+        if !o.extension().is_some_and(|e| e.eq_ignore_ascii_case("png")) {
+            return Err(UsageError(format!("--overlay {}: must be a .png", o.display())).into());
+        }
+    }
+    let cap = a
+        .capture
+        .read(&a.frame, a.overlay.as_deref().map(|p| (p, a.overwrite)))?;
+    // Everything is computed; now write.
+    nsrm::atomic::write_atomic(&a.output, cap.extraction.to_csv().as_bytes(), a.overwrite)
+        .with_context(|| format!("writing {}", a.output.display()))?;
+    if let Some(j) = &a.json {
+        let text = serde_json::to_string_pretty(&cap.report())?;
+        nsrm::atomic::write_atomic(j, text.as_bytes(), a.overwrite)
+            .with_context(|| format!("writing {}", j.display()))?;
+    }
+    if let Some(o) = &a.overlay {
+        write_overlay(&cap.frame, Some(&cap.extraction), &[], None, o, a.overwrite)?;
+    }
+    let used = cap.extraction.patches.iter().filter(|p| p.usable()).count();
+    eprintln!(
+        "{} chart {} in {} ({}); {used} of {} patches written to {}; reference {} matches (median ΔE00 {:.2} after a 3×3 map){}",
+        cap.reference.chart.name(),
+        if cap.detection.is_some() { "found" } else { "read at --corners" },
+        a.frame.display(),
+        cap.sha256.get(..12).unwrap_or(""),
+        cap.extraction.patches.len(),
+        a.output.display(),
+        cap.reference.name,
+        cap.score,
+        cap.flat
+            .as_ref()
+            .map(|f| format!("; light non-uniformity {:.3} (max/min, {})", f.nonuniformity, f.method))
+            .unwrap_or_default()
+    );
+    Ok(ExitCode::SUCCESS)
+}
+
+fn run_rate(a: RateArgs) -> Result<ExitCode> {
+    let kind = ChartKind::parse(&a.chart).map_err(|e| UsageError(e.to_string()))?;
+    if a.scenes == 0 || a.scenes > 100_000 {
+        return Err(UsageError("--scenes must be 1..100000".into()).into());
+    }
+    let colours =
+        ChartColours::simulate(kind, &a.camera, &a.illuminant, a.reflectances.as_deref())?;
+    let reference = Reference::load(kind.default_reference(), kind, None)?;
+    let (mut ok, mut refused, mut wrong) = (0u64, 0u64, 0u64);
+    let mut t_detect = Vec::new();
+    for s in 0..a.scenes {
+        let seed = a.seed + s;
+        let opts = SceneOptions::envelope(&colours, a.width, a.height, seed);
+        let (frame, _, truth) = render(&colours, &opts)?;
+        let t0 = Instant::now();
+        let found = detect(&frame, &reference, &DetectOptions::default());
+        let result = found.map(|d| {
+            let ex = extract(
+                &frame,
+                &reference,
+                &d.homography,
+                &ExtractOptions::default(),
+            );
+            (d, ex)
+        });
+        t_detect.push(t0.elapsed().as_secs_f64());
+        match result {
+            Ok((d, Ok(ex))) => {
+                // Every label in the right cell: each sampled centre within a quarter pitch of
+                // the true centre.
+                let pitch = pitch_px(&truth);
+                let bad = ex
+                    .patches
+                    .iter()
+                    .zip(&truth.patches)
+                    .filter(|(p, t)| {
+                        p.label != t.label
+                            || (p.centre[0] - t.centre[0]).hypot(p.centre[1] - t.centre[1])
+                                > 0.25 * pitch
+                    })
+                    .count();
+                if bad == 0 {
+                    ok += 1;
+                } else {
+                    wrong += 1;
+                    eprintln!(
+                        "seed {seed}: WRONG: {bad} patches in the wrong cell (score {:.2})",
+                        d.score
+                    );
+                }
+            }
+            Ok((_, Err(e))) => {
+                refused += 1;
+                if a.verbose {
+                    eprintln!("seed {seed}: refused: {e}");
+                }
+            }
+            Err(f) => {
+                refused += 1;
+                if a.verbose {
+                    eprintln!(
+                        "seed {seed}: refused: {} (area {:.3}, tilt {:.0}°, exposure {:.3})",
+                        f.error, truth.area_fraction, truth.tilt_deg, truth.exposure
+                    );
+                }
+            }
+        }
+    }
+    t_detect.sort_by(f64::total_cmp);
+    let n = a.scenes as f64;
+    println!(
+        "{} chart, {} scenes of {}×{} (seeds {}..{}): detected correctly {ok} ({:.1} %), refused {refused}, wrong {wrong}; detection + extraction median {:.0} ms, max {:.0} ms",
+        kind.name(),
+        a.scenes,
+        a.width,
+        a.height,
+        a.seed,
+        a.seed + a.scenes - 1,
+        100.0 * ok as f64 / n,
+        1e3 * t_detect[t_detect.len() / 2],
+        1e3 * t_detect[t_detect.len() - 1],
+    );
+    Ok(if wrong == 0 {
+        ExitCode::SUCCESS
+    } else {
+        ExitCode::from(1)
+    })
+}
+
+/// The patch pitch in frame pixels near the chart's centre.
+pub fn pitch_px(t: &nsrm::chart::scene::SceneTruth) -> f64 {
+    let c = [t.chart.columns() as f64 / 2.0, t.chart.rows() as f64 / 2.0];
+    let a = t.homography.apply(c);
+    let b = t.homography.apply([c[0] + 1.0, c[1]]);
+    let d = t.homography.apply([c[0], c[1] + 1.0]);
+    (a[0] - b[0])
+        .hypot(a[1] - b[1])
+        .min((a[0] - d[0]).hypot(a[1] - d[1]))
+}

@@ -1,0 +1,276 @@
+//! Chart capture: synthetic scenes with known truth, read back by corners and by detection.
+
+use nsrm::chart::detect::{detect, DetectOptions};
+use nsrm::chart::extract::{extract, verify, ExtractOptions};
+use nsrm::chart::flat;
+use nsrm::chart::reference::Reference;
+use nsrm::chart::scene::{render, ChartColours, SceneOptions};
+use nsrm::chart::{homography_from_corners, ChartKind};
+use nsrm::eval::{evaluate, Protocol};
+use nsrm::model::Kind;
+use nsrm::TrainingSet;
+
+const SG_SPECTRA: &str = "../shared/data/colorchecker_sg_140.csv";
+
+fn cc24() -> ChartColours {
+    ChartColours::simulate(ChartKind::Cc24, "nikon-d5100", "D65", None).unwrap()
+}
+
+fn sg() -> Option<ChartColours> {
+    if !std::path::Path::new(SG_SPECTRA).exists() {
+        assert!(
+            std::env::var("CI").is_err(),
+            "{SG_SPECTRA} is missing under CI"
+        );
+        eprintln!("skipped: {SG_SPECTRA} not found");
+        return None;
+    }
+    Some(ChartColours::simulate(ChartKind::Sg, "nikon-d5100", "D65", Some(SG_SPECTRA)).unwrap())
+}
+
+/// Largest |measured / truth − 1| over patches brighter than `min_g`.
+fn worst_ratio(
+    ex: &nsrm::chart::extract::Extraction,
+    truth: &nsrm::chart::scene::SceneTruth,
+    min_g: f64,
+) -> f64 {
+    ex.patches
+        .iter()
+        .zip(&truth.patches)
+        .filter(|(_, t)| t.rgb[1] > min_g)
+        .flat_map(|(p, t)| (0..3).map(move |k| (p.rgb[k] / t.rgb[k] - 1.0).abs()))
+        .fold(0.0, f64::max)
+}
+
+#[test]
+fn corners_and_flat_frame_give_means_within_half_a_percent() {
+    let colours = cc24();
+    let reference = Reference::load("cc24-after2014", ChartKind::Cc24, None).unwrap();
+    let opts = SceneOptions {
+        width: 900,
+        height: 600,
+        corners: Some([
+            [150.0, 120.0],
+            [760.0, 90.0],
+            [780.0, 500.0],
+            [130.0, 470.0],
+        ]),
+        exposure: 0.8,
+        noise: 0.0005,
+        blur: 0.8,
+        vignetting: 0.35,
+        gradient: 0.2,
+        ..Default::default()
+    };
+    let (frame, flat_frame, truth) = render(&colours, &opts).unwrap();
+    let h = homography_from_corners(ChartKind::Cc24, &truth.corners, 900, 600).unwrap();
+    let eo = ExtractOptions::default();
+    let mut ex = extract(&frame, &reference, &h, &eo).unwrap();
+    assert_eq!(ex.patches.len(), 24);
+    assert_eq!(ex.patches[0].label, "01 dark skin");
+    // Uneven light is visible before compensation …
+    let before = worst_ratio(&ex, &truth, 0.01);
+    assert!(before > 0.05, "the light should be uneven: {before}");
+    let f = flat::from_flat_frame(&flat_frame, (900, 600), &ex, &eo).unwrap();
+    assert!(
+        (f.nonuniformity / truth.light_nonuniformity - 1.0).abs() < 0.01,
+        "{} vs {}",
+        f.nonuniformity,
+        truth.light_nonuniformity
+    );
+    flat::apply(&mut ex, &f);
+    // … and gone after it: every patch within 0.5 % of the noise-free truth.
+    let after = worst_ratio(&ex, &truth, 0.01);
+    assert!(after < 0.005, "worst patch off by {:.3} %", 100.0 * after);
+    assert!(ex.patches.iter().all(|p| p.usable()), "{:?}", ex.flagged());
+    assert!(verify(&ex, &reference).unwrap() < 3.0);
+}
+
+#[test]
+fn neutral_patches_estimate_the_light_on_an_sg() {
+    let Some(colours) = sg() else { return };
+    let reference = Reference::load("sg-before2014", ChartKind::Sg, None).unwrap();
+    let opts = SceneOptions {
+        width: 900,
+        height: 640,
+        corners: Some([[80.0, 70.0], [820.0, 90.0], [800.0, 580.0], [100.0, 560.0]]),
+        exposure: 0.9,
+        noise: 0.0005,
+        vignetting: 0.3,
+        gradient: 0.25,
+        ..Default::default()
+    };
+    let (frame, _, truth) = render(&colours, &opts).unwrap();
+    let h = homography_from_corners(ChartKind::Sg, &truth.corners, 900, 640).unwrap();
+    let mut ex = extract(&frame, &reference, &h, &ExtractOptions::default()).unwrap();
+    let before = worst_ratio(&ex, &truth, 0.02);
+    let f = flat::from_neutrals(&ex, &reference).unwrap();
+    assert!(f.fitted_on >= 30, "{}", f.fitted_on);
+    flat::apply(&mut ex, &f);
+    let after = worst_ratio(&ex, &truth, 0.02);
+    // The SG's neutrals are not perfectly neutral to the camera (G/Y varies a little between
+    // them), so the surface is a few per cent from the light, against over 20 % uncompensated.
+    assert!(
+        after < before / 4.0 && after < 0.05,
+        "before {before}, after {after}"
+    );
+    assert!((f.nonuniformity / truth.light_nonuniformity - 1.0).abs() < 0.03);
+}
+
+#[test]
+fn detection_in_the_envelope_is_right_or_refuses() {
+    // A few seeded scenes of each chart (the README's rate comes from `nsrm chart rate`).
+    let mut charts = vec![(cc24(), 6u64)];
+    if let Some(s) = sg() {
+        charts.push((s, 3));
+    }
+    for (colours, n) in charts {
+        let kind = colours.chart;
+        let reference = Reference::load(kind.default_reference(), kind, None).unwrap();
+        let mut correct = 0;
+        for seed in 100..100 + n {
+            let opts = SceneOptions::envelope(&colours, 960, 640, seed);
+            let (frame, _, truth) = render(&colours, &opts).unwrap();
+            let Ok(d) = detect(&frame, &reference, &DetectOptions::default()) else {
+                continue;
+            };
+            let Ok(ex) = extract(
+                &frame,
+                &reference,
+                &d.homography,
+                &ExtractOptions::default(),
+            ) else {
+                continue;
+            };
+            let c = [kind.columns() as f64 / 2.0, kind.rows() as f64 / 2.0];
+            let a = truth.homography.apply(c);
+            let b = truth.homography.apply([c[0] + 1.0, c[1]]);
+            let pitch = (a[0] - b[0]).hypot(a[1] - b[1]);
+            for (p, t) in ex.patches.iter().zip(&truth.patches) {
+                let off = (p.centre[0] - t.centre[0]).hypot(p.centre[1] - t.centre[1]);
+                assert!(
+                    off < 0.25 * pitch,
+                    "{} seed {seed}: {} is {off:.1} px off",
+                    kind.name(),
+                    p.label
+                );
+            }
+            correct += 1;
+        }
+        assert!(
+            correct * 3 >= n * 2,
+            "{}: {correct} of {n} found",
+            kind.name()
+        );
+    }
+}
+
+#[test]
+fn model_from_extraction_matches_model_from_truth() {
+    let colours = cc24();
+    let reference = Reference::load("cc24-after2014", ChartKind::Cc24, None).unwrap();
+    let opts = SceneOptions {
+        noise: 0.001,
+        blur: 0.6,
+        vignetting: 0.3,
+        ..SceneOptions::envelope(&colours, 960, 640, 7)
+    };
+    let (frame, flat_frame, truth) = render(&colours, &opts).unwrap();
+    let d = detect(&frame, &reference, &DetectOptions::default()).unwrap();
+    let eo = ExtractOptions::default();
+    let mut ex = extract(&frame, &reference, &d.homography, &eo).unwrap();
+    let f = flat::from_flat_frame(&flat_frame, (960, 640), &ex, &eo).unwrap();
+    flat::apply(&mut ex, &f);
+    let measured = ex.training_set(&reference);
+    let keep: Vec<usize> = measured
+        .labels
+        .iter()
+        .map(|l| truth.patches.iter().position(|t| &t.label == l).unwrap())
+        .collect();
+    let from_truth = TrainingSet {
+        rgb: keep.iter().map(|&i| truth.patches[i].rgb).collect(),
+        ..measured.clone()
+    };
+    for (kind, order) in [(Kind::Lrm, 1), (Kind::Nsrm, 3), (Kind::Rprm, 2)] {
+        let a = evaluate(kind, order, &measured, Protocol::LeaveOneOut, "x").unwrap();
+        let b = evaluate(kind, order, &from_truth, Protocol::LeaveOneOut, "x").unwrap();
+        assert!(
+            (a.stats.mean - b.stats.mean).abs() < 0.05,
+            "{kind:?}{order}: LOO ΔE00 {} from the capture vs {} from the truth",
+            a.stats.mean,
+            b.stats.mean
+        );
+    }
+}
+
+#[test]
+fn bad_scenes_fail_clearly() {
+    let colours = cc24();
+    let reference = Reference::load("cc24-after2014", ChartKind::Cc24, None).unwrap();
+    // No chart in the frame: it is placed far outside.
+    let nothing = SceneOptions {
+        width: 640,
+        height: 480,
+        corners: Some([
+            [5000.0, 5000.0],
+            [5600.0, 5000.0],
+            [5600.0, 5400.0],
+            [5000.0, 5400.0],
+        ]),
+        clutter: 30,
+        ..Default::default()
+    };
+    let (frame, _, _) = render(&colours, &nothing).unwrap();
+    let e = detect(&frame, &reference, &DetectOptions::default()).unwrap_err();
+    assert!(
+        e.error.to_string().contains("no chart found"),
+        "{}",
+        e.error
+    );
+    // Half the chart outside the frame.
+    let half = SceneOptions {
+        width: 640,
+        height: 480,
+        corners: Some([
+            [300.0, 100.0],
+            [900.0, 100.0],
+            [900.0, 400.0],
+            [300.0, 400.0],
+        ]),
+        ..Default::default()
+    };
+    let (frame, _, _) = render(&colours, &half).unwrap();
+    let e = detect(&frame, &reference, &DetectOptions::default()).unwrap_err();
+    let msg = e.error.to_string();
+    assert!(msg.contains("outside") || msg.contains("no chart"), "{msg}");
+    // Every patch clipped.
+    let hot = SceneOptions {
+        width: 640,
+        height: 480,
+        corners: Some([
+            [100.0, 100.0],
+            [500.0, 100.0],
+            [500.0, 370.0],
+            [100.0, 370.0],
+        ]),
+        exposure: 200.0,
+        ..Default::default()
+    };
+    let (frame, _, truth) = render(&colours, &hot).unwrap();
+    let h = homography_from_corners(ChartKind::Cc24, &truth.corners, 640, 480).unwrap();
+    let e = extract(&frame, &reference, &h, &ExtractOptions::default()).unwrap_err();
+    assert!(e.to_string().contains("clipped"), "{e}");
+    // The wrong reference: an SG reference cannot be read off a CC24 (label check), and
+    // corners in the wrong order do not match the reference colours.
+    let ok = SceneOptions {
+        exposure: 0.7,
+        ..hot
+    };
+    let (frame, _, truth) = render(&colours, &ok).unwrap();
+    let mut rotated = truth.corners;
+    rotated.rotate_left(2);
+    let h = homography_from_corners(ChartKind::Cc24, &rotated, 640, 480).unwrap();
+    let ex = extract(&frame, &reference, &h, &ExtractOptions::default()).unwrap();
+    let e = verify(&ex, &reference).unwrap_err();
+    assert!(e.to_string().contains("do not match"), "{e}");
+}

@@ -1,0 +1,308 @@
+//! `nsrm render-scene`, `nsrm chart extract`, `nsrm fit --capture` and `nsrm apply` on the same
+//! frame, run as a user would.
+
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+fn nsrm() -> Command {
+    Command::new(env!("CARGO_BIN_EXE_nsrm"))
+}
+
+fn tempdir(name: &str) -> PathBuf {
+    let d = std::env::temp_dir().join(format!("nsrm-chart-{name}-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&d);
+    std::fs::create_dir_all(&d).unwrap();
+    d
+}
+
+fn run(args: &[&str]) -> (bool, String) {
+    let out = nsrm().args(args).output().unwrap();
+    (
+        out.status.success(),
+        String::from_utf8_lossy(&out.stderr).into_owned(),
+    )
+}
+
+fn s(p: &Path) -> &str {
+    p.to_str().unwrap()
+}
+
+fn scene(dir: &Path, name: &str, extra: &[&str]) -> PathBuf {
+    let f = dir.join(name);
+    let mut args = vec![
+        "render-scene",
+        "--chart",
+        "cc24",
+        "--width",
+        "800",
+        "--height",
+        "560",
+        "--seed",
+        "5",
+        "--min-area",
+        "0.2",
+        "-o",
+        s(&f),
+    ];
+    args.extend_from_slice(extra);
+    let (ok, err) = run(&args);
+    assert!(ok, "{err}");
+    f
+}
+
+#[test]
+fn extract_fit_apply_reproduces_the_reference() {
+    let d = tempdir("fit");
+    let frame = scene(
+        &d,
+        "chart.exr",
+        &[
+            "--vignetting",
+            "0.2",
+            "--flat-output",
+            s(&d.join("flat.exr")),
+        ],
+    );
+    assert!(d.join("chart.scene.json").exists());
+    let csv = d.join("patches.csv");
+    let json = d.join("reading.json");
+    let overlay = d.join("overlay.png");
+    let (ok, err) = run(&[
+        "chart",
+        "extract",
+        s(&frame),
+        "--chart",
+        "cc24",
+        "--flat",
+        s(&d.join("flat.exr")),
+        "-o",
+        s(&csv),
+        "--json",
+        s(&json),
+        "--overlay",
+        s(&overlay),
+    ]);
+    assert!(ok, "{err}");
+    let text = std::fs::read_to_string(&csv).unwrap();
+    assert!(
+        text.starts_with("label,R,G,B,X,Y,Z\n01 dark skin,"),
+        "{text}"
+    );
+    assert!(std::fs::metadata(&overlay).unwrap().len() > 1000);
+    // The CSV is training data as it is.
+    let model = d.join("model.json");
+    let (ok, err) = run(&[
+        "fit",
+        "--training",
+        s(&csv),
+        "--white",
+        "96.42,100,82.51",
+        "-o",
+        s(&model),
+    ]);
+    assert!(ok, "{err}");
+    // One step from the frame; the provenance names the frame, its hash, the flat.
+    let model = d.join("model2.json");
+    let (ok, err) = run(&[
+        "fit",
+        "--capture",
+        s(&frame),
+        "--chart",
+        "cc24",
+        "--flat",
+        s(&d.join("flat.exr")),
+        "--model",
+        "nsrm",
+        "--order",
+        "2",
+        "-o",
+        s(&model),
+        "--overlay",
+        s(&d.join("fit.png")),
+    ]);
+    assert!(ok, "{err}");
+    let m: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&model).unwrap()).unwrap();
+    let cap = &m["provenance"]["capture"];
+    assert_eq!(cap["frame"], "chart.exr");
+    assert_eq!(cap["sha256"].as_str().unwrap().len(), 64);
+    assert_eq!(cap["chart"], "cc24");
+    assert_eq!(cap["reference"], "cc24-after2014");
+    assert_eq!(cap["flat"], "flat frame");
+    assert!(cap["light_nonuniformity"].as_f64().unwrap() > 1.01);
+}
+
+#[test]
+fn apply_on_the_fitted_frame_reproduces_the_reference() {
+    let d = tempdir("apply");
+    let frame = scene(&d, "chart.exr", &[]);
+    let json = d.join("reading.json");
+    let (ok, err) = run(&[
+        "chart",
+        "extract",
+        s(&frame),
+        "--chart",
+        "cc24",
+        "-o",
+        s(&d.join("p.csv")),
+        "--json",
+        s(&json),
+    ]);
+    assert!(ok, "{err}");
+    let model_path = d.join("model.json");
+    let (ok, err) = run(&[
+        "fit",
+        "--capture",
+        s(&frame),
+        "--chart",
+        "cc24",
+        "--model",
+        "nsrm",
+        "--order",
+        "2",
+        "-o",
+        s(&model_path),
+    ]);
+    assert!(ok, "{err}");
+    let out = d.join("out");
+    let (ok, err) = run(&[
+        "apply",
+        "--model",
+        s(&model_path),
+        "--device",
+        "cpu",
+        "-o",
+        s(&out),
+        s(&frame),
+    ]);
+    assert!(ok, "{err}");
+    let produced = nsrm::io::read_frame(&out.join("chart_xyz.exr"), &Default::default()).unwrap();
+    let reading: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+    let model = nsrm::Model::load(&model_path).unwrap();
+    let white = model.white_xyz();
+    // The output is XYZ with white Y = 1, adapted from the reference white (D50) to D65.
+    let to_out = nsrm::io::output_matrix(white, nsrm::colorimetry::spaces::OutputSpace::Xyz);
+    let d65 = nsrm::colorimetry::D65_WHITE_XYZ;
+    for p in reading["patches"].as_array().unwrap() {
+        let v = |k: &str| -> Vec<f64> {
+            p[k].as_array()
+                .unwrap()
+                .iter()
+                .map(|v| v.as_f64().unwrap())
+                .collect()
+        };
+        let (c, rgb, reference) = (v("centre"), v("rgb"), v("xyz"));
+        let (x, y) = (c[0] as usize, c[1] as usize);
+        // A 5×5 mean of the output around the patch centre.
+        let mut got = [0.0f64; 3];
+        for yy in y - 2..=y + 2 {
+            for xx in x - 2..=x + 2 {
+                for k in 0..3 {
+                    got[k] += produced.data[(yy * produced.width + xx) * 3 + k] as f64 / 25.0;
+                }
+            }
+        }
+        let got = got.map(|v| v * 100.0);
+        let fitted =
+            nsrm::colorimetry::spaces::apply(&to_out, model.apply_f64([rgb[0], rgb[1], rgb[2]]))
+                .map(|v| v * 100.0);
+        let want =
+            nsrm::colorimetry::spaces::apply(&to_out, [reference[0], reference[1], reference[2]])
+                .map(|v| v * 100.0);
+        // apply = the model at the patch (up to pixel noise) …
+        let noise = nsrm::colorimetry::delta_e00_xyz(got, fitted, d65);
+        assert!(
+            noise < 0.5,
+            "{}: apply {got:?} vs model {fitted:?}",
+            p["label"]
+        );
+        // … and the model = the reference up to the fit error.
+        let fit_error = nsrm::colorimetry::delta_e00_xyz(fitted, want, d65);
+        let total = nsrm::colorimetry::delta_e00_xyz(got, want, d65);
+        assert!(
+            total <= fit_error + 0.5,
+            "{}: ΔE00 {total} vs fit error {fit_error}",
+            p["label"]
+        );
+        assert!(fit_error < 5.0, "{}: fit error {fit_error}", p["label"]);
+    }
+}
+
+#[test]
+fn bad_inputs_fail_and_write_nothing() {
+    let d = tempdir("bad");
+    let frame = scene(&d, "chart.exr", &[]);
+    let csv = d.join("p.csv");
+    let check = |args: &[&str], want: &str| {
+        let mut a = vec![
+            "chart",
+            "extract",
+            s(&frame),
+            "--chart",
+            "cc24",
+            "-o",
+            s(&csv),
+        ];
+        a.extend_from_slice(args);
+        let (ok, err) = run(&a);
+        assert!(!ok, "{args:?} succeeded");
+        assert!(err.contains(want), "{args:?}: {err}");
+        assert!(!csv.exists(), "{args:?} wrote the CSV");
+    };
+    check(
+        &["--corners", "10,10 900,10 790,550 10,550"],
+        "outside the 800×560 frame",
+    );
+    check(&["--corners", "10,10 20,10"], "four X,Y pairs");
+    let bad_ref = d.join("ref.csv");
+    let mut text = String::from("label,X,Y,Z\n");
+    for i in 1..=23 {
+        text.push_str(&format!("{i},20,20,20\n"));
+    }
+    text.push_str("25,1,1,1\n");
+    std::fs::write(&bad_ref, text).unwrap();
+    check(
+        &["--reference", s(&bad_ref)],
+        "not on the chart: 25; missing: 24 black 2",
+    );
+    check(&["--reference", "sg-after2014"], "is for a sg chart");
+    // A frame without a chart, with --overlay: the overlay shows the candidates, no CSV.
+    let empty = scene(
+        &d,
+        "empty.exr",
+        &["--corners", "3000,3000 3500,3000 3500,3300 3000,3300"],
+    );
+    let overlay = d.join("o.png");
+    let (ok, err) = run(&[
+        "chart",
+        "extract",
+        s(&empty),
+        "--chart",
+        "cc24",
+        "-o",
+        s(&csv),
+        "--overlay",
+        s(&overlay),
+    ]);
+    assert!(!ok && err.contains("no chart found"), "{err}");
+    assert!(!csv.exists() && overlay.exists());
+    // All clipped.
+    let hot = scene(&d, "hot.exr", &["--exposure", "300"]);
+    let (ok, err) = run(&[
+        "chart",
+        "extract",
+        s(&hot),
+        "--chart",
+        "cc24",
+        "-o",
+        s(&csv),
+        "--corners",
+        "100,100 700,100 700,460 100,460",
+    ]);
+    assert!(!ok && err.contains("clipped"), "{err}");
+    assert!(!csv.exists());
+    // --chart options without --capture.
+    let (ok, err) = run(&["fit", "--chart", "cc24", "-o", s(&d.join("m.json"))]);
+    assert!(!ok && err.contains("need --capture"), "{err}");
+}

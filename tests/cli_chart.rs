@@ -123,7 +123,7 @@ fn extract_fit_apply_reproduces_the_reference() {
     assert!(ok, "{err}");
     let m: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(&model).unwrap()).unwrap();
-    let cap = &m["provenance"]["capture"];
+    let cap = &m["training"]["capture"];
     assert_eq!(cap["frame"], "chart.exr");
     assert_eq!(cap["sha256"].as_str().unwrap().len(), 64);
     assert_eq!(cap["chart"], "cc24");
@@ -194,12 +194,12 @@ fn apply_on_the_fitted_frame_reproduces_the_reference() {
         };
         let (c, rgb, reference) = (v("centre"), v("rgb"), v("xyz"));
         let (x, y) = (c[0] as usize, c[1] as usize);
-        // A 5×5 mean of the output around the patch centre.
+        // A 9×9 mean of the output around the patch centre (inside the sampled area).
         let mut got = [0.0f64; 3];
-        for yy in y - 2..=y + 2 {
-            for xx in x - 2..=x + 2 {
+        for yy in y - 4..=y + 4 {
+            for xx in x - 4..=x + 4 {
                 for k in 0..3 {
-                    got[k] += produced.data[(yy * produced.width + xx) * 3 + k] as f64 / 25.0;
+                    got[k] += produced.data[(yy * produced.width + xx) * 3 + k] as f64 / 81.0;
                 }
             }
         }

@@ -115,15 +115,14 @@ impl CaptureOptions {
                 return Err(UsageError(format!("--white-level {w} must be positive")).into());
             }
         }
-        let bytes = std::fs::read(path).with_context(|| format!("reading {}", path.display()))?;
-        let sha256 = hex(&Sha256::digest(&bytes));
-        drop(bytes);
         let frame = nsrm::io::read_frame(
             path,
             &nsrm::io::ReadOptions {
                 layer: self.layer.clone(),
+                ..Default::default()
             },
         )?;
+        let sha256 = sha256_file(path)?;
         let (h, detection) = match corners {
             Some(c) => (
                 homography_from_corners(kind, &c, frame.width, frame.height)
@@ -190,8 +189,22 @@ impl CaptureOptions {
     }
 }
 
-fn hex(b: &[u8]) -> String {
-    b.iter().map(|x| format!("{x:02x}")).collect()
+/// SHA-256 of a file's bytes, read in 1 MiB blocks (hex).
+fn sha256_file(path: &Path) -> Result<String> {
+    use std::io::Read;
+    let mut f = std::fs::File::open(path).with_context(|| format!("reading {}", path.display()))?;
+    let mut h = Sha256::new();
+    let mut buf = vec![0u8; 1 << 20];
+    loop {
+        let n = f
+            .read(&mut buf)
+            .with_context(|| format!("reading {}", path.display()))?;
+        if n == 0 {
+            break;
+        }
+        h.update(&buf[..n]);
+    }
+    Ok(h.finalize().iter().map(|x| format!("{x:02x}")).collect())
 }
 
 impl Capture {

@@ -31,6 +31,7 @@ pub trait Real:
     fn sqrt(self) -> Self;
     fn cbrt(self) -> Self;
     fn powi(self, n: i32) -> Self;
+    fn powf(self, e: f64) -> Self;
     fn hypot(self, other: Self) -> Self;
     fn atan2(self, other: Self) -> Self;
     fn sin(self) -> Self;
@@ -55,6 +56,9 @@ impl Real for f64 {
     }
     fn powi(self, n: i32) -> Self {
         f64::powi(self, n)
+    }
+    fn powf(self, e: f64) -> Self {
+        f64::powf(self, e)
     }
     fn hypot(self, other: Self) -> Self {
         f64::hypot(self, other)
@@ -226,6 +230,20 @@ impl<const N: usize> Real for Dual<N> {
         };
         self.chain(self.v.powi(n), dv)
     }
+    fn powf(self, e: f64) -> Self {
+        let dv = if e == 0.0 {
+            0.0
+        } else if self.v == 0.0 {
+            if e > 1.0 {
+                0.0
+            } else {
+                f64::INFINITY
+            }
+        } else {
+            e * self.v.powf(e - 1.0)
+        };
+        self.chain(self.v.powf(e), if dv.is_finite() { dv } else { 0.0 })
+    }
     fn hypot(self, o: Self) -> Self {
         let h = self.v.hypot(o.v);
         if h == 0.0 {
@@ -279,7 +297,8 @@ mod tests {
     #[test]
     fn elementary_derivatives_match_finite_differences() {
         type D = Dual<1>;
-        let cases: [(fn(D) -> D, fn(f64) -> f64, f64); 10] = [
+        let cases: [(fn(D) -> D, fn(f64) -> f64, f64); 11] = [
+            (|x| x.powf(1.7), |x| x.powf(1.7), 0.8),
             (|x| x.sqrt(), f64::sqrt, 2.3),
             (|x| x.cbrt(), f64::cbrt, -1.7),
             (|x| x.powi(7), |x| x.powi(7), 0.9),

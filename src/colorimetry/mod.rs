@@ -63,6 +63,21 @@ pub fn lab_to_xyz(lab: [f64; 3], white: [f64; 3]) -> [f64; 3] {
 /// Generic over [`Real`]: with [`Dual`] inputs it also returns the gradient (see [`dual`]); the
 /// `f64` instance is the ΔE00 every evaluation reports.
 pub fn ciede2000<T: Real>(lab1: [T; 3], lab2: [T; 3]) -> T {
+    let [tl, tc, th, rt] = ciede2000_parts(lab1, lab2);
+    (tl * tl + tc * tc + th * th + rt * tc * th).sqrt()
+}
+
+/// CIEDE2000 as a Euclidean norm: a vector `v` with `‖v‖ = ΔE00`,
+/// `v = (ΔL'/S_L, ΔC'/S_C + R_T/2·ΔH'/S_H, ΔH'/S_H·√(1 − R_T²/4))` (`|R_T| ≤ 2`). Smooth where
+/// ΔE00 = 0, unlike the norm itself: the residuals a Gauss–Newton fit of ΣΔE00² wants.
+pub fn ciede2000_vector<T: Real>(lab1: [T; 3], lab2: [T; 3]) -> [T; 3] {
+    let [tl, tc, th, rt] = ciede2000_parts(lab1, lab2);
+    let k = (T::cst(1.0) - rt * rt * 0.25).sqrt();
+    [tl, tc + rt * th * 0.5, th * k]
+}
+
+/// `(ΔL'/S_L, ΔC'/S_C, ΔH'/S_H, R_T)` of CIEDE2000.
+fn ciede2000_parts<T: Real>(lab1: [T; 3], lab2: [T; 3]) -> [T; 4] {
     use std::f64::consts::PI;
     let one = T::cst(1.0);
     let [l1, a1, b1] = lab1;
@@ -134,7 +149,7 @@ pub fn ciede2000<T: Real>(lab1: [T; 3], lab2: [T; 3]) -> T {
     let tl = dlp / sl;
     let tc = dcp / sc;
     let th = dhp_big / sh;
-    (tl * tl + tc * tc + th * th + rt * tc * th).sqrt()
+    [tl, tc, th, rt]
 }
 
 /// ΔE00 between two XYZ colours, each converted to Lab with the same reference white.
@@ -148,6 +163,17 @@ pub fn delta_e00_xyz_grad(xyz: [f64; 3], reference_lab: [f64; 3], white: [f64; 3
     let lab = xyz_to_lab(Dual::<3>::vars(xyz), white);
     let d = ciede2000(lab, reference_lab.map(Dual::cst));
     (d.v, d.d)
+}
+
+/// [`ciede2000_vector`] between a predicted XYZ and a reference Lab colour, with its Jacobian with
+/// respect to the predicted X, Y, Z (forward-mode through [`xyz_to_lab`]).
+pub fn delta_e00_vector_xyz_jacobian(
+    xyz: [f64; 3],
+    reference_lab: [f64; 3],
+    white: [f64; 3],
+) -> [Dual<3>; 3] {
+    let lab = xyz_to_lab(Dual::<3>::vars(xyz), white);
+    ciede2000_vector(lab, reference_lab.map(Dual::cst))
 }
 
 #[cfg(test)]
@@ -196,6 +222,24 @@ mod tests {
                     "{pred:?} vs {reference:?}, d/dXYZ[{k}]: {} vs {fd}",
                     g[k]
                 );
+            }
+        }
+        // The vector form: its norm is ΔE00, its Jacobian matches finite differences.
+        for (pred, reference) in cases {
+            let rl = xyz_to_lab(reference, w);
+            let v = delta_e00_vector_xyz_jacobian(pred, rl, w);
+            let norm = v.iter().map(|c| c.v * c.v).sum::<f64>().sqrt();
+            assert!((norm - delta_e00_xyz(pred, reference, w)).abs() < 1e-12);
+            for k in 0..3 {
+                let h = 1e-6 * pred[k];
+                let vec_at = |x: [f64; 3]| ciede2000_vector(xyz_to_lab(x, w), rl);
+                let (mut up, mut down) = (pred, pred);
+                up[k] += h;
+                down[k] -= h;
+                for c in 0..3 {
+                    let fd = (vec_at(up)[c] - vec_at(down)[c]) / (2.0 * h);
+                    assert!((v[c].d[k] - fd).abs() <= 1e-5 * fd.abs().max(1e-3));
+                }
             }
         }
         // At ΔE00 = 0 the gradient is taken as 0 (the square root has no derivative there).

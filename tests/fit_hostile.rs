@@ -36,14 +36,20 @@ fn a_huge_patch_is_refused_by_every_model_and_variant() {
                 Err(ModelError::OutOfRange { label, what, value }) => {
                     assert_eq!(label, d.labels[5]);
                     let a = value.abs();
-                    assert!(!value.is_finite() || !(1e-100..=1e100).contains(&a), "{what} = {value:e}");
+                    assert!(
+                        !value.is_finite() || !(1e-100..=1e100).contains(&a),
+                        "{what} = {value:e}"
+                    );
                 }
                 other => panic!("{kind}{order}: {other:?}"),
             }
         }
     }
     let e = fit(Kind::Prm, 3, &d).unwrap_err().to_string();
-    assert!(e.contains(&d.labels[5]) && e.contains("term R = 1.000e200"), "{e}");
+    assert!(
+        e.contains(&d.labels[5]) && e.contains("term R = 1.000e200"),
+        "{e}"
+    );
     // 1e60 is in range as a channel, but PRM's R² is not; LRM fits it.
     d.rgb[5] = [1e60, 0.3, 0.2];
     let e = fit(Kind::Prm, 2, &d).unwrap_err().to_string();
@@ -64,14 +70,20 @@ fn a_channel_scaled_by_1e_minus_200_is_refused() {
             continue;
         }
         let e = fit(kind, order, &d).unwrap_err();
-        assert!(matches!(e, ModelError::OutOfRange { .. }), "{kind}{order}: {e}");
+        assert!(
+            matches!(e, ModelError::OutOfRange { .. }),
+            "{kind}{order}: {e}"
+        );
         assert!(e.to_string().contains("outside the range"), "{e}");
     }
     // Huge XYZ targets are refused too.
     let mut d = data();
     d.xyz[3] = [1e120, 1.0, 1.0];
     let e = fit(Kind::Lrm, 1, &d).unwrap_err();
-    assert!(matches!(&e, ModelError::OutOfRange { what, .. } if what == "target X"), "{e}");
+    assert!(
+        matches!(&e, ModelError::OutOfRange { what, .. } if what == "target X"),
+        "{e}"
+    );
 }
 
 #[test]

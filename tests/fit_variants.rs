@@ -84,10 +84,18 @@ fn de00_is_never_worse_than_its_start_and_deterministic() {
                 };
                 let s = fit_with(kind, order, &data, &start).unwrap();
                 let f = fit_with(kind, order, &data, &opts).unwrap();
-                let obj = |f: &Fit| in_sample(f, &data).iter().map(|e| e.powf(power)).sum::<f64>();
+                let obj = |f: &Fit| {
+                    in_sample(f, &data)
+                        .iter()
+                        .map(|e| e.powf(power))
+                        .sum::<f64>()
+                };
                 let (s0, s1) = (obj(&s), obj(&f));
                 let r = &f.report;
-                assert!((r.de00_start.unwrap() - s0).abs() <= 1e-9 * s0, "{kind}{order} {opts:?}");
+                assert!(
+                    (r.de00_start.unwrap() - s0).abs() <= 1e-9 * s0,
+                    "{kind}{order} {opts:?}"
+                );
                 assert!((r.de00_end.unwrap() - s1).abs() <= 1e-9 * s0.max(1.0));
                 if opts.ridge == Ridge::None {
                     assert!(s1 <= s0, "{kind}{order} {opts:?}: {s1} > {s0}");
@@ -171,7 +179,10 @@ fn ridge_shrinks_coefficients_and_auto_picks_from_the_grid() {
     let auto = norm(Ridge::Auto);
     assert!(auto.ridge_auto && auto.ridge_lambda > 0.0);
     assert!(nsrm::model::fit::lambda_grid().any(|l| l == auto.ridge_lambda));
-    assert!(auto.coefficient_norm < ls.coefficient_norm / 10.0, "{auto:?}");
+    assert!(
+        auto.coefficient_norm < ls.coefficient_norm / 10.0,
+        "{auto:?}"
+    );
     // The condition number is that of the design, whatever the regularisation.
     assert_eq!(ls.condition_number, auto.condition_number);
     assert!(ls.condition_number.unwrap() > 1e4);
@@ -218,10 +229,15 @@ fn sg_path() -> Option<PathBuf> {
 #[test]
 fn white_balanced_nsrm3_sg_inner_96_d65_leave_one_out_matches_the_oracle() {
     let Some(path) = sg_path() else { return };
-    let data = simulate_named("nikon-d5100", "D65", path.to_str().unwrap(), &Grid::default())
-        .unwrap()
-        .select("B2:M9")
-        .unwrap();
+    let data = simulate_named(
+        "nikon-d5100",
+        "D65",
+        path.to_str().unwrap(),
+        &Grid::default(),
+    )
+    .unwrap()
+    .select("B2:M9")
+    .unwrap();
     assert_eq!(data.len(), 96);
     let opts = FitOptions {
         normalise: Normalise::WhiteBalanced,
@@ -229,7 +245,10 @@ fn white_balanced_nsrm3_sg_inner_96_d65_leave_one_out_matches_the_oracle() {
     };
     let r = evaluate_with(Kind::Nsrm, 3, &data, Protocol::LeaveOneOut, "D65", &opts).unwrap();
     let s = r.stats;
-    eprintln!("white-balanced NSRM3: {:.4} / {:.4} / {:.4}", s.mean, s.median, s.max);
+    eprintln!(
+        "white-balanced NSRM3: {:.4} / {:.4} / {:.4}",
+        s.mean, s.median, s.max
+    );
     for (got, want) in [(s.mean, 0.752), (s.median, 0.574), (s.max, 3.072)] {
         assert!((got - want).abs() <= 0.01, "{got} vs {want}");
     }

@@ -137,6 +137,7 @@ impl<const N: usize> Sub for Dual<N> {
 
 impl<const N: usize> Mul for Dual<N> {
     type Output = Self;
+    #[allow(clippy::suspicious_arithmetic_impl)] // the product rule
     fn mul(self, o: Self) -> Self {
         Dual {
             v: self.v * o.v,
@@ -297,18 +298,31 @@ mod tests {
     #[test]
     fn elementary_derivatives_match_finite_differences() {
         type D = Dual<1>;
-        let cases: [(fn(D) -> D, fn(f64) -> f64, f64); 11] = [
+        type Case = (fn(D) -> D, fn(f64) -> f64, f64);
+        let cases: [Case; 11] = [
             (|x| x.powf(1.7), |x| x.powf(1.7), 0.8),
             (|x| x.sqrt(), f64::sqrt, 2.3),
             (|x| x.cbrt(), f64::cbrt, -1.7),
             (|x| x.powi(7), |x| x.powi(7), 0.9),
             (|x| x.hypot(x * 2.0 + 1.0), |x| x.hypot(2.0 * x + 1.0), 0.4),
-            (|x| (x * 3.0).atan2(x - 2.0), |x| (3.0 * x).atan2(x - 2.0), 0.5),
+            (
+                |x| (x * 3.0).atan2(x - 2.0),
+                |x| (3.0 * x).atan2(x - 2.0),
+                0.5,
+            ),
             (|x| x.sin() * x.cos(), |x| x.sin() * x.cos(), 1.2),
             (|x| (-x * x).exp(), |x| (-x * x).exp(), 0.7),
             (|x| x.to_degrees(), f64::to_degrees, 0.3),
-            (|x| x.to_radians() / (x + 1.0), |x| x.to_radians() / (x + 1.0), 40.0),
-            (|x| (x - 1.0) * (x + 2.0) / x, |x| (x - 1.0) * (x + 2.0) / x, 1.5),
+            (
+                |x| x.to_radians() / (x + 1.0),
+                |x| x.to_radians() / (x + 1.0),
+                40.0,
+            ),
+            (
+                |x| (x - 1.0) * (x + 2.0) / x,
+                |x| (x - 1.0) * (x + 2.0) / x,
+                1.5,
+            ),
         ];
         for (i, (fd_, f, x)) in cases.iter().enumerate() {
             let got = fd_(D::var(*x, 0));

@@ -159,7 +159,11 @@ pub fn delta_e00_xyz(xyz1: [f64; 3], xyz2: [f64; 3], white: [f64; 3]) -> f64 {
 
 /// ΔE00 between a predicted XYZ and a reference Lab colour, with its gradient with respect to the
 /// predicted X, Y, Z (forward-mode through [`xyz_to_lab`] and [`ciede2000`]; 0 where ΔE00 = 0).
-pub fn delta_e00_xyz_grad(xyz: [f64; 3], reference_lab: [f64; 3], white: [f64; 3]) -> (f64, [f64; 3]) {
+pub fn delta_e00_xyz_grad(
+    xyz: [f64; 3],
+    reference_lab: [f64; 3],
+    white: [f64; 3],
+) -> (f64, [f64; 3]) {
     let lab = xyz_to_lab(Dual::<3>::vars(xyz), white);
     let d = ciede2000(lab, reference_lab.map(Dual::cst));
     (d.v, d.d)

@@ -120,7 +120,14 @@ pub fn evaluate(
     protocol: Protocol,
     illuminant: &str,
 ) -> Result<EvalResult, ModelError> {
-    evaluate_with(kind, order, data, protocol, illuminant, &FitOptions::default())
+    evaluate_with(
+        kind,
+        order,
+        data,
+        protocol,
+        illuminant,
+        &FitOptions::default(),
+    )
 }
 
 /// [`evaluate`] with a fit variant.

@@ -108,7 +108,7 @@ impl Ridge {
             return Ok(Ridge::Auto);
         }
         match s.parse::<f64>() {
-            Ok(v) if v == 0.0 => Ok(Ridge::None),
+            Ok(0.0) => Ok(Ridge::None),
             Ok(v) if v.is_finite() && v > 0.0 && v <= 1e12 => Ok(Ridge::Lambda(v)),
             _ => Err(ModelError::Invalid(format!(
                 "ridge `{s}`: expected auto or a number in [0, 1e12]"
@@ -254,14 +254,17 @@ pub(crate) fn design(
                 xyz: xyz[i],
             });
         }
-        let s = features(kind, terms, rgb[i], &mut p).ok_or_else(|| {
-            ModelError::NonPositiveSignal {
+        let s =
+            features(kind, terms, rgb[i], &mut p).ok_or_else(|| ModelError::NonPositiveSignal {
                 label: label.clone(),
                 sum: rgb[i].iter().sum(),
-            }
-        })?;
+            })?;
         for (j, v) in p.iter().enumerate() {
-            check_range(label, &|| format!("term {}", super::term_name(kind, &terms[j])), *v)?;
+            check_range(
+                label,
+                &|| format!("term {}", super::term_name(kind, &terms[j])),
+                *v,
+            )?;
             a[(i, j)] = *v;
         }
         for k in 0..3 {
@@ -275,7 +278,10 @@ pub(crate) fn design(
 }
 
 /// SVD with an iteration limit: never spins on a pathological matrix.
-pub fn svd(a: DMatrix<f64>, vectors: bool) -> Result<SVD<f64, nalgebra::Dyn, nalgebra::Dyn>, ModelError> {
+pub fn svd(
+    a: DMatrix<f64>,
+    vectors: bool,
+) -> Result<SVD<f64, nalgebra::Dyn, nalgebra::Dyn>, ModelError> {
     let dim = a.nrows().min(a.ncols());
     let max_iter = 200 + 100 * dim;
     if a.iter().any(|v| !v.is_finite()) {
@@ -358,7 +364,12 @@ pub(crate) struct Reduced {
 }
 
 impl Reduced {
-    pub(crate) fn new(kind: Kind, terms: &[Term], d: &Design, constraint: Option<Constraint>) -> Reduced {
+    pub(crate) fn new(
+        kind: Kind,
+        terms: &[Term],
+        d: &Design,
+        constraint: Option<Constraint>,
+    ) -> Reduced {
         let l = d.a.ncols();
         let w: Vec<f64> = (0..l)
             .map(|j| {
@@ -500,10 +511,17 @@ pub fn fit_with(
                 }
                 _ => (white_rgb()?, data.white_xyz, "perfect white".to_string()),
             };
-            let w_rgb = [w_rgb[0] * gains[0], w_rgb[1] * gains[1], w_rgb[2] * gains[2]];
+            let w_rgb = [
+                w_rgb[0] * gains[0],
+                w_rgb[1] * gains[1],
+                w_rgb[2] * gains[2],
+            ];
             let wd = design(kind, &terms, &[label], &[w_rgb], &[w_xyz])?;
             let c: Vec<f64> = wd.a.row(0).iter().copied().collect();
-            Some(Constraint::new(&c, [wd.b[(0, 0)], wd.b[(0, 1)], wd.b[(0, 2)]])?)
+            Some(Constraint::new(
+                &c,
+                [wd.b[(0, 0)], wd.b[(0, 1)], wd.b[(0, 2)]],
+            )?)
         }
     };
 
@@ -638,10 +656,7 @@ mod tests {
         let mut a = DMatrix::<f64>::from_fn(6, 3, |i, j| (i * 3 + j) as f64 + 1.0);
         assert!(svd(a.clone(), true).is_ok());
         a[(2, 1)] = f64::INFINITY;
-        assert!(matches!(
-            svd(a, true),
-            Err(ModelError::NotConverged { .. })
-        ));
+        assert!(matches!(svd(a, true), Err(ModelError::NotConverged { .. })));
     }
 
     #[test]

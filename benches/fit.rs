@@ -5,7 +5,7 @@
 
 use criterion::{criterion_group, criterion_main, Criterion};
 use nsrm::eval::{evaluate, evaluate_with, Protocol};
-use nsrm::model::fit::{FitOptions, Normalise, Objective, PreserveWhite, Ridge};
+use nsrm::model::fit::{FitOptions, Normalise, Objective, Ridge};
 use nsrm::model::{fit, Kind, MAX_ORDER};
 use nsrm::spectral::{simulate_named, Grid};
 use std::hint::black_box;
@@ -63,7 +63,7 @@ fn fitting(c: &mut Criterion) {
             "nsrm3_de00_preserve_white",
             Kind::Nsrm,
             FitOptions {
-                preserve_white: PreserveWhite::PerfectWhite,
+                preserve_white: true,
                 ..de00.clone()
             },
         ),

@@ -4,7 +4,7 @@
 
 use nsrm::colorimetry::delta_e00_xyz;
 use nsrm::eval::{evaluate_with, Protocol};
-use nsrm::model::fit::{fit_with, Fit, FitOptions, Normalise, Objective, PreserveWhite, Ridge};
+use nsrm::model::fit::{fit_with, Fit, FitOptions, Normalise, Objective, Ridge, White};
 use nsrm::model::Kind;
 use nsrm::spectral::{simulate_named, Grid};
 
@@ -66,7 +66,7 @@ fn de00_is_never_worse_than_its_start_and_deterministic() {
                 de00(2.0),
                 de00(4.0),
                 FitOptions {
-                    preserve_white: PreserveWhite::PerfectWhite,
+                    preserve_white: true,
                     ..de00(2.0)
                 },
                 FitOptions {
@@ -121,7 +121,7 @@ fn preserve_white_maps_the_white_exactly() {
             for ridge in [Ridge::None, Ridge::Auto] {
                 let opts = FitOptions {
                     objective,
-                    preserve_white: PreserveWhite::PerfectWhite,
+                    preserve_white: true,
                     ridge,
                     ..Default::default()
                 };
@@ -129,7 +129,7 @@ fn preserve_white_maps_the_white_exactly() {
                 let d = delta_e00_xyz(f.apply_f64(w_rgb), data.white_xyz, data.white_xyz);
                 assert!(d <= 1e-6, "{kind} {objective:?} {ridge:?}: white ΔE00 {d}");
                 let opts = FitOptions {
-                    preserve_white: PreserveWhite::Patch(neutral.into()),
+                    white: White::Patch(neutral.into()),
                     ..opts
                 };
                 let f = fit_with(kind, 3, &data, &opts).unwrap();
@@ -147,7 +147,8 @@ fn preserve_white_maps_the_white_exactly() {
         3,
         &data,
         &FitOptions {
-            preserve_white: PreserveWhite::Patch("nope".into()),
+            preserve_white: true,
+            white: White::Patch("nope".into()),
             ..Default::default()
         },
     )

@@ -1,7 +1,7 @@
 //! Properties of the models: exposure invariance (LRM, RPRM, NSRM; not PRM), and agreement of
 //! leave-one-out with a direct refit.
 
-use nsrm::model::fit::{fit_with, Fit, FitOptions, Normalise, Objective, PreserveWhite, Ridge};
+use nsrm::model::fit::{fit_with, Fit, FitOptions, Normalise, Objective, Ridge};
 use nsrm::model::{fit, Kind, Model};
 use nsrm::spectral::{simulate_named, Grid};
 use nsrm::TrainingSet;
@@ -47,7 +47,7 @@ fn variants() -> &'static Vec<(String, Fit)> {
                 },
                 FitOptions {
                     objective: Objective::De00 { power: 2.0 },
-                    preserve_white: PreserveWhite::PerfectWhite,
+                    preserve_white: true,
                     ..Default::default()
                 },
                 FitOptions {

@@ -11,6 +11,7 @@ mod common;
 mod eval;
 mod export_shader;
 mod fit;
+mod fit_args;
 mod render_chart;
 mod render_scene;
 mod terms;

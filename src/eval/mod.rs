@@ -69,6 +69,58 @@ pub struct EvalResult {
     pub per_patch: Vec<PatchError>,
 }
 
+/// A named fit variant of `eval --variants`.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Variant {
+    /// `ls`, `de00`, `de00+preserve-white`, `ridge-auto`, `white-balanced`.
+    pub name: &'static str,
+    pub opts: FitOptions,
+}
+
+/// The variants compared by `eval --variants` for `kind`: least squares, ΔE00, ΔE00 with the
+/// perfect white preserved, ridge with λ by GCV, and for NSRM white-balanced least squares.
+pub fn variants(kind: Kind) -> Vec<Variant> {
+    use crate::model::fit::{Normalise, Objective, Ridge};
+    let de00 = FitOptions {
+        objective: Objective::De00 { power: 2.0 },
+        ..Default::default()
+    };
+    let mut v = vec![
+        Variant {
+            name: "ls",
+            opts: FitOptions::default(),
+        },
+        Variant {
+            name: "de00",
+            opts: de00.clone(),
+        },
+        Variant {
+            name: "de00+preserve-white",
+            opts: FitOptions {
+                preserve_white: true,
+                ..de00
+            },
+        },
+        Variant {
+            name: "ridge-auto",
+            opts: FitOptions {
+                ridge: Ridge::Auto,
+                ..Default::default()
+            },
+        },
+    ];
+    if kind == Kind::Nsrm {
+        v.push(Variant {
+            name: "white-balanced",
+            opts: FitOptions {
+                normalise: Normalise::WhiteBalanced,
+                ..Default::default()
+            },
+        });
+    }
+    v
+}
+
 /// Predicted XYZ for every patch under `protocol`, fitting with the paper's least squares.
 pub fn predict(
     kind: Kind,
@@ -99,10 +151,12 @@ pub fn predict_with(
             .map(|i| {
                 let rest: Vec<usize> = (0..data.len()).filter(|&j| j != i).collect();
                 let mut fold_opts = opts.clone();
-                // A named white patch that is left out cannot constrain its own fold.
-                if let crate::model::fit::PreserveWhite::Patch(label) = &opts.preserve_white {
+                // A named white patch that is left out cannot serve as its own fold's white: the
+                // fold that predicts it is fitted without the constraint (and raw, for NSRM).
+                if let crate::model::fit::White::Patch(label) = &opts.white {
                     if &data.labels[i] == label {
-                        fold_opts.preserve_white = crate::model::fit::PreserveWhite::No;
+                        fold_opts.preserve_white = false;
+                        fold_opts.normalise = crate::model::fit::Normalise::Raw;
                     }
                 }
                 let f = fit_with(kind, order, &data.subset(&rest), &fold_opts)?;

@@ -78,14 +78,13 @@ impl Objective {
     }
 }
 
-/// Which white, if any, must map exactly to its reference XYZ.
+/// The reference white of a fit: what `preserve_white` keeps exact and white balance divides by.
 #[derive(Debug, Clone, PartialEq, Default)]
-pub enum PreserveWhite {
-    #[default]
-    No,
+pub enum White {
     /// The perfect white of the training illuminant ([`TrainingSet::white_rgb`] → `white_xyz`).
-    PerfectWhite,
-    /// A named training patch (a neutral one) maps exactly to its own XYZ.
+    #[default]
+    Perfect,
+    /// A named (neutral) training patch, with its own RGB and XYZ.
     Patch(String),
 }
 
@@ -152,7 +151,9 @@ impl Normalise {
 #[derive(Debug, Clone, PartialEq)]
 pub struct FitOptions {
     pub objective: Objective,
-    pub preserve_white: PreserveWhite,
+    /// Map [`FitOptions::white`] exactly to its reference XYZ.
+    pub preserve_white: bool,
+    pub white: White,
     pub ridge: Ridge,
     pub normalise: Normalise,
 }
@@ -161,7 +162,8 @@ impl Default for FitOptions {
     fn default() -> Self {
         FitOptions {
             objective: Objective::LeastSquares,
-            preserve_white: PreserveWhite::No,
+            preserve_white: false,
+            white: White::Perfect,
             ridge: Ridge::None,
             normalise: Normalise::Raw,
         }
@@ -482,9 +484,9 @@ pub fn fit_with(
                     "white-balanced normalisation is defined for NSRM only, not {kind}"
                 )));
             }
-            let w = match &opts.preserve_white {
-                PreserveWhite::Patch(label) => patch_rgb(data, label)?,
-                _ => white_rgb()?,
+            let w = match &opts.white {
+                White::Patch(label) => patch_rgb(data, label)?,
+                White::Perfect => white_rgb()?,
             };
             if w.iter().any(|v| !(v.is_finite() && *v > 0.0)) {
                 return Err(ModelError::Invalid(format!(
@@ -501,15 +503,15 @@ pub fn fit_with(
         .collect();
     let d = design(kind, &terms, &data.labels, &rgb, &data.xyz)?;
 
-    let constraint = match &opts.preserve_white {
-        PreserveWhite::No => None,
-        pw => {
-            let (w_rgb, w_xyz, label) = match pw {
-                PreserveWhite::Patch(label) => {
+    let constraint = match opts.preserve_white {
+        false => None,
+        true => {
+            let (w_rgb, w_xyz, label) = match &opts.white {
+                White::Patch(label) => {
                     let i = patch_index(data, label)?;
                     (data.rgb[i], data.xyz[i], label.clone())
                 }
-                _ => (white_rgb()?, data.white_xyz, "perfect white".to_string()),
+                White::Perfect => (white_rgb()?, data.white_xyz, "perfect white".to_string()),
             };
             let w_rgb = [
                 w_rgb[0] * gains[0],
@@ -589,10 +591,10 @@ pub fn fit_with(
     };
     let report = FitReport {
         objective: opts.objective.name(),
-        preserve_white: match &opts.preserve_white {
-            PreserveWhite::No => "none".into(),
-            PreserveWhite::PerfectWhite => "perfect-white".into(),
-            PreserveWhite::Patch(l) => format!("patch:{l}"),
+        preserve_white: match (opts.preserve_white, &opts.white) {
+            (false, _) => "none".into(),
+            (true, White::Perfect) => "perfect-white".into(),
+            (true, White::Patch(l)) => format!("patch:{l}"),
         },
         normalise: opts.normalise.name().into(),
         ridge_lambda: lambda,

@@ -588,6 +588,7 @@ pub fn fit_with(
         white_xyz: data.white_xyz,
         provenance: data.provenance.clone(),
         patches: data.labels.clone(),
+        fit_report: None,
     };
     let report = FitReport {
         objective: opts.objective.name(),
@@ -606,6 +607,8 @@ pub fn fit_with(
         de00_end,
         iterations,
     };
+    let mut model = model;
+    model.fit_report = Some(report.clone());
     Ok(Fit { model, report })
 }
 

@@ -136,6 +136,9 @@ pub struct Model {
     pub provenance: Provenance,
     /// The training patch labels.
     pub patches: Vec<String>,
+    /// How the matrix was fitted (objective, ridge λ, coefficient norm, condition number), when
+    /// known: [`fit::fit_with`] sets it, the model file carries it.
+    fit_report: Option<fit::FitReport>,
 }
 
 impl Model {
@@ -166,6 +169,7 @@ impl Model {
             white_xyz: crate::colorimetry::D65_WHITE_XYZ,
             provenance: Provenance::default(),
             patches: Vec::new(),
+            fit_report: None,
         })
     }
 
@@ -202,6 +206,11 @@ impl Model {
     /// The training patch labels.
     pub fn patches(&self) -> &[String] {
         &self.patches
+    }
+
+    /// How the matrix was fitted, when known (see [`fit::FitReport`]).
+    pub fn fit_report(&self) -> Option<&fit::FitReport> {
+        self.fit_report.as_ref()
     }
 
     /// Number of terms L.

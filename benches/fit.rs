@@ -1,9 +1,11 @@
 //! Criterion benches of fitting: every model kind at every order on 96 patches (the first 96 of
 //! the built-in rawtoaces-190 set, Nikon D5100 under D65), and the leave-one-out evaluation on
-//! them (96 fits each, in parallel). Each takes milliseconds. `cargo bench --bench fit`.
+//! them (96 fits each, in parallel), and leave-one-out of the fit variants (ΔE00 objective, white
+//! preservation, ridge auto, white-balanced NSRM). `cargo bench --bench fit`.
 
 use criterion::{criterion_group, criterion_main, Criterion};
-use nsrm::eval::{evaluate, Protocol};
+use nsrm::eval::{evaluate, evaluate_with, Protocol};
+use nsrm::model::fit::{FitOptions, Normalise, Objective, Ridge};
 use nsrm::model::{fit, Kind, MAX_ORDER};
 use nsrm::spectral::{simulate_named, Grid};
 use std::hint::black_box;
@@ -41,6 +43,60 @@ fn fitting(c: &mut Criterion) {
         g.bench_function(format!("{}{order}", kind.name()), |b| {
             b.iter(|| {
                 evaluate(kind, order, black_box(&data), Protocol::LeaveOneOut, "D65").unwrap()
+            })
+        });
+    }
+    g.finish();
+
+    // The fit variants (issue 11): leave-one-out runs the whole procedure in every fold.
+    let mut g = c.benchmark_group("leave_one_out_96_patches_variants");
+    g.sample_size(10);
+    g.warm_up_time(Duration::from_millis(300));
+    g.measurement_time(Duration::from_secs(3));
+    let de00 = FitOptions {
+        objective: Objective::De00 { power: 2.0 },
+        ..Default::default()
+    };
+    let variants = [
+        ("nsrm3_de00", Kind::Nsrm, de00.clone()),
+        (
+            "nsrm3_de00_preserve_white",
+            Kind::Nsrm,
+            FitOptions {
+                preserve_white: true,
+                ..de00.clone()
+            },
+        ),
+        (
+            "nsrm3_ridge_auto",
+            Kind::Nsrm,
+            FitOptions {
+                ridge: Ridge::Auto,
+                ..Default::default()
+            },
+        ),
+        (
+            "nsrm3_white_balanced",
+            Kind::Nsrm,
+            FitOptions {
+                normalise: Normalise::WhiteBalanced,
+                ..Default::default()
+            },
+        ),
+        ("rprm3_de00", Kind::Rprm, de00),
+    ];
+    for (name, kind, opts) in variants {
+        g.bench_function(name, |b| {
+            b.iter(|| {
+                evaluate_with(
+                    kind,
+                    3,
+                    black_box(&data),
+                    Protocol::LeaveOneOut,
+                    "D65",
+                    &opts,
+                )
+                .unwrap()
             })
         });
     }

@@ -110,6 +110,10 @@ pub struct TrainingSet {
     pub xyz: Vec<[f64; 3]>,
     /// XYZ of the perfect white under the illuminant: the Lab reference white.
     pub white_xyz: [f64; 3],
+    /// Camera RGB of the perfect white under the illuminant (same scale as `rgb`), when known:
+    /// simulated data always has it; measured data does not (name a neutral patch instead).
+    /// White-balanced NSRM and `--preserve-white` use it.
+    pub white_rgb: Option<[f64; 3]>,
     pub provenance: Provenance,
 }
 
@@ -130,6 +134,7 @@ impl TrainingSet {
             rgb: indices.iter().map(|&i| self.rgb[i]).collect(),
             xyz: indices.iter().map(|&i| self.xyz[i]).collect(),
             white_xyz: self.white_xyz,
+            white_rgb: self.white_rgb,
             provenance: self.provenance.clone(),
         }
     }
@@ -259,6 +264,7 @@ impl TrainingSet {
             rgb,
             xyz,
             white_xyz,
+            white_rgb: None,
             provenance: Provenance {
                 source: "measured".into(),
                 reflectances: Some(source_name.to_string()),

@@ -121,6 +121,8 @@ impl Extraction {
             rgb: ok.iter().map(|p| p.rgb).collect(),
             xyz: ok.iter().map(|p| p.xyz).collect(),
             white_xyz: reference.white,
+            // A photographed chart has no perfect white: name a neutral patch (--white-patch).
+            white_rgb: None,
             provenance: crate::training::Provenance {
                 source: "capture".into(),
                 reflectances: Some(reference.name.clone()),

@@ -1,8 +1,11 @@
 //! `nsrm fit`: fit one model and write its JSON file.
 
 use super::common::{TrainingArgs, UsageError};
+use super::fit_args::FitVariantArgs;
 use anyhow::{Context, Result};
-use nsrm::model::{fit, Kind};
+use nsrm::colorimetry::delta_e00_xyz;
+use nsrm::model::fit::{fit_with, Normalise};
+use nsrm::model::Kind;
 use std::path::PathBuf;
 use std::process::ExitCode;
 
@@ -40,12 +43,29 @@ pub struct Args {
     /// corrected, ΔE00 per patch).
     #[arg(long, value_name = "FILE.png", requires = "capture")]
     overlay: Option<PathBuf>,
+    #[command(flatten)]
+    fit: FitVariantArgs,
 }
 
 pub fn run(a: Args) -> Result<ExitCode> {
     let kind = Kind::parse(&a.model).map_err(|e| UsageError(e.to_string()))?;
     if !(1..=4).contains(&a.order) {
         return Err(UsageError(format!("--order {} is out of range (1..4)", a.order)).into());
+    }
+    let opts = a.fit.options()?;
+    if opts.normalise == Normalise::WhiteBalanced {
+        if kind != Kind::Nsrm {
+            return Err(UsageError(format!(
+                "--normalise white-balanced is defined for NSRM only, not {kind}"
+            ))
+            .into());
+        }
+        // The input gains are not yet taken by the fast CPU path and the shaders, so a model
+        // file cannot carry them: evaluate with `nsrm eval --normalise white-balanced`.
+        return Err(UsageError(
+            "--normalise white-balanced cannot be written to a model file yet (the apply paths do not take input gains); use `nsrm eval --normalise white-balanced` to evaluate it".into(),
+        )
+        .into());
     }
     nsrm::atomic::check_clobber(&a.output, a.overwrite)?;
     if let Some(o) = &a.overlay {
@@ -56,11 +76,13 @@ pub fn run(a: Args) -> Result<ExitCode> {
         Some(c) => c.training_set().select(&a.training.patches)?,
         None => a.training.load(&a.illuminant)?,
     };
-    let model = fit(kind, a.order, &data)
+    let fitted = fit_with(kind, a.order, &data, &opts)
         .with_context(|| format!("fitting {kind} order {} on {} patches", a.order, data.len()))?;
+    let model = &fitted.model;
+    let report = &fitted.report;
     nsrm::atomic::write_atomic(&a.output, model.to_json().as_bytes(), a.overwrite)?;
     if let (Some(c), Some(o)) = (&captured, &a.overlay) {
-        let sw = super::capture::swatches(c, &model);
+        let sw = super::capture::swatches(c, model);
         super::capture::write_overlay(
             &c.frame,
             Some(&c.extraction),
@@ -70,13 +92,41 @@ pub fn run(a: Args) -> Result<ExitCode> {
             a.overwrite,
         )?;
     }
+    let de: Vec<f64> = data
+        .rgb
+        .iter()
+        .zip(&data.xyz)
+        .map(|(c, x)| delta_e00_xyz(fitted.apply_f64(*c), *x, data.white_xyz))
+        .collect();
+    let mean = de.iter().sum::<f64>() / de.len() as f64;
+    let max = de.iter().fold(0.0f64, |m, v| m.max(*v));
     eprintln!(
         "{} order {} ({} terms) fitted on {} patches, written to {}",
         kind,
-        model.order,
+        model.order(),
         model.len_terms(),
         data.len(),
         a.output.display()
+    );
+    let cond = report
+        .condition_number
+        .map(|c| format!("{c:.3e}"))
+        .unwrap_or_else(|| "inf (singular)".into());
+    eprintln!(
+        "objective {}, preserve white {}, ridge λ {}{}, normalise {}; coefficient norm {:.4e}, design condition number {cond}; in-sample ΔE00 mean {mean:.3}, max {max:.3}{}",
+        report.objective,
+        report.preserve_white,
+        report.ridge_lambda,
+        if report.ridge_auto { " (GCV)" } else { "" },
+        report.normalise,
+        report.coefficient_norm,
+        match (report.de00_start, report.de00_end) {
+            (Some(s), Some(e)) => format!(
+                "; Σ ΔE00^P {s:.4} → {e:.4} in {} iterations",
+                report.iterations
+            ),
+            _ => String::new(),
+        }
     );
     Ok(ExitCode::SUCCESS)
 }

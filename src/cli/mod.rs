@@ -12,6 +12,7 @@ mod eval;
 mod export;
 mod export_shader;
 mod fit;
+mod fit_args;
 mod render_chart;
 mod render_scene;
 mod terms;

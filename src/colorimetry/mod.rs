@@ -1,7 +1,10 @@
 //! Colorimetry: CIE XYZ ↔ CIELAB, CIEDE2000, and (in [`spaces`]) the matrices from XYZ to output
 //! RGB spaces with chromatic adaptation.
 
+pub mod dual;
 pub mod spaces;
+
+pub use dual::{Dual, Real};
 
 /// CIE D65 white point (2° observer), Y = 100; used when measured XYZ data names no white.
 pub const D65_WHITE_XYZ: [f64; 3] = [95.047, 100.0, 108.883];
@@ -18,18 +21,20 @@ pub fn xyy_to_xyz(x: f64, y: f64, big_y: f64) -> [f64; 3] {
 }
 
 /// CIE XYZ → CIELAB relative to the reference white `white` (same scale as `xyz`).
-pub fn xyz_to_lab(xyz: [f64; 3], white: [f64; 3]) -> [f64; 3] {
-    let f = |t: f64| {
-        if t > EPS {
+///
+/// Generic over [`Real`]: with [`Dual`] inputs it also returns the derivatives (see [`dual`]).
+pub fn xyz_to_lab<T: Real>(xyz: [T; 3], white: [f64; 3]) -> [T; 3] {
+    let f = |t: T| {
+        if t.re() > EPS {
             t.cbrt()
         } else {
-            (KAPPA * t + 16.0) / 116.0
+            (t * KAPPA + 16.0) / 116.0
         }
     };
     let fx = f(xyz[0] / white[0]);
     let fy = f(xyz[1] / white[1]);
     let fz = f(xyz[2] / white[2]);
-    [116.0 * fy - 16.0, 500.0 * (fx - fy), 200.0 * (fy - fz)]
+    [fy * 116.0 - 16.0, (fx - fy) * 500.0, (fy - fz) * 200.0]
 }
 
 /// CIELAB → CIE XYZ, the inverse of [`xyz_to_lab`].
@@ -54,25 +59,44 @@ pub fn lab_to_xyz(lab: [f64; 3], white: [f64; 3]) -> [f64; 3] {
 }
 
 /// CIEDE2000 colour difference (Sharma, Wu & Dalal 2005) with kL = kC = kH = 1.
-pub fn ciede2000(lab1: [f64; 3], lab2: [f64; 3]) -> f64 {
+///
+/// Generic over [`Real`]: with [`Dual`] inputs it also returns the gradient (see [`dual`]); the
+/// `f64` instance is the ΔE00 every evaluation reports.
+pub fn ciede2000<T: Real>(lab1: [T; 3], lab2: [T; 3]) -> T {
+    let [tl, tc, th, rt] = ciede2000_parts(lab1, lab2);
+    (tl * tl + tc * tc + th * th + rt * tc * th).sqrt()
+}
+
+/// CIEDE2000 as a Euclidean norm: a vector `v` with `‖v‖ = ΔE00`,
+/// `v = (ΔL'/S_L, ΔC'/S_C + R_T/2·ΔH'/S_H, ΔH'/S_H·√(1 − R_T²/4))` (`|R_T| ≤ 2`). Smooth where
+/// ΔE00 = 0, unlike the norm itself: the residuals a Gauss–Newton fit of ΣΔE00² wants.
+pub fn ciede2000_vector<T: Real>(lab1: [T; 3], lab2: [T; 3]) -> [T; 3] {
+    let [tl, tc, th, rt] = ciede2000_parts(lab1, lab2);
+    let k = (T::cst(1.0) - rt * rt * 0.25).sqrt();
+    [tl, tc + rt * th * 0.5, th * k]
+}
+
+/// `(ΔL'/S_L, ΔC'/S_C, ΔH'/S_H, R_T)` of CIEDE2000.
+fn ciede2000_parts<T: Real>(lab1: [T; 3], lab2: [T; 3]) -> [T; 4] {
     use std::f64::consts::PI;
+    let one = T::cst(1.0);
     let [l1, a1, b1] = lab1;
     let [l2, a2, b2] = lab2;
     let c1 = a1.hypot(b1);
     let c2 = a2.hypot(b2);
-    let cbar = 0.5 * (c1 + c2);
+    let cbar = (c1 + c2) * 0.5;
     let cbar7 = cbar.powi(7);
-    let g = 0.5 * (1.0 - (cbar7 / (cbar7 + 25f64.powi(7))).sqrt());
-    let a1p = (1.0 + g) * a1;
-    let a2p = (1.0 + g) * a2;
+    let g = (one - (cbar7 / (cbar7 + 25f64.powi(7))).sqrt()) * 0.5;
+    let a1p = (g + 1.0) * a1;
+    let a2p = (g + 1.0) * a2;
     let c1p = a1p.hypot(b1);
     let c2p = a2p.hypot(b2);
-    let hue = |b: f64, a: f64| {
-        if b == 0.0 && a == 0.0 {
-            0.0
+    let hue = |b: T, a: T| {
+        if b.re() == 0.0 && a.re() == 0.0 {
+            T::cst(0.0)
         } else {
             let h = b.atan2(a).to_degrees();
-            if h < 0.0 {
+            if h.re() < 0.0 {
                 h + 360.0
             } else {
                 h
@@ -84,52 +108,76 @@ pub fn ciede2000(lab1: [f64; 3], lab2: [f64; 3]) -> f64 {
 
     let dlp = l2 - l1;
     let dcp = c2p - c1p;
-    let dhp = if c1p * c2p == 0.0 {
-        0.0
+    let zero_chroma = (c1p * c2p).re() == 0.0;
+    let dhp = if zero_chroma {
+        T::cst(0.0)
     } else {
         let d = h2p - h1p;
-        if d > 180.0 {
+        if d.re() > 180.0 {
             d - 360.0
-        } else if d < -180.0 {
+        } else if d.re() < -180.0 {
             d + 360.0
         } else {
             d
         }
     };
-    let dhp_big = 2.0 * (c1p * c2p).sqrt() * (dhp.to_radians() / 2.0).sin();
+    let dhp_big = (c1p * c2p).sqrt() * (dhp.to_radians() / 2.0).sin() * 2.0;
 
-    let lbarp = 0.5 * (l1 + l2);
-    let cbarp = 0.5 * (c1p + c2p);
-    let hbarp = if c1p * c2p == 0.0 {
+    let lbarp = (l1 + l2) * 0.5;
+    let cbarp = (c1p + c2p) * 0.5;
+    let hbarp = if zero_chroma {
         h1p + h2p
-    } else if (h1p - h2p).abs() <= 180.0 {
-        0.5 * (h1p + h2p)
-    } else if h1p + h2p < 360.0 {
-        0.5 * (h1p + h2p + 360.0)
+    } else if (h1p - h2p).re().abs() <= 180.0 {
+        (h1p + h2p) * 0.5
+    } else if (h1p + h2p).re() < 360.0 {
+        (h1p + h2p + 360.0) * 0.5
     } else {
-        0.5 * (h1p + h2p - 360.0)
+        (h1p + h2p - 360.0) * 0.5
     };
-    let t = 1.0 - 0.17 * (hbarp - 30.0).to_radians().cos()
-        + 0.24 * (2.0 * hbarp).to_radians().cos()
-        + 0.32 * (3.0 * hbarp + 6.0).to_radians().cos()
-        - 0.20 * (4.0 * hbarp - 63.0).to_radians().cos();
-    let dtheta = 30.0 * (-((hbarp - 275.0) / 25.0).powi(2)).exp();
+    let t = one - (hbarp - 30.0).to_radians().cos() * 0.17
+        + (hbarp * 2.0).to_radians().cos() * 0.24
+        + (hbarp * 3.0 + 6.0).to_radians().cos() * 0.32
+        - (hbarp * 4.0 - 63.0).to_radians().cos() * 0.20;
+    let dtheta = (-((hbarp - 275.0) / 25.0).powi(2)).exp() * 30.0;
     let cbarp7 = cbarp.powi(7);
-    let rc = 2.0 * (cbarp7 / (cbarp7 + 25f64.powi(7))).sqrt();
+    let rc = (cbarp7 / (cbarp7 + 25f64.powi(7))).sqrt() * 2.0;
     let l50 = (lbarp - 50.0).powi(2);
-    let sl = 1.0 + 0.015 * l50 / (20.0 + l50).sqrt();
-    let sc = 1.0 + 0.045 * cbarp;
-    let sh = 1.0 + 0.015 * cbarp * t;
-    let rt = -(2.0 * dtheta * PI / 180.0).sin() * rc;
+    let sl = l50 * 0.015 / (l50 + 20.0).sqrt() + 1.0;
+    let sc = cbarp * 0.045 + 1.0;
+    let sh = cbarp * 0.015 * t + 1.0;
+    let rt = -(dtheta * 2.0 * PI / 180.0).sin() * rc;
     let tl = dlp / sl;
     let tc = dcp / sc;
     let th = dhp_big / sh;
-    (tl * tl + tc * tc + th * th + rt * tc * th).sqrt()
+    [tl, tc, th, rt]
 }
 
 /// ΔE00 between two XYZ colours, each converted to Lab with the same reference white.
 pub fn delta_e00_xyz(xyz1: [f64; 3], xyz2: [f64; 3], white: [f64; 3]) -> f64 {
     ciede2000(xyz_to_lab(xyz1, white), xyz_to_lab(xyz2, white))
+}
+
+/// ΔE00 between a predicted XYZ and a reference Lab colour, with its gradient with respect to the
+/// predicted X, Y, Z (forward-mode through [`xyz_to_lab`] and [`ciede2000`]; 0 where ΔE00 = 0).
+pub fn delta_e00_xyz_grad(
+    xyz: [f64; 3],
+    reference_lab: [f64; 3],
+    white: [f64; 3],
+) -> (f64, [f64; 3]) {
+    let lab = xyz_to_lab(Dual::<3>::vars(xyz), white);
+    let d = ciede2000(lab, reference_lab.map(Dual::cst));
+    (d.v, d.d)
+}
+
+/// [`ciede2000_vector`] between a predicted XYZ and a reference Lab colour, with its Jacobian with
+/// respect to the predicted X, Y, Z (forward-mode through [`xyz_to_lab`]).
+pub fn delta_e00_vector_xyz_jacobian(
+    xyz: [f64; 3],
+    reference_lab: [f64; 3],
+    white: [f64; 3],
+) -> [Dual<3>; 3] {
+    let lab = xyz_to_lab(Dual::<3>::vars(xyz), white);
+    ciede2000_vector(lab, reference_lab.map(Dual::cst))
 }
 
 #[cfg(test)]
@@ -147,6 +195,60 @@ mod tests {
                 assert!((back[k] - xyz[k]).abs() < 1e-9 * xyz[k].max(1.0));
             }
         }
+    }
+
+    #[test]
+    fn delta_e00_gradient_matches_finite_differences() {
+        let w = D65_WHITE_XYZ;
+        // Ordinary colours, a dark one (linear branch of Lab), near-neutral ones and a hue across
+        // the 0°/360° seam.
+        let cases = [
+            ([20.0, 30.0, 40.0], [22.0, 29.0, 35.0]),
+            ([0.3, 0.4, 0.2], [0.5, 0.45, 0.3]),
+            ([95.0, 100.0, 108.0], [94.0, 100.5, 109.5]),
+            ([40.0, 30.0, 32.0], [36.0, 30.0, 28.0]),
+            ([60.0, 50.0, 10.0], [55.0, 52.0, 12.0]),
+        ];
+        for (pred, reference) in cases {
+            let rl = xyz_to_lab(reference, w);
+            let (d, g) = delta_e00_xyz_grad(pred, rl, w);
+            assert!((d - delta_e00_xyz(pred, reference, w)).abs() < 1e-12);
+            for k in 0..3 {
+                let h = 1e-6 * pred[k];
+                let mut p = pred;
+                p[k] += h;
+                let up = delta_e00_xyz(p, reference, w);
+                p[k] -= 2.0 * h;
+                let down = delta_e00_xyz(p, reference, w);
+                let fd = (up - down) / (2.0 * h);
+                assert!(
+                    (g[k] - fd).abs() <= 1e-5 * fd.abs().max(1e-3),
+                    "{pred:?} vs {reference:?}, d/dXYZ[{k}]: {} vs {fd}",
+                    g[k]
+                );
+            }
+        }
+        // The vector form: its norm is ΔE00, its Jacobian matches finite differences.
+        for (pred, reference) in cases {
+            let rl = xyz_to_lab(reference, w);
+            let v = delta_e00_vector_xyz_jacobian(pred, rl, w);
+            let norm = v.iter().map(|c| c.v * c.v).sum::<f64>().sqrt();
+            assert!((norm - delta_e00_xyz(pred, reference, w)).abs() < 1e-12);
+            for k in 0..3 {
+                let h = 1e-6 * pred[k];
+                let vec_at = |x: [f64; 3]| ciede2000_vector(xyz_to_lab(x, w), rl);
+                let (mut up, mut down) = (pred, pred);
+                up[k] += h;
+                down[k] -= h;
+                for c in 0..3 {
+                    let fd = (vec_at(up)[c] - vec_at(down)[c]) / (2.0 * h);
+                    assert!((v[c].d[k] - fd).abs() <= 1e-5 * fd.abs().max(1e-3));
+                }
+            }
+        }
+        // At ΔE00 = 0 the gradient is taken as 0 (the square root has no derivative there).
+        let (d, g) = delta_e00_xyz_grad([20.0, 30.0, 40.0], xyz_to_lab([20.0, 30.0, 40.0], w), w);
+        assert_eq!((d, g), (0.0, [0.0; 3]));
     }
 
     #[test]

@@ -3,7 +3,8 @@
 pub mod plot;
 
 use crate::colorimetry::delta_e00_xyz;
-use crate::model::{fit, Kind, ModelError};
+use crate::model::fit::{fit_with, FitOptions};
+use crate::model::{Kind, ModelError};
 use crate::training::TrainingSet;
 use rayon::prelude::*;
 use serde::Serialize;
@@ -68,21 +69,98 @@ pub struct EvalResult {
     pub per_patch: Vec<PatchError>,
 }
 
-/// Predicted XYZ for every patch under `protocol`.
+/// A named fit variant of `eval --variants`.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Variant {
+    /// `ls`, `de00`, `de00+preserve-white`, `ridge-auto`, `white-balanced`.
+    pub name: &'static str,
+    pub opts: FitOptions,
+}
+
+/// The variants compared by `eval --variants` for `kind`: least squares, ΔE00, ΔE00 with the
+/// perfect white preserved, ridge with λ by GCV, and for NSRM white-balanced least squares.
+pub fn variants(kind: Kind) -> Vec<Variant> {
+    use crate::model::fit::{Normalise, Objective, Ridge};
+    let de00 = FitOptions {
+        objective: Objective::De00 { power: 2.0 },
+        ..Default::default()
+    };
+    let mut v = vec![
+        Variant {
+            name: "ls",
+            opts: FitOptions::default(),
+        },
+        Variant {
+            name: "de00",
+            opts: de00.clone(),
+        },
+        Variant {
+            name: "de00+preserve-white",
+            opts: FitOptions {
+                preserve_white: true,
+                ..de00
+            },
+        },
+        Variant {
+            name: "ridge-auto",
+            opts: FitOptions {
+                ridge: Ridge::Auto,
+                ..Default::default()
+            },
+        },
+    ];
+    if kind == Kind::Nsrm {
+        v.push(Variant {
+            name: "white-balanced",
+            opts: FitOptions {
+                normalise: Normalise::WhiteBalanced,
+                ..Default::default()
+            },
+        });
+    }
+    v
+}
+
+/// Predicted XYZ for every patch under `protocol`, fitting with the paper's least squares.
 pub fn predict(
     kind: Kind,
     order: u8,
     data: &TrainingSet,
     protocol: Protocol,
 ) -> Result<Vec<[f64; 3]>, ModelError> {
+    predict_with(kind, order, data, protocol, &FitOptions::default())
+}
+
+/// Predicted XYZ for every patch under `protocol`, fitting with `opts`. Leave-one-out runs the
+/// whole procedure (objective, white constraint, λ choice, white balance) inside every fold, folds
+/// in parallel.
+pub fn predict_with(
+    kind: Kind,
+    order: u8,
+    data: &TrainingSet,
+    protocol: Protocol,
+    opts: &FitOptions,
+) -> Result<Vec<[f64; 3]>, ModelError> {
     match protocol {
-        Protocol::InSample => Ok(fit(kind, order, data)?.apply_all_f64(&data.rgb)),
+        Protocol::InSample => {
+            let f = fit_with(kind, order, data, opts)?;
+            Ok(data.rgb.iter().map(|c| f.apply_f64(*c)).collect())
+        }
         Protocol::LeaveOneOut => (0..data.len())
             .into_par_iter()
             .map(|i| {
                 let rest: Vec<usize> = (0..data.len()).filter(|&j| j != i).collect();
-                let m = fit(kind, order, &data.subset(&rest))?;
-                Ok(m.apply_f64(data.rgb[i]))
+                let mut fold_opts = opts.clone();
+                // A named white patch that is left out cannot serve as its own fold's white: the
+                // fold that predicts it is fitted without the constraint (and raw, for NSRM).
+                if let crate::model::fit::White::Patch(label) = &opts.white {
+                    if &data.labels[i] == label {
+                        fold_opts.preserve_white = false;
+                        fold_opts.normalise = crate::model::fit::Normalise::Raw;
+                    }
+                }
+                let f = fit_with(kind, order, &data.subset(&rest), &fold_opts)?;
+                Ok(f.apply_f64(data.rgb[i]))
             })
             .collect(),
     }
@@ -95,6 +173,25 @@ pub fn evaluate(
     data: &TrainingSet,
     protocol: Protocol,
     illuminant: &str,
+) -> Result<EvalResult, ModelError> {
+    evaluate_with(
+        kind,
+        order,
+        data,
+        protocol,
+        illuminant,
+        &FitOptions::default(),
+    )
+}
+
+/// [`evaluate`] with a fit variant.
+pub fn evaluate_with(
+    kind: Kind,
+    order: u8,
+    data: &TrainingSet,
+    protocol: Protocol,
+    illuminant: &str,
+    opts: &FitOptions,
 ) -> Result<EvalResult, ModelError> {
     let order = kind.effective_order(order);
     let min = match protocol {
@@ -109,7 +206,7 @@ pub fn evaluate(
             patches: data.len().saturating_sub(min - 1),
         });
     }
-    let pred = predict(kind, order, data, protocol)?;
+    let pred = predict_with(kind, order, data, protocol, opts)?;
     let per_patch: Vec<PatchError> = data
         .labels
         .iter()

@@ -366,6 +366,7 @@ mod tests {
             rgb: (0..5).map(|i| [0.1 * i as f64, 0.2, 0.3]).collect(),
             xyz: (0..5).map(|i| [10.0 * i as f64, 20.0, 30.0]).collect(),
             white_xyz: [95.0, 100.0, 108.0],
+            white_rgb: None,
             provenance: Provenance::default(),
         }
     }

@@ -60,6 +60,9 @@ struct ModelFile {
     input: Input,
     output: Output,
     training: Training,
+    /// How the matrix was fitted (absent in files written before it was recorded).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    fit: Option<super::fit::FitReport>,
 }
 
 impl Model {
@@ -88,6 +91,7 @@ impl Model {
                 provenance: self.provenance.clone(),
                 patch_labels: self.patches.clone(),
             },
+            fit: self.fit_report.clone(),
         };
         let mut s = serde_json::to_string_pretty(&file).expect("a model serialises");
         s.push('\n');
@@ -156,6 +160,15 @@ impl Model {
         model.white_xyz = w;
         model.provenance = f.training.provenance;
         model.patches = f.training.patch_labels;
+        if let Some(r) = &f.fit {
+            if r.input_gains != [1.0; 3] {
+                return Err(bad(format!(
+                    "input gains {:?} (white-balanced NSRM) are not supported by this build's apply paths",
+                    r.input_gains
+                )));
+            }
+        }
+        model.fit_report = f.fit;
         Ok(model)
     }
 

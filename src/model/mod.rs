@@ -12,12 +12,13 @@
 
 pub mod fast;
 pub mod file;
+pub mod fit;
+mod refine;
 pub mod terms;
 
 pub use terms::{term_name, terms, Term, MAX_ORDER};
 
 use crate::training::{Provenance, TrainingSet};
-use nalgebra::DMatrix;
 
 /// Errors from fitting, loading or validating a model.
 #[derive(Debug, thiserror::Error)]
@@ -43,6 +44,17 @@ pub enum ModelError {
     NonPositiveSignal { label: String, sum: f64 },
     #[error("the fit produced a non-finite matrix (the training data is degenerate)")]
     Degenerate,
+    #[error("training patch `{label}`: {what} = {value:.3e} is outside the range a fit accepts (0, or 1e-100 ≤ |v| ≤ 1e100): check the data's scale")]
+    OutOfRange {
+        label: String,
+        what: String,
+        value: f64,
+    },
+    #[error("the {what} did not converge within {iterations} iterations")]
+    NotConverged {
+        what: &'static str,
+        iterations: usize,
+    },
     #[error("{0}")]
     Invalid(String),
     #[error("{path}: cannot read: {err}")]
@@ -124,6 +136,9 @@ pub struct Model {
     pub provenance: Provenance,
     /// The training patch labels.
     pub patches: Vec<String>,
+    /// How the matrix was fitted (objective, ridge λ, coefficient norm, condition number), when
+    /// known: [`fit::fit_with`] sets it, the model file carries it.
+    fit_report: Option<fit::FitReport>,
 }
 
 impl Model {
@@ -154,6 +169,7 @@ impl Model {
             white_xyz: crate::colorimetry::D65_WHITE_XYZ,
             provenance: Provenance::default(),
             patches: Vec::new(),
+            fit_report: None,
         })
     }
 
@@ -190,6 +206,11 @@ impl Model {
     /// The training patch labels.
     pub fn patches(&self) -> &[String] {
         &self.patches
+    }
+
+    /// How the matrix was fitted, when known (see [`fit::FitReport`]).
+    pub fn fit_report(&self) -> Option<&fit::FitReport> {
+        self.fit_report.as_ref()
     }
 
     /// Number of terms L.
@@ -283,76 +304,10 @@ pub fn features(kind: Kind, terms: &[Term], rgb: [f64; 3], p: &mut [f64]) -> Opt
 /// Least-squares fit of `kind` at `order` to a training set, by SVD (never the normal equations).
 ///
 /// LRM, PRM and RPRM fit `XYZ ≈ M·p(RGB)`. NSRM fits the normalised targets
-/// `(α, β, γ) = XYZ / s ≈ M·p(r, g)`, `s = R+G+B`, as in the paper.
+/// `(α, β, γ) = XYZ / s ≈ M·p(r, g)`, `s = R+G+B`, as in the paper. The variants (ΔE00 objective,
+/// white preservation, ridge, white-balanced NSRM) are [`fit::fit_with`].
 pub fn fit(kind: Kind, order: u8, data: &TrainingSet) -> Result<Model, ModelError> {
-    if !(1..=MAX_ORDER).contains(&order) {
-        return Err(ModelError::Order(order));
-    }
-    let order = kind.effective_order(order);
-    let terms = terms(kind, order);
-    let l = terms.len();
-    let n = data.len();
-    if n < l {
-        return Err(ModelError::TooFewPatches {
-            kind,
-            order,
-            terms: l,
-            patches: n,
-        });
-    }
-    let mut a = DMatrix::<f64>::zeros(n, l);
-    let mut b = DMatrix::<f64>::zeros(n, 3);
-    let mut p = vec![0.0; l];
-    for i in 0..n {
-        let (rgb, xyz) = (data.rgb[i], data.xyz[i]);
-        if rgb.iter().chain(&xyz).any(|v| !v.is_finite()) {
-            return Err(ModelError::NonFinite {
-                label: data.labels[i].clone(),
-                rgb,
-                xyz,
-            });
-        }
-        let scale =
-            features(kind, &terms, rgb, &mut p).ok_or_else(|| ModelError::NonPositiveSignal {
-                label: data.labels[i].clone(),
-                sum: rgb.iter().sum(),
-            })?;
-        for (j, v) in p.iter().enumerate() {
-            a[(i, j)] = *v;
-        }
-        for k in 0..3 {
-            b[(i, k)] = xyz[k] / scale;
-        }
-    }
-    let x = lstsq(a, &b)?;
-    let mut matrix = vec![0.0; 3 * l];
-    for i in 0..3 {
-        for j in 0..l {
-            matrix[i * l + j] = x[(j, i)];
-        }
-    }
-    if matrix.iter().any(|v| !v.is_finite()) {
-        return Err(ModelError::Degenerate);
-    }
-    Ok(Model {
-        kind,
-        order,
-        terms,
-        matrix,
-        white_xyz: data.white_xyz,
-        provenance: data.provenance.clone(),
-        patches: data.labels.clone(),
-    })
-}
-
-/// Minimum-norm least-squares solution of `A·X ≈ B` by SVD, with numpy's default cut-off for
-/// small singular values (`σ ≤ ε·max(n, l)·σ_max`).
-fn lstsq(a: DMatrix<f64>, b: &DMatrix<f64>) -> Result<DMatrix<f64>, ModelError> {
-    let (n, l) = a.shape();
-    let svd = a.svd(true, true);
-    let smax = svd.singular_values.max();
-    let eps = f64::EPSILON * n.max(l) as f64 * smax;
-    svd.solve(b, eps).map_err(|_| ModelError::Degenerate)
+    fit::fit_with(kind, order, data, &fit::FitOptions::default()).map(|f| f.model)
 }
 
 #[cfg(test)]
@@ -387,6 +342,7 @@ mod tests {
             rgb,
             xyz,
             white_xyz: [95.0, 100.0, 108.0],
+            white_rgb: None,
             provenance: Provenance::default(),
         }
     }

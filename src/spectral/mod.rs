@@ -390,6 +390,11 @@ pub fn simulate(
     }
     let kx = 100.0 / y_white;
     let kc = 1.0 / g_white;
+    let white_rgb = [
+        kc * riemann(&e, &ones, &cam[0], grid.step),
+        1.0,
+        kc * riemann(&e, &ones, &cam[2], grid.step),
+    ];
     let mut rgb = Vec::with_capacity(refl.len());
     let mut xyz = Vec::with_capacity(refl.len());
     for r in &refl {
@@ -409,6 +414,7 @@ pub fn simulate(
         rgb,
         xyz,
         white_xyz,
+        white_rgb: Some(white_rgb),
         provenance: Provenance {
             source: "spectral".into(),
             camera: Some(camera.0.source_name.clone()),

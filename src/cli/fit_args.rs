@@ -1,0 +1,69 @@
+//! The fit-variant flags shared by `nsrm fit` and `nsrm eval`.
+
+use super::common::UsageError;
+use anyhow::Result;
+use nsrm::model::fit::{FitOptions, Normalise, Objective, Ridge, White};
+
+/// How the matrix is fitted (the paper: least squares, raw input, no constraint, no ridge).
+#[derive(Debug, Clone, clap::Args)]
+pub struct FitVariantArgs {
+    /// What the fit minimises: `ls` (least squares in XYZ, the paper), `de00` (Σ ΔE00² over the
+    /// training patches, Levenberg–Marquardt from the least-squares solution) or `de00:P`
+    /// (Σ ΔE00^P, 2 ≤ P ≤ 64: a larger P trades mean error for maximum error).
+    #[arg(long, default_value = "ls", value_name = "ls|de00|de00:P")]
+    pub objective: String,
+    /// Map the reference white exactly to its XYZ (an equality constraint, kept by `de00`): the
+    /// perfect white of the training illuminant, or the patch named by `--white-patch`.
+    #[arg(long)]
+    pub preserve_white: bool,
+    /// A neutral training patch to use as the white (for `--preserve-white` and
+    /// `--normalise white-balanced`); needed with measured data, which has no perfect white.
+    #[arg(long, value_name = "LABEL")]
+    pub white_patch: Option<String>,
+    /// Tikhonov regularisation of the matrix on standardised terms: λ ≥ 0, or `auto` (λ chosen by
+    /// generalised cross-validation on a log grid 1e-12..10).
+    #[arg(long, value_name = "LAMBDA|auto")]
+    pub ridge: Option<String>,
+    /// NSRM's input: `raw` (the paper) or `white-balanced` (R, G, B divided by the training white's
+    /// camera response before forming s, r, g; the gains go into the model file).
+    #[arg(long, default_value = "raw", value_name = "raw|white-balanced")]
+    pub normalise: String,
+}
+
+impl FitVariantArgs {
+    /// The options these flags name.
+    pub fn options(&self) -> Result<FitOptions> {
+        let usage = |flag: &str, e: nsrm::model::ModelError| UsageError(format!("--{flag}: {e}"));
+        let objective = Objective::parse(&self.objective).map_err(|e| usage("objective", e))?;
+        let ridge = match &self.ridge {
+            Some(s) => Ridge::parse(s).map_err(|e| usage("ridge", e))?,
+            None => Ridge::None,
+        };
+        let normalise = Normalise::parse(&self.normalise).map_err(|e| usage("normalise", e))?;
+        if self.white_patch.is_some() && !self.preserve_white && normalise == Normalise::Raw {
+            return Err(UsageError(
+                "--white-patch needs --preserve-white or --normalise white-balanced".into(),
+            )
+            .into());
+        }
+        Ok(FitOptions {
+            objective,
+            preserve_white: self.preserve_white,
+            white: match &self.white_patch {
+                Some(l) => White::Patch(l.clone()),
+                None => White::Perfect,
+            },
+            ridge,
+            normalise,
+        })
+    }
+
+    /// Whether any flag differs from the paper's fit.
+    pub fn is_default(&self) -> bool {
+        self.objective == "ls"
+            && !self.preserve_white
+            && self.white_patch.is_none()
+            && self.ridge.is_none()
+            && self.normalise == "raw"
+    }
+}

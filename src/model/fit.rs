@@ -1,0 +1,680 @@
+//! Fitting a model to training patches: least squares by SVD, with an optional equality
+//! constraint (`--preserve-white`), Tikhonov regularisation on standardised terms (`--ridge`), white
+//! balancing of NSRM's input (`--normalise white-balanced`), and a ΔE00 objective (`--objective
+//! de00`, refined by Levenberg–Marquardt in [`super::refine`]).
+//!
+//! # The least-squares problem
+//! Each patch `i` gives a row `p(S_i)` of the design matrix `A` (n × L) and a target row `t_i`:
+//! `XYZ_i` for LRM, PRM and RPRM, `XYZ_i / s_i` for NSRM (`s = R+G+B`). Every output channel `k`
+//! solves `min ‖A m_k − t_k‖²` (`m_k` = row k of the matrix), by SVD with numpy's cut-off.
+//!
+//! * **Ridge** adds `λ Σ_j (w_j m_kj)²`, `w_j = ‖A_j‖` (each term standardised to unit norm over the
+//!   training patches, so `λ` is dimensionless); NSRM's constant term is not penalised. `auto`
+//!   chooses `λ` on a log grid `10^-12 … 10^1` (quarter decades) by generalised cross-validation,
+//!   `GCV(λ) = n·RSS(λ) / (n − tr H(λ))²`.
+//! * **White preservation** requires `p(S_w)·m_k = t_w,k` exactly, for the reference white's camera
+//!   RGB `S_w` and XYZ: a linear constraint (for NSRM, at the white's `(r, g)`). It is solved in the
+//!   constraint's null space: `m_k = m_p,k + N z_k`, with `m_p,k` the minimum-norm solution of the
+//!   constraint and `N` an orthonormal basis of `p(S_w)^⊥` (a Householder reflector).
+//!
+//! # Bounded, checked numerics
+//! Every design entry and target is checked before the solve: finite, and 0 or
+//! `1e-100 ≤ |v| ≤ 1e100` ([`DESIGN_LIMIT`]); a patch of `1e200` (PRM's `R³` overflows) or a channel
+//! scaled by `1e-200` is refused with [`ModelError::OutOfRange`], naming the patch and the term.
+//! Every SVD runs with an iteration limit ([`svd`]), failing with [`ModelError::NotConverged`]
+//! rather than spinning.
+
+use super::{features, refine, terms, Kind, Model, ModelError, Term, MAX_ORDER};
+use crate::training::TrainingSet;
+use nalgebra::{DMatrix, DVector, SVD};
+
+/// The largest magnitude (and the reciprocal of the smallest non-zero one) a design entry or
+/// target may have: squares and products of such numbers stay far inside f64's range.
+pub const DESIGN_LIMIT: f64 = 1e100;
+
+/// What the fit minimises.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Objective {
+    /// Σ‖M·p − t‖² (the paper's fit).
+    LeastSquares,
+    /// Σ ΔE00^power over the training patches (power ≥ 2; 2 is `de00`), starting from the
+    /// least-squares solution.
+    De00 { power: f64 },
+}
+
+impl Objective {
+    /// Parses `ls`, `de00` or `de00:P` (P ≥ 2, at most 64).
+    pub fn parse(s: &str) -> Result<Objective, ModelError> {
+        let s = s.trim();
+        let bad = || {
+            ModelError::Invalid(format!(
+                "objective `{s}`: expected ls, de00 or de00:P with 2 ≤ P ≤ 64"
+            ))
+        };
+        if s.eq_ignore_ascii_case("ls") {
+            return Ok(Objective::LeastSquares);
+        }
+        if s.eq_ignore_ascii_case("de00") {
+            return Ok(Objective::De00 { power: 2.0 });
+        }
+        let (head, p) = s.split_once(':').ok_or_else(bad)?;
+        if !head.eq_ignore_ascii_case("de00") {
+            return Err(bad());
+        }
+        let power: f64 = p.trim().parse().map_err(|_| bad())?;
+        if !(2.0..=64.0).contains(&power) {
+            return Err(bad());
+        }
+        Ok(Objective::De00 { power })
+    }
+
+    /// `ls`, `de00`, `de00:4`.
+    pub fn name(&self) -> String {
+        match self {
+            Objective::LeastSquares => "ls".into(),
+            Objective::De00 { power } if *power == 2.0 => "de00".into(),
+            Objective::De00 { power } => format!("de00:{power}"),
+        }
+    }
+}
+
+/// The reference white of a fit: what `preserve_white` keeps exact and white balance divides by.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub enum White {
+    /// The perfect white of the training illuminant ([`TrainingSet::white_rgb`] → `white_xyz`).
+    #[default]
+    Perfect,
+    /// A named (neutral) training patch, with its own RGB and XYZ.
+    Patch(String),
+}
+
+/// Tikhonov regularisation of the matrix.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub enum Ridge {
+    #[default]
+    None,
+    /// A fixed λ ≥ 0 (on standardised terms).
+    Lambda(f64),
+    /// λ chosen by generalised cross-validation.
+    Auto,
+}
+
+impl Ridge {
+    /// Parses `auto` or a number ≥ 0 (`0` is no regularisation).
+    pub fn parse(s: &str) -> Result<Ridge, ModelError> {
+        let s = s.trim();
+        if s.eq_ignore_ascii_case("auto") {
+            return Ok(Ridge::Auto);
+        }
+        match s.parse::<f64>() {
+            Ok(0.0) => Ok(Ridge::None),
+            Ok(v) if v.is_finite() && v > 0.0 && v <= 1e12 => Ok(Ridge::Lambda(v)),
+            _ => Err(ModelError::Invalid(format!(
+                "ridge `{s}`: expected auto or a number in [0, 1e12]"
+            ))),
+        }
+    }
+}
+
+/// How NSRM's input is normalised before forming `s, r, g`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum Normalise {
+    /// Raw camera RGB (the paper).
+    #[default]
+    Raw,
+    /// R, G, B divided by the training white's camera response (the white becomes (1, 1, 1)).
+    WhiteBalanced,
+}
+
+impl Normalise {
+    /// Parses `raw` or `white-balanced`.
+    pub fn parse(s: &str) -> Result<Normalise, ModelError> {
+        match s.trim().to_ascii_lowercase().as_str() {
+            "raw" => Ok(Normalise::Raw),
+            "white-balanced" | "wb" => Ok(Normalise::WhiteBalanced),
+            other => Err(ModelError::Invalid(format!(
+                "normalise `{other}`: expected raw or white-balanced"
+            ))),
+        }
+    }
+
+    /// `raw` or `white-balanced`.
+    pub fn name(self) -> &'static str {
+        match self {
+            Normalise::Raw => "raw",
+            Normalise::WhiteBalanced => "white-balanced",
+        }
+    }
+}
+
+/// Everything that defines a fit besides the kind and order. `Default` is the paper's fit.
+#[derive(Debug, Clone, PartialEq)]
+pub struct FitOptions {
+    pub objective: Objective,
+    /// Map [`FitOptions::white`] exactly to its reference XYZ.
+    pub preserve_white: bool,
+    pub white: White,
+    pub ridge: Ridge,
+    pub normalise: Normalise,
+}
+
+impl Default for FitOptions {
+    fn default() -> Self {
+        FitOptions {
+            objective: Objective::LeastSquares,
+            preserve_white: false,
+            white: White::Perfect,
+            ridge: Ridge::None,
+            normalise: Normalise::Raw,
+        }
+    }
+}
+
+/// What a fit did, for `fit`'s summary and the model file.
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct FitReport {
+    /// `ls`, `de00`, `de00:P`.
+    pub objective: String,
+    /// `none`, `perfect-white` or `patch:LABEL`.
+    pub preserve_white: String,
+    /// `raw` or `white-balanced`.
+    pub normalise: String,
+    /// The ridge λ used (0: none), and whether it was chosen by GCV.
+    pub ridge_lambda: f64,
+    pub ridge_auto: bool,
+    /// Frobenius norm of the fitted matrix.
+    pub coefficient_norm: f64,
+    /// σ_max / σ_min of the design matrix `A` (the terms as fitted); `None` when it is singular.
+    pub condition_number: Option<f64>,
+    /// Input gains multiplied into camera RGB before the terms (white-balanced NSRM), else 1.
+    pub input_gains: [f64; 3],
+    /// In-sample Σ ΔE00^P at the least-squares start and at the end (ΔE00 objective only).
+    #[serde(skip_serializing_if = "Option::is_none", default)]
+    pub de00_start: Option<f64>,
+    #[serde(skip_serializing_if = "Option::is_none", default)]
+    pub de00_end: Option<f64>,
+    /// Levenberg–Marquardt iterations (Jacobian evaluations), 0 for least squares.
+    pub iterations: usize,
+}
+
+/// A fitted model with its input gains and report.
+#[derive(Debug, Clone)]
+pub struct Fit {
+    pub model: Model,
+    pub report: FitReport,
+}
+
+impl Fit {
+    /// Applies the input gains, then the model (f64 reference).
+    pub fn apply_f64(&self, rgb: [f64; 3]) -> [f64; 3] {
+        let g = self.report.input_gains;
+        self.model
+            .apply_f64([rgb[0] * g[0], rgb[1] * g[1], rgb[2] * g[2]])
+    }
+}
+
+/// The design of a fit: term rows, targets and output scales of the (gain-adjusted) patches.
+pub(crate) struct Design {
+    pub a: DMatrix<f64>,
+    pub b: DMatrix<f64>,
+    /// Output scale per patch (`s` for NSRM, 1 otherwise).
+    pub scale: Vec<f64>,
+}
+
+fn check_range(label: &str, what: &dyn Fn() -> String, v: f64) -> Result<(), ModelError> {
+    let a = v.abs();
+    if v.is_finite() && (a == 0.0 || (1.0 / DESIGN_LIMIT..=DESIGN_LIMIT).contains(&a)) {
+        Ok(())
+    } else {
+        Err(ModelError::OutOfRange {
+            label: label.to_string(),
+            what: what(),
+            value: v,
+        })
+    }
+}
+
+/// Builds and checks the design for `rgb` (already multiplied by the gains) and `xyz`.
+pub(crate) fn design(
+    kind: Kind,
+    terms: &[Term],
+    labels: &[String],
+    rgb: &[[f64; 3]],
+    xyz: &[[f64; 3]],
+) -> Result<Design, ModelError> {
+    let (n, l) = (rgb.len(), terms.len());
+    let mut a = DMatrix::<f64>::zeros(n, l);
+    let mut b = DMatrix::<f64>::zeros(n, 3);
+    let mut scale = Vec::with_capacity(n);
+    let mut p = vec![0.0; l];
+    for i in 0..n {
+        let label = &labels[i];
+        if rgb[i].iter().chain(&xyz[i]).any(|v| !v.is_finite()) {
+            return Err(ModelError::NonFinite {
+                label: label.clone(),
+                rgb: rgb[i],
+                xyz: xyz[i],
+            });
+        }
+        let s =
+            features(kind, terms, rgb[i], &mut p).ok_or_else(|| ModelError::NonPositiveSignal {
+                label: label.clone(),
+                sum: rgb[i].iter().sum(),
+            })?;
+        for (j, v) in p.iter().enumerate() {
+            check_range(
+                label,
+                &|| format!("term {}", super::term_name(kind, &terms[j])),
+                *v,
+            )?;
+            a[(i, j)] = *v;
+        }
+        for k in 0..3 {
+            let t = xyz[i][k] / s;
+            check_range(label, &|| format!("target {}", ["X", "Y", "Z"][k]), t)?;
+            b[(i, k)] = t;
+        }
+        scale.push(s);
+    }
+    Ok(Design { a, b, scale })
+}
+
+/// SVD with an iteration limit: never spins on a pathological matrix.
+pub fn svd(
+    a: DMatrix<f64>,
+    vectors: bool,
+) -> Result<SVD<f64, nalgebra::Dyn, nalgebra::Dyn>, ModelError> {
+    let dim = a.nrows().min(a.ncols());
+    let max_iter = 200 + 100 * dim;
+    if a.iter().any(|v| !v.is_finite()) {
+        return Err(ModelError::NotConverged {
+            what: "SVD (the matrix is not finite)",
+            iterations: 0,
+        });
+    }
+    a.try_svd(vectors, vectors, f64::EPSILON * 5.0, max_iter)
+        .ok_or(ModelError::NotConverged {
+            what: "SVD",
+            iterations: max_iter,
+        })
+}
+
+/// numpy's default cut-off for small singular values: `σ ≤ ε·max(rows, cols)·σ_max`.
+fn cutoff(svd: &SVD<f64, nalgebra::Dyn, nalgebra::Dyn>, rows: usize, cols: usize) -> f64 {
+    f64::EPSILON * rows.max(cols) as f64 * svd.singular_values.max()
+}
+
+/// Minimum-norm least-squares solution of `A·X ≈ B` by (bounded) SVD with numpy's cut-off.
+pub fn lstsq(a: DMatrix<f64>, b: &DMatrix<f64>) -> Result<DMatrix<f64>, ModelError> {
+    let (n, l) = a.shape();
+    let svd = svd(a, true)?;
+    let eps = cutoff(&svd, n, l);
+    svd.solve(b, eps).map_err(|_| ModelError::Degenerate)
+}
+
+/// An equality constraint `cᵀ m_k = d_k` for every output channel, in null-space form.
+pub(crate) struct Constraint {
+    /// The particular (minimum-norm) solution, L × 3.
+    pub xp: DMatrix<f64>,
+    /// Orthonormal basis of `c^⊥`, L × (L−1).
+    pub basis: DMatrix<f64>,
+}
+
+impl Constraint {
+    fn new(c: &[f64], d: [f64; 3]) -> Result<Constraint, ModelError> {
+        let l = c.len();
+        let norm2: f64 = c.iter().map(|v| v * v).sum();
+        if !(norm2 > 0.0 && norm2.is_finite()) {
+            return Err(ModelError::Invalid(
+                "the white's terms are all zero: the constraint is empty".into(),
+            ));
+        }
+        let mut xp = DMatrix::<f64>::zeros(l, 3);
+        for j in 0..l {
+            for k in 0..3 {
+                xp[(j, k)] = c[j] * d[k] / norm2;
+            }
+        }
+        // Householder reflector H = I − 2vvᵀ/(vᵀv), v = c + sign(c₀)‖c‖e₀: H e₀ ∥ c, so H's
+        // other columns are an orthonormal basis of c^⊥.
+        let norm = norm2.sqrt();
+        let mut v = c.to_vec();
+        v[0] += if c[0] >= 0.0 { norm } else { -norm };
+        let vv: f64 = v.iter().map(|x| x * x).sum();
+        let mut basis = DMatrix::<f64>::zeros(l, l - 1);
+        for col in 1..l {
+            for row in 0..l {
+                let id = if row == col { 1.0 } else { 0.0 };
+                basis[(row, col - 1)] = id - 2.0 * v[row] * v[col] / vv;
+            }
+        }
+        Ok(Constraint { xp, basis })
+    }
+}
+
+/// The reduced, possibly regularised least-squares problem in the unknowns `z` (L × 3, or
+/// (L−1) × 3 under a constraint): data rows `G z ≈ B_r` and penalty rows.
+pub(crate) struct Reduced {
+    /// `A N` (or `A`), n × L_r.
+    pub g: DMatrix<f64>,
+    /// `B − A m_p` (or `B`), n × 3.
+    pub br: DMatrix<f64>,
+    /// Penalty weights `diag(w)·N` (or `diag(w)`), L × L_r, and offsets `diag(w)·m_p`, L × 3.
+    pub wn: DMatrix<f64>,
+    pub wxp: DMatrix<f64>,
+    pub constraint: Option<Constraint>,
+}
+
+impl Reduced {
+    pub(crate) fn new(
+        kind: Kind,
+        terms: &[Term],
+        d: &Design,
+        constraint: Option<Constraint>,
+    ) -> Reduced {
+        let l = d.a.ncols();
+        let w: Vec<f64> = (0..l)
+            .map(|j| {
+                if kind == Kind::Nsrm && terms[j].degree() == 0 {
+                    0.0
+                } else {
+                    d.a.column(j).norm()
+                }
+            })
+            .collect();
+        let wdiag = DMatrix::from_diagonal(&DVector::from_vec(w));
+        match &constraint {
+            Some(c) => Reduced {
+                g: &d.a * &c.basis,
+                br: &d.b - &d.a * &c.xp,
+                wn: &wdiag * &c.basis,
+                wxp: &wdiag * &c.xp,
+                constraint,
+            },
+            None => Reduced {
+                g: d.a.clone(),
+                br: d.b.clone(),
+                wn: wdiag,
+                wxp: DMatrix::zeros(l, 3),
+                constraint: None,
+            },
+        }
+    }
+
+    /// The full matrix (L × 3) from reduced unknowns.
+    pub fn full(&self, z: &DMatrix<f64>) -> DMatrix<f64> {
+        match &self.constraint {
+            Some(c) => &c.xp + &c.basis * z,
+            None => z.clone(),
+        }
+    }
+
+    /// Solves for `z` at ridge `lambda` (0: plain least squares); returns `z`, the data residual
+    /// sum of squares and the trace of the hat matrix (the effective number of parameters).
+    fn solve(&self, lambda: f64) -> Result<(DMatrix<f64>, f64, f64), ModelError> {
+        let (n, lr) = self.g.shape();
+        let l = self.wn.nrows();
+        let (k, rhs) = if lambda > 0.0 {
+            let sl = lambda.sqrt();
+            let mut k = DMatrix::<f64>::zeros(n + l, lr);
+            k.rows_mut(0, n).copy_from(&self.g);
+            k.rows_mut(n, l).copy_from(&(&self.wn * sl));
+            let mut rhs = DMatrix::<f64>::zeros(n + l, 3);
+            rhs.rows_mut(0, n).copy_from(&self.br);
+            rhs.rows_mut(n, l).copy_from(&(&self.wxp * -sl));
+            (k, rhs)
+        } else {
+            (self.g.clone(), self.br.clone())
+        };
+        let rows = k.nrows();
+        let svd = svd(k, true)?;
+        let eps = cutoff(&svd, rows, lr);
+        let z = svd.solve(&rhs, eps).map_err(|_| ModelError::Degenerate)?;
+        let u = svd.u.as_ref().expect("computed");
+        let mut trace = 0.0;
+        for (c, s) in svd.singular_values.iter().enumerate() {
+            if *s > eps {
+                trace += u.view((0, c), (n, 1)).norm_squared();
+            }
+        }
+        let rss = (&self.g * &z - &self.br).norm_squared();
+        Ok((z, rss, trace))
+    }
+}
+
+/// The λ grid of `--ridge auto`: 10^-12 … 10^1 in quarter decades.
+pub fn lambda_grid() -> impl Iterator<Item = f64> {
+    (0..=52).map(|i| 10f64.powf(-12.0 + 0.25 * i as f64))
+}
+
+/// Fits `kind` at `order` with `opts` (see the [module docs](self)).
+pub fn fit_with(
+    kind: Kind,
+    order: u8,
+    data: &TrainingSet,
+    opts: &FitOptions,
+) -> Result<Fit, ModelError> {
+    if !(1..=MAX_ORDER).contains(&order) {
+        return Err(ModelError::Order(order));
+    }
+    let order = kind.effective_order(order);
+    let terms = terms(kind, order);
+    let l = terms.len();
+    let n = data.len();
+    if n < l {
+        return Err(ModelError::TooFewPatches {
+            kind,
+            order,
+            terms: l,
+            patches: n,
+        });
+    }
+    let white_rgb = || {
+        data.white_rgb.ok_or_else(|| {
+            ModelError::Invalid(
+                "the training data has no camera response of its white (measured data): name a neutral patch (--white-patch)".into(),
+            )
+        })
+    };
+    let gains = match opts.normalise {
+        Normalise::Raw => [1.0; 3],
+        Normalise::WhiteBalanced => {
+            if kind != Kind::Nsrm {
+                return Err(ModelError::Invalid(format!(
+                    "white-balanced normalisation is defined for NSRM only, not {kind}"
+                )));
+            }
+            let w = match &opts.white {
+                White::Patch(label) => patch_rgb(data, label)?,
+                White::Perfect => white_rgb()?,
+            };
+            if w.iter().any(|v| !(v.is_finite() && *v > 0.0)) {
+                return Err(ModelError::Invalid(format!(
+                    "the white's camera response {w:?} is not positive: it cannot be balanced"
+                )));
+            }
+            [1.0 / w[0], 1.0 / w[1], 1.0 / w[2]]
+        }
+    };
+    let rgb: Vec<[f64; 3]> = data
+        .rgb
+        .iter()
+        .map(|c| [c[0] * gains[0], c[1] * gains[1], c[2] * gains[2]])
+        .collect();
+    let d = design(kind, &terms, &data.labels, &rgb, &data.xyz)?;
+
+    let constraint = match opts.preserve_white {
+        false => None,
+        true => {
+            let (w_rgb, w_xyz, label) = match &opts.white {
+                White::Patch(label) => {
+                    let i = patch_index(data, label)?;
+                    (data.rgb[i], data.xyz[i], label.clone())
+                }
+                White::Perfect => (white_rgb()?, data.white_xyz, "perfect white".to_string()),
+            };
+            let w_rgb = [
+                w_rgb[0] * gains[0],
+                w_rgb[1] * gains[1],
+                w_rgb[2] * gains[2],
+            ];
+            let wd = design(kind, &terms, &[label], &[w_rgb], &[w_xyz])?;
+            let c: Vec<f64> = wd.a.row(0).iter().copied().collect();
+            Some(Constraint::new(
+                &c,
+                [wd.b[(0, 0)], wd.b[(0, 1)], wd.b[(0, 2)]],
+            )?)
+        }
+    };
+
+    // Plain least squares takes the one SVD the paper's fit needs; the others reuse its design.
+    let plain = constraint.is_none() && opts.ridge == Ridge::None;
+    let a_svd = svd(d.a.clone(), plain)?;
+    let smax = a_svd.singular_values.max();
+    let smin = a_svd.singular_values.min();
+    let condition_number = (smin > 0.0).then(|| smax / smin);
+
+    let reduced = Reduced::new(kind, &terms, &d, constraint);
+    let (lambda, z) = if plain {
+        let eps = cutoff(&a_svd, n, l);
+        let z = a_svd.solve(&d.b, eps).map_err(|_| ModelError::Degenerate)?;
+        (0.0, z)
+    } else {
+        match opts.ridge {
+            Ridge::None => (0.0, reduced.solve(0.0)?.0),
+            Ridge::Lambda(lam) => (lam, reduced.solve(lam)?.0),
+            Ridge::Auto => {
+                let mut best: Option<(f64, f64, DMatrix<f64>)> = None;
+                for lam in lambda_grid() {
+                    let (z, rss, tr) = reduced.solve(lam)?;
+                    let dof = n as f64 - tr;
+                    if dof <= 0.0 {
+                        continue;
+                    }
+                    let gcv = n as f64 * rss / (dof * dof);
+                    if best.as_ref().is_none_or(|b| gcv < b.1) {
+                        best = Some((lam, gcv, z));
+                    }
+                }
+                let (lam, _, z) = best.ok_or(ModelError::Degenerate)?;
+                (lam, z)
+            }
+        }
+    };
+
+    let (z, de00_start, de00_end, iterations) = match opts.objective {
+        Objective::LeastSquares => (z, None, None, 0),
+        Objective::De00 { power } => {
+            let r = refine::refine(&reduced, &d, &z, lambda, power, &data.xyz, data.white_xyz)?;
+            (r.z, Some(r.start), Some(r.end), r.iterations)
+        }
+    };
+    let x = if plain { z } else { reduced.full(&z) };
+    let mut matrix = vec![0.0; 3 * l];
+    for i in 0..3 {
+        for j in 0..l {
+            matrix[i * l + j] = x[(j, i)];
+        }
+    }
+    if matrix.iter().any(|v| !v.is_finite()) {
+        return Err(ModelError::Degenerate);
+    }
+    let coefficient_norm = matrix.iter().map(|v| v * v).sum::<f64>().sqrt();
+    let model = Model {
+        kind,
+        order,
+        terms,
+        matrix,
+        white_xyz: data.white_xyz,
+        provenance: data.provenance.clone(),
+        patches: data.labels.clone(),
+        fit_report: None,
+    };
+    let report = FitReport {
+        objective: opts.objective.name(),
+        preserve_white: match (opts.preserve_white, &opts.white) {
+            (false, _) => "none".into(),
+            (true, White::Perfect) => "perfect-white".into(),
+            (true, White::Patch(l)) => format!("patch:{l}"),
+        },
+        normalise: opts.normalise.name().into(),
+        ridge_lambda: lambda,
+        ridge_auto: opts.ridge == Ridge::Auto,
+        coefficient_norm,
+        condition_number,
+        input_gains: gains,
+        de00_start,
+        de00_end,
+        iterations,
+    };
+    let mut model = model;
+    model.fit_report = Some(report.clone());
+    Ok(Fit { model, report })
+}
+
+fn patch_index(data: &TrainingSet, label: &str) -> Result<usize, ModelError> {
+    data.labels.iter().position(|l| l == label).ok_or_else(|| {
+        ModelError::Invalid(format!(
+            "white patch `{label}` is not among the training patches"
+        ))
+    })
+}
+
+fn patch_rgb(data: &TrainingSet, label: &str) -> Result<[f64; 3], ModelError> {
+    Ok(data.rgb[patch_index(data, label)?])
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn option_parsing() {
+        assert_eq!(Objective::parse("ls").unwrap(), Objective::LeastSquares);
+        assert_eq!(
+            Objective::parse("DE00").unwrap(),
+            Objective::De00 { power: 2.0 }
+        );
+        assert_eq!(
+            Objective::parse("de00:4").unwrap(),
+            Objective::De00 { power: 4.0 }
+        );
+        for bad in ["de00:1", "de00:x", "l2", "de00:", "de00:1e9", "de00:NaN"] {
+            assert!(Objective::parse(bad).is_err(), "{bad}");
+        }
+        assert_eq!(Objective::De00 { power: 4.0 }.name(), "de00:4");
+        assert_eq!(Ridge::parse("auto").unwrap(), Ridge::Auto);
+        assert_eq!(Ridge::parse("0").unwrap(), Ridge::None);
+        assert_eq!(Ridge::parse("1e-3").unwrap(), Ridge::Lambda(1e-3));
+        for bad in ["-1", "inf", "x", "1e13"] {
+            assert!(Ridge::parse(bad).is_err(), "{bad}");
+        }
+        assert_eq!(
+            Normalise::parse("white-balanced").unwrap(),
+            Normalise::WhiteBalanced
+        );
+        assert!(Normalise::parse("balanced").is_err());
+    }
+
+    #[test]
+    fn svd_is_bounded_and_refuses_non_finite_matrices() {
+        let mut a = DMatrix::<f64>::from_fn(6, 3, |i, j| (i * 3 + j) as f64 + 1.0);
+        assert!(svd(a.clone(), true).is_ok());
+        a[(2, 1)] = f64::INFINITY;
+        assert!(matches!(svd(a, true), Err(ModelError::NotConverged { .. })));
+    }
+
+    #[test]
+    fn householder_basis_is_orthonormal_and_orthogonal_to_the_constraint() {
+        let c = [0.3, -1.2, 0.7, 2.0, 0.01];
+        let k = Constraint::new(&c, [1.0, 2.0, 3.0]).unwrap();
+        let cv = DVector::from_column_slice(&c);
+        let ntn = k.basis.transpose() * &k.basis;
+        assert!((ntn - DMatrix::identity(4, 4)).norm() < 1e-14);
+        assert!((k.basis.transpose() * &cv).norm() < 1e-14);
+        let got = k.xp.transpose() * cv;
+        for (g, w) in got.iter().zip([1.0, 2.0, 3.0]) {
+            assert!((g - w).abs() < 1e-14);
+        }
+    }
+}

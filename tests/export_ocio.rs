@@ -84,12 +84,13 @@ fn write_frame(frame: &Frame, path: &Path) {
         compression: ExrCompression::None,
         space: OutputSpace::Xyz,
         overwrite: true,
+        zip_level: nsrm::io::DEFAULT_ZIP_LEVEL,
     };
     write_exr(frame, path, &opts).unwrap();
 }
 
 fn read(path: &Path) -> Vec<[f64; 3]> {
-    let f = read_frame(path, &ReadOptions { layer: None }).unwrap();
+    let f = read_frame(path, &ReadOptions::default()).unwrap();
     let ch = f.layout.channels();
     f.data
         .chunks_exact(ch)

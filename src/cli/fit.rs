@@ -45,7 +45,7 @@ pub fn run(a: Args) -> Result<ExitCode> {
     eprintln!(
         "{} order {} ({} terms) fitted on {} patches, written to {}",
         kind,
-        model.order,
+        model.order(),
         model.len_terms(),
         data.len(),
         a.output.display()

@@ -126,7 +126,7 @@ impl Model {
             )));
         }
         let flat: Vec<f64> = f.matrix.concat();
-        let mut model = Model::from_matrix(kind, f.order, flat).map_err(|e| match e {
+        let model = Model::from_matrix(kind, f.order, flat).map_err(|e| match e {
             ModelError::Invalid(why) => bad(why),
             e => e,
         })?;
@@ -146,17 +146,13 @@ impl Model {
                 model.term_names()
             )));
         }
-        let w = f.output.reference_white;
-        if w.iter().any(|v| !v.is_finite()) || w[1] <= 0.0 {
-            return Err(bad(format!("invalid reference white {w:?}")));
-        }
         if !(f.output.xyz_scale.is_finite() && f.output.xyz_scale > 0.0) {
             return Err(bad(format!("invalid xyz_scale {}", f.output.xyz_scale)));
         }
-        model.white_xyz = w;
-        model.provenance = f.training.provenance;
-        model.patches = f.training.patch_labels;
-        Ok(model)
+        let model = model
+            .with_white_xyz(f.output.reference_white)
+            .map_err(|e| bad(e.to_string()))?;
+        Ok(model.with_training(f.training.provenance, f.training.patch_labels))
     }
 
     /// Reads and validates a model file.

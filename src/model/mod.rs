@@ -511,7 +511,10 @@ mod tests {
             for order in 1..=MAX_ORDER {
                 let l = terms(kind, kind.effective_order(order)).len();
                 let m = Model::from_matrix(kind, order, vec![0.5; 3 * l]).unwrap();
-                assert_eq!(m.terms(), terms(kind, kind.effective_order(order)).as_slice());
+                assert_eq!(
+                    m.terms(),
+                    terms(kind, kind.effective_order(order)).as_slice()
+                );
                 assert_eq!(m.order(), kind.effective_order(order));
                 let short = Model::from_matrix(kind, order, vec![0.5; 3 * l - 1]).unwrap_err();
                 assert!(short.to_string().contains("matrix"), "{short}");

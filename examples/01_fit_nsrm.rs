@@ -11,8 +11,8 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let model = fit(Kind::Nsrm, 3, &data)?;
     println!(
         "{} order {}: terms {:?}",
-        model.kind,
-        model.order,
+        model.kind(),
+        model.order(),
         model.term_names()
     );
     for i in 0..3 {

@@ -71,8 +71,8 @@ fn main() -> Result<()> {
          (largest difference from the CPU path: {max_diff}/255)",
         frame.width,
         frame.height,
-        model.kind,
-        model.order,
+        model.kind(),
+        model.order(),
         out.display()
     );
     anyhow::ensure!(

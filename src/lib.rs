@@ -25,15 +25,36 @@
 //! assert!((xyz[1] - data.xyz[0][1]).abs() < 1.0);
 //! # Ok::<(), Box<dyn std::error::Error>>(())
 //! ```
+//!
+//! # Cargo features
+//! The colour-science core (`spectral`, `colorimetry`, `model`, `eval`, `training`, `frame`) has
+//! no optional dependency: `default-features = false` builds just that.
+//!
+//! | feature | brings |
+//! |---|---|
+//! | `gpu` | [`gpu`]: wgpu, the frame [`gpu::Engine`] and the embeddable [`gpu::Corrector`] |
+//! | `io` | [`io`]: OpenEXR / TIFF frames and batches, synthetic charts, PNG previews |
+//! | `export` | `gpu::export`: the shaders in SPIR-V, GLSL, HLSL and MSL (naga's back ends); implies `gpu` |
+//! | `plot` | `eval::plot`: the paper's Fig. 1 as SVG or PNG |
+//! | `chart` | chart detection in captured frames; implies `io` |
+//! | `cli` (default) | the `nsrm` binary; implies all of the above |
+//!
+//! A renderer embeds the correction pass with
+//! `nsrm = { version = "0.1", default-features = false, features = ["gpu"] }`.
 #![forbid(unsafe_code)]
+#![cfg_attr(docsrs, feature(doc_auto_cfg))]
 
 pub mod atomic;
+#[cfg(feature = "chart")]
 pub mod chart;
 pub mod colorimetry;
 pub mod eval;
+#[cfg(feature = "export")]
 pub mod export;
 pub mod frame;
+#[cfg(feature = "gpu")]
 pub mod gpu;
+#[cfg(feature = "io")]
 pub mod io;
 pub mod limits;
 pub mod model;

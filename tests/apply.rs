@@ -227,7 +227,7 @@ fn output_spaces_are_matrices_of_xyz_and_tagged() {
     ] {
         let path = d.join(format!("out/chart_{name}.exr"));
         let rgb = read_frame(&path, &ReadOptions::default()).unwrap();
-        let m = space.from_xyz(model.white_xyz);
+        let m = space.from_xyz(model.white_xyz());
         for i in 0..layout.patches.len() {
             let want = mat_apply(&m, layout.patch_mean(&xyz, i));
             let got = layout.patch_mean(&rgb, i);

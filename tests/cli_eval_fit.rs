@@ -127,11 +127,11 @@ fn fit_writes_a_model_that_loads_and_refuses_to_clobber() {
         String::from_utf8_lossy(&out.stderr)
     );
     let model = nsrm::Model::load(&m).unwrap();
-    assert_eq!(model.kind, nsrm::Kind::Rprm);
+    assert_eq!(model.kind(), nsrm::Kind::Rprm);
     assert_eq!(model.len_terms(), 22);
-    assert_eq!(model.patches.len(), 190);
+    assert_eq!(model.patches().len(), 190);
     assert!(model
-        .provenance
+        .provenance()
         .illuminant
         .as_deref()
         .unwrap()

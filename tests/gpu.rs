@@ -121,9 +121,9 @@ fn random_frame(width: usize, height: usize, layout: Layout, seed: u64) -> Frame
 
 /// The floor of each output channel of a pixel: `|s| · Σ_j |M_ij · p_j|`.
 fn summand_floor(model: &Model, px: &[f32]) -> [f64; 3] {
-    let mut p = vec![0.0; model.terms.len()];
+    let mut p = vec![0.0; model.terms().len()];
     let rgb = [px[0] as f64, px[1] as f64, px[2] as f64];
-    let Some(scale) = nsrm::model::features(model.kind, &model.terms, rgb, &mut p) else {
+    let Some(scale) = nsrm::model::features(model.kind(), model.terms(), rgb, &mut p) else {
         return [1e-30; 3];
     };
     let mut f = [0.0; 3];
@@ -309,10 +309,14 @@ fn models_swap_and_pipelines_are_reused() {
     };
     let a = model(Kind::Rprm, 3);
     let mut b = a.clone();
-    b.matrix
-        .iter_mut()
-        .enumerate()
-        .for_each(|(i, v)| *v *= 1.0 + 0.01 * i as f64);
+    b.set_matrix(
+        a.matrix()
+            .iter()
+            .enumerate()
+            .map(|(i, v)| v * (1.0 + 0.01 * i as f64))
+            .collect(),
+    )
+    .unwrap();
     for (round, m) in [&a, &b, &a].into_iter().enumerate() {
         let input = random_frame(33, 40, Layout::Rgba, 50 + round as u64);
         let mut reference = input.clone();

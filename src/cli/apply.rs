@@ -389,7 +389,7 @@ pub fn run(a: Args) -> Result<ExitCode> {
                 overwrite: a.overwrite,
                 zip_level: a.zip_level,
             },
-            to_srgb: fio::to_linear_srgb(model.white_xyz, req.space),
+            to_srgb: fio::to_linear_srgb(model.white_xyz(), req.space),
             workers: workers.min(todo.len()).max(1),
             continue_on_error: a.continue_on_error,
             interrupt: interrupt.clone(),

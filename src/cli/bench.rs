@@ -201,8 +201,8 @@ pub fn run(a: Args) -> Result<ExitCode> {
                 }
                 let (k, m) = (mpix(median(&k_times)), mpix(median(&m_times)));
                 let row = Row {
-                    model: model.kind.name(),
-                    order: model.order,
+                    model: model.kind().name(),
+                    order: model.order(),
                     device,
                     mpix_s: k,
                     ratio_to_memcpy: Some(k / m),
@@ -288,8 +288,8 @@ pub fn run(a: Args) -> Result<ExitCode> {
                         e2e
                     ));
                     results.push(Row {
-                        model: model.kind.name(),
-                        order: model.order,
+                        model: model.kind().name(),
+                        order: model.order(),
                         device: "gpu",
                         mpix_s: k,
                         ratio_to_memcpy: ratio,
@@ -381,10 +381,10 @@ pub fn run(a: Args) -> Result<ExitCode> {
 
 /// `LRM`, `PRM3`, …
 fn label(m: &Model) -> String {
-    if m.kind == Kind::Lrm {
+    if m.kind() == Kind::Lrm {
         "LRM".into()
     } else {
-        format!("{}{}", m.kind, m.order)
+        format!("{}{}", m.kind(), m.order())
     }
 }
 

@@ -103,8 +103,8 @@ pub fn run(a: Args) -> Result<ExitCode> {
     let bytes = export(&model, layout, lang).with_context(|| {
         format!(
             "exporting {} order {} as {}",
-            model.kind,
-            model.order,
+            model.kind(),
+            model.order(),
             lang.name()
         )
     })?;
@@ -112,8 +112,8 @@ pub fn run(a: Args) -> Result<ExitCode> {
     eprintln!(
         "{} order {} ({} terms, {} pixels) as {}: {} bytes written to {} \
          (entry point `main`, workgroup 256, pixels at group 0 binding 1)",
-        model.kind,
-        model.order,
+        model.kind(),
+        model.order(),
         model.len_terms(),
         layout.name(),
         lang.name(),

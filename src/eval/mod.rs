@@ -1,5 +1,6 @@
 //! Evaluation: leave-one-out (the paper's protocol) and in-sample ΔE00 statistics.
 
+#[cfg(feature = "plot")]
 pub mod plot;
 
 use crate::colorimetry::delta_e00_xyz;

@@ -78,13 +78,12 @@ impl Corrector {
         model: &Model,
         target: Target,
     ) -> Result<Corrector, GpuError> {
-        shader::check_model(model)?;
-        let (kind, order) = (model.kind, model.order);
+        let (kind, order) = (model.kind(), model.order());
         let src = shader::wgsl(kind, order, target, Coefficients::Uniform);
         shader::validate(&src)?;
         let limits = device.limits();
         let label = format!("nsrm {kind} {order} {target:?}");
-        let uniform_bytes = 16 * model.terms.len() as u64;
+        let uniform_bytes = 16 * model.terms().len() as u64;
         let storage = |read_only| wgpu::BindingType::Buffer {
             ty: wgpu::BufferBindingType::Storage { read_only },
             has_dynamic_offset: false,
@@ -192,7 +191,7 @@ impl Corrector {
 
     /// Whether [`set_model`](Self::set_model) takes `model` (same kind and order).
     pub fn accepts(&self, model: &Model) -> bool {
-        model.kind == self.kind && model.order == self.order
+        model.kind() == self.kind && model.order() == self.order
     }
 
     /// The matrix uniform (binding 0): `L` × `vec4<f32>`, column `j` = term `j`'s weights.
@@ -207,10 +206,9 @@ impl Corrector {
         if !self.accepts(model) {
             return Err(GpuError::ModelMismatch {
                 expected: format!("{} order {}", self.kind, self.order),
-                got: format!("{} order {}", model.kind, model.order),
+                got: format!("{} order {}", model.kind(), model.order()),
             });
         }
-        shader::check_model(model)?;
         queue.write_buffer(
             &self.uniform,
             0,

@@ -46,9 +46,9 @@ pub fn chart_frame(data: &TrainingSet, cols: usize, patch: usize) -> Frame {
 /// XYZ (in the model's scale: its white has `Y = white_xyz[1]`) → linear sRGB with the white
 /// at 1, adapting the model's white to D65.
 pub fn xyz_to_display(model: &Model) -> Mat3 {
-    let mut m = OutputSpace::LinearSrgb.from_xyz(model.white_xyz);
-    let y = if model.white_xyz[1] > 0.0 {
-        model.white_xyz[1]
+    let mut m = OutputSpace::LinearSrgb.from_xyz(model.white_xyz());
+    let y = if model.white_xyz()[1] > 0.0 {
+        model.white_xyz()[1]
     } else {
         100.0
     };
@@ -443,7 +443,7 @@ mod tests {
         )
         .unwrap();
         // The model's white maps to display white.
-        let rgb = crate::colorimetry::spaces::apply(&xyz_to_display(&model), model.white_xyz);
+        let rgb = crate::colorimetry::spaces::apply(&xyz_to_display(&model), model.white_xyz());
         for c in rgb {
             assert!((c - 1.0).abs() < 1e-3, "{rgb:?}");
         }

@@ -200,9 +200,8 @@ impl Engine {
                 pixels * ch
             )));
         }
-        super::shader::check_model(model)?;
         let timed = timed && self.timestamps.is_some();
-        let key = (model.kind, model.order, frame.layout);
+        let key = (model.kind(), model.order(), frame.layout);
         if !self.correctors.contains_key(&key) {
             let c = Corrector::new(
                 &self.ctx.device,

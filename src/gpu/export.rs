@@ -81,10 +81,9 @@ impl ShaderLang {
 
 /// The self-contained WGSL source (the matrix as constants) for `model` on `layout`.
 pub fn baked_wgsl(model: &Model, layout: Layout) -> Result<String, GpuError> {
-    shader::check_model(model)?;
     Ok(shader::wgsl(
-        model.kind,
-        model.order,
+        model.kind(),
+        model.order(),
         Target::Buffer {
             layout,
             in_place: true,

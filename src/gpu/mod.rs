@@ -30,8 +30,10 @@
 
 mod context;
 mod corrector;
+#[cfg(feature = "io")]
 pub mod demo;
 mod engine;
+#[cfg(feature = "export")]
 pub mod export;
 pub mod shader;
 
@@ -67,9 +69,6 @@ pub enum GpuError {
     /// A shader could not be translated to another language.
     #[error("cannot translate the shader to {lang}: {message}")]
     Export { lang: String, message: String },
-    /// The model is not usable (inconsistent terms / matrix, or not finite in f32).
-    #[error("invalid model: {0}")]
-    InvalidModel(String),
     /// `set_model` with a model of another kind or order than the corrector was built for.
     #[error("this corrector is for {expected}; {got} needs a new one")]
     ModelMismatch { expected: String, got: String },
@@ -85,6 +84,7 @@ pub enum GpuError {
     MapRange(#[from] wgpu::MapRangeError),
     #[error("waiting for the GPU failed: {0}")]
     Poll(#[from] wgpu::PollError),
+    #[cfg(feature = "io")]
     #[error("cannot encode the image: {0}")]
     Image(#[from] image::ImageError),
     #[error(transparent)]

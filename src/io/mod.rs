@@ -473,7 +473,7 @@ pub fn output_matrix(white_xyz: [f64; 3], space: OutputSpace) -> Mat3 {
 /// output space (white `Y = 1`), on every apply path, with no extra pass over the pixels. This
 /// is exact for all four kinds (each output is a linear combination of the same terms).
 pub fn output_model(model: &Model, space: OutputSpace) -> Result<Model, IoError> {
-    let w = model.white_xyz;
+    let w = model.white_xyz();
     if !(w.iter().all(|v| v.is_finite()) && w[1] > 0.0) {
         return Err(IoError::Invalid(format!(
             "the model's reference white {w:?} has no positive Y; cannot scale the output"
@@ -484,7 +484,7 @@ pub fn output_model(model: &Model, space: OutputSpace) -> Result<Model, IoError>
     let mut folded = vec![0.0; 3 * l];
     for i in 0..3 {
         for j in 0..l {
-            folded[i * l + j] = (0..3).map(|k| p[i][k] * model.matrix[k * l + j]).sum();
+            folded[i * l + j] = (0..3).map(|k| p[i][k] * model.matrix()[k * l + j]).sum();
         }
     }
     let mut out = model.clone();
@@ -507,12 +507,13 @@ mod tests {
 
     #[test]
     fn output_model_matches_matrix_after_model() {
-        let mut m =
-            Model::from_matrix(Kind::Rprm, 2, (0..18).map(|i| 0.1 * i as f64).collect()).unwrap();
-        m.white_xyz = [96.4, 100.0, 82.5];
+        let m = Model::from_matrix(Kind::Rprm, 2, (0..18).map(|i| 0.1 * i as f64).collect())
+            .unwrap()
+            .with_white_xyz([96.4, 100.0, 82.5])
+            .unwrap();
         for space in OutputSpace::ALL.map(|(s, _)| s) {
             let folded = output_model(&m, space).unwrap();
-            let p = output_matrix(m.white_xyz, space);
+            let p = output_matrix(m.white_xyz(), space);
             let rgb = [0.3, 0.5, 0.2];
             let want = spaces::apply(&p, m.apply_f64(rgb));
             let got = folded.apply_f64(rgb);

@@ -130,7 +130,7 @@ impl Model {
             )));
         }
         let flat: Vec<f64> = f.matrix.concat();
-        let mut model = Model::from_matrix(kind, f.order, flat).map_err(|e| match e {
+        let model = Model::from_matrix(kind, f.order, flat).map_err(|e| match e {
             ModelError::Invalid(why) => bad(why),
             e => e,
         })?;
@@ -150,16 +150,13 @@ impl Model {
                 model.term_names()
             )));
         }
-        let w = f.output.reference_white;
-        if w.iter().any(|v| !v.is_finite()) || w[1] <= 0.0 {
-            return Err(bad(format!("invalid reference white {w:?}")));
-        }
         if !(f.output.xyz_scale.is_finite() && f.output.xyz_scale > 0.0) {
             return Err(bad(format!("invalid xyz_scale {}", f.output.xyz_scale)));
         }
-        model.white_xyz = w;
-        model.provenance = f.training.provenance;
-        model.patches = f.training.patch_labels;
+        let model = model
+            .with_white_xyz(f.output.reference_white)
+            .map_err(|e| bad(e.to_string()))?;
+        let mut model = model.with_training(f.training.provenance, f.training.patch_labels);
         if let Some(r) = &f.fit {
             if r.input_gains != [1.0; 3] {
                 return Err(bad(format!(

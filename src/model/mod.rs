@@ -122,20 +122,25 @@ impl std::fmt::Display for Kind {
 }
 
 /// A fitted model: kind, order, and the 3×L matrix over its terms.
+///
+/// Valid by construction: a `Model` is made only by [`fit`], [`Model::load`] /
+/// [`Model::from_json`] or [`Model::from_matrix`], each of which checks the order, the matrix
+/// shape and that every coefficient is finite. The term list is derived from (kind, order), never
+/// given, so every apply path (f64, fast CPU, shaders) can rely on it without re-checking.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Model {
-    pub kind: Kind,
-    pub order: u8,
+    kind: Kind,
+    order: u8,
     /// The terms, from [`terms::terms`] (cached here).
-    pub terms: Vec<Term>,
+    terms: Vec<Term>,
     /// Row-major 3×L: `matrix[i * L + j]` weighs term `j` for output channel `i`.
-    pub matrix: Vec<f64>,
+    matrix: Vec<f64>,
     /// The Lab reference white of the training data (XYZ, same scale as the output).
-    pub white_xyz: [f64; 3],
+    white_xyz: [f64; 3],
     /// Where the training data came from.
-    pub provenance: Provenance,
+    provenance: Provenance,
     /// The training patch labels.
-    pub patches: Vec<String>,
+    patches: Vec<String>,
     /// How the matrix was fitted (objective, ridge λ, coefficient norm, condition number), when
     /// known: [`fit::fit_with`] sets it, the model file carries it.
     fit_report: Option<fit::FitReport>,
@@ -156,10 +161,10 @@ impl Model {
                 matrix.len()
             )));
         }
-        if matrix.iter().any(|v| !v.is_finite()) {
-            return Err(ModelError::Invalid(
-                "the matrix holds a non-finite value".into(),
-            ));
+        if let Some(v) = matrix.iter().find(|v| !finite_in_f32(**v)) {
+            return Err(ModelError::Invalid(format!(
+                "the matrix holds {v}, which is not a finite f32 (the fast CPU path and the shaders compute in f32)"
+            )));
         }
         Ok(Model {
             kind,
@@ -211,6 +216,21 @@ impl Model {
     /// How the matrix was fitted, when known (see [`fit::FitReport`]).
     pub fn fit_report(&self) -> Option<&fit::FitReport> {
         self.fit_report.as_ref()
+    }
+
+    /// The model with another Lab reference white (XYZ, finite, `Y > 0`): for a matrix made with
+    /// [`from_matrix`](Self::from_matrix), whose white is D65 with `Y = 100`.
+    pub fn with_white_xyz(mut self, white_xyz: [f64; 3]) -> Result<Model, ModelError> {
+        check_white(white_xyz)?;
+        self.white_xyz = white_xyz;
+        Ok(self)
+    }
+
+    /// The model with a record of its training data (where it came from, the patch labels).
+    pub fn with_training(mut self, provenance: Provenance, patches: Vec<String>) -> Model {
+        self.provenance = provenance;
+        self.patches = patches;
+        self
     }
 
     /// Number of terms L.
@@ -283,6 +303,23 @@ impl Model {
             .map(|&x| self.apply_f64_with(x, &mut p))
             .collect()
     }
+}
+
+/// A reference white must be finite with a positive Y (the output is scaled by it).
+fn check_white(w: [f64; 3]) -> Result<(), ModelError> {
+    if w.iter().all(|v| v.is_finite()) && w[1] > 0.0 {
+        Ok(())
+    } else {
+        Err(ModelError::Invalid(format!(
+            "invalid reference white {w:?}"
+        )))
+    }
+}
+
+/// Whether `v` is finite and stays finite when rounded to f32 (the precision of every apply path
+/// but the f64 reference).
+fn finite_in_f32(v: f64) -> bool {
+    v.is_finite() && (v as f32).is_finite()
 }
 
 /// Writes the term values of `rgb` into `p` and returns the output scale (`s` for NSRM, 1
@@ -422,6 +459,42 @@ mod tests {
         for order in 1..=4 {
             fit(Kind::Nsrm, order, &ts).unwrap();
         }
+    }
+
+    #[test]
+    fn from_matrix_validates_once_and_derives_the_terms() {
+        for kind in Kind::ALL {
+            for order in 1..=MAX_ORDER {
+                let l = terms(kind, kind.effective_order(order)).len();
+                let m = Model::from_matrix(kind, order, vec![0.5; 3 * l]).unwrap();
+                assert_eq!(
+                    m.terms(),
+                    terms(kind, kind.effective_order(order)).as_slice()
+                );
+                assert_eq!(m.order(), kind.effective_order(order));
+                let short = Model::from_matrix(kind, order, vec![0.5; 3 * l - 1]).unwrap_err();
+                assert!(short.to_string().contains("matrix"), "{short}");
+            }
+        }
+        // Finite in f64 but not in f32 (the precision of the fast path and the shaders).
+        let mut v = vec![0.5; 9];
+        v[4] = 1e300;
+        let e = Model::from_matrix(Kind::Lrm, 1, v.clone()).unwrap_err();
+        assert!(e.to_string().contains("not a finite f32"), "{e}");
+        v[4] = f64::NAN;
+        assert!(Model::from_matrix(Kind::Lrm, 1, v).is_err());
+        assert!(matches!(
+            Model::from_matrix(Kind::Prm, 0, vec![0.5; 9]),
+            Err(ModelError::Order(0))
+        ));
+        let mut m = Model::from_matrix(Kind::Lrm, 1, vec![0.5; 9]).unwrap();
+        assert!(m.set_matrix(vec![0.5; 10]).is_err());
+        assert!(m.set_matrix(vec![f64::INFINITY; 9]).is_err());
+        assert_eq!(m.matrix(), &[0.5; 9]);
+        let m = m.with_white_xyz([95.0, 100.0, 108.0]).unwrap();
+        assert_eq!(m.white_xyz(), [95.0, 100.0, 108.0]);
+        assert!(m.clone().with_white_xyz([95.0, 0.0, 108.0]).is_err());
+        assert!(m.with_white_xyz([f64::NAN, 100.0, 108.0]).is_err());
     }
 
     #[test]

@@ -408,6 +408,26 @@ mod tests {
     }
 
     #[test]
+    fn a_failing_encoder_leaves_nothing_behind() {
+        // A write failure (disk full, an encoder error) half-way through: simulated by the
+        // encoder, since a full filesystem cannot be made in CI.
+        let dir = tempfile::tempdir().unwrap();
+        let dest = dir.path().join("x.exr");
+        let held = temporaries_held();
+        let r: Result<(), WriteError> = write_with(&dest, false, |w| {
+            w.write_all(&[0u8; 100_000]).unwrap();
+            Err(WriteError::Io {
+                path: dest.clone(),
+                err: std::io::Error::new(std::io::ErrorKind::StorageFull, "no space left"),
+            })
+        });
+        assert!(r.unwrap_err().to_string().contains("no space left"));
+        assert!(!dest.exists());
+        assert_eq!(leftovers(dir.path()), 0);
+        assert!(temporaries_held() <= held);
+    }
+
+    #[test]
     fn commit_all_places_both_or_neither() {
         let dir = tempfile::tempdir().unwrap();
         let a = dir.path().join("a");

@@ -332,7 +332,7 @@ fn bad_files_fail_alone_with_continue_on_error_and_inputs_stay_intact() {
     assert!(err.contains("3 converted, 0 skipped, 2 failed"), "{err}");
     assert!(err.contains("bad_truncated.exr"), "{err}");
     assert!(
-        err.contains("bad_8bit.tif") && err.contains("8-bit samples"),
+        err.contains("bad_8bit.tif") && err.contains("8 bits per sample"),
         "{err}"
     );
     assert_eq!(

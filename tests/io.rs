@@ -433,7 +433,7 @@ fn missing_channels_and_bad_files_are_refused() {
 
     for (name, bytes, why) in [
         ("grey.tif", tiff_gray16(), "greyscale"),
-        ("rgb8.tif", tiff_rgb8(), "8-bit samples"),
+        ("rgb8.tif", tiff_rgb8(), "8 bits per sample"),
     ] {
         let p = d.join(name);
         std::fs::write(&p, bytes).unwrap();

@@ -23,6 +23,159 @@ fn unsupported(path: &Path, why: impl Into<String>) -> IoError {
     }
 }
 
+/// The sample types read, as the tiff crate decodes them.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Sample {
+    U16,
+    F16,
+    F32,
+    F64,
+}
+
+impl Sample {
+    fn bytes(self) -> u64 {
+        match self {
+            Sample::U16 | Sample::F16 => 2,
+            Sample::F32 => 4,
+            Sample::F64 => 8,
+        }
+    }
+
+    /// An empty buffer of this type with room for `n` samples, reserved fallibly, so that the
+    /// decoder fills it without allocating (it only grows a buffer that is too small).
+    fn buffer(self, path: &Path, n: usize) -> Result<DecodingResult, IoError> {
+        use super::try_with_capacity as cap;
+        Ok(match self {
+            Sample::U16 => DecodingResult::U16(cap(path, n)?),
+            Sample::F16 => DecodingResult::F16(cap(path, n)?),
+            Sample::F32 => DecodingResult::F32(cap(path, n)?),
+            Sample::F64 => DecodingResult::F64(cap(path, n)?),
+        })
+    }
+}
+
+/// The sample type of the image, from BitsPerSample and SampleFormat, or why it is refused.
+fn sample_type(bits: u8, format: u16) -> Result<Sample, String> {
+    const READ: &str = "only 16-bit unsigned and 16/32/64-bit float samples are read";
+    match (format, bits) {
+        (1, 16) => Ok(Sample::U16),
+        (3, 16) => Ok(Sample::F16),
+        (3, 32) => Ok(Sample::F32),
+        (3, 64) => Ok(Sample::F64),
+        (1, 8) => Err(
+            "8 bits per sample; linear camera data must be 16-bit unsigned or float \
+                       (8-bit files are display-encoded)"
+                .into(),
+        ),
+        (1, b) => Err(format!("{b} bits per sample (unsigned integer); {READ}")),
+        (2, b) => Err(format!("{b} bits per sample (signed integer); {READ}")),
+        (3, b) => Err(format!("{b} bits per sample (float); {READ}")),
+        (f, b) => Err(format!(
+            "{b} bits per sample in sample format {f} (neither integer nor float); {READ}"
+        )),
+    }
+}
+
+/// Checks the strip or tile table: exactly the number of chunks the image needs, each non-empty,
+/// inside the file, and no two sharing bytes (several rows read from one chunk would be
+/// made-up pixels).
+fn check_chunks<R: std::io::Read + std::io::Seek>(
+    dec: &mut Decoder<R>,
+    path: &Path,
+    (w, h): (u32, u32),
+    samples: u64,
+    file_len: u64,
+) -> Result<(), IoError> {
+    use tiff::decoder::ChunkType;
+    use tiff::tags::Tag;
+    let corrupt = |why: String| IoError::Corrupt {
+        path: path.to_path_buf(),
+        why,
+    };
+    let tiff_err = |err| IoError::Tiff {
+        path: path.to_path_buf(),
+        err,
+    };
+    let planar = dec
+        .find_tag_unsigned::<u16>(Tag::PlanarConfiguration)
+        .map_err(tiff_err)?
+        .unwrap_or(1)
+        == 2;
+    let planes = if planar { samples } else { 1 };
+    let (kind, offsets_tag, counts_tag, expected) = match dec.get_chunk_type() {
+        ChunkType::Strip => {
+            let rows = dec
+                .find_tag_unsigned::<u64>(Tag::RowsPerStrip)
+                .map_err(tiff_err)?
+                .unwrap_or(u64::from(h))
+                .clamp(1, u64::from(h).max(1));
+            (
+                "strip",
+                Tag::StripOffsets,
+                Tag::StripByteCounts,
+                u64::from(h).div_ceil(rows) * planes,
+            )
+        }
+        ChunkType::Tile => {
+            let tw = dec
+                .find_tag_unsigned::<u64>(Tag::TileWidth)
+                .map_err(tiff_err)?;
+            let th = dec
+                .find_tag_unsigned::<u64>(Tag::TileLength)
+                .map_err(tiff_err)?;
+            let (Some(tw @ 1..), Some(th @ 1..)) = (tw, th) else {
+                return Err(corrupt("a tiled image without a tile size".into()));
+            };
+            (
+                "tile",
+                Tag::TileOffsets,
+                Tag::TileByteCounts,
+                u64::from(w).div_ceil(tw) * u64::from(h).div_ceil(th) * planes,
+            )
+        }
+    };
+    let offsets = dec
+        .find_tag_unsigned_vec::<u64>(offsets_tag)
+        .map_err(tiff_err)?
+        .unwrap_or_default();
+    let counts = dec
+        .find_tag_unsigned_vec::<u64>(counts_tag)
+        .map_err(tiff_err)?
+        .unwrap_or_default();
+    if offsets.len() as u64 != expected || counts.len() as u64 != expected {
+        return Err(corrupt(format!(
+            "the image needs {expected} {kind}s but the file lists {} offsets and {} byte counts",
+            offsets.len(),
+            counts.len()
+        )));
+    }
+    let mut ranges: Vec<(u64, u64, usize)> = Vec::with_capacity(offsets.len());
+    for (i, (&o, &n)) in offsets.iter().zip(&counts).enumerate() {
+        let end = o.checked_add(n).filter(|&e| e <= file_len);
+        let Some(end) = end.filter(|_| n > 0) else {
+            return Err(corrupt(format!(
+                "{kind} {i} ({n} bytes at offset {o}) is {} the {file_len}-byte file",
+                if n == 0 {
+                    "empty, missing from"
+                } else {
+                    "past the end of"
+                }
+            )));
+        };
+        ranges.push((o, end, i));
+    }
+    ranges.sort_unstable();
+    for pair in ranges.windows(2) {
+        let ((_, end_a, a), (start_b, _, b)) = (pair[0], pair[1]);
+        if start_b < end_a {
+            return Err(corrupt(format!(
+                "{kind}s {a} and {b} point at the same bytes of the file (offset {start_b})"
+            )));
+        }
+    }
+    Ok(())
+}
+
 pub(super) fn read(path: &Path, limits: &super::Limits) -> Result<Decoded, IoError> {
     let tiff_err = |err| IoError::Tiff {
         path: path.to_path_buf(),
@@ -32,15 +185,24 @@ pub(super) fn read(path: &Path, limits: &super::Limits) -> Result<Decoded, IoErr
         path: path.to_path_buf(),
         err,
     })?;
-    // Frames are big: allow up to 16 GiB decoded (the default is 256 MiB).
+    let file_len = file
+        .metadata()
+        .map_err(|err| IoError::Read {
+            path: path.to_path_buf(),
+            err,
+        })?
+        .len();
+    // The decoder's own bounds: a whole frame within --max-pixels of RGBA f64, and tag values
+    // (the strip tables) bounded by the file itself.
     let mut tiff_limits = Limits::default();
-    tiff_limits.decoding_buffer_size = 16 << 30;
+    tiff_limits.decoding_buffer_size =
+        usize::try_from(limits.max_pixels.saturating_mul(32)).unwrap_or(usize::MAX);
     tiff_limits.intermediate_buffer_size = 1 << 30;
+    tiff_limits.ifd_value_size = usize::try_from(file_len.min(1 << 30)).unwrap_or(1 << 30);
     let mut dec = Decoder::new(BufReader::new(file))
         .map_err(tiff_err)?
         .with_limits(tiff_limits);
     let (w, h) = dec.dimensions().map_err(tiff_err)?;
-    limits.check_frame(path, w.into(), h.into(), 1, 1, None)?;
     let ct = dec.colortype().map_err(tiff_err)?;
     let (channels, bits) = match ct {
         ColorType::RGB(b) => (3usize, b),
@@ -55,84 +217,104 @@ pub(super) fn read(path: &Path, limits: &super::Limits) -> Result<Decoded, IoErr
         ColorType::CMYK(_) | ColorType::CMYKA(_) => return Err(unsupported(path, "CMYK colour")),
         ColorType::YCbCr(_) => return Err(unsupported(path, "YCbCr colour")),
         ColorType::Lab(_) => return Err(unsupported(path, "CIE L*a*b* colour")),
-        ColorType::Multiband { num_samples, .. } => {
+        ColorType::Multiband {
+            bit_depth,
+            num_samples,
+        } => {
             return Err(unsupported(
                 path,
-                format!("{num_samples} samples per pixel with no RGB interpretation"),
+                format!(
+                    "{num_samples} samples per pixel of {bit_depth} bits with no RGB \
+                     interpretation (photometric interpretation grey)"
+                ),
             ))
         }
         other => return Err(unsupported(path, format!("colour type {other:?}"))),
     };
-    if bits == 8 {
+    // One SampleFormat per sample; all must agree (the decoder reads them as one type).
+    let formats = dec
+        .find_tag_unsigned_vec::<u16>(tiff::tags::Tag::SampleFormat)
+        .map_err(tiff_err)?
+        .unwrap_or_default();
+    let format = formats.first().copied().unwrap_or(1);
+    if formats.iter().any(|&f| f != format) {
         return Err(unsupported(
             path,
-            "8-bit samples; linear camera data must be 16-bit unsigned or 32-bit float \
-             (8-bit files are display-encoded)",
+            format!("mixed sample formats {formats:?}"),
         ));
     }
-    let mut buf = DecodingResult::U16(Vec::new());
+    let sample = sample_type(bits, format).map_err(|why| unsupported(path, why))?;
+    let compression = dec
+        .find_tag_unsigned::<u16>(tiff::tags::Tag::Compression)
+        .map_err(tiff_err)?
+        .unwrap_or(1);
+    // Every sample the file says it stores (extra samples included).
+    let samples = dec
+        .find_tag_unsigned::<u64>(tiff::tags::Tag::SamplesPerPixel)
+        .map_err(tiff_err)?
+        .unwrap_or(channels as u64)
+        .max(channels as u64);
+    let n = limits.check_frame(
+        path,
+        w.into(),
+        h.into(),
+        samples,
+        sample.bytes(),
+        (compression == 1).then_some(file_len),
+    )?;
+    check_chunks(&mut dec, path, (w, h), samples, file_len)?;
+    let total = n
+        .checked_mul(samples as usize)
+        .ok_or_else(|| unsupported(path, "too many samples"))?;
+    let mut buf = sample.buffer(path, total)?;
     let layout = dec.read_image_to_buffer(&mut buf).map_err(tiff_err)?;
-    let raw: Vec<f32> = match buf {
-        DecodingResult::U16(v) => v.into_iter().map(|x| x as f32 / 65535.0).collect(),
-        DecodingResult::F32(v) => v,
-        DecodingResult::F16(v) => v.into_iter().map(|x| x.to_f32()).collect(),
-        DecodingResult::F64(v) => v.into_iter().map(|x| x as f32).collect(),
-        DecodingResult::U8(_) => return Err(unsupported(path, "8-bit samples")),
-        DecodingResult::U32(_) | DecodingResult::U64(_) => {
-            return Err(unsupported(
-                path,
-                format!(
-                    "{bits}-bit unsigned integer samples; only 16-bit unsigned and float are read"
-                ),
-            ))
-        }
-        DecodingResult::I8(_)
-        | DecodingResult::I16(_)
-        | DecodingResult::I32(_)
-        | DecodingResult::I64(_) => {
-            return Err(unsupported(
-                path,
-                format!("signed {bits}-bit integer samples"),
-            ))
-        }
+    let mut raw: Vec<f32> = super::try_with_capacity(path, total)?;
+    match buf {
+        DecodingResult::U16(v) => raw.extend(v.into_iter().map(|x| x as f32 / 65535.0)),
+        DecodingResult::F32(v) => raw = v,
+        DecodingResult::F16(v) => raw.extend(v.into_iter().map(|x| x.to_f32())),
+        DecodingResult::F64(v) => raw.extend(v.into_iter().map(|x| x as f32)),
+        _ => return Err(unsupported(path, format!("{bits} bits per sample"))),
     };
-    let n = w as usize * h as usize;
+    let stride = samples as usize;
     let interleaved = if layout.planes > 1 {
-        if raw.len() < n * channels || layout.planes != channels {
+        if raw.len() < n * stride || layout.planes != stride {
             return Err(unsupported(
                 path,
                 "planar samples that do not fit in memory in one piece",
             ));
         }
-        let mut out = vec![0.0f32; n * channels];
-        for c in 0..channels {
+        let mut out = super::try_filled(path, n * stride, 0.0f32)?;
+        for c in 0..stride {
             for (i, v) in raw[c * n..(c + 1) * n].iter().enumerate() {
-                out[i * channels + c] = *v;
+                out[i * stride + c] = *v;
             }
         }
         out
     } else {
-        if raw.len() < n * channels {
-            return Err(unsupported(
-                path,
-                format!("holds {} samples for {w}×{h}×{channels}", raw.len()),
-            ));
+        if raw.len() < n * stride {
+            return Err(IoError::Corrupt {
+                path: path.to_path_buf(),
+                why: format!("holds {} samples for {w}×{h}×{stride}", raw.len()),
+            });
         }
         raw
     };
-    let (rgb, alpha) = if channels == 4 {
-        let mut rgb = Vec::with_capacity(n * 3);
-        let mut a = Vec::with_capacity(n);
-        for px in interleaved.chunks_exact(4).take(n) {
+    let mut rgb = super::try_with_capacity(path, n * 3)?;
+    let alpha = if channels == 4 {
+        let mut a = super::try_with_capacity(path, n)?;
+        for px in interleaved.chunks_exact(stride).take(n) {
             rgb.extend_from_slice(&px[..3]);
             a.push(px[3]);
         }
-        (rgb, Some(a))
+        Some(a)
     } else {
-        let mut rgb = interleaved;
-        rgb.truncate(n * 3);
-        (rgb, None)
+        for px in interleaved.chunks_exact(stride).take(n) {
+            rgb.extend_from_slice(&px[..3]);
+        }
+        None
     };
+    drop(interleaved);
     Ok(Decoded {
         path: path.to_path_buf(),
         format: FileFormat::Tiff,

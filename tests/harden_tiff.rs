@@ -1,0 +1,250 @@
+//! Families 2 and 3 for TIFF: a hostile header costs an error, not the process, and a corrupt
+//! file is never converted into made-up pixels. The files are crafted here from a valid TIFF
+//! by rewriting its directory entries.
+
+mod hardening;
+use hardening::*;
+use nsrm::io::{Decoded, Limits, ReadOptions};
+use std::path::Path;
+
+/// A valid uncompressed 16-bit RGB TIFF of `w`×`h`, 8 rows per strip.
+pub fn tiff16(w: u32, h: u32) -> Vec<u8> {
+    let mut c = std::io::Cursor::new(Vec::new());
+    let data: Vec<u16> = (0..w * h * 3).map(|i| (i * 37 % 65536) as u16).collect();
+    let mut enc = tiff::encoder::TiffEncoder::new(&mut c).unwrap();
+    let mut img = enc
+        .new_image::<tiff::encoder::colortype::RGB16>(w, h)
+        .unwrap();
+    img.rows_per_strip(8).unwrap();
+    img.write_data(&data).unwrap();
+    c.into_inner()
+}
+
+fn u16_at(b: &[u8], i: usize) -> u16 {
+    u16::from_le_bytes([b[i], b[i + 1]])
+}
+fn u32_at(b: &[u8], i: usize) -> u32 {
+    u32::from_le_bytes(b[i..i + 4].try_into().unwrap())
+}
+
+/// The byte position of directory entry `tag` (little-endian classic TIFF), and its type and
+/// count.
+fn entry(b: &[u8], tag: u16) -> Option<(usize, u16, u32)> {
+    assert_eq!(&b[..4], b"II*\0");
+    let ifd = u32_at(b, 4) as usize;
+    let n = u16_at(b, ifd) as usize;
+    (0..n)
+        .map(|k| ifd + 2 + 12 * k)
+        .find(|&e| u16_at(b, e) == tag)
+        .map(|e| (e, u16_at(b, e + 2), u32_at(b, e + 4)))
+}
+
+/// Sets a one-value SHORT or LONG entry.
+fn set(b: &mut [u8], tag: u16, v: u32) {
+    let (e, ty, _) = entry(b, tag).unwrap_or_else(|| panic!("no tag {tag}"));
+    match ty {
+        3 => b[e + 8..e + 10].copy_from_slice(&(v as u16).to_le_bytes()),
+        4 => b[e + 8..e + 12].copy_from_slice(&v.to_le_bytes()),
+        t => panic!("type {t}"),
+    }
+}
+
+/// The values of a SHORT/LONG array entry, and a setter.
+fn values(b: &[u8], tag: u16) -> Vec<u32> {
+    let (e, ty, n) = entry(b, tag).unwrap();
+    let size = if ty == 3 { 2 } else { 4 };
+    let at = if n as usize * size <= 4 {
+        e + 8
+    } else {
+        u32_at(b, e + 8) as usize
+    };
+    (0..n as usize)
+        .map(|k| {
+            if ty == 3 {
+                u16_at(b, at + 2 * k) as u32
+            } else {
+                u32_at(b, at + 4 * k)
+            }
+        })
+        .collect()
+}
+
+fn set_values(b: &mut [u8], tag: u16, v: &[u32]) {
+    let (e, ty, n) = entry(b, tag).unwrap();
+    assert_eq!(v.len(), n as usize);
+    let size = if ty == 3 { 2 } else { 4 };
+    let at = if n as usize * size <= 4 {
+        e + 8
+    } else {
+        u32_at(b, e + 8) as usize
+    };
+    for (k, x) in v.iter().enumerate() {
+        if ty == 3 {
+            b[at + 2 * k..at + 2 * k + 2].copy_from_slice(&(*x as u16).to_le_bytes());
+        } else {
+            b[at + 4 * k..at + 4 * k + 4].copy_from_slice(&x.to_le_bytes());
+        }
+    }
+}
+
+const WIDTH: u16 = 256;
+const HEIGHT: u16 = 257;
+const BITS: u16 = 258;
+const ROWS_PER_STRIP: u16 = 278;
+const STRIP_OFFSETS: u16 = 273;
+const STRIP_BYTES: u16 = 279;
+
+fn read(bytes: &[u8], limits: Limits) -> Result<Decoded, String> {
+    let dir = tempfile::tempdir().unwrap();
+    let p = dir.path().join("x.tif");
+    std::fs::write(&p, bytes).unwrap();
+    Decoded::read(
+        &p,
+        &ReadOptions {
+            limits,
+            ..Default::default()
+        },
+    )
+    .map_err(|e| e.to_string())
+}
+
+#[test]
+fn the_crafted_base_file_is_valid_and_has_several_strips() {
+    let b = tiff16(64, 64);
+    assert!(values(&b, STRIP_OFFSETS).len() > 2);
+    let d = read(&b, Limits::default()).unwrap();
+    assert_eq!((d.frame.width, d.frame.height), (64, 64));
+}
+
+#[test]
+fn huge_headers_are_refused_before_allocating() {
+    let mut b = tiff16(8, 8);
+    set(&mut b, WIDTH, 100_000);
+    set(&mut b, HEIGHT, 100_000);
+    set(&mut b, ROWS_PER_STRIP, 100_000);
+    let e = read(&b, Limits::default()).unwrap_err();
+    assert!(
+        e.contains("100000×100000") && e.contains("--max-pixels"),
+        "{e}"
+    );
+    // Within --max-pixels but more than the (uncompressed) file holds.
+    let mut b = tiff16(8, 8);
+    set(&mut b, WIDTH, 4000);
+    set(&mut b, HEIGHT, 4000);
+    set(&mut b, ROWS_PER_STRIP, 4000);
+    let e = read(&b, Limits::default()).unwrap_err();
+    assert!(e.contains("but the file holds only"), "{e}");
+    // A lower --max-pixels refuses a valid frame, naming the limit.
+    let e = read(&tiff16(8, 8), Limits { max_pixels: 63 }).unwrap_err();
+    assert!(e.contains("more than the limit of 63"), "{e}");
+    read(&tiff16(8, 8), Limits { max_pixels: 64 }).unwrap();
+}
+
+#[test]
+fn strips_must_each_be_present_once_inside_the_file() {
+    let b = tiff16(64, 64);
+    let offsets = values(&b, STRIP_OFFSETS);
+    // Several strips pointing at one chunk.
+    let mut dup = b.clone();
+    let same = vec![offsets[0]; offsets.len()];
+    set_values(&mut dup, STRIP_OFFSETS, &same);
+    let e = read(&dup, Limits::default()).unwrap_err();
+    assert!(
+        e.contains("corrupt") && e.contains("point at the same bytes"),
+        "{e}"
+    );
+    // A strip past the end of the file.
+    let mut past = b.clone();
+    let mut o = offsets.clone();
+    *o.last_mut().unwrap() = b.len() as u32 + 10;
+    set_values(&mut past, STRIP_OFFSETS, &o);
+    let e = read(&past, Limits::default()).unwrap_err();
+    assert!(e.contains("past the end"), "{e}");
+    // A truncated file: the last strips are missing.
+    let cut = &b[..offsets[offsets.len() - 1] as usize + 3];
+    // (Its directory may be after the data: keep the file when it is still parseable.)
+    if let Err(e) = read(cut, Limits::default()) {
+        assert!(!e.is_empty());
+    } else {
+        panic!("a truncated file was accepted");
+    }
+    // Fewer strips listed than the image needs (rows per strip claims more strips).
+    let mut few = b.clone();
+    let rows = values(&b, ROWS_PER_STRIP)[0];
+    set(&mut few, ROWS_PER_STRIP, rows / 2);
+    let e = read(&few, Limits::default()).unwrap_err();
+    // (The tiff crate itself refuses this table; either reason is fine.)
+    assert!(
+        (e.contains("needs") && e.contains("strips")) || e.contains("inconsistent sizes"),
+        "{e}"
+    );
+    // More strips listed than the image needs.
+    let mut many = b.clone();
+    set(&mut many, ROWS_PER_STRIP, rows * 2);
+    let e = read(&many, Limits::default()).unwrap_err();
+    assert!(
+        (e.contains("needs") && e.contains("strips")) || e.contains("inconsistent sizes"),
+        "{e}"
+    );
+    // An empty strip.
+    let mut empty = b.clone();
+    let mut n = values(&b, STRIP_BYTES);
+    n[1] = 0;
+    set_values(&mut empty, STRIP_BYTES, &n);
+    let e = read(&empty, Limits::default()).unwrap_err();
+    assert!(e.contains("empty"), "{e}");
+}
+
+#[test]
+fn sample_sizes_are_named_as_bits() {
+    let mut b = tiff16(8, 8);
+    set_values(&mut b, BITS, &[7, 7, 7]);
+    let e = read(&b, Limits::default()).unwrap_err();
+    assert!(e.contains("7 bits per sample"), "{e}");
+    assert!(!e.contains("samples per pixel"), "{e}");
+}
+
+#[test]
+fn a_bad_tiff_fails_alone_in_a_batch() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    model(d);
+    std::fs::create_dir(d.join("in")).unwrap();
+    std::fs::write(d.join("in/a_good.tif"), tiff16(16, 16)).unwrap();
+    let mut b = tiff16(8, 8);
+    set(&mut b, WIDTH, 100_000);
+    set(&mut b, HEIGHT, 100_000);
+    std::fs::write(d.join("in/b_huge.tif"), &b).unwrap();
+    let mut b = tiff16(64, 64);
+    let o = values(&b, STRIP_OFFSETS);
+    set_values(&mut b, STRIP_OFFSETS, &vec![o[0]; o.len()]);
+    std::fs::write(d.join("in/c_dup.tif"), &b).unwrap();
+    std::fs::write(d.join("in/d_good.tif"), tiff16(16, 16)).unwrap();
+    let o = nsrm(
+        d,
+        &[
+            "apply",
+            "--model",
+            "m.json",
+            "--device",
+            "cpu",
+            "--continue-on-error",
+            "-o",
+            "out",
+            "in",
+        ],
+    );
+    no_crash(&o, "batch");
+    let err = stderr(&o);
+    assert_eq!(o.status.code(), Some(1), "{err}");
+    assert!(
+        err.contains("2 converted") && err.contains("2 failed"),
+        "{err}"
+    );
+    assert!(
+        err.contains("b_huge.tif") && err.contains("c_dup.tif"),
+        "{err}"
+    );
+    assert_eq!(names(&d.join("out")), ["a_good_xyz.exr", "d_good_xyz.exr"]);
+    assert!(!Path::new(&d.join("out/b_huge_xyz.exr")).exists());
+}

@@ -115,12 +115,8 @@ fn mutate(base: &[u8], edits: &[(bool, Edit)]) -> Vec<u8> {
                 let i = pick(p, b.len() - 3).min(b.len() - 4);
                 b[i..i + 4].copy_from_slice(&v.to_le_bytes());
             }
-            Edit::Truncate(p) if !b.is_empty() => {
-                // Rarely: most truncations just remove the directory.
-                if p % 8 == 0 {
-                    b.truncate(p % b.len());
-                }
-            }
+            // Rarely: most truncations just remove the directory.
+            Edit::Truncate(p) if !b.is_empty() && p % 8 == 0 => b.truncate(p % b.len()),
             _ => {}
         }
     }

@@ -31,6 +31,7 @@ pub mod atomic;
 pub mod chart;
 pub mod colorimetry;
 pub mod eval;
+pub mod export;
 pub mod frame;
 pub mod gpu;
 pub mod io;

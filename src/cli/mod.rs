@@ -9,6 +9,7 @@ mod capture;
 mod chart;
 mod common;
 mod eval;
+mod export;
 mod export_shader;
 mod fit;
 mod fit_args;
@@ -42,6 +43,9 @@ enum Command {
     /// Leave-one-out (or in-sample) ΔE00 of the models; without flags, the paper's experiment on
     /// built-in data (D5100, rawtoaces-190, D65/TL865/LED-B5), printed like its Table 1.
     Eval(eval::Args),
+    /// Export a model for grading and compositing tools: a CLF, a .cube or an OpenColorIO v2
+    /// config, with its measured approximation error.
+    Export(export::Args),
     /// Write a self-contained compute shader (WGSL, GLSL, HLSL, MSL or SPIR-V) with a model's
     /// matrix baked in.
     ExportShader(export_shader::Args),
@@ -71,6 +75,7 @@ pub fn main() -> ExitCode {
         Command::Bench(a) => bench::run(a),
         Command::Chart(c) => chart::run(c),
         Command::Eval(a) => eval::run(a),
+        Command::Export(a) => export::run(a),
         Command::ExportShader(a) => export_shader::run(a),
         Command::Fit(a) => fit::run(a),
         Command::Terms(a) => terms::run(a),

@@ -1,8 +1,9 @@
 //! `nsrm export-shader`: a self-contained compute shader with a model's matrix baked in, in
-//! WGSL or translated by naga to GLSL, HLSL, MSL or SPIR-V.
+//! WGSL or translated by naga to GLSL, HLSL, MSL or SPIR-V; or a DaVinci Resolve DCTL.
 
 use super::common::UsageError;
 use anyhow::{Context, Result};
+use nsrm::colorimetry::spaces::OutputSpace;
 use nsrm::gpu::export::{export, ShaderLang};
 use nsrm::{Layout, Model};
 use std::path::PathBuf;
@@ -13,9 +14,15 @@ pub struct Args {
     /// Model file written by `nsrm fit`.
     #[arg(long, value_name = "FILE")]
     model: PathBuf,
-    /// Output language: wgsl, glsl (450), hlsl (SM 5.1), msl (2.0) or spirv (binary).
+    /// Output language: wgsl, glsl (450), hlsl (SM 5.1), msl (2.0), spirv (binary) or dctl
+    /// (DaVinci Resolve DCTL `transform` function; --layout does not apply).
     #[arg(long, value_name = "LANG")]
     lang: String,
+    /// Fold an output space into the matrix exactly as `nsrm apply --output-space` does
+    /// (training white at Y = 1): xyz, linear-srgb, acescg or aces2065-1. Default: xyz for dctl;
+    /// for the compute shaders, the model's own XYZ (white at Y = 100) unless given.
+    #[arg(long, value_name = "SPACE")]
+    output_space: Option<String>,
     /// Pixel layout of the buffer the shader corrects in place: packed f32 `rgb` or `rgba`
     /// (alpha untouched).
     #[arg(long, default_value = "rgba", value_name = "rgb|rgba")]
@@ -28,17 +35,71 @@ pub struct Args {
     overwrite: bool,
 }
 
+/// The space named by `--output-space`, if any.
+fn output_space(a: &Args) -> Result<Option<OutputSpace>> {
+    a.output_space
+        .as_deref()
+        .map(|s| {
+            OutputSpace::parse(s).ok_or_else(|| {
+                UsageError(format!(
+                    "--output-space `{s}`: expected xyz, linear-srgb, acescg or aces2065-1"
+                ))
+                .into()
+            })
+        })
+        .transpose()
+}
+
+/// `--lang dctl`: the exact model as a Resolve DCTL.
+fn run_dctl(a: &Args) -> Result<ExitCode> {
+    let space = output_space(a)?.unwrap_or(OutputSpace::Xyz);
+    nsrm::atomic::check_clobber(&a.output, a.overwrite)?;
+    let model = Model::load(&a.model)?;
+    let folded = nsrm::io::output_model(&model, space)?;
+    let header = vec![
+        format!(
+            "nsrm DCTL: {} to {} ({}), scene-linear, training white at Y = 1 (as nsrm apply --output-space {})",
+            nsrm::export::camera_space_name(&model),
+            space.name(),
+            space.interop_id(),
+            space.name()
+        ),
+        nsrm::export::provenance_line(&model),
+    ];
+    let text = nsrm::export::dctl::generate(&folded, &header)
+        .with_context(|| format!("exporting {} as DCTL", a.model.display()))?;
+    nsrm::atomic::write_atomic(&a.output, text.as_bytes(), a.overwrite)?;
+    eprintln!(
+        "{} order {} ({} terms) → {} as DCTL: {} bytes written to {}",
+        model.kind(),
+        model.order(),
+        model.len_terms(),
+        space.name(),
+        text.len(),
+        a.output.display()
+    );
+    Ok(ExitCode::SUCCESS)
+}
+
 pub fn run(a: Args) -> Result<ExitCode> {
+    if a.lang.trim().eq_ignore_ascii_case("dctl") {
+        return run_dctl(&a);
+    }
     let lang = ShaderLang::parse(&a.lang).ok_or_else(|| {
         UsageError(format!(
-            "--lang `{}`: expected wgsl, glsl, hlsl, msl or spirv",
+            "--lang `{}`: expected wgsl, glsl, hlsl, msl, spirv or dctl",
             a.lang
         ))
     })?;
     let layout = Layout::parse(&a.layout)
         .ok_or_else(|| UsageError(format!("--layout `{}`: expected rgb or rgba", a.layout)))?;
+    let space = output_space(&a)?;
     nsrm::atomic::check_clobber(&a.output, a.overwrite)?;
     let model = Model::load(&a.model)?;
+    let model = match space {
+        Some(space) => nsrm::io::output_model(&model, space)?,
+        None => model,
+    };
     let bytes = export(&model, layout, lang).with_context(|| {
         format!(
             "exporting {} order {} as {}",

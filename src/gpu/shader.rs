@@ -289,19 +289,19 @@ pub fn model_terms_fn(kind: Kind, order: u8, coefficients: Coefficients<'_>) -> 
     s
 }
 
-/// The WGSL expression of one term over `x` and the per-channel roots `q2`, `q3`, `q4`.
+/// The WGSL expression of one term over `x` and the per-channel roots `q2`, `q3`, `q4`: the
+/// product of the factors of [`crate::model::terms::term_factors`].
 fn term_expr(t: &Term) -> String {
-    let base = match t.root {
-        1 => "x".to_string(),
-        r => format!("q{r}"),
-    };
-    let mut factors = Vec::new();
-    for (c, &e) in t.exps.iter().enumerate() {
-        let comp = ["x", "y", "z"][c];
-        for _ in 0..e {
-            factors.push(format!("{base}.{comp}"));
-        }
-    }
+    let factors: Vec<String> = crate::model::terms::term_factors(t)
+        .into_iter()
+        .map(|(c, root)| {
+            let comp = ["x", "y", "z"][c];
+            match root {
+                1 => format!("x.{comp}"),
+                r => format!("q{r}.{comp}"),
+            }
+        })
+        .collect();
     if factors.is_empty() {
         "1.0".into()
     } else {

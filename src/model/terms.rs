@@ -178,6 +178,18 @@ pub fn signed_root(x: f64, d: u8) -> f64 {
     }
 }
 
+/// The factors of a term, one per unit of exponent, as `(variable, root)`: the term is the product
+/// of `signed_root(x[variable], root)` over them (1 for none), which is what [`expand`] computes.
+/// Code generators (the WGSL of `crate::gpu::shader`, the DCTL of `crate::export::dctl`) spell
+/// each factor in their language, so every back end follows this one definition.
+pub fn term_factors(t: &Term) -> Vec<(usize, u8)> {
+    t.exps
+        .iter()
+        .enumerate()
+        .flat_map(|(c, &e)| std::iter::repeat_n((c, t.root), e as usize))
+        .collect()
+}
+
 /// Writes the term values of one pixel into `out` (the f64 reference expansion).
 ///
 /// For NSRM, `rgb` must already be the chromaticities `(r, g, _)`.
@@ -277,6 +289,24 @@ mod tests {
             for (i, e) in list.iter().enumerate() {
                 assert_eq!((e[0] + e[1]) as usize, d);
                 assert!(!list[..i].contains(e));
+            }
+        }
+    }
+
+    #[test]
+    fn term_factors_multiply_to_the_term() {
+        let x = [0.3, -0.7, 1.9];
+        for kind in [Kind::Prm, Kind::Rprm, Kind::Nsrm] {
+            let list = terms(kind, 4);
+            let mut want = vec![0.0; list.len()];
+            expand(&list, x, &mut want);
+            for (t, w) in list.iter().zip(want) {
+                let got: f64 = term_factors(t)
+                    .iter()
+                    .map(|&(c, r)| signed_root(x[c], r))
+                    .product();
+                assert!((got - w).abs() < 1e-12, "{kind:?} {t:?}");
+                assert_eq!(term_factors(t).len(), t.degree() as usize);
             }
         }
     }

@@ -89,7 +89,7 @@ fn write_frame(frame: &Frame, path: &Path) {
 }
 
 fn read(path: &Path) -> Vec<[f64; 3]> {
-    let f = read_frame(path, &ReadOptions { layer: None }).unwrap();
+    let f = read_frame(path, &ReadOptions::default()).unwrap();
     let ch = f.layout.channels();
     f.data
         .chunks_exact(ch)

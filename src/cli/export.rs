@@ -95,7 +95,7 @@ fn training_set(a: &Args, model: &Model) -> Result<TrainingSet> {
     let grid = nsrm::spectral::Grid::parse(p.grid.as_deref().unwrap_or("400:700:10"))?;
     let data = nsrm::spectral::simulate_named(&strip(camera), &strip(ill), &strip(refl), &grid)
         .with_context(|| {
-            format!("re-simulating the training patches from the model's provenance (pass --training FILE to give them)")
+            "re-simulating the training patches from the model's provenance (pass --training FILE to give them)".to_string()
         })?;
     let data = data.select(p.patches.as_deref().unwrap_or("all"))?;
     if data.labels != model.patches() {

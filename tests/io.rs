@@ -71,6 +71,7 @@ fn opts(format: FileFormat, half: bool, space: OutputSpace) -> WriteOptions {
         compression: nsrm::io::ExrCompression::Keep,
         space,
         overwrite: false,
+        zip_level: nsrm::io::DEFAULT_ZIP_LEVEL,
     }
 }
 
@@ -420,7 +421,8 @@ fn missing_channels_and_bad_files_are_refused() {
     let truncated = d.join("truncated.exr");
     std::fs::write(&truncated, &full[..full.len() - 20]).unwrap();
     let e = Decoded::read(&truncated, &ReadOptions::default()).unwrap_err();
-    assert!(matches!(e, IoError::Exr { .. }), "{e}");
+    assert!(matches!(e, IoError::Corrupt { .. }), "{e}");
+    assert!(e.to_string().contains("past the end of the file"), "{e}");
     assert!(e.to_string().contains("truncated.exr"), "{e}");
 
     let png = d.join("fake.exr");

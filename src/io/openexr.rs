@@ -1,6 +1,19 @@
-//! OpenEXR in and out through the `exr` crate, keeping everything but the corrected `R`, `G`, `B`.
+//! OpenEXR in and out, keeping everything but the corrected `R`, `G`, `B`.
+//!
+//! Every file's headers and offset tables are checked first ([`chunks::Table::read`]): sizes
+//! against [`super::Limits`], every chunk present exactly once and inside the file. Single-part
+//! scanline files (none, RLE, ZIPS, ZIP or PIZ; the common camera-plate case) then take the
+//! chunk-level path of [`chunks`]: parallel within the frame, zlib-rs for ZIP. Everything else
+//! (tiles, mip/rip levels, multi-part, subsampled channels, lossy or decreasing-y inputs) goes
+//! through the `exr` crate's whole-image reader and writer.
 
-use super::{Container, Decoded, ExrCompression, FileFormat, IoError, ReadOptions, WriteOptions};
+mod chunks;
+
+pub use chunks::DEFAULT_ZIP_LEVEL;
+
+use super::{
+    Container, Decoded, ExrCompression, FileFormat, IoError, ReadOptions, WriteOptions,
+};
 use crate::atomic::WriteError;
 use crate::colorimetry::spaces::OutputSpace;
 use crate::frame::{Frame, Layout};
@@ -18,9 +31,19 @@ use std::path::Path;
 /// The standard attribute naming the colour space of the pixels (ASWF colour interop).
 pub const COLOR_INTEROP_ID: &str = "colorInteropID";
 
-/// A decoded EXR minus its camera RGB samples (moved into the frames while they are corrected).
+/// A decoded EXR minus its camera RGB samples.
 #[derive(Debug)]
-pub(crate) struct ExrContainer {
+pub(crate) enum ExrContainer {
+    /// Through the `exr` crate's whole-image reader.
+    Image(ImageContainer),
+    /// Through the chunk-level fast path.
+    Chunked(chunks::Chunked),
+}
+
+/// A whole decoded image minus its camera RGB samples (moved into the frames while they are
+/// corrected).
+#[derive(Debug)]
+pub(crate) struct ImageContainer {
     image: AnyImage,
     /// The part holding the camera RGB.
     layer: usize,
@@ -36,21 +59,54 @@ fn exr_err(path: &Path, err: ::exr::error::Error) -> IoError {
     }
 }
 
+/// The names a part offers to [`locate`]: its name and its channels' names.
+struct PartNames {
+    name: Option<String>,
+    channels: Vec<String>,
+}
+
 pub(super) fn read(path: &Path, opts: &ReadOptions) -> Result<Decoded, IoError> {
+    let file = std::fs::File::open(path).map_err(|err| IoError::Read {
+        path: path.to_path_buf(),
+        err,
+    })?;
+    let table = chunks::Table::read(path, &file, &opts.limits)?;
+    let channels_err = |why| IoError::Channels {
+        path: path.to_path_buf(),
+        why,
+    };
+    if table.fast() {
+        let h = &table.meta.headers[0];
+        let names = [PartNames {
+            name: h.own_attributes.layer_name.as_ref().map(|t| t.to_string()),
+            channels: h.channels.list.iter().map(|c| c.name.to_string()).collect(),
+        }];
+        let (_, rgb, alpha) = locate(&names, opts.layer.as_deref()).map_err(channels_err)?;
+        let (frame, container) = chunks::decode(path, &file, table, rgb, alpha)?;
+        return Ok(Decoded {
+            path: path.to_path_buf(),
+            format: FileFormat::Exr,
+            frame,
+            levels: Vec::new(),
+            container: Container::Exr(Box::new(ExrContainer::Chunked(container))),
+        });
+    }
+    drop(table);
+    let mut file = file;
+    std::io::Seek::seek(&mut file, std::io::SeekFrom::Start(0)).map_err(|err| IoError::Read {
+        path: path.to_path_buf(),
+        err,
+    })?;
     let image: AnyImage = ::exr::image::read::read()
         .no_deep_data()
         .all_resolution_levels()
         .all_channels()
         .all_layers()
         .all_attributes()
-        .from_file(path)
+        .from_buffered(std::io::BufReader::new(file))
         .map_err(|e| exr_err(path, e))?;
-    let (layer, rgb, alpha) =
-        locate(&image, opts.layer.as_deref()).map_err(|why| IoError::Channels {
-            path: path.to_path_buf(),
-            why,
-        })?;
-    let mut container = ExrContainer {
+    let (layer, rgb, alpha) = locate(&part_names(&image), opts.layer.as_deref()).map_err(channels_err)?;
+    let mut container = ImageContainer {
         image,
         layer,
         rgb,
@@ -63,31 +119,114 @@ pub(super) fn read(path: &Path, opts: &ReadOptions) -> Result<Decoded, IoError> 
         format: FileFormat::Exr,
         frame,
         levels: frames,
-        container: Container::Exr(Box::new(container)),
+        container: Container::Exr(Box::new(ExrContainer::Image(container))),
     })
+}
+
+fn part_names(image: &AnyImage) -> Vec<PartNames> {
+    image
+        .layer_data
+        .iter()
+        .map(|l| PartNames {
+            name: l.attributes.layer_name.as_ref().map(|t| t.to_string()),
+            channels: l.channel_data.list.iter().map(|c| c.name.to_string()).collect(),
+        })
+        .collect()
+}
+
+impl ExrContainer {
+    pub(super) fn has_alpha(&self) -> bool {
+        match self {
+            ExrContainer::Image(c) => c.alpha.is_some(),
+            ExrContainer::Chunked(c) => c.alpha.is_some(),
+        }
+    }
+
+    /// The alpha channel's full-resolution samples as f32.
+    pub(super) fn alpha_f32(&self) -> Option<Vec<f32>> {
+        match self {
+            ExrContainer::Image(c) => c.alpha_f32(),
+            ExrContainer::Chunked(c) => c.alpha_f32(),
+        }
+    }
+
+    /// Names of the channels passed through besides alpha (`part/name` for other parts).
+    pub(super) fn extra_channels(&self) -> Vec<String> {
+        match self {
+            ExrContainer::Image(c) => c.extra_channels(),
+            ExrContainer::Chunked(c) => c
+                .header
+                .channels
+                .list
+                .iter()
+                .enumerate()
+                .filter(|(i, _)| !c.rgb.contains(i) && c.alpha != Some(*i))
+                .map(|(_, ch)| ch.name.to_string())
+                .collect(),
+        }
+    }
+
+    /// Puts the corrected frames back and writes the whole image to `dest`.
+    pub(super) fn write(
+        self: Box<Self>,
+        frame: Frame,
+        levels: Vec<Frame>,
+        dest: &Path,
+        opts: &WriteOptions,
+    ) -> Result<(), IoError> {
+        match *self {
+            ExrContainer::Image(c) => c.write(frame, levels, dest, opts),
+            ExrContainer::Chunked(c) => {
+                if !levels.is_empty() {
+                    return Err(IoError::Encode {
+                        path: dest.to_path_buf(),
+                        why: format!("{} resolution levels given for a scanline file", levels.len() + 1),
+                    });
+                }
+                let compression = chosen(opts.compression, c.header.compression);
+                crate::atomic::write_with(dest, opts.overwrite, |w| {
+                    c.write(&frame, w, compression, opts.half, opts.zip_level, |h| {
+                        set_header_colour(
+                            &mut h.shared_attributes,
+                            &mut h.own_attributes,
+                            Some(opts.space),
+                        )
+                    })
+                    .map_err(|e| encode_err(dest, e))
+                })
+            }
+        }
+    }
+}
+
+fn encode_err(dest: &Path, e: ::exr::error::Error) -> IoError {
+    match e {
+        ::exr::error::Error::Io(err) => IoError::Write(WriteError::Io {
+            path: dest.to_path_buf(),
+            err,
+        }),
+        other => IoError::Encode {
+            path: dest.to_path_buf(),
+            why: other.to_string(),
+        },
+    }
 }
 
 /// Finds the part and channel indices of the camera RGB.
 fn locate(
-    image: &AnyImage,
+    image: &[PartNames],
     want: Option<&str>,
 ) -> Result<(usize, [usize; 3], Option<usize>), String> {
     let find = |li: usize, prefix: &str| -> Option<([usize; 3], Option<usize>)> {
-        let list = &image.layer_data[li].channel_data.list;
+        let list = &image[li].channels;
         let idx = |n: &str| {
             let name = format!("{prefix}{n}");
-            list.iter().position(|c| c.name.eq(name.as_str()))
+            list.iter().position(|c| *c == name)
         };
         Some(([idx("R")?, idx("G")?, idx("B")?], idx("A")))
     };
-    let parts = image.layer_data.len();
-    let part_name = |li: usize| {
-        image.layer_data[li]
-            .attributes
-            .layer_name
-            .as_ref()
-            .map(|t| t.to_string())
-    };
+    let parts = image.len();
+    let part_name = |li: usize| image[li].name.clone();
     match want {
         Some(name) => {
             for li in 0..parts {
@@ -114,10 +253,10 @@ fn locate(
                     return Ok((li, rgb, a));
                 }
             }
-            let list = &image.layer_data[0].channel_data.list;
+            let list = &image[0].channels;
             let missing: Vec<&str> = ["R", "G", "B"]
                 .into_iter()
-                .filter(|n| !list.iter().any(|c| c.name.eq(n)))
+                .filter(|n| !list.iter().any(|c| c == n))
                 .collect();
             Err(format!(
                 "no {} channel{} ({})",
@@ -130,20 +269,15 @@ fn locate(
 }
 
 /// `channels: …; layers with R, G, B: … (pick one with --layer)` for error messages.
-fn describe(image: &AnyImage) -> String {
+fn describe(image: &[PartNames]) -> String {
     let mut names = Vec::new();
     let mut layers: Vec<String> = Vec::new();
-    for l in &image.layer_data {
-        let part = l.attributes.layer_name.as_ref().map(|t| t.to_string());
-        let list: Vec<String> = l
-            .channel_data
-            .list
-            .iter()
-            .map(|c| c.name.to_string())
-            .collect();
-        for n in &list {
+    for l in image {
+        let part = l.name.clone();
+        let list = &l.channels;
+        for n in list {
             names.push(match &part {
-                Some(p) if image.layer_data.len() > 1 => format!("{p}/{n}"),
+                Some(p) if image.len() > 1 => format!("{p}/{n}"),
                 _ => n.clone(),
             });
             if let Some(prefix) = n.strip_suffix(".R") {
@@ -202,7 +336,7 @@ fn samples_of(frame: &Frame, c: usize, half: bool) -> FlatSamples {
     }
 }
 
-impl ExrContainer {
+impl ImageContainer {
     fn part(&self) -> &Layer<AnyChannels<Levels<FlatSamples>>> {
         &self.image.layer_data[self.layer]
     }
@@ -263,12 +397,8 @@ impl ExrContainer {
         Ok(frames)
     }
 
-    pub(super) fn has_alpha(&self) -> bool {
-        self.alpha.is_some()
-    }
-
     /// The alpha channel's full-resolution samples as f32.
-    pub(super) fn alpha_f32(&self) -> Option<Vec<f32>> {
+    fn alpha_f32(&self) -> Option<Vec<f32>> {
         let a = &self.part().channel_data.list[self.alpha?];
         let s = &a.sample_data.levels_as_slice()[0];
         let mut out = vec![0.0; s.len()];
@@ -276,7 +406,7 @@ impl ExrContainer {
         Some(out)
     }
 
-    pub(super) fn extra_channels(&self) -> Vec<String> {
+    fn extra_channels(&self) -> Vec<String> {
         let mut out = Vec::new();
         for (li, l) in self.image.layer_data.iter().enumerate() {
             for (ci, c) in l.channel_data.list.iter().enumerate() {
@@ -300,19 +430,19 @@ impl ExrContainer {
     }
 
     /// Puts the corrected frames back and writes the whole image to `dest`.
-    pub(super) fn write(
-        self: Box<Self>,
+    fn write(
+        self,
         frame: Frame,
         levels: Vec<Frame>,
         dest: &Path,
         opts: &WriteOptions,
     ) -> Result<(), IoError> {
-        let ExrContainer {
+        let ImageContainer {
             mut image,
             layer,
             rgb,
             ..
-        } = *self;
+        } = self;
         let frames: Vec<Frame> = std::iter::once(frame).chain(levels).collect();
         let list = &mut image.layer_data[layer].channel_data.list;
         for (ci, &c) in rgb.iter().enumerate() {
@@ -364,9 +494,22 @@ fn chosen(want: ExrCompression, input: Compression) -> Compression {
 /// Sets `colorInteropID` on the corrected part and the image's `chromaticities` to match
 /// `space` (removed for XYZ, and when `space` is `None`: camera RGB has no standard primaries).
 fn set_colour_attributes(image: &mut AnyImage, layer: usize, space: Option<OutputSpace>) {
+    set_header_colour(
+        &mut image.attributes,
+        &mut image.layer_data[layer].attributes,
+        space,
+    );
+}
+
+/// [`set_colour_attributes`] on one header's shared (image) and own (part) attributes.
+fn set_header_colour(
+    shared: &mut ImageAttributes,
+    own: &mut LayerAttributes,
+    space: Option<OutputSpace>,
+) {
     let key = Text::from(COLOR_INTEROP_ID);
-    image.attributes.other.remove(&key);
-    let attrs = &mut image.layer_data[layer].attributes.other;
+    shared.other.remove(&key);
+    let attrs = &mut own.other;
     match space {
         Some(s) => {
             attrs.insert(key, AttributeValue::Text(Text::from(s.interop_id())));
@@ -375,7 +518,7 @@ fn set_colour_attributes(image: &mut AnyImage, layer: usize, space: Option<Outpu
             attrs.remove(&key);
         }
     }
-    image.attributes.chromaticities = space.and_then(|s| s.primaries()).map(|(p, w)| {
+    shared.chromaticities = space.and_then(|s| s.primaries()).map(|(p, w)| {
         let v = |xy: [f64; 2]| Vec2(xy[0] as f32, xy[1] as f32);
         Chromaticities {
             red: v(p[0]),
@@ -477,15 +620,6 @@ pub(super) fn write_new(
 /// Writes `image` to a temporary file beside `dest`, then moves it into place.
 fn write_image(image: &AnyImage, dest: &Path, overwrite: bool) -> Result<(), IoError> {
     crate::atomic::write_with(dest, overwrite, |w| {
-        image.write().to_buffered(w).map_err(|e| match e {
-            ::exr::error::Error::Io(err) => IoError::Write(WriteError::Io {
-                path: dest.to_path_buf(),
-                err,
-            }),
-            other => IoError::Encode {
-                path: dest.to_path_buf(),
-                why: other.to_string(),
-            },
-        })
+        image.write().to_buffered(w).map_err(|e| encode_err(dest, e))
     })
 }

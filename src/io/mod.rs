@@ -290,9 +290,8 @@ pub struct WriteOptions {
     pub space: OutputSpace,
     /// Replace an existing destination.
     pub overwrite: bool,
-    /// EXR only: the deflate level (0–9) of ZIP and ZIPS outputs; [`DEFAULT_ZIP_LEVEL`] by
-    /// default (`--zip-level`), for speed: higher levels gain ~1 % of file size on noisy
-    /// float plates for several times the encoding time.
+    /// EXR only: the deflate level (0–9) of ZIP and ZIPS outputs written by the chunk-level
+    /// path; [`DEFAULT_ZIP_LEVEL`] (`--zip-level`) is chosen for speed.
     pub zip_level: u8,
 }
 

@@ -68,8 +68,7 @@ fn plate(w: usize, h: usize, seed: u64) -> Frame {
                 ((z ^ (z >> 31)) >> 11) as f64 / (1u64 << 53) as f64
             };
             for (x, px) in row.chunks_exact_mut(3).enumerate() {
-                let base = 0.18
-                    * (0.6 + 0.4 * (x as f64 / 300.0).sin() * (y as f64 / 200.0).cos());
+                let base = 0.18 * (0.6 + 0.4 * (x as f64 / 300.0).sin() * (y as f64 / 200.0).cos());
                 for (c, balance) in [0.55, 1.0, 0.75].into_iter().enumerate() {
                     // Box-Muller.
                     let (u1, u2) = (uniform().max(1e-300), uniform());

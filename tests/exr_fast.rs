@@ -4,8 +4,8 @@
 //! with a printed reason only outside `CI=true`).
 
 use exr::compression::Compression;
-use exr::image::{AnyChannel, AnyChannels, AnyImage, Blocks, Encoding, FlatSamples, Image, Layer};
 use exr::image::Levels;
+use exr::image::{AnyChannel, AnyChannels, AnyImage, Blocks, Encoding, FlatSamples, Image, Layer};
 use exr::math::Vec2;
 use exr::meta::attribute::{AttributeValue, IntegerBounds, LineOrder, Text};
 use exr::meta::header::{ImageAttributes, LayerAttributes};
@@ -23,7 +23,9 @@ fn noise(n: usize, seed: u64) -> Vec<f32> {
     let mut s = seed;
     (0..n)
         .map(|_| {
-            s = s.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+            s = s
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
             let u = (s >> 40) as f32 / (1u64 << 24) as f32;
             (u - 0.1) * if s & 0xff == 0 { 1000.0 } else { 1.0 }
         })
@@ -54,7 +56,10 @@ fn plate(compression: Compression, rgb_half: bool) -> AnyImage {
             "A",
             FlatSamples::F16(noise(n, 4).into_iter().map(f16::from_f32).collect()),
         ),
-        chan("Z", FlatSamples::U32((0..n as u32).map(|i| i * 7919).collect())),
+        chan(
+            "Z",
+            FlatSamples::U32((0..n as u32).map(|i| i * 7919).collect()),
+        ),
         chan(
             "N.x",
             FlatSamples::F16(noise(n, 5).into_iter().map(f16::from_f32).collect()),
@@ -81,7 +86,10 @@ fn plate(compression: Compression, rgb_half: bool) -> AnyImage {
         AnyChannels::sort(SmallVec::from_vec(channels)),
     );
     let bounds = IntegerBounds::new(Vec2(5, -3), Vec2(W, H));
-    Image::from_layers(ImageAttributes::new(bounds), SmallVec::from_vec(vec![layer]))
+    Image::from_layers(
+        ImageAttributes::new(bounds),
+        SmallVec::from_vec(vec![layer]),
+    )
 }
 
 fn samples<'a>(img: &'a AnyImage, name: &str) -> &'a FlatSamples {
@@ -169,7 +177,11 @@ fn fast_path_writes_every_compression_with_pass_through_unchanged() {
         (ExrCompression::Zip, Some(Compression::ZIP16)),
         (ExrCompression::Piz, Some(Compression::PIZ)),
     ];
-    for c in [Compression::ZIP16, Compression::PIZ, Compression::Uncompressed] {
+    for c in [
+        Compression::ZIP16,
+        Compression::PIZ,
+        Compression::Uncompressed,
+    ] {
         let src = dir.path().join(format!("in-{c}.exr"));
         let input = plate(c, false);
         input.write().to_file(&src).unwrap();
@@ -183,7 +195,11 @@ fn fast_path_writes_every_compression_with_pass_through_unchanged() {
                 d.write(&dest, &opts(out_c, half)).unwrap();
                 let got = read_all(&dest);
                 let layer = &got.layer_data[0];
-                assert_eq!(layer.encoding.compression, expect.unwrap_or(c), "{c} → {out_c:?}");
+                assert_eq!(
+                    layer.encoding.compression,
+                    expect.unwrap_or(c),
+                    "{c} → {out_c:?}"
+                );
                 assert_eq!(layer.attributes.layer_position, Vec2(5, -3));
                 assert_eq!(layer.size, Vec2(W, H));
                 for (ci, name) in ["R", "G", "B"].into_iter().enumerate() {
@@ -202,7 +218,11 @@ fn fast_path_writes_every_compression_with_pass_through_unchanged() {
                     }
                 }
                 for name in ["A", "Z", "N.x"] {
-                    assert_eq!(bits(samples(&got, name)), bits(samples(&input, name)), "{name}");
+                    assert_eq!(
+                        bits(samples(&got, name)),
+                        bits(samples(&input, name)),
+                        "{name}"
+                    );
                 }
                 let a = &layer.attributes;
                 assert_eq!(a.owner, Some(Text::from("nsrm tests")));
@@ -228,7 +248,10 @@ fn fast_path_writes_every_compression_with_pass_through_unchanged() {
 fn every_zip_level_round_trips() {
     let dir = tempfile::tempdir().unwrap();
     let src = dir.path().join("in.exr");
-    plate(Compression::ZIP16, false).write().to_file(&src).unwrap();
+    plate(Compression::ZIP16, false)
+        .write()
+        .to_file(&src)
+        .unwrap();
     let first = Decoded::read(&src, &ReadOptions::default()).unwrap().frame;
     let mut sizes = Vec::new();
     for level in 0..=9u8 {
@@ -313,9 +336,16 @@ fn outputs_open_in_openexr_with_the_pixels_nsrm_computed() {
                 .arg(&dump)
                 .output()
                 .unwrap();
-            assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+            assert!(
+                out.status.success(),
+                "{}",
+                String::from_utf8_lossy(&out.stderr)
+            );
             let stdout = String::from_utf8_lossy(&out.stdout);
-            assert!(stdout.contains("XK-1138") && stdout.contains("lin_ap1_scene"), "{stdout}");
+            assert!(
+                stdout.contains("XK-1138") && stdout.contains("lin_ap1_scene"),
+                "{stdout}"
+            );
             let file = |name: &str| std::fs::read(format!("{}.{name}", dump.display())).unwrap();
             for (ci, name) in ["R", "G", "B"].into_iter().enumerate() {
                 let want: Vec<u8> = frame
@@ -331,17 +361,27 @@ fn outputs_open_in_openexr_with_the_pixels_nsrm_computed() {
                         }
                     })
                     .collect();
-                assert_eq!(file(name), want, "{c:?} half={half}: {name} as OpenEXR reads it");
+                assert_eq!(
+                    file(name),
+                    want,
+                    "{c:?} half={half}: {name} as OpenEXR reads it"
+                );
             }
             let le = |s: &FlatSamples| -> Vec<u8> {
                 match s {
-                    FlatSamples::F16(v) => v.iter().flat_map(|h| h.to_bits().to_le_bytes()).collect(),
+                    FlatSamples::F16(v) => {
+                        v.iter().flat_map(|h| h.to_bits().to_le_bytes()).collect()
+                    }
                     FlatSamples::F32(v) => v.iter().flat_map(|f| f.to_le_bytes()).collect(),
                     FlatSamples::U32(v) => v.iter().flat_map(|u| u.to_le_bytes()).collect(),
                 }
             };
             for name in ["A", "Z", "N.x"] {
-                assert_eq!(file(name), le(samples(&input, name)), "{name} as OpenEXR reads it");
+                assert_eq!(
+                    file(name),
+                    le(samples(&input, name)),
+                    "{name} as OpenEXR reads it"
+                );
             }
         }
         if oiio {
@@ -351,10 +391,17 @@ fn outputs_open_in_openexr_with_the_pixels_nsrm_computed() {
                 .output()
                 .unwrap();
             let text = String::from_utf8_lossy(&out.stdout);
-            assert!(out.status.success(), "{text}{}", String::from_utf8_lossy(&out.stderr));
+            assert!(
+                out.status.success(),
+                "{text}{}",
+                String::from_utf8_lossy(&out.stderr)
+            );
             assert!(text.contains("6 channel"), "{text}");
             assert!(text.contains("N.x") && text.contains("XK-1138"), "{text}");
-            let nan = text.lines().find(|l| l.contains("NanCount")).unwrap_or_default();
+            let nan = text
+                .lines()
+                .find(|l| l.contains("NanCount"))
+                .unwrap_or_default();
             assert!(nan.split_whitespace().skip(3).all(|n| n == "0"), "{text}");
         }
     }

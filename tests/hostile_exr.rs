@@ -177,7 +177,10 @@ fn a_damaged_offset_table_is_refused_with_the_reason() {
     let cases: Vec<(&str, Vec<u8>, &str)> = vec![
         (
             "two lines at one chunk",
-            c.file(|i| c.line(i as f32), |i, off| if i == 2 { off - 8 - 96 } else { off }),
+            c.file(
+                |i| c.line(i as f32),
+                |i, off| if i == 2 { off - 8 - 96 } else { off },
+            ),
             "expected line 2",
         ),
         (
@@ -187,7 +190,10 @@ fn a_damaged_offset_table_is_refused_with_the_reason() {
         ),
         (
             "a chunk past the end",
-            c.file(|i| c.line(i as f32), |i, off| if i == 3 { off + 10_000 } else { off }),
+            c.file(
+                |i| c.line(i as f32),
+                |i, off| if i == 3 { off + 10_000 } else { off },
+            ),
             "past the end",
         ),
         (
@@ -198,14 +204,23 @@ fn a_damaged_offset_table_is_refused_with_the_reason() {
         (
             "a short chunk",
             c.file(
-                |i| if i == 0 { c.line(0.0)[..40].to_vec() } else { c.line(1.0) },
+                |i| {
+                    if i == 0 {
+                        c.line(0.0)[..40].to_vec()
+                    } else {
+                        c.line(1.0)
+                    }
+                },
                 |_, off| off,
             ),
             "cannot hold",
         ),
         (
             "an offset into the table",
-            c.file(|i| c.line(i as f32), |i, off| if i == 0 { off - 16 } else { off }),
+            c.file(
+                |i| c.line(i as f32),
+                |i, off| if i == 0 { off - 16 } else { off },
+            ),
             "outside the chunk data",
         ),
     ];
@@ -228,7 +243,10 @@ fn a_small_zip_file_cannot_claim_a_big_frame() {
         height: 8192,
         compression: 3,
     };
-    let bytes = c.file(|_| vec![0x78, 0x9c, 3, 0, 0, 0, 0, 1, 0, 0, 0, 0], |_, off| off);
+    let bytes = c.file(
+        |_| vec![0x78, 0x9c, 3, 0, 0, 0, 0, 1, 0, 0, 0, 0],
+        |_, off| off,
+    );
     assert!(bytes.len() < 234_000, "{}", bytes.len());
     let p = write(dir.path(), "bomb.exr", &bytes);
     let e = read(&p).unwrap_err();
@@ -250,7 +268,11 @@ fn a_batch_survives_hostile_frames_within_2_gib() {
         .arg(&model)
         .output()
         .unwrap();
-    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
     let ok = Craft {
         width: 16,
         height: 8,
@@ -276,7 +298,10 @@ fn a_batch_survives_hostile_frames_within_2_gib() {
     write(
         d,
         "d_dup.exr",
-        &ok.file(|_| ok.line(0.5), |i, off| if i == 5 { off - 8 - 192 } else { off }),
+        &ok.file(
+            |_| ok.line(0.5),
+            |i, off| if i == 5 { off - 8 - 192 } else { off },
+        ),
     );
     let script = format!(
         "ulimit -v 2097152 && exec '{nsrm}' apply --device cpu --continue-on-error --model '{}' \

@@ -556,6 +556,10 @@ fn run_pipeline(
             .push((i, Outcome::Failed(why)));
         pb.inc(1);
     };
+    // Frames alive at once (decoding, queued, correcting, encoding): `--jobs` + 1, so peak memory
+    // stays under (jobs + 2) decoded frames.
+    let permits = Permits::new(s.workers + 1);
+    let permits = &permits;
     std::thread::scope(|scope| {
         let (dec_tx, dec_rx) = sync_channel::<(usize, Decoded)>(s.workers);
         let (enc_tx, enc_rx) = sync_channel::<(usize, Decoded)>(s.workers);
@@ -564,20 +568,29 @@ fn run_pipeline(
             let tx = dec_tx.clone();
             let (stop, next, fail, shared_timing) = (&stop, &next, &fail, &shared_timing);
             scope.spawn(move || loop {
+                permits.acquire();
                 if stop.load(Ordering::SeqCst) || interrupt.stopped() {
+                    permits.release();
                     break;
                 }
                 let k = next.fetch_add(1, Ordering::SeqCst);
-                let Some(&i) = todo.get(k) else { break };
+                let Some(&i) = todo.get(k) else {
+                    permits.release();
+                    break;
+                };
                 let t = Instant::now();
                 match Decoded::read(&jobs[i].input, &s.read) {
                     Ok(d) => {
                         lock(shared_timing).decode += t.elapsed();
                         if tx.send((i, d)).is_err() {
+                            permits.release();
                             break;
                         }
                     }
-                    Err(e) => fail(i, e.to_string()),
+                    Err(e) => {
+                        permits.release();
+                        fail(i, e.to_string())
+                    }
                 }
             });
         }
@@ -590,11 +603,15 @@ fn run_pipeline(
                 let Ok((i, d)) = msg else { break };
                 if interrupt.stopped() {
                     // Not started: left as not attempted.
+                    drop(d);
+                    permits.release();
                     continue;
                 }
                 let t = Instant::now();
                 let pixels = d.pixels();
-                match encode(&jobs[i], d, s) {
+                let encoded = encode(&jobs[i], d, s);
+                permits.release();
+                match encoded {
                     Ok(()) => {
                         let mut tm = lock(shared_timing);
                         tm.encode += t.elapsed();
@@ -612,6 +629,8 @@ fn run_pipeline(
         }
         for (i, mut d) in dec_rx {
             if interrupt.stopped() {
+                drop(d);
+                permits.release();
                 continue;
             }
             let t = Instant::now();
@@ -619,10 +638,15 @@ fn run_pipeline(
                 Ok(()) => {
                     lock(&shared_timing).correct += t.elapsed();
                     if enc_tx.send((i, d)).is_err() {
+                        permits.release();
                         break;
                     }
                 }
-                Err(e) => fail(i, format!("{}: correcting: {e:#}", jobs[i].input.display())),
+                Err(e) => {
+                    drop(d);
+                    permits.release();
+                    fail(i, format!("{}: correcting: {e:#}", jobs[i].input.display()))
+                }
             }
         }
         drop(enc_tx);
@@ -632,6 +656,34 @@ fn run_pipeline(
         .unwrap_or_else(|e| e.into_inner());
     *timing = t;
     results.into_inner().unwrap_or_else(|e| e.into_inner())
+}
+
+/// A counting semaphore: how many more frames may be decoded before one is written.
+struct Permits {
+    free: Mutex<usize>,
+    freed: std::sync::Condvar,
+}
+
+impl Permits {
+    fn new(n: usize) -> Permits {
+        Permits {
+            free: Mutex::new(n),
+            freed: std::sync::Condvar::new(),
+        }
+    }
+
+    fn acquire(&self) {
+        let mut free = lock(&self.free);
+        while *free == 0 {
+            free = self.freed.wait(free).unwrap_or_else(|e| e.into_inner());
+        }
+        *free -= 1;
+    }
+
+    fn release(&self) {
+        *lock(&self.free) += 1;
+        self.freed.notify_one();
+    }
 }
 
 fn lock<T>(m: &Mutex<T>) -> std::sync::MutexGuard<'_, T> {
@@ -669,10 +721,7 @@ fn print_timing(t: &Timing, wall: Duration) {
         t.pixels as f64 / 1e6 / t.correct.as_secs_f64().max(1e-9)
     );
     if let Some(kib) = peak_rss_kib() {
-        eprintln!(
-            "timing: peak RSS {:.1} MiB (VmHWM)",
-            kib as f64 / 1024.0
-        );
+        eprintln!("timing: peak RSS {:.1} MiB (VmHWM)", kib as f64 / 1024.0);
     }
 }
 

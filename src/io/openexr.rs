@@ -11,9 +11,7 @@ mod chunks;
 
 pub use chunks::DEFAULT_ZIP_LEVEL;
 
-use super::{
-    Container, Decoded, ExrCompression, FileFormat, IoError, ReadOptions, WriteOptions,
-};
+use super::{Container, Decoded, ExrCompression, FileFormat, IoError, ReadOptions, WriteOptions};
 use crate::atomic::WriteError;
 use crate::colorimetry::spaces::OutputSpace;
 use crate::frame::{Frame, Layout};
@@ -105,7 +103,8 @@ pub(super) fn read(path: &Path, opts: &ReadOptions) -> Result<Decoded, IoError> 
         .all_attributes()
         .from_buffered(std::io::BufReader::new(file))
         .map_err(|e| exr_err(path, e))?;
-    let (layer, rgb, alpha) = locate(&part_names(&image), opts.layer.as_deref()).map_err(channels_err)?;
+    let (layer, rgb, alpha) =
+        locate(&part_names(&image), opts.layer.as_deref()).map_err(channels_err)?;
     let mut container = ImageContainer {
         image,
         layer,
@@ -129,7 +128,12 @@ fn part_names(image: &AnyImage) -> Vec<PartNames> {
         .iter()
         .map(|l| PartNames {
             name: l.attributes.layer_name.as_ref().map(|t| t.to_string()),
-            channels: l.channel_data.list.iter().map(|c| c.name.to_string()).collect(),
+            channels: l
+                .channel_data
+                .list
+                .iter()
+                .map(|c| c.name.to_string())
+                .collect(),
         })
         .collect()
 }
@@ -180,7 +184,10 @@ impl ExrContainer {
                 if !levels.is_empty() {
                     return Err(IoError::Encode {
                         path: dest.to_path_buf(),
-                        why: format!("{} resolution levels given for a scanline file", levels.len() + 1),
+                        why: format!(
+                            "{} resolution levels given for a scanline file",
+                            levels.len() + 1
+                        ),
                     });
                 }
                 let compression = chosen(opts.compression, c.header.compression);
@@ -620,6 +627,9 @@ pub(super) fn write_new(
 /// Writes `image` to a temporary file beside `dest`, then moves it into place.
 fn write_image(image: &AnyImage, dest: &Path, overwrite: bool) -> Result<(), IoError> {
     crate::atomic::write_with(dest, overwrite, |w| {
-        image.write().to_buffered(w).map_err(|e| encode_err(dest, e))
+        image
+            .write()
+            .to_buffered(w)
+            .map_err(|e| encode_err(dest, e))
     })
 }

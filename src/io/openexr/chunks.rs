@@ -257,7 +257,10 @@ impl Table {
                     return Err(corrupt(
                         path,
                         if off == 0 {
-                            format!("{}: the chunk is missing (offset 0: an incomplete file)", where_(i))
+                            format!(
+                                "{}: the chunk is missing (offset 0: an incomplete file)",
+                                where_(i)
+                            )
                         } else if off >= table_end {
                             format!(
                                 "{}: the chunk at byte {off} lies past the end of the file ({file_len} bytes)",
@@ -295,7 +298,11 @@ impl Table {
                         tile.location.level_index.0,
                         tile.location.level_index.1,
                     ];
-                    if ints[..4].iter().zip(want).any(|(&g, w)| g as i64 != w as i64) {
+                    if ints[..4]
+                        .iter()
+                        .zip(want)
+                        .any(|(&g, w)| g as i64 != w as i64)
+                    {
                         return Err(corrupt(
                             path,
                             format!(
@@ -336,7 +343,10 @@ impl Table {
                     let bounds = h
                         .get_absolute_block_pixel_coordinates(tile.location)
                         .map_err(exr)?;
-                    let raw_len = bounds.size.area().saturating_mul(h.channels.bytes_per_pixel);
+                    let raw_len = bounds
+                        .size
+                        .area()
+                        .saturating_mul(h.channels.bytes_per_pixel);
                     let bad = match max_decoded(h.compression, len) {
                         _ if len == raw_len => false,
                         Some(_) if h.compression == Compression::Uncompressed => true,
@@ -472,9 +482,9 @@ impl LineLayout {
                     Role::Rgb(ci) => {
                         let px = row.chunks_exact_mut(3);
                         match t {
-                            SampleType::F32 => px
-                                .zip(src.chunks_exact(4))
-                                .for_each(|(p, s)| p[ci] = f32::from_le_bytes([s[0], s[1], s[2], s[3]])),
+                            SampleType::F32 => px.zip(src.chunks_exact(4)).for_each(|(p, s)| {
+                                p[ci] = f32::from_le_bytes([s[0], s[1], s[2], s[3]])
+                            }),
                             SampleType::F16 => px.zip(src.chunks_exact(2)).for_each(|(p, s)| {
                                 p[ci] = f16::from_bits(u16::from_le_bytes([s[0], s[1]])).to_f32()
                             }),
@@ -594,7 +604,12 @@ impl Codec {
         bounds: IntegerBounds,
         raw_len: usize,
     ) -> Result<(), IoError> {
-        let bad = |why: String| corrupt(path, format!("the block of line {}: {why}", bounds.position.1));
+        let bad = |why: String| {
+            corrupt(
+                path,
+                format!("the block of line {}: {why}", bounds.position.1),
+            )
+        };
         self.b.clear();
         self.b.resize(at.len, 0);
         read_at(file, &mut self.b, at.data).map_err(|e| read_err(path, e))?;
@@ -611,7 +626,8 @@ impl Codec {
                     .inflate
                     .decompress(&self.b, &mut self.c, flate2::FlushDecompress::Finish)
                     .map_err(|e| bad(format!("bad ZIP data ({e})")))?;
-                if status != flate2::Status::StreamEnd || self.inflate.total_out() != raw_len as u64 {
+                if status != flate2::Status::StreamEnd || self.inflate.total_out() != raw_len as u64
+                {
                     return Err(bad(format!(
                         "the ZIP data does not decompress to the block's {raw_len} bytes"
                     )));
@@ -626,7 +642,10 @@ impl Codec {
                     .decompress_image_section_from_le(header, data, bounds, false)
                     .map_err(|e| bad(e.to_string()))?;
                 if self.a.len() != raw_len {
-                    return Err(bad(format!("{} bytes decoded, expected {raw_len}", self.a.len())));
+                    return Err(bad(format!(
+                        "{} bytes decoded, expected {raw_len}",
+                        self.a.len()
+                    )));
                 }
             }
         }
@@ -661,10 +680,11 @@ impl Codec {
 
 /// The pixel rectangle (relative to the data window) and byte size of scanline block `b`.
 fn block(header: &Header, b: usize) -> Result<(IntegerBounds, usize), ::exr::error::Error> {
-    let bounds = header.get_absolute_block_pixel_coordinates(::exr::block::chunk::TileCoordinates {
-        tile_index: Vec2(0, b),
-        level_index: Vec2(0, 0),
-    })?;
+    let bounds =
+        header.get_absolute_block_pixel_coordinates(::exr::block::chunk::TileCoordinates {
+            tile_index: Vec2(0, b),
+            level_index: Vec2(0, 0),
+        })?;
     Ok((bounds, bounds.size.area() * header.channels.bytes_per_pixel))
 }
 
@@ -686,7 +706,11 @@ pub(super) fn decode(
     let header = meta.headers.into_iter().next().expect("one part");
     let chunks = chunks.into_iter().next().expect("one part");
     let (width, height) = (header.layer_size.0, header.layer_size.1);
-    let layout = LineLayout::new(header.channels.list.iter().map(|c| c.sample_type), rgb, width);
+    let layout = LineLayout::new(
+        header.channels.list.iter().map(|c| c.sample_type),
+        rgb,
+        width,
+    );
     let lines = header.compression.scan_lines_per_block();
     let mut data: Vec<f32> = try_zeroed(path, 3 * width * height)?;
     let mut rest: Vec<u8> = try_zeroed(path, layout.rest_line * height)?;
@@ -789,14 +813,21 @@ impl Chunked {
         } = self;
         let mut list = header.channels.list.clone();
         for &c in &rgb {
-            list[c].sample_type = if half { SampleType::F16 } else { SampleType::F32 };
+            list[c].sample_type = if half {
+                SampleType::F16
+            } else {
+                SampleType::F32
+            };
         }
         header.channels = ChannelList::new(list);
         let line_order = header.line_order;
         header = header.with_encoding(compression, BlockDescription::ScanLines, line_order);
         edit(&mut header);
         let width = header.layer_size.0;
-        if frame.width != width || frame.height != header.layer_size.1 || frame.layout != Layout::Rgb {
+        if frame.width != width
+            || frame.height != header.layer_size.1
+            || frame.layout != Layout::Rgb
+        {
             return Err(::exr::error::Error::Invalid(
                 format!(
                     "the frame is {}×{} {}, the file {}×{} RGB",
@@ -809,7 +840,11 @@ impl Chunked {
                 .into(),
             ));
         }
-        let layout = LineLayout::new(header.channels.list.iter().map(|c| c.sample_type), rgb, width);
+        let layout = LineLayout::new(
+            header.channels.list.iter().map(|c| c.sample_type),
+            rgb,
+            width,
+        );
         let lines = compression.scan_lines_per_block();
         let y0 = header.own_attributes.layer_position.1;
         let headers = ::exr::prelude::SmallVec::from_vec(vec![header]);
@@ -861,7 +896,9 @@ mod tests {
     #[test]
     fn zip_preprocessing_round_trips() {
         for n in [0usize, 1, 2, 3, 7, 64, 1001] {
-            let raw: Vec<u8> = (0..n).map(|i| (i * 37 % 251) as u8 ^ (i >> 3) as u8).collect();
+            let raw: Vec<u8> = (0..n)
+                .map(|i| (i * 37 % 251) as u8 ^ (i >> 3) as u8)
+                .collect();
             let (mut t, mut d) = (Vec::new(), Vec::new());
             interleave_predict(&raw, &mut t, &mut d);
             let mut back = vec![0u8; n];

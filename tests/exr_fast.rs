@@ -65,9 +65,11 @@ fn plate(compression: Compression, rgb_half: bool) -> AnyImage {
             FlatSamples::F16(noise(n, 5).into_iter().map(f16::from_f32).collect()),
         ),
     ];
-    let mut attrs = LayerAttributes::default();
-    attrs.layer_position = Vec2(5, -3);
-    attrs.owner = Some(Text::from("nsrm tests"));
+    let mut attrs = LayerAttributes {
+        layer_position: Vec2(5, -3),
+        owner: Some(Text::from("nsrm tests")),
+        ..Default::default()
+    };
     attrs.other.insert(
         Text::from("cameraSerial"),
         AttributeValue::Text(Text::from("XK-1138")),

@@ -33,9 +33,9 @@ pub const COLOR_INTEROP_ID: &str = "colorInteropID";
 #[derive(Debug)]
 pub(crate) enum ExrContainer {
     /// Through the `exr` crate's whole-image reader.
-    Image(ImageContainer),
+    Image(Box<ImageContainer>),
     /// Through the chunk-level fast path.
-    Chunked(chunks::Chunked),
+    Chunked(Box<chunks::Chunked>),
 }
 
 /// A whole decoded image minus its camera RGB samples (moved into the frames while they are
@@ -86,7 +86,7 @@ pub(super) fn read(path: &Path, opts: &ReadOptions) -> Result<Decoded, IoError> 
             format: FileFormat::Exr,
             frame,
             levels: Vec::new(),
-            container: Container::Exr(Box::new(ExrContainer::Chunked(container))),
+            container: Container::Exr(Box::new(ExrContainer::Chunked(Box::new(container)))),
         });
     }
     drop(table);
@@ -118,7 +118,7 @@ pub(super) fn read(path: &Path, opts: &ReadOptions) -> Result<Decoded, IoError> 
         format: FileFormat::Exr,
         frame,
         levels: frames,
-        container: Container::Exr(Box::new(ExrContainer::Image(container))),
+        container: Container::Exr(Box::new(ExrContainer::Image(Box::new(container)))),
     })
 }
 
@@ -172,14 +172,14 @@ impl ExrContainer {
 
     /// Puts the corrected frames back and writes the whole image to `dest`.
     pub(super) fn write(
-        self: Box<Self>,
+        self,
         frame: Frame,
         levels: Vec<Frame>,
         dest: &Path,
         opts: &WriteOptions,
     ) -> Result<(), IoError> {
-        match *self {
-            ExrContainer::Image(c) => c.write(frame, levels, dest, opts),
+        match self {
+            ExrContainer::Image(c) => (*c).write(frame, levels, dest, opts),
             ExrContainer::Chunked(c) => {
                 if !levels.is_empty() {
                     return Err(IoError::Encode {

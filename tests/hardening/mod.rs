@@ -74,6 +74,7 @@ pub fn exr(path: &Path, w: usize, h: usize) {
         compression: ExrCompression::None,
         space: OutputSpace::Xyz,
         overwrite: true,
+        zip_level: nsrm::io::DEFAULT_ZIP_LEVEL,
     };
     nsrm::io::write_exr(&frame(w, h), path, &opts).unwrap();
 }

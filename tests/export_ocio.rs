@@ -84,6 +84,7 @@ fn write_frame(frame: &Frame, path: &Path) {
         compression: ExrCompression::None,
         space: OutputSpace::Xyz,
         overwrite: true,
+        zip_level: nsrm::io::DEFAULT_ZIP_LEVEL,
     };
     write_exr(frame, path, &opts).unwrap();
 }

@@ -69,6 +69,24 @@ pub struct RateArgs {
     /// Print each failure.
     #[arg(long)]
     verbose: bool,
+    /// Leave the envelope on purpose: smallest chart area (fraction of the frame; envelope 0.05).
+    #[arg(long, value_name = "F")]
+    min_area: Option<f64>,
+    /// Largest chart area (envelope 0.4).
+    #[arg(long, value_name = "F")]
+    max_area: Option<f64>,
+    /// Largest tilt in degrees (envelope 30).
+    #[arg(long, value_name = "DEG")]
+    max_tilt: Option<f64>,
+    /// Exposure below clipping of the brightest patch, in stops: drawn from 0..S (envelope 4).
+    #[arg(long, value_name = "S")]
+    stops: Option<f64>,
+    /// Blur σ in pixels drawn from 0..B (envelope 1.2).
+    #[arg(long, value_name = "B")]
+    max_blur: Option<f64>,
+    /// Hide a corner of the chart behind an object.
+    #[arg(long)]
+    occlusion: bool,
 }
 
 pub fn run(c: Command) -> Result<ExitCode> {
@@ -129,11 +147,23 @@ fn run_rate(a: RateArgs) -> Result<ExitCode> {
     let colours =
         ChartColours::simulate(kind, &a.camera, &a.illuminant, a.reflectances.as_deref())?;
     let reference = Reference::load(kind.default_reference(), kind, None)?;
+    let clip_exposure = 1.0 / colours.rgb.iter().flatten().copied().fold(0.0, f64::max);
     let (mut ok, mut refused, mut wrong) = (0u64, 0u64, 0u64);
     let mut t_detect = Vec::new();
     for s in 0..a.scenes {
         let seed = a.seed + s;
-        let opts = SceneOptions::envelope(&colours, a.width, a.height, seed);
+        let mut opts = SceneOptions::envelope(&colours, a.width, a.height, seed);
+        opts.min_area = a.min_area.unwrap_or(opts.min_area);
+        opts.max_area = a.max_area.unwrap_or(opts.max_area).max(opts.min_area);
+        opts.max_tilt_deg = a.max_tilt.unwrap_or(opts.max_tilt_deg);
+        if let Some(s) = a.stops {
+            // Same draw as the envelope's, rescaled from 4 stops to `s`.
+            opts.exposure = clip_exposure * (opts.exposure / clip_exposure).powf(s / 4.0);
+        }
+        if let Some(b) = a.max_blur {
+            opts.blur *= b / 1.2;
+        }
+        opts.occlusion = a.occlusion;
         let (frame, _, truth) = render(&colours, &opts)?;
         let t0 = Instant::now();
         let found = detect(&frame, &reference, &DetectOptions::default());

@@ -576,7 +576,7 @@ pub fn fit_with(
             matrix[i * l + j] = x[(j, i)];
         }
     }
-    if matrix.iter().any(|v| !v.is_finite()) {
+    if matrix.iter().any(|v| !super::finite_in_f32(*v)) {
         return Err(ModelError::Degenerate);
     }
     let coefficient_norm = matrix.iter().map(|v| v * v).sum::<f64>().sqrt();

@@ -173,11 +173,7 @@ impl TrainingSet {
         white: Option<[f64; 3]>,
     ) -> Result<TrainingSet, TrainingError> {
         let src = || source_name.to_string();
-        let mut lines = text
-            .lines()
-            .enumerate()
-            .map(|(i, l)| (i + 1, l.trim_end_matches('\r')))
-            .filter(|(_, l)| !l.trim().is_empty() && !l.trim_start().starts_with('#'));
+        let mut lines = crate::limits::csv_lines(text);
         let (_, header) = lines
             .next()
             .ok_or_else(|| TrainingError::Empty { source_name: src() })?;

@@ -139,11 +139,7 @@ struct Rows {
 
 fn parse_csv(text: &str, src: &str) -> Result<Rows, ChartError> {
     let err = |why: String| ChartError::Reference(format!("{src}: {why}"));
-    let mut lines = text
-        .lines()
-        .enumerate()
-        .map(|(i, l)| (i + 1, l.trim_end_matches('\r')))
-        .filter(|(_, l)| !l.trim().is_empty() && !l.trim_start().starts_with('#'));
+    let mut lines = crate::limits::csv_lines(text);
     let (_, header) = lines
         .next()
         .ok_or_else(|| err("the file is empty".into()))?;

@@ -8,11 +8,7 @@ use super::{SpectralError, SpectralTable};
 /// must have as many cells as the header; every cell must be a finite number.
 pub fn parse_csv(text: &str, source_name: &str) -> Result<SpectralTable, SpectralError> {
     let src = || source_name.to_string();
-    let mut lines = text
-        .lines()
-        .enumerate()
-        .map(|(i, l)| (i + 1, l.trim_end_matches('\r')))
-        .filter(|(_, l)| !l.trim().is_empty() && !l.trim_start().starts_with('#'));
+    let mut lines = crate::limits::csv_lines(text);
     let (_, header) = lines
         .next()
         .ok_or_else(|| SpectralError::Empty { source_name: src() })?;

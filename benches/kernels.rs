@@ -42,7 +42,7 @@ fn kernels(c: &mut Criterion) {
         (Kind::Nsrm, 3),
     ] {
         let model = fit(kind, order, &data).unwrap();
-        let fast = FastModel::new(&model).unwrap();
+        let fast = FastModel::new(&model);
         for (name, th) in threads {
             g.bench_function(format!("{}{order}/{name}", kind.name()), |b| {
                 b.iter(|| fast.apply_into(black_box(&src), &mut dst, th).unwrap())

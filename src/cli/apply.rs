@@ -120,8 +120,8 @@ enum Outcome {
 
 /// The correction step: one engine, driven from one thread (the GPU engine takes `&mut`).
 enum Corrector {
-    /// The multi-threaded f32 CPU path (falls back to the f64 reference for hand-made models).
-    Cpu(Option<Box<FastModel>>),
+    /// The multi-threaded f32 CPU path.
+    Cpu(Box<FastModel>),
     Gpu(Box<Engine>),
 }
 
@@ -142,15 +142,14 @@ impl Corrector {
                          (for the GPU install a Vulkan driver, e.g. mesa-vulkan-drivers libvulkan1)"
                     );
                 }
-                Corrector::Cpu(FastModel::new(model).ok().map(Box::new))
+                Corrector::Cpu(Box::new(FastModel::new(model)))
             }
         })
     }
 
     fn describe(&self) -> String {
         match self {
-            Corrector::Cpu(Some(f)) => format!("CPU ({} kernel)", f.kernel_name()),
-            Corrector::Cpu(None) => "CPU (f64 reference)".into(),
+            Corrector::Cpu(f) => format!("CPU ({} kernel)", f.kernel_name()),
             Corrector::Gpu(e) => format!("GPU {}", e.adapter_name()),
         }
     }
@@ -158,8 +157,7 @@ impl Corrector {
     fn apply(&mut self, model: &Model, d: &mut Decoded) -> Result<()> {
         for f in d.frames_mut() {
             match self {
-                Corrector::Cpu(Some(fast)) => fast.apply(f, Threads::All),
-                Corrector::Cpu(None) => model.apply_frame_f64(f),
+                Corrector::Cpu(fast) => fast.apply(f, Threads::All),
                 Corrector::Gpu(e) => e.apply(model, f)?,
             }
         }

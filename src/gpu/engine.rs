@@ -165,7 +165,7 @@ impl Engine {
     }
 
     /// Corrects `frame` in place (alpha untouched) with `model`, following the pixel policy of
-    /// [`crate::model`].
+    /// [`crate::model::pixel`].
     pub fn apply(&mut self, model: &Model, frame: &mut Frame) -> Result<(), GpuError> {
         self.run(model, frame, false).map(|_| ())
     }

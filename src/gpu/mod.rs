@@ -3,7 +3,7 @@
 //! frame [`Engine`] built on it (tiling, double-buffered upload / compute / read-back), shader
 //! generation ([`shader`]) and export to other languages ([`export`]).
 //!
-//! The shaders follow the pixel policy of [`crate::model`] exactly: NaN / Inf propagate, NSRM
+//! The shaders follow the pixel policy of [`crate::model::pixel`] exactly: NaN / Inf propagate, NSRM
 //! with `s = R+G+B ≤ 0` gives 0, negative channels are allowed (RPRM's roots keep the sign),
 //! nothing is clamped. They compute in f32; against the f64 reference the relative error per
 //! value stays within 1e-5 (see `tests/gpu.rs`).

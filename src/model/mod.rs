@@ -1,18 +1,13 @@
 //! The four colour-correction models: their terms ([`mod@terms`]), the least-squares fit, the
 //! [`Model`] value with its JSON file ([`mod@file`]), and the f64 CPU reference apply path.
 //!
-//! # Pixel policy (identical on every path: f64 reference, fast CPU, GPU shaders)
-//! * **NaN / ±Inf** in any channel propagate: the output is not finite. Nothing is clamped or hidden.
-//! * **NSRM with `s = R+G+B ≤ 0`** (black, or noise around black): the output is `(0, 0, 0)`. The
-//!   chromaticities are undefined there, and `s·(α,β,γ)` tends to 0 as `s → 0⁺`.
-//! * **Negative channels**: LRM and PRM take them as they are; RPRM uses sign-preserving roots
-//!   (`sign(x)·|x|^(1/d)`), so the output stays finite; NSRM uses them in `r, g` as long as `s > 0`.
-//! * **Values far outside the training range** (HDR highlights) are not clamped: LRM, RPRM and NSRM
-//!   scale exactly with exposure, `f(kS) = k·f(S)` for `k > 0`; PRM extrapolates its polynomial.
+//! Every apply path follows one pixel policy (NaN/Inf propagate, NSRM `s ≤ 0 → 0`, sign-preserving
+//! roots, nothing clamped), defined in [`pixel`].
 
 pub mod fast;
 pub mod file;
 pub mod fit;
+pub mod pixel;
 mod refine;
 pub mod terms;
 
@@ -257,7 +252,7 @@ impl Model {
     }
 
     /// Applies the model to one camera RGB in f64: the reference every faster path is checked
-    /// against. Follows the pixel policy in the [module docs](self).
+    /// against. Follows the [pixel policy](pixel).
     pub fn apply_f64(&self, rgb: [f64; 3]) -> [f64; 3] {
         let mut p = vec![0.0; self.terms.len()];
         self.apply_f64_with(rgb, &mut p)
@@ -326,11 +321,8 @@ fn finite_in_f32(v: f64) -> bool {
 /// otherwise), or `None` when NSRM's `s ≤ 0` (the output is then 0 by the pixel policy).
 pub fn features(kind: Kind, terms: &[Term], rgb: [f64; 3], p: &mut [f64]) -> Option<f64> {
     if kind == Kind::Nsrm {
-        let s = rgb[0] + rgb[1] + rgb[2];
-        if s <= 0.0 {
-            return None;
-        }
-        terms::expand(terms, [rgb[0] / s, rgb[1] / s, 0.0], p);
+        let (s, r, g) = pixel::nsrm_signal(rgb)?;
+        terms::expand(terms, [r, g, 0.0], p);
         Some(s)
     } else {
         terms::expand(terms, rgb, p);

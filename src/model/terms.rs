@@ -166,17 +166,7 @@ pub fn term_name(kind: Kind, t: &Term) -> String {
     }
 }
 
-/// Sign-preserving d-th root: `sign(x)·|x|^(1/d)`; NaN stays NaN.
-#[inline]
-pub fn signed_root(x: f64, d: u8) -> f64 {
-    match d {
-        1 => x,
-        2 => x.signum() * x.abs().sqrt(),
-        3 => x.cbrt(),
-        4 => x.signum() * x.abs().sqrt().sqrt(),
-        d => x.signum() * x.abs().powf(1.0 / d as f64),
-    }
-}
+pub use super::pixel::signed_root;
 
 /// The factors of a term, one per unit of exponent, as `(variable, root)`: the term is the product
 /// of `signed_root(x[variable], root)` over them (1 for none), which is what [`expand`] computes.
@@ -312,12 +302,7 @@ mod tests {
     }
 
     #[test]
-    fn signed_roots() {
-        assert_eq!(signed_root(-8.0, 3), -2.0);
-        assert_eq!(signed_root(-4.0, 2), -2.0);
-        assert_eq!(signed_root(-16.0, 4), -2.0);
-        assert_eq!(signed_root(0.0, 4), 0.0);
-        assert!(signed_root(f64::NAN, 2).is_nan());
+    fn root_terms_are_products_of_channel_roots() {
         // A root term of a product equals the product of per-channel roots, whatever the signs.
         let mut out = [0.0];
         expand(

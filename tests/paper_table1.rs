@@ -1,5 +1,6 @@
 //! The paper's experiment on the ColorChecker SG: leave-one-out over the 96 inner patches,
 //! D5100 (NPL), D65, order 3. Pins our figures (which differ from the paper's Table 1: see README).
+//! Also pins the built-in table `nsrm eval` prints (rawtoaces-190, which needs no outside data).
 
 use nsrm::eval::{evaluate, Protocol};
 use nsrm::model::Kind;
@@ -64,5 +65,47 @@ fn sg_inner_96_d65_order_3_leave_one_out() {
             "{kind} max {}",
             r.stats.max
         );
+    }
+}
+
+#[test]
+fn builtin_rawtoaces_190_table_is_pinned() {
+    // `nsrm eval`: D5100 (NPL), rawtoaces-190, leave-one-out, order 3; (mean, median, max) as
+    // measured, to ±5e-4 (a regression pin: a change to the fit or ΔE00 that moves them must say so).
+    let want = [
+        ("D65", Kind::Lrm, 1.2162, 0.9802, 4.5695),
+        ("D65", Kind::Prm, 0.7916, 0.6148, 3.1486),
+        ("D65", Kind::Rprm, 0.7820, 0.6206, 5.0228),
+        ("D65", Kind::Nsrm, 0.7945, 0.6478, 3.1228),
+        ("TL865", Kind::Lrm, 0.9554, 0.7698, 4.1321),
+        ("TL865", Kind::Prm, 0.6014, 0.4413, 2.5950),
+        ("TL865", Kind::Rprm, 0.5664, 0.4107, 4.0525),
+        ("TL865", Kind::Nsrm, 0.5753, 0.4319, 2.8543),
+        ("LED-B5", Kind::Lrm, 0.9273, 0.7450, 3.5164),
+        ("LED-B5", Kind::Prm, 0.6063, 0.4567, 2.9391),
+        ("LED-B5", Kind::Rprm, 0.6078, 0.4398, 3.4385),
+        ("LED-B5", Kind::Nsrm, 0.6214, 0.5049, 2.5208),
+    ];
+    let camera = Camera::from_name_or_path("nikon-d5100").unwrap();
+    let refl = Reflectances::from_name_or_path("rawtoaces-190").unwrap();
+    for ill in ["D65", "TL865", "LED-B5"] {
+        let data = simulate(
+            &camera,
+            &Illuminant::from_name_or_path(ill).unwrap(),
+            &refl,
+            &Grid::default(),
+        )
+        .unwrap();
+        assert_eq!(data.len(), 190);
+        for &(_, kind, mean, median, max) in want.iter().filter(|w| w.0 == ill) {
+            let r = evaluate(kind, 3, &data, Protocol::LeaveOneOut, ill).unwrap();
+            let got = [r.stats.mean, r.stats.median, r.stats.max];
+            for (g, w) in got.iter().zip([mean, median, max]) {
+                assert!(
+                    (g - w).abs() <= 5e-4,
+                    "{ill} {kind}: got {got:?}, pinned {mean} / {median} / {max}"
+                );
+            }
+        }
     }
 }

@@ -178,13 +178,33 @@ mod tests {
     }
 
     #[test]
-    fn no_adapter_error_names_the_driver() {
-        let e = GpuError::NoAdapter {
-            detail: "backends: VULKAN".into(),
+    fn adapter_errors_name_the_driver_or_the_adapters_there_are() {
+        // A real selection that cannot succeed: with adapters present it must list them, without
+        // any it must say which driver to install and which backends it looked at.
+        let opts = GpuOptions {
+            adapter: Some("no-such-adapter-5f3a".into()),
+            tile_pixels: None,
         };
-        assert!(e.to_string().starts_with(
-            "no GPU adapter found: install a Vulkan driver (e.g. apt-get install mesa-vulkan-drivers libvulkan1)"
-        ));
+        match GpuContext::new(&opts) {
+            Err(e @ GpuError::AdapterNotFound { .. }) => {
+                let GpuError::AdapterNotFound { wanted, available } = &e else {
+                    unreachable!()
+                };
+                assert_eq!(wanted, "no-such-adapter-5f3a");
+                assert!(!available.is_empty());
+                let msg = e.to_string();
+                assert!(msg.contains("`no-such-adapter-5f3a`"), "{msg}");
+                assert!(available.iter().all(|a| msg.contains(a.as_str())), "{msg}");
+            }
+            Err(e @ GpuError::NoAdapter { .. }) => {
+                let msg = e.to_string();
+                assert!(msg.contains("mesa-vulkan-drivers"), "{msg}");
+                assert!(msg.contains("backends"), "{msg}");
+            }
+            Err(e) => panic!("unexpected error: {e}"),
+            Ok(_) => panic!("an adapter named no-such-adapter-5f3a was found"),
+        }
+        // `--device cpu` never opens one.
         assert!(open(DeviceChoice::Cpu, &GpuOptions::default())
             .unwrap()
             .is_none());

@@ -527,7 +527,7 @@ impl BlockKernel for Linear {
     }
 }
 
-/// PRM 3: `R G B R² G² B² RG GB RB R³ G³ B³ RG² RB² GB² R²G G²B R²B RGB`.
+/// PRM 3: `R G B R² G² B² RG GB BR R³ G³ B³ RG² RB² GB² GR² BR² BG² RGB` (eq. (3)).
 #[derive(Debug, Clone)]
 struct Prm3 {
     m: [[f32; 19]; 3],
@@ -560,8 +560,8 @@ impl BlockKernel for Prm3 {
                 r * b2,
                 g * b2,
                 r2 * g,
-                g2 * b,
                 r2 * b,
+                g2 * b,
                 rg * b,
             ];
             for (tj, vj) in t.iter_mut().zip(v) {
@@ -572,7 +572,7 @@ impl BlockKernel for Prm3 {
     }
 }
 
-/// RPRM 3: `R G B √(RG) √(GB) √(RB) ∛(RG²) ∛(RB²) ∛(GB²) ∛(R²G) ∛(G²B) ∛(R²B) ∛(RGB)`, from three
+/// RPRM 3: `R G B √(RG) √(GB) √(RB) ∛(RG²) ∛(RB²) ∛(GB²) ∛(GR²) ∛(BG²) ∛(BR²) ∛(RGB)`, from three
 /// square roots and three cube roots.
 #[derive(Debug, Clone)]
 struct Rprm3 {

@@ -129,27 +129,35 @@ impl Model {
                 f.matrix.len()
             )));
         }
-        let flat: Vec<f64> = f.matrix.concat();
-        let model = Model::from_matrix(kind, f.order, flat).map_err(|e| match e {
-            ModelError::Invalid(why) => bad(why),
-            e => e,
-        })?;
-        let l = model.terms.len();
+        let order = kind.effective_order(f.order);
+        let names: Vec<String> = super::terms(kind, order)
+            .iter()
+            .map(|t| super::term_name(kind, t))
+            .collect();
+        let l = names.len();
         if let Some(r) = f.matrix.iter().position(|r| r.len() != l) {
             return Err(bad(format!(
                 "matrix row {r} has {} values, expected {l}",
                 f.matrix[r].len()
             )));
         }
-        if f.terms != model.term_names() {
-            return Err(bad(format!(
-                "the term list {:?} does not match {} order {}: {:?}",
-                f.terms,
-                kind,
-                model.order,
-                model.term_names()
-            )));
-        }
+        // The columns follow the file's term list; a file whose list is this build's in another
+        // order (PRM 3 and 4 before they took the paper's eq. (3) order) is converted by name.
+        let columns = column_order(&f.terms, &names).ok_or_else(|| {
+            bad(format!(
+                "the term list {:?} does not match {kind} order {order}: {names:?}",
+                f.terms
+            ))
+        })?;
+        let flat: Vec<f64> = f
+            .matrix
+            .iter()
+            .flat_map(|row| columns.iter().map(|&j| row[j]))
+            .collect();
+        let model = Model::from_matrix(kind, f.order, flat).map_err(|e| match e {
+            ModelError::Invalid(why) => bad(why),
+            e => e,
+        })?;
         if !(f.output.xyz_scale.is_finite() && f.output.xyz_scale > 0.0) {
             return Err(bad(format!("invalid xyz_scale {}", f.output.xyz_scale)));
         }
@@ -178,6 +186,25 @@ impl Model {
         })?;
         Model::from_json(&text, &origin)
     }
+}
+
+/// For each term of `want`, the index of the same-named term in `file`; `None` unless `file` is a
+/// permutation of `want`.
+fn column_order(file: &[String], want: &[String]) -> Option<Vec<usize>> {
+    if file.len() != want.len() {
+        return None;
+    }
+    let index: std::collections::HashMap<&str, usize> = file
+        .iter()
+        .enumerate()
+        .map(|(j, n)| (n.as_str(), j))
+        .collect();
+    if index.len() != file.len() {
+        return None; // a repeated name
+    }
+    want.iter()
+        .map(|n| index.get(n.as_str()).copied())
+        .collect()
 }
 
 #[cfg(test)]
@@ -214,6 +241,36 @@ mod tests {
     }
 
     #[test]
+    fn files_in_the_old_term_order_are_converted_by_name() {
+        // PRM 3 and 4 as written before the eq. (3) order: the degree-3 terms BR² and BG² were the
+        // other way round.
+        for (kind, order, a, b) in [
+            (Kind::Prm, 3, "R^2*B", "G^2*B"),
+            (Kind::Prm, 4, "R^2*B", "G^2*B"),
+        ] {
+            let l = super::super::terms(kind, 3).len();
+            let m =
+                Model::from_matrix(kind, 3, (0..3 * l).map(|i| i as f64 + 0.25).collect()).unwrap();
+            let names = m.term_names();
+            let (ia, ib) = (
+                names.iter().position(|n| n == a).unwrap(),
+                names.iter().position(|n| n == b).unwrap(),
+            );
+            assert_eq!(ib, ia + 1, "{kind}: {names:?}");
+            // Rewrite the file with the two names and their columns swapped.
+            let mut doc: serde_json::Value = serde_json::from_str(&m.to_json()).unwrap();
+            doc["terms"].as_array_mut().unwrap().swap(ia, ib);
+            for row in doc["matrix"].as_array_mut().unwrap() {
+                row.as_array_mut().unwrap().swap(ia, ib);
+            }
+            let back = Model::from_json(&doc.to_string(), "old.json").unwrap();
+            assert_eq!(back.matrix, m.matrix, "{kind}");
+            let rgb = [0.3, 0.5, 0.2];
+            assert_eq!(back.apply_f64(rgb), m.apply_f64(rgb));
+        }
+    }
+
+    #[test]
     fn invalid_files_are_refused_clearly() {
         let good = model().to_json();
         let cases = [
@@ -224,6 +281,7 @@ mod tests {
                 "version 9",
             ),
             (good.replace("\"r^2*g\"", "\"g^2*r\""), "term list"),
+            (good.replace("\"r^2*g\"", "\"r*g^2\""), "term list"),
             (good.replacen("0.5,", "NaN,", 1), "not a model file"),
             (good.replacen("0.5,", "", 1), "values"),
             ("{".to_string(), "not a model file"),

@@ -32,8 +32,10 @@ impl Term {
     }
 }
 
-/// Degree-d monomials in (R, G, B), d = 1..=4, in the paper's order at d ≤ 3 (its eq. (3); the
-/// root-polynomial list of eq. (4) is the same list with the reducible terms left out).
+/// PRM's degree-d monomials in (R, G, B), d = 1..=4, in the paper's order at d ≤ 3 (its eq. (3):
+/// `…, RG², RB², GB², GR², BR², BG², RGB`). The order is part of the model file format (the
+/// columns of its matrix); PRM files written before the eq. (3) order (`…, BG², BR², RGB`) are
+/// converted by term name on load.
 pub const MONOMIALS: [&[[u8; 3]]; 4] = [
     // d = 1: R, G, B
     &[[1, 0, 0], [0, 1, 0], [0, 0, 1]],
@@ -46,7 +48,7 @@ pub const MONOMIALS: [&[[u8; 3]]; 4] = [
         [0, 1, 1],
         [1, 0, 1],
     ],
-    // d = 3: R³, G³, B³, RG², RB², GB², GR², BG², BR², RGB
+    // d = 3: R³, G³, B³, RG², RB², GB², GR², BR², BG², RGB
     &[
         [3, 0, 0],
         [0, 3, 0],
@@ -55,8 +57,8 @@ pub const MONOMIALS: [&[[u8; 3]]; 4] = [
         [1, 0, 2],
         [0, 1, 2],
         [2, 1, 0],
-        [0, 2, 1],
         [2, 0, 1],
+        [0, 2, 1],
         [1, 1, 1],
     ],
     // d = 4: R⁴, G⁴, B⁴, R³G, R³B, G³B, G³R, B³G, B³R, R²G², G²B², B²R², R²GB, G²BR, B²RG
@@ -77,6 +79,27 @@ pub const MONOMIALS: [&[[u8; 3]]; 4] = [
         [1, 2, 1],
         [1, 1, 2],
     ],
+];
+
+/// RPRM's degree-d monomials before the irreducibility filter: the paper's eq. (4) order at d ≤ 3
+/// (`…, ∛RG², ∛RB², ∛GB², ∛GR², ∛BG², ∛BR², ∛RGB`, Finlayson et al. 2015), which differs from
+/// eq. (3) in the last two cube-root terms; d = 4 as [`MONOMIALS`].
+pub const ROOT_MONOMIALS: [&[[u8; 3]]; 4] = [
+    MONOMIALS[0],
+    MONOMIALS[1],
+    &[
+        [3, 0, 0],
+        [0, 3, 0],
+        [0, 0, 3],
+        [1, 2, 0],
+        [1, 0, 2],
+        [0, 1, 2],
+        [2, 1, 0],
+        [0, 2, 1],
+        [2, 0, 1],
+        [1, 1, 1],
+    ],
+    MONOMIALS[3],
 ];
 
 /// Degree-d monomials in (r, g), d = 0..=4, in the paper's order at d ≤ 3 (its eq. (8)):
@@ -115,7 +138,7 @@ pub fn terms(kind: Kind, order: u8) -> Vec<Term> {
             .iter()
             .flat_map(|list| list.iter().map(|e| mono(e, 1)))
             .collect(),
-        Kind::Rprm => MONOMIALS[..order as usize]
+        Kind::Rprm => ROOT_MONOMIALS[..order as usize]
             .iter()
             .enumerate()
             .flat_map(|(i, list)| {
@@ -212,6 +235,50 @@ mod tests {
             .collect()
     }
 
+    /// The term names are the model file format: frozen here for every kind and order.
+    #[test]
+    fn term_names_are_frozen_for_every_kind_and_order() {
+        for order in 1..=4 {
+            assert_eq!(names(Kind::Lrm, order), ["R", "G", "B"]);
+        }
+        assert_eq!(names(Kind::Prm, 1).join(" "), "R G B");
+        assert_eq!(names(Kind::Rprm, 1).join(" "), "R G B");
+        assert_eq!(names(Kind::Nsrm, 1).join(" "), "1 r g");
+        assert_eq!(
+            names(Kind::Prm, 2).join(" "),
+            "R G B R^2 G^2 B^2 R*G G*B R*B"
+        );
+        assert_eq!(
+            names(Kind::Rprm, 2).join(" "),
+            "R G B sqrt(R*G) sqrt(G*B) sqrt(R*B)"
+        );
+        assert_eq!(names(Kind::Nsrm, 2).join(" "), "1 r g r^2 g^2 r*g");
+        assert_eq!(
+            names(Kind::Prm, 3).join(" "),
+            "R G B R^2 G^2 B^2 R*G G*B R*B R^3 G^3 B^3 R*G^2 R*B^2 G*B^2 R^2*G R^2*B G^2*B R*G*B"
+        );
+        assert_eq!(
+            names(Kind::Rprm, 3).join(" "),
+            "R G B sqrt(R*G) sqrt(G*B) sqrt(R*B) cbrt(R*G^2) cbrt(R*B^2) cbrt(G*B^2) cbrt(R^2*G) cbrt(G^2*B) cbrt(R^2*B) cbrt(R*G*B)"
+        );
+        assert_eq!(
+            names(Kind::Nsrm, 3).join(" "),
+            "1 r g r^2 g^2 r*g r^3 g^3 r*g^2 r^2*g"
+        );
+        assert_eq!(
+            names(Kind::Prm, 4).join(" "),
+            "R G B R^2 G^2 B^2 R*G G*B R*B R^3 G^3 B^3 R*G^2 R*B^2 G*B^2 R^2*G R^2*B G^2*B R*G*B R^4 G^4 B^4 R^3*G R^3*B G^3*B R*G^3 G*B^3 R*B^3 R^2*G^2 G^2*B^2 R^2*B^2 R^2*G*B R*G^2*B R*G*B^2"
+        );
+        assert_eq!(
+            names(Kind::Rprm, 4).join(" "),
+            "R G B sqrt(R*G) sqrt(G*B) sqrt(R*B) cbrt(R*G^2) cbrt(R*B^2) cbrt(G*B^2) cbrt(R^2*G) cbrt(G^2*B) cbrt(R^2*B) cbrt(R*G*B) root4(R^3*G) root4(R^3*B) root4(G^3*B) root4(R*G^3) root4(G*B^3) root4(R*B^3) root4(R^2*G*B) root4(R*G^2*B) root4(R*G*B^2)"
+        );
+        assert_eq!(
+            names(Kind::Nsrm, 4).join(" "),
+            "1 r g r^2 g^2 r*g r^3 g^3 r*g^2 r^2*g r^4 g^4 r*g^3 r^2*g^2 r^3*g"
+        );
+    }
+
     #[test]
     fn paper_order_3_term_lists() {
         assert_eq!(names(Kind::Lrm, 3), ["R", "G", "B"]);
@@ -219,7 +286,7 @@ mod tests {
             names(Kind::Prm, 3),
             [
                 "R", "G", "B", "R^2", "G^2", "B^2", "R*G", "G*B", "R*B", "R^3", "G^3", "B^3",
-                "R*G^2", "R*B^2", "G*B^2", "R^2*G", "G^2*B", "R^2*B", "R*G*B"
+                "R*G^2", "R*B^2", "G*B^2", "R^2*G", "R^2*B", "G^2*B", "R*G*B"
             ]
         );
         assert_eq!(
@@ -273,6 +340,10 @@ mod tests {
                 assert_eq!(e.iter().sum::<u8>(), d);
                 assert!(!list[..i].contains(e));
             }
+        }
+        for (root, plain) in ROOT_MONOMIALS.iter().zip(&MONOMIALS) {
+            assert_eq!(root.len(), plain.len());
+            assert!(root.iter().all(|e| plain.contains(e)));
         }
         for (d, list) in CHROMA_MONOMIALS.iter().enumerate() {
             assert_eq!(list.len(), d + 1);

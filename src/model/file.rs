@@ -248,9 +248,9 @@ mod tests {
             (Kind::Prm, 3, "R^2*B", "G^2*B"),
             (Kind::Prm, 4, "R^2*B", "G^2*B"),
         ] {
-            let l = super::super::terms(kind, 3).len();
-            let m =
-                Model::from_matrix(kind, 3, (0..3 * l).map(|i| i as f64 + 0.25).collect()).unwrap();
+            let l = super::super::terms(kind, order).len();
+            let matrix = (0..3 * l).map(|i| i as f64 + 0.25).collect();
+            let m = Model::from_matrix(kind, order, matrix).unwrap();
             let names = m.term_names();
             let (ia, ib) = (
                 names.iter().position(|n| n == a).unwrap(),

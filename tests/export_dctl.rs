@@ -118,6 +118,7 @@ fn pixels(data: &nsrm::TrainingSet) -> Vec<[f64; 3]> {
         [0.0, 0.0, 0.0],
         [-0.01, 0.2, 0.3],
         [0.1, -0.2, 0.05],
+        [0.1, -0.3, 0.05],
         [0.5, 0.5, 0.5],
     ]);
     // Round to f32 first: the C program reads f32.
@@ -191,12 +192,17 @@ fn dctl_compiles_as_c_and_matches_the_f64_model() {
                 let got = run_dctl(&cc, dir.path(), &name, &dctl, &px);
                 check(&folded, &px, &got, &name);
                 if kind == Kind::Nsrm {
-                    // The pixel policy: R+G+B <= 0 is black.
-                    let i = px
-                        .iter()
-                        .position(|p| *p == [0.1, -0.2, 0.05].map(|v: f64| v as f32 as f64))
-                        .unwrap();
-                    assert_eq!(got[i], [0.0; 3]);
+                    // The pixel policy: R+G+B <= 0 (after the input gains) is black.
+                    let mut p = vec![0.0; folded.len_terms()];
+                    let black: Vec<usize> = (0..px.len())
+                        .filter(|&i| {
+                            folded.features_of(px[i], &mut p).is_none() && px[i] != [0.0; 3]
+                        })
+                        .collect();
+                    assert!(!black.is_empty(), "{name}: no pixel with s < 0");
+                    for i in black {
+                        assert_eq!(got[i], [0.0; 3], "{name}: pixel {:?}", px[i]);
+                    }
                 }
             }
         }

@@ -30,6 +30,11 @@ fn ok(dir: &Path, args: &[&str]) -> Output {
 
 /// Renders the rawtoaces-190 chart under D65 and fits NSRM order 3 on the same data.
 fn chart_and_model(dir: &Path) {
+    chart_and_model_with(dir, &[]);
+}
+
+/// [`chart_and_model`] with extra `nsrm fit` flags (a fit variant).
+fn chart_and_model_with(dir: &Path, fit_flags: &[&str]) {
     ok(
         dir,
         &[
@@ -44,22 +49,21 @@ fn chart_and_model(dir: &Path) {
             "chart.exr",
         ],
     );
-    ok(
-        dir,
-        &[
-            "fit",
-            "--reflectances",
-            "rawtoaces-190",
-            "--illuminant",
-            "D65",
-            "--model",
-            "nsrm",
-            "--order",
-            "3",
-            "-o",
-            "m.json",
-        ],
-    );
+    let mut fit = vec![
+        "fit",
+        "--reflectances",
+        "rawtoaces-190",
+        "--illuminant",
+        "D65",
+        "--model",
+        "nsrm",
+        "--order",
+        "3",
+        "-o",
+        "m.json",
+    ];
+    fit.extend_from_slice(fit_flags);
+    ok(dir, &fit);
 }
 
 /// Per-patch ΔE00 of a corrected chart (XYZ, white Y = 1) against the layout's ground truth.
@@ -78,22 +82,26 @@ fn chart_errors(corrected: &Path, layout: &ChartLayout) -> Vec<(String, f64)> {
 }
 
 fn eval_in_sample(dir: &Path) -> serde_json::Value {
-    let out = ok(
-        dir,
-        &[
-            "eval",
-            "--in-sample",
-            "--models",
-            "nsrm",
-            "--order",
-            "3",
-            "--illuminant",
-            "D65",
-            "--reflectances",
-            "rawtoaces-190",
-            "--json",
-        ],
-    );
+    eval_in_sample_with(dir, &[])
+}
+
+/// `nsrm eval --in-sample --json` of NSRM 3 (D65, rawtoaces-190) with extra fit flags.
+fn eval_in_sample_with(dir: &Path, fit_flags: &[&str]) -> serde_json::Value {
+    let mut args = vec![
+        "eval",
+        "--in-sample",
+        "--models",
+        "nsrm",
+        "--order",
+        "3",
+        "--illuminant",
+        "D65",
+        "--reflectances",
+        "rawtoaces-190",
+        "--json",
+    ];
+    args.extend_from_slice(fit_flags);
+    let out = ok(dir, &args);
     serde_json::from_slice(&out.stdout).expect("eval --json output")
 }
 
@@ -193,6 +201,76 @@ fn gpu_chart_matches_eval_in_sample() {
     let layout = ChartLayout::read(&layout_path(&d.join("chart.exr"))).unwrap();
     let errors = chart_errors(&d.join("out/chart_xyz.exr"), &layout);
     check_against_eval(&errors, &eval_in_sample(d), 1e-4);
+}
+
+#[test]
+fn white_balanced_nsrm_chart_matches_eval_in_sample() {
+    // `fit --normalise white-balanced` writes the input gains into the model file; `apply` on
+    // the rendered chart (CPU, and the GPU where there is an adapter) reproduces eval's per-patch
+    // ΔE00 of the same fit.
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let wb = ["--normalise", "white-balanced"];
+    chart_and_model_with(d, &wb);
+    let model: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(d.join("m.json")).unwrap()).unwrap();
+    let gains = model["input"]["gains"].as_array().expect("input gains");
+    assert!(gains.iter().any(|g| g.as_f64() != Some(1.0)), "{gains:?}");
+    assert_eq!(model["version"], 2);
+    let eval = eval_in_sample_with(d, &wb);
+    assert_eq!(eval["results"][0]["normalise"], "white-balanced");
+    let layout = ChartLayout::read(&layout_path(&d.join("chart.exr"))).unwrap();
+    ok(
+        d,
+        &[
+            "apply",
+            "--model",
+            "m.json",
+            "--device",
+            "cpu",
+            "-o",
+            "cpu",
+            "chart.exr",
+        ],
+    );
+    let errors = chart_errors(&d.join("cpu/chart_xyz.exr"), &layout);
+    check_against_eval(&errors, &eval, 1e-4);
+    // The raw NSRM gives other per-patch errors: the comparison can tell them apart.
+    let raw = eval_in_sample(d);
+    let differs = raw["results"][0]["per_patch"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .zip(&errors)
+        .any(|(p, (_, de))| (p["dE00"].as_f64().unwrap() - de).abs() > 1e-3);
+    assert!(differs, "white-balanced and raw NSRM give the same chart");
+    let out = nsrm(
+        d,
+        &[
+            "apply",
+            "--model",
+            "m.json",
+            "--device",
+            "gpu",
+            "-o",
+            "gpu",
+            "chart.exr",
+        ],
+    );
+    if !out.status.success() {
+        let err = String::from_utf8_lossy(&out.stderr);
+        if err.contains("no GPU adapter") {
+            assert!(
+                std::env::var("CI").as_deref() != Ok("true"),
+                "no GPU adapter on CI: {err}"
+            );
+            eprintln!("SKIP: no GPU adapter (install mesa-vulkan-drivers libvulkan1)");
+            return;
+        }
+        panic!("nsrm apply --device gpu failed: {err}");
+    }
+    let errors = chart_errors(&d.join("gpu/chart_xyz.exr"), &layout);
+    check_against_eval(&errors, &eval, 1e-4);
 }
 
 #[test]

@@ -152,7 +152,6 @@ fn bad_variant_flags_are_usage_errors() {
             vec!["fit", "--model", "lrm", "--normalise", "white-balanced"],
             "NSRM only",
         ),
-        (vec!["fit", "--normalise", "white-balanced"], "model file"),
     ] {
         let out = nsrm().args(&args).arg("-o").arg(&o).output().unwrap();
         let out = if args[0] == "eval" {
@@ -165,4 +164,30 @@ fn bad_variant_flags_are_usage_errors() {
         assert!(err.contains(want), "{args:?}: {err}");
         assert!(!o.exists());
     }
+}
+
+#[test]
+fn fit_writes_a_white_balanced_nsrm_with_its_gains() {
+    let dir = tempfile::tempdir().unwrap();
+    let o = dir.path().join("m.json");
+    let out = nsrm()
+        .args(["fit", "--normalise", "white-balanced", "-o"])
+        .arg(&o)
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{err}");
+    assert!(err.contains("normalise white-balanced"), "{err}");
+    let m = nsrm::model::Model::load(&o).unwrap();
+    // The gains balance the training white (D5100 under D65, rawtoaces-190 by default).
+    let data = nsrm::spectral::simulate_named(
+        "nikon-d5100",
+        "D65",
+        "rawtoaces-190",
+        &nsrm::spectral::Grid::default(),
+    )
+    .unwrap();
+    let w = data.white_rgb.unwrap();
+    assert_eq!(m.input_gains(), [1.0 / w[0], 1.0 / w[1], 1.0 / w[2]]);
+    assert_eq!(m.fit_report().unwrap().normalise, "white-balanced");
 }

@@ -4,7 +4,8 @@
 //! `nsrm apply` writes it, to the f32 accuracy of the GPU shaders.
 
 use nsrm::colorimetry::spaces::OutputSpace;
-use nsrm::model::{features, fit, Kind, Model};
+use nsrm::model::fit::{fit_with, FitOptions, Normalise};
+use nsrm::model::{fit, Kind, Model};
 use nsrm::spectral::{simulate_named, Grid};
 use std::io::Write;
 use std::path::Path;
@@ -117,6 +118,7 @@ fn pixels(data: &nsrm::TrainingSet) -> Vec<[f64; 3]> {
         [0.0, 0.0, 0.0],
         [-0.01, 0.2, 0.3],
         [0.1, -0.2, 0.05],
+        [0.1, -0.3, 0.05],
         [0.5, 0.5, 0.5],
     ]);
     // Round to f32 first: the C program reads f32.
@@ -130,7 +132,7 @@ fn check(model: &Model, px: &[[f64; 3]], got: &[[f64; 3]], what: &str) {
     let mut p = vec![0.0; l];
     for (x, g) in px.iter().zip(got) {
         let want = model.apply_f64(*x);
-        let scale = features(model.kind(), model.terms(), *x, &mut p).unwrap_or(0.0);
+        let scale = model.features_of(*x, &mut p).unwrap_or(0.0);
         for i in 0..3 {
             let mag: f64 = (0..l)
                 .map(|j| (model.matrix()[i * l + j] * p[j]).abs())
@@ -155,26 +157,52 @@ fn dctl_compiles_as_c_and_matches_the_f64_model() {
     let dir = tempfile::tempdir().unwrap();
     let data = simulate_named("nikon-d5100", "D65", "rawtoaces-190", &Grid::default()).unwrap();
     let px = pixels(&data);
+    let wb = FitOptions {
+        normalise: Normalise::WhiteBalanced,
+        ..Default::default()
+    };
+    let mut models = Vec::new();
     for kind in Kind::ALL {
         for order in 1..=4u8 {
             if kind == Kind::Lrm && order > 1 {
                 continue;
             }
-            let model = fit(kind, order, &data).unwrap();
+            models.push((String::new(), fit(kind, order, &data).unwrap()));
+        }
+    }
+    // White-balanced NSRM: the input gains are written into the DCTL.
+    for order in 1..=4u8 {
+        let m = fit_with(Kind::Nsrm, order, &data, &wb).unwrap().model;
+        assert!(!m.has_unit_gains());
+        models.push(("_wb".into(), m));
+    }
+    {
+        for (suffix, model) in models {
+            let (kind, order) = (model.kind(), model.order());
             for space in [OutputSpace::Xyz, OutputSpace::Acescg] {
                 let folded = nsrm::io::output_model(&model, space).unwrap();
                 let dctl = nsrm::export::dctl::generate(&folded, &["test".into()]).unwrap();
                 assert!(dctl.contains("__DEVICE__ float3 transform(int p_Width"));
-                let name = format!("{}{order}_{}", kind.name(), space.name().replace('-', "_"));
+                let name = format!(
+                    "{}{order}{suffix}_{}",
+                    kind.name(),
+                    space.name().replace('-', "_")
+                );
+                assert_eq!(dctl.contains("const float i0 = p_R *"), !suffix.is_empty());
                 let got = run_dctl(&cc, dir.path(), &name, &dctl, &px);
                 check(&folded, &px, &got, &name);
                 if kind == Kind::Nsrm {
-                    // The pixel policy: R+G+B <= 0 is black.
-                    let i = px
-                        .iter()
-                        .position(|p| *p == [0.1, -0.2, 0.05].map(|v: f64| v as f32 as f64))
-                        .unwrap();
-                    assert_eq!(got[i], [0.0; 3]);
+                    // The pixel policy: R+G+B <= 0 (after the input gains) is black.
+                    let mut p = vec![0.0; folded.len_terms()];
+                    let black: Vec<usize> = (0..px.len())
+                        .filter(|&i| {
+                            folded.features_of(px[i], &mut p).is_none() && px[i] != [0.0; 3]
+                        })
+                        .collect();
+                    assert!(!black.is_empty(), "{name}: no pixel with s < 0");
+                    for i in black {
+                        assert_eq!(got[i], [0.0; 3], "{name}: pixel {:?}", px[i]);
+                    }
                 }
             }
         }

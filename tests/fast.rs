@@ -21,7 +21,8 @@
 //!   baseline clone without FMA (`FastModel::apply_baseline`) meets the same bounds.
 
 use nsrm::model::fast::{apply_frame, apply_frame_single, FastModel, Threads};
-use nsrm::model::{features, fit, terms, Kind, Model, MAX_ORDER};
+use nsrm::model::fit::{fit_with, FitOptions, Normalise};
+use nsrm::model::{fit, terms, Kind, Model, MAX_ORDER};
 use nsrm::spectral::{simulate_named, Grid};
 use nsrm::{Frame, Layout, TrainingSet};
 use std::sync::OnceLock;
@@ -58,7 +59,7 @@ fn training() -> &'static TrainingSet {
 }
 
 /// Every kind at every order, fitted on simulated chart data (realistic coefficients, including
-/// PRM 4's large ones of both signs).
+/// PRM 4's large ones of both signs), and white-balanced NSRM (input gains) at every order.
 fn fitted_models() -> Vec<Model> {
     let mut v = Vec::new();
     for kind in Kind::ALL {
@@ -69,7 +70,25 @@ fn fitted_models() -> Vec<Model> {
             v.push(fit(kind, order, training()).unwrap());
         }
     }
+    v.extend(white_balanced_nsrm());
     v
+}
+
+/// White-balanced NSRM at orders 1–4: non-unit input gains on every path.
+fn white_balanced_nsrm() -> Vec<Model> {
+    let opts = FitOptions {
+        normalise: Normalise::WhiteBalanced,
+        ..Default::default()
+    };
+    (1..=MAX_ORDER)
+        .map(|order| {
+            let m = fit_with(Kind::Nsrm, order, training(), &opts)
+                .unwrap()
+                .model;
+            assert!(!m.has_unit_gains(), "{:?}", m.input_gains());
+            m
+        })
+        .collect()
 }
 
 /// One pixel of a given flavour.
@@ -117,7 +136,7 @@ fn random_frame(width: usize, height: usize, layout: Layout, seed: u64) -> Frame
 /// `T_k = |scale|·Σ_j |m_kj·p_j|` in f64: the size of the summands of output channel `k`.
 fn term_magnitude(model: &Model, rgb: [f64; 3]) -> [f64; 3] {
     let mut p = vec![0.0; model.terms().len()];
-    match features(model.kind(), model.terms(), rgb, &mut p) {
+    match model.features_of(rgb, &mut p) {
         None => [0.0; 3],
         Some(s) => [0, 1, 2].map(|k| {
             s.abs()
@@ -261,9 +280,14 @@ fn every_kind_order_and_layout_matches_the_f64_reference() {
             }
         }
         report.push(format!(
-            "{} {}: {} kernel, worst error / max|ref| = {:.2e}, / T_k = {:.2e}",
+            "{} {}{}: {} kernel, worst error / max|ref| = {:.2e}, / T_k = {:.2e}",
             model.kind(),
             model.order(),
+            if model.has_unit_gains() {
+                ""
+            } else {
+                " white-balanced"
+            },
             FastModel::new(&model).kernel_name(),
             worst.to_ref,
             worst.to_terms
@@ -286,7 +310,43 @@ fn random_matrices_on_every_kind_and_order() {
             let input = random_frame(31, 9, Layout::Rgb, 5 + order as u64);
             let out = run_all_paths(&model, &input);
             compare(&model, &input, &out, "random matrix");
+            if kind == Kind::Nsrm {
+                // Random input gains over three decades.
+                let gains = [0, 1, 2].map(|_| 10f64.powf(3.0 * rng.f() as f64 - 1.5));
+                let model = model.with_input_gains(gains).unwrap();
+                let out = run_all_paths(&model, &input);
+                compare(&model, &input, &out, "random matrix and gains");
+            }
         }
+    }
+}
+
+#[test]
+fn white_balanced_nsrm_takes_its_gains_on_the_fast_path() {
+    // The gains change the result (so the comparison above would catch a path that drops them),
+    // and the white's camera response maps to the same value as the white-balanced white (1,1,1).
+    let w = training().white_rgb.unwrap();
+    for model in white_balanced_nsrm() {
+        let mut f = Frame::from_data(
+            2,
+            1,
+            Layout::Rgb,
+            vec![w[0] as f32, w[1] as f32, w[2] as f32, 1.0, 1.0, 1.0],
+        )
+        .unwrap();
+        apply_frame(&model, &mut f);
+        let raw = model.clone().with_input_gains([1.0; 3]).unwrap();
+        let unbalanced = raw.apply_f64([1.0, 1.0, 1.0]);
+        for k in 0..3 {
+            let want = unbalanced[k];
+            assert!(
+                (f.data[k] as f64 - want).abs() <= 1e-5 * want.abs(),
+                "order {}: white {} vs {want}",
+                model.order(),
+                f.data[k]
+            );
+        }
+        assert_ne!(f.data[0..3], f.data[3..6], "order {}", model.order());
     }
 }
 

@@ -13,6 +13,7 @@
 //! come back bit for bit; no value may be the engine's unwritten-output sentinel.
 
 use nsrm::gpu::{self, Corrector, DeviceChoice, Engine, GpuError, GpuOptions, Target, TexelFormat};
+use nsrm::model::fit::{fit_with, FitOptions, Normalise};
 use nsrm::model::{fit, Kind, Model, MAX_ORDER};
 use nsrm::spectral::{simulate_named, Grid};
 use nsrm::{Frame, Layout, TrainingSet};
@@ -53,6 +54,19 @@ fn training() -> &'static TrainingSet {
 
 fn model(kind: Kind, order: u8) -> Model {
     fit(kind, order, training()).unwrap()
+}
+
+/// White-balanced NSRM (non-unit input gains) at `order`.
+fn white_balanced(order: u8) -> Model {
+    let opts = FitOptions {
+        normalise: Normalise::WhiteBalanced,
+        ..Default::default()
+    };
+    let m = fit_with(Kind::Nsrm, order, training(), &opts)
+        .unwrap()
+        .model;
+    assert!(!m.has_unit_gains());
+    m
 }
 
 /// A seeded LCG.
@@ -123,7 +137,7 @@ fn random_frame(width: usize, height: usize, layout: Layout, seed: u64) -> Frame
 fn summand_floor(model: &Model, px: &[f32]) -> [f64; 3] {
     let mut p = vec![0.0; model.terms().len()];
     let rgb = [px[0] as f64, px[1] as f64, px[2] as f64];
-    let Some(scale) = nsrm::model::features(model.kind(), model.terms(), rgb, &mut p) else {
+    let Some(scale) = model.features_of(rgb, &mut p) else {
         return [1e-30; 3];
     };
     let mut f = [0.0; 3];
@@ -211,6 +225,10 @@ fn compare(
 }
 
 fn check_kind(kind: Kind) {
+    check_models(kind, |order| model(kind, order));
+}
+
+fn check_models(kind: Kind, model: impl Fn(u8) -> Model) {
     let Some(mut big_tiles) = engine(None) else {
         return;
     };
@@ -223,7 +241,12 @@ fn check_kind(kind: Kind) {
         1..=MAX_ORDER
     };
     for order in orders {
-        let m = model(kind, order);
+        let m = model(order);
+        let wb = if m.has_unit_gains() {
+            ""
+        } else {
+            " white-balanced"
+        };
         let (mut worst, mut worst_plain) = (0.0f64, 0.0f64);
         for layout in [Layout::Rgb, Layout::Rgba] {
             for (i, (w, h)) in [(1, 1), (7, 13), (4097, 3), (100, 37)]
@@ -240,14 +263,14 @@ fn check_kind(kind: Kind) {
                     &mut big_tiles
                 };
                 engine.apply(&m, &mut out).unwrap();
-                let what = format!("{kind} order {order} {} {w}×{h}", layout.name());
+                let what = format!("{kind} order {order}{wb} {} {w}×{h}", layout.name());
                 let (w, p) = compare_stats(&what, &m, &input, &out, &reference, REL_TOL);
                 worst = worst.max(w);
                 worst_plain = worst_plain.max(p);
             }
         }
         eprintln!(
-            "{kind} order {order}: GPU vs f64: max error (floored) {worst:.2e}, max plain relative error {worst_plain:.2e}"
+            "{kind} order {order}{wb}: GPU vs f64: max error (floored) {worst:.2e}, max plain relative error {worst_plain:.2e}"
         );
     }
 }
@@ -270,6 +293,36 @@ fn rprm_matches_the_f64_reference_every_order() {
 #[test]
 fn nsrm_matches_the_f64_reference_every_order() {
     check_kind(Kind::Nsrm);
+}
+
+#[test]
+fn white_balanced_nsrm_matches_the_f64_reference_every_order() {
+    check_models(Kind::Nsrm, white_balanced);
+}
+
+#[test]
+fn gains_swap_with_the_model() {
+    // One corrector (NSRM 3 on RGBA) takes raw, white-balanced, raw: the uniform's gains follow.
+    let Some(mut e) = engine(Some(500)) else {
+        return;
+    };
+    let raw = model(Kind::Nsrm, 3);
+    let wb = white_balanced(3);
+    for (round, m) in [&raw, &wb, &raw, &wb].into_iter().enumerate() {
+        let input = random_frame(33, 40, Layout::Rgba, 90 + round as u64);
+        let mut reference = input.clone();
+        m.apply_frame_f64(&mut reference);
+        let mut out = input.clone();
+        e.apply(m, &mut out).unwrap();
+        compare(
+            &format!("gain swap round {round}"),
+            m,
+            &input,
+            &out,
+            &reference,
+            REL_TOL,
+        );
+    }
 }
 
 #[test]
@@ -666,12 +719,17 @@ fn exported_wgsl_runs_and_matches_the_reference() {
     let Some(e) = engine(None) else { return };
     let ctx = e.context();
     let (dev, queue) = (&ctx.device, &ctx.queue);
-    for (kind, order, layout) in [
-        (Kind::Nsrm, 4, Layout::Rgba),
-        (Kind::Rprm, 3, Layout::Rgb),
-        (Kind::Prm, 2, Layout::Rgba),
+    for (kind, order, layout, wb) in [
+        (Kind::Nsrm, 4, Layout::Rgba, false),
+        (Kind::Nsrm, 3, Layout::Rgb, true),
+        (Kind::Rprm, 3, Layout::Rgb, false),
+        (Kind::Prm, 2, Layout::Rgba, false),
     ] {
-        let m = model(kind, order);
+        let m = if wb {
+            white_balanced(order)
+        } else {
+            model(kind, order)
+        };
         let src = String::from_utf8(
             gpu::export::export(&m, layout, gpu::export::ShaderLang::Wgsl).unwrap(),
         )
@@ -719,7 +777,7 @@ fn exported_wgsl_runs_and_matches_the_reference() {
         queue.submit([enc.finish()]);
         let out = Frame::from_data(300, 5, layout, read_buffer(dev, queue, &buf)).unwrap();
         compare(
-            &format!("exported {kind} {order}"),
+            &format!("exported {kind} {order} white-balanced {wb}"),
             &m,
             &input,
             &out,

@@ -16,8 +16,12 @@ fn validate(module: &naga::Module) {
 }
 
 fn fit(dir: &Path, kind: &str, order: &str) -> String {
-    let model = dir.join(format!("{kind}{order}.json"));
-    let out = nsrm(&[
+    fit_with(dir, kind, order, &[])
+}
+
+fn fit_with(dir: &Path, kind: &str, order: &str, extra: &[&str]) -> String {
+    let model = dir.join(format!("{kind}{order}{}.json", extra.join("")));
+    let mut args = vec![
         "fit",
         "--model",
         kind,
@@ -25,7 +29,9 @@ fn fit(dir: &Path, kind: &str, order: &str) -> String {
         order,
         "-o",
         model.to_str().unwrap(),
-    ]);
+    ];
+    args.extend_from_slice(extra);
+    let out = nsrm(&args);
     assert!(
         out.status.success(),
         "{}",
@@ -37,7 +43,21 @@ fn fit(dir: &Path, kind: &str, order: &str) -> String {
 #[test]
 fn export_shader_writes_every_language() {
     let dir = tempfile::tempdir().unwrap();
-    let model = fit(dir.path(), "rprm", "3");
+    let rprm = fit(dir.path(), "rprm", "3");
+    // A white-balanced NSRM: its input gains are baked into every language.
+    let wb = fit_with(dir.path(), "nsrm", "3", &["--normalise", "white-balanced"]);
+    for (model, gains) in [(rprm, false), (wb, true)] {
+        export_every_language(dir.path(), &model, gains);
+    }
+    // No temporary files left behind.
+    for entry in std::fs::read_dir(dir.path()).unwrap() {
+        let name = entry.unwrap().file_name();
+        assert!(!name.to_string_lossy().ends_with(".tmp"), "{name:?}");
+    }
+}
+
+fn export_every_language(dir: &Path, model: &str, gains: bool) {
+    let tag = if gains { "wb" } else { "plain" };
     for (lang, layout) in [
         ("wgsl", "rgb"),
         ("glsl", "rgba"),
@@ -45,12 +65,12 @@ fn export_shader_writes_every_language() {
         ("msl", "rgb"),
         ("spirv", "rgba"),
     ] {
-        let path = dir.path().join(format!("out.{lang}"));
+        let path = dir.join(format!("out_{tag}.{lang}"));
         let p = path.to_str().unwrap();
         let args = [
             "export-shader",
             "--model",
-            &model,
+            model,
             "--lang",
             lang,
             "--layout",
@@ -70,6 +90,8 @@ fn export_shader_writes_every_language() {
                 let text = String::from_utf8(bytes).unwrap();
                 assert!(text.contains("const CHANNELS: u32 = 3u;"));
                 assert!(!text.contains("var<uniform>"));
+                assert_eq!(text.contains("fn model_gain()"), gains, "{text}");
+                assert_eq!(text.contains("input gains ["), gains, "{text}");
                 let m = naga::front::wgsl::parse_str(&text).unwrap();
                 validate(&m);
             }
@@ -97,11 +119,6 @@ fn export_shader_writes_every_language() {
         let mut with = args.to_vec();
         with.push("--overwrite");
         assert!(nsrm(&with).status.success());
-    }
-    // No temporary files left behind.
-    for entry in std::fs::read_dir(dir.path()).unwrap() {
-        let name = entry.unwrap().file_name();
-        assert!(!name.to_string_lossy().ends_with(".tmp"), "{name:?}");
     }
 }
 

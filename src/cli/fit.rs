@@ -53,18 +53,10 @@ pub fn run(a: Args) -> Result<ExitCode> {
         return Err(UsageError(format!("--order {} is out of range (1..4)", a.order)).into());
     }
     let opts = a.fit.options()?;
-    if opts.normalise == Normalise::WhiteBalanced {
-        if kind != Kind::Nsrm {
-            return Err(UsageError(format!(
-                "--normalise white-balanced is defined for NSRM only, not {kind}"
-            ))
-            .into());
-        }
-        // The input gains are not yet taken by the fast CPU path and the shaders, so a model
-        // file cannot carry them: evaluate with `nsrm eval --normalise white-balanced`.
-        return Err(UsageError(
-            "--normalise white-balanced cannot be written to a model file yet (the apply paths do not take input gains); use `nsrm eval --normalise white-balanced` to evaluate it".into(),
-        )
+    if opts.normalise == Normalise::WhiteBalanced && kind != Kind::Nsrm {
+        return Err(UsageError(format!(
+            "--normalise white-balanced is defined for NSRM only, not {kind}"
+        ))
         .into());
     }
     nsrm::atomic::check_clobber(&a.output, a.overwrite)?;

@@ -48,6 +48,13 @@ pub fn generate(folded: &Model, header: &[String]) -> Result<String, super::Expo
         s,
         "// Input: linear camera RGB, not white-balanced (training white G = 1). Use on clips in the camera's linear raw encoding."
     );
+    let gains = folded.input_gains();
+    if kind == Kind::Nsrm && !folded.has_unit_gains() {
+        let _ = writeln!(
+            s,
+            "// White-balanced NSRM: the model multiplies R, G, B by its input gains {gains:?} first."
+        );
+    }
     let _ = writeln!(s);
     let _ = writeln!(
         s,
@@ -55,7 +62,16 @@ pub fn generate(folded: &Model, header: &[String]) -> Result<String, super::Expo
     );
     let _ = writeln!(s, "{{");
     if kind == Kind::Nsrm {
-        let _ = writeln!(s, "    const float s = p_R + p_G + p_B;");
+        // The input gains (1, 1, 1 unless white-balanced: then written out, else left out).
+        let (r, g, b) = if folded.has_unit_gains() {
+            ("p_R".to_string(), "p_G".to_string(), "p_B".to_string())
+        } else {
+            let _ = writeln!(s, "    const float i0 = p_R * {};", lit(gains[0]));
+            let _ = writeln!(s, "    const float i1 = p_G * {};", lit(gains[1]));
+            let _ = writeln!(s, "    const float i2 = p_B * {};", lit(gains[2]));
+            ("i0".to_string(), "i1".to_string(), "i2".to_string())
+        };
+        let _ = writeln!(s, "    const float s = {r} + {g} + {b};");
         let _ = writeln!(
             s,
             "    // s <= 0 (black, noise around black): black. NaN flows on."
@@ -63,8 +79,8 @@ pub fn generate(folded: &Model, header: &[String]) -> Result<String, super::Expo
         let _ = writeln!(s, "    if (s <= 0.0f) {{");
         let _ = writeln!(s, "        return make_float3(0.0f, 0.0f, 0.0f);");
         let _ = writeln!(s, "    }}");
-        let _ = writeln!(s, "    const float x0 = p_R / s;");
-        let _ = writeln!(s, "    const float x1 = p_G / s;");
+        let _ = writeln!(s, "    const float x0 = {r} / s;");
+        let _ = writeln!(s, "    const float x1 = {g} / s;");
     } else {
         let _ = writeln!(s, "    const float x0 = p_R;");
         let _ = writeln!(s, "    const float x1 = p_G;");

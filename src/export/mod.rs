@@ -729,6 +729,37 @@ mod tests {
     }
 
     #[test]
+    fn white_balanced_nsrm_luts_evaluate_the_model_with_its_gains() {
+        use crate::model::fit::{fit_with, FitOptions, Normalise};
+        let d = data();
+        let opts = FitOptions {
+            normalise: Normalise::WhiteBalanced,
+            ..Default::default()
+        };
+        let wb = fit_with(Kind::Nsrm, 3, &d, &opts).unwrap().model;
+        assert!(!wb.has_unit_gains());
+        let raw = wb.clone().with_input_gains([1.0; 3]).unwrap();
+        let e = LutExport::clf(&wb, OutputSpace::Acescg, LutOptions::default(), &d.rgb).unwrap();
+        assert_eq!(e.folded.input_gains(), wb.input_gains());
+        let r = e.measure(&d.rgb).unwrap();
+        assert!(r.max() <= 0.1, "{}", r.summary());
+        // The chain follows the gained model, not the same matrix without gains.
+        let raw_folded = fold(&raw, OutputSpace::Acescg).unwrap();
+        let (mut to_wb, mut to_raw) = (0.0f64, 0.0f64);
+        for &c in &d.rgb {
+            let got = e.eval(c);
+            let (a, b) = (e.folded.apply_f64(c), raw_folded.apply_f64(c));
+            for k in 0..3 {
+                to_wb = to_wb.max((got[k] - a[k]).abs());
+                to_raw = to_raw.max((got[k] - b[k]).abs());
+            }
+        }
+        assert!(to_raw > 10.0 * to_wb, "{to_wb} vs {to_raw}");
+        let cube = LutExport::cube(&wb, OutputSpace::Xyz, LutOptions::default()).unwrap();
+        assert_eq!(cube.folded.input_gains(), wb.input_gains());
+    }
+
+    #[test]
     fn a_coarse_lut_is_measured_as_coarse() {
         let d = data();
         let m = crate::model::fit(Kind::Rprm, 3, &d).unwrap();

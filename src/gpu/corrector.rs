@@ -83,7 +83,7 @@ impl Corrector {
         shader::validate(&src)?;
         let limits = device.limits();
         let label = format!("nsrm {kind} {order} {target:?}");
-        let uniform_bytes = 16 * model.terms().len() as u64;
+        let uniform_bytes = shader::uniform_bytes(kind, order);
         let storage = |read_only| wgpu::BindingType::Buffer {
             ty: wgpu::BufferBindingType::Storage { read_only },
             has_dynamic_offset: false,
@@ -156,7 +156,7 @@ impl Corrector {
             });
             let uniform = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
                 label: Some("nsrm model matrix"),
-                contents: bytemuck::cast_slice(&shader::matrix_columns(model)),
+                contents: bytemuck::cast_slice(&shader::uniform_data(model)),
                 usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
             });
             (pipeline, layout, uniform)
@@ -194,7 +194,8 @@ impl Corrector {
         model.kind() == self.kind && model.order() == self.order
     }
 
-    /// The matrix uniform (binding 0): `L` × `vec4<f32>`, column `j` = term `j`'s weights.
+    /// The matrix uniform (binding 0): `L + 1` × `vec4<f32>`, column `j` = term `j`'s weights,
+    /// then the input gains ([`shader::uniform_data`]).
     pub fn uniform_buffer(&self) -> &wgpu::Buffer {
         &self.uniform
     }
@@ -212,7 +213,7 @@ impl Corrector {
         queue.write_buffer(
             &self.uniform,
             0,
-            bytemuck::cast_slice(&shader::matrix_columns(model)),
+            bytemuck::cast_slice(&shader::uniform_data(model)),
         );
         Ok(())
     }

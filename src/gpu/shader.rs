@@ -9,7 +9,9 @@
 //!    rewrites to swap models) or, for exported shaders, a generated `const` array,
 //! 3. the kind's file (`shaders/{lrm,prm,rprm,nsrm}.wgsl`: `fn correct`, the pixel policy),
 //! 4. the frame file (`shaders/frame_{buffer,in_place,texture}.wgsl`: bindings and `main`),
-//! 5. the generated `fn model_terms(x) -> vec3<f32>`: `Σ_j M[:, j] · term_j(x)`.
+//! 5. the generated `fn model_terms(x) -> vec3<f32>`: `Σ_j M[:, j] · term_j(x)`,
+//! 6. for NSRM, the generated `fn model_gain() -> vec3<f32>`: the input gains (from the uniform,
+//!    or baked), which `shaders/nsrm.wgsl` multiplies into R, G, B first.
 //!
 //! [`Corrector`]: super::Corrector
 
@@ -213,6 +215,40 @@ pub fn matrix_columns(model: &Model) -> Vec<[f32; 4]> {
         .collect()
 }
 
+/// The uniform's contents: the [`matrix_columns`], then the input gains `(g_R, g_G, g_B, 0)`
+/// (`shaders/model_uniform.wgsl`'s `gain`): `L + 1` × `vec4<f32>`.
+pub fn uniform_data(model: &Model) -> Vec<[f32; 4]> {
+    let g = model.input_gains();
+    let mut v = matrix_columns(model);
+    v.push([g[0] as f32, g[1] as f32, g[2] as f32, 0.0]);
+    v
+}
+
+/// The uniform's size in bytes for a model of `kind` at `order`: `16 · (L + 1)`.
+pub fn uniform_bytes(kind: Kind, order: u8) -> u64 {
+    16 * (terms(kind, kind.effective_order(order)).len() as u64 + 1)
+}
+
+/// The generated `fn model_gain() -> vec3<f32>` of NSRM shaders: the input gains, read from the
+/// uniform or baked in.
+pub fn model_gain_fn(coefficients: Coefficients<'_>) -> String {
+    let body = match coefficients {
+        Coefficients::Uniform => "model.gain.xyz".to_string(),
+        Coefficients::Baked(m) => {
+            let g = m.input_gains();
+            format!(
+                "vec3<f32>({}, {}, {})",
+                f32_literal(g[0] as f32),
+                f32_literal(g[1] as f32),
+                f32_literal(g[2] as f32)
+            )
+        }
+    };
+    format!(
+        "// The input gains multiplied into R, G, B (1, 1, 1 unless white-balanced).\nfn model_gain() -> vec3<f32> {{\n    return {body};\n}}\n"
+    )
+}
+
 /// The generated term expansion: `fn model_terms(x: vec3<f32>) -> vec3<f32>` returning
 /// `Σ_j M[:, j] · term_j(x)`, with `x` = (R, G, B) (LRM, PRM, RPRM) or (r, g, 0) (NSRM).
 ///
@@ -302,6 +338,13 @@ pub fn wgsl(kind: Kind, order: u8, target: Target, coefficients: Coefficients<'_
             "// Self-contained: the fitted matrix is baked in (white XYZ {:?}).",
             m.white_xyz()
         );
+        if !m.has_unit_gains() {
+            let _ = writeln!(
+                s,
+                "// White-balanced NSRM: R, G, B are multiplied by the input gains {:?} first.",
+                m.input_gains()
+            );
+        }
     }
     let _ = writeln!(s);
     let _ = writeln!(s, "const CHANNELS: u32 = {}u;", target.channels());
@@ -326,6 +369,9 @@ pub fn wgsl(kind: Kind, order: u8, target: Target, coefficients: Coefficients<'_
     }
     let _ = writeln!(s);
     s.push_str(&model_terms_fn(kind, order, coefficients));
+    if kind == Kind::Nsrm {
+        s.push_str(&model_gain_fn(coefficients));
+    }
     s
 }
 
@@ -363,7 +409,13 @@ mod tests {
     fn model(kind: Kind, order: u8) -> Model {
         let l = terms(kind, kind.effective_order(order)).len();
         let matrix = (0..3 * l).map(|i| 0.5 + i as f64 * 0.25).collect();
-        Model::from_matrix(kind, order, matrix).unwrap()
+        let m = Model::from_matrix(kind, order, matrix).unwrap();
+        if kind == Kind::Nsrm {
+            // Non-unit input gains (white-balanced NSRM), baked as literals.
+            m.with_input_gains([1.5, 1.0, 0.75]).unwrap()
+        } else {
+            m
+        }
     }
 
     #[test]
@@ -445,5 +497,20 @@ mod tests {
             Coefficients::Baked(&m),
         );
         assert!(src.contains("vec3<f32>(0.5f, 1.25f, 2.0f)"), "{src}");
+        assert!(!src.contains("model_gain"), "{src}");
+        let m = model(Kind::Nsrm, 2);
+        let src = wgsl(Kind::Nsrm, 2, Target::ALL[0], Coefficients::Baked(&m));
+        assert!(
+            src.contains("return vec3<f32>(1.5f, 1.0f, 0.75f);"),
+            "{src}"
+        );
+        let src = wgsl(Kind::Nsrm, 2, Target::ALL[0], Coefficients::Uniform);
+        assert!(src.contains("return model.gain.xyz;"), "{src}");
+        assert_eq!(uniform_data(&m).len(), m.len_terms() + 1);
+        assert_eq!(uniform_data(&m)[m.len_terms()], [1.5, 1.0, 0.75, 0.0]);
+        assert_eq!(
+            uniform_bytes(Kind::Nsrm, 2),
+            16 * uniform_data(&m).len() as u64
+        );
     }
 }

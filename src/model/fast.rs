@@ -144,10 +144,13 @@ impl FastModel {
         } else if standard(Kind::Nsrm, 3) {
             Kernel::Nsrm3(Nsrm3 {
                 m: rows(&model.matrix),
+                gain: [1.0; 3],
             })
         } else {
             Kernel::Plan(Box::new(Plan::new(model.kind, &model.terms, &model.matrix)))
         };
+        let mut kernel = kernel;
+        set_nsrm_gains(&mut kernel, model.input_gains);
         FastModel {
             kind: model.kind,
             order: model.order,
@@ -498,6 +501,29 @@ pub fn cbrt_s(x: f32) -> f32 {
     y.copysign(x)
 }
 
+/// Puts a white-balanced NSRM's input gains into its kernel (only NSRM kernels take gains: a
+/// model of another kind has unit gains by construction).
+fn set_nsrm_gains(kernel: &mut Kernel, gains: [f64; 3]) {
+    let g = gains.map(|v| v as f32);
+    match kernel {
+        Kernel::Nsrm3(k) => k.gain = g,
+        Kernel::Plan(p) if p.nsrm => p.gain = g,
+        _ => debug_assert_eq!(gains, crate::model::UNIT_GAINS),
+    }
+}
+
+/// The pixels of a block multiplied by NSRM's input gains (exact for a gain of 1).
+#[inline(always)]
+fn gained(x: &[Lanes; 3], gain: &[f32; 3]) -> [Lanes; 3] {
+    let mut y = [[0.0; LANES]; 3];
+    for c in 0..3 {
+        for i in 0..LANES {
+            y[c][i] = x[c][i] * gain[c];
+        }
+    }
+    y
+}
+
 /// NSRM's `s = R+G+B`, `r = R/s`, `g = G/s`, and whether the pixel takes the `s ≤ 0 → 0` rule.
 #[inline(always)]
 fn nsrm_signal(r: f32, g: f32, b: f32) -> (f32, f32, f32, bool) {
@@ -619,10 +645,12 @@ impl BlockKernel for Rprm3 {
     }
 }
 
-/// NSRM 3: `s·M·(1 r g r² g² rg r³ g³ rg² r²g)`, `r = R/s`, `g = G/s`, `s = R+G+B`.
+/// NSRM 3: `s·M·(1 r g r² g² rg r³ g³ rg² r²g)`, `r = R/s`, `g = G/s`, `s = R+G+B`, with
+/// R, G, B multiplied by the input gains first (1 unless white-balanced).
 #[derive(Debug, Clone)]
 struct Nsrm3 {
     m: [[f32; 10]; 3],
+    gain: [f32; 3],
 }
 
 impl BlockKernel for Nsrm3 {
@@ -630,8 +658,9 @@ impl BlockKernel for Nsrm3 {
     fn scratch(&self) {}
     #[inline(always)]
     fn block(&self, x: &[Lanes; 3], _: &mut (), fma: bool) -> [Lanes; 3] {
-        // Lane arrays first (s, r, g, R·g), then one straight pass per output channel: the shape
-        // the vectoriser turns into packed code.
+        // The input gains (white-balanced NSRM), then lane arrays (s, r, g, R·g), then one
+        // straight pass per output channel: the shape the vectoriser turns into packed code.
+        let x = &gained(x, &self.gain);
         let (mut s, mut r, mut g, mut rg) =
             ([0.0; LANES], [0.0; LANES], [0.0; LANES], [0.0; LANES]);
         for i in 0..LANES {
@@ -674,6 +703,8 @@ const ONE: usize = 0;
 #[derive(Debug, Clone)]
 struct Plan {
     nsrm: bool,
+    /// NSRM's input gains, multiplied into R, G, B first (1 unless white-balanced).
+    gain: [f32; 3],
     /// `(channel, root, slot)`: the per-channel roots to compute first.
     bases: Vec<(usize, u8, usize)>,
     /// `(dst, a, b)`: `v[dst] = v[a]·v[b]`, in dependency order.
@@ -706,6 +737,7 @@ impl Plan {
             .collect();
         Plan {
             nsrm,
+            gain: [1.0; 3],
             bases,
             steps,
             term_slots,
@@ -773,6 +805,7 @@ impl BlockKernel for Plan {
         let mut black = [false; LANES];
         let mut vars = *x;
         if self.nsrm {
+            let x = &gained(x, &self.gain);
             for i in 0..LANES {
                 let (s, r, g, k) = nsrm_signal(x[0][i], x[1][i], x[2][i]);
                 scale[i] = s;

@@ -8,6 +8,8 @@
 //!   "terms": ["1", "r", "g", "r^2", "g^2", "r*g", "r^3", "g^3", "r*g^2", "r^2*g"],
 //!   "matrix": [[...10 values...], [...], [...]],
 //!   "input":  {"signal": "linear camera RGB, not white-balanced", "camera_scale": "..."},
+//!             (a white-balanced NSRM adds "gains": [gR, gG, gB], multiplied into R, G, B before
+//!             the terms, and is written as version 2)
 //!   "output": {"space": "CIE XYZ", "xyz_scale": 100.0, "reference_white": [95.04, 100.0, 108.9]},
 //!   "training": {"source": "spectral", "camera": "...", "illuminant": "...", "reflectances": "...",
 //!                "grid": "400:700:10", "patches": ["patch1", ...]}
@@ -21,14 +23,22 @@ use std::path::Path;
 
 /// The `format` field of every model file.
 pub const FORMAT: &str = "nsrm-model";
-/// The version written; files of a newer version are refused.
-pub const VERSION: u32 = 1;
+/// The newest version written; files of a newer version are refused. A model is written with
+/// the oldest version that holds it: 1 without input gains, 2 with them (`input.gains`, a
+/// white-balanced NSRM), so builds that cannot apply gains refuse such a file by its version.
+pub const VERSION: u32 = 2;
+
+/// The first version with `input.gains`.
+const GAINS_VERSION: u32 = 2;
 
 #[derive(Debug, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 struct Input {
     signal: String,
     camera_scale: String,
+    /// Per-channel gains multiplied into R, G, B before the terms (version 2; absent: 1, 1, 1).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    gains: Option<[f64; 3]>,
 }
 
 #[derive(Debug, Serialize, Deserialize)]
@@ -69,9 +79,10 @@ impl Model {
     /// The model as a JSON document (see the [module docs](self)).
     pub fn to_json(&self) -> String {
         let l = self.terms.len();
+        let unit = self.has_unit_gains();
         let file = ModelFile {
             format: FORMAT.into(),
-            version: VERSION,
+            version: if unit { 1 } else { GAINS_VERSION },
             kind: self.kind.name().into(),
             order: self.order,
             terms: self.term_names(),
@@ -79,8 +90,13 @@ impl Model {
                 .map(|i| self.matrix[i * l..(i + 1) * l].to_vec())
                 .collect(),
             input: Input {
-                signal: "linear camera RGB, not white-balanced (raw channel ratios)".into(),
+                signal: if unit {
+                    "linear camera RGB, not white-balanced (raw channel ratios)".into()
+                } else {
+                    "linear camera RGB, not white-balanced; the model multiplies R, G, B by `gains` (the training white's response becomes 1, 1, 1) before the terms".into()
+                },
                 camera_scale: "the perfect white under the training illuminant has G = 1".into(),
+                gains: (!unit).then_some(self.input_gains),
             },
             output: Output {
                 space: "CIE XYZ (1931 2°), relative to the training illuminant".into(),
@@ -164,15 +180,29 @@ impl Model {
         let model = model
             .with_white_xyz(f.output.reference_white)
             .map_err(|e| bad(e.to_string()))?;
-        let mut model = model.with_training(f.training.provenance, f.training.patch_labels);
-        if let Some(r) = &f.fit {
-            if r.input_gains != [1.0; 3] {
+        let gains = match f.input.gains {
+            None => super::UNIT_GAINS,
+            Some(_) if f.version < GAINS_VERSION => {
                 return Err(bad(format!(
-                    "input gains {:?} (white-balanced NSRM) are not supported by this build's apply paths",
+                    "input gains need version {GAINS_VERSION}, the file says version {}",
+                    f.version
+                )))
+            }
+            Some(g) => g,
+        };
+        let model = model.with_input_gains(gains).map_err(|e| match e {
+            ModelError::Invalid(why) => bad(why),
+            e => e,
+        })?;
+        if let Some(r) = &f.fit {
+            if r.input_gains != gains {
+                return Err(bad(format!(
+                    "the fit report's input gains {:?} differ from the input gains {gains:?}",
                     r.input_gains
                 )));
             }
         }
+        let mut model = model.with_training(f.training.provenance, f.training.patch_labels);
         model.fit_report = f.fit;
         Ok(model)
     }
@@ -268,6 +298,67 @@ mod tests {
             let rgb = [0.3, 0.5, 0.2];
             assert_eq!(back.apply_f64(rgb), m.apply_f64(rgb));
         }
+    }
+
+    #[test]
+    fn input_gains_round_trip_bit_exact_as_version_2() {
+        let gains = [1.0 / 0.4730123456789, 1.0, 1.0 / 0.711987654321];
+        let m = model().with_input_gains(gains).unwrap();
+        let text = m.to_json();
+        assert!(text.contains("\"version\": 2"), "{text}");
+        assert!(text.contains("\"gains\""), "{text}");
+        let back = Model::from_json(&text, "m.json").unwrap();
+        assert_eq!(
+            back.input_gains().map(f64::to_bits),
+            gains.map(f64::to_bits)
+        );
+        assert_eq!(back, m);
+        // Unit gains: no field, version 1 (readable by builds without gains).
+        let plain = model().to_json();
+        assert!(plain.contains("\"version\": 1") && !plain.contains("\"gains\""));
+        assert!(Model::from_json(&plain, "m.json").unwrap().has_unit_gains());
+    }
+
+    #[test]
+    fn invalid_input_gains_are_refused() {
+        let good = model()
+            .with_input_gains([2.25, 1.0, 1.5])
+            .unwrap()
+            .to_json();
+        assert!(good.contains("2.25,"), "{good}");
+        for (bad, want) in [
+            ("0.0,", "invalid input gains"),
+            ("-2.0,", "invalid input gains"),
+            ("1e300,", "invalid input gains"),
+        ] {
+            let text = good.replacen("2.25,", bad, 1);
+            let e = Model::from_json(&text, "m.json").unwrap_err().to_string();
+            assert!(e.contains(want) && e.contains("m.json"), "{bad}: {e}");
+        }
+        // NaN is not JSON.
+        let e = Model::from_json(&good.replacen("2.25,", "NaN,", 1), "m.json").unwrap_err();
+        assert!(e.to_string().contains("not a model file"), "{e}");
+        // Gains in a version-1 file, and on a model kind that takes none.
+        let v1 = good.replace("\"version\": 2", "\"version\": 1");
+        let e = Model::from_json(&v1, "m.json").unwrap_err().to_string();
+        assert!(e.contains("need version 2"), "{e}");
+        let lrm = Model::from_matrix(Kind::Lrm, 1, vec![0.5; 9])
+            .unwrap()
+            .to_json();
+        let with = lrm.replace("\"version\": 1", "\"version\": 2").replace(
+            "\"camera_scale\"",
+            "\"gains\": [2.0, 1.0, 1.0],\n    \"camera_scale\"",
+        );
+        let e = Model::from_json(&with, "m.json").unwrap_err().to_string();
+        assert!(e.contains("only NSRM takes input gains"), "{e}\n{with}");
+        // Unit gains written out explicitly are fine.
+        let unit = lrm.replace(
+            "\"camera_scale\"",
+            "\"gains\": [1.0, 1.0, 1.0],\n    \"camera_scale\"",
+        );
+        assert!(
+            Model::from_json(&unit.replace("\"version\": 1", "\"version\": 2"), "m.json").is_ok()
+        );
     }
 
     #[test]

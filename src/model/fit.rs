@@ -205,11 +205,9 @@ pub struct Fit {
 }
 
 impl Fit {
-    /// Applies the input gains, then the model (f64 reference).
+    /// Applies the model, input gains included (f64 reference): [`Model::apply_f64`].
     pub fn apply_f64(&self, rgb: [f64; 3]) -> [f64; 3] {
-        let g = self.report.input_gains;
-        self.model
-            .apply_f64([rgb[0] * g[0], rgb[1] * g[1], rgb[2] * g[2]])
+        self.model.apply_f64(rgb)
     }
 }
 
@@ -589,7 +587,9 @@ pub fn fit_with(
         provenance: data.provenance.clone(),
         patches: data.labels.clone(),
         fit_report: None,
+        input_gains: super::UNIT_GAINS,
     };
+    let model = model.with_input_gains(gains)?;
     let report = FitReport {
         objective: opts.objective.name(),
         preserve_white: match (opts.preserve_white, &opts.white) {

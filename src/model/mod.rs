@@ -3,6 +3,9 @@
 //!
 //! Every apply path follows one pixel policy (NaN/Inf propagate, NSRM `s ≤ 0 → 0`, sign-preserving
 //! roots, nothing clamped), defined in [`pixel`].
+//! Input gains (white-balanced NSRM, [`Model::input_gains`]): every path multiplies R, G, B by the
+//! gains first; the policy then holds for the gained pixel (`s = g_R·R + g_G·G + g_B·B`). Gains
+//! are positive, so exposure invariance is kept.
 
 pub mod fast;
 pub mod file;
@@ -120,7 +123,7 @@ impl std::fmt::Display for Kind {
 ///
 /// Valid by construction: a `Model` is made only by [`fit`], [`Model::load`] /
 /// [`Model::from_json`] or [`Model::from_matrix`], each of which checks the order, the matrix
-/// shape and that every coefficient is finite. The term list is derived from (kind, order), never
+/// shape and that every coefficient is finite; [`Model::with_input_gains`] checks the gains. The term list is derived from (kind, order), never
 /// given, so every apply path (f64, fast CPU, shaders) can rely on it without re-checking.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Model {
@@ -139,6 +142,10 @@ pub struct Model {
     /// How the matrix was fitted (objective, ridge λ, coefficient norm, condition number), when
     /// known: [`fit::fit_with`] sets it, the model file carries it.
     fit_report: Option<fit::FitReport>,
+    /// Per-channel gains multiplied into camera RGB before the terms: `[1, 1, 1]` except for a
+    /// white-balanced NSRM (the training white's response becomes `(1, 1, 1)`). Finite, `> 0`
+    /// and finite in f32 (checked by [`with_input_gains`](Self::with_input_gains)).
+    input_gains: [f64; 3],
 }
 
 impl Model {
@@ -170,6 +177,7 @@ impl Model {
             provenance: Provenance::default(),
             patches: Vec::new(),
             fit_report: None,
+            input_gains: UNIT_GAINS,
         })
     }
 
@@ -206,6 +214,39 @@ impl Model {
     /// The training patch labels.
     pub fn patches(&self) -> &[String] {
         &self.patches
+    }
+
+    /// The per-channel gains multiplied into camera RGB before the terms (`[1, 1, 1]` unless the
+    /// model is a white-balanced NSRM).
+    pub fn input_gains(&self) -> [f64; 3] {
+        self.input_gains
+    }
+
+    /// Whether the input gains are all 1 (every model but a white-balanced NSRM).
+    pub fn has_unit_gains(&self) -> bool {
+        self.input_gains == UNIT_GAINS
+    }
+
+    /// The model with per-channel input gains: only NSRM may have gains other than `[1, 1, 1]`
+    /// (for LRM and RPRM they fold into the matrix; PRM's are not defined), and each must be
+    /// finite, `> 0` and finite in f32 (the fast CPU path and the shaders take them in f32).
+    pub fn with_input_gains(mut self, gains: [f64; 3]) -> Result<Model, ModelError> {
+        check_gains(self.kind, gains)?;
+        self.input_gains = gains;
+        Ok(self)
+    }
+
+    /// `rgb` multiplied by the input gains.
+    pub fn gained(&self, rgb: [f64; 3]) -> [f64; 3] {
+        let g = self.input_gains;
+        [rgb[0] * g[0], rgb[1] * g[1], rgb[2] * g[2]]
+    }
+
+    /// The term values of `rgb` (input gains applied first) written into `p` (length L), and the
+    /// output scale (`s` for NSRM, 1 otherwise), or `None` when NSRM's `s ≤ 0`: [`features`] for
+    /// this model.
+    pub fn features_of(&self, rgb: [f64; 3], p: &mut [f64]) -> Option<f64> {
+        features(self.kind, &self.terms, self.gained(rgb), p)
     }
 
     /// How the matrix was fitted, when known (see [`fit::FitReport`]).
@@ -251,8 +292,8 @@ impl Model {
         Ok(())
     }
 
-    /// Applies the model to one camera RGB in f64: the reference every faster path is checked
-    /// against. Follows the [pixel policy](pixel).
+    /// Applies the model to one camera RGB in f64 (the input gains first, then the terms): the
+    /// reference every faster path is checked against. Follows the [pixel policy](pixel).
     pub fn apply_f64(&self, rgb: [f64; 3]) -> [f64; 3] {
         let mut p = vec![0.0; self.terms.len()];
         self.apply_f64_with(rgb, &mut p)
@@ -260,7 +301,7 @@ impl Model {
 
     /// [`apply_f64`](Self::apply_f64) with a caller-provided term buffer (length L).
     pub fn apply_f64_with(&self, rgb: [f64; 3], p: &mut [f64]) -> [f64; 3] {
-        let scale = match features(self.kind, &self.terms, rgb, p) {
+        let scale = match self.features_of(rgb, p) {
             Some(s) => s,
             None => return [0.0; 3],
         };
@@ -298,6 +339,27 @@ impl Model {
             .map(|&x| self.apply_f64_with(x, &mut p))
             .collect()
     }
+}
+
+/// The input gains of every model but a white-balanced NSRM.
+pub const UNIT_GAINS: [f64; 3] = [1.0; 3];
+
+/// Input gains: finite, `> 0`, finite in f32; other than 1 for NSRM only.
+fn check_gains(kind: Kind, g: [f64; 3]) -> Result<(), ModelError> {
+    if !g
+        .iter()
+        .all(|v| finite_in_f32(*v) && *v > 0.0 && (*v as f32) > 0.0)
+    {
+        return Err(ModelError::Invalid(format!(
+            "invalid input gains {g:?}: each must be finite and > 0 in f32"
+        )));
+    }
+    if kind != Kind::Nsrm && g != UNIT_GAINS {
+        return Err(ModelError::Invalid(format!(
+            "input gains {g:?} on a {kind} model: only NSRM takes input gains (white-balanced normalisation)"
+        )));
+    }
+    Ok(())
 }
 
 /// A reference white must be finite with a positive Y (the output is scaled by it).
@@ -487,6 +549,47 @@ mod tests {
         assert_eq!(m.white_xyz(), [95.0, 100.0, 108.0]);
         assert!(m.clone().with_white_xyz([95.0, 0.0, 108.0]).is_err());
         assert!(m.with_white_xyz([f64::NAN, 100.0, 108.0]).is_err());
+    }
+
+    #[test]
+    fn input_gains_are_validated_and_applied_first() {
+        let ts = synthetic(30);
+        let m = fit(Kind::Nsrm, 3, &ts).unwrap();
+        assert!(m.has_unit_gains());
+        let g = [1.7, 1.0, 0.6];
+        let wb = m.clone().with_input_gains(g).unwrap();
+        assert_eq!(wb.input_gains(), g);
+        for c in &ts.rgb {
+            assert_eq!(
+                wb.apply_f64(*c),
+                m.apply_f64([c[0] * g[0], c[1] * g[1], c[2] * g[2]])
+            );
+        }
+        assert_ne!(wb.apply_f64(ts.rgb[0]), m.apply_f64(ts.rgb[0]));
+        // set_matrix keeps the gains.
+        let mut s = wb.clone();
+        s.set_matrix(m.matrix().to_vec()).unwrap();
+        assert_eq!(s.input_gains(), g);
+        for bad in [
+            [0.0, 1.0, 1.0],
+            [1.0, -1.0, 1.0],
+            [1.0, 1.0, f64::NAN],
+            [f64::INFINITY, 1.0, 1.0],
+            [1e300, 1.0, 1.0],
+            [1e-300, 1.0, 1.0],
+        ] {
+            let e = m.clone().with_input_gains(bad).unwrap_err();
+            assert!(
+                e.to_string().contains("invalid input gains"),
+                "{bad:?}: {e}"
+            );
+        }
+        for kind in [Kind::Lrm, Kind::Prm, Kind::Rprm] {
+            let other = fit(kind, 2, &ts).unwrap();
+            let e = other.clone().with_input_gains(g).unwrap_err();
+            assert!(e.to_string().contains("only NSRM"), "{kind}: {e}");
+            assert!(other.with_input_gains(UNIT_GAINS).is_ok());
+        }
     }
 
     #[test]

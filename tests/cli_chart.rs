@@ -182,7 +182,8 @@ fn apply_on_the_fitted_frame_reproduces_the_reference() {
     let model = nsrm::Model::load(&model_path).unwrap();
     let white = model.white_xyz();
     // The output is XYZ with white Y = 1, adapted from the reference white (D50) to D65.
-    let to_out = nsrm::io::output_matrix(white, nsrm::colorimetry::spaces::OutputSpace::Xyz);
+    let to_out =
+        nsrm::colorimetry::output_matrix(white, nsrm::colorimetry::spaces::OutputSpace::Xyz);
     let d65 = nsrm::colorimetry::D65_WHITE_XYZ;
     for p in reading["patches"].as_array().unwrap() {
         let v = |k: &str| -> Vec<f64> {

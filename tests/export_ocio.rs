@@ -173,7 +173,7 @@ impl Case {
 
 /// ΔE00 between two output-space values, in the model's XYZ with its training white.
 fn de(model: &Model, space: OutputSpace, a: [f64; 3], b: [f64; 3]) -> f64 {
-    let back = spaces::invert(&nsrm::io::output_matrix(model.white_xyz(), space));
+    let back = spaces::invert(&nsrm::colorimetry::output_matrix(model.white_xyz(), space));
     delta_e00_xyz(
         spaces::apply(&back, a),
         spaces::apply(&back, b),

@@ -18,6 +18,11 @@ use nsrm::spectral::{simulate_named, Grid};
 use nsrm::{Frame, Layout, TrainingSet};
 use std::sync::OnceLock;
 
+/// The embedding example, for its functions (chart → Corrector pass → display pass → RGBA8).
+#[path = "../examples/embed.rs"]
+#[allow(dead_code)]
+mod embed;
+
 const SKIP: &str = "SKIP: no GPU adapter (install mesa-vulkan-drivers libvulkan1)";
 const REL_TOL: f64 = 1e-5;
 
@@ -561,7 +566,7 @@ fn corrector_on_textures() {
     let input = random_frame(w as usize, h as usize, Layout::Rgba, 21);
     let mut reference = input.clone();
     m.apply_frame_f64(&mut reference);
-    let src = nsrm::gpu::demo::upload_rgba32f(dev, queue, &input).unwrap();
+    let src = upload_rgba32f(dev, queue, &input);
     for (format, tol) in [
         (TexelFormat::Rgba32Float, REL_TOL),
         (TexelFormat::Rgba16Float, 1e-3),
@@ -584,7 +589,7 @@ fn corrector_on_textures() {
         let mut enc = dev.create_command_encoder(&Default::default());
         c.record_textures(dev, &mut enc, &src, &dst, None).unwrap();
         queue.submit([enc.finish()]);
-        let out = nsrm::gpu::demo::read_texture_rgba_f32(dev, queue, &dst).unwrap();
+        let out = read_texture_rgba_f32(dev, queue, &dst);
         let got = Frame::from_data(w as usize, h as usize, Layout::Rgba, out).unwrap();
         if format == TexelFormat::Rgba32Float {
             compare("texture rgba32float", &m, &input, &got, &reference, tol);
@@ -608,6 +613,89 @@ fn corrector_on_textures() {
     }
 }
 
+/// A frame (RGBA) as a new `rgba32float` texture a corrector can read.
+fn upload_rgba32f(dev: &wgpu::Device, queue: &wgpu::Queue, frame: &Frame) -> wgpu::Texture {
+    use wgpu::util::DeviceExt;
+    assert_eq!(frame.layout, Layout::Rgba);
+    dev.create_texture_with_data(
+        queue,
+        &wgpu::TextureDescriptor {
+            label: None,
+            size: wgpu::Extent3d {
+                width: frame.width as u32,
+                height: frame.height as u32,
+                depth_or_array_layers: 1,
+            },
+            mip_level_count: 1,
+            sample_count: 1,
+            dimension: wgpu::TextureDimension::D2,
+            format: wgpu::TextureFormat::Rgba32Float,
+            usage: wgpu::TextureUsages::TEXTURE_BINDING,
+            view_formats: &[],
+        },
+        wgpu::util::TextureDataOrder::LayerMajor,
+        bytemuck::cast_slice(&frame.data),
+    )
+}
+
+/// An `rgba32float` or `rgba16float` texture (with `COPY_SRC`) read back as RGBA f32.
+fn read_texture_rgba_f32(dev: &wgpu::Device, queue: &wgpu::Queue, tex: &wgpu::Texture) -> Vec<f32> {
+    let bpp = tex.format().block_copy_size(None).unwrap();
+    let (w, h) = (tex.width(), tex.height());
+    let row = bpp * w;
+    let padded =
+        row.div_ceil(wgpu::COPY_BYTES_PER_ROW_ALIGNMENT) * wgpu::COPY_BYTES_PER_ROW_ALIGNMENT;
+    let rb = dev.create_buffer(&wgpu::BufferDescriptor {
+        label: None,
+        size: u64::from(padded) * u64::from(h),
+        usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
+        mapped_at_creation: false,
+    });
+    let mut enc = dev.create_command_encoder(&Default::default());
+    enc.copy_texture_to_buffer(
+        tex.as_image_copy(),
+        wgpu::TexelCopyBufferInfo {
+            buffer: &rb,
+            layout: wgpu::TexelCopyBufferLayout {
+                offset: 0,
+                bytes_per_row: Some(padded),
+                rows_per_image: Some(h),
+            },
+        },
+        tex.size(),
+    );
+    queue.submit([enc.finish()]);
+    rb.map_async(wgpu::MapMode::Read, .., |r| r.unwrap());
+    dev.poll(wgpu::PollType::wait_indefinitely()).unwrap();
+    let bytes: Vec<u8> = {
+        let view = rb.get_mapped_range(..).unwrap();
+        (0..h as usize)
+            .flat_map(|y| &view[y * padded as usize..y * padded as usize + row as usize])
+            .copied()
+            .collect()
+    };
+    match tex.format() {
+        wgpu::TextureFormat::Rgba32Float => bytemuck::pod_collect_to_vec(&bytes),
+        wgpu::TextureFormat::Rgba16Float => bytes
+            .chunks_exact(2)
+            .map(|b| half::f16::from_ne_bytes([b[0], b[1]]).to_f32())
+            .collect(),
+        f => panic!("{f:?} is not a float RGBA format"),
+    }
+}
+
+/// The display shader of the embedding example validates and has its two entry points.
+#[test]
+fn embed_display_shader_validates() {
+    let (module, _) = gpu::shader::validate(embed::DISPLAY_WGSL).unwrap();
+    let names: Vec<_> = module
+        .entry_points
+        .iter()
+        .map(|e| e.name.as_str())
+        .collect();
+    assert_eq!(names, ["vs_main", "fs_main"]);
+}
+
 fn read_buffer(dev: &wgpu::Device, queue: &wgpu::Queue, buf: &wgpu::Buffer) -> Vec<f32> {
     let rb = dev.create_buffer(&wgpu::BufferDescriptor {
         label: None,
@@ -625,7 +713,7 @@ fn read_buffer(dev: &wgpu::Device, queue: &wgpu::Queue, buf: &wgpu::Buffer) -> V
     v
 }
 
-/// The embedding demo (the code path of `examples/embed.rs`): chart → texture → Corrector
+/// The embedding example (`examples/embed.rs`, the same functions): chart → texture → Corrector
 /// pass → display render pass → PNG, against the f64 CPU path (±1 of 255 per channel: the
 /// corrected texture is half float and the GPU's unorm conversion rounds on its own).
 #[test]
@@ -634,16 +722,16 @@ fn embed_demo_png_matches_the_cpu_path() {
     let ctx = e.context();
     let data = simulate_named("nikon-d5100", "D65", "cc24", &Grid::default()).unwrap();
     let m = fit(Kind::Nsrm, 3, &data).unwrap();
-    let frame = gpu::demo::chart_frame(&data, 6, 8);
+    let frame = embed::chart_frame(&data, 6, 8);
     assert_eq!((frame.width, frame.height), (48, 32));
-    let rgba8 = gpu::demo::render_corrected(&ctx.device, &ctx.queue, &m, &frame).unwrap();
+    let rgba8 = embed::render_corrected(&ctx.device, &ctx.queue, &m, &frame).unwrap();
     let dir = tempfile::tempdir().unwrap();
     let path = dir.path().join("embed.png");
-    gpu::demo::save_png(&path, 48, 32, &rgba8).unwrap();
+    embed::save_png(&path, 48, 32, &rgba8).unwrap();
     let png = image::open(&path).unwrap().to_rgba8();
     assert_eq!(png.dimensions(), (48, 32));
     assert_eq!(png.as_raw(), &rgba8);
-    let cpu = gpu::demo::cpu_srgb8(&m, &frame);
+    let cpu = embed::cpu_srgb8(&m, &frame);
     let mut exact = 0;
     for (i, (g, c)) in png.as_raw().iter().zip(&cpu).enumerate() {
         assert!(g.abs_diff(*c) <= 1, "byte {i}: GPU {g}, CPU {c}");

@@ -301,7 +301,7 @@ fn parse_request(a: &Args) -> Result<Request> {
 pub fn run(a: Args) -> Result<ExitCode> {
     let req = parse_request(&a)?;
     let model = Model::load(&a.model).context("--model")?;
-    let out_model = fio::output_model(&model, req.space)?;
+    let out_model = nsrm::colorimetry::output_model(&model, req.space)?;
 
     // Plan.
     let all = batch::expand_inputs(&a.inputs).map_err(|e| UsageError(e.to_string()))?;
@@ -389,7 +389,7 @@ pub fn run(a: Args) -> Result<ExitCode> {
                 overwrite: a.overwrite,
                 zip_level: a.zip_level,
             },
-            to_srgb: fio::to_linear_srgb(model.white_xyz(), req.space),
+            to_srgb: nsrm::colorimetry::to_linear_srgb(model.white_xyz(), req.space),
             workers: workers.min(todo.len()).max(1),
             continue_on_error: a.continue_on_error,
             interrupt: interrupt.clone(),

@@ -11,11 +11,12 @@
 //!   them) and end-to-end time including upload and read-back. Its reference is the device's own
 //!   buffer-to-buffer copy of the frame's bytes ([`Engine::copy_bandwidth`]).
 
+use super::bench_aids::{memcpy_chunked, synthetic_camera_rgb};
 use super::common::{parse_models, UsageError};
 use anyhow::{Context, Result};
 use clap::ValueEnum;
 use nsrm::gpu::{Engine, GpuOptions};
-use nsrm::model::fast::{memcpy_chunked, FastModel, Threads};
+use nsrm::model::fast::{FastModel, Threads};
 use nsrm::model::{fit, Kind, Model};
 use nsrm::spectral::{simulate_named, Grid};
 use nsrm::{Frame, Layout};
@@ -145,7 +146,7 @@ pub fn run(a: Args) -> Result<ExitCode> {
     };
 
     let models = fit_models(&kinds, a.order)?;
-    let input = Frame::synthetic_camera_rgb(width, height, layout, 0x5eed_0005);
+    let input = synthetic_camera_rgb(width, height, layout, 0x5eed_0005);
     let mut output = Frame::new(width, height, layout);
     prefault(&mut output.data);
 

@@ -55,7 +55,7 @@ fn run_dctl(a: &Args) -> Result<ExitCode> {
     let space = output_space(a)?.unwrap_or(OutputSpace::Xyz);
     nsrm::atomic::check_clobber(&a.output, a.overwrite)?;
     let model = Model::load(&a.model)?;
-    let folded = nsrm::io::output_model(&model, space)?;
+    let folded = nsrm::colorimetry::output_model(&model, space)?;
     let header = vec![
         format!(
             "nsrm DCTL: {} to {} ({}), scene-linear, training white at Y = 1 (as nsrm apply --output-space {})",
@@ -97,7 +97,7 @@ pub fn run(a: Args) -> Result<ExitCode> {
     nsrm::atomic::check_clobber(&a.output, a.overwrite)?;
     let model = Model::load(&a.model)?;
     let model = match space {
-        Some(space) => nsrm::io::output_model(&model, space)?,
+        Some(space) => nsrm::colorimetry::output_model(&model, space)?,
         None => model,
     };
     let bytes = export(&model, layout, lang).with_context(|| {

@@ -5,6 +5,7 @@
 
 mod apply;
 mod bench;
+mod bench_aids;
 mod capture;
 mod chart;
 mod common;

@@ -383,7 +383,7 @@ fn usage_and_setup_errors() {
         (
             &["--output-space", "p3", "chart.exr"],
             2,
-            "unknown --output-space",
+            "invalid value 'p3' for '--output-space",
         ),
         (&["--suffix", "", "chart.exr"], 2, "onto that input itself"),
         (&["--format", "tiff", "--half", "chart.exr"], 2, "--half"),

@@ -345,7 +345,10 @@ fn malformed_requests_fail_and_leave_no_file() {
         let r: Vec<&str> = v.iter().map(|s| s.as_str()).collect();
         fail(&r, needle)
     };
-    assert_eq!(call(&["--format", "exr"], "--format `exr`"), Some(2));
+    assert_eq!(
+        call(&["--format", "exr"], "invalid value 'exr' for '--format"),
+        Some(2)
+    );
     assert_eq!(
         call(&["--format", "clf", "--lut-size", "1"], "LUT size 1"),
         Some(2)
@@ -367,7 +370,14 @@ fn malformed_requests_fail_and_leave_no_file() {
     assert_eq!(
         call(
             &["--format", "clf", "--max-de00", "0.001"],
-            "exceeds --max-de00 0.001"
+            "exceeds the limit 0.001"
+        ),
+        Some(1)
+    );
+    assert_eq!(
+        call(
+            &["--format", "clf", "--max-de00", "0.001"],
+            "--max-de00 0.001: "
         ),
         Some(1)
     );

@@ -1,6 +1,6 @@
 //! `nsrm eval`: the paper's experiment.
 
-use super::common::{parse_models, parse_orders, TrainingArgs, UsageError};
+use super::common::{parse_models, parse_orders, TrainingArgs};
 use super::fit_args::FitVariantArgs;
 use anyhow::{Context, Result};
 use nsrm::eval::{evaluate_with, plot, variants, EvalResult, Protocol};
@@ -98,7 +98,7 @@ pub fn run(a: Args) -> Result<ExitCode> {
         None => parse_orders(&a.order.to_string(), "--order")?,
     };
     if let Some(p) = &a.plot {
-        plot::Format::from_path(p).map_err(|e| UsageError(e.to_string()))?;
+        plot::Format::from_path(p)?;
     }
     let captured = super::capture::for_model(a.capture.as_deref(), &a.chart)?;
     let illuminants: Vec<String> = if captured.is_some() {

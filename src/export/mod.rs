@@ -54,7 +54,9 @@ pub enum ExportError {
     Usage(String),
     #[error("the model cannot be exported: {0}")]
     Model(String),
-    #[error("the export's approximation error, max ΔE00 {max:.4} ({where_}), exceeds --max-de00 {limit}")]
+    #[error(
+        "the export's approximation error, max ΔE00 {max:.4} ({where_}), exceeds the limit {limit}"
+    )]
     TooInaccurate {
         max: f64,
         limit: f64,
@@ -479,7 +481,7 @@ pub fn export_to(
     if let Some(x) = max_de00 {
         if !(x.is_finite() && x >= 0.0) {
             return Err(ExportError::Usage(format!(
-                "--max-de00 {x}: expected a finite, non-negative number"
+                "the ΔE00 limit {x} is not a finite, non-negative number"
             )));
         }
     }

@@ -58,7 +58,7 @@ pub enum IoError {
     Write(#[from] WriteError),
     #[error("input `{spec}`: {why}")]
     NoMatch { spec: String, why: String },
-    #[error("--shard `{spec}`: {why}")]
+    #[error("shard `{spec}`: {why}")]
     Shard { spec: String, why: String },
     #[error("{0}")]
     Invalid(String),

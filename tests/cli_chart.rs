@@ -2,18 +2,9 @@
 //! frame, run as a user would.
 
 use std::path::{Path, PathBuf};
-use std::process::Command;
 
-fn nsrm() -> Command {
-    Command::new(env!("CARGO_BIN_EXE_nsrm"))
-}
-
-fn tempdir(name: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!("nsrm-chart-{name}-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&d);
-    std::fs::create_dir_all(&d).unwrap();
-    d
-}
+mod common;
+use common::{nsrm, tempdir};
 
 fn run(args: &[&str]) -> (bool, String) {
     let out = nsrm().args(args).output().unwrap();

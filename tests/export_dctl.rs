@@ -3,6 +3,8 @@
 //! run on test pixels; its output must match the f64 model with the output space folded in, as
 //! `nsrm apply` writes it, to the f32 accuracy of the GPU shaders.
 
+mod common;
+
 use nsrm::colorimetry::spaces::OutputSpace;
 use nsrm::model::{features, fit, Kind, Model};
 use nsrm::spectral::{simulate_named, Grid};
@@ -188,7 +190,7 @@ fn export_shader_writes_dctl_through_the_cli() {
     let model = fit(Kind::Rprm, 3, &data).unwrap();
     std::fs::write(dir.path().join("m.json"), model.to_json()).unwrap();
     let run = |args: &[&str]| {
-        Command::new(env!("CARGO_BIN_EXE_nsrm"))
+        common::nsrm()
             .current_dir(dir.path())
             .args(args)
             .output()

@@ -7,6 +7,8 @@
 //! installs it). Without them each test prints `SKIP: …` and passes, except under `CI=true`,
 //! where they fail.
 
+mod common;
+
 use nsrm::colorimetry::delta_e00_xyz;
 use nsrm::colorimetry::spaces::{self, OutputSpace};
 use nsrm::export::{dense_chromaticities, Format, LutExport, LutOptions};
@@ -48,10 +50,7 @@ fn run(cmd: &mut Command) -> std::process::Output {
 }
 
 fn nsrm(dir: &Path, args: &[&str]) -> std::process::Output {
-    run(Command::new(env!("CARGO_BIN_EXE_nsrm"))
-        .current_dir(dir)
-        .args(args)
-        .env_remove("NSRM_ADAPTER"))
+    run(common::nsrm().current_dir(dir).args(args))
 }
 
 fn data() -> TrainingSet {
@@ -325,7 +324,7 @@ fn malformed_requests_fail_and_leave_no_file() {
     let (_, path) = c.model(Kind::Nsrm, 3);
     let m = path.to_str().unwrap();
     let fail = |args: &[&str], needle: &str| {
-        let o = Command::new(env!("CARGO_BIN_EXE_nsrm"))
+        let o = common::nsrm()
             .current_dir(c.dir.path())
             .args(args)
             .output()

@@ -15,8 +15,7 @@
 use nsrm::gpu::{self, Corrector, DeviceChoice, Engine, GpuError, GpuOptions, Target, TexelFormat};
 use nsrm::model::{fit, Kind, Model, MAX_ORDER};
 use nsrm::spectral::{simulate_named, Grid};
-use nsrm::{Frame, Layout, TrainingSet};
-use std::sync::OnceLock;
+use nsrm::{Frame, Layout};
 
 /// The embedding example, for its functions (chart → Corrector pass → display pass → RGBA8).
 #[path = "../examples/embed.rs"]
@@ -49,99 +48,11 @@ fn engine(tile_pixels: Option<usize>) -> Option<Engine> {
     }
 }
 
-fn training() -> &'static TrainingSet {
-    static DATA: OnceLock<TrainingSet> = OnceLock::new();
-    DATA.get_or_init(|| {
-        simulate_named("nikon-d5100", "D65", "rawtoaces-190", &Grid::default()).unwrap()
-    })
-}
+mod common;
+use common::{awkward_frame as random_frame, f32_bound, summands, training, Rng};
 
 fn model(kind: Kind, order: u8) -> Model {
     fit(kind, order, training()).unwrap()
-}
-
-/// A seeded LCG.
-struct Rng(u64);
-
-impl Rng {
-    fn next_u32(&mut self) -> u32 {
-        self.0 = self
-            .0
-            .wrapping_mul(6364136223846793005)
-            .wrapping_add(1442695040888963407);
-        (self.0 >> 32) as u32
-    }
-    fn unit(&mut self) -> f32 {
-        (self.next_u32() >> 8) as f32 / (1u32 << 24) as f32
-    }
-    fn range(&mut self, a: f32, b: f32) -> f32 {
-        a + (b - a) * self.unit()
-    }
-}
-
-/// A random frame mixing ordinary pixels with the pixel policy's edge cases: a zero channel,
-/// all-zero pixels, a slightly negative channel, HDR (×100), tiny (×1e-6), NaN and ±Inf.
-/// Alpha gets random bit patterns (NaN payloads included).
-fn random_frame(width: usize, height: usize, layout: Layout, seed: u64) -> Frame {
-    let mut rng = Rng(seed);
-    let ch = layout.channels();
-    let mut data = Vec::with_capacity(width * height * ch);
-    for _ in 0..width * height {
-        let mut px = [
-            rng.range(0.02, 1.0),
-            rng.range(0.02, 1.0),
-            rng.range(0.02, 1.0),
-        ];
-        let c = (rng.next_u32() % 3) as usize;
-        match rng.next_u32() % 16 {
-            0 => px[c] = 0.0,
-            1 => px = [0.0; 3],
-            2 => {
-                px = [
-                    rng.range(0.2, 1.0),
-                    rng.range(0.2, 1.0),
-                    rng.range(0.2, 1.0),
-                ];
-                px[c] = -rng.range(0.0, 0.02);
-            }
-            3 => px.iter_mut().for_each(|v| *v *= 100.0),
-            4 => px.iter_mut().for_each(|v| *v *= 1e-6),
-            5 => px[c] = f32::NAN,
-            6 => {
-                px[c] = if rng.next_u32() % 2 == 0 {
-                    f32::INFINITY
-                } else {
-                    f32::NEG_INFINITY
-                }
-            }
-            _ => {}
-        }
-        data.extend_from_slice(&px);
-        if ch == 4 {
-            data.push(f32::from_bits(rng.next_u32()));
-        }
-    }
-    Frame::from_data(width, height, layout, data).unwrap()
-}
-
-/// The floor of each output channel of a pixel: `|s| · Σ_j |M_ij · p_j|`.
-fn summand_floor(model: &Model, px: &[f32]) -> [f64; 3] {
-    let mut p = vec![0.0; model.terms().len()];
-    let rgb = [px[0] as f64, px[1] as f64, px[2] as f64];
-    let Some(scale) = nsrm::model::features(model.kind(), model.terms(), rgb, &mut p) else {
-        return [1e-30; 3];
-    };
-    let mut f = [0.0; 3];
-    for (i, fi) in f.iter_mut().enumerate() {
-        let sum: f64 = model
-            .row(i)
-            .iter()
-            .zip(&p)
-            .map(|(m, x)| (m * x).abs())
-            .sum();
-        *fi = (scale.abs() * sum).max(1e-30);
-    }
-    f
 }
 
 /// Checks `gpu` against `reference` (see the module docs); returns the largest error
@@ -165,7 +76,7 @@ fn compare_stats(
         .zip(input.data.chunks_exact(ch))
         .enumerate()
     {
-        let floor = summand_floor(model, x);
+        let floor = summands(model, [x[0] as f64, x[1] as f64, x[2] as f64]).map(|t| t.max(1e-30));
         for k in 0..ch {
             let (gv, rv) = (g[k], r[k]);
             let at = || {
@@ -192,8 +103,13 @@ fn compare_stats(
             } else {
                 assert!(gv.is_finite(), "{}: finite value expected", at());
                 let diff = (gv as f64 - rv as f64).abs();
+                assert!(
+                    diff <= f32_bound(rv as f64, floor[k], rel_tol),
+                    "{}: relative error {:e}",
+                    at(),
+                    diff / (rv as f64).abs().max(floor[k])
+                );
                 let err = diff / (rv as f64).abs().max(floor[k]);
-                assert!(err <= rel_tol, "{}: relative error {err:e}", at());
                 worst = worst.max(err);
                 if (rv as f64).abs() >= floor[k] / 10.0 {
                     worst_plain = worst_plain.max(diff / (rv as f64).abs());

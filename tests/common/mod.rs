@@ -126,6 +126,7 @@ pub fn training() -> &'static TrainingSet {
 }
 
 /// A runtime directory for Mesa (once per test process) when the environment has none.
+#[cfg(feature = "cli")]
 fn xdg_runtime_dir() -> Option<PathBuf> {
     static DIR: OnceLock<Option<PathBuf>> = OnceLock::new();
     DIR.get_or_init(|| {
@@ -145,6 +146,7 @@ fn xdg_runtime_dir() -> Option<PathBuf> {
 }
 
 /// The built `nsrm`, with `XDG_RUNTIME_DIR` set and `NSRM_ADAPTER` unset.
+#[cfg(feature = "cli")]
 pub fn nsrm() -> Command {
     let mut c = Command::new(env!("CARGO_BIN_EXE_nsrm"));
     c.env_remove("NSRM_ADAPTER");
@@ -155,6 +157,7 @@ pub fn nsrm() -> Command {
 }
 
 /// Runs the built `nsrm` in `dir`.
+#[cfg(feature = "cli")]
 pub fn nsrm_in(dir: &Path, args: &[&str]) -> Output {
     nsrm()
         .current_dir(dir)
@@ -164,6 +167,7 @@ pub fn nsrm_in(dir: &Path, args: &[&str]) -> Output {
 }
 
 /// Runs `nsrm` in `dir` and asserts it succeeded.
+#[cfg(feature = "cli")]
 pub fn nsrm_ok(dir: &Path, args: &[&str]) -> Output {
     let out = nsrm_in(dir, args);
     assert!(
@@ -173,6 +177,16 @@ pub fn nsrm_ok(dir: &Path, args: &[&str]) -> Output {
         String::from_utf8_lossy(&out.stdout)
     );
     out
+}
+
+/// Asserts that a command succeeded, showing its stderr when it did not.
+pub fn assert_ok(out: &Output) {
+    assert!(
+        out.status.success(),
+        "{:?}: {}",
+        out.status,
+        String::from_utf8_lossy(&out.stderr)
+    );
 }
 
 pub fn stderr(o: &Output) -> String {

@@ -181,7 +181,7 @@ pub fn run(a: Args) -> Result<ExitCode> {
         print_variants(&a, protocol, n_patches, &results);
     } else {
         let plain: Vec<EvalResult> = results.iter().map(|r| r.result.clone()).collect();
-        print_table(&a, protocol, n_patches, &illuminants, &plain);
+        print_table(&a, protocol, n_patches, &plain);
     }
     if let Some(p) = &a.plot {
         let plain: Vec<EvalResult> = results
@@ -308,7 +308,6 @@ fn print_table(
     a: &Args,
     protocol: Protocol,
     n: usize,
-    illuminants: &[String],
     results: &[EvalResult],
 ) {
     header(a, protocol, n);
@@ -321,7 +320,6 @@ fn print_table(
         }
         v
     };
-    let _ = illuminants;
     print!("{:<12}", "");
     for ill in &ills {
         print!(" | {:^22}", ill);

@@ -304,12 +304,7 @@ fn print_variants(a: &Args, protocol: Protocol, n: usize, results: &[VariantResu
     }
 }
 
-fn print_table(
-    a: &Args,
-    protocol: Protocol,
-    n: usize,
-    results: &[EvalResult],
-) {
+fn print_table(a: &Args, protocol: Protocol, n: usize, results: &[EvalResult]) {
     header(a, protocol, n);
     let ills: Vec<&str> = {
         let mut v: Vec<&str> = Vec::new();

@@ -8,19 +8,24 @@
 //! same in one run and prints ratios.
 
 use criterion::{criterion_group, criterion_main, Criterion, Throughput};
-use nsrm::model::fast::{memcpy_chunked, FastModel, Threads};
+use nsrm::model::fast::{FastModel, Threads};
 use nsrm::model::{fit, Kind};
 use nsrm::spectral::{simulate_named, Grid};
 use nsrm::{Frame, Layout};
 use std::hint::black_box;
 use std::time::Duration;
 
+/// The benchmark frame and the memcpy reference, shared with `nsrm bench`.
+#[path = "../src/cli/bench_aids.rs"]
+mod bench_aids;
+use bench_aids::{memcpy_chunked, synthetic_camera_rgb};
+
 const WIDTH: usize = 2048;
 const HEIGHT: usize = 2048;
 
 fn kernels(c: &mut Criterion) {
     let data = simulate_named("nikon-d5100", "D65", "rawtoaces-190", &Grid::default()).unwrap();
-    let src = Frame::synthetic_camera_rgb(WIDTH, HEIGHT, Layout::Rgb, 0x5eed);
+    let src = synthetic_camera_rgb(WIDTH, HEIGHT, Layout::Rgb, 0x5eed);
     let mut dst = Frame::new(WIDTH, HEIGHT, Layout::Rgb);
     dst.data.iter_mut().for_each(|v| *v = 1.0); // pre-fault
 

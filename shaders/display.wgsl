@@ -1,4 +1,4 @@
-// Display pass of the embedding demo (nsrm::gpu::demo, examples/embed.rs): draws the corrected
+// Display pass of the embedding example (examples/embed.rs): draws the corrected
 // XYZ texture to an 8-bit target as sRGB. A full-screen triangle; the fragment shader converts
 // XYZ → linear sRGB with the uniform's rows (XYZ scaled so the white has Y = 1, Bradford-adapted
 // to D65), clamps to [0, 1] and applies the sRGB transfer function. The target is a plain

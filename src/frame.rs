@@ -1,7 +1,5 @@
 //! The frame type every apply path takes: the CPU reference, the fast CPU path and the GPU engine.
 
-use rayon::prelude::*;
-
 /// How a frame's channels are interleaved.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
 pub enum Layout {
@@ -72,40 +70,5 @@ impl Frame {
     /// Number of pixels.
     pub fn pixels(&self) -> usize {
         self.width * self.height
-    }
-
-    /// A benchmark frame of camera RGB in a realistic range, from `seed`: channels 0..1 with a camera-like balance, 2 % of
-    /// pixels highlights up to ×8, alpha 1. Generated in parallel, the same for any thread count.
-    pub fn synthetic_camera_rgb(width: usize, height: usize, layout: Layout, seed: u64) -> Frame {
-        let ch = layout.channels();
-        let mut frame = Frame::new(width, height, layout);
-        frame
-            .data
-            .par_chunks_mut((1 << 16) * ch)
-            .enumerate()
-            .for_each(|(i, chunk)| {
-                let mut state = seed ^ (i as u64).wrapping_mul(0x9e37_79b9_7f4a_7c15);
-                let mut next = || {
-                    state = state.wrapping_add(0x9e37_79b9_7f4a_7c15);
-                    let mut z = state;
-                    z = (z ^ (z >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
-                    z = (z ^ (z >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
-                    ((z ^ (z >> 31)) >> 40) as f32 / (1u32 << 24) as f32
-                };
-                for px in chunk.chunks_exact_mut(ch) {
-                    let gain = if next() < 0.02 {
-                        1.0 + 7.0 * next()
-                    } else {
-                        1.0
-                    };
-                    for (c, balance) in [0.55f32, 1.0, 0.75].into_iter().enumerate() {
-                        px[c] = next() * balance * gain;
-                    }
-                    if ch == 4 {
-                        px[3] = 1.0;
-                    }
-                }
-            });
-        frame
     }
 }

@@ -19,7 +19,9 @@ pub enum TrainingError {
         "{source_name}: header must be `label,R,G,B,X,Y,Z` or `label,R,G,B,L,a,b`, found `{found}`"
     )]
     Header { source_name: String, found: String },
-    #[error("{source_name}: Lab training data needs a reference white (`--white X,Y,Z` or an illuminant name)")]
+    #[error(
+        "{source_name}: Lab training data needs a reference white (X,Y,Z or an illuminant name)"
+    )]
     NeedsWhite { source_name: String },
     #[error("{source_name}: line {line}: {found} cells, expected 7")]
     Ragged {

@@ -6,27 +6,9 @@ use nsrm::eval::Stats;
 use nsrm::io::chart::{layout_path, ChartLayout};
 use nsrm::io::{read_frame, ReadOptions};
 use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
 
-fn nsrm(dir: &Path, args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_nsrm"))
-        .current_dir(dir)
-        .args(args)
-        .env_remove("NSRM_ADAPTER")
-        .output()
-        .expect("running nsrm")
-}
-
-fn ok(dir: &Path, args: &[&str]) -> Output {
-    let out = nsrm(dir, args);
-    assert!(
-        out.status.success(),
-        "nsrm {args:?} failed: {}\n{}",
-        String::from_utf8_lossy(&out.stderr),
-        String::from_utf8_lossy(&out.stdout)
-    );
-    out
-}
+mod common;
+use common::{nsrm_in as nsrm, nsrm_ok as ok};
 
 /// Renders the rawtoaces-190 chart under D65 and fits NSRM order 3 on the same data.
 fn chart_and_model(dir: &Path) {
@@ -461,7 +443,7 @@ fn usage_and_setup_errors() {
         (
             &["--output-space", "p3", "chart.exr"],
             2,
-            "unknown --output-space",
+            "invalid value 'p3' for '--output-space",
         ),
         (&["--suffix", "", "chart.exr"], 2, "onto that input itself"),
         (&["--format", "tiff", "--half", "chart.exr"], 2, "--half"),

@@ -2,18 +2,9 @@
 //! frame, run as a user would.
 
 use std::path::{Path, PathBuf};
-use std::process::Command;
 
-fn nsrm() -> Command {
-    Command::new(env!("CARGO_BIN_EXE_nsrm"))
-}
-
-fn tempdir(name: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!("nsrm-chart-{name}-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&d);
-    std::fs::create_dir_all(&d).unwrap();
-    d
-}
+mod common;
+use common::{nsrm, tempdir};
 
 fn run(args: &[&str]) -> (bool, String) {
     let out = nsrm().args(args).output().unwrap();
@@ -182,7 +173,8 @@ fn apply_on_the_fitted_frame_reproduces_the_reference() {
     let model = nsrm::Model::load(&model_path).unwrap();
     let white = model.white_xyz();
     // The output is XYZ with white Y = 1, adapted from the reference white (D50) to D65.
-    let to_out = nsrm::io::output_matrix(white, nsrm::colorimetry::spaces::OutputSpace::Xyz);
+    let to_out =
+        nsrm::colorimetry::output_matrix(white, nsrm::colorimetry::spaces::OutputSpace::Xyz);
     let d65 = nsrm::colorimetry::D65_WHITE_XYZ;
     for p in reading["patches"].as_array().unwrap() {
         let v = |k: &str| -> Vec<f64> {

@@ -1,18 +1,7 @@
 //! The `nsrm eval` and `nsrm fit` commands, run as a user would.
 
-use std::path::PathBuf;
-use std::process::Command;
-
-fn nsrm() -> Command {
-    Command::new(env!("CARGO_BIN_EXE_nsrm"))
-}
-
-fn tempdir(name: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!("nsrm-cli-{name}-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&d);
-    std::fs::create_dir_all(&d).unwrap();
-    d
-}
+mod common;
+use common::{nsrm, tempdir};
 
 #[test]
 fn eval_default_prints_the_table_for_three_illuminants() {

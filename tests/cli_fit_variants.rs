@@ -1,10 +1,7 @@
 //! `nsrm fit` and `nsrm eval` with the fit-variant flags (issue 11), run as a user would.
 
-use std::process::Command;
-
-fn nsrm() -> Command {
-    Command::new(env!("CARGO_BIN_EXE_nsrm"))
-}
+mod common;
+use common::nsrm;
 
 #[test]
 fn fit_writes_the_variant_and_its_diagnostics_into_the_model_file() {

@@ -3,6 +3,8 @@
 //! run on test pixels; its output must match the f64 model with the output space folded in, as
 //! `nsrm apply` writes it, to the f32 accuracy of the GPU shaders.
 
+mod common;
+
 use nsrm::colorimetry::spaces::OutputSpace;
 use nsrm::model::fit::{fit_with, FitOptions, Normalise};
 use nsrm::model::{fit, Kind, Model};
@@ -180,7 +182,7 @@ fn dctl_compiles_as_c_and_matches_the_f64_model() {
         for (suffix, model) in models {
             let (kind, order) = (model.kind(), model.order());
             for space in [OutputSpace::Xyz, OutputSpace::Acescg] {
-                let folded = nsrm::io::output_model(&model, space).unwrap();
+                let folded = nsrm::colorimetry::output_model(&model, space).unwrap();
                 let dctl = nsrm::export::dctl::generate(&folded, &["test".into()]).unwrap();
                 assert!(dctl.contains("__DEVICE__ float3 transform(int p_Width"));
                 let name = format!(
@@ -216,7 +218,7 @@ fn export_shader_writes_dctl_through_the_cli() {
     let model = fit(Kind::Rprm, 3, &data).unwrap();
     std::fs::write(dir.path().join("m.json"), model.to_json()).unwrap();
     let run = |args: &[&str]| {
-        Command::new(env!("CARGO_BIN_EXE_nsrm"))
+        common::nsrm()
             .current_dir(dir.path())
             .args(args)
             .output()
@@ -243,7 +245,7 @@ fn export_shader_writes_dctl_through_the_cli() {
         text.contains("acescg") && text.contains("cbrt(R*G^2)"),
         "{text}"
     );
-    let folded = nsrm::io::output_model(&model, OutputSpace::Acescg).unwrap();
+    let folded = nsrm::colorimetry::output_model(&model, OutputSpace::Acescg).unwrap();
     if let Some(cc) = cc() {
         let px = pixels(&data);
         let got = run_dctl(&cc, dir.path(), "cli", &text, &px);

@@ -7,6 +7,8 @@
 //! installs it). Without them each test prints `SKIP: …` and passes, except under `CI=true`,
 //! where they fail.
 
+mod common;
+
 use nsrm::colorimetry::delta_e00_xyz;
 use nsrm::colorimetry::spaces::{self, OutputSpace};
 use nsrm::export::{dense_chromaticities, Format, LutExport, LutOptions};
@@ -48,10 +50,7 @@ fn run(cmd: &mut Command) -> std::process::Output {
 }
 
 fn nsrm(dir: &Path, args: &[&str]) -> std::process::Output {
-    run(Command::new(env!("CARGO_BIN_EXE_nsrm"))
-        .current_dir(dir)
-        .args(args)
-        .env_remove("NSRM_ADAPTER"))
+    run(common::nsrm().current_dir(dir).args(args))
 }
 
 fn data() -> TrainingSet {
@@ -173,7 +172,7 @@ impl Case {
 
 /// ΔE00 between two output-space values, in the model's XYZ with its training white.
 fn de(model: &Model, space: OutputSpace, a: [f64; 3], b: [f64; 3]) -> f64 {
-    let back = spaces::invert(&nsrm::io::output_matrix(model.white_xyz(), space));
+    let back = spaces::invert(&nsrm::colorimetry::output_matrix(model.white_xyz(), space));
     delta_e00_xyz(
         spaces::apply(&back, a),
         spaces::apply(&back, b),
@@ -325,7 +324,7 @@ fn malformed_requests_fail_and_leave_no_file() {
     let (_, path) = c.model(Kind::Nsrm, 3);
     let m = path.to_str().unwrap();
     let fail = |args: &[&str], needle: &str| {
-        let o = Command::new(env!("CARGO_BIN_EXE_nsrm"))
+        let o = common::nsrm()
             .current_dir(c.dir.path())
             .args(args)
             .output()
@@ -345,7 +344,10 @@ fn malformed_requests_fail_and_leave_no_file() {
         let r: Vec<&str> = v.iter().map(|s| s.as_str()).collect();
         fail(&r, needle)
     };
-    assert_eq!(call(&["--format", "exr"], "--format `exr`"), Some(2));
+    assert_eq!(
+        call(&["--format", "exr"], "invalid value 'exr' for '--format"),
+        Some(2)
+    );
     assert_eq!(
         call(&["--format", "clf", "--lut-size", "1"], "LUT size 1"),
         Some(2)
@@ -367,7 +369,14 @@ fn malformed_requests_fail_and_leave_no_file() {
     assert_eq!(
         call(
             &["--format", "clf", "--max-de00", "0.001"],
-            "exceeds --max-de00 0.001"
+            "exceeds the limit 0.001"
+        ),
+        Some(1)
+    );
+    assert_eq!(
+        call(
+            &["--format", "clf", "--max-de00", "0.001"],
+            "--max-de00 0.001: "
         ),
         Some(1)
     );

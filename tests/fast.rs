@@ -3,17 +3,15 @@
 //!
 //! Accuracy criterion, per pixel and output channel `k` (`ref` = the f64 reference rounded to f32):
 //! * reference NaN ⇒ fast NaN; reference ±∞ ⇒ fast the same ±∞; reference finite ⇒ fast finite and
-//!   `|fast_k − ref_k| ≤ REL·max(|ref_X|, |ref_Y|, |ref_Z|) + TERM_REL·T_k + ABS_FLOOR`:
-//!   - `REL = 1e-5`, relative to the pixel's largest output component (the three components of one
-//!     colour share a scale);
+//!   `|fast_k − ref_k| ≤ 1e-5·max(|ref_k|, T_k, 1e-30)` — the one f32 bound of the GPU tests too
+//!   (`tests/common`: `f32_bound`):
 //!   - `T_k = |s|·Σ_j |m_kj·p_j|` (f64), the size of the summands of output `k`. Where the model
 //!     cancels (summands much larger than the result: PRM extrapolating HDR values, the fitted
 //!     RPRM 3/4 and PRM 3/4 whose coefficients run into the thousands), no f32 evaluation can be
 //!     within 1e-5 of the result — rounding the coefficients alone to f32 moves it by 6e-8·T_k —
-//!     so the bound allows `TERM_REL = 1e-6` of `T_k` (measured worst: 4.5e-7·T_k). For
-//!     well-conditioned pixels (`T_k ≤ 10·max|ref|`) this stays within 2e-5 of the result;
-//!   - an absolute floor `ABS_FLOOR = 1e-30` that only matters for pixels whose reference is
-//!     exactly 0 (all-zero input; NSRM with `s ≤ 0`).
+//!     so the bound is relative to `T_k` there (measured worst: 4.5e-7·T_k);
+//!   - the floor 1e-30 only matters for pixels whose reference is exactly 0 (all-zero input;
+//!     NSRM with `s ≤ 0`).
 //!
 //!   `cargo test --test fast -- --nocapture` prints the worst `err/max|ref|` and `err/T_k` per model.
 //! * Alpha is bit-for-bit unchanged.
@@ -23,40 +21,12 @@
 use nsrm::model::fast::{apply_frame, apply_frame_single, FastModel, Threads};
 use nsrm::model::fit::{fit_with, FitOptions, Normalise};
 use nsrm::model::{fit, terms, Kind, Model, MAX_ORDER};
-use nsrm::spectral::{simulate_named, Grid};
-use nsrm::{Frame, Layout, TrainingSet};
-use std::sync::OnceLock;
+use nsrm::{Frame, Layout};
 
-const REL: f64 = 1e-5;
-const TERM_REL: f64 = 1e-6;
-const ABS_FLOOR: f64 = 1e-30;
-
-/// SplitMix64: a fixed-seed generator (no extra dependency).
-struct Rng(u64);
-
-impl Rng {
-    fn next_u64(&mut self) -> u64 {
-        self.0 = self.0.wrapping_add(0x9e37_79b9_7f4a_7c15);
-        let mut z = self.0;
-        z = (z ^ (z >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
-        z ^ (z >> 31)
-    }
-    /// Uniform in [0, 1).
-    fn f(&mut self) -> f32 {
-        (self.next_u64() >> 40) as f32 / (1u64 << 24) as f32
-    }
-    fn below(&mut self, n: u64) -> usize {
-        (self.next_u64() % n) as usize
-    }
-}
-
-fn training() -> &'static TrainingSet {
-    static DATA: OnceLock<TrainingSet> = OnceLock::new();
-    DATA.get_or_init(|| {
-        simulate_named("nikon-d5100", "D65", "rawtoaces-190", &Grid::default()).unwrap()
-    })
-}
+mod common;
+use common::{
+    awkward_frame as random_frame, f32_bound, summands as term_magnitude, training, Rng, F32_REL,
+};
 
 /// Every kind at every order, fitted on simulated chart data (realistic coefficients, including
 /// PRM 4's large ones of both signs), and white-balanced NSRM (input gains) at every order.
@@ -89,65 +59,6 @@ fn white_balanced_nsrm() -> Vec<Model> {
             m
         })
         .collect()
-}
-
-/// One pixel of a given flavour.
-fn pixel(rng: &mut Rng, flavour: usize) -> [f32; 3] {
-    let mut p = [rng.f(), rng.f(), rng.f()];
-    let c = rng.below(3);
-    match flavour {
-        0 | 1 => {}                                        // ordinary 0..1
-        2 => p[c] = 0.0,                                   // a zero channel
-        3 => p = [0.0; 3],                                 // black
-        4 => p[c] = -0.02 * rng.f(),                       // slight negative (noise around black)
-        5 => p.iter_mut().for_each(|v| *v *= 100.0),       // HDR highlight
-        6 => p.iter_mut().for_each(|v| *v *= 1e-6),        // tiny
-        7 => p[c] = f32::NAN,                              // NaN
-        8 => p[c] = f32::INFINITY,                         // +Inf
-        9 => p[c] = f32::NEG_INFINITY,                     // −Inf
-        10 => p = [-0.01 * rng.f(), -0.01 * rng.f(), 0.0], // s < 0
-        11 => p[c] = -0.0,                                 // negative zero
-        12 => p = [1e-3 + rng.f(), 0.0, 0.0],              // a single channel
-        _ => p.iter_mut().for_each(|v| *v *= 4.0),         // mild highlight
-    }
-    p
-}
-
-fn random_frame(width: usize, height: usize, layout: Layout, seed: u64) -> Frame {
-    let mut rng = Rng(seed);
-    let ch = layout.channels();
-    let mut data = Vec::with_capacity(width * height * ch);
-    for _ in 0..width * height {
-        let flavour = rng.below(14);
-        data.extend_from_slice(&pixel(&mut rng, flavour));
-        if ch == 4 {
-            // Alpha of any value, NaN included: it must come back bit for bit.
-            let a = match rng.below(4) {
-                0 => f32::NAN,
-                1 => -rng.f(),
-                _ => rng.f(),
-            };
-            data.push(a);
-        }
-    }
-    Frame::from_data(width, height, layout, data).unwrap()
-}
-
-/// `T_k = |scale|·Σ_j |m_kj·p_j|` in f64: the size of the summands of output channel `k`.
-fn term_magnitude(model: &Model, rgb: [f64; 3]) -> [f64; 3] {
-    let mut p = vec![0.0; model.terms().len()];
-    match model.features_of(rgb, &mut p) {
-        None => [0.0; 3],
-        Some(s) => [0, 1, 2].map(|k| {
-            s.abs()
-                * model
-                    .row(k)
-                    .iter()
-                    .zip(&p)
-                    .map(|(m, v)| (m * v).abs())
-                    .sum::<f64>()
-        }),
-    }
 }
 
 /// Worst error measures over the finite pixels; panics on any violation.
@@ -185,7 +96,7 @@ fn compare(model: &Model, input: &Frame, fast: &Frame, what: &str) -> Worst {
                 assert!(fv.is_finite(), "expected finite: {}", ctx());
                 let err = (fv - rv).abs();
                 assert!(
-                    err <= REL * scale + TERM_REL * tm[k] + ABS_FLOOR,
+                    err <= f32_bound(rv, tm[k], F32_REL),
                     "error {err:e} > bound (summands T_k = {:e}): {}",
                     tm[k],
                     ctx()
@@ -305,14 +216,16 @@ fn random_matrices_on_every_kind_and_order() {
         for order in 1..=MAX_ORDER {
             let order = kind.effective_order(order);
             let l = terms(kind, order).len();
-            let matrix: Vec<f64> = (0..3 * l).map(|_| (rng.f() as f64 - 0.3) * 50.0).collect();
+            let matrix: Vec<f64> = (0..3 * l)
+                .map(|_| (rng.unit() as f64 - 0.3) * 50.0)
+                .collect();
             let model = Model::from_matrix(kind, order, matrix).unwrap();
             let input = random_frame(31, 9, Layout::Rgb, 5 + order as u64);
             let out = run_all_paths(&model, &input);
             compare(&model, &input, &out, "random matrix");
             if kind == Kind::Nsrm {
                 // Random input gains over three decades.
-                let gains = [0, 1, 2].map(|_| 10f64.powf(3.0 * rng.f() as f64 - 1.5));
+                let gains = [0, 1, 2].map(|_| 10f64.powf(3.0 * rng.unit() as f64 - 1.5));
                 let model = model.with_input_gains(gains).unwrap();
                 let out = run_all_paths(&model, &input);
                 compare(&model, &input, &out, "random matrix and gains");

@@ -16,8 +16,12 @@ use nsrm::gpu::{self, Corrector, DeviceChoice, Engine, GpuError, GpuOptions, Tar
 use nsrm::model::fit::{fit_with, FitOptions, Normalise};
 use nsrm::model::{fit, Kind, Model, MAX_ORDER};
 use nsrm::spectral::{simulate_named, Grid};
-use nsrm::{Frame, Layout, TrainingSet};
-use std::sync::OnceLock;
+use nsrm::{Frame, Layout};
+
+/// The embedding example, for its functions (chart → Corrector pass → display pass → RGBA8).
+#[path = "../examples/embed.rs"]
+#[allow(dead_code)]
+mod embed;
 
 const SKIP: &str = "SKIP: no GPU adapter (install mesa-vulkan-drivers libvulkan1)";
 const REL_TOL: f64 = 1e-5;
@@ -45,12 +49,8 @@ fn engine(tile_pixels: Option<usize>) -> Option<Engine> {
     }
 }
 
-fn training() -> &'static TrainingSet {
-    static DATA: OnceLock<TrainingSet> = OnceLock::new();
-    DATA.get_or_init(|| {
-        simulate_named("nikon-d5100", "D65", "rawtoaces-190", &Grid::default()).unwrap()
-    })
-}
+mod common;
+use common::{awkward_frame as random_frame, f32_bound, summands, training, Rng};
 
 fn model(kind: Kind, order: u8) -> Model {
     fit(kind, order, training()).unwrap()
@@ -67,90 +67,6 @@ fn white_balanced(order: u8) -> Model {
         .model;
     assert!(!m.has_unit_gains());
     m
-}
-
-/// A seeded LCG.
-struct Rng(u64);
-
-impl Rng {
-    fn next_u32(&mut self) -> u32 {
-        self.0 = self
-            .0
-            .wrapping_mul(6364136223846793005)
-            .wrapping_add(1442695040888963407);
-        (self.0 >> 32) as u32
-    }
-    fn unit(&mut self) -> f32 {
-        (self.next_u32() >> 8) as f32 / (1u32 << 24) as f32
-    }
-    fn range(&mut self, a: f32, b: f32) -> f32 {
-        a + (b - a) * self.unit()
-    }
-}
-
-/// A random frame mixing ordinary pixels with the pixel policy's edge cases: a zero channel,
-/// all-zero pixels, a slightly negative channel, HDR (×100), tiny (×1e-6), NaN and ±Inf.
-/// Alpha gets random bit patterns (NaN payloads included).
-fn random_frame(width: usize, height: usize, layout: Layout, seed: u64) -> Frame {
-    let mut rng = Rng(seed);
-    let ch = layout.channels();
-    let mut data = Vec::with_capacity(width * height * ch);
-    for _ in 0..width * height {
-        let mut px = [
-            rng.range(0.02, 1.0),
-            rng.range(0.02, 1.0),
-            rng.range(0.02, 1.0),
-        ];
-        let c = (rng.next_u32() % 3) as usize;
-        match rng.next_u32() % 16 {
-            0 => px[c] = 0.0,
-            1 => px = [0.0; 3],
-            2 => {
-                px = [
-                    rng.range(0.2, 1.0),
-                    rng.range(0.2, 1.0),
-                    rng.range(0.2, 1.0),
-                ];
-                px[c] = -rng.range(0.0, 0.02);
-            }
-            3 => px.iter_mut().for_each(|v| *v *= 100.0),
-            4 => px.iter_mut().for_each(|v| *v *= 1e-6),
-            5 => px[c] = f32::NAN,
-            6 => {
-                px[c] = if rng.next_u32() % 2 == 0 {
-                    f32::INFINITY
-                } else {
-                    f32::NEG_INFINITY
-                }
-            }
-            _ => {}
-        }
-        data.extend_from_slice(&px);
-        if ch == 4 {
-            data.push(f32::from_bits(rng.next_u32()));
-        }
-    }
-    Frame::from_data(width, height, layout, data).unwrap()
-}
-
-/// The floor of each output channel of a pixel: `|s| · Σ_j |M_ij · p_j|`.
-fn summand_floor(model: &Model, px: &[f32]) -> [f64; 3] {
-    let mut p = vec![0.0; model.terms().len()];
-    let rgb = [px[0] as f64, px[1] as f64, px[2] as f64];
-    let Some(scale) = model.features_of(rgb, &mut p) else {
-        return [1e-30; 3];
-    };
-    let mut f = [0.0; 3];
-    for (i, fi) in f.iter_mut().enumerate() {
-        let sum: f64 = model
-            .row(i)
-            .iter()
-            .zip(&p)
-            .map(|(m, x)| (m * x).abs())
-            .sum();
-        *fi = (scale.abs() * sum).max(1e-30);
-    }
-    f
 }
 
 /// Checks `gpu` against `reference` (see the module docs); returns the largest error
@@ -174,7 +90,7 @@ fn compare_stats(
         .zip(input.data.chunks_exact(ch))
         .enumerate()
     {
-        let floor = summand_floor(model, x);
+        let floor = summands(model, [x[0] as f64, x[1] as f64, x[2] as f64]).map(|t| t.max(1e-30));
         for k in 0..ch {
             let (gv, rv) = (g[k], r[k]);
             let at = || {
@@ -201,8 +117,13 @@ fn compare_stats(
             } else {
                 assert!(gv.is_finite(), "{}: finite value expected", at());
                 let diff = (gv as f64 - rv as f64).abs();
+                assert!(
+                    diff <= f32_bound(rv as f64, floor[k], rel_tol),
+                    "{}: relative error {:e}",
+                    at(),
+                    diff / (rv as f64).abs().max(floor[k])
+                );
                 let err = diff / (rv as f64).abs().max(floor[k]);
-                assert!(err <= rel_tol, "{}: relative error {err:e}", at());
                 worst = worst.max(err);
                 if (rv as f64).abs() >= floor[k] / 10.0 {
                     worst_plain = worst_plain.max(diff / (rv as f64).abs());
@@ -614,7 +535,7 @@ fn corrector_on_textures() {
     let input = random_frame(w as usize, h as usize, Layout::Rgba, 21);
     let mut reference = input.clone();
     m.apply_frame_f64(&mut reference);
-    let src = nsrm::gpu::demo::upload_rgba32f(dev, queue, &input).unwrap();
+    let src = upload_rgba32f(dev, queue, &input);
     for (format, tol) in [
         (TexelFormat::Rgba32Float, REL_TOL),
         (TexelFormat::Rgba16Float, 1e-3),
@@ -637,7 +558,7 @@ fn corrector_on_textures() {
         let mut enc = dev.create_command_encoder(&Default::default());
         c.record_textures(dev, &mut enc, &src, &dst, None).unwrap();
         queue.submit([enc.finish()]);
-        let out = nsrm::gpu::demo::read_texture_rgba_f32(dev, queue, &dst).unwrap();
+        let out = read_texture_rgba_f32(dev, queue, &dst);
         let got = Frame::from_data(w as usize, h as usize, Layout::Rgba, out).unwrap();
         if format == TexelFormat::Rgba32Float {
             compare("texture rgba32float", &m, &input, &got, &reference, tol);
@@ -661,6 +582,89 @@ fn corrector_on_textures() {
     }
 }
 
+/// A frame (RGBA) as a new `rgba32float` texture a corrector can read.
+fn upload_rgba32f(dev: &wgpu::Device, queue: &wgpu::Queue, frame: &Frame) -> wgpu::Texture {
+    use wgpu::util::DeviceExt;
+    assert_eq!(frame.layout, Layout::Rgba);
+    dev.create_texture_with_data(
+        queue,
+        &wgpu::TextureDescriptor {
+            label: None,
+            size: wgpu::Extent3d {
+                width: frame.width as u32,
+                height: frame.height as u32,
+                depth_or_array_layers: 1,
+            },
+            mip_level_count: 1,
+            sample_count: 1,
+            dimension: wgpu::TextureDimension::D2,
+            format: wgpu::TextureFormat::Rgba32Float,
+            usage: wgpu::TextureUsages::TEXTURE_BINDING,
+            view_formats: &[],
+        },
+        wgpu::util::TextureDataOrder::LayerMajor,
+        bytemuck::cast_slice(&frame.data),
+    )
+}
+
+/// An `rgba32float` or `rgba16float` texture (with `COPY_SRC`) read back as RGBA f32.
+fn read_texture_rgba_f32(dev: &wgpu::Device, queue: &wgpu::Queue, tex: &wgpu::Texture) -> Vec<f32> {
+    let bpp = tex.format().block_copy_size(None).unwrap();
+    let (w, h) = (tex.width(), tex.height());
+    let row = bpp * w;
+    let padded =
+        row.div_ceil(wgpu::COPY_BYTES_PER_ROW_ALIGNMENT) * wgpu::COPY_BYTES_PER_ROW_ALIGNMENT;
+    let rb = dev.create_buffer(&wgpu::BufferDescriptor {
+        label: None,
+        size: u64::from(padded) * u64::from(h),
+        usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
+        mapped_at_creation: false,
+    });
+    let mut enc = dev.create_command_encoder(&Default::default());
+    enc.copy_texture_to_buffer(
+        tex.as_image_copy(),
+        wgpu::TexelCopyBufferInfo {
+            buffer: &rb,
+            layout: wgpu::TexelCopyBufferLayout {
+                offset: 0,
+                bytes_per_row: Some(padded),
+                rows_per_image: Some(h),
+            },
+        },
+        tex.size(),
+    );
+    queue.submit([enc.finish()]);
+    rb.map_async(wgpu::MapMode::Read, .., |r| r.unwrap());
+    dev.poll(wgpu::PollType::wait_indefinitely()).unwrap();
+    let bytes: Vec<u8> = {
+        let view = rb.get_mapped_range(..).unwrap();
+        (0..h as usize)
+            .flat_map(|y| &view[y * padded as usize..y * padded as usize + row as usize])
+            .copied()
+            .collect()
+    };
+    match tex.format() {
+        wgpu::TextureFormat::Rgba32Float => bytemuck::pod_collect_to_vec(&bytes),
+        wgpu::TextureFormat::Rgba16Float => bytes
+            .chunks_exact(2)
+            .map(|b| half::f16::from_ne_bytes([b[0], b[1]]).to_f32())
+            .collect(),
+        f => panic!("{f:?} is not a float RGBA format"),
+    }
+}
+
+/// The display shader of the embedding example validates and has its two entry points.
+#[test]
+fn embed_display_shader_validates() {
+    let (module, _) = gpu::shader::validate(embed::DISPLAY_WGSL).unwrap();
+    let names: Vec<_> = module
+        .entry_points
+        .iter()
+        .map(|e| e.name.as_str())
+        .collect();
+    assert_eq!(names, ["vs_main", "fs_main"]);
+}
+
 fn read_buffer(dev: &wgpu::Device, queue: &wgpu::Queue, buf: &wgpu::Buffer) -> Vec<f32> {
     let rb = dev.create_buffer(&wgpu::BufferDescriptor {
         label: None,
@@ -678,7 +682,7 @@ fn read_buffer(dev: &wgpu::Device, queue: &wgpu::Queue, buf: &wgpu::Buffer) -> V
     v
 }
 
-/// The embedding demo (the code path of `examples/embed.rs`): chart → texture → Corrector
+/// The embedding example (`examples/embed.rs`, the same functions): chart → texture → Corrector
 /// pass → display render pass → PNG, against the f64 CPU path (±1 of 255 per channel: the
 /// corrected texture is half float and the GPU's unorm conversion rounds on its own).
 #[test]
@@ -687,16 +691,16 @@ fn embed_demo_png_matches_the_cpu_path() {
     let ctx = e.context();
     let data = simulate_named("nikon-d5100", "D65", "cc24", &Grid::default()).unwrap();
     let m = fit(Kind::Nsrm, 3, &data).unwrap();
-    let frame = gpu::demo::chart_frame(&data, 6, 8);
+    let frame = embed::chart_frame(&data, 6, 8);
     assert_eq!((frame.width, frame.height), (48, 32));
-    let rgba8 = gpu::demo::render_corrected(&ctx.device, &ctx.queue, &m, &frame).unwrap();
+    let rgba8 = embed::render_corrected(&ctx.device, &ctx.queue, &m, &frame).unwrap();
     let dir = tempfile::tempdir().unwrap();
     let path = dir.path().join("embed.png");
-    gpu::demo::save_png(&path, 48, 32, &rgba8).unwrap();
+    embed::save_png(&path, 48, 32, &rgba8).unwrap();
     let png = image::open(&path).unwrap().to_rgba8();
     assert_eq!(png.dimensions(), (48, 32));
     assert_eq!(png.as_raw(), &rgba8);
-    let cpu = gpu::demo::cpu_srgb8(&m, &frame);
+    let cpu = embed::cpu_srgb8(&m, &frame);
     let mut exact = 0;
     for (i, (g, c)) in png.as_raw().iter().zip(&cpu).enumerate() {
         assert!(g.abs_diff(*c) <= 1, "byte {i}: GPU {g}, CPU {c}");

@@ -2,13 +2,11 @@
 //! language, and read each output back with naga.
 
 use std::path::Path;
-use std::process::Command;
+
+mod common;
 
 fn nsrm(args: &[&str]) -> std::process::Output {
-    Command::new(env!("CARGO_BIN_EXE_nsrm"))
-        .args(args)
-        .output()
-        .expect("run nsrm")
+    common::nsrm().args(args).output().expect("run nsrm")
 }
 
 fn validate(module: &naga::Module) {

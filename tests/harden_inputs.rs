@@ -1,8 +1,8 @@
 //! Family 5 (input size is bounded, parsing is linear) and family 7 (every input is reported,
 //! by the right name, once).
 
-mod hardening;
-use hardening::*;
+mod common;
+use common::*;
 use nsrm::TrainingSet;
 use std::path::Path;
 
@@ -24,7 +24,7 @@ fn dev_zero_as_any_text_input_fails_fast() {
     std::fs::write(d.join("t.csv"), "label,R,G,B,X,Y,Z\na,1,1,1,1,1,1\n").unwrap();
     for args in cases {
         let t = std::time::Instant::now();
-        let o = nsrm(d, &args);
+        let o = nsrm_in(d, &args);
         no_crash(&o, &format!("{args:?}"));
         assert_eq!(o.status.code(), Some(1), "{args:?}: {}", stderr(&o));
         let err = stderr(&o);
@@ -43,7 +43,7 @@ fn dev_zero_as_any_text_input_fails_fast() {
             .arg(d.join("fifo.json"))
             .status()
             .unwrap();
-        let o = nsrm(d, &["apply", "--model", "fifo.json", "a.exr"]);
+        let o = nsrm_in(d, &["apply", "--model", "fifo.json", "a.exr"]);
         assert!(
             stderr(&o).contains("not a regular file (it is a FIFO)"),
             "{}",
@@ -117,13 +117,13 @@ fn messages_name_the_right_thing_once() {
     exr(&d.join("a.exr"), 2, 2);
     model(d);
     // A missing model: the OS error appears once.
-    let o = nsrm(d, &["apply", "--model", "missing.json", "a.exr"]);
+    let o = nsrm_in(d, &["apply", "--model", "missing.json", "a.exr"]);
     let err = stderr(&o);
     assert_eq!(err.matches("(os error 2)").count(), 1, "{err}");
     assert_eq!(err.matches("missing.json").count(), 1, "{err}");
     // A bad frame: its name appears once per line.
     std::fs::write(d.join("bad.exr"), b"v/1\x01 not really").unwrap();
-    let o = nsrm(
+    let o = nsrm_in(
         d,
         &[
             "apply",
@@ -149,13 +149,13 @@ fn messages_name_the_right_thing_once() {
         "the good frame is converted: {err}"
     );
     // --order is not --orders.
-    let o = nsrm(d, &["eval", "--order", "0"]);
+    let o = nsrm_in(d, &["eval", "--order", "0"]);
     assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
     assert!(stderr(&o).contains("--order `0`"), "{}", stderr(&o));
     assert!(!stderr(&o).contains("--orders"), "{}", stderr(&o));
     // A path that exists but is a directory: not "no such file".
     std::fs::create_dir(d.join("dir.json")).unwrap();
-    let o = nsrm(d, &["apply", "--model", "dir.json", "a.exr"]);
+    let o = nsrm_in(d, &["apply", "--model", "dir.json", "a.exr"]);
     assert!(
         stderr(&o).contains("not a regular file (it is a directory)"),
         "{}",
@@ -184,7 +184,7 @@ fn non_utf8_names_are_converted() {
     .enumerate()
     {
         let out = format!("o{k}");
-        let o = std::process::Command::new(env!("CARGO_BIN_EXE_nsrm"))
+        let o = nsrm()
             .current_dir(d)
             .args(["apply", "--model", "m.json", "--device", "cpu", "-o", &out])
             .arg(spec)

@@ -2,15 +2,15 @@
 //! overflow f32 or memory are refused with the limit in the message): usage errors, exit 2,
 //! never a panic (debug builds check overflow, so a panic here would show).
 
-mod hardening;
-use hardening::*;
+mod common;
+use common::*;
 
 fn usage_error(args: &[&str], want: &str) {
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
     model(d);
     exr(&d.join("a.exr"), 2, 2);
-    let o = nsrm(d, args);
+    let o = nsrm_in(d, args);
     no_crash(&o, &format!("{args:?}"));
     assert_eq!(o.status.code(), Some(2), "{args:?}: {}", stderr(&o));
     assert!(stderr(&o).contains(want), "{args:?}: {}", stderr(&o));
@@ -109,7 +109,7 @@ fn render_chart_flags_are_bounded() {
     // The largest accepted values still give finite pixels.
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
-    let o = nsrm(
+    let o = nsrm_in(
         d,
         &[
             "render-chart",

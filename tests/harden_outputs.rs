@@ -2,14 +2,14 @@
 //! not exist yet, symlinks and hard links, `--preview` names, and destinations that are not
 //! regular files, with and without `--overwrite`.
 
-mod hardening;
-use hardening::*;
+mod common;
+use common::*;
 use std::path::Path;
 
 fn apply(dir: &Path, extra: &[&str]) -> std::process::Output {
     let mut args = vec!["apply", "--model", "m.json", "--device", "cpu"];
     args.extend_from_slice(extra);
-    let o = nsrm(dir, &args);
+    let o = nsrm_in(dir, &args);
     no_crash(&o, &format!("{extra:?}"));
     o
 }

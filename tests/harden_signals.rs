@@ -3,8 +3,8 @@
 //! removes its temporaries, prints the summary and exits 130 / 143 / 129; every output present
 //! is complete. Stale temporaries of a killed run are reported and kept unless asked.
 
-mod hardening;
-use hardening::*;
+mod common;
+use common::*;
 use std::path::Path;
 use std::process::{Command, Stdio};
 use std::time::{Duration, Instant};
@@ -29,7 +29,7 @@ fn interrupt_run(signal: &str, status: i32) {
     let d = dir.path();
     let n = 400;
     batch(d, n);
-    let child = Command::new(env!("CARGO_BIN_EXE_nsrm"))
+    let child = nsrm()
         .current_dir(d)
         .args([
             "apply", "--model", "m.json", "--device", "cpu", "-j", "1", "-o", "out", "in",
@@ -123,7 +123,7 @@ fn stale_temporaries_are_reported_and_removed_only_when_asked() {
     let args = [
         "apply", "--model", "m.json", "--device", "cpu", "-o", "out", "in",
     ];
-    let o = nsrm(d, &args);
+    let o = nsrm_in(d, &args);
     assert!(o.status.success(), "{}", stderr(&o));
     assert!(
         stderr(&o).contains("1 nsrm temporary file(s)"),
@@ -134,7 +134,7 @@ fn stale_temporaries_are_reported_and_removed_only_when_asked() {
     assert!(stale.exists() && other.exists());
     let mut with = args.to_vec();
     with.extend(["--skip-existing", "--remove-stale-temporaries"]);
-    let o = nsrm(d, &with);
+    let o = nsrm_in(d, &with);
     assert!(o.status.success(), "{}", stderr(&o));
     assert!(stderr(&o).contains("removed 1 stale"), "{}", stderr(&o));
     assert!(!stale.exists());
@@ -147,7 +147,7 @@ fn render_chart_writes_frame_and_layout_together() {
     let d = dir.path();
     // The layout's name is taken by a directory: the frame must not appear alone.
     std::fs::create_dir(d.join("c.patches.json")).unwrap();
-    let o = nsrm(
+    let o = nsrm_in(
         d,
         &[
             "render-chart",
@@ -165,7 +165,7 @@ fn render_chart_writes_frame_and_layout_together() {
     assert!(stderr(&o).contains("not a regular file"), "{}", stderr(&o));
     assert_eq!(names(d), ["c.patches.json"]);
     std::fs::remove_dir(d.join("c.patches.json")).unwrap();
-    let o = nsrm(
+    let o = nsrm_in(
         d,
         &[
             "render-chart",

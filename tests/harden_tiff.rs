@@ -2,8 +2,8 @@
 //! file is never converted into made-up pixels. The files are crafted here from a valid TIFF
 //! by rewriting its directory entries.
 
-mod hardening;
-use hardening::*;
+mod common;
+use common::*;
 use nsrm::io::{Decoded, Limits, ReadOptions};
 use std::path::Path;
 
@@ -220,7 +220,7 @@ fn a_bad_tiff_fails_alone_in_a_batch() {
     set_values(&mut b, STRIP_OFFSETS, &vec![o[0]; o.len()]);
     std::fs::write(d.join("in/c_dup.tif"), &b).unwrap();
     std::fs::write(d.join("in/d_good.tif"), tiff16(16, 16)).unwrap();
-    let o = nsrm(
+    let o = nsrm_in(
         d,
         &[
             "apply",

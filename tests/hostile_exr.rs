@@ -3,6 +3,8 @@
 //! turned into black rows), a small file cannot drive memory up, and a bad frame in a
 //! `--continue-on-error` batch fails alone. Ends with a bounded fuzz over mutated real files.
 
+mod common;
+
 use nsrm::io::{Decoded, IoError, Limits, ReadOptions};
 use proptest::prelude::*;
 use std::path::Path;
@@ -263,7 +265,7 @@ fn a_batch_survives_hostile_frames_within_2_gib() {
     let d = dir.path();
     let nsrm = env!("CARGO_BIN_EXE_nsrm");
     let model = d.join("lrm.json");
-    let out = Command::new(nsrm)
+    let out = common::nsrm()
         .args(["fit", "--model", "lrm", "-o"])
         .arg(&model)
         .output()

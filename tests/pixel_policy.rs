@@ -17,9 +17,11 @@
 
 use nsrm::gpu::{Engine, GpuError, GpuOptions};
 use nsrm::model::fast::{FastModel, Threads};
-use nsrm::model::{features, fit, pixel, Kind, Model, MAX_ORDER};
-use nsrm::spectral::{simulate_named, Grid};
+use nsrm::model::{fit, pixel, Kind, Model, MAX_ORDER};
 use nsrm::{Frame, Layout};
+
+mod common;
+use common::{summands, training};
 
 /// The policy's pixels, by name. `huge` only where the model is exposure-invariant (PRM's cubes and
 /// fourth powers of 1e30 overflow f32 as they would in any f32 evaluation).
@@ -57,34 +59,16 @@ fn frame_of(pixels: &[(&str, [f32; 3])]) -> Frame {
 }
 
 fn models() -> Vec<Model> {
-    let data = simulate_named("nikon-d5100", "D65", "rawtoaces-190", &Grid::default()).unwrap();
     let mut v = Vec::new();
     for kind in Kind::ALL {
         for order in 1..=MAX_ORDER {
             if kind == Kind::Lrm && order > 1 {
                 continue;
             }
-            v.push(fit(kind, order, &data).unwrap());
+            v.push(fit(kind, order, training()).unwrap());
         }
     }
     v
-}
-
-/// `T_k = |s|·Σ_j |m_kj·p_j|` in f64.
-fn summands(model: &Model, rgb: [f64; 3]) -> [f64; 3] {
-    let mut p = vec![0.0; model.terms().len()];
-    match features(model.kind(), model.terms(), rgb, &mut p) {
-        None => [0.0; 3],
-        Some(s) => [0, 1, 2].map(|k| {
-            s.abs()
-                * model
-                    .row(k)
-                    .iter()
-                    .zip(&p)
-                    .map(|(m, v)| (m * v).abs())
-                    .sum::<f64>()
-        }),
-    }
 }
 
 /// Checks `out` (one path's result on `policy_pixels`) against the policy and the reference.

@@ -8,8 +8,8 @@
 use super::detect::Candidate;
 use super::extract::Extraction;
 use crate::colorimetry::spaces::{apply, OutputSpace};
+use crate::colorimetry::srgb8;
 use crate::frame::Frame;
-use crate::io::preview::srgb_oetf;
 use ab_glyph::{FontRef, PxScale};
 use image::{Rgb, RgbImage};
 use imageproc::drawing::{
@@ -33,10 +33,6 @@ pub struct Swatch {
 
 fn font() -> FontRef<'static> {
     FontRef::try_from_slice(FONT).expect("the embedded font parses (tested)")
-}
-
-fn srgb8(v: f64) -> u8 {
-    (srgb_oetf(v.clamp(0.0, 1.0)) * 255.0).round() as u8
 }
 
 /// Draws the overlay. `swatches`: (patches, reference white) after a fit.

@@ -5,11 +5,12 @@
 //! and encoding overlap and at most a few frames are held in memory.
 
 use super::common::UsageError;
+use super::values;
 use anyhow::{Context, Result};
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 use nsrm::colorimetry::spaces::{Mat3, OutputSpace};
 use nsrm::gpu::{DeviceChoice, Engine, GpuOptions};
-use nsrm::io::batch::{self, Action, BatchPlan, Existing, Job, PlanError, PlanOptions, Shard};
+use nsrm::io::batch::{self, Action, BatchPlan, Existing, Job, PlanOptions, Shard};
 use nsrm::io::{
     self as fio, preview, Decoded, ExrCompression, FileFormat, Limits, ReadOptions, WriteOptions,
 };
@@ -29,8 +30,8 @@ pub struct Args {
     #[arg(long, value_name = "FILE")]
     model: PathBuf,
     /// Where to correct: `gpu`, `cpu`, or `auto` (the GPU when an adapter exists, else the CPU).
-    #[arg(long, default_value = "auto", value_name = "auto|gpu|cpu")]
-    device: String,
+    #[arg(long, value_enum, ignore_case = true, default_value_t = values::Device::Auto)]
+    device: values::Device,
     /// GPU adapter: a substring of its name (case-insensitive); default `NSRM_ADAPTER`, else the
     /// system's choice.
     #[arg(long, value_name = "NAME")]
@@ -49,8 +50,8 @@ pub struct Args {
     suffix: Option<String>,
     /// Output file format: `exr` (float, or half with --half; keeps every channel and
     /// attribute of an EXR input) or `tiff` (32-bit float RGB/RGBA).
-    #[arg(long, default_value = "exr", value_name = "exr|tiff")]
-    format: String,
+    #[arg(long, value_enum, ignore_case = true, default_value_t = values::FileFormat::Exr)]
+    format: values::FileFormat,
     /// Replace existing outputs (never inputs).
     #[arg(long, conflicts_with = "skip_existing")]
     overwrite: bool,
@@ -75,8 +76,8 @@ pub struct Args {
     half: bool,
     /// EXR compression: `keep` (the input's if lossless, else zip), none, rle, zips, zip, piz.
     /// Noisy float data compresses little; `none` or `piz` encode fastest.
-    #[arg(long, default_value = "keep", value_name = "C")]
-    compression: String,
+    #[arg(long, value_enum, ignore_case = true, default_value_t = values::Compression::Keep)]
+    compression: values::Compression,
     /// Deflate level (0-9) of ZIP and ZIPS outputs. The default, 2, is the fastest that still
     /// compresses noisy float data (as much as 3-9 do); 1 uses fixed codes, which store such data
     /// raw; 0 stores raw.
@@ -85,8 +86,8 @@ pub struct Args {
     zip_level: u8,
     /// xyz, linear-srgb, acescg or aces2065-1. Pixels are scene-linear with the perfect white
     /// at Y = 1 (RGB spaces: white = 1, 1, 1 after Bradford adaptation from the training white).
-    #[arg(long, default_value = "xyz", value_name = "SPACE")]
-    output_space: String,
+    #[arg(long, value_enum, ignore_case = true, default_value_t = values::Space::Xyz)]
+    output_space: values::Space,
     /// Also write an 8-bit sRGB PNG of each frame here, for a quick look.
     #[arg(long, value_name = "DIR")]
     preview: Option<PathBuf>,
@@ -232,33 +233,13 @@ struct Request {
 }
 
 fn parse_request(a: &Args) -> Result<Request> {
-    let space = OutputSpace::parse(&a.output_space).ok_or_else(|| {
-        UsageError(format!(
-            "unknown --output-space `{}` (expected xyz, linear-srgb, acescg or aces2065-1)",
-            a.output_space
-        ))
-    })?;
-    let format = FileFormat::parse(&a.format).ok_or_else(|| {
-        UsageError(format!(
-            "unknown --format `{}` (expected exr or tiff)",
-            a.format
-        ))
-    })?;
-    let compression = ExrCompression::parse(&a.compression).ok_or_else(|| {
-        UsageError(format!(
-            "unknown --compression `{}` (expected keep, none, rle, zips, zip or piz)",
-            a.compression
-        ))
-    })?;
+    let space = OutputSpace::from(a.output_space);
+    let format = FileFormat::from(a.format);
+    let compression = ExrCompression::from(a.compression);
     if a.half && format != FileFormat::Exr {
         return Err(UsageError("--half applies to EXR output only".into()).into());
     }
-    let device = DeviceChoice::parse(&a.device).ok_or_else(|| {
-        UsageError(format!(
-            "unknown --device `{}` (expected auto, gpu or cpu)",
-            a.device
-        ))
-    })?;
+    let device = DeviceChoice::from(a.device);
     if a.jobs == Some(0) {
         return Err(UsageError("--jobs must be at least 1".into()).into());
     }
@@ -270,12 +251,12 @@ fn parse_request(a: &Args) -> Result<Request> {
         .as_deref()
         .map(Shard::parse)
         .transpose()
-        .map_err(|e| UsageError(e.to_string()))?;
+        .context("--shard")?;
     let suffix = a
         .suffix
         .clone()
         .unwrap_or_else(|| format!("_{}", space.name()));
-    batch::validate_suffix(&suffix).map_err(|e| UsageError(e.to_string()))?;
+    batch::validate_suffix(&suffix)?;
     let existing = if a.overwrite {
         Existing::Overwrite
     } else if a.skip_existing {
@@ -299,10 +280,10 @@ fn parse_request(a: &Args) -> Result<Request> {
 pub fn run(a: Args) -> Result<ExitCode> {
     let req = parse_request(&a)?;
     let model = Model::load(&a.model).context("--model")?;
-    let out_model = fio::output_model(&model, req.space)?;
+    let out_model = nsrm::colorimetry::output_model(&model, req.space)?;
 
     // Plan.
-    let all = batch::expand_inputs(&a.inputs).map_err(|e| UsageError(e.to_string()))?;
+    let all = batch::expand_inputs(&a.inputs)?;
     let plan = batch::plan_batch(
         &all,
         &PlanOptions {
@@ -314,11 +295,7 @@ pub fn run(a: Args) -> Result<ExitCode> {
             shard: req.shard,
             create_dirs: !a.dry_run,
         },
-    )
-    .map_err(|e| match e {
-        PlanError::Usage(why) => anyhow::Error::new(UsageError(why)),
-        PlanError::Setup(why) => anyhow::anyhow!(why),
-    })?;
+    )?;
     let scope = plan.scope();
     report_stale(&plan, a.remove_stale_temporaries && !a.dry_run);
     if a.dry_run {
@@ -387,7 +364,7 @@ pub fn run(a: Args) -> Result<ExitCode> {
                 overwrite: a.overwrite,
                 zip_level: a.zip_level,
             },
-            to_srgb: fio::to_linear_srgb(model.white_xyz(), req.space),
+            to_srgb: nsrm::colorimetry::to_linear_srgb(model.white_xyz(), req.space),
             workers: workers.min(todo.len()).max(1),
             continue_on_error: a.continue_on_error,
             interrupt: interrupt.clone(),

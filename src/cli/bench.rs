@@ -11,11 +11,12 @@
 //!   them) and end-to-end time including upload and read-back. Its reference is the device's own
 //!   buffer-to-buffer copy of the frame's bytes ([`Engine::copy_bandwidth`]).
 
+use super::bench_aids::{memcpy_chunked, synthetic_camera_rgb};
 use super::common::{parse_models, UsageError};
 use anyhow::{Context, Result};
 use clap::ValueEnum;
 use nsrm::gpu::{Engine, GpuOptions};
-use nsrm::model::fast::{memcpy_chunked, FastModel, Threads};
+use nsrm::model::fast::{FastModel, Threads};
 use nsrm::model::{fit, Kind, Model};
 use nsrm::spectral::{simulate_named, Grid};
 use nsrm::{Frame, Layout};
@@ -70,6 +71,9 @@ enum DeviceArg {
 /// One measured (model, device).
 #[derive(Debug, Clone, Serialize)]
 struct Row {
+    /// `LRM`, `PRM3`, … (the table's label).
+    #[serde(skip)]
+    label: String,
     model: &'static str,
     order: u8,
     device: &'static str,
@@ -104,6 +108,9 @@ struct Report {
     adapter: Option<String>,
     #[serde(skip_serializing_if = "Option::is_none")]
     gpu_error: Option<String>,
+    /// Whether the GPU's kernel times come from timestamp queries (the table says so).
+    #[serde(skip)]
+    gpu_timestamps: bool,
     /// The GPU's buffer copy of the frame's bytes, Mpixel/s.
     gpu_copy_mpix_s: Option<f64>,
     results: Vec<Row>,
@@ -114,7 +121,22 @@ struct Report {
 const MEMCPY_METHOD: &str = "copy_from_slice of the same bytes into a separate pre-faulted buffer, \
     in the fast path's 64 Ki-pixel chunks (one thread / rayon pool); repetitions alternate with the kernel's";
 
-pub fn run(a: Args) -> Result<ExitCode> {
+/// What `nsrm bench` will measure, checked from its flags before anything runs.
+#[derive(Debug, Clone)]
+struct Plan {
+    width: usize,
+    height: usize,
+    layout: Layout,
+    kinds: Vec<Kind>,
+    order: u8,
+    reps: usize,
+    gpu_reps: usize,
+    cpu: bool,
+    gpu: bool,
+}
+
+/// The flags as a [`Plan`] (usage errors for sizes, orders and repetition counts out of range).
+fn plan(a: &Args) -> Result<Plan> {
     let (width, height) = parse_size(&a.size)?;
     let kinds = parse_models(&a.models)?;
     if !(1..=4).contains(&a.order) {
@@ -123,41 +145,52 @@ pub fn run(a: Args) -> Result<ExitCode> {
     if a.reps == 0 || a.gpu_reps == Some(0) {
         return Err(UsageError("--reps and --gpu-reps must be at least 1".into()).into());
     }
-    let layout = match a.layout {
-        LayoutArg::Rgb => Layout::Rgb,
-        LayoutArg::Rgba => Layout::Rgba,
-    };
-    let reps = a.reps;
-    let gpu_reps = a.gpu_reps.unwrap_or(reps.min(3));
     let (cpu, gpu) = match a.device {
         DeviceArg::Cpu => (true, false),
         DeviceArg::Gpu => (false, true),
         DeviceArg::All => (true, true),
     };
+    Ok(Plan {
+        width,
+        height,
+        layout: match a.layout {
+            LayoutArg::Rgb => Layout::Rgb,
+            LayoutArg::Rgba => Layout::Rgba,
+        },
+        kinds,
+        order: a.order,
+        reps: a.reps,
+        gpu_reps: a.gpu_reps.unwrap_or(a.reps.min(3)),
+        cpu,
+        gpu,
+    })
+}
+
+/// `nsrm bench`: plan → measure → report (the table, or one JSON object).
+pub fn run(a: Args) -> Result<ExitCode> {
+    let plan = plan(&a)?;
+    let report = measure(&plan)?;
+    if a.json {
+        println!("{}", serde_json::to_string(&report)?);
+    } else {
+        print!("{}", table(&plan, &report));
+    }
+    Ok(ExitCode::SUCCESS)
+}
+
+/// Runs the plan: the memcpy references, the fast CPU path and the GPU engine (an engine that
+/// cannot start is recorded in the report, not an error).
+fn measure(plan: &Plan) -> Result<Report> {
+    let (width, height, layout, reps) = (plan.width, plan.height, plan.layout, plan.reps);
     let threads = rayon::current_num_threads();
     let pixels = width * height;
     let ch = layout.channels();
     let bpp = 4 * ch;
-    let say = |s: String| {
-        if !a.json {
-            println!("{s}");
-        }
-    };
 
-    let models = fit_models(&kinds, a.order)?;
-    let input = Frame::synthetic_camera_rgb(width, height, layout, 0x5eed_0005);
+    let models = fit_models(&plan.kinds, plan.order)?;
+    let input = synthetic_camera_rgb(width, height, layout, 0x5eed_0005);
     let mut output = Frame::new(width, height, layout);
     prefault(&mut output.data);
-
-    say(format!(
-        "nsrm bench: {width}×{height} {} f32 ({:.2} Mpixel, {:.1} MB in + {:.1} MB out), {threads} threads, \
-         median of {reps} CPU / {gpu_reps} GPU repetitions after a warm-up",
-        layout.name(),
-        pixels as f64 / 1e6,
-        (pixels * bpp) as f64 / 1e6,
-        (pixels * bpp) as f64 / 1e6,
-    ));
-    say(format!("memcpy reference: {MEMCPY_METHOD}."));
 
     let mpix = |secs: f64| pixels as f64 / secs / 1e6;
     let mut results = Vec::new();
@@ -175,12 +208,7 @@ pub fn run(a: Args) -> Result<ExitCode> {
         output.data.copy_from_slice(&input.data)
     }));
 
-    if cpu {
-        say(String::new());
-        say(format!(
-            "{:<8} {:<8} {:>10} {:>9} {:>16}",
-            "model", "device", "Mpixel/s", "× memcpy", "memcpy Mpixel/s"
-        ));
+    if plan.cpu {
         for model in &models {
             let fast = FastModel::new(model);
             for (device, th) in [("cpu-1", Threads::Single), ("cpu-all", Threads::All)] {
@@ -200,7 +228,8 @@ pub fn run(a: Args) -> Result<ExitCode> {
                     Threads::All => memcpy_all.extend(&m_times),
                 }
                 let (k, m) = (mpix(median(&k_times)), mpix(median(&m_times)));
-                let row = Row {
+                results.push(Row {
+                    label: label(model),
                     model: model.kind().name(),
                     order: model.order(),
                     device,
@@ -209,16 +238,7 @@ pub fn run(a: Args) -> Result<ExitCode> {
                     memcpy_mpix_s: Some(m),
                     end_to_end_mpix_s: None,
                     kernel_timing: None,
-                };
-                say(format!(
-                    "{:<8} {:<8} {:>10.1} {:>9.2} {:>16.1}",
-                    label(model),
-                    device,
-                    k,
-                    k / m,
-                    m
-                ));
-                results.push(row);
+                });
             }
         }
     }
@@ -226,40 +246,22 @@ pub fn run(a: Args) -> Result<ExitCode> {
     let mut adapter = None;
     let mut gpu_error = None;
     let mut gpu_copy = None;
-    if gpu {
-        say(String::new());
+    let mut gpu_timestamps = false;
+    if plan.gpu {
         match Engine::new(&GpuOptions::default()) {
-            Err(e) => {
-                say(format!("GPU: unavailable ({e})"));
-                gpu_error = Some(e.to_string());
-            }
+            Err(e) => gpu_error = Some(e.to_string()),
             Ok(mut engine) => {
                 let name = engine.adapter_name();
+                gpu_timestamps = engine.has_timestamps();
                 let copy = engine
                     .copy_bandwidth((pixels * bpp) as u64)
                     .context("timing the GPU buffer copy")?
                     .map(|bytes_s| bytes_s / bpp as f64 / 1e6);
-                say(format!(
-                    "GPU: {name}; kernel time {}; reference: its buffer copy of the frame's bytes, {}",
-                    if engine.has_timestamps() {
-                        "from timestamp queries"
-                    } else {
-                        "NOT available (no timestamp queries): Mpixel/s is end-to-end"
-                    },
-                    match copy {
-                        Some(c) => format!("{c:.1} Mpixel/s ({:.2} GB/s)", c * bpp as f64 / 1e3),
-                        None => "not measurable (no timestamp queries)".into(),
-                    }
-                ));
-                say(format!(
-                    "{:<8} {:<8} {:>10} {:>9} {:>16}",
-                    "model", "device", "Mpixel/s", "× copy", "end-to-end Mp/s"
-                ));
                 let mut work = input.clone();
                 for model in &models {
                     let mut kernel = Vec::new();
                     let mut total = Vec::new();
-                    for rep in 0..=gpu_reps {
+                    for rep in 0..=plan.gpu_reps {
                         // Every repetition corrects the same input (the engine works in place).
                         work.data.copy_from_slice(&input.data);
                         let t = engine
@@ -278,21 +280,13 @@ pub fn run(a: Args) -> Result<ExitCode> {
                     } else {
                         (e2e, "none")
                     };
-                    let ratio = copy.map(|c| k / c);
-                    say(format!(
-                        "{:<8} {:<8} {:>10.1} {:>9} {:>16.1}",
-                        label(model),
-                        "gpu",
-                        k,
-                        ratio.map_or("n/a".into(), |r| format!("{r:.2}")),
-                        e2e
-                    ));
                     results.push(Row {
+                        label: label(model),
                         model: model.kind().name(),
                         order: model.order(),
                         device: "gpu",
                         mpix_s: k,
-                        ratio_to_memcpy: ratio,
+                        ratio_to_memcpy: copy.map(|c| k / c),
                         memcpy_mpix_s: copy,
                         end_to_end_mpix_s: Some(e2e),
                         kernel_timing: Some(timing),
@@ -303,16 +297,6 @@ pub fn run(a: Args) -> Result<ExitCode> {
             }
         }
     }
-
-    let memcpy_all = mpix(median(&memcpy_all));
-    let memcpy_one = mpix(median(&memcpy_one));
-    let memcpy_whole = mpix(whole);
-    say(String::new());
-    say(format!(
-        "memcpy: {memcpy_one:.1} Mpixel/s on 1 thread (the cpu-1 reference), {memcpy_all:.1} on {threads} \
-         threads (the cpu-all reference), {memcpy_whole:.1} as one whole-frame copy_from_slice on 1 thread; \
-         × memcpy above uses the copies interleaved with each row's repetitions"
-    ));
 
     let mut ratio = serde_json::Map::new();
     let find = |kind: Kind, device: &str| {
@@ -326,22 +310,124 @@ pub fn run(a: Args) -> Result<ExitCode> {
             ratio.insert(device.into(), serde_json::json!(n / r));
         }
     }
-    if !ratio.is_empty() {
+    Ok(Report {
+        size: [width, height],
+        layout: layout.name(),
+        memcpy_mpix_s: mpix(median(&memcpy_all)),
+        memcpy_1t_mpix_s: mpix(median(&memcpy_one)),
+        memcpy_whole_1t_mpix_s: mpix(whole),
+        memcpy_method: MEMCPY_METHOD,
+        threads,
+        reps,
+        gpu_reps: plan.gpu_reps,
+        adapter,
+        gpu_error,
+        gpu_timestamps,
+        gpu_copy_mpix_s: gpu_copy,
+        results,
+        nsrm_over_rprm: ratio,
+    })
+}
+
+/// The report as the table `nsrm bench` prints.
+fn table(plan: &Plan, r: &Report) -> String {
+    use std::fmt::Write;
+    let mut s = String::new();
+    let mut say = |line: String| {
+        let _ = writeln!(s, "{line}");
+    };
+    let [width, height] = r.size;
+    let pixels = width * height;
+    let bpp = 4 * plan.layout.channels();
+    say(format!(
+        "nsrm bench: {width}×{height} {} f32 ({:.2} Mpixel, {:.1} MB in + {:.1} MB out), {} threads, \
+         median of {} CPU / {} GPU repetitions after a warm-up",
+        r.layout,
+        pixels as f64 / 1e6,
+        (pixels * bpp) as f64 / 1e6,
+        (pixels * bpp) as f64 / 1e6,
+        r.threads,
+        r.reps,
+        r.gpu_reps,
+    ));
+    say(format!("memcpy reference: {}.", r.memcpy_method));
+    if plan.cpu {
+        say(String::new());
+        say(format!(
+            "{:<8} {:<8} {:>10} {:>9} {:>16}",
+            "model", "device", "Mpixel/s", "× memcpy", "memcpy Mpixel/s"
+        ));
+        for row in r.results.iter().filter(|row| row.device != "gpu") {
+            say(format!(
+                "{:<8} {:<8} {:>10.1} {:>9.2} {:>16.1}",
+                row.label,
+                row.device,
+                row.mpix_s,
+                row.ratio_to_memcpy.unwrap_or(f64::NAN),
+                row.memcpy_mpix_s.unwrap_or(f64::NAN)
+            ));
+        }
+    }
+    if plan.gpu {
+        say(String::new());
+        match (&r.adapter, &r.gpu_error) {
+            (None, Some(e)) => say(format!("GPU: unavailable ({e})")),
+            (Some(name), _) => {
+                say(format!(
+                    "GPU: {name}; kernel time {}; reference: its buffer copy of the frame's bytes, {}",
+                    if r.gpu_timestamps {
+                        "from timestamp queries"
+                    } else {
+                        "NOT available (no timestamp queries): Mpixel/s is end-to-end"
+                    },
+                    match r.gpu_copy_mpix_s {
+                        Some(c) => format!("{c:.1} Mpixel/s ({:.2} GB/s)", c * bpp as f64 / 1e3),
+                        None => "not measurable (no timestamp queries)".into(),
+                    }
+                ));
+                say(format!(
+                    "{:<8} {:<8} {:>10} {:>9} {:>16}",
+                    "model", "device", "Mpixel/s", "× copy", "end-to-end Mp/s"
+                ));
+                for row in r.results.iter().filter(|row| row.device == "gpu") {
+                    say(format!(
+                        "{:<8} {:<8} {:>10.1} {:>9} {:>16.1}",
+                        row.label,
+                        "gpu",
+                        row.mpix_s,
+                        row.ratio_to_memcpy
+                            .map_or("n/a".into(), |x| format!("{x:.2}")),
+                        row.end_to_end_mpix_s.unwrap_or(f64::NAN)
+                    ));
+                }
+            }
+            (None, None) => {}
+        }
+    }
+    say(String::new());
+    say(format!(
+        "memcpy: {:.1} Mpixel/s on 1 thread (the cpu-1 reference), {:.1} on {} \
+         threads (the cpu-all reference), {:.1} as one whole-frame copy_from_slice on 1 thread; \
+         × memcpy above uses the copies interleaved with each row's repetitions",
+        r.memcpy_1t_mpix_s, r.memcpy_mpix_s, r.threads, r.memcpy_whole_1t_mpix_s
+    ));
+    if !r.nsrm_over_rprm.is_empty() {
         say(format!(
             "\nNSRM/RPRM cost ratio (NSRM {o} throughput / RPRM {o} throughput; > 1: NSRM is cheaper).",
-            o = a.order
+            o = plan.order
         ));
-        if a.order == 3 {
+        if plan.order == 3 {
             say("The paper: NSRM 29 add, 40 mul, 2 div vs RPRM 36 add, 56 mul, 3 sqrt, 7 cbrt per pixel (this \
                  RPRM kernel takes 3 sqrt + 3 cbrt: per-channel roots)."
                 .into());
         }
-        for (device, v) in &ratio {
+        for (device, v) in &r.nsrm_over_rprm {
             let v = v.as_f64().unwrap_or(f64::NAN);
-            let memory_bound = results
+            let memory_bound = r
+                .results
                 .iter()
-                .filter(|r| r.device == device && (r.model == "nsrm" || r.model == "rprm"))
-                .all(|r| r.ratio_to_memcpy.is_some_and(|x| x > 0.85));
+                .filter(|x| x.device == device && (x.model == "nsrm" || x.model == "rprm"))
+                .all(|x| x.ratio_to_memcpy.is_some_and(|x| x > 0.85));
             let verdict = if v > 1.05 {
                 "NSRM cheaper: the paper's claim holds here"
             } else if v >= 0.95 {
@@ -356,27 +442,7 @@ pub fn run(a: Args) -> Result<ExitCode> {
             say(format!("  {device:<8} {v:.2}  {verdict}"));
         }
     }
-
-    if a.json {
-        let report = Report {
-            size: [width, height],
-            layout: layout.name(),
-            memcpy_mpix_s: memcpy_all,
-            memcpy_1t_mpix_s: memcpy_one,
-            memcpy_whole_1t_mpix_s: memcpy_whole,
-            memcpy_method: MEMCPY_METHOD,
-            threads,
-            reps,
-            gpu_reps,
-            adapter,
-            gpu_error,
-            gpu_copy_mpix_s: gpu_copy,
-            results,
-            nsrm_over_rprm: ratio,
-        };
-        println!("{}", serde_json::to_string(&report)?);
-    }
-    Ok(ExitCode::SUCCESS)
+    s
 }
 
 /// `LRM`, `PRM3`, …
@@ -449,5 +515,80 @@ fn median(v: &[f64]) -> f64 {
         v[n / 2]
     } else {
         0.5 * (v[n / 2 - 1] + v[n / 2])
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use clap::Parser;
+
+    #[derive(Debug, Parser)]
+    struct Cli {
+        #[command(flatten)]
+        args: Args,
+    }
+
+    fn args(extra: &[&str]) -> Args {
+        Cli::try_parse_from(std::iter::once("bench").chain(extra.iter().copied()))
+            .unwrap()
+            .args
+    }
+
+    #[test]
+    fn plan_checks_the_flags() {
+        let p = plan(&args(&[
+            "--size",
+            "64x32",
+            "--device",
+            "cpu",
+            "--models",
+            "nsrm,rprm",
+        ]))
+        .unwrap();
+        assert_eq!((p.width, p.height, p.cpu, p.gpu), (64, 32, true, false));
+        assert_eq!(p.kinds, [Kind::Nsrm, Kind::Rprm]);
+        assert_eq!(p.gpu_reps, 3);
+        for bad in [&["--size", "0x3"][..], &["--order", "5"], &["--reps", "0"]] {
+            let e = plan(&args(bad)).unwrap_err();
+            assert!(e.downcast_ref::<UsageError>().is_some(), "{bad:?}: {e}");
+        }
+    }
+
+    #[test]
+    fn measure_and_report_a_small_cpu_run() {
+        let p = plan(&args(&[
+            "--size",
+            "97x13",
+            "--device",
+            "cpu",
+            "--models",
+            "lrm,rprm,nsrm",
+            "--reps",
+            "1",
+        ]))
+        .unwrap();
+        let r = measure(&p).unwrap();
+        assert_eq!(r.results.len(), 6, "three models × cpu-1, cpu-all");
+        assert!(r
+            .results
+            .iter()
+            .all(|x| x.mpix_s > 0.0 && x.ratio_to_memcpy.is_some()));
+        assert_eq!(r.nsrm_over_rprm.len(), 2);
+        let t = table(&p, &r);
+        assert!(t.starts_with("nsrm bench: 97×13 rgb f32"), "{t}");
+        for needle in [
+            "NSRM3    cpu-1",
+            "RPRM3    cpu-all",
+            "LRM      cpu-1",
+            "NSRM/RPRM cost ratio",
+        ] {
+            assert!(t.contains(needle), "{needle}: {t}");
+        }
+        assert!(!t.contains("GPU:"), "{t}");
+        let json: serde_json::Value = serde_json::to_value(&r).unwrap();
+        assert_eq!(json["size"], serde_json::json!([97, 13]));
+        assert!(json["results"][0].get("label").is_none());
+        assert!(json.get("gpu_timestamps").is_none());
     }
 }

@@ -3,6 +3,7 @@
 //! compensation and the check against the reference.
 
 use super::common::UsageError;
+use super::values;
 use anyhow::{anyhow, Context, Result};
 use nsrm::chart::detect::{detect, Candidate, DetectOptions, Detection};
 use nsrm::chart::extract::{extract, verify, ExtractOptions, Extraction};
@@ -18,8 +19,8 @@ use std::path::{Path, PathBuf};
 #[derive(Debug, Clone, clap::Args)]
 pub struct CaptureOptions {
     /// The chart photographed: cc24 (ColorChecker Classic) or sg (Digital ColorChecker SG).
-    #[arg(long, value_name = "cc24|sg")]
-    pub chart: Option<String>,
+    #[arg(long, value_enum, ignore_case = true)]
+    pub chart: Option<values::Chart>,
     /// Reference values: cc24-after2014 (default for cc24), cc24-before2014, sg-after2014
     /// (default for sg), sg-before2014, or a file: CSV `label` + `X,Y,Z` or `L,a,b`, or CGATS
     /// (.cie/.txt: SAMPLE_ID + XYZ_X/Y/Z or LAB_L/A/B).
@@ -61,9 +62,8 @@ impl CaptureOptions {
     pub fn kind(&self) -> Result<ChartKind> {
         let c = self
             .chart
-            .as_deref()
             .ok_or_else(|| UsageError("--chart cc24|sg is required".into()))?;
-        Ok(ChartKind::parse(c).map_err(|e| UsageError(format!("--chart: {e}")))?)
+        Ok(ChartKind::from(c))
     }
 
     /// True when any capture option is given.
@@ -83,10 +83,7 @@ impl CaptureOptions {
         let white = match self.reference_white.as_deref() {
             None => None,
             Some(s) if s.eq_ignore_ascii_case("d50") => Some(d50_white()),
-            Some(s) => Some(
-                nsrm::training::parse_white(s)
-                    .map_err(|e| UsageError(format!("--reference-white: {e}")))?,
-            ),
+            Some(s) => Some(nsrm::training::parse_white(s).context("--reference-white")?),
         };
         let spec = self
             .reference

@@ -3,6 +3,7 @@
 
 use super::capture::{write_overlay, CaptureOptions};
 use super::common::UsageError;
+use super::values;
 use anyhow::{Context, Result};
 use nsrm::chart::detect::{detect, DetectOptions};
 use nsrm::chart::extract::{extract, ExtractOptions};
@@ -47,8 +48,8 @@ pub struct ExtractArgs {
 #[derive(Debug, clap::Args)]
 pub struct RateArgs {
     /// cc24 or sg.
-    #[arg(long, value_name = "cc24|sg")]
-    chart: String,
+    #[arg(long, value_enum, ignore_case = true)]
+    chart: values::Chart,
     /// Spectra of the chart (SG: e.g. ../shared/data/colorchecker_sg_140.csv).
     #[arg(long, value_name = "FILE")]
     reflectances: Option<String>,
@@ -140,7 +141,7 @@ fn run_extract(a: ExtractArgs) -> Result<ExitCode> {
 }
 
 fn run_rate(a: RateArgs) -> Result<ExitCode> {
-    let kind = ChartKind::parse(&a.chart).map_err(|e| UsageError(e.to_string()))?;
+    let kind = ChartKind::from(a.chart);
     if a.scenes == 0 || a.scenes > 100_000 {
         return Err(UsageError("--scenes must be 1..100000".into()).into());
     }

@@ -44,10 +44,10 @@ impl TrainingArgs {
         let data = match &self.training {
             Some(path) => {
                 let white = self.white.as_deref().map(white_point).transpose()?;
-                TrainingSet::read_measured(path, white)?
+                read_measured(path, white)?
             }
             None => {
-                let grid = Grid::parse(&self.grid).map_err(|e| UsageError(e.to_string()))?;
+                let grid = Grid::parse(&self.grid)?;
                 let camera = Camera::from_name_or_path(&self.camera).context("--camera")?;
                 let ill = Illuminant::from_name_or_path(illuminant).context("--illuminant")?;
                 let refl = Reflectances::from_name_or_path(&self.reflectances)
@@ -56,11 +56,18 @@ impl TrainingArgs {
                     .with_context(|| format!("simulating the camera under {illuminant}"))?
             }
         };
-        data.select(&self.patches).map_err(|e| match e {
-            e @ nsrm::training::TrainingError::PatchSpec { .. } => UsageError(e.to_string()).into(),
-            e => e.into(),
-        })
+        Ok(data.select(&self.patches)?)
     }
+}
+
+/// `--training FILE`: the measured patches; Lab data without a white asks for `--white`.
+pub fn read_measured(path: &std::path::Path, white: Option<[f64; 3]>) -> Result<TrainingSet> {
+    TrainingSet::read_measured(path, white).map_err(|e| match e {
+        e @ nsrm::training::TrainingError::NeedsWhite { .. } => {
+            anyhow::Error::new(e).context("--training needs --white X,Y,Z or an illuminant name")
+        }
+        e => e.into(),
+    })
 }
 
 /// `X,Y,Z`, or the perfect white (Y = 100) of a named illuminant on the default grid.
@@ -76,7 +83,7 @@ fn white_point(spec: &str) -> Result<[f64; 3]> {
 pub fn parse_models(spec: &str) -> Result<Vec<Kind>> {
     let mut v = Vec::new();
     for s in spec.split(',').filter(|s| !s.trim().is_empty()) {
-        let k = Kind::parse(s).map_err(|e| UsageError(e.to_string()))?;
+        let k = Kind::parse(s)?;
         if !v.contains(&k) {
             v.push(k);
         }

@@ -1,6 +1,6 @@
 //! `nsrm eval`: the paper's experiment.
 
-use super::common::{parse_models, parse_orders, TrainingArgs, UsageError};
+use super::common::{parse_models, parse_orders, TrainingArgs};
 use super::fit_args::FitVariantArgs;
 use anyhow::{Context, Result};
 use nsrm::eval::{evaluate_with, plot, variants, EvalResult, Protocol};
@@ -98,7 +98,7 @@ pub fn run(a: Args) -> Result<ExitCode> {
         None => parse_orders(&a.order.to_string(), "--order")?,
     };
     if let Some(p) = &a.plot {
-        plot::Format::from_path(p).map_err(|e| UsageError(e.to_string()))?;
+        plot::Format::from_path(p)?;
     }
     let captured = super::capture::for_model(a.capture.as_deref(), &a.chart)?;
     let illuminants: Vec<String> = if captured.is_some() {
@@ -181,7 +181,7 @@ pub fn run(a: Args) -> Result<ExitCode> {
         print_variants(&a, protocol, n_patches, &results);
     } else {
         let plain: Vec<EvalResult> = results.iter().map(|r| r.result.clone()).collect();
-        print_table(&a, protocol, n_patches, &illuminants, &plain);
+        print_table(&a, protocol, n_patches, &plain);
     }
     if let Some(p) = &a.plot {
         let plain: Vec<EvalResult> = results
@@ -304,13 +304,7 @@ fn print_variants(a: &Args, protocol: Protocol, n: usize, results: &[VariantResu
     }
 }
 
-fn print_table(
-    a: &Args,
-    protocol: Protocol,
-    n: usize,
-    illuminants: &[String],
-    results: &[EvalResult],
-) {
+fn print_table(a: &Args, protocol: Protocol, n: usize, results: &[EvalResult]) {
     header(a, protocol, n);
     let ills: Vec<&str> = {
         let mut v: Vec<&str> = Vec::new();
@@ -321,7 +315,6 @@ fn print_table(
         }
         v
     };
-    let _ = illuminants;
     print!("{:<12}", "");
     for ill in &ills {
         print!(" | {:^22}", ill);

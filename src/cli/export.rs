@@ -2,6 +2,7 @@
 //! the file's measured approximation error against the exact model.
 
 use super::common::UsageError;
+use super::values;
 use anyhow::{Context, Result};
 use nsrm::colorimetry::spaces::OutputSpace;
 use nsrm::export::nodes::Interpolation;
@@ -18,12 +19,12 @@ pub struct Args {
     model: PathBuf,
     /// clf (Academy/SMPTE Common LUT Format v3), cube (Resolve/OCIO .cube: 1D shaper + 3D LUT) or
     /// ocio (an OpenColorIO v2 config, with its CLF written beside it as <stem>.clf).
-    #[arg(long, value_name = "clf|cube|ocio")]
-    format: String,
+    #[arg(long, value_enum, ignore_case = true)]
+    format: values::ExportFormat,
     /// Output space, folded in exactly as `nsrm apply --output-space` does (training white at
     /// Y = 1): xyz (D65-referred), linear-srgb, acescg or aces2065-1. For OCIO: the scene reference.
-    #[arg(long, default_value = "xyz", value_name = "SPACE")]
-    output_space: String,
+    #[arg(long, value_enum, ignore_case = true, default_value_t = values::Space::Xyz)]
+    output_space: values::Space,
     /// Lattice points per axis of the 3D LUT (PRM, RPRM, NSRM; and every .cube), 2..129.
     #[arg(long, default_value_t = 65, value_name = "N")]
     lut_size: usize,
@@ -32,12 +33,8 @@ pub struct Args {
     shaper_size: usize,
     /// The 3D LUT interpolation, declared in the CLF and measured: tetrahedral (OpenColorIO's
     /// best; what `ocioconvert --lut` uses for .cube) or trilinear (Resolve's default for .cube).
-    #[arg(
-        long,
-        default_value = "tetrahedral",
-        value_name = "tetrahedral|trilinear"
-    )]
-    interpolation: String,
+    #[arg(long, value_enum, ignore_case = true, default_value_t = values::Interpolation::Tetrahedral)]
+    interpolation: values::Interpolation,
     /// The LUT's accurate range, log2 of camera units (training white G = 1): LO:HI.
     #[arg(
         long,
@@ -81,7 +78,7 @@ fn training_set(a: &Args, model: &Model) -> Result<TrainingSet> {
             .as_deref()
             .map(nsrm::training::parse_white)
             .transpose()?;
-        return Ok(TrainingSet::read_measured(path, white)?);
+        return super::common::read_measured(path, white);
     }
     let p = model.provenance();
     let (Some(camera), Some(ill), Some(refl)) = (&p.camera, &p.illuminant, &p.reflectances) else {
@@ -109,28 +106,13 @@ fn training_set(a: &Args, model: &Model) -> Result<TrainingSet> {
 }
 
 pub fn run(a: Args) -> Result<ExitCode> {
-    let format = Format::parse(&a.format).ok_or_else(|| {
-        UsageError(format!(
-            "--format `{}`: expected clf, cube or ocio",
-            a.format
-        ))
-    })?;
-    let space = OutputSpace::parse(&a.output_space).ok_or_else(|| {
-        UsageError(format!(
-            "--output-space `{}`: expected xyz, linear-srgb, acescg or aces2065-1",
-            a.output_space
-        ))
-    })?;
+    let format = Format::from(a.format);
+    let space = OutputSpace::from(a.output_space);
     let options = LutOptions {
         size: a.lut_size,
         stops: parse_stops(&a.stops)?,
         shaper_size: a.shaper_size,
-        interpolation: Interpolation::parse(&a.interpolation).ok_or_else(|| {
-            UsageError(format!(
-                "--interpolation `{}`: expected tetrahedral or trilinear",
-                a.interpolation
-            ))
-        })?,
+        interpolation: Interpolation::from(a.interpolation),
     };
     if let Err(e) = options.check() {
         return Err(UsageError(format!("--lut-size/--shaper-size/--stops: {e}")).into());
@@ -156,7 +138,9 @@ pub fn run(a: Args) -> Result<ExitCode> {
         a.overwrite,
     ) {
         Ok(w) => w,
-        Err(ExportError::Usage(m)) => return Err(UsageError(m).into()),
+        Err(e @ ExportError::TooInaccurate { limit, .. }) => {
+            return Err(e).context(format!("--max-de00 {limit}"))
+        }
         Err(e) => {
             return Err(e)
                 .with_context(|| format!("exporting {} as {}", a.model.display(), format.name()))

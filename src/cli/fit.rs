@@ -2,6 +2,7 @@
 
 use super::common::{TrainingArgs, UsageError};
 use super::fit_args::FitVariantArgs;
+use super::values;
 use anyhow::{Context, Result};
 use nsrm::colorimetry::delta_e00_xyz;
 use nsrm::model::fit::{fit_with, Normalise};
@@ -22,8 +23,8 @@ pub struct Args {
     )]
     illuminant: String,
     /// Model kind: lrm, prm, rprm or nsrm.
-    #[arg(long, default_value = "nsrm")]
-    model: String,
+    #[arg(long, value_enum, ignore_case = true, default_value_t = values::ModelKind::Nsrm)]
+    model: values::ModelKind,
     /// Polynomial order, 1..4 (LRM is always linear).
     #[arg(long, default_value_t = 3)]
     order: u8,
@@ -48,7 +49,7 @@ pub struct Args {
 }
 
 pub fn run(a: Args) -> Result<ExitCode> {
-    let kind = Kind::parse(&a.model).map_err(|e| UsageError(e.to_string()))?;
+    let kind = Kind::from(a.model);
     if !(1..=4).contains(&a.order) {
         return Err(UsageError(format!("--order {} is out of range (1..4)", a.order)).into());
     }

@@ -1,6 +1,7 @@
 //! The fit-variant flags shared by `nsrm fit` and `nsrm eval`.
 
 use super::common::UsageError;
+use super::values;
 use anyhow::Result;
 use nsrm::model::fit::{FitOptions, Normalise, Objective, Ridge, White};
 
@@ -26,8 +27,8 @@ pub struct FitVariantArgs {
     pub ridge: Option<String>,
     /// NSRM's input: `raw` (the paper) or `white-balanced` (R, G, B divided by the training white's
     /// camera response before forming s, r, g; the gains go into the model file).
-    #[arg(long, default_value = "raw", value_name = "raw|white-balanced")]
-    pub normalise: String,
+    #[arg(long, value_enum, ignore_case = true, default_value_t = values::Normalise::Raw)]
+    pub normalise: values::Normalise,
 }
 
 impl FitVariantArgs {
@@ -39,7 +40,7 @@ impl FitVariantArgs {
             Some(s) => Ridge::parse(s).map_err(|e| usage("ridge", e))?,
             None => Ridge::None,
         };
-        let normalise = Normalise::parse(&self.normalise).map_err(|e| usage("normalise", e))?;
+        let normalise = Normalise::from(self.normalise);
         if self.white_patch.is_some() && !self.preserve_white && normalise == Normalise::Raw {
             return Err(UsageError(
                 "--white-patch needs --preserve-white or --normalise white-balanced".into(),
@@ -64,6 +65,6 @@ impl FitVariantArgs {
             && !self.preserve_white
             && self.white_patch.is_none()
             && self.ridge.is_none()
-            && self.normalise == "raw"
+            && self.normalise == values::Normalise::Raw
     }
 }

@@ -5,6 +5,7 @@
 
 mod apply;
 mod bench;
+mod bench_aids;
 mod capture;
 mod chart;
 mod common;
@@ -16,6 +17,7 @@ mod fit_args;
 mod render_chart;
 mod render_scene;
 mod terms;
+mod values;
 
 use clap::{Parser, Subcommand};
 use std::process::ExitCode;
@@ -86,7 +88,12 @@ pub fn main() -> ExitCode {
         Ok(code) => code,
         Err(e) => {
             eprintln!("nsrm: error: {e:#}");
-            if e.downcast_ref::<common::UsageError>().is_some() {
+            // A usage error of the binary's own, or of the library (which knows which of its
+            // errors are the caller's mistake), anywhere in the context chain.
+            let usage = e.chain().any(|c| {
+                c.downcast_ref::<common::UsageError>().is_some() || nsrm::error::is_usage(c)
+            });
+            if usage {
                 ExitCode::from(2)
             } else {
                 ExitCode::from(1)

@@ -2,6 +2,7 @@
 //! blur, noise, clipping, optional occlusion) with its ground truth beside it.
 
 use super::common::UsageError;
+use super::values;
 use anyhow::{Context, Result};
 use nsrm::chart::scene::{render, truth_path, ChartColours, SceneOptions};
 use nsrm::chart::{parse_corners, ChartKind};
@@ -11,8 +12,8 @@ use std::process::ExitCode;
 #[derive(Debug, clap::Args)]
 pub struct Args {
     /// cc24 (built-in BabelColor spectra) or sg (spectra from --reflectances).
-    #[arg(long, value_name = "cc24|sg")]
-    chart: String,
+    #[arg(long, value_enum, ignore_case = true)]
+    chart: values::Chart,
     /// Chart spectra: columns named by chart labels (SG: A1..N10, e.g.
     /// ../shared/data/colorchecker_sg_140.csv); default for cc24: the built-in cc24.
     #[arg(long, value_name = "FILE")]
@@ -80,7 +81,7 @@ pub struct Args {
 }
 
 pub fn run(a: Args) -> Result<ExitCode> {
-    let kind = ChartKind::parse(&a.chart).map_err(|e| UsageError(e.to_string()))?;
+    let kind = ChartKind::from(a.chart);
     for p in std::iter::once(&a.output).chain(&a.flat_output) {
         if nsrm::io::FileFormat::from_extension(p).is_none() {
             return Err(UsageError(format!("{}: must be .exr, .tif or .tiff", p.display())).into());

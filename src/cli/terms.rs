@@ -1,6 +1,7 @@
 //! `nsrm terms`: prints a model's term list.
 
 use super::common::UsageError;
+use super::values;
 use anyhow::Result;
 use nsrm::model::{term_name, terms, Kind};
 use std::process::ExitCode;
@@ -8,15 +9,15 @@ use std::process::ExitCode;
 #[derive(Debug, clap::Args)]
 pub struct Args {
     /// Model kind: lrm, prm, rprm or nsrm.
-    #[arg(long, default_value = "nsrm")]
-    model: String,
+    #[arg(long, value_enum, ignore_case = true, default_value_t = values::ModelKind::Nsrm)]
+    model: values::ModelKind,
     /// Order, 1..4.
     #[arg(long, default_value_t = 3)]
     order: u8,
 }
 
 pub fn run(a: Args) -> Result<ExitCode> {
-    let kind = Kind::parse(&a.model).map_err(|e| UsageError(e.to_string()))?;
+    let kind = Kind::from(a.model);
     if !(1..=4).contains(&a.order) {
         return Err(UsageError(format!("--order {} is out of range (1..4)", a.order)).into());
     }

@@ -1,10 +1,14 @@
-//! Colorimetry: CIE XYZ ↔ CIELAB, CIEDE2000, and (in [`spaces`]) the matrices from XYZ to output
-//! RGB spaces with chromatic adaptation.
+//! Colorimetry: CIE XYZ ↔ CIELAB, CIEDE2000, (in [`spaces`]) the matrices from XYZ to output
+//! RGB spaces with chromatic adaptation, and (in [`output`]) the output-space scaling, the
+//! preview / display matrices and the sRGB transfer function. Every colour conversion of the
+//! library (io, export, chart, the embedding example) is one of these.
 
 pub mod dual;
+pub mod output;
 pub mod spaces;
 
 pub use dual::{Dual, Real};
+pub use output::{output_matrix, output_model, srgb8, srgb_oetf, to_linear_srgb};
 
 /// CIE D65 white point (2° observer), Y = 100; used when measured XYZ data names no white.
 pub const D65_WHITE_XYZ: [f64; 3] = [95.047, 100.0, 108.883];

@@ -5,7 +5,7 @@
 //! # What is written
 //! Every export maps linear camera RGB (the training white at `G = 1`) to the output space exactly
 //! as `nsrm apply` writes it: scene-linear, the training white at `Y = 1`, the output-space matrix
-//! folded into the model ([`crate::io::output_model`]).
+//! folded into the model ([`crate::colorimetry::output_model`]).
 //!
 //! * **LRM** is linear: one CLF `Matrix` node, exact (up to the f32 the readers compute in).
 //! * **PRM, RPRM, NSRM** have no closed form in CLF (no division, no channel products), so they
@@ -54,7 +54,9 @@ pub enum ExportError {
     Usage(String),
     #[error("the model cannot be exported: {0}")]
     Model(String),
-    #[error("the export's approximation error, max ΔE00 {max:.4} ({where_}), exceeds --max-de00 {limit}")]
+    #[error(
+        "the export's approximation error, max ΔE00 {max:.4} ({where_}), exceeds the limit {limit}"
+    )]
     TooInaccurate {
         max: f64,
         limit: f64,
@@ -292,7 +294,7 @@ pub fn linear_part(folded: &Model, training_rgb: &[[f64; 3]]) -> Result<Mat3, Ex
 
 fn fold(model: &Model, space: OutputSpace) -> Result<Model, ExportError> {
     check_model(model)?;
-    crate::io::output_model(model, space).map_err(|e| ExportError::Model(e.to_string()))
+    crate::colorimetry::output_model(model, space).map_err(|e| ExportError::Model(e.to_string()))
 }
 
 impl LutExport {
@@ -403,7 +405,7 @@ impl LutExport {
         }
         let white = self.model.white_xyz();
         // Output space (white Y = 1) → the model's XYZ (white Y = white[1]).
-        let back: Mat3 = spaces::invert(&crate::io::output_matrix(white, self.space));
+        let back: Mat3 = spaces::invert(&crate::colorimetry::output_matrix(white, self.space));
         let de = |rgb: [f64; 3], k: f64| -> f64 {
             let exact = spaces::apply(&back, self.folded.apply_f64(rgb));
             let approx = spaces::apply(&back, self.eval(rgb));
@@ -479,7 +481,7 @@ pub fn export_to(
     if let Some(x) = max_de00 {
         if !(x.is_finite() && x >= 0.0) {
             return Err(ExportError::Usage(format!(
-                "--max-de00 {x}: expected a finite, non-negative number"
+                "the ΔE00 limit {x} is not a finite, non-negative number"
             )));
         }
     }

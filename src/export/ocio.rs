@@ -1,7 +1,7 @@
 //! A minimal OpenColorIO v2 config: the camera colour space (named from the model's provenance)
 //! reaches the scene reference — the export's output space — through a `FileTransform` to the CLF
 //! written beside the config; the other output spaces follow by matrices from
-//! [`crate::io::output_matrix`], so each is what `nsrm apply --output-space` would write. Roles
+//! [`crate::colorimetry::output_matrix`], so each is what `nsrm apply --output-space` would write. Roles
 //! `scene_linear`, `aces_interchange`, `cie_xyz_d65_interchange`, `default`, `data`; one sRGB
 //! display with a `Standard` and a `Raw` view, so `Config::validate` passes.
 
@@ -32,7 +32,7 @@ fn matrix44(m: &spaces::Mat3) -> String {
 pub fn write(e: &LutExport, clf_file: &str) -> String {
     let w = e.model.white_xyz();
     let reference = e.space;
-    let to_ref = crate::io::output_matrix(w, reference);
+    let to_ref = crate::colorimetry::output_matrix(w, reference);
     let camera = super::camera_space_name(&e.model);
     let mut s = String::new();
     let _ = writeln!(s, "ocio_profile_version: 2");
@@ -128,7 +128,7 @@ pub fn write(e: &LutExport, clf_file: &str) -> String {
         if space != reference {
             // reference → space: (space's output matrix) · (reference's)^-1.
             let m = spaces::mul(
-                &crate::io::output_matrix(w, space),
+                &crate::colorimetry::output_matrix(w, space),
                 &spaces::invert(&to_ref),
             );
             let _ = writeln!(
@@ -140,7 +140,7 @@ pub fn write(e: &LutExport, clf_file: &str) -> String {
     }
     // The display encoding: linear Rec.709 with the sRGB transfer function.
     let to_709 = spaces::mul(
-        &crate::io::output_matrix(w, OutputSpace::LinearSrgb),
+        &crate::colorimetry::output_matrix(w, OutputSpace::LinearSrgb),
         &spaces::invert(&to_ref),
     );
     let _ = writeln!(s);

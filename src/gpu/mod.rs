@@ -30,8 +30,6 @@
 
 mod context;
 mod corrector;
-#[cfg(feature = "io")]
-pub mod demo;
 mod engine;
 #[cfg(feature = "export")]
 pub mod export;

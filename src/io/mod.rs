@@ -26,9 +26,8 @@ pub mod preview;
 mod tif;
 
 use crate::atomic::WriteError;
-use crate::colorimetry::spaces::{self, Mat3, OutputSpace};
+use crate::colorimetry::spaces::OutputSpace;
 use crate::frame::Frame;
-use crate::model::Model;
 use std::path::{Path, PathBuf};
 
 /// Errors from reading, writing or listing frames. A cause is part of the message and not also
@@ -59,7 +58,7 @@ pub enum IoError {
     Write(#[from] WriteError),
     #[error("input `{spec}`: {why}")]
     NoMatch { spec: String, why: String },
-    #[error("--shard `{spec}`: {why}")]
+    #[error("shard `{spec}`: {why}")]
     Shard { spec: String, why: String },
     #[error("{0}")]
     Invalid(String),
@@ -284,7 +283,7 @@ pub struct WriteOptions {
     /// EXR only: the compression of every part written. Lossy input compressions (DWA, B44,
     /// PXR24) are never reused: re-encoding would alter the pass-through channels again.
     pub compression: ExrCompression,
-    /// The space the pixels are in (they must already be; see [`output_model`]). Sets the EXR
+    /// The space the pixels are in (they must already be; see [`crate::colorimetry::output_model`]). Sets the EXR
     /// attribute `colorInteropID` to [`OutputSpace::interop_id`] and the `chromaticities`
     /// attribute to the space's primaries and white (removed for XYZ).
     pub space: OutputSpace,
@@ -460,91 +459,9 @@ fn split_alpha(frame: &Frame) -> (Frame, Option<Vec<f32>>) {
     }
 }
 
-/// The 3×3 matrix from the model's XYZ (perfect white at `Y = white[1]`, usually 100) to the
-/// frames written: scene-linear with the perfect white at `Y = 1`, in `space`, Bradford-adapted
-/// from the training white to the space's white (D65 for XYZ; see [`OutputSpace::from_xyz`]).
-pub fn output_matrix(white_xyz: [f64; 3], space: OutputSpace) -> Mat3 {
-    let m = space.from_xyz(white_xyz);
-    let k = 1.0 / white_xyz[1];
-    m.map(|row| row.map(|v| v * k))
-}
-
-/// The model with [`output_matrix`] folded into its matrix: it maps camera RGB straight to the
-/// output space (white `Y = 1`), on every apply path, with no extra pass over the pixels. This
-/// is exact for all four kinds (each output is a linear combination of the same terms).
-pub fn output_model(model: &Model, space: OutputSpace) -> Result<Model, IoError> {
-    let w = model.white_xyz();
-    if !(w.iter().all(|v| v.is_finite()) && w[1] > 0.0) {
-        return Err(IoError::Invalid(format!(
-            "the model's reference white {w:?} has no positive Y; cannot scale the output"
-        )));
-    }
-    let p = output_matrix(w, space);
-    let l = model.len_terms();
-    let mut folded = vec![0.0; 3 * l];
-    for i in 0..3 {
-        for j in 0..l {
-            folded[i * l + j] = (0..3).map(|k| p[i][k] * model.matrix()[k * l + j]).sum();
-        }
-    }
-    let mut out = model.clone();
-    out.set_matrix(folded)
-        .map_err(|e| IoError::Invalid(format!("folding the output space into the model: {e}")))?;
-    Ok(out)
-}
-
-/// The matrix from pixels in `space` (as written by `nsrm apply`, white `Y = 1`, scene white
-/// `white_xyz`) to linear sRGB (D65, white = 1): for previews.
-pub fn to_linear_srgb(white_xyz: [f64; 3], space: OutputSpace) -> Mat3 {
-    let srgb = spaces::OutputSpace::LinearSrgb.from_xyz(white_xyz);
-    spaces::mul(&srgb, &spaces::invert(&space.from_xyz(white_xyz)))
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::model::Kind;
-
-    #[test]
-    fn output_model_matches_matrix_after_model() {
-        let m = Model::from_matrix(Kind::Rprm, 2, (0..18).map(|i| 0.1 * i as f64).collect())
-            .unwrap()
-            .with_white_xyz([96.4, 100.0, 82.5])
-            .unwrap();
-        for space in OutputSpace::ALL.map(|(s, _)| s) {
-            let folded = output_model(&m, space).unwrap();
-            let p = output_matrix(m.white_xyz(), space);
-            let rgb = [0.3, 0.5, 0.2];
-            let want = spaces::apply(&p, m.apply_f64(rgb));
-            let got = folded.apply_f64(rgb);
-            for k in 0..3 {
-                assert!((want[k] - got[k]).abs() < 1e-12, "{space:?}");
-            }
-        }
-        // The training white maps to D65 with Y = 1 (XYZ, D65-referred) or to (1, 1, 1) (RGB).
-        let w = [96.4, 100.0, 82.5];
-        let xyz = spaces::apply(&output_matrix(w, OutputSpace::Xyz), w);
-        let d65 = spaces::xy_to_xyz(spaces::D65_XY);
-        assert!((0..3).all(|k| (xyz[k] - d65[k]).abs() < 1e-9), "{xyz:?}");
-        let d65_grid = [95.04, 100.0, 108.88];
-        assert_eq!(output_matrix(d65_grid, OutputSpace::Xyz)[1][1], 0.01);
-        let rgb = spaces::apply(&output_matrix(w, OutputSpace::Acescg), w);
-        assert!(rgb.iter().all(|v| (v - 1.0).abs() < 1e-9), "{rgb:?}");
-    }
-
-    #[test]
-    fn preview_matrix_inverts_the_space() {
-        let w = [95.047, 100.0, 108.883];
-        let x = [0.2, 0.3, 0.4];
-        let direct = spaces::apply(&to_linear_srgb(w, OutputSpace::Xyz), x);
-        for space in [OutputSpace::Acescg, OutputSpace::Aces2065_1] {
-            let in_space = spaces::apply(&space.from_xyz(w), x);
-            let back = spaces::apply(&to_linear_srgb(w, space), in_space);
-            for k in 0..3 {
-                assert!((back[k] - direct[k]).abs() < 1e-9);
-            }
-        }
-    }
 
     #[test]
     fn format_names() {

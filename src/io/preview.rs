@@ -1,23 +1,17 @@
 //! Quick-look previews: 8-bit sRGB PNGs of corrected frames (linear sRGB, clipped to `[0, 1]`,
-//! sRGB OETF). Not for grading: highlights above the perfect white clip.
+//! sRGB OETF, [`colorimetry::srgb8`]). Not for grading: highlights above the perfect white clip.
 
 use super::IoError;
 use crate::atomic::{check_clobber, write_atomic};
-use crate::colorimetry::spaces::{apply, Mat3};
+use crate::colorimetry::{
+    self,
+    spaces::{apply, Mat3},
+};
 use crate::frame::Frame;
 use image::codecs::png::{CompressionType, FilterType, PngEncoder};
 use image::{ExtendedColorType, ImageEncoder};
 use rayon::prelude::*;
 use std::path::Path;
-
-/// The sRGB opto-electronic transfer function (IEC 61966-2-1) of a linear value in `[0, 1]`.
-pub fn srgb_oetf(v: f64) -> f64 {
-    if v <= 0.003_130_8 {
-        12.92 * v
-    } else {
-        1.055 * v.powf(1.0 / 2.4) - 0.055
-    }
-}
 
 /// 8-bit sRGB bytes (`R G B`, row-major) of `frame`, whose pixels `to_linear_srgb` takes to linear
 /// sRGB with white = 1. Values are clipped; NaN becomes 0.
@@ -30,12 +24,7 @@ pub fn srgb8(frame: &Frame, to_linear_srgb: &Mat3) -> Vec<u8> {
             for (d, s) in dst.chunks_exact_mut(3).zip(src.chunks_exact(ch)) {
                 let rgb = apply(to_linear_srgb, [s[0] as f64, s[1] as f64, s[2] as f64]);
                 for k in 0..3 {
-                    let v = if rgb[k].is_nan() {
-                        0.0
-                    } else {
-                        rgb[k].clamp(0.0, 1.0)
-                    };
-                    d[k] = (srgb_oetf(v) * 255.0).round() as u8;
+                    d[k] = colorimetry::srgb8(rgb[k]);
                 }
             }
         });

@@ -314,23 +314,6 @@ fn rgb_of<const C: usize>(x: &[Lanes; C]) -> [Lanes; 3] {
     [x[0], x[1], x[2]]
 }
 
-/// The memcpy reference of the benchmarks: `dst.copy_from_slice(src)` in the same chunks of
-/// [`CHUNK_PIXELS`] pixels (`channels` floats each) and on the same threads as the kernels, so a
-/// kernel's throughput divided by this one's compares like with like.
-pub fn memcpy_chunked(src: &[f32], dst: &mut [f32], channels: usize, threads: Threads) {
-    let n = CHUNK_PIXELS * channels;
-    match threads {
-        Threads::All => src
-            .par_chunks(n)
-            .zip(dst.par_chunks_mut(n))
-            .for_each(|(s, d)| d.copy_from_slice(s)),
-        Threads::Single => src
-            .chunks(n)
-            .zip(dst.chunks_mut(n))
-            .for_each(|(s, d)| d.copy_from_slice(s)),
-    }
-}
-
 fn in_place<K: BlockKernel, const C: usize>(k: &K, data: &mut [f32], threads: Threads, code: Code) {
     let n = CHUNK_PIXELS * C;
     let run = |chunk: &mut [f32]| match code {

@@ -1,0 +1,179 @@
+//! The command line's enum flags as clap [`ValueEnum`]s: each mirrors a library enum (the
+//! library does not depend on clap), names its values as the library's `parse` does, and converts
+//! with `From`. clap checks the value, lists the possible ones in `--help` and in its error
+//! (exit status 2). A test checks every name and alias against the library's own parser.
+
+use clap::ValueEnum;
+
+macro_rules! value_enum {
+    ($(#[$meta:meta])* $name:ident => $lib:ty, $parse:expr,
+     { $($var:ident = $value:literal $(| $alias:literal)*),+ $(,)? }) => {
+        $(#[$meta])*
+        #[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+        pub enum $name {
+            $(#[value(name = $value $(, alias = $alias)*)] $var),+
+        }
+
+        impl From<$name> for $lib {
+            fn from(v: $name) -> $lib {
+                match v {
+                    $($name::$var => <$lib>::$var),+
+                }
+            }
+        }
+
+        impl $name {
+            /// Every name and alias with the value the library's parser gives it.
+            #[cfg(test)]
+            fn check() {
+                let parse: fn(&str) -> Option<$lib> = $parse;
+                $(
+                    for n in [$value $(, $alias)*] {
+                        assert_eq!(parse(n), Some(<$lib>::from($name::$var)), "{n}");
+                    }
+                )+
+            }
+        }
+    };
+}
+
+value_enum!(
+    /// `--output-space`.
+    Space => nsrm::colorimetry::spaces::OutputSpace,
+    nsrm::colorimetry::spaces::OutputSpace::parse,
+    { Xyz = "xyz", LinearSrgb = "linear-srgb", Acescg = "acescg", Aces2065_1 = "aces2065-1" }
+);
+
+value_enum!(
+    /// `--model` (one kind).
+    ModelKind => nsrm::model::Kind,
+    |s| nsrm::model::Kind::parse(s).ok(),
+    { Lrm = "lrm", Prm = "prm", Rprm = "rprm", Nsrm = "nsrm" }
+);
+
+value_enum!(
+    /// `--normalise`.
+    Normalise => nsrm::model::fit::Normalise,
+    |s| nsrm::model::fit::Normalise::parse(s).ok(),
+    { Raw = "raw", WhiteBalanced = "white-balanced" | "wb" }
+);
+
+value_enum!(
+    /// `apply --format`.
+    FileFormat => nsrm::io::FileFormat,
+    nsrm::io::FileFormat::parse,
+    { Exr = "exr" | "openexr", Tiff = "tiff" | "tif" }
+);
+
+value_enum!(
+    /// `apply --compression`.
+    Compression => nsrm::io::ExrCompression,
+    nsrm::io::ExrCompression::parse,
+    { Keep = "keep", None = "none", Rle = "rle", Zips = "zips", Zip = "zip", Piz = "piz" }
+);
+
+value_enum!(
+    /// `apply --device`.
+    Device => nsrm::gpu::DeviceChoice,
+    nsrm::gpu::DeviceChoice::parse,
+    { Auto = "auto", Gpu = "gpu", Cpu = "cpu" }
+);
+
+value_enum!(
+    /// `export --format`.
+    ExportFormat => nsrm::export::Format,
+    nsrm::export::Format::parse,
+    { Clf = "clf", Cube = "cube", Ocio = "ocio" }
+);
+
+value_enum!(
+    /// `export --interpolation`.
+    Interpolation => nsrm::export::nodes::Interpolation,
+    nsrm::export::nodes::Interpolation::parse,
+    { Tetrahedral = "tetrahedral", Trilinear = "trilinear" | "linear" }
+);
+
+/// `export-shader --lang`: a compute-shader language, or DaVinci Resolve's DCTL.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum Lang {
+    Wgsl,
+    Glsl,
+    Hlsl,
+    #[value(alias = "metal")]
+    Msl,
+    #[value(alias = "spv", alias = "spir-v")]
+    Spirv,
+    Dctl,
+}
+
+impl Lang {
+    /// The compute-shader language; `None` for DCTL.
+    pub fn shader(self) -> Option<nsrm::gpu::export::ShaderLang> {
+        use nsrm::gpu::export::ShaderLang as S;
+        Some(match self {
+            Lang::Wgsl => S::Wgsl,
+            Lang::Glsl => S::Glsl,
+            Lang::Hlsl => S::Hlsl,
+            Lang::Msl => S::Msl,
+            Lang::Spirv => S::Spirv,
+            Lang::Dctl => return None,
+        })
+    }
+}
+
+value_enum!(
+    /// `export-shader --layout`.
+    Layout => nsrm::Layout,
+    nsrm::Layout::parse,
+    { Rgb = "rgb", Rgba = "rgba" }
+);
+
+value_enum!(
+    /// `--chart`.
+    Chart => nsrm::chart::ChartKind,
+    |s| nsrm::chart::ChartKind::parse(s).ok(),
+    { Cc24 = "cc24", Sg = "sg" }
+);
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn every_value_parses_as_the_library_parses_it() {
+        Space::check();
+        ModelKind::check();
+        Normalise::check();
+        FileFormat::check();
+        Compression::check();
+        Device::check();
+        ExportFormat::check();
+        Interpolation::check();
+        for v in Lang::value_variants() {
+            let p = v.to_possible_value().unwrap();
+            for n in p.get_name_and_aliases() {
+                assert_eq!(nsrm::gpu::export::ShaderLang::parse(n), v.shader(), "{n}");
+            }
+        }
+        Layout::check();
+        Chart::check();
+    }
+
+    #[test]
+    fn every_library_value_has_a_flag_value() {
+        use nsrm::colorimetry::spaces::OutputSpace;
+        for (s, name) in OutputSpace::ALL {
+            assert_eq!(OutputSpace::from(Space::from_str(name, false).unwrap()), s);
+        }
+        for k in nsrm::model::Kind::ALL {
+            let v = ModelKind::from_str(k.name(), true).unwrap();
+            assert_eq!(nsrm::model::Kind::from(v), k);
+        }
+        for (c, name) in nsrm::io::ExrCompression::ALL {
+            assert_eq!(
+                nsrm::io::ExrCompression::from(Compression::from_str(name, false).unwrap()),
+                c
+            );
+        }
+    }
+}

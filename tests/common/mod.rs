@@ -1,0 +1,280 @@
+//! What the integration tests share: one seeded RNG, one generator of frames full of awkward
+//! pixels, one f32 error bound against the f64 reference, one training fixture, and the built
+//! binary run the same way everywhere (with `XDG_RUNTIME_DIR` set, so Mesa prints no `error:`
+//! lines on a machine without one, and without `NSRM_ADAPTER` from the caller's shell).
+//!
+//! Each test file takes it with `mod common;` and uses what it needs.
+
+#![allow(dead_code)]
+
+use nsrm::model::Model;
+use nsrm::spectral::{simulate_named, Grid};
+use nsrm::{Frame, Layout, TrainingSet};
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+use std::sync::OnceLock;
+
+/// SplitMix64: a fixed-seed generator (no extra dependency).
+pub struct Rng(pub u64);
+
+impl Rng {
+    pub fn next_u64(&mut self) -> u64 {
+        self.0 = self.0.wrapping_add(0x9e37_79b9_7f4a_7c15);
+        let mut z = self.0;
+        z = (z ^ (z >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
+        z = (z ^ (z >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
+        z ^ (z >> 31)
+    }
+    pub fn next_u32(&mut self) -> u32 {
+        (self.next_u64() >> 32) as u32
+    }
+    /// Uniform in [0, 1).
+    pub fn unit(&mut self) -> f32 {
+        (self.next_u64() >> 40) as f32 / (1u64 << 24) as f32
+    }
+    /// Uniform in [a, b).
+    pub fn range(&mut self, a: f32, b: f32) -> f32 {
+        a + (b - a) * self.unit()
+    }
+    /// Uniform in 0..n.
+    pub fn below(&mut self, n: u64) -> usize {
+        (self.next_u64() % n) as usize
+    }
+}
+
+/// One pixel of a given flavour (`flavour % 14`): ordinary, a zero channel, black, slightly
+/// negative, HDR (×100), tiny (×1e-6), NaN, ±Inf, `s = R+G+B < 0`, −0, a single channel, mild
+/// highlight.
+pub fn awkward_pixel(rng: &mut Rng, flavour: usize) -> [f32; 3] {
+    let mut p = [rng.unit(), rng.unit(), rng.unit()];
+    let c = rng.below(3);
+    match flavour % 14 {
+        0 | 1 => {}                                              // ordinary 0..1
+        2 => p[c] = 0.0,                                         // a zero channel
+        3 => p = [0.0; 3],                                       // black
+        4 => p[c] = -0.02 * rng.unit(),                          // noise around black
+        5 => p.iter_mut().for_each(|v| *v *= 100.0),             // HDR highlight
+        6 => p.iter_mut().for_each(|v| *v *= 1e-6),              // tiny
+        7 => p[c] = f32::NAN,                                    // NaN
+        8 => p[c] = f32::INFINITY,                               // +Inf
+        9 => p[c] = f32::NEG_INFINITY,                           // −Inf
+        10 => p = [-0.01 * rng.unit(), -0.01 * rng.unit(), 0.0], // s < 0
+        11 => p[c] = -0.0,                                       // negative zero
+        12 => p = [1e-3 + rng.unit(), 0.0, 0.0],                 // a single channel
+        _ => p.iter_mut().for_each(|v| *v *= 4.0),               // mild highlight
+    }
+    p
+}
+
+/// A frame of [`awkward_pixel`]s of every flavour, from `seed`. Alpha (RGBA) is NaN, negative,
+/// positive or a random bit pattern: every path must pass it through bit for bit.
+pub fn awkward_frame(width: usize, height: usize, layout: Layout, seed: u64) -> Frame {
+    let mut rng = Rng(seed);
+    let ch = layout.channels();
+    let mut data = Vec::with_capacity(width * height * ch);
+    for _ in 0..width * height {
+        let flavour = rng.below(14);
+        data.extend_from_slice(&awkward_pixel(&mut rng, flavour));
+        if ch == 4 {
+            let a = match rng.below(4) {
+                0 => f32::NAN,
+                1 => -rng.unit(),
+                2 => f32::from_bits(rng.next_u32()),
+                _ => rng.unit(),
+            };
+            data.push(a);
+        }
+    }
+    Frame::from_data(width, height, layout, data).unwrap()
+}
+
+/// The relative part of the f32 bound.
+pub const F32_REL: f64 = 1e-5;
+
+/// `T_k = |s|·Σ_j |m_kj·p_j|` in f64 (`p` the pixel's terms, `s` NSRM's scale or 1): the size of
+/// the summands of output channel `k`. 0 where the model gives 0 (NSRM's `s ≤ 0`).
+pub fn summands(model: &Model, rgb: [f64; 3]) -> [f64; 3] {
+    let mut p = vec![0.0; model.terms().len()];
+    match model.features_of(rgb, &mut p) {
+        None => [0.0; 3],
+        Some(s) => [0, 1, 2].map(|k| {
+            s.abs()
+                * model
+                    .row(k)
+                    .iter()
+                    .zip(&p)
+                    .map(|(m, v)| (m * v).abs())
+                    .sum::<f64>()
+        }),
+    }
+}
+
+/// The one f32 error bound of every f32 path (fast CPU, GPU) against the f64 reference:
+/// `|got − ref| ≤ rel · max(|ref|, T_k, 1e-30)`. Where nothing cancels `T_k = |ref|` and this is
+/// a plain relative error; where the terms cancel to near 0, f32 summation cannot do better than
+/// the rounding of the summands, and that is what `T_k` allows.
+pub fn f32_bound(reference: f64, summands_k: f64, rel: f64) -> f64 {
+    rel * reference.abs().max(summands_k).max(1e-30)
+}
+
+/// The training patches most tests fit on: the Nikon D5100 and rawtoaces-190 under D65.
+pub fn training() -> &'static TrainingSet {
+    static DATA: OnceLock<TrainingSet> = OnceLock::new();
+    DATA.get_or_init(|| {
+        simulate_named("nikon-d5100", "D65", "rawtoaces-190", &Grid::default()).unwrap()
+    })
+}
+
+/// A runtime directory for Mesa (once per test process) when the environment has none.
+#[cfg(feature = "cli")]
+fn xdg_runtime_dir() -> Option<PathBuf> {
+    static DIR: OnceLock<Option<PathBuf>> = OnceLock::new();
+    DIR.get_or_init(|| {
+        if std::env::var_os("XDG_RUNTIME_DIR").is_some() {
+            return None;
+        }
+        let d = std::env::temp_dir().join(format!("nsrm-test-xdg-{}", std::process::id()));
+        std::fs::create_dir_all(&d).ok()?;
+        #[cfg(unix)]
+        {
+            use std::os::unix::fs::PermissionsExt;
+            let _ = std::fs::set_permissions(&d, std::fs::Permissions::from_mode(0o700));
+        }
+        Some(d)
+    })
+    .clone()
+}
+
+/// The built `nsrm`, with `XDG_RUNTIME_DIR` set and `NSRM_ADAPTER` unset.
+#[cfg(feature = "cli")]
+pub fn nsrm() -> Command {
+    let mut c = Command::new(env!("CARGO_BIN_EXE_nsrm"));
+    c.env_remove("NSRM_ADAPTER");
+    if let Some(d) = xdg_runtime_dir() {
+        c.env("XDG_RUNTIME_DIR", d);
+    }
+    c
+}
+
+/// Runs the built `nsrm` in `dir`.
+#[cfg(feature = "cli")]
+pub fn nsrm_in(dir: &Path, args: &[&str]) -> Output {
+    nsrm()
+        .current_dir(dir)
+        .args(args)
+        .output()
+        .expect("running nsrm")
+}
+
+/// Runs `nsrm` in `dir` and asserts it succeeded.
+#[cfg(feature = "cli")]
+pub fn nsrm_ok(dir: &Path, args: &[&str]) -> Output {
+    let out = nsrm_in(dir, args);
+    assert!(
+        out.status.success(),
+        "nsrm {args:?} failed: {}\n{}",
+        String::from_utf8_lossy(&out.stderr),
+        String::from_utf8_lossy(&out.stdout)
+    );
+    out
+}
+
+/// Asserts that a command succeeded, showing its stderr when it did not.
+pub fn assert_ok(out: &Output) {
+    assert!(
+        out.status.success(),
+        "{:?}: {}",
+        out.status,
+        String::from_utf8_lossy(&out.stderr)
+    );
+}
+
+pub fn stderr(o: &Output) -> String {
+    String::from_utf8_lossy(&o.stderr).into_owned()
+}
+
+/// A fresh directory under the system's temporary directory, named for the test.
+pub fn tempdir(name: &str) -> PathBuf {
+    let d = std::env::temp_dir().join(format!("nsrm-{name}-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&d);
+    std::fs::create_dir_all(&d).unwrap();
+    d
+}
+
+/// Asserts no panic (101) and no abort (134 / SIGABRT) happened.
+pub fn no_crash(o: &Output, what: &str) {
+    let err = stderr(o);
+    assert!(!err.contains("panicked"), "{what}: {err}");
+    assert!(
+        !matches!(o.status.code(), Some(101) | Some(134)),
+        "{what}: {:?} {err}",
+        o.status
+    );
+    #[cfg(unix)]
+    {
+        use std::os::unix::process::ExitStatusExt;
+        assert!(
+            o.status.signal().is_none(),
+            "{what}: killed by {:?}: {err}",
+            o.status
+        );
+    }
+}
+
+/// Writes an identity-like LRM model (`m.json`) into `dir`.
+pub fn model(dir: &Path) {
+    let m = Model::from_matrix(
+        nsrm::model::Kind::Lrm,
+        1,
+        vec![50.0, 30.0, 15.0, 25.0, 60.0, 10.0, 2.0, 12.0, 90.0],
+    )
+    .unwrap();
+    std::fs::write(dir.join("m.json"), m.to_json()).unwrap();
+}
+
+/// A small RGB frame with a gradient.
+pub fn frame(w: usize, h: usize) -> Frame {
+    let data = (0..w * h * 3).map(|i| (i % 97) as f32 / 97.0).collect();
+    Frame {
+        width: w,
+        height: h,
+        layout: Layout::Rgb,
+        data,
+    }
+}
+
+/// Writes a small EXR frame at `path`.
+#[cfg(feature = "io")]
+pub fn exr(path: &Path, w: usize, h: usize) {
+    use nsrm::io::{ExrCompression, FileFormat, WriteOptions};
+    let opts = WriteOptions {
+        format: FileFormat::Exr,
+        half: false,
+        compression: ExrCompression::None,
+        space: nsrm::colorimetry::spaces::OutputSpace::Xyz,
+        overwrite: true,
+        zip_level: nsrm::io::DEFAULT_ZIP_LEVEL,
+    };
+    nsrm::io::write_exr(&frame(w, h), path, &opts).unwrap();
+}
+
+/// Writes a small 32-bit float TIFF frame at `path`.
+#[cfg(feature = "io")]
+pub fn tiff(path: &Path, w: usize, h: usize) {
+    nsrm::io::write_tiff(&frame(w, h), path, true).unwrap();
+}
+
+/// Bytes of a file, for checking inputs are never written.
+pub fn bytes(p: &Path) -> Vec<u8> {
+    std::fs::read(p).unwrap()
+}
+
+/// File names in `dir`, sorted.
+pub fn names(dir: &Path) -> Vec<String> {
+    let mut v: Vec<String> = std::fs::read_dir(dir)
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .collect();
+    v.sort();
+    v
+}

@@ -207,13 +207,26 @@ fn run_rate(a: RateArgs) -> Result<ExitCode> {
                                 > 0.25 * pitch
                     })
                     .count();
+                let worst = ex
+                    .patches
+                    .iter()
+                    .zip(&truth.patches)
+                    .map(|(p, t)| (p.centre[0] - t.centre[0]).hypot(p.centre[1] - t.centre[1]))
+                    .fold(0.0, f64::max)
+                    / pitch;
                 if bad == 0 {
                     ok += 1;
+                    if a.verbose {
+                        eprintln!(
+                            "seed {seed}: ok (score {:.2}, runner-up {:.2}, lattice {}, worst centre {worst:.2} pitch)",
+                            d.score, d.runner_up, d.lattice
+                        );
+                    }
                 } else {
                     wrong += 1;
                     eprintln!(
-                        "seed {seed}: WRONG: {bad} patches in the wrong cell (score {:.2})",
-                        d.score
+                        "seed {seed}: WRONG: {bad} patches in the wrong cell (score {:.2}, runner-up {:.2}, lattice {}, worst centre {worst:.2} pitch; area {:.3}, tilt {:.0}°, blur {:.2})",
+                        d.score, d.runner_up, d.lattice, truth.area_fraction, truth.tilt_deg, truth.blur
                     );
                 }
             }

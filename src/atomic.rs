@@ -10,14 +10,20 @@
 //! * Nothing but a regular file is ever replaced, even with `overwrite`: a FIFO, a device, a
 //!   socket or a directory at the destination is an error ([`WriteError::NotRegular`]).
 //! * Outputs that belong together are staged first and committed together ([`commit_all`]): both
-//!   appear, or neither.
+//!   appear, or neither. Writers deeper down (the EXR and TIFF encoders) stage instead of
+//!   committing while their caller collects ([`collect_staged`]).
+//! * After [`abort_flag`] is set (by a signal handler), every write in progress fails at its next
+//!   buffer flush, its temporary is removed, and nothing more is committed ([`WriteError::Aborted`]).
 
+use std::cell::RefCell;
 use std::collections::BTreeSet;
 use std::ffi::OsStr;
 use std::fs::File;
 use std::io::{BufWriter, Write};
+use std::io::{Seek, SeekFrom};
 use std::path::{Path, PathBuf};
-use std::sync::Mutex;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::{Arc, Mutex, OnceLock};
 
 /// Errors from writing an output file.
 #[derive(Debug, thiserror::Error)]
@@ -28,6 +34,77 @@ pub enum WriteError {
     NotRegular { path: PathBuf, what: &'static str },
     #[error("{}: cannot write: {err}", path.display())]
     Io { path: PathBuf, err: std::io::Error },
+    #[error("{}: not written: interrupted by a signal (its temporary file was removed)", .0.display())]
+    Aborted(PathBuf),
+}
+
+/// Set (by a signal handler: `signal_hook::flag::register(SIGTERM, abort_flag())`) to abort
+/// every write: a file being written fails at its next buffer flush and its temporary is
+/// removed; nothing is committed afterwards. Never cleared.
+pub fn abort_flag() -> Arc<AtomicBool> {
+    static FLAG: OnceLock<Arc<AtomicBool>> = OnceLock::new();
+    Arc::clone(FLAG.get_or_init(|| Arc::new(AtomicBool::new(false))))
+}
+
+/// Whether writes are being aborted (see [`abort_flag`]).
+pub fn writes_aborted() -> bool {
+    abort_flag().load(Ordering::SeqCst)
+}
+
+/// The temporary file an encoder writes into: a [`File`] whose writes fail once
+/// [`abort_flag`] is set, so an interrupted encoder stops at its next flush.
+#[derive(Debug)]
+pub struct OutFile {
+    file: File,
+    abort: Arc<AtomicBool>,
+}
+
+impl OutFile {
+    fn check(&self) -> std::io::Result<()> {
+        if self.abort.load(Ordering::Relaxed) {
+            Err(std::io::Error::other("interrupted by a signal"))
+        } else {
+            Ok(())
+        }
+    }
+}
+
+impl Write for OutFile {
+    fn write(&mut self, buf: &[u8]) -> std::io::Result<usize> {
+        self.check()?;
+        self.file.write(buf)
+    }
+
+    fn write_all(&mut self, buf: &[u8]) -> std::io::Result<()> {
+        self.check()?;
+        self.file.write_all(buf)
+    }
+
+    fn flush(&mut self) -> std::io::Result<()> {
+        self.file.flush()
+    }
+}
+
+impl Seek for OutFile {
+    fn seek(&mut self, pos: SeekFrom) -> std::io::Result<u64> {
+        self.file.seek(pos)
+    }
+}
+
+thread_local! {
+    /// Set by [`collect_staged`]: finished files are kept here instead of being committed.
+    static COLLECTING: RefCell<Option<Vec<Staged>>> = const { RefCell::new(None) };
+}
+
+/// Runs `f` with every file that [`write_with`] (and so [`write_atomic`] and the frame
+/// writers) finishes on this thread staged instead of committed, and returns them, for
+/// [`commit_all`]. On error the staged files are dropped (their temporaries removed).
+pub fn collect_staged<R, E>(f: impl FnOnce() -> Result<R, E>) -> Result<(R, Vec<Staged>), E> {
+    let outer = COLLECTING.with(|c| c.borrow_mut().replace(Vec::new()));
+    let r = f();
+    let staged = COLLECTING.with(|c| std::mem::replace(&mut *c.borrow_mut(), outer));
+    let staged = staged.unwrap_or_default();
+    r.map(|v| (v, staged))
 }
 
 /// The part of a temporary's name that marks it as this crate's: `.NAME.nsrm-PID-RANDOM.tmp`.
@@ -162,13 +239,17 @@ pub struct Staged {
 
 impl Staged {
     /// Creates a fresh temporary beside `dest` (never opening an existing file).
-    fn create(dest: &Path, overwrite: bool) -> Result<(File, Staged), WriteError> {
+    fn create(dest: &Path, overwrite: bool) -> Result<(OutFile, Staged), WriteError> {
         let mut last = None;
         for _ in 0..16 {
             let tmp = temp_path_for(dest);
             match File::create_new(&tmp) {
                 Ok(f) => {
                     temps().insert(tmp.clone());
+                    let f = OutFile {
+                        file: f,
+                        abort: abort_flag(),
+                    };
                     return Ok((
                         f,
                         Staged {
@@ -209,6 +290,10 @@ impl Staged {
     /// link, which fails if the destination appeared meanwhile (no race with another writer);
     /// with it, a rename, after checking the destination is (still) a regular file or absent.
     pub fn commit(mut self) -> Result<(), WriteError> {
+        if writes_aborted() {
+            self.discard();
+            return Err(WriteError::Aborted(self.dest.clone()));
+        }
         let r = commit_path(&self.tmp, &self.dest, self.overwrite);
         self.discard();
         r
@@ -254,29 +339,71 @@ fn commit_path(tmp: &Path, dest: &Path, overwrite: bool) -> Result<(), WriteErro
 /// Moves a finished temporary file onto `dest` (see [`Staged::commit`]); the temporary is
 /// removed in every case. `tmp` must be a file this process created.
 pub fn commit(tmp: &Path, dest: &Path, overwrite: bool) -> Result<(), WriteError> {
-    let r = commit_path(tmp, dest, overwrite);
+    let r = if writes_aborted() {
+        Err(WriteError::Aborted(dest.to_path_buf()))
+    } else {
+        commit_path(tmp, dest, overwrite)
+    };
     let _ = std::fs::remove_file(tmp);
     temps().remove(tmp);
     r
 }
 
 /// Commits files that belong together: every destination is checked first, then each is moved
-/// into place; if one fails, the ones this call already placed are removed again, so they
-/// appear together or not at all. (With `overwrite`, a file they replaced is not restored.)
+/// into place; if one fails, the ones this call already placed are taken back, so they appear
+/// together or not at all. A file they replaced (with `overwrite`) is kept aside as a hard link
+/// until all are placed and put back on failure (where the filesystem has no hard links it is
+/// not restored).
 pub fn commit_all(staged: Vec<Staged>) -> Result<(), WriteError> {
     for s in &staged {
         check_clobber(&s.dest, s.overwrite)?;
     }
-    let mut placed: Vec<PathBuf> = Vec::new();
+    if writes_aborted() {
+        return Err(WriteError::Aborted(
+            staged.first().map(|s| s.dest.clone()).unwrap_or_default(),
+        ));
+    }
+    // (destination, the file it replaced kept aside)
+    let mut placed: Vec<(PathBuf, Option<PathBuf>)> = Vec::new();
+    let restore = |placed: &[(PathBuf, Option<PathBuf>)]| {
+        for (p, backup) in placed.iter().rev() {
+            match backup {
+                Some(b) => {
+                    let _ = std::fs::rename(b, p);
+                    temps().remove(b);
+                }
+                None => {
+                    let _ = std::fs::remove_file(p);
+                }
+            }
+        }
+    };
     for s in staged {
         let dest = s.dest.clone();
+        let backup = if s.overwrite && std::fs::symlink_metadata(&dest).is_ok() {
+            let b = temp_path_for(&dest);
+            std::fs::hard_link(&dest, &b).ok().map(|()| {
+                temps().insert(b.clone());
+                b
+            })
+        } else {
+            None
+        };
         if let Err(e) = s.commit() {
-            for p in &placed {
-                let _ = std::fs::remove_file(p);
+            if let Some(b) = &backup {
+                let _ = std::fs::remove_file(b);
+                temps().remove(b);
             }
+            restore(&placed);
             return Err(e);
         }
-        placed.push(dest);
+        placed.push((dest, backup));
+    }
+    for (_, b) in placed {
+        if let Some(b) = b {
+            let _ = std::fs::remove_file(&b);
+            temps().remove(&b);
+        }
     }
     Ok(())
 }
@@ -286,7 +413,7 @@ pub fn commit_all(staged: Vec<Staged>) -> Result<(), WriteError> {
 pub fn stage_with<E: From<WriteError>>(
     dest: &Path,
     overwrite: bool,
-    write: impl FnOnce(&mut BufWriter<File>) -> Result<(), E>,
+    write: impl FnOnce(&mut BufWriter<OutFile>) -> Result<(), E>,
 ) -> Result<Staged, E> {
     check_clobber(dest, overwrite)?;
     let (file, staged) = Staged::create(dest, overwrite)?;
@@ -300,19 +427,34 @@ pub fn stage_with<E: From<WriteError>>(
     write(&mut w)?;
     w.flush().map_err(io)?;
     let file = w.into_inner().map_err(|e| io(e.into_error()))?;
-    file.sync_all().map_err(io)?;
+    file.file.sync_all().map_err(io)?;
+    if writes_aborted() {
+        return Err(E::from(WriteError::Aborted(dest.to_path_buf())));
+    }
     Ok(staged)
 }
 
 /// Writes `dest` atomically through an encoder: `write` fills a buffered writer on a fresh
 /// temporary file beside `dest`; the file is then flushed, synced and moved into place
-/// ([`Staged::commit`]). On any error the temporary file is removed and `dest` is untouched.
+/// ([`Staged::commit`]) — or, inside [`collect_staged`], kept staged for the caller. On any
+/// error the temporary file is removed and `dest` is untouched.
 pub fn write_with<E: From<WriteError>>(
     dest: &Path,
     overwrite: bool,
-    write: impl FnOnce(&mut BufWriter<File>) -> Result<(), E>,
+    write: impl FnOnce(&mut BufWriter<OutFile>) -> Result<(), E>,
 ) -> Result<(), E> {
-    Ok(stage_with(dest, overwrite, write)?.commit()?)
+    let staged = stage_with(dest, overwrite, write)?;
+    let staged = COLLECTING.with(|c| match c.borrow_mut().as_mut() {
+        Some(list) => {
+            list.push(staged);
+            None
+        }
+        None => Some(staged),
+    });
+    match staged {
+        Some(s) => Ok(s.commit()?),
+        None => Ok(()),
+    }
 }
 
 /// Stages `bytes` for `dest` (see [`stage_with`]).
@@ -327,7 +469,12 @@ pub fn stage_bytes(dest: &Path, bytes: &[u8], overwrite: bool) -> Result<Staged,
 
 /// Writes `bytes` to `dest` atomically (temp file + fsync + rename).
 pub fn write_atomic(dest: &Path, bytes: &[u8], overwrite: bool) -> Result<(), WriteError> {
-    stage_bytes(dest, bytes, overwrite)?.commit()
+    write_with(dest, overwrite, |w| {
+        w.write_all(bytes).map_err(|err| WriteError::Io {
+            path: dest.to_path_buf(),
+            err,
+        })
+    })
 }
 
 #[cfg(test)]

@@ -180,3 +180,158 @@ fn render_chart_writes_frame_and_layout_together() {
     assert!(o.status.success(), "{}", stderr(&o));
     assert_eq!(names(d), ["c.exr", "c.patches.json"]);
 }
+
+/// Waits (at most 120 s) until `done` holds, polling every 2 ms.
+fn wait_for(what: &str, mut done: impl FnMut() -> bool) {
+    let t = Instant::now();
+    while !done() {
+        assert!(
+            t.elapsed() < Duration::from_secs(120),
+            "{what}: not after 120 s"
+        );
+        std::thread::sleep(Duration::from_millis(2));
+    }
+}
+
+#[test]
+fn an_output_and_its_preview_are_committed_together() {
+    // The previews of the later frames cannot be committed: their names are taken by
+    // directories made while the batch runs (after the plan, which would have refused them).
+    // With the output committed before its preview, those outputs appeared alone; now neither
+    // appears and the frame fails.
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let n = 300;
+    batch(d, n);
+    let child = Command::new(env!("CARGO_BIN_EXE_nsrm"))
+        .current_dir(d)
+        .args([
+            "apply",
+            "--model",
+            "m.json",
+            "--device",
+            "cpu",
+            "-j",
+            "1",
+            "-o",
+            "out",
+            "--preview",
+            "prev",
+            "--continue-on-error",
+            "in",
+        ])
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    wait_for("the first output", || d.join("out/f_xyz.0000.exr").exists());
+    let mut blocked = Vec::new();
+    for i in (n / 2..n).rev() {
+        // Fails (and the frame is not counted) when that preview was already written.
+        if std::fs::create_dir(d.join(format!("prev/f_xyz.{i:04}.png"))).is_ok() {
+            blocked.push(i);
+        }
+    }
+    let out = child.wait_with_output().unwrap();
+    let err = stderr(&out);
+    no_crash(&out, "apply --preview");
+    assert!(
+        blocked.len() > 10,
+        "the batch finished before the previews could be blocked: {err}"
+    );
+    assert_eq!(out.status.code(), Some(1), "{err}");
+    assert!(err.contains("not a regular file"), "{err}");
+    for i in 0..n {
+        let o = d.join(format!("out/f_xyz.{i:04}.exr"));
+        let p = d.join(format!("prev/f_xyz.{i:04}.png"));
+        if blocked.contains(&i) {
+            assert!(
+                !o.exists(),
+                "{} was committed without its preview",
+                o.display()
+            );
+            assert!(p.is_dir());
+        } else {
+            assert!(o.exists() && p.is_file(), "frame {i}: {err}");
+        }
+    }
+    assert!(err.contains(&format!("{} failed", blocked.len())), "{err}");
+    for sub in ["out", "prev"] {
+        let left: Vec<String> = names(&d.join(sub))
+            .into_iter()
+            .filter(|n| n.ends_with(".tmp"))
+            .collect();
+        assert!(left.is_empty(), "temporaries left in {sub}: {left:?}");
+    }
+}
+
+#[cfg(unix)]
+#[test]
+fn a_frame_being_written_at_sigterm_is_aborted_not_finished() {
+    // A small frame, then a large noisy one written with the slowest deflate: the signal comes
+    // while the large one's temporary is being written. It must be aborted (temporary removed,
+    // nothing committed); the small one, committed before, stays.
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    model(d);
+    std::fs::create_dir(d.join("in")).unwrap();
+    exr(&d.join("in/f.0000.exr"), 64, 64);
+    let big = nsrm::Frame::synthetic_camera_rgb(2048, 2048, nsrm::Layout::Rgb, 7);
+    let opts = nsrm::io::WriteOptions {
+        format: nsrm::io::FileFormat::Exr,
+        half: false,
+        compression: nsrm::io::ExrCompression::None,
+        space: nsrm::colorimetry::spaces::OutputSpace::Xyz,
+        overwrite: true,
+        zip_level: nsrm::io::DEFAULT_ZIP_LEVEL,
+    };
+    nsrm::io::write_exr(&big, &d.join("in/f.0001.exr"), &opts).unwrap();
+    drop(big);
+    let child = Command::new(env!("CARGO_BIN_EXE_nsrm"))
+        .current_dir(d)
+        .args([
+            "apply",
+            "--model",
+            "m.json",
+            "--device",
+            "cpu",
+            "-j",
+            "1",
+            "--compression",
+            "zip",
+            "--zip-level",
+            "9",
+            "-o",
+            "out",
+            "in",
+        ])
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let writing = |d: &Path| {
+        std::fs::read_dir(d.join("out")).is_ok_and(|r| {
+            r.flatten().any(|e| {
+                let n = e.file_name().to_string_lossy().into_owned();
+                n.starts_with(".f_xyz.0001.exr.nsrm-") && n.ends_with(".tmp")
+            })
+        })
+    };
+    wait_for("the large frame's temporary", || {
+        d.join("out/f_xyz.0000.exr").exists() && writing(d)
+    });
+    let ok = Command::new("kill")
+        .args(["-TERM", &child.id().to_string()])
+        .status()
+        .unwrap();
+    assert!(ok.success());
+    let out = child.wait_with_output().unwrap();
+    let err = stderr(&out);
+    no_crash(&out, "SIGTERM while writing");
+    assert_eq!(out.status.code(), Some(143), "{err}");
+    assert!(err.contains("1 converted"), "{err}");
+    assert!(err.contains("1 aborted while being written"), "{err}");
+    assert_eq!(names(&d.join("out")), ["f_xyz.0000.exr"], "{err}");
+    let f = nsrm::io::read_frame(&d.join("out/f_xyz.0000.exr"), &Default::default()).unwrap();
+    assert_eq!((f.width, f.height), (64, 64));
+}

@@ -18,6 +18,7 @@ use super::reference::Reference;
 use super::{ChartError, ChartKind, Homography};
 use crate::colorimetry::delta_e00_xyz;
 use crate::frame::Frame;
+use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
 /// How patches are read.
@@ -149,22 +150,33 @@ impl Extraction {
 /// otherwise.
 pub fn infer_white_level(frame: &Frame) -> Option<f64> {
     let ch = frame.layout.channels();
+    // Two parallel passes over the frame (the largest finite value, then the pixels near it),
+    // in blocks of 64 Ki pixels.
+    let block = ch << 16;
     let max = frame
         .data
-        .chunks_exact(ch)
-        .flat_map(|p| p[..3].iter())
-        .copied()
-        .filter(|v| v.is_finite())
-        .fold(f32::MIN, f32::max);
+        .par_chunks(block)
+        .map(|b| {
+            b.chunks_exact(ch).fold(f32::MIN, |m, p| {
+                p[..3]
+                    .iter()
+                    .fold(m, |m, &v| if v.is_finite() { m.max(v) } else { m })
+            })
+        })
+        .reduce(|| f32::MIN, f32::max);
     if !(max > 0.0) {
         return None;
     }
     let near = max * 0.999;
-    let n = frame
+    let n: usize = frame
         .data
-        .chunks_exact(ch)
-        .filter(|p| p[..3].iter().any(|&v| v >= near))
-        .count();
+        .par_chunks(block)
+        .map(|b| {
+            b.chunks_exact(ch)
+                .filter(|p| p[..3].iter().any(|&v| v >= near))
+                .count()
+        })
+        .sum();
     (n >= 4 && n as f64 >= 1e-4 * frame.pixels() as f64).then_some(max as f64)
 }
 
@@ -285,87 +297,36 @@ pub fn extract(
     };
     let side = sample_side(kind, opts);
     let labels = kind.labels();
+    // Patches are read in parallel (each gathers its own pixels); results are taken in cell
+    // order, so the first error is the same as a sequential reading's.
+    let read: Vec<Option<Result<PatchReading, ChartError>>> = (0..kind.cells())
+        .into_par_iter()
+        .map(|i| {
+            read_patch(
+                frame,
+                h,
+                &hinv,
+                kind.cell_centre(i),
+                side,
+                &labels[i],
+                reference.xyz[i],
+                white_level,
+                opts,
+            )
+        })
+        .collect();
     let mut patches = Vec::with_capacity(kind.cells());
     let mut outside = Vec::new();
     let mut frame_max = 0.0f64;
-    for i in 0..kind.cells() {
-        let centre = kind.cell_centre(i);
-        let Some((s, outline)) = gather(frame, h, &hinv, centre, side) else {
-            outside.push(labels[i].clone());
-            continue;
-        };
-        let n = s.quadrant.len();
-        if n < 4 {
-            return Err(ChartError::Geometry(format!(
-                "patch {} covers {n} pixels in the frame; the chart is too small to read",
-                labels[i]
-            )));
-        }
-        let mut rgb = [0.0; 3];
-        let mut std = [0.0; 3];
-        let mut finite = true;
-        for k in 0..3 {
-            let v = &s.values[k];
-            finite &= v.iter().all(|x| x.is_finite());
-            let mean = v.iter().map(|&x| x as f64).sum::<f64>() / n as f64;
-            std[k] = (v.iter().map(|&x| (x as f64 - mean).powi(2)).sum::<f64>() / n as f64).sqrt();
-            let mut sorted = v.clone();
-            sorted.sort_by(f32::total_cmp);
-            let cut = ((n as f64) * opts.trim).floor() as usize;
-            let kept = &sorted[cut..n - cut];
-            rgb[k] = kept.iter().map(|&x| x as f64).sum::<f64>() / kept.len() as f64;
-        }
-        if !finite {
-            return Err(ChartError::Invalid(format!(
-                "patch {}: the frame has NaN or infinite values there",
-                labels[i]
-            )));
-        }
-        frame_max = frame_max.max(rgb[0].max(rgb[1]).max(rgb[2]));
-        let mut flags = Vec::new();
-        if let Some(w) = white_level {
-            let at = (0..n)
-                .filter(|&j| (0..3).any(|k| s.values[k][j] as f64 >= w * 0.999))
-                .count();
-            if at as f64 >= 0.005 * n as f64 {
-                flags.push(Flag::Clipped);
+    for (i, r) in read.into_iter().enumerate() {
+        match r {
+            None => outside.push(labels[i].clone()),
+            Some(Err(e)) => return Err(e),
+            Some(Ok(p)) => {
+                frame_max = frame_max.max(p.rgb[0].max(p.rgb[1]).max(p.rgb[2]));
+                patches.push((i, p));
             }
         }
-        // Non-uniformity: quadrant means against the patch mean, per channel.
-        let mut qsum = [[0.0f64; 3]; 4];
-        let mut qn = [0usize; 4];
-        for j in 0..n {
-            let q = s.quadrant[j] as usize;
-            qn[q] += 1;
-            for k in 0..3 {
-                qsum[q][k] += s.values[k][j] as f64;
-            }
-        }
-        let nonuniform = (0..4).filter(|&q| qn[q] >= 2).any(|q| {
-            (0..3).any(|k| {
-                let m = qsum[q][k] / qn[q] as f64;
-                let dev = (m - rgb[k]).abs();
-                let se = std[k] / (qn[q] as f64).sqrt();
-                dev > opts.nonuniform * rgb[k].abs() && dev > 5.0 * se
-            })
-        });
-        if nonuniform {
-            flags.push(Flag::Nonuniform);
-        }
-        patches.push((
-            i,
-            PatchReading {
-                label: labels[i].clone(),
-                rgb,
-                std,
-                count: n,
-                flags,
-                xyz: reference.xyz[i],
-                centre: h.apply(centre),
-                outline,
-                flat: 1.0,
-            },
-        ));
     }
     if !outside.is_empty() {
         return Err(ChartError::Geometry(format!(
@@ -401,6 +362,100 @@ pub fn extract(
         white_level_inferred: inferred && white_level.is_some(),
         patches,
     })
+}
+
+/// Reads the patch of the cell centred on `centre`: `None` when its sampled area is not inside
+/// the frame.
+#[allow(clippy::too_many_arguments)]
+fn read_patch(
+    frame: &Frame,
+    h: &Homography,
+    hinv: &Homography,
+    centre: [f64; 2],
+    side: f64,
+    label: &str,
+    xyz: [f64; 3],
+    white_level: Option<f64>,
+    opts: &ExtractOptions,
+) -> Option<Result<PatchReading, ChartError>> {
+    let (s, outline) = gather(frame, h, hinv, centre, side)?;
+    let n = s.quadrant.len();
+    if n < 4 {
+        return Some(Err(ChartError::Geometry(format!(
+            "patch {label} covers {n} pixels in the frame; the chart is too small to read"
+        ))));
+    }
+    let mut rgb = [0.0; 3];
+    let mut std = [0.0; 3];
+    let mut finite = true;
+    let cut = ((n as f64) * opts.trim).floor() as usize;
+    for k in 0..3 {
+        let v = &s.values[k];
+        finite &= v.iter().all(|x| x.is_finite());
+        let mean = v.iter().map(|&x| x as f64).sum::<f64>() / n as f64;
+        std[k] = (v.iter().map(|&x| (x as f64 - mean).powi(2)).sum::<f64>() / n as f64).sqrt();
+        rgb[k] = trimmed_mean(v, cut);
+    }
+    if !finite {
+        return Some(Err(ChartError::Invalid(format!(
+            "patch {label}: the frame has NaN or infinite values there"
+        ))));
+    }
+    let mut flags = Vec::new();
+    if let Some(w) = white_level {
+        let at = (0..n)
+            .filter(|&j| (0..3).any(|k| s.values[k][j] as f64 >= w * 0.999))
+            .count();
+        if at as f64 >= 0.005 * n as f64 {
+            flags.push(Flag::Clipped);
+        }
+    }
+    // Non-uniformity: quadrant means against the patch mean, per channel.
+    let mut qsum = [[0.0f64; 3]; 4];
+    let mut qn = [0usize; 4];
+    for j in 0..n {
+        let q = s.quadrant[j] as usize;
+        qn[q] += 1;
+        for k in 0..3 {
+            qsum[q][k] += s.values[k][j] as f64;
+        }
+    }
+    let nonuniform = (0..4).filter(|&q| qn[q] >= 2).any(|q| {
+        (0..3).any(|k| {
+            let m = qsum[q][k] / qn[q] as f64;
+            let dev = (m - rgb[k]).abs();
+            let se = std[k] / (qn[q] as f64).sqrt();
+            dev > opts.nonuniform * rgb[k].abs() && dev > 5.0 * se
+        })
+    });
+    if nonuniform {
+        flags.push(Flag::Nonuniform);
+    }
+    Some(Ok(PatchReading {
+        label: label.to_string(),
+        rgb,
+        std,
+        count: n,
+        flags,
+        xyz,
+        centre: h.apply(centre),
+        outline,
+        flat: 1.0,
+    }))
+}
+
+/// The mean of `v` without its `cut` smallest and `cut` largest values (`2 * cut < v.len()`):
+/// the values are partitioned around the two cut points (linear time), not sorted.
+fn trimmed_mean(v: &[f32], cut: usize) -> f64 {
+    let n = v.len();
+    let mut w = v.to_vec();
+    if cut > 0 {
+        w.select_nth_unstable_by(cut - 1, f32::total_cmp);
+        let (_, rest) = w.split_at_mut(cut);
+        rest.select_nth_unstable_by(n - 2 * cut, f32::total_cmp);
+    }
+    let kept = &w[cut..n - cut];
+    kept.iter().map(|&x| x as f64).sum::<f64>() / kept.len() as f64
 }
 
 /// Least-squares 3×3 matrix taking `rgb` to `xyz` (weights `w`), or `None` when singular.

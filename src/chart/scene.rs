@@ -118,6 +118,8 @@ pub struct SceneOptions {
     pub min_area: f64,
     pub max_area: f64,
     pub max_tilt_deg: f64,
+    /// Smallest tilt of a random pose (degrees; the tilt is drawn from `min..max`).
+    pub min_tilt_deg: f64,
     /// Reflectance of the chart body (neutral).
     pub body_reflectance: f64,
 }
@@ -141,6 +143,7 @@ impl Default for SceneOptions {
             min_area: 0.1,
             max_area: 0.4,
             max_tilt_deg: 30.0,
+            min_tilt_deg: 0.0,
             body_reflectance: 0.035,
         }
     }
@@ -172,6 +175,7 @@ impl SceneOptions {
             min_area: 0.05,
             max_area: 0.4,
             max_tilt_deg: 30.0,
+            min_tilt_deg: 0.0,
             body_reflectance: 0.035,
         }
     }
@@ -203,8 +207,11 @@ impl SceneOptions {
         if !(self.min_area > 0.0 && self.min_area <= self.max_area && self.max_area <= 0.9) {
             return bad("chart area fractions must satisfy 0 < min ≤ max ≤ 0.9");
         }
-        if !(nonneg(self.max_tilt_deg) && self.max_tilt_deg <= 60.0) {
-            return bad("the tilt must be 0..60°");
+        if !(nonneg(self.min_tilt_deg)
+            && self.min_tilt_deg <= self.max_tilt_deg
+            && self.max_tilt_deg <= 60.0)
+        {
+            return bad("the tilt must be 0..60° (and the smallest at most the largest)");
         }
         if self.clutter > 10_000 {
             return bad("at most 10000 clutter shapes");
@@ -287,7 +294,9 @@ fn random_pose(
     let body = kind.body_corners();
     let (cc, rr) = (kind.columns() as f64 / 2.0, kind.rows() as f64 / 2.0);
     let theta = std::f64::consts::TAU * g.uniform();
-    let tilt = opts.max_tilt_deg.to_radians() * g.uniform();
+    // (With no smallest tilt this is exactly the envelope's draw, so seeded scenes stay the same.)
+    let tilt = opts.min_tilt_deg.to_radians()
+        + (opts.max_tilt_deg - opts.min_tilt_deg).to_radians() * g.uniform();
     let phi = std::f64::consts::TAU * g.uniform();
     let area = opts.min_area + (opts.max_area - opts.min_area) * g.uniform();
     let diag = (2.0 * (cc + kind.margin())).hypot(2.0 * (rr + kind.margin()));

@@ -115,6 +115,8 @@ pub struct Args {
 #[derive(Debug, Clone)]
 enum Outcome {
     Converted,
+    /// Being written when a signal came: its temporary removed, nothing committed.
+    Aborted,
     Skipped(String),
     Failed(String),
 }
@@ -183,9 +185,11 @@ const STOP_SIGNALS: [(i32, &str); 3] = [
     (signal_hook::consts::SIGHUP, "SIGHUP"),
 ];
 
-/// Set by SIGINT, SIGTERM or SIGHUP (to the signal's number): no new file is started, the
-/// files in flight finish or are dropped, this run's temporaries are removed, the summary is
-/// printed and the exit status is 128 + the signal. A second signal ends the process at once.
+/// Set by SIGINT, SIGTERM or SIGHUP (to the signal's number): no new file is started, frames
+/// being decoded or corrected are dropped, a frame being written is aborted at its next buffer
+/// flush (its temporary removed, nothing committed: [`nsrm::atomic::abort_flag`]), this run's
+/// temporaries are removed, the summary is printed and the exit status is 128 + the signal.
+/// Outputs committed before the signal stay. A second signal ends the process at once.
 #[derive(Clone)]
 struct Interrupt {
     signal: Arc<AtomicUsize>,
@@ -202,6 +206,7 @@ impl Interrupt {
                 .and_then(|_| {
                     signal_hook::flag::register_usize(sig, Arc::clone(&signal), sig as usize)
                 })
+                .and_then(|_| signal_hook::flag::register(sig, nsrm::atomic::abort_flag()))
                 .with_context(|| format!("installing the {name} handler"))?;
         }
         Ok(Interrupt { signal })
@@ -392,13 +397,19 @@ pub fn run(a: Args) -> Result<ExitCode> {
     let converted = count(|o| matches!(o, Outcome::Converted));
     let skipped = count(|o| matches!(o, Outcome::Skipped(_)));
     let failed = count(|o| matches!(o, Outcome::Failed(_)));
+    let aborted = count(|o| matches!(o, Outcome::Aborted));
     let not_attempted = outcomes.iter().filter(|o| o.is_none()).count();
     let signal = interrupt.received();
     eprintln!(
-        "nsrm apply: {}{converted} converted, {skipped} skipped, {failed} failed{} ({scope}; {}; output {} {}{})",
+        "nsrm apply: {}{converted} converted, {skipped} skipped, {failed} failed{}{} ({scope}; {}; output {} {}{})",
         match signal {
             Some((name, _)) => format!("interrupted by {name}: "),
             None => String::new(),
+        },
+        if aborted > 0 {
+            format!(", {aborted} aborted while being written")
+        } else {
+            String::new()
         },
         if not_attempted > 0 {
             format!(", {not_attempted} not attempted")
@@ -419,7 +430,7 @@ pub fn run(a: Args) -> Result<ExitCode> {
     }
     if let Some((name, _)) = signal {
         eprintln!(
-            "  stopped by {name}: {not_attempted} not attempted; {removed} temporary file(s) of this run removed"
+            "  stopped by {name}: {not_attempted} not attempted, {aborted} aborted while being written (nothing of them committed); {removed} temporary file(s) of this run removed"
         );
     } else if not_attempted > 0 {
         eprintln!(
@@ -598,6 +609,10 @@ fn run_pipeline(
                         pb.set_message(format!("{:.1} Mpixel/s", rate / 1e6));
                         pb.inc(1);
                     }
+                    // Stopped by a signal while writing: not a failure of the file.
+                    Err(_) if interrupt.stopped() || nsrm::atomic::writes_aborted() => {
+                        lock(results).push((i, Outcome::Aborted));
+                    }
                     Err(e) => fail(i, e.to_string()),
                 }
             });
@@ -665,16 +680,18 @@ fn lock<T>(m: &Mutex<T>) -> std::sync::MutexGuard<'_, T> {
     m.lock().unwrap_or_else(|e| e.into_inner())
 }
 
-/// Writes the output (and its preview, after the output succeeded).
+/// Writes the output and its preview together: both are staged (encoded into temporaries),
+/// then committed with [`nsrm::atomic::commit_all`], so both appear or neither.
 fn encode(job: &Job, d: Decoded, s: &Settings) -> Result<(), fio::IoError> {
     let png = match &job.preview {
         Some(_) => Some(preview::encode_png(&d.frame, &s.to_srgb)?),
         None => None,
     };
-    d.write(&job.output, &s.write)?;
+    let ((), mut staged) = nsrm::atomic::collect_staged(|| d.write(&job.output, &s.write))?;
     if let (Some(path), Some(png)) = (&job.preview, png) {
-        nsrm::atomic::write_atomic(path, &png, s.write.overwrite)?;
+        staged.push(nsrm::atomic::stage_bytes(path, &png, s.write.overwrite)?);
     }
+    nsrm::atomic::commit_all(staged)?;
     Ok(())
 }
 

@@ -79,12 +79,21 @@ pub struct RateArgs {
     /// Largest tilt in degrees (envelope 30).
     #[arg(long, value_name = "DEG")]
     max_tilt: Option<f64>,
+    /// Smallest tilt in degrees (default 0): the tilt is drawn from MIN..MAX.
+    #[arg(long, value_name = "DEG")]
+    min_tilt: Option<f64>,
     /// Exposure below clipping of the brightest patch, in stops: drawn from 0..S (envelope 4).
     #[arg(long, value_name = "S")]
     stops: Option<f64>,
+    /// Smallest exposure below clipping in stops (default 0): drawn from MIN..S.
+    #[arg(long, value_name = "S")]
+    min_stops: Option<f64>,
     /// Blur σ in pixels drawn from 0..B (envelope 1.2).
     #[arg(long, value_name = "B")]
     max_blur: Option<f64>,
+    /// Smallest blur σ in pixels (default 0): drawn from MIN..B.
+    #[arg(long, value_name = "B")]
+    min_blur: Option<f64>,
     /// Hide a corner of the chart behind an object.
     #[arg(long)]
     occlusion: bool,
@@ -157,12 +166,18 @@ fn run_rate(a: RateArgs) -> Result<ExitCode> {
         opts.min_area = a.min_area.unwrap_or(opts.min_area);
         opts.max_area = a.max_area.unwrap_or(opts.max_area).max(opts.min_area);
         opts.max_tilt_deg = a.max_tilt.unwrap_or(opts.max_tilt_deg);
-        if let Some(s) = a.stops {
-            // Same draw as the envelope's, rescaled from 4 stops to `s`.
-            opts.exposure = clip_exposure * (opts.exposure / clip_exposure).powf(s / 4.0);
+        opts.min_tilt_deg = a.min_tilt.unwrap_or(0.0).min(opts.max_tilt_deg);
+        if a.stops.is_some() || a.min_stops.is_some() {
+            // Same draw as the envelope's (u uniform in 0..1, 4·u stops below clipping),
+            // rescaled to MIN..S stops.
+            let u = -(opts.exposure / clip_exposure).log2() / 4.0;
+            let (lo, hi) = (a.min_stops.unwrap_or(0.0), a.stops.unwrap_or(4.0));
+            opts.exposure = clip_exposure * 2f64.powf(-(lo + (hi - lo).max(0.0) * u));
         }
-        if let Some(b) = a.max_blur {
-            opts.blur *= b / 1.2;
+        if a.max_blur.is_some() || a.min_blur.is_some() {
+            let u = opts.blur / 1.2;
+            let (lo, hi) = (a.min_blur.unwrap_or(0.0), a.max_blur.unwrap_or(1.2));
+            opts.blur = lo + (hi - lo).max(0.0) * u;
         }
         opts.occlusion = a.occlusion;
         let (frame, _, truth) = render(&colours, &opts)?;
@@ -193,13 +208,26 @@ fn run_rate(a: RateArgs) -> Result<ExitCode> {
                                 > 0.25 * pitch
                     })
                     .count();
+                let worst = ex
+                    .patches
+                    .iter()
+                    .zip(&truth.patches)
+                    .map(|(p, t)| (p.centre[0] - t.centre[0]).hypot(p.centre[1] - t.centre[1]))
+                    .fold(0.0, f64::max)
+                    / pitch;
                 if bad == 0 {
                     ok += 1;
+                    if a.verbose {
+                        eprintln!(
+                            "seed {seed}: ok (score {:.2}, runner-up {:.2}, lattice {}, worst centre {worst:.2} pitch)",
+                            d.score, d.runner_up, d.lattice
+                        );
+                    }
                 } else {
                     wrong += 1;
                     eprintln!(
-                        "seed {seed}: WRONG: {bad} patches in the wrong cell (score {:.2})",
-                        d.score
+                        "seed {seed}: WRONG: {bad} patches in the wrong cell (score {:.2}, runner-up {:.2}, lattice {}, worst centre {worst:.2} pitch; area {:.3}, tilt {:.0}°, blur {:.2})",
+                        d.score, d.runner_up, d.lattice, truth.area_fraction, truth.tilt_deg, truth.blur
                     );
                 }
             }

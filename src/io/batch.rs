@@ -3,8 +3,9 @@
 
 use super::{FileFormat, IoError};
 use std::collections::{HashMap, HashSet};
-use std::ffi::OsString;
-use std::path::{Path, PathBuf};
+use std::ffi::{OsStr, OsString};
+use std::io::ErrorKind;
+use std::path::{Component, Path, PathBuf};
 
 /// Whether a file name looks like a frame nsrm reads: `.exr`, `.tif`, `.tiff` (any case), not
 /// hidden (so `._x.exr` AppleDouble files and nsrm's own `.x.tmp` files are left out). The
@@ -14,10 +15,6 @@ pub fn is_frame_name(path: &Path) -> bool {
         .file_name()
         .is_none_or(|n| n.as_encoded_bytes().first() == Some(&b'.'));
     !hidden && FileFormat::from_extension(path).is_some()
-}
-
-fn has_glob_chars(s: &str) -> bool {
-    s.contains(['*', '?', '['])
 }
 
 /// Whether a directory entry or glob match is taken: frame names that are not directories
@@ -34,8 +31,8 @@ fn take_entry(p: &Path) -> bool {
 ///   filtered to EXR/TIFF file names.
 ///
 /// An input that matches nothing is an error, naming it; one that exists but is neither a
-/// regular file nor a directory is an error saying what it is. Names need not be UTF-8 (only
-/// a glob pattern itself must be). Files reached twice (two patterns, or `./a.exr` and `a.exr`)
+/// regular file nor a directory is an error saying what it is. Names need not be UTF-8, in a
+/// directory, a glob match (in any component) or the pattern itself (see [`glob_into`]). Files reached twice (two patterns, or `./a.exr` and `a.exr`)
 /// are listed once. The list is sorted by path, so every machine given the same inputs sees
 /// the same order (see [`Shard`]).
 pub fn expand_inputs<S: AsRef<std::ffi::OsStr>>(specs: &[S]) -> Result<Vec<PathBuf>, IoError> {
@@ -86,15 +83,13 @@ pub fn expand_inputs<S: AsRef<std::ffi::OsStr>>(specs: &[S]) -> Result<Vec<PathB
                 why: "a symbolic link to nothing (its target does not exist)".into(),
             });
         }
-        let pattern = match spec.as_ref().to_str() {
-            Some(p) if has_glob_chars(p) => p,
-            _ => {
-                return Err(IoError::NoMatch {
-                    spec: shown(),
-                    why: "no such file or directory".into(),
-                })
-            }
-        };
+        let pattern = spec.as_ref();
+        if !has_glob_bytes(pattern.as_encoded_bytes()) {
+            return Err(IoError::NoMatch {
+                spec: shown(),
+                why: "no such file or directory".into(),
+            });
+        }
         glob_into(pattern, &mut found)?;
         if found.len() == before {
             return Err(IoError::NoMatch {
@@ -109,52 +104,258 @@ pub fn expand_inputs<S: AsRef<std::ffi::OsStr>>(specs: &[S]) -> Result<Vec<PathB
     Ok(found)
 }
 
-/// Adds the matches of a glob pattern. When only the last component has wildcards (the usual
-/// `dir/*.exr`), the directory is listed here so that names that are not UTF-8 are matched too
-/// (on their lossy form); otherwise the `glob` crate walks the pattern.
-fn glob_into(pattern: &str, found: &mut Vec<PathBuf>) -> Result<(), IoError> {
-    let bad = |e: glob::PatternError| IoError::NoMatch {
-        spec: pattern.to_string(),
-        why: format!("bad pattern: {e}"),
-    };
-    let (dir, last) = match pattern.rsplit_once('/') {
-        Some((d, l)) => (if d.is_empty() { "/" } else { d }, l),
-        None => (".", pattern),
-    };
-    if !has_glob_chars(dir) && !last.is_empty() {
-        let pat = glob::Pattern::new(last).map_err(bad)?;
-        let Ok(entries) = std::fs::read_dir(dir) else {
-            return Ok(());
+/// Adds the matches of a glob pattern, walking the directories here (not with the `glob` crate,
+/// which skips names that are not UTF-8). Each component of the pattern is matched against the
+/// names' bytes:
+///
+/// * `*` any run of characters, `?` one character, `[abc]` / `[a-z]` / `[!abc]` one character
+///   of (not of) a set; a byte that is not part of valid UTF-8 counts as one character, matched by
+///   `?`, `*` and `[!…]`, or by the same byte in the pattern; a leading `.` must be matched
+///   literally (hidden files and directories are left out);
+/// * `**` as a whole component: this directory and every directory below it (symbolic links to
+///   directories are not followed there, so a loop cannot trap the walk);
+/// * a component without wildcards is taken as it is.
+///
+/// Names that are not UTF-8 are therefore matched like any other, in a directory part as in the
+/// file name, and the pattern itself may be non-UTF-8.
+fn glob_into(pattern: &OsStr, found: &mut Vec<PathBuf>) -> Result<(), IoError> {
+    let shown = || Path::new(pattern).display().to_string();
+    let mut current: Vec<PathBuf> = vec![PathBuf::new()];
+    let comps: Vec<Component> = Path::new(pattern).components().collect();
+    for (k, comp) in comps.iter().enumerate() {
+        let last = k + 1 == comps.len();
+        let name = match comp {
+            Component::Normal(n) => *n,
+            other => {
+                for c in &mut current {
+                    c.push(other.as_os_str());
+                }
+                continue;
+            }
         };
-        let opts = glob::MatchOptions {
-            require_literal_leading_dot: true,
-            ..Default::default()
-        };
-        for e in entries.flatten() {
-            let name = e.file_name();
-            if pat.matches_with(&name.to_string_lossy(), opts) {
-                let p = if pattern.contains('/') {
-                    Path::new(dir).join(&name)
+        let bytes = name.as_encoded_bytes();
+        let mut next = Vec::new();
+        if !has_glob_bytes(bytes) {
+            for c in &current {
+                let p = c.join(name);
+                if last || p.is_dir() {
+                    next.push(p);
+                }
+            }
+        } else if bytes == b"**" {
+            for c in &current {
+                walk_dirs(c, &mut next)?;
+            }
+            if last {
+                // `dir/**` names directories only; frames are files.
+                next.clear();
+            }
+        } else {
+            let pat = Pattern::parse(bytes).map_err(|why| IoError::NoMatch {
+                spec: shown(),
+                why: format!("bad pattern: {why}"),
+            })?;
+            for c in &current {
+                let dir = if c.as_os_str().is_empty() {
+                    Path::new(".")
                 } else {
-                    PathBuf::from(&name)
+                    c.as_path()
                 };
-                if take_entry(&p) {
-                    found.push(p);
+                let entries = match std::fs::read_dir(dir) {
+                    Ok(e) => e,
+                    Err(e)
+                        if matches!(e.kind(), ErrorKind::NotFound | ErrorKind::NotADirectory) =>
+                    {
+                        continue
+                    }
+                    Err(err) => {
+                        return Err(IoError::Read {
+                            path: dir.to_path_buf(),
+                            err,
+                        })
+                    }
+                };
+                let mut names: Vec<OsString> = entries.flatten().map(|e| e.file_name()).collect();
+                names.sort();
+                for n in names {
+                    if pat.matches(n.as_encoded_bytes()) {
+                        let p = c.join(&n);
+                        if last || p.is_dir() {
+                            next.push(p);
+                        }
+                    }
                 }
             }
         }
-        return Ok(());
-    }
-    for p in glob::glob(pattern).map_err(bad)? {
-        let p = p.map_err(|e| IoError::Read {
-            path: e.path().to_path_buf(),
-            err: std::io::Error::new(e.error().kind(), e.error().to_string()),
-        })?;
-        if take_entry(&p) {
-            found.push(p);
+        current = next;
+        if current.is_empty() {
+            return Ok(());
         }
     }
+    found.extend(current.into_iter().filter(|p| take_entry(p)));
     Ok(())
+}
+
+fn has_glob_bytes(b: &[u8]) -> bool {
+    b.iter().any(|c| matches!(c, b'*' | b'?' | b'['))
+}
+
+/// `dir` and every directory below it (not hidden, symbolic links not followed), sorted.
+fn walk_dirs(dir: &Path, out: &mut Vec<PathBuf>) -> Result<(), IoError> {
+    out.push(dir.to_path_buf());
+    let shown = if dir.as_os_str().is_empty() {
+        Path::new(".")
+    } else {
+        dir
+    };
+    let Ok(entries) = std::fs::read_dir(shown) else {
+        return Ok(());
+    };
+    let mut subs: Vec<PathBuf> = entries
+        .flatten()
+        .filter(|e| e.file_type().is_ok_and(|t| t.is_dir()))
+        .filter(|e| e.file_name().as_encoded_bytes().first() != Some(&b'.'))
+        .map(|e| dir.join(e.file_name()))
+        .collect();
+    subs.sort();
+    for s in subs {
+        walk_dirs(&s, out)?;
+    }
+    Ok(())
+}
+
+/// One unit of a name: a character, or a byte that is not part of valid UTF-8.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord)]
+enum Unit {
+    Char(char),
+    Byte(u8),
+}
+
+fn units(b: &[u8]) -> Vec<Unit> {
+    let mut out = Vec::with_capacity(b.len());
+    for chunk in b.utf8_chunks() {
+        out.extend(chunk.valid().chars().map(Unit::Char));
+        out.extend(chunk.invalid().iter().map(|&x| Unit::Byte(x)));
+    }
+    out
+}
+
+#[derive(Debug, Clone, PartialEq)]
+enum Token {
+    Literal(Unit),
+    One,
+    Star,
+    /// `[…]`: ranges (inclusive), negated with `[!…]`.
+    Set(bool, Vec<(Unit, Unit)>),
+}
+
+/// A compiled pattern for one path component.
+#[derive(Debug, Clone)]
+struct Pattern(Vec<Token>);
+
+impl Pattern {
+    fn parse(b: &[u8]) -> Result<Pattern, String> {
+        let u = units(b);
+        let mut t = Vec::new();
+        let mut i = 0;
+        while i < u.len() {
+            match u[i] {
+                Unit::Char('*') => {
+                    if t.last() != Some(&Token::Star) {
+                        t.push(Token::Star);
+                    }
+                    i += 1;
+                }
+                Unit::Char('?') => {
+                    t.push(Token::One);
+                    i += 1;
+                }
+                Unit::Char('[') => {
+                    let mut j = i + 1;
+                    let negated = matches!(u.get(j), Some(Unit::Char('!' | '^')));
+                    if negated {
+                        j += 1;
+                    }
+                    let mut items = Vec::new();
+                    let mut first = true;
+                    loop {
+                        let Some(&c) = u.get(j) else {
+                            return Err(format!("`[` at character {} is not closed", i + 1));
+                        };
+                        if c == Unit::Char(']') && !first {
+                            j += 1;
+                            break;
+                        }
+                        first = false;
+                        if u.get(j + 1) == Some(&Unit::Char('-'))
+                            && u.get(j + 2).is_some_and(|&e| e != Unit::Char(']'))
+                        {
+                            let e = u[j + 2];
+                            if e < c {
+                                return Err("a range in `[…]` runs backwards".into());
+                            }
+                            items.push((c, e));
+                            j += 3;
+                        } else {
+                            items.push((c, c));
+                            j += 1;
+                        }
+                    }
+                    t.push(Token::Set(negated, items));
+                    i = j;
+                }
+                c => {
+                    t.push(Token::Literal(c));
+                    i += 1;
+                }
+            }
+        }
+        Ok(Pattern(t))
+    }
+
+    /// Whether a name (its bytes) matches; a leading `.` must be matched by a literal `.`.
+    fn matches(&self, name: &[u8]) -> bool {
+        let n = units(name);
+        if n.first() == Some(&Unit::Char('.'))
+            && self.0.first() != Some(&Token::Literal(Unit::Char('.')))
+        {
+            return false;
+        }
+        let one = |t: &Token, c: Unit| match t {
+            Token::Literal(l) => *l == c,
+            Token::One => true,
+            Token::Set(neg, items) => {
+                let inside = items.iter().any(|(a, b)| {
+                    // Characters compare with characters, stray bytes with bytes.
+                    std::mem::discriminant(a) == std::mem::discriminant(&c) && *a <= c && c <= *b
+                });
+                inside != *neg
+            }
+            Token::Star => false,
+        };
+        // Greedy matching with backtracking to the last `*` (linear in practice).
+        let (p, mut pi, mut ni) = (&self.0, 0usize, 0usize);
+        let mut back: Option<(usize, usize)> = None;
+        while ni < n.len() {
+            if pi < p.len() && p[pi] == Token::Star {
+                back = Some((pi, ni));
+                pi += 1;
+            } else if pi < p.len() && one(&p[pi], n[ni]) {
+                pi += 1;
+                ni += 1;
+            } else if let Some((bp, bn)) = back {
+                pi = bp + 1;
+                ni = bn + 1;
+                back = Some((bp, bn + 1));
+            } else {
+                return false;
+            }
+        }
+        while pi < p.len() && p[pi] == Token::Star {
+            pi += 1;
+        }
+        pi == p.len()
+    }
 }
 
 /// A deterministic slice of a batch: shard `index` of `count` (1-based, `1 ≤ index ≤ count`)
@@ -807,5 +1008,83 @@ mod tests {
             FileFormat::Tiff,
         );
         assert_eq!(out.as_os_str().as_bytes(), b"\xff_x.tif");
+    }
+
+    #[test]
+    fn glob_components_match_bytes() {
+        let p = |s: &str| Pattern::parse(s.as_bytes()).unwrap();
+        assert!(p("*.exr").matches(b"a.exr"));
+        assert!(!p("*.exr").matches(b".a.exr"));
+        assert!(p(".*").matches(b".a"));
+        assert!(p("pl?te").matches("pläte".as_bytes()));
+        assert!(p("pl?te").matches(b"pl\xe9te"));
+        assert!(p("pl*").matches(b"pl\xe9te\xff"));
+        assert!(p("[!a]x").matches(b"\xffx"));
+        assert!(!p("[a-z]x").matches(b"\xffx"));
+        assert!(p("f.[0-9][0-9]*").matches(b"f.0123.exr"));
+        assert!(!p("f.[0-9][0-9]*").matches(b"f.a123.exr"));
+        assert!(p("[]]").matches(b"]"));
+        assert!(p("a*b*c").matches(b"aXbYbZc"));
+        assert!(!p("a*b*c").matches(b"aXbYbZ"));
+        assert!(Pattern::parse(b"[abc").is_err());
+        assert!(Pattern::parse(b"[z-a]").is_err());
+        // A non-UTF-8 byte in the pattern matches the same byte.
+        let q = Pattern::parse(b"pl\xe9*").unwrap();
+        assert!(q.matches(b"pl\xe9te.exr") && !q.matches("plé".as_bytes()));
+    }
+
+    #[cfg(unix)]
+    #[test]
+    fn globs_keep_non_utf8_directory_names() {
+        use std::os::unix::ffi::OsStrExt;
+        let dir = tempfile::tempdir().unwrap();
+        let root = dir.path();
+        let odd = root.join(OsStr::from_bytes(b"pl\xe9te"));
+        let plain = root.join("plain");
+        let hidden = root.join(".hidden");
+        let deep = plain.join("sub");
+        for d in [&odd, &plain, &hidden, &deep] {
+            std::fs::create_dir_all(d).unwrap();
+        }
+        let files = [
+            odd.join("a.exr"),
+            odd.join(OsStr::from_bytes(b"\xff.exr")),
+            plain.join("b.exr"),
+            hidden.join("c.exr"),
+            deep.join("d.tif"),
+        ];
+        for f in &files {
+            std::fs::write(f, b"x").unwrap();
+        }
+        std::fs::write(plain.join("notes.txt"), b"x").unwrap();
+        let expand = |pat: &[u8]| {
+            let mut spec = root.as_os_str().as_bytes().to_vec();
+            spec.push(b'/');
+            spec.extend_from_slice(pat);
+            expand_inputs(&[OsStr::from_bytes(&spec)])
+        };
+        let got = expand(b"*/*.exr").unwrap();
+        let mut want = vec![files[0].clone(), files[1].clone(), files[2].clone()];
+        want.sort();
+        assert_eq!(got, want);
+        // A non-UTF-8 pattern, wildcards in both parts.
+        assert_eq!(
+            expand(b"pl\xe9*/?.exr").unwrap(),
+            vec![files[0].clone(), files[1].clone()]
+        );
+        assert_eq!(expand(b"pl?te/\xff.*").unwrap(), vec![files[1].clone()]);
+        // `**`: every depth, hidden directories left out.
+        let got = expand(b"**/*.tif").unwrap();
+        assert_eq!(got, vec![files[4].clone()]);
+        assert_eq!(expand(b"**/*.exr").unwrap().len(), 3);
+        let e = expand(b"*/*.png").unwrap_err().to_string();
+        assert!(e.contains("matches no"), "{e}");
+        let e = expand(b"*/[ab.exr").unwrap_err().to_string();
+        assert!(e.contains("bad pattern"), "{e}");
+        // A relative pattern keeps its form (no `./` added).
+        let rel = Path::new("src/io/*.rs");
+        let mut v = Vec::new();
+        glob_into(rel.as_os_str(), &mut v).unwrap();
+        assert!(v.is_empty(), "not frames: {v:?}");
     }
 }

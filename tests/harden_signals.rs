@@ -276,7 +276,9 @@ fn a_frame_being_written_at_sigterm_is_aborted_not_finished() {
     model(d);
     std::fs::create_dir(d.join("in")).unwrap();
     exr(&d.join("in/f.0000.exr"), 64, 64);
-    let big = nsrm::Frame::synthetic_camera_rgb(2048, 2048, nsrm::Layout::Rgb, 7);
+    let mut rng = Rng(7);
+    let noise = (0..2048 * 2048 * 3).map(|_| rng.unit()).collect();
+    let big = nsrm::Frame::from_data(2048, 2048, nsrm::Layout::Rgb, noise).unwrap();
     let opts = nsrm::io::WriteOptions {
         format: nsrm::io::FileFormat::Exr,
         half: false,

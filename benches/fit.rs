@@ -1,7 +1,8 @@
 //! Criterion benches of fitting: every model kind at every order on 96 patches (the first 96 of
 //! the built-in rawtoaces-190 set, Nikon D5100 under D65), and the leave-one-out evaluation on
 //! them (96 fits each, in parallel), and leave-one-out of the fit variants (ΔE00 objective, white
-//! preservation, ridge auto, white-balanced NSRM). `cargo bench --bench fit`.
+//! preservation, ridge auto by GCV and by exact leave-one-out, white-balanced NSRM).
+//! `cargo bench --bench fit`.
 
 use criterion::{criterion_group, criterion_main, Criterion};
 use nsrm::eval::{evaluate, evaluate_with, Protocol};
@@ -72,6 +73,14 @@ fn fitting(c: &mut Criterion) {
             Kind::Nsrm,
             FitOptions {
                 ridge: Ridge::Auto,
+                ..Default::default()
+            },
+        ),
+        (
+            "nsrm3_ridge_auto_loo",
+            Kind::Nsrm,
+            FitOptions {
+                ridge: Ridge::AutoLoo,
                 ..Default::default()
             },
         ),

@@ -187,6 +187,17 @@ fn ridge_shrinks_coefficients_and_auto_picks_from_the_grid() {
     // The condition number is that of the design, whatever the regularisation.
     assert_eq!(ls.condition_number, auto.condition_number);
     assert!(ls.condition_number.unwrap() > 1e4);
+    assert_eq!(auto.ridge_criterion.as_deref(), Some("gcv"));
+    // Exact leave-one-out picks from the same grid and also shrinks the coefficients.
+    let loo = norm(Ridge::AutoLoo);
+    assert!(loo.ridge_auto && loo.ridge_lambda > 0.0);
+    assert_eq!(loo.ridge_criterion.as_deref(), Some("loo"));
+    assert!(nsrm::model::fit::lambda_grid().any(|l| l == loo.ridge_lambda));
+    assert!(loo.coefficient_norm < ls.coefficient_norm / 10.0, "{loo:?}");
+    eprintln!(
+        "RPRM3 rawtoaces-190 D65: λ GCV {:e} (norm {:.1}), λ LOO {:e} (norm {:.1})",
+        auto.ridge_lambda, auto.coefficient_norm, loo.ridge_lambda, loo.coefficient_norm
+    );
 }
 
 #[test]

@@ -85,6 +85,7 @@ fn describe(name: &str, opts: &FitOptions, r: EvalResult) -> VariantResult {
             Ridge::None => "none".into(),
             Ridge::Lambda(l) => format!("{l}"),
             Ridge::Auto => "auto".into(),
+            Ridge::AutoLoo => "auto-loo".into(),
         },
         normalise: opts.normalise.name().into(),
         result: r,

@@ -110,7 +110,11 @@ pub fn run(a: Args) -> Result<ExitCode> {
         report.objective,
         report.preserve_white,
         report.ridge_lambda,
-        if report.ridge_auto { " (GCV)" } else { "" },
+        match report.ridge_criterion.as_deref() {
+            Some("loo") => " (leave-one-out)",
+            Some(_) => " (GCV)",
+            None => "",
+        },
         report.normalise,
         report.coefficient_norm,
         match (report.de00_start, report.de00_end) {

@@ -21,9 +21,10 @@ pub struct FitVariantArgs {
     /// `--normalise white-balanced`); needed with measured data, which has no perfect white.
     #[arg(long, value_name = "LABEL")]
     pub white_patch: Option<String>,
-    /// Tikhonov regularisation of the matrix on standardised terms: λ ≥ 0, or `auto` (λ chosen by
-    /// generalised cross-validation on a log grid 1e-12..10).
-    #[arg(long, value_name = "LAMBDA|auto")]
+    /// Tikhonov regularisation of the matrix on standardised terms: λ ≥ 0, `auto` (λ chosen by
+    /// generalised cross-validation on a log grid 1e-12..10; also `auto-gcv`) or `auto-loo` (by
+    /// exact, closed-form leave-one-out of the ridge solve on the same grid).
+    #[arg(long, value_name = "LAMBDA|auto|auto-loo")]
     pub ridge: Option<String>,
     /// NSRM's input: `raw` (the paper) or `white-balanced` (R, G, B divided by the training white's
     /// camera response before forming s, r, g; the gains go into the model file).

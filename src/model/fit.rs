@@ -11,7 +11,11 @@
 //! * **Ridge** adds `λ Σ_j (w_j m_kj)²`, `w_j = ‖A_j‖` (each term standardised to unit norm over the
 //!   training patches, so `λ` is dimensionless); NSRM's constant term is not penalised. `auto`
 //!   chooses `λ` on a log grid `10^-12 … 10^1` (quarter decades) by generalised cross-validation,
-//!   `GCV(λ) = n·RSS(λ) / (n − tr H(λ))²`.
+//!   `GCV(λ) = n·RSS(λ) / (n − tr H(λ))²`; `auto-loo` by exact leave-one-out of the ridge solve,
+//!   `PRESS(λ) = Σ_i ‖e_i‖² / (1 − H_ii)²` (the closed-form residual of patch `i` predicted by the
+//!   solve without it, the standardisation weights `w_j` held at their all-patch values; tested
+//!   against refits). GCV stays the default `auto`: it replaces each `H_ii` by their mean, so a
+//!   single high-leverage patch (`H_ii → 1`) does not dominate the choice.
 //! * **White preservation** requires `p(S_w)·m_k = t_w,k` exactly, for the reference white's camera
 //!   RGB `S_w` and XYZ: a linear constraint (for NSRM, at the white's `(r, g)`). It is solved in the
 //!   constraint's null space: `m_k = m_p,k + N z_k`, with `m_p,k` the minimum-norm solution of the
@@ -97,20 +101,25 @@ pub enum Ridge {
     Lambda(f64),
     /// λ chosen by generalised cross-validation.
     Auto,
+    /// λ chosen by exact (closed-form) leave-one-out of the ridge solve.
+    AutoLoo,
 }
 
 impl Ridge {
     /// Parses `auto` or a number ≥ 0 (`0` is no regularisation).
     pub fn parse(s: &str) -> Result<Ridge, ModelError> {
         let s = s.trim();
-        if s.eq_ignore_ascii_case("auto") {
+        if s.eq_ignore_ascii_case("auto") || s.eq_ignore_ascii_case("auto-gcv") {
             return Ok(Ridge::Auto);
+        }
+        if s.eq_ignore_ascii_case("auto-loo") {
+            return Ok(Ridge::AutoLoo);
         }
         match s.parse::<f64>() {
             Ok(0.0) => Ok(Ridge::None),
             Ok(v) if v.is_finite() && v > 0.0 && v <= 1e12 => Ok(Ridge::Lambda(v)),
             _ => Err(ModelError::Invalid(format!(
-                "ridge `{s}`: expected auto or a number in [0, 1e12]"
+                "ridge `{s}`: expected auto (GCV), auto-loo or a number in [0, 1e12]"
             ))),
         }
     }
@@ -179,9 +188,13 @@ pub struct FitReport {
     pub preserve_white: String,
     /// `raw` or `white-balanced`.
     pub normalise: String,
-    /// The ridge λ used (0: none), and whether it was chosen by GCV.
+    /// The ridge λ used (0: none), and whether it was chosen automatically (by GCV, or by exact
+    /// leave-one-out: `ridge_criterion`).
     pub ridge_lambda: f64,
     pub ridge_auto: bool,
+    /// `gcv` or `loo` when λ was chosen automatically (absent in older files: GCV).
+    #[serde(skip_serializing_if = "Option::is_none", default)]
+    pub ridge_criterion: Option<String>,
     /// Frobenius norm of the fitted matrix.
     pub coefficient_norm: f64,
     /// σ_max / σ_min of the design matrix `A` (the terms as fitted); `None` when it is singular.
@@ -410,6 +423,12 @@ impl Reduced {
     /// Solves for `z` at ridge `lambda` (0: plain least squares); returns `z`, the data residual
     /// sum of squares and the trace of the hat matrix (the effective number of parameters).
     fn solve(&self, lambda: f64) -> Result<(DMatrix<f64>, f64, f64), ModelError> {
+        self.solve_loo(lambda).map(|r| (r.z, r.rss, r.trace))
+    }
+
+    /// [`solve`](Self::solve) with the diagonal of the hat matrix and the residuals, for the
+    /// closed-form leave-one-out residuals `e_i / (1 − H_ii)`.
+    fn solve_loo(&self, lambda: f64) -> Result<RidgeSolve, ModelError> {
         let (n, lr) = self.g.shape();
         let l = self.wn.nrows();
         let (k, rhs) = if lambda > 0.0 {
@@ -429,15 +448,51 @@ impl Reduced {
         let eps = cutoff(&svd, rows, lr);
         let z = svd.solve(&rhs, eps).map_err(|_| ModelError::Degenerate)?;
         let u = svd.u.as_ref().expect("computed");
-        let mut trace = 0.0;
+        let mut leverage = vec![0.0; n];
         for (c, s) in svd.singular_values.iter().enumerate() {
             if *s > eps {
-                trace += u.view((0, c), (n, 1)).norm_squared();
+                for (i, h) in leverage.iter_mut().enumerate() {
+                    *h += u[(i, c)] * u[(i, c)];
+                }
             }
         }
-        let rss = (&self.g * &z - &self.br).norm_squared();
-        Ok((z, rss, trace))
+        let trace = leverage.iter().sum();
+        let residuals = &self.g * &z - &self.br;
+        let rss = residuals.norm_squared();
+        Ok(RidgeSolve {
+            z,
+            rss,
+            trace,
+            leverage,
+            residuals,
+        })
     }
+
+    /// `PRESS(λ) = Σ_i ‖e_i‖² / (1 − H_ii)²` and the solution, or `None` for the solution when
+    /// some patch has leverage 1 (its left-out residual is undefined).
+    fn press(&self, lambda: f64) -> Result<(DMatrix<f64>, Option<f64>), ModelError> {
+        let r = self.solve_loo(lambda)?;
+        let mut press = 0.0;
+        for (i, h) in r.leverage.iter().enumerate() {
+            let d = 1.0 - h;
+            if d <= 1e-12 {
+                return Ok((r.z, None));
+            }
+            press += r.residuals.row(i).norm_squared() / (d * d);
+        }
+        Ok((r.z, Some(press)))
+    }
+}
+
+/// One ridge solve with what the λ criteria need.
+struct RidgeSolve {
+    z: DMatrix<f64>,
+    rss: f64,
+    trace: f64,
+    /// `H_ii`, the diagonal of the data block of the hat matrix.
+    leverage: Vec<f64>,
+    /// `G z − B_r`, n × 3.
+    residuals: DMatrix<f64>,
 }
 
 /// The λ grid of `--ridge auto`: 10^-12 … 10^1 in quarter decades.
@@ -557,6 +612,18 @@ pub fn fit_with(
                 let (lam, _, z) = best.ok_or(ModelError::Degenerate)?;
                 (lam, z)
             }
+            Ridge::AutoLoo => {
+                let mut best: Option<(f64, f64, DMatrix<f64>)> = None;
+                for lam in lambda_grid() {
+                    let (z, press) = reduced.press(lam)?;
+                    let Some(press) = press else { continue };
+                    if best.as_ref().is_none_or(|b| press < b.1) {
+                        best = Some((lam, press, z));
+                    }
+                }
+                let (lam, _, z) = best.ok_or(ModelError::Degenerate)?;
+                (lam, z)
+            }
         }
     };
 
@@ -599,7 +666,12 @@ pub fn fit_with(
         },
         normalise: opts.normalise.name().into(),
         ridge_lambda: lambda,
-        ridge_auto: opts.ridge == Ridge::Auto,
+        ridge_auto: matches!(opts.ridge, Ridge::Auto | Ridge::AutoLoo),
+        ridge_criterion: match opts.ridge {
+            Ridge::Auto => Some("gcv".into()),
+            Ridge::AutoLoo => Some("loo".into()),
+            _ => None,
+        },
         coefficient_norm,
         condition_number,
         input_gains: gains,
@@ -629,6 +701,43 @@ mod tests {
     use super::*;
 
     #[test]
+    fn closed_form_leave_one_out_matches_refits() {
+        // PRESS's residuals e_i / (1 − H_ii) are those of the ridge solve refitted without patch
+        // i (standardisation weights held), for NSRM and RPRM at several λ.
+        let data = crate::spectral::simulate_named(
+            "nikon-d5100",
+            "D65",
+            "cc24",
+            &crate::spectral::Grid::default(),
+        )
+        .unwrap();
+        for (kind, order) in [(Kind::Nsrm, 3), (Kind::Rprm, 3)] {
+            let t = terms(kind, order);
+            let d = design(kind, &t, &data.labels, &data.rgb, &data.xyz).unwrap();
+            let r = Reduced::new(kind, &t, &d, None);
+            for lam in [1e-6, 1e-3, 0.1] {
+                let full = r.solve_loo(lam).unwrap();
+                let mut worst = 0.0f64;
+                for i in 0..data.len() {
+                    let fold = Reduced {
+                        g: r.g.clone().remove_row(i),
+                        br: r.br.clone().remove_row(i),
+                        wn: r.wn.clone(),
+                        wxp: r.wxp.clone(),
+                        constraint: None,
+                    };
+                    let z = fold.solve(lam).unwrap().0;
+                    let refit = r.g.row(i) * &z - r.br.row(i);
+                    let closed = full.residuals.row(i) / (1.0 - full.leverage[i]);
+                    let scale = refit.norm().max(1e-12);
+                    worst = worst.max((refit - closed).norm() / scale);
+                }
+                assert!(worst < 1e-6, "{kind} {order} λ {lam}: {worst:e}");
+            }
+        }
+    }
+
+    #[test]
     fn option_parsing() {
         assert_eq!(Objective::parse("ls").unwrap(), Objective::LeastSquares);
         assert_eq!(
@@ -644,6 +753,8 @@ mod tests {
         }
         assert_eq!(Objective::De00 { power: 4.0 }.name(), "de00:4");
         assert_eq!(Ridge::parse("auto").unwrap(), Ridge::Auto);
+        assert_eq!(Ridge::parse("auto-gcv").unwrap(), Ridge::Auto);
+        assert_eq!(Ridge::parse("AUTO-LOO").unwrap(), Ridge::AutoLoo);
         assert_eq!(Ridge::parse("0").unwrap(), Ridge::None);
         assert_eq!(Ridge::parse("1e-3").unwrap(), Ridge::Lambda(1e-3));
         for bad in ["-1", "inf", "x", "1e13"] {

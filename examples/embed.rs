@@ -143,7 +143,7 @@ fn extent(w: u32, h: u32) -> wgpu::Extent3d {
 }
 
 /// Uploads an RGBA frame to a new `rgba32float` texture usable as a corrector's source.
-fn upload_rgba32f(device: &wgpu::Device, queue: &wgpu::Queue, frame: &Frame) -> wgpu::Texture {
+pub fn upload_rgba32f(device: &wgpu::Device, queue: &wgpu::Queue, frame: &Frame) -> wgpu::Texture {
     let (w, h) = (frame.width as u32, frame.height as u32);
     device.create_texture_with_data(
         queue,

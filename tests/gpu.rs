@@ -535,7 +535,7 @@ fn corrector_on_textures() {
     let input = random_frame(w as usize, h as usize, Layout::Rgba, 21);
     let mut reference = input.clone();
     m.apply_frame_f64(&mut reference);
-    let src = upload_rgba32f(dev, queue, &input);
+    let src = embed::upload_rgba32f(dev, queue, &input);
     for (format, tol) in [
         (TexelFormat::Rgba32Float, REL_TOL),
         (TexelFormat::Rgba16Float, 1e-3),
@@ -580,31 +580,6 @@ fn corrector_on_textures() {
             eprintln!("rgba16float output: max relative error {worst:.2e}");
         }
     }
-}
-
-/// A frame (RGBA) as a new `rgba32float` texture a corrector can read.
-fn upload_rgba32f(dev: &wgpu::Device, queue: &wgpu::Queue, frame: &Frame) -> wgpu::Texture {
-    use wgpu::util::DeviceExt;
-    assert_eq!(frame.layout, Layout::Rgba);
-    dev.create_texture_with_data(
-        queue,
-        &wgpu::TextureDescriptor {
-            label: None,
-            size: wgpu::Extent3d {
-                width: frame.width as u32,
-                height: frame.height as u32,
-                depth_or_array_layers: 1,
-            },
-            mip_level_count: 1,
-            sample_count: 1,
-            dimension: wgpu::TextureDimension::D2,
-            format: wgpu::TextureFormat::Rgba32Float,
-            usage: wgpu::TextureUsages::TEXTURE_BINDING,
-            view_formats: &[],
-        },
-        wgpu::util::TextureDataOrder::LayerMajor,
-        bytemuck::cast_slice(&frame.data),
-    )
 }
 
 /// An `rgba32float` or `rgba16float` texture (with `COPY_SRC`) read back as RGBA f32.

@@ -170,11 +170,8 @@ pub fn render(
 
 /// The panel of swatches below the picture.
 fn append_swatches(img: RgbImage, sw: &[Swatch], white: [f64; 3], font: &FontRef) -> RgbImage {
-    let m = OutputSpace::LinearSrgb.from_xyz(white);
-    let to8 = |xyz: [f64; 3]| {
-        let rgb = apply(&m, xyz.map(|v| v / white[1]));
-        Rgb(rgb.map(srgb8))
-    };
+    let m = crate::colorimetry::output_matrix(white, OutputSpace::LinearSrgb);
+    let to8 = |xyz: [f64; 3]| Rgb(apply(&m, xyz).map(srgb8));
     let cell = 64u32;
     let cols = (img.width() / cell).clamp(6, 24);
     let rows = (sw.len() as u32).div_ceil(cols);

@@ -20,9 +20,10 @@ use std::time::Instant;
 /// Default pixels per tile (1 Mpixel: 16 MiB per RGBA tile buffer).
 pub const DEFAULT_TILE_PIXELS: usize = 1 << 20;
 
-/// The bit pattern of the quiet NaN the output tiles are filled with when
-/// [`Engine::set_poison_output`] is on: a pixel the shader failed to write comes back as
-/// exactly this value (the shader itself never produces this payload).
+/// The bit pattern of the quiet NaN the output tiles are filled with before the shader runs, in
+/// builds with debug assertions (the tests): a pixel the shader failed to write comes back as
+/// exactly this value (the shader itself never produces this payload). Release builds skip the
+/// fill.
 pub const OUTPUT_SENTINEL_BITS: u32 = 0x7FC0_BAD5;
 
 /// Timing of one [`Engine::timed_apply`].
@@ -133,7 +134,7 @@ impl Engine {
             slots: Vec::new(),
             slot_pixels: 0,
             timestamps,
-            poison: false,
+            poison: cfg!(debug_assertions),
             sentinel: Vec::new(),
         })
     }
@@ -156,12 +157,6 @@ impl Engine {
     /// Whether [`timed_apply`](Self::timed_apply) can report kernel time.
     pub fn has_timestamps(&self) -> bool {
         self.timestamps.is_some()
-    }
-
-    /// Test aid: fill every output tile with the [`OUTPUT_SENTINEL_BITS`] NaN before the
-    /// shader runs, so a pixel it fails to write comes back as that NaN instead of stale data.
-    pub fn set_poison_output(&mut self, on: bool) {
-        self.poison = on;
     }
 
     /// Corrects `frame` in place (alpha untouched) with `model`, following the pixel policy of

@@ -13,9 +13,9 @@
 //! 4. Every placement of the chart on the lattice — 4 rotations × mirror × the offsets the lattice
 //!    allows — is scored by how well its patch colours match the reference (median ΔE00 after the
 //!    best 3×3 linear map, [`super::extract::match_score`]). The best must be plausible (below
-//!    [`super::extract::MATCH_LIMIT`]) and clearly better than the next (ratio
-//!    [`AMBIGUITY_RATIO`]); otherwise detection fails with a message and the candidates, never a
-//!    guess.
+//!    [`DETECT_MATCH_LIMIT`]), clearly better than the next (ratio [`AMBIGUITY_RATIO`]) and seen
+//!    under moderate perspective ([`PERSPECTIVE_LIMIT`]); otherwise detection fails with a
+//!    message and the candidates, never a guess.
 
 use super::extract::{cell_means, match_score, MATCH_LIMIT};
 use super::reference::Reference;

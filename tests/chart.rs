@@ -170,6 +170,41 @@ fn detection_in_the_envelope_is_right_or_refuses() {
 }
 
 #[test]
+fn outside_the_envelope_a_wrong_answer_becomes_a_refusal() {
+    // The two wrong answers `nsrm chart rate` found outside the envelope: a CC24 tilted 54°
+    // (one patch extrapolated 0.30 pitch off; now refused for its perspective) and an SG under
+    // blur σ 4.6 px (a placement shifted on a 22-patch lattice, median ΔE00 7.6; now refused by
+    // the stricter match limit for found charts). Same scenes as `chart rate --seed 2032
+    // --min-tilt 30.5 --max-tilt 55` and `--seed 4002 --min-blur 1.5 --max-blur 5`.
+    let mut cases = vec![(cc24(), 2032u64, "tilt")];
+    if let Some(s) = sg() {
+        cases.push((s, 4002, "blur"));
+    }
+    for (colours, seed, what) in cases {
+        let kind = colours.chart;
+        let reference = Reference::load(kind.default_reference(), kind, None).unwrap();
+        let mut opts = SceneOptions::envelope(&colours, 1200, 800, seed);
+        if what == "tilt" {
+            opts.min_tilt_deg = 30.5;
+            opts.max_tilt_deg = 55.0;
+        } else {
+            opts.blur = 1.5 + 3.5 * (opts.blur / 1.2);
+        }
+        let (frame, _, _) = render(&colours, &opts).unwrap();
+        let e = detect(&frame, &reference, &DetectOptions::default())
+            .map(|d| d.score)
+            .expect_err("refused");
+        let msg = e.error.to_string();
+        let why = if what == "tilt" {
+            "strong perspective"
+        } else {
+            "only loosely"
+        };
+        assert!(msg.contains(why), "{} seed {seed}: {msg}", kind.name());
+    }
+}
+
+#[test]
 fn model_from_extraction_matches_model_from_truth() {
     let colours = cc24();
     let reference = Reference::load("cc24-after2014", ChartKind::Cc24, None).unwrap();

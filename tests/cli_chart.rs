@@ -259,6 +259,42 @@ fn bad_inputs_fail_and_write_nothing() {
         "not on the chart: 25; missing: 24 black 2",
     );
     check(&["--reference", "sg-after2014"], "is for a sg chart");
+    // A Lab reference takes its white from --reference-white (not --white, which names the
+    // --training white): without it the error says which flag to use; with it, it is read.
+    let lab = d.join("lab.csv");
+    let builtin = std::fs::read_to_string(concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/assets/chart_cc24_after2014_d50.csv"
+    ))
+    .unwrap();
+    let mut text = String::from("label,L,a,b\n");
+    for line in builtin.lines().skip(1) {
+        let f: Vec<&str> = line.split(',').collect();
+        text.push_str(&format!("{},{},{},{}\n", f[0], f[4], f[5], f[6]));
+    }
+    std::fs::write(&lab, text).unwrap();
+    check(&["--reference", s(&lab)], "--reference-white");
+    let (ok, err) = run(&[
+        "chart",
+        "extract",
+        s(&frame),
+        "--chart",
+        "cc24",
+        "-o",
+        s(&csv),
+        "--reference",
+        s(&lab),
+        "--reference-white",
+        "D50",
+    ]);
+    assert!(ok, "{err}");
+    std::fs::remove_file(&csv).unwrap();
+    let help = nsrm()
+        .args(["chart", "extract", "--help"])
+        .output()
+        .unwrap();
+    let help = String::from_utf8_lossy(&help.stdout).replace(char::is_whitespace, "");
+    assert!(help.contains("Not`--white`"), "{help}");
     // A frame without a chart, with --overlay: the overlay shows the candidates, no CSV.
     let empty = scene(
         &d,

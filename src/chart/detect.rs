@@ -13,9 +13,9 @@
 //! 4. Every placement of the chart on the lattice — 4 rotations × mirror × the offsets the lattice
 //!    allows — is scored by how well its patch colours match the reference (median ΔE00 after the
 //!    best 3×3 linear map, [`super::extract::match_score`]). The best must be plausible (below
-//!    [`super::extract::MATCH_LIMIT`]) and clearly better than the next (ratio
-//!    [`AMBIGUITY_RATIO`]); otherwise detection fails with a message and the candidates, never a
-//!    guess.
+//!    [`DETECT_MATCH_LIMIT`]), clearly better than the next (ratio [`AMBIGUITY_RATIO`]) and seen
+//!    under moderate perspective ([`PERSPECTIVE_LIMIT`]); otherwise detection fails with a
+//!    message and the candidates, never a guess.
 
 use super::extract::{cell_means, match_score, MATCH_LIMIT};
 use super::reference::Reference;
@@ -27,6 +27,42 @@ use serde::{Deserialize, Serialize};
 
 /// The best placement must score at most this fraction of the second best.
 pub const AMBIGUITY_RATIO: f64 = 0.7;
+
+/// A found chart must match its reference at least this well (median ΔE00 after the best 3×3
+/// map; stricter than [`MATCH_LIMIT`], which applies to `--corners`): correct detections of
+/// synthetic scenes score at most 2.5, a placement shifted by some cells on a partial lattice
+/// was seen at 7.6.
+pub const DETECT_MATCH_LIMIT: f64 = 5.0;
+
+/// Perspective strength above which a found chart is refused: the ratio of the largest to the
+/// smallest patch scale (square root of the local area) over the chart's cells. Beyond it the
+/// lattice's centroids are biased enough that cells extrapolated past the lattice can land a
+/// quarter pitch off (seen at 1.69, a 54° tilt). Scenes inside the envelope (tilt ≤ 30°) reach
+/// 1.51 (100 CC24 and 60 SG scenes).
+pub const PERSPECTIVE_LIMIT: f64 = 1.6;
+
+/// [`PERSPECTIVE_LIMIT`]'s measure: largest over smallest local patch scale, over the cells
+/// that `h` (chart → image) places.
+pub fn perspective(kind: super::ChartKind, h: &Homography) -> f64 {
+    let scale = |c: [f64; 2]| {
+        let p = h.apply(c);
+        let a = h.apply([c[0] + 1.0, c[1]]);
+        let b = h.apply([c[0], c[1] + 1.0]);
+        let det = (a[0] - p[0]) * (b[1] - p[1]) - (a[1] - p[1]) * (b[0] - p[0]);
+        det.abs().sqrt()
+    };
+    let (mut lo, mut hi) = (f64::INFINITY, 0.0f64);
+    for i in 0..kind.cells() {
+        let s = scale(kind.cell_centre(i));
+        lo = lo.min(s);
+        hi = hi.max(s);
+    }
+    if lo > 0.0 {
+        hi / lo
+    } else {
+        f64::INFINITY
+    }
+}
 
 /// How detection works.
 #[derive(Debug, Clone, PartialEq)]
@@ -66,6 +102,8 @@ pub struct Detection {
     pub runner_up: f64,
     /// Patches linked into the lattice.
     pub lattice: usize,
+    /// Perspective strength ([`perspective`]).
+    pub perspective: f64,
     /// Mirrored (the frame shows the chart's mirror image) — unusual; reported for the user.
     pub mirrored: bool,
     pub downsample: usize,
@@ -411,6 +449,25 @@ pub fn detect(
             candidates,
         ));
     }
+    if score > DETECT_MATCH_LIMIT {
+        return Err(fail(
+            format!(
+                "a grid of {} patches was found, but its colours match reference {} only loosely (median ΔE00 {score:.1}, limit {DETECT_MATCH_LIMIT} for a found chart): refused rather than risk a wrong placement; give --corners",
+                lattice.len(),
+                reference.name
+            ),
+            candidates,
+        ));
+    }
+    let persp = perspective(kind, &hc);
+    if persp > PERSPECTIVE_LIMIT {
+        return Err(fail(
+            format!(
+                "the chart is seen under strong perspective (patch scale varies {persp:.2}× across it, limit {PERSPECTIVE_LIMIT}): refused rather than risk misplaced patches; shoot it more squarely or give --corners"
+            ),
+            candidates,
+        ));
+    }
     if score > AMBIGUITY_RATIO * runner_up {
         return Err(fail(
             format!(
@@ -433,6 +490,7 @@ pub fn detect(
         score,
         runner_up,
         lattice: lattice.len(),
+        perspective: persp,
         mirrored,
         downsample: f,
         candidates,

@@ -26,7 +26,9 @@ pub struct CaptureOptions {
     /// (.cie/.txt: SAMPLE_ID + XYZ_X/Y/Z or LAB_L/A/B).
     #[arg(long, value_name = "NAME|FILE")]
     pub reference: Option<String>,
-    /// White of a reference file's values: `X,Y,Z` or D50 (needed for Lab; XYZ defaults to D50).
+    /// White of a reference file's values: `X,Y,Z` or D50 (needed for a Lab file; XYZ files
+    /// default to D50). Not `--white`: that names the white of a `--training` file, and a Lab
+    /// reference's white is given here even when both are used. Built-in references ignore it.
     #[arg(long, value_name = "X,Y,Z|D50")]
     pub reference_white: Option<String>,
     /// The four outer corners of the patch grid in pixels, first patch's corner first, then

@@ -219,15 +219,15 @@ fn run_rate(a: RateArgs) -> Result<ExitCode> {
                     ok += 1;
                     if a.verbose {
                         eprintln!(
-                            "seed {seed}: ok (score {:.2}, runner-up {:.2}, lattice {}, worst centre {worst:.2} pitch)",
-                            d.score, d.runner_up, d.lattice
+                            "seed {seed}: ok (score {:.2}, runner-up {:.2}, lattice {}, worst centre {worst:.2} pitch, perspective {:.3})",
+                            d.score, d.runner_up, d.lattice, d.perspective
                         );
                     }
                 } else {
                     wrong += 1;
                     eprintln!(
-                        "seed {seed}: WRONG: {bad} patches in the wrong cell (score {:.2}, runner-up {:.2}, lattice {}, worst centre {worst:.2} pitch; area {:.3}, tilt {:.0}°, blur {:.2})",
-                        d.score, d.runner_up, d.lattice, truth.area_fraction, truth.tilt_deg, truth.blur
+                        "seed {seed}: WRONG: {bad} patches in the wrong cell (score {:.2}, runner-up {:.2}, lattice {}, worst centre {worst:.2} pitch, perspective {:.3}; area {:.3}, tilt {:.0}°, blur {:.2})",
+                        d.score, d.runner_up, d.lattice, d.perspective, truth.area_fraction, truth.tilt_deg, truth.blur
                     );
                 }
             }

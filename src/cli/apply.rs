@@ -78,11 +78,11 @@ pub struct Args {
     /// Noisy float data compresses little; `none` or `piz` encode fastest.
     #[arg(long, value_enum, ignore_case = true, default_value_t = values::Compression::Keep)]
     compression: values::Compression,
-    /// Deflate level (0-9) of ZIP and ZIPS outputs. The default, 2, is the fastest that still
-    /// compresses noisy float data (as much as 3-9 do); 1 uses fixed codes, which store such data
-    /// raw; 0 stores raw.
+    /// Deflate level (libdeflate's, 0-12) of ZIP and ZIPS outputs. The default, 1, is the
+    /// fastest, and compresses noisy float data about as much as the higher levels do; 0
+    /// stores the chunks raw.
     #[arg(long, default_value_t = fio::DEFAULT_ZIP_LEVEL, value_name = "N",
-          value_parser = clap::value_parser!(u8).range(0..=9))]
+          value_parser = clap::value_parser!(u8).range(0..=fio::MAX_ZIP_LEVEL as i64))]
     zip_level: u8,
     /// xyz, linear-srgb, acescg or aces2065-1. Pixels are scene-linear with the perfect white
     /// at Y = 1 (RGB spaces: white = 1, 1, 1 after Bradford adaptation from the training white).

@@ -21,7 +21,7 @@
 pub mod batch;
 pub mod chart;
 mod openexr;
-pub use openexr::DEFAULT_ZIP_LEVEL;
+pub use openexr::{DEFAULT_ZIP_LEVEL, MAX_ZIP_LEVEL};
 pub mod preview;
 mod tif;
 

@@ -9,7 +9,7 @@
 
 mod chunks;
 
-pub use chunks::DEFAULT_ZIP_LEVEL;
+pub use chunks::{DEFAULT_ZIP_LEVEL, MAX_ZIP_LEVEL};
 
 use super::{Container, Decoded, ExrCompression, FileFormat, IoError, ReadOptions, WriteOptions};
 use crate::atomic::WriteError;

@@ -14,7 +14,7 @@
 //! * [`decode`] / [`Chunked::write`]: chunks read with positioned reads and (de)compressed in
 //!   parallel across the cores (rayon), straight between the file's channel layout and the
 //!   frame's interleaved RGB; channels other than `R`, `G`, `B` stay as raw bytes and are written
-//!   back unchanged. ZIP and ZIPS go through zlib-rs (`flate2`), with OpenEXR's byte interleave
+//!   back unchanged. ZIP and ZIPS go through libdeflate (`libdeflater`), with OpenEXR's byte interleave
 //!   and predictor done here; RLE and PIZ blocks use the `exr` crate's codecs, block by block, in
 //!   parallel.
 
@@ -33,10 +33,10 @@ use std::fs::File;
 use std::io::{BufReader, Read};
 use std::path::Path;
 
-/// The ZIP level written when none is asked for: 2, zlib-rs's fastest level that still
-/// compresses noisy float plates (to 93.8 %, the same as levels 3-9 give); level 1 uses fixed
-/// Huffman codes and comes out larger than the raw data, so it is stored raw. See BENCHMARKS.md.
-pub const DEFAULT_ZIP_LEVEL: u8 = 2;
+/// The ZIP level written when none is asked for (libdeflate's levels, 0-12): 1, the fastest,
+/// which still compresses noisy float plates about as much as the higher levels. See
+/// BENCHMARKS.md.
+pub const DEFAULT_ZIP_LEVEL: u8 = 1;
 
 /// The most a deflate stream expands: 1032:1 (a 258-byte match coded in 2 bits); a margin in
 /// [`max_decoded`] covers the stream's header and the last block.
@@ -548,46 +548,59 @@ fn unpredict_deinterleave(d: &[u8], out: &mut [u8]) {
     }
 }
 
-/// OpenEXR's ZIP preprocessing: even bytes then odd bytes into `t`, then each byte replaced by
-/// its difference to the previous one plus 128, into `d`.
-fn interleave_predict(raw: &[u8], t: &mut Vec<u8>, d: &mut Vec<u8>) {
+/// OpenEXR's ZIP preprocessing in one pass, into `d`: the even bytes then the odd bytes of `raw`
+/// (`t`), each replaced by its difference to the previous one in `t`, plus 128 (the first kept).
+fn interleave_predict(raw: &[u8], d: &mut Vec<u8>) {
     let n = raw.len();
-    let half = n.div_ceil(2);
-    t.clear();
-    t.resize(n, 0);
-    {
-        let (lo, hi) = t.split_at_mut(half);
-        for (k, pair) in raw.chunks(2).enumerate() {
-            lo[k] = pair[0];
-            if let Some(&b) = pair.get(1) {
-                hi[k] = b;
-            }
-        }
-    }
     d.clear();
     d.resize(n, 0);
-    if n > 0 {
-        d[0] = t[0];
-        for (o, w) in d[1..].iter_mut().zip(t.windows(2)) {
-            *o = w[1].wrapping_sub(w[0]).wrapping_add(128);
+    if n == 0 {
+        return;
+    }
+    let half = n.div_ceil(2);
+    let (lo, hi) = d.split_at_mut(half);
+    let delta = |a: u8, b: u8| b.wrapping_sub(a).wrapping_add(128);
+    // t[k] = raw[2k] for k < half: d[k] = raw[2k] - raw[2k - 2] + 128.
+    lo[0] = raw[0];
+    for ((o, p), q) in lo[1..]
+        .iter_mut()
+        .zip(raw.iter().step_by(2))
+        .zip(raw.get(2..).unwrap_or_default().iter().step_by(2))
+    {
+        *o = delta(*p, *q);
+    }
+    // t[half + k] = raw[2k + 1]; its predecessor for k = 0 is the last even byte.
+    if let Some(&first) = raw.get(1) {
+        hi[0] = delta(raw[2 * (half - 1)], first);
+        for ((o, p), q) in hi[1..]
+            .iter_mut()
+            .zip(raw[1..].iter().step_by(2))
+            .zip(raw.get(3..).unwrap_or_default().iter().step_by(2))
+        {
+            *o = delta(*p, *q);
         }
     }
 }
 
-/// One worker's codec state and buffers, reused across its chunks.
+/// One worker's codecs (made on first use) and buffers, reused across its chunks.
 struct Codec {
-    inflate: flate2::Decompress,
-    deflate: flate2::Compress,
+    level: u8,
+    inflate: Option<libdeflater::Decompressor>,
+    deflate: Option<libdeflater::Compressor>,
     a: Vec<u8>,
     b: Vec<u8>,
     c: Vec<u8>,
 }
 
+/// The highest deflate level libdeflate has (`--zip-level` accepts 0 to this).
+pub const MAX_ZIP_LEVEL: u8 = 12;
+
 impl Codec {
     fn new(level: u8) -> Codec {
         Codec {
-            inflate: flate2::Decompress::new(true),
-            deflate: flate2::Compress::new(flate2::Compression::new(u32::from(level.min(9))), true),
+            level: level.min(MAX_ZIP_LEVEL),
+            inflate: None,
+            deflate: None,
             a: Vec::new(),
             b: Vec::new(),
             c: Vec::new(),
@@ -621,15 +634,20 @@ impl Codec {
             Compression::ZIP1 | Compression::ZIP16 => {
                 self.c.clear();
                 self.c.resize(raw_len, 0);
-                self.inflate.reset(true);
-                let status = self
+                let inflate = self
                     .inflate
-                    .decompress(&self.b, &mut self.c, flate2::FlushDecompress::Finish)
-                    .map_err(|e| bad(format!("bad ZIP data ({e})")))?;
-                if status != flate2::Status::StreamEnd || self.inflate.total_out() != raw_len as u64
-                {
+                    .get_or_insert_with(libdeflater::Decompressor::new);
+                let n = inflate
+                    .zlib_decompress(&self.b, &mut self.c)
+                    .map_err(|e| match e {
+                        libdeflater::DecompressionError::InsufficientSpace => bad(format!(
+                            "the ZIP data decompresses to more than the block's {raw_len} bytes"
+                        )),
+                        libdeflater::DecompressionError::BadData => bad("bad ZIP data".to_string()),
+                    })?;
+                if n != raw_len {
                     return Err(bad(format!(
-                        "the ZIP data does not decompress to the block's {raw_len} bytes"
+                        "the ZIP data decompresses to {n} bytes, not the block's {raw_len}"
                     )));
                 }
                 self.a.clear();
@@ -652,27 +670,38 @@ impl Codec {
         Ok(())
     }
 
-    /// Encodes the file lines in `self.a` into the chunk data for `header`'s compression.
+    /// Encodes the file lines in `self.a` into the chunk data for `header`'s compression
+    /// (`self.a` is taken where the chunk stores them raw).
     fn encode(&mut self, header: &Header, bounds: IntegerBounds) -> Result<Vec<u8>, String> {
         let raw_len = self.a.len();
         match header.compression {
-            Compression::Uncompressed => Ok(self.a.clone()),
+            Compression::Uncompressed => Ok(std::mem::take(&mut self.a)),
             Compression::ZIP1 | Compression::ZIP16 => {
-                interleave_predict(&self.a, &mut self.b, &mut self.c);
-                let mut out = Vec::with_capacity(raw_len);
-                self.deflate.reset();
-                let status = self
-                    .deflate
-                    .compress_vec(&self.c, &mut out, flate2::FlushCompress::Finish)
-                    .map_err(|e| e.to_string())?;
-                if status == flate2::Status::StreamEnd && out.len() < raw_len {
-                    Ok(out)
-                } else {
-                    Ok(self.a.clone())
+                if self.level == 0 || raw_len < 2 {
+                    return Ok(std::mem::take(&mut self.a));
+                }
+                interleave_predict(&self.a, &mut self.c);
+                let level = self.level;
+                let deflate = self.deflate.get_or_insert_with(|| {
+                    libdeflater::Compressor::new(
+                        libdeflater::CompressionLvl::new(i32::from(level)).unwrap_or_default(),
+                    )
+                });
+                // Smaller than the raw block or not at all: a chunk as long as its block is
+                // stored raw (OpenEXR's rule).
+                let mut out = vec![0u8; raw_len - 1];
+                match deflate.zlib_compress(&self.c, &mut out) {
+                    Ok(n) => {
+                        out.truncate(n);
+                        Ok(out)
+                    }
+                    Err(libdeflater::CompressionError::InsufficientSpace) => {
+                        Ok(std::mem::take(&mut self.a))
+                    }
                 }
             }
             other => other
-                .compress_image_section_to_le(header, self.a.clone(), bounds)
+                .compress_image_section_to_le(header, std::mem::take(&mut self.a), bounds)
                 .map_err(|e| e.to_string()),
         }
     }
@@ -899,8 +928,8 @@ mod tests {
             let raw: Vec<u8> = (0..n)
                 .map(|i| (i * 37 % 251) as u8 ^ (i >> 3) as u8)
                 .collect();
-            let (mut t, mut d) = (Vec::new(), Vec::new());
-            interleave_predict(&raw, &mut t, &mut d);
+            let mut d = Vec::new();
+            interleave_predict(&raw, &mut d);
             let mut back = vec![0u8; n];
             unpredict_deinterleave(&d, &mut back);
             assert_eq!(back, raw, "n = {n}");
@@ -911,9 +940,9 @@ mod tests {
     fn zip_preprocessing_matches_openexr() {
         // OpenEXR: interleave even/odd bytes, then t[i] - t[i-1] + 128 (first byte kept).
         let raw = [10u8, 200, 11, 201, 13];
-        let (mut t, mut d) = (Vec::new(), Vec::new());
-        interleave_predict(&raw, &mut t, &mut d);
-        assert_eq!(t, [10, 11, 13, 200, 201]);
+        let mut d = Vec::new();
+        interleave_predict(&raw, &mut d);
+        // t = [10, 11, 13, 200, 201]
         assert_eq!(d, [10, 129, 130, 59, 129]);
     }
 }

@@ -1,9 +1,13 @@
 //! The paper's Fig. 1: ΔE00 histograms per model, one panel per illuminant, as SVG or PNG.
 //!
-//! The drawing is described once as a list of primitives ([`Shape`]) and rendered by two small
-//! back ends: SVG text, and a PNG rasteriser (text drawn with the embedded DejaVu Sans font).
+//! The figure is drawn once with [`plotters`] on either of its back ends: SVG text, or an RGB
+//! bitmap encoded as PNG. Text is laid out (and, in the bitmap, rasterised) with the embedded
+//! DejaVu Sans font, registered with plotters from its bytes, so no system font is needed.
 
 use super::EvalResult;
+use plotters::coord::Shift;
+use plotters::prelude::*;
+use plotters::style::text_anchor::{HPos, Pos, VPos};
 use std::path::Path;
 
 /// Errors from drawing a plot.
@@ -17,6 +21,9 @@ pub enum PlotError {
     Write(#[from] crate::atomic::WriteError),
     #[error("encoding the PNG: {0}")]
     Png(String),
+    /// The embedded font did not parse, or plotters failed to draw.
+    #[error("drawing the plot: {0}")]
+    Draw(String),
 }
 
 /// The file formats a plot can be written in.
@@ -41,52 +48,48 @@ impl Format {
     }
 }
 
-type Rgb = [u8; 3];
+const PALETTE: [RGBColor; 8] = [
+    RGBColor(31, 119, 180),
+    RGBColor(255, 127, 14),
+    RGBColor(44, 160, 44),
+    RGBColor(214, 39, 40),
+    RGBColor(148, 103, 189),
+    RGBColor(140, 86, 75),
+    RGBColor(227, 119, 194),
+    RGBColor(127, 127, 127),
+];
+const GRID: RGBColor = RGBColor(220, 220, 220);
 
-/// A drawing primitive in pixel coordinates (y down).
-#[derive(Debug, Clone, PartialEq)]
-pub enum Shape {
-    Rect {
-        x: f64,
-        y: f64,
-        w: f64,
-        h: f64,
-        fill: Rgb,
-    },
-    /// An axis-aligned line.
-    Line {
-        x1: f64,
-        y1: f64,
-        x2: f64,
-        y2: f64,
-        color: Rgb,
-    },
-    /// Text; `anchor` is 0 (start), 1 (middle) or 2 (end).
-    Text {
-        x: f64,
-        y: f64,
-        size: f64,
-        anchor: u8,
-        text: String,
-    },
+/// Panel (plotting area plus its labels) and legend sizes, in pixels.
+const PANEL_W: u32 = 470;
+const PANEL_H: u32 = 410;
+const LEGEND_ROW: u32 = 20;
+const LEGEND_COLS: usize = 4;
+
+/// The family the embedded font is registered under. plotters writes it verbatim as the SVG
+/// `font-family`, so viewers without DejaVu fall back to their sans-serif face.
+const FAMILY: &str = "DejaVu Sans, sans-serif";
+const FONT: &[u8] = include_bytes!("../../assets/DejaVuSans.ttf");
+
+/// Registers [`FONT`] with plotters once per process.
+fn register_font() -> Result<(), PlotError> {
+    static REGISTERED: std::sync::OnceLock<bool> = std::sync::OnceLock::new();
+    let ok = *REGISTERED
+        .get_or_init(|| plotters::style::register_font(FAMILY, FontStyle::Normal, FONT).is_ok());
+    if ok {
+        Ok(())
+    } else {
+        Err(PlotError::Draw(
+            "the embedded DejaVu Sans font does not parse".into(),
+        ))
+    }
 }
 
-const PALETTE: [Rgb; 8] = [
-    [31, 119, 180],
-    [255, 127, 14],
-    [44, 160, 44],
-    [214, 39, 40],
-    [148, 103, 189],
-    [140, 86, 75],
-    [227, 119, 194],
-    [127, 127, 127],
-];
-
-const PANEL_W: f64 = 420.0;
-const PANEL_H: f64 = 300.0;
-const MARGIN_L: f64 = 50.0;
-const MARGIN_T: f64 = 40.0;
-const MARGIN_B: f64 = 70.0;
+/// Text in the embedded font; `size` in pixels as plotters counts them (the SVG gets
+/// `size / 1.24`).
+fn font(size: f64) -> TextStyle<'static> {
+    (FAMILY, size).into_font().color(&BLACK)
+}
 
 fn model_label(r: &EvalResult) -> String {
     if r.model == "lrm" {
@@ -96,175 +99,160 @@ fn model_label(r: &EvalResult) -> String {
     }
 }
 
-/// The figure as primitives, and its size.
-pub fn layout(results: &[EvalResult]) -> Result<(Vec<Shape>, f64, f64), PlotError> {
-    if results.is_empty() {
-        return Err(PlotError::Empty);
-    }
-    let mut ills: Vec<&str> = Vec::new();
-    let mut models: Vec<String> = Vec::new();
-    for r in results {
-        if !ills.contains(&r.illuminant.as_str()) {
-            ills.push(&r.illuminant);
-        }
-        let m = model_label(r);
-        if !models.contains(&m) {
-            models.push(m);
-        }
-    }
-    let max_de = results
-        .iter()
-        .flat_map(|r| r.per_patch.iter().map(|p| p.de00))
-        .filter(|v| v.is_finite())
-        .fold(0.0f64, f64::max);
-    let bin = if max_de > 8.0 { 1.0 } else { 0.5 };
-    let nbins = ((max_de / bin).floor() as usize + 1).max(1);
-    // Histogram counts, and the tallest bar, for a shared y axis.
-    let counts = |r: &EvalResult| {
-        let mut c = vec![0usize; nbins];
-        for p in &r.per_patch {
-            if p.de00.is_finite() {
-                c[((p.de00 / bin) as usize).min(nbins - 1)] += 1;
-            }
-        }
-        c
-    };
-    let ymax = results.iter().flat_map(counts).max().unwrap_or(1).max(1) as f64;
-    let ystep = nice_step(ymax);
-    let ytop = (ymax / ystep).ceil() * ystep;
+/// One panel: the illuminant, and (model index, counts per bin) for each of its results.
+type Panel = (String, Vec<(usize, Vec<usize>)>);
 
-    let width = MARGIN_L + ills.len() as f64 * (PANEL_W + MARGIN_L) - 10.0;
-    let height = MARGIN_T + PANEL_H + MARGIN_B + 20.0 * models.len().div_ceil(4) as f64;
-    let mut s = vec![Shape::Rect {
-        x: 0.0,
-        y: 0.0,
-        w: width,
-        h: height,
-        fill: [255, 255, 255],
-    }];
-    let black = [0, 0, 0];
-    let grey = [220, 220, 220];
-    for (pi, ill) in ills.iter().enumerate() {
-        let x0 = MARGIN_L + pi as f64 * (PANEL_W + MARGIN_L);
-        let y0 = MARGIN_T;
-        s.push(Shape::Text {
-            x: x0 + PANEL_W / 2.0,
-            y: y0 - 14.0,
-            size: 15.0,
-            anchor: 1,
-            text: ill.to_string(),
-        });
-        // Grid lines and y ticks.
-        let mut t = 0.0;
-        while t <= ytop + 1e-9 {
-            let y = y0 + PANEL_H - t / ytop * PANEL_H;
-            s.push(Shape::Line {
-                x1: x0,
-                y1: y,
-                x2: x0 + PANEL_W,
-                y2: y,
-                color: grey,
-            });
-            s.push(Shape::Text {
-                x: x0 - 6.0,
-                y: y + 4.0,
-                size: 11.0,
-                anchor: 2,
-                text: format!("{t}"),
-            });
-            t += ystep;
+/// What is drawn: the histogram counts of every result, grouped by illuminant, on shared axes.
+#[derive(Debug, Clone, PartialEq)]
+struct Figure {
+    panels: Vec<Panel>,
+    /// Model labels, in order of first appearance (the legend, and the colour index).
+    models: Vec<String>,
+    /// Bin width in ΔE00 units.
+    bin: f64,
+    nbins: usize,
+    /// The y axis' top (a multiple of `ystep`).
+    ytop: f64,
+    ystep: f64,
+}
+
+impl Figure {
+    fn new(results: &[EvalResult]) -> Result<Figure, PlotError> {
+        if results.is_empty() {
+            return Err(PlotError::Empty);
         }
-        let bw = PANEL_W / nbins as f64;
-        let of_ill: Vec<&EvalResult> = results.iter().filter(|r| r.illuminant == *ill).collect();
-        let nb = of_ill.len().max(1) as f64;
-        for r in &of_ill {
-            let mi = models.iter().position(|m| *m == model_label(r)).unwrap();
-            let k = of_ill
-                .iter()
-                .position(|o| std::ptr::eq(*o, *r))
-                .unwrap_or(0) as f64;
-            for (b, &c) in counts(r).iter().enumerate() {
-                if c == 0 {
-                    continue;
+        let max_de = results
+            .iter()
+            .flat_map(|r| r.per_patch.iter().map(|p| p.de00))
+            .filter(|v| v.is_finite())
+            .fold(0.0f64, f64::max);
+        let bin = if max_de > 8.0 { 1.0 } else { 0.5 };
+        let nbins = ((max_de / bin).floor() as usize + 1).max(1);
+        let counts = |r: &EvalResult| {
+            let mut c = vec![0usize; nbins];
+            for p in &r.per_patch {
+                if p.de00.is_finite() {
+                    c[((p.de00 / bin) as usize).min(nbins - 1)] += 1;
                 }
-                let h = c as f64 / ytop * PANEL_H;
-                s.push(Shape::Rect {
-                    x: x0 + b as f64 * bw + 1.0 + k * (bw - 2.0) / nb,
-                    y: y0 + PANEL_H - h,
-                    w: (bw - 2.0) / nb,
-                    h,
-                    fill: PALETTE[mi % PALETTE.len()],
-                });
             }
+            c
+        };
+        let mut models: Vec<String> = Vec::new();
+        let mut panels: Vec<Panel> = Vec::new();
+        for r in results {
+            let m = model_label(r);
+            let mi = match models.iter().position(|x| *x == m) {
+                Some(i) => i,
+                None => {
+                    models.push(m);
+                    models.len() - 1
+                }
+            };
+            let pi = match panels.iter().position(|(ill, _)| *ill == r.illuminant) {
+                Some(i) => i,
+                None => {
+                    panels.push((r.illuminant.clone(), Vec::new()));
+                    panels.len() - 1
+                }
+            };
+            panels[pi].1.push((mi, counts(r)));
         }
-        // Axes and x ticks.
-        s.push(Shape::Line {
-            x1: x0,
-            y1: y0 + PANEL_H,
-            x2: x0 + PANEL_W,
-            y2: y0 + PANEL_H,
-            color: black,
-        });
-        s.push(Shape::Line {
-            x1: x0,
-            y1: y0,
-            x2: x0,
-            y2: y0 + PANEL_H,
-            color: black,
-        });
-        let every = (nbins as f64 / 10.0).ceil().max(1.0) as usize;
-        for b in (0..=nbins).step_by(every) {
-            let x = x0 + b as f64 * bw;
-            s.push(Shape::Line {
-                x1: x,
-                y1: y0 + PANEL_H,
-                x2: x,
-                y2: y0 + PANEL_H + 4.0,
-                color: black,
+        let ymax = panels
+            .iter()
+            .flat_map(|(_, bars)| bars.iter().flat_map(|(_, c)| c.iter().copied()))
+            .max()
+            .unwrap_or(1)
+            .max(1) as f64;
+        let ystep = nice_step(ymax);
+        let ytop = (ymax / ystep).ceil() * ystep;
+        Ok(Figure {
+            panels,
+            models,
+            bin,
+            nbins,
+            ytop,
+            ystep,
+        })
+    }
+
+    /// The whole figure's size in pixels.
+    fn size(&self) -> (u32, u32) {
+        let rows = self.models.len().div_ceil(LEGEND_COLS) as u32;
+        (
+            self.panels.len() as u32 * PANEL_W,
+            PANEL_H + 16 + rows * LEGEND_ROW,
+        )
+    }
+
+    fn draw<DB: DrawingBackend>(&self, root: &DrawingArea<DB, Shift>) -> Result<(), PlotError> {
+        register_font()?;
+        root.fill(&WHITE).map_err(draw_err)?;
+        let (top, legend) = root.split_vertically(PANEL_H);
+        let areas = top.split_evenly((1, self.panels.len()));
+        let xmax = self.nbins as f64 * self.bin;
+        let every = self.nbins.div_ceil(10).max(1);
+        let x_ticks = self.nbins / every + 1;
+        let y_ticks = (self.ytop / self.ystep).round() as usize + 1;
+        let tick = |v: &f64| format!("{}", (v * 1e6).round() / 1e6);
+        for ((ill, bars), area) in self.panels.iter().zip(&areas) {
+            let mut chart = ChartBuilder::on(area)
+                .caption(ill, font(19.0))
+                .margin_top(6)
+                .margin_right(12)
+                .x_label_area_size(48)
+                .y_label_area_size(52)
+                .build_cartesian_2d(0.0..xmax, 0.0..self.ytop)
+                .map_err(draw_err)?;
+            chart
+                .configure_mesh()
+                .disable_x_mesh()
+                .bold_line_style(GRID)
+                .max_light_lines(0)
+                .x_labels(x_ticks)
+                .y_labels(y_ticks)
+                .x_label_formatter(&tick)
+                .y_label_formatter(&tick)
+                .label_style(font(14.0))
+                .axis_desc_style(font(15.0))
+                .x_desc("ΔE00")
+                .y_desc("patches")
+                .draw()
+                .map_err(draw_err)?;
+            // Each bin's bars side by side, one per model, with a small gap between bins.
+            let pad = self.bin * 0.03;
+            let w = (self.bin - 2.0 * pad) / bars.len().max(1) as f64;
+            let rects = bars.iter().enumerate().flat_map(|(k, (mi, counts))| {
+                let color = PALETTE[mi % PALETTE.len()];
+                counts
+                    .iter()
+                    .enumerate()
+                    .filter(|(_, &c)| c > 0)
+                    .map(move |(b, &c)| {
+                        let x = b as f64 * self.bin + pad + k as f64 * w;
+                        Rectangle::new([(x, 0.0), (x + w, c as f64)], color.filled())
+                    })
             });
-            s.push(Shape::Text {
-                x,
-                y: y0 + PANEL_H + 17.0,
-                size: 11.0,
-                anchor: 1,
-                text: format!("{}", b as f64 * bin),
-            });
+            chart.draw_series(rects).map_err(draw_err)?;
         }
-        s.push(Shape::Text {
-            x: x0 + PANEL_W / 2.0,
-            y: y0 + PANEL_H + 35.0,
-            size: 12.0,
-            anchor: 1,
-            text: "ΔE00".into(),
-        });
+        let label = font(15.0).pos(Pos::new(HPos::Left, VPos::Center));
+        for (i, m) in self.models.iter().enumerate() {
+            let x = 52 + (i % LEGEND_COLS) as i32 * 130;
+            let y = 10 + (i / LEGEND_COLS) as i32 * LEGEND_ROW as i32;
+            let color = PALETTE[i % PALETTE.len()];
+            legend
+                .draw(&Rectangle::new([(x, y), (x + 14, y + 12)], color.filled()))
+                .map_err(draw_err)?;
+            legend
+                .draw(&Text::new(m.as_str(), (x + 20, y + 6), label.clone()))
+                .map_err(draw_err)?;
+        }
+        root.present().map_err(draw_err)?;
+        Ok(())
     }
-    s.push(Shape::Text {
-        x: 4.0,
-        y: MARGIN_T - 14.0,
-        size: 12.0,
-        anchor: 0,
-        text: "patches".into(),
-    });
-    // Legend.
-    for (i, m) in models.iter().enumerate() {
-        let x = MARGIN_L + (i % 4) as f64 * 130.0;
-        let y = MARGIN_T + PANEL_H + 50.0 + (i / 4) as f64 * 20.0;
-        s.push(Shape::Rect {
-            x,
-            y,
-            w: 14.0,
-            h: 12.0,
-            fill: PALETTE[i % PALETTE.len()],
-        });
-        s.push(Shape::Text {
-            x: x + 20.0,
-            y: y + 11.0,
-            size: 12.0,
-            anchor: 0,
-            text: m.clone(),
-        });
-    }
-    Ok((s, width, height))
+}
+
+fn draw_err<E: std::error::Error + Send + Sync>(e: DrawingAreaErrorKind<E>) -> PlotError {
+    PlotError::Draw(e.to_string())
 }
 
 fn nice_step(max: f64) -> f64 {
@@ -278,136 +266,37 @@ fn nice_step(max: f64) -> f64 {
     10.0 * p
 }
 
-fn escape(t: &str) -> String {
-    t.replace('&', "&amp;")
-        .replace('<', "&lt;")
-        .replace('>', "&gt;")
+/// The figure of `results` as an SVG document.
+pub fn to_svg(results: &[EvalResult]) -> Result<String, PlotError> {
+    let fig = Figure::new(results)?;
+    let mut out = String::new();
+    {
+        let root = SVGBackend::with_string(&mut out, fig.size()).into_drawing_area();
+        fig.draw(&root)?;
+    }
+    Ok(out)
 }
 
-/// Renders primitives as an SVG document.
-pub fn to_svg(shapes: &[Shape], width: f64, height: f64) -> String {
-    let hex = |c: &Rgb| format!("#{:02x}{:02x}{:02x}", c[0], c[1], c[2]);
-    let mut out = format!(
-        "<svg xmlns=\"http://www.w3.org/2000/svg\" width=\"{width}\" height=\"{height}\" viewBox=\"0 0 {width} {height}\" font-family=\"DejaVu Sans, sans-serif\">\n"
-    );
-    for sh in shapes {
-        match sh {
-            Shape::Rect { x, y, w, h, fill } => out.push_str(&format!(
-                "<rect x=\"{x:.1}\" y=\"{y:.1}\" width=\"{w:.1}\" height=\"{h:.1}\" fill=\"{}\"/>\n",
-                hex(fill)
-            )),
-            Shape::Line {
-                x1,
-                y1,
-                x2,
-                y2,
-                color,
-            } => out.push_str(&format!(
-                "<line x1=\"{x1:.1}\" y1=\"{y1:.1}\" x2=\"{x2:.1}\" y2=\"{y2:.1}\" stroke=\"{}\" stroke-width=\"1\"/>\n",
-                hex(color)
-            )),
-            Shape::Text {
-                x,
-                y,
-                size,
-                anchor,
-                text,
-            } => {
-                let a = ["start", "middle", "end"][*anchor as usize];
-                out.push_str(&format!(
-                    "<text x=\"{x:.1}\" y=\"{y:.1}\" font-size=\"{size}\" text-anchor=\"{a}\">{}</text>\n",
-                    escape(text)
-                ));
-            }
-        }
+/// The figure of `results` as an RGB image.
+pub fn to_image(results: &[EvalResult]) -> Result<image::RgbImage, PlotError> {
+    let fig = Figure::new(results)?;
+    let (w, h) = fig.size();
+    let mut buf = vec![255u8; w as usize * h as usize * 3];
+    {
+        let root = BitMapBackend::with_buffer(&mut buf, (w, h)).into_drawing_area();
+        fig.draw(&root)?;
     }
-    out.push_str("</svg>\n");
-    out
-}
-
-const FONT: &[u8] = include_bytes!("../../assets/DejaVuSans.ttf");
-
-/// Rasterises primitives into an RGB image.
-pub fn to_image(shapes: &[Shape], width: f64, height: f64) -> image::RgbImage {
-    use ab_glyph::{Font, FontRef, PxScale, ScaleFont};
-    let (w, h) = (width.ceil() as u32, height.ceil() as u32);
-    let mut img = image::RgbImage::from_pixel(w, h, image::Rgb([255, 255, 255]));
-    let font = FontRef::try_from_slice(FONT).expect("the embedded font parses (tested)");
-    let clampx = |v: f64| v.round().clamp(0.0, w as f64) as u32;
-    let clampy = |v: f64| v.round().clamp(0.0, h as f64) as u32;
-    for sh in shapes {
-        match sh {
-            Shape::Rect {
-                x,
-                y,
-                w: rw,
-                h: rh,
-                fill,
-            } => {
-                for py in clampy(*y)..clampy(y + rh) {
-                    for px in clampx(*x)..clampx(x + rw) {
-                        img.put_pixel(px, py, image::Rgb(*fill));
-                    }
-                }
-            }
-            Shape::Line {
-                x1,
-                y1,
-                x2,
-                y2,
-                color,
-            } => {
-                let (xa, xb) = (clampx(x1.min(*x2)), clampx(x1.max(*x2)));
-                let (ya, yb) = (clampy(y1.min(*y2)), clampy(y1.max(*y2)));
-                for py in ya..=yb.min(h - 1) {
-                    for px in xa..=xb.min(w - 1) {
-                        img.put_pixel(px, py, image::Rgb(*color));
-                    }
-                }
-            }
-            Shape::Text {
-                x,
-                y,
-                size,
-                anchor,
-                text,
-            } => {
-                let sf = font.as_scaled(PxScale::from(*size as f32 * 1.25));
-                let glyphs: Vec<_> = text.chars().map(|c| sf.scaled_glyph(c)).collect();
-                let advance: f32 = glyphs.iter().map(|g| sf.h_advance(g.id)).sum();
-                let mut pen = *x as f32 - advance * (*anchor as f32) / 2.0;
-                for mut g in glyphs {
-                    let adv = sf.h_advance(g.id);
-                    g.position = ab_glyph::point(pen, *y as f32);
-                    if let Some(outline) = sf.outline_glyph(g) {
-                        let bb = outline.px_bounds();
-                        outline.draw(|gx, gy, cov| {
-                            let px = bb.min.x as i64 + gx as i64;
-                            let py = bb.min.y as i64 + gy as i64;
-                            if px >= 0 && py >= 0 && (px as u32) < w && (py as u32) < h {
-                                let p = img.get_pixel_mut(px as u32, py as u32);
-                                for c in p.0.iter_mut() {
-                                    *c = (*c as f32 * (1.0 - cov)).round() as u8;
-                                }
-                            }
-                        });
-                    }
-                    pen += adv;
-                }
-            }
-        }
-    }
-    img
+    image::RgbImage::from_raw(w, h, buf)
+        .ok_or_else(|| PlotError::Draw("the bitmap has the wrong size".into()))
 }
 
 /// Draws the histograms of `results` into `path` (.svg or .png, written atomically).
 pub fn histograms(results: &[EvalResult], path: &Path, overwrite: bool) -> Result<(), PlotError> {
     let format = Format::from_path(path)?;
-    let (shapes, w, h) = layout(results)?;
     let bytes = match format {
-        Format::Svg => to_svg(&shapes, w, h).into_bytes(),
+        Format::Svg => to_svg(results)?.into_bytes(),
         Format::Png => {
-            let img = to_image(&shapes, w, h);
+            let img = to_image(results)?;
             let mut buf = std::io::Cursor::new(Vec::new());
             img.write_to(&mut buf, image::ImageFormat::Png)
                 .map_err(|e| PlotError::Png(e.to_string()))?;
@@ -441,28 +330,81 @@ mod tests {
         }
     }
 
-    #[test]
-    fn svg_and_png_have_a_panel_per_illuminant_and_bars() {
-        let rs = vec![
+    fn sample() -> Vec<EvalResult> {
+        vec![
             result("D65", "nsrm", &[0.2, 0.7, 0.8, 2.1]),
             result("D65", "lrm", &[1.2, 1.7, 3.8, 0.1]),
             result("TL865", "nsrm", &[0.3, 0.4]),
-        ];
-        let (shapes, w, h) = layout(&rs).unwrap();
-        let svg = to_svg(&shapes, w, h);
-        assert!(svg.contains(">D65<") && svg.contains(">TL865<") && svg.contains(">NSRM3<"));
-        // One bar per non-empty bin: D65 NSRM has 3 bins (0-0.5, 0.5-1, 2-2.5), LRM 4, TL865 1.
-        let bars = shapes
+        ]
+    }
+
+    #[test]
+    fn figure_has_a_panel_per_illuminant_and_shared_bins() {
+        let fig = Figure::new(&sample()).unwrap();
+        assert_eq!(fig.models, ["NSRM3", "LRM"]);
+        assert_eq!((fig.bin, fig.nbins), (0.5, 8));
+        let ills: Vec<&str> = fig.panels.iter().map(|(i, _)| i.as_str()).collect();
+        assert_eq!(ills, ["D65", "TL865"]);
+        // Non-empty bins: D65 NSRM 3 (0-0.5, 0.5-1, 2-2.5), LRM 4, TL865 NSRM 1.
+        let nonempty: Vec<usize> = fig
+            .panels
             .iter()
-            .filter(|s| matches!(s, Shape::Rect { h, .. } if *h > 0.0 && *h < 300.5))
-            .count();
-        assert_eq!(bars, 3 + 4 + 1 + 2, "bars plus two legend swatches");
-        let img = to_image(&shapes, w, h);
-        assert_eq!(img.width(), w.ceil() as u32);
-        // The first NSRM bar's colour appears in the raster, and so does black text/axes.
-        assert!(img.pixels().any(|p| p.0 == PALETTE[0]));
-        assert!(img.pixels().any(|p| p.0 == [0, 0, 0]));
-        assert!(layout(&[]).is_err());
+            .flat_map(|(_, bars)| {
+                bars.iter()
+                    .map(|(_, c)| c.iter().filter(|&&n| n > 0).count())
+            })
+            .collect();
+        assert_eq!(nonempty, [3, 4, 1]);
+        assert_eq!((fig.ystep, fig.ytop), (1.0, 2.0));
+        assert_eq!(fig.size(), (2 * PANEL_W, PANEL_H + 16 + LEGEND_ROW));
+        assert!(matches!(Figure::new(&[]), Err(PlotError::Empty)));
+        assert!(matches!(to_svg(&[]), Err(PlotError::Empty)));
         assert!(Format::from_path(Path::new("a.jpg")).is_err());
+        assert_eq!(Format::from_path(Path::new("a.SVG")).unwrap(), Format::Svg);
+    }
+
+    #[test]
+    fn png_decodes_at_the_figure_size_and_is_not_blank() {
+        let d = tempfile::tempdir().unwrap();
+        let p = d.path().join("fig.png");
+        histograms(&sample(), &p, false).unwrap();
+        let img = image::open(&p).unwrap().to_rgb8();
+        assert_eq!(img.dimensions(), (2 * PANEL_W, PANEL_H + 16 + LEGEND_ROW));
+        // Bars in both models' colours, dark text and axes, and mostly white background.
+        for c in [PALETTE[0], PALETTE[1]] {
+            assert!(img.pixels().any(|p| p.0 == [c.0, c.1, c.2]), "{c:?}");
+        }
+        let dark = img.pixels().filter(|p| p.0.iter().all(|&v| v < 80)).count();
+        let white = img.pixels().filter(|p| p.0 == [255, 255, 255]).count();
+        let n = img.pixels().len();
+        assert!(dark > 500, "{dark} dark pixels");
+        assert!(white > n / 2 && white < n, "{white} of {n} white");
+        // Refused without --overwrite, and the file is left as it was.
+        let before = std::fs::read(&p).unwrap();
+        assert!(matches!(
+            histograms(&sample()[..1], &p, false),
+            Err(PlotError::Write(_))
+        ));
+        assert_eq!(std::fs::read(&p).unwrap(), before);
+        histograms(&sample()[..1], &p, true).unwrap();
+        assert_ne!(std::fs::read(&p).unwrap(), before);
+    }
+
+    #[test]
+    fn svg_names_the_panels_and_models_in_the_embedded_font() {
+        let svg = to_svg(&sample()).unwrap();
+        assert!(svg.starts_with("<svg"), "{}", &svg[..svg.len().min(80)]);
+        // The text of every `<text>` element.
+        let texts: Vec<&str> = svg
+            .split("</text>")
+            .filter_map(|s| s.rsplit_once('>').map(|(_, t)| t.trim()))
+            .collect();
+        for t in [
+            "D65", "TL865", "NSRM3", "LRM", "patches", "ΔE00", "0.5", "2",
+        ] {
+            assert!(texts.contains(&t), "{t} not in {texts:?}");
+        }
+        assert!(svg.contains("font-family=\"DejaVu Sans, sans-serif\""));
+        assert!(svg.contains("<rect"));
     }
 }

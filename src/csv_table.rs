@@ -76,7 +76,6 @@ fn configured(text: &[u8]) -> csv::Reader<&[u8]> {
         .has_headers(false)
         .flexible(true)
         .comment(Some(b'#'))
-        .trim(csv::Trim::All)
         .from_reader(text)
 }
 
@@ -85,7 +84,10 @@ fn configured(text: &[u8]) -> csv::Reader<&[u8]> {
 fn is_blank_or_comment(record: &csv::ByteRecord) -> bool {
     match record.get(0) {
         None => true,
-        Some(first) => (record.len() == 1 && first.is_empty()) || first.starts_with(b"#"),
+        Some(first) => {
+            let first = first.trim_ascii();
+            (record.len() == 1 && first.is_empty()) || first.starts_with(b"#")
+        }
     }
 }
 
@@ -200,10 +202,12 @@ fn cell<'r>(
     record: &'r csv::ByteRecord,
     k: usize,
 ) -> Result<&'r str, CsvError> {
-    std::str::from_utf8(record.get(k).unwrap_or_default()).map_err(|_| CsvError::Syntax {
-        source_name: source_name.to_string(),
-        line,
-        why: format!("cell {} is not UTF-8", k + 1),
+    std::str::from_utf8(record.get(k).unwrap_or_default().trim_ascii()).map_err(|_| {
+        CsvError::Syntax {
+            source_name: source_name.to_string(),
+            line,
+            why: format!("cell {} is not UTF-8", k + 1),
+        }
     })
 }
 
@@ -241,9 +245,9 @@ impl<'r> Record<'r> {
         }
     }
 
-    /// Cell `k` as bytes (empty past the end).
+    /// Cell `k` as bytes, trimmed (empty past the end).
     pub fn bytes(&self, k: usize) -> &'r [u8] {
-        self.record.get(k).unwrap_or_default()
+        self.record.get(k).unwrap_or_default().trim_ascii()
     }
 
     /// Cell `k` as text (empty past the end).

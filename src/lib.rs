@@ -48,6 +48,7 @@ pub mod atomic;
 #[cfg(feature = "chart")]
 pub mod chart;
 pub mod colorimetry;
+pub mod csv_table;
 pub mod error;
 pub mod eval;
 #[cfg(feature = "export")]

@@ -111,16 +111,6 @@ pub fn read_text(path: &Path) -> std::io::Result<String> {
     read_text_capped(path, MAX_TEXT_BYTES)
 }
 
-/// The lines of a CSV text that hold data, with their 1-based line numbers: a trailing `\r` is
-/// dropped, and blank lines and lines starting with `#` are skipped. The one line filter of every
-/// CSV reader (spectra, measured patches, chart references).
-pub fn csv_lines(text: &str) -> impl Iterator<Item = (usize, &str)> {
-    text.lines()
-        .enumerate()
-        .map(|(i, l)| (i + 1, l.trim_end_matches('\r')))
-        .filter(|(_, l)| !l.trim().is_empty() && !l.trim_start().starts_with('#'))
-}
-
 /// `64 MiB`, `1.5 GiB`, `512 bytes`.
 pub fn human_bytes(n: u64) -> String {
     const UNITS: [&str; 4] = ["KiB", "MiB", "GiB", "TiB"];

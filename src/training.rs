@@ -23,19 +23,9 @@ pub enum TrainingError {
         "{source_name}: Lab training data needs a reference white (X,Y,Z or an illuminant name)"
     )]
     NeedsWhite { source_name: String },
-    #[error("{source_name}: line {line}: {found} cells, expected 7")]
-    Ragged {
-        source_name: String,
-        line: usize,
-        found: usize,
-    },
-    #[error("{source_name}: line {line}, column `{column}`: `{cell}` is not a finite number")]
-    NotANumber {
-        source_name: String,
-        line: usize,
-        column: String,
-        cell: String,
-    },
+    /// A malformed CSV: a ragged row, a cell that is not a finite number.
+    #[error(transparent)]
+    Csv(#[from] crate::csv_table::CsvError),
     #[error("{source_name}: line {line}: duplicate label `{label}`")]
     DuplicateLabel {
         source_name: String,
@@ -175,15 +165,9 @@ impl TrainingSet {
         white: Option<[f64; 3]>,
     ) -> Result<TrainingSet, TrainingError> {
         let src = || source_name.to_string();
-        let mut lines = crate::limits::csv_lines(text);
-        let (_, header) = lines
-            .next()
+        let mut table = crate::csv_table::Table::new(text, source_name)?
             .ok_or_else(|| TrainingError::Empty { source_name: src() })?;
-        let cols: Vec<String> = header
-            .trim_start_matches('\u{feff}')
-            .split(',')
-            .map(|s| s.trim().to_string())
-            .collect();
+        let cols = &table.header;
         let is = |names: [&str; 7]| {
             cols.len() == 7
                 && cols
@@ -207,7 +191,7 @@ impl TrainingSet {
         } else {
             return Err(TrainingError::Header {
                 source_name: src(),
-                found: header.to_string(),
+                found: table.header_text(),
             });
         };
         if lab && white.is_none() {
@@ -215,56 +199,60 @@ impl TrainingSet {
         }
         let white_xyz = white.unwrap_or(crate::colorimetry::D65_WHITE_XYZ);
         // Room for every row up front (a row is at least 14 bytes, so a text of blank lines
-        // reserves no more than a text of rows would need): no rehashing of the label set and no
-        // regrowth while 10⁶ rows load.
+        // reserves no more than a text of rows would need): no regrowth while 10⁶ rows load.
         let rows = (text.bytes().filter(|&b| b == b'\n').count() + 1).min(text.len() / 14 + 1);
         let mut labels: Vec<String> = Vec::with_capacity(rows);
-        let mut seen: std::collections::HashSet<&str> =
-            std::collections::HashSet::with_capacity(rows);
+        let mut lines: Vec<usize> = Vec::with_capacity(rows);
         let mut rgb = Vec::with_capacity(rows);
         let mut xyz = Vec::with_capacity(rows);
-        for (line, row) in lines {
-            let mut cells = [""; 7];
-            let mut found = 0;
-            for cell in row.split(',') {
-                if let Some(c) = cells.get_mut(found) {
-                    *c = cell.trim();
+        let mut failed = None;
+        loop {
+            let row = match table.next_record() {
+                Ok(Some(row)) => row,
+                Ok(None) => break,
+                Err(e) => {
+                    failed = Some(e);
+                    break;
                 }
-                found += 1;
+            };
+            let parsed = row.expect_len(7).and_then(|()| {
+                let mut v = [0.0; 6];
+                for (k, v) in v.iter_mut().enumerate() {
+                    *v = row.number(k + 1)?;
+                }
+                Ok((row.text(0)?.to_string(), v))
+            });
+            match parsed {
+                Ok((label, v)) => {
+                    labels.push(label);
+                    lines.push(row.line);
+                    rgb.push([v[0], v[1], v[2]]);
+                    let t = [v[3], v[4], v[5]];
+                    xyz.push(if lab { lab_to_xyz(t, white_xyz) } else { t });
+                }
+                Err(e) => {
+                    failed = Some(e);
+                    break;
+                }
             }
-            if found != 7 {
-                return Err(TrainingError::Ragged {
-                    source_name: src(),
-                    line,
-                    found,
-                });
-            }
-            let mut v = [0.0; 6];
-            for k in 0..6 {
-                let cell = cells[k + 1];
-                v[k] = cell
-                    .parse::<f64>()
-                    .ok()
-                    .filter(|x| x.is_finite())
-                    .ok_or_else(|| TrainingError::NotANumber {
-                        source_name: src(),
-                        line,
-                        column: cols[k + 1].clone(),
-                        cell: cell.to_string(),
-                    })?;
-            }
-            // A hash set, not a scan of the labels so far: 10⁶ rows load in about a second.
-            if !seen.insert(cells[0]) {
+        }
+        // Duplicates among the rows read (before the failed row, if one failed: the first error
+        // in the file's order is the one reported). A hash set, not a scan of the labels so far:
+        // 10⁶ rows load in about a second.
+        let mut seen: std::collections::HashSet<&str> =
+            std::collections::HashSet::with_capacity(labels.len());
+        for (label, &line) in labels.iter().zip(&lines) {
+            if !seen.insert(label) {
                 return Err(TrainingError::DuplicateLabel {
                     source_name: src(),
                     line,
-                    label: cells[0].to_string(),
+                    label: label.clone(),
                 });
             }
-            labels.push(cells[0].to_string());
-            rgb.push([v[0], v[1], v[2]]);
-            let t = [v[3], v[4], v[5]];
-            xyz.push(if lab { lab_to_xyz(t, white_xyz) } else { t });
+        }
+        drop(seen);
+        if let Some(e) = failed {
+            return Err(e.into());
         }
         if labels.is_empty() {
             return Err(TrainingError::NoRows { source_name: src() });

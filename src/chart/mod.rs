@@ -40,6 +40,9 @@ pub enum ChartError {
     UnknownChart(String),
     #[error("{0}")]
     Reference(String),
+    /// A reference CSV that cannot be read (a ragged row, a cell that is not a number).
+    #[error(transparent)]
+    Csv(#[from] crate::csv_table::CsvError),
     #[error("{0}")]
     Geometry(String),
     #[error("no chart found: {0}")]

@@ -111,14 +111,15 @@ impl Reference {
 
 fn builtin(name: &str, chart: ChartKind, text: &str) -> Reference {
     let mut xyz = vec![[0.0; 3]; chart.cells()];
-    for line in text.lines().skip(1).filter(|l| !l.trim().is_empty()) {
-        let c: Vec<&str> = line.split(',').collect();
+    let mut table = crate::csv_table::Table::new(text, name)
+        .expect("built-in reference parses (tested)")
+        .expect("built-in reference has a header (tested)");
+    while let Some(row) = table.next_record().expect("built-in rows (tested)") {
         let i = chart
-            .index_of(c[0])
+            .index_of(row.text(0).expect("built-in labels (tested)"))
             .expect("built-in labels match (tested)");
-        let v: Vec<f64> = c[1..4]
-            .iter()
-            .map(|s| s.trim().parse().expect("built-in numbers (tested)"))
+        let v: Vec<f64> = (1..4)
+            .map(|k| row.number(k).expect("built-in numbers (tested)"))
             .collect();
         xyz[i] = xyy_to_xyz(v[0], v[1], 100.0 * v[2]);
     }
@@ -139,15 +140,9 @@ struct Rows {
 
 fn parse_csv(text: &str, src: &str) -> Result<Rows, ChartError> {
     let err = |why: String| ChartError::Reference(format!("{src}: {why}"));
-    let mut lines = crate::limits::csv_lines(text);
-    let (_, header) = lines
-        .next()
-        .ok_or_else(|| err("the file is empty".into()))?;
-    let cols: Vec<String> = header
-        .trim_start_matches('\u{feff}')
-        .split(',')
-        .map(|s| s.trim().to_string())
-        .collect();
+    let mut table =
+        crate::csv_table::Table::new(text, src)?.ok_or_else(|| err("the file is empty".into()))?;
+    let cols = &table.header;
     let find = |name: &str, exact: bool| {
         cols.iter().position(|c| {
             if exact {
@@ -164,35 +159,25 @@ fn parse_csv(text: &str, src: &str) -> Result<Rows, ChartError> {
             (Some(l), Some(a), Some(b)) => ([l, a, b], true),
             _ => {
                 return Err(err(format!(
-                    "header `{header}`: expected `label` and `X,Y,Z` or `L,a,b` columns"
+                    "header `{}`: expected `label` and `X,Y,Z` or `L,a,b` columns",
+                    table.header_text()
                 )))
             }
         },
     };
+    let expected = cols.len();
     let mut rows = Rows {
         labels: Vec::new(),
         values: Vec::new(),
         lab,
     };
-    for (line, row) in lines {
-        let cells: Vec<&str> = row.split(',').map(str::trim).collect();
-        if cells.len() != cols.len() {
-            return Err(err(format!(
-                "line {line}: {} cells, expected {}",
-                cells.len(),
-                cols.len()
-            )));
-        }
+    while let Some(row) = table.next_record()? {
+        row.expect_len(expected)?;
         let mut v = [0.0; 3];
         for k in 0..3 {
-            v[k] = number(cells[idx[k]]).ok_or_else(|| {
-                err(format!(
-                    "line {line}: `{}` is not a finite number",
-                    cells[idx[k]]
-                ))
-            })?;
+            v[k] = row.number(idx[k])?;
         }
-        rows.labels.push(cells[label].to_string());
+        rows.labels.push(row.text(label)?.to_string());
         rows.values.push(v);
     }
     Ok(rows)

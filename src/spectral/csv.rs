@@ -8,16 +8,9 @@ use super::{SpectralError, SpectralTable};
 /// must have as many cells as the header; every cell must be a finite number.
 pub fn parse_csv(text: &str, source_name: &str) -> Result<SpectralTable, SpectralError> {
     let src = || source_name.to_string();
-    let mut lines = crate::limits::csv_lines(text);
-    let (_, header) = lines
-        .next()
+    let mut table = crate::csv_table::Table::new(text, source_name)?
         .ok_or_else(|| SpectralError::Empty { source_name: src() })?;
-    let header = header.trim_start_matches('\u{feff}');
-    let names: Vec<String> = header
-        .split(',')
-        .skip(1)
-        .map(|s| s.trim().to_string())
-        .collect();
+    let names: Vec<String> = table.header.iter().skip(1).cloned().collect();
     if names.is_empty() {
         return Err(SpectralError::NoColumns { source_name: src() });
     }
@@ -32,43 +25,18 @@ pub fn parse_csv(text: &str, source_name: &str) -> Result<SpectralTable, Spectra
     let expected = names.len() + 1;
     let mut wavelengths = Vec::new();
     let mut values = vec![Vec::new(); names.len()];
-    for (line, row) in lines {
-        let cells: Vec<&str> = row.split(',').map(str::trim).collect();
-        if cells.len() != expected {
-            return Err(SpectralError::Ragged {
-                source_name: src(),
-                line,
-                found: cells.len(),
-                expected,
-            });
-        }
-        let mut parsed = Vec::with_capacity(expected);
-        for (k, cell) in cells.iter().enumerate() {
-            let column = if k == 0 {
-                "wavelength".to_string()
-            } else {
-                names[k - 1].clone()
-            };
-            let v: f64 = cell.parse().map_err(|_| SpectralError::NotANumber {
-                source_name: src(),
-                line,
-                column: column.clone(),
-                cell: cell.to_string(),
-            })?;
-            if !v.is_finite() {
-                return Err(SpectralError::NonFinite {
-                    source_name: src(),
-                    line,
-                    column,
-                });
-            }
-            parsed.push(v);
+    let mut parsed = Vec::with_capacity(expected);
+    while let Some(row) = table.next_record()? {
+        row.expect_len(expected)?;
+        parsed.clear();
+        for k in 0..expected {
+            parsed.push(row.number(k)?);
         }
         if let Some(&previous) = wavelengths.last() {
             if parsed[0] <= previous {
                 return Err(SpectralError::NonIncreasing {
                     source_name: src(),
-                    line,
+                    line: row.line,
                     wavelength: parsed[0],
                     previous,
                 });

@@ -33,26 +33,9 @@ pub enum SpectralError {
     Empty { source_name: String },
     #[error("{source_name}: the header has no spectrum columns after the wavelength column")]
     NoColumns { source_name: String },
-    #[error("{source_name}: line {line}: {found} cells, expected {expected} (as in the header)")]
-    Ragged {
-        source_name: String,
-        line: usize,
-        found: usize,
-        expected: usize,
-    },
-    #[error("{source_name}: line {line}, column `{column}`: `{cell}` is not a number")]
-    NotANumber {
-        source_name: String,
-        line: usize,
-        column: String,
-        cell: String,
-    },
-    #[error("{source_name}: line {line}, column `{column}`: value is not finite")]
-    NonFinite {
-        source_name: String,
-        line: usize,
-        column: String,
-    },
+    /// A malformed CSV: a ragged row, a cell that is not a finite number.
+    #[error(transparent)]
+    Csv(#[from] crate::csv_table::CsvError),
     #[error("{source_name}: line {line}: wavelength {wavelength} nm does not increase (previous {previous} nm)")]
     NonIncreasing {
         source_name: String,

@@ -28,7 +28,7 @@ use std::sync::{Arc, Mutex, OnceLock};
 /// Errors from writing an output file.
 #[derive(Debug, thiserror::Error)]
 pub enum WriteError {
-    #[error("{}: already exists (pass --overwrite to replace it)", .0.display())]
+    #[error("{}: already exists (not replaced)", .0.display())]
     Exists(PathBuf),
     #[error("{}: not a regular file (it is {what}); only regular files are ever replaced", path.display())]
     NotRegular { path: PathBuf, what: &'static str },

@@ -261,7 +261,7 @@ fn parse_request(a: &Args) -> Result<Request> {
         .suffix
         .clone()
         .unwrap_or_else(|| format!("_{}", space.name()));
-    batch::validate_suffix(&suffix)?;
+    batch::validate_suffix(&suffix).context("--suffix")?;
     let existing = if a.overwrite {
         Existing::Overwrite
     } else if a.skip_existing {
@@ -300,7 +300,8 @@ pub fn run(a: Args) -> Result<ExitCode> {
             shard: req.shard,
             create_dirs: !a.dry_run,
         },
-    )?;
+    )
+    .context("planning the outputs (--suffix, -o, --preview, --overwrite)")?;
     let scope = plan.scope();
     report_stale(&plan, a.remove_stale_temporaries && !a.dry_run);
     if a.dry_run {
@@ -309,7 +310,7 @@ pub fn run(a: Args) -> Result<ExitCode> {
             let what = match &j.action {
                 Action::Convert => String::new(),
                 Action::Skip(why) => format!("  # skip: {why}"),
-                Action::Fail(why) => format!("  # would fail: {why}"),
+                Action::Fail(why) => format!("  # would fail: {}", refusal(why)),
             };
             match &j.preview {
                 Some(p) => println!(
@@ -336,7 +337,7 @@ pub fn run(a: Args) -> Result<ExitCode> {
         .map(|j| match &j.action {
             Action::Convert => None,
             Action::Skip(why) => Some(Outcome::Skipped(why.clone())),
-            Action::Fail(why) => Some(Outcome::Failed(why.clone())),
+            Action::Fail(why) => Some(Outcome::Failed(refusal(why))),
         })
         .collect();
     let early_failure = outcomes
@@ -722,4 +723,15 @@ fn peak_rss_kib() -> Option<u64> {
     let status = std::fs::read_to_string("/proc/self/status").ok()?;
     let line = status.lines().find(|l| l.starts_with("VmHWM:"))?;
     line.split_whitespace().nth(1)?.parse().ok()
+}
+
+/// A plan's refusal with the flags that change it.
+fn refusal(r: &batch::Refusal) -> String {
+    match r {
+        batch::Refusal::NotRegular { .. } => format!("{r}, even with --overwrite"),
+        batch::Refusal::Exists(_) => {
+            format!("{r}: pass --overwrite to replace it, or --skip-existing")
+        }
+        batch::Refusal::PreviewExists(_) => format!("{r}: pass --overwrite to replace it"),
+    }
 }

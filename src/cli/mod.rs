@@ -88,6 +88,15 @@ pub fn main() -> ExitCode {
         Ok(code) => code,
         Err(e) => {
             eprintln!("nsrm: error: {e:#}");
+            // The library names no flags; the binary says which one changes the outcome.
+            if e.chain().any(|c| {
+                matches!(
+                    c.downcast_ref::<nsrm::atomic::WriteError>(),
+                    Some(nsrm::atomic::WriteError::Exists(_))
+                )
+            }) {
+                eprintln!("nsrm: hint: pass --overwrite to replace it");
+            }
             // A usage error of the binary's own, or of the library (which knows which of its
             // errors are the caller's mistake), anywhere in the context chain.
             let usage = e.chain().any(|c| {

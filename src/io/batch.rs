@@ -474,7 +474,7 @@ pub fn output_path(
 pub fn validate_suffix(suffix: &str) -> Result<(), PlanError> {
     let bad = |why: &str| {
         Err(PlanError::Usage(format!(
-            "--suffix `{suffix}`: {why}; it must be a plain part of a file name"
+            "output suffix `{suffix}`: {why}; it must be a plain part of a file name"
         )))
     };
     if suffix.contains('/') || suffix.contains('\\') {
@@ -524,10 +524,28 @@ pub struct PlanOptions<'a> {
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub enum Action {
     Convert,
-    /// Nothing to do, with the reason (the output exists and `--skip-existing`).
+    /// Nothing to do, with the reason (the output exists and existing outputs are skipped).
     Skip(String),
-    /// Fails before any work, with the reason (the output exists, or is not a regular file).
-    Fail(String),
+    /// Fails before any work, with the reason.
+    Fail(Refusal),
+}
+
+/// Why the plan refuses one input before any work (the front end adds how to change that).
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+pub enum Refusal {
+    /// The output or preview path holds something that is not a regular file.
+    #[error("{}: the {what} path is not a regular file (it is {kind}); nsrm never replaces one", path.display())]
+    NotRegular {
+        path: PathBuf,
+        what: &'static str,
+        kind: &'static str,
+    },
+    /// The output exists and existing outputs are refused.
+    #[error("{}: already exists (not replaced)", .0.display())]
+    Exists(PathBuf),
+    /// The preview exists and existing outputs are refused.
+    #[error("{}: preview already exists (not replaced)", .0.display())]
+    PreviewExists(PathBuf),
 }
 
 /// One input of the batch: where it goes and what to do.
@@ -758,7 +776,7 @@ fn check_destinations(
         match hit {
             None => Ok(()),
             Some(k) => Err(PlanError::Usage(format!(
-                "{}: the {what} for {} would be written onto {}; choose another --suffix, -o or --preview",
+                "{}: the {what} for {} would be written onto {}; choose another output suffix, output directory or preview directory",
                 dest.display(),
                 inputs[i].display(),
                 if k == i {
@@ -790,15 +808,14 @@ fn check_destinations(
 }
 
 fn existing_action(output: &Path, preview: Option<&Path>, existing: Existing) -> Action {
-    let not_regular = |p: &Path, what: &str| {
+    let not_regular = |p: &Path, what: &'static str| {
         let meta = std::fs::metadata(p).ok()?;
         (!meta.is_file()).then(|| {
-            Action::Fail(format!(
-                "{}: the {what} path is not a regular file (it is {}); nsrm never replaces one, \
-                 even with --overwrite",
-                p.display(),
-                crate::limits::file_kind(&meta)
-            ))
+            Action::Fail(Refusal::NotRegular {
+                path: p.to_path_buf(),
+                what,
+                kind: crate::limits::file_kind(&meta),
+            })
         })
     };
     if let Some(a) = not_regular(output, "output") {
@@ -810,21 +827,15 @@ fn existing_action(output: &Path, preview: Option<&Path>, existing: Existing) ->
     let exists = |p: &Path| std::fs::symlink_metadata(p).is_ok();
     if exists(output) {
         return match existing {
-            Existing::Skip => {
-                Action::Skip(format!("{} exists (--skip-existing)", output.display()))
-            }
-            Existing::Refuse => Action::Fail(format!(
-                "{}: already exists (pass --overwrite to replace it, or --skip-existing)",
-                output.display()
-            )),
+            Existing::Skip => Action::Skip(format!("{} exists (skipped)", output.display())),
+            Existing::Refuse => Action::Fail(Refusal::Exists(output.to_path_buf())),
             Existing::Overwrite => Action::Convert,
         };
     }
     match preview {
-        Some(p) if existing != Existing::Overwrite && exists(p) => Action::Fail(format!(
-            "{}: preview already exists (pass --overwrite to replace it)",
-            p.display()
-        )),
+        Some(p) if existing != Existing::Overwrite && exists(p) => {
+            Action::Fail(Refusal::PreviewExists(p.to_path_buf()))
+        }
         _ => Action::Convert,
     }
 }
@@ -987,7 +998,8 @@ mod tests {
         std::fs::create_dir(d.join("a_x.exr")).unwrap();
         match run(Existing::Overwrite) {
             Action::Fail(why) => assert!(
-                why.contains("not a regular file (it is a directory)"),
+                why.to_string()
+                    .contains("not a regular file (it is a directory)"),
                 "{why}"
             ),
             other => panic!("{other:?}"),

@@ -28,18 +28,10 @@ use common::{
     awkward_frame as random_frame, f32_bound, summands as term_magnitude, training, Rng, F32_REL,
 };
 
-/// Every kind at every order, fitted on simulated chart data (realistic coefficients, including
-/// PRM 4's large ones of both signs), and white-balanced NSRM (input gains) at every order.
+/// Every kind at every order ([`common::fitted_models`]) and white-balanced NSRM (input gains) at
+/// every order.
 fn fitted_models() -> Vec<Model> {
-    let mut v = Vec::new();
-    for kind in Kind::ALL {
-        for order in 1..=MAX_ORDER {
-            if kind == Kind::Lrm && order > 1 {
-                continue;
-            }
-            v.push(fit(kind, order, training()).unwrap());
-        }
-    }
+    let mut v = common::fitted_models();
     v.extend(white_balanced_nsrm());
     v
 }

@@ -11,7 +11,9 @@ use nsrm::spectral::{simulate_named, Grid};
 /// Every built-in illuminant.
 const ILLUMINANTS: [&str; 6] = ["D65", "FL3.15", "FL7", "TL865", "LED-B5", "LED-YAG"];
 use nsrm::TrainingSet;
-use std::path::PathBuf;
+
+mod common;
+use common::sg_path;
 
 fn de00(power: f64) -> FitOptions {
     FitOptions {
@@ -222,20 +224,6 @@ fn white_balanced_nsrm_is_raw_nsrm_on_balanced_input() {
     let plain = fit_with(Kind::Nsrm, 3, &data, &FitOptions::default()).unwrap();
     assert!(plain.model.matrix() != f.model.matrix());
     assert!(fit_with(Kind::Rprm, 3, &data, &wb).is_err());
-}
-
-fn sg_path() -> Option<PathBuf> {
-    let p =
-        PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../shared/data/colorchecker_sg_140.csv");
-    if p.exists() {
-        Some(p)
-    } else {
-        eprintln!(
-            "SKIP: {} is absent (the ColorChecker SG spectra stay outside the repository)",
-            p.display()
-        );
-        None
-    }
 }
 
 #[test]

@@ -5,21 +5,9 @@
 use nsrm::eval::{evaluate, Protocol};
 use nsrm::model::Kind;
 use nsrm::spectral::{simulate, Camera, Grid, Illuminant, Reflectances};
-use std::path::PathBuf;
 
-fn sg_path() -> Option<PathBuf> {
-    let p =
-        PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../shared/data/colorchecker_sg_140.csv");
-    if p.exists() {
-        Some(p)
-    } else {
-        eprintln!(
-            "SKIP: {} is absent (the ColorChecker SG spectra stay outside the repository)",
-            p.display()
-        );
-        None
-    }
-}
+mod common;
+use common::sg_path;
 
 #[test]
 fn sg_inner_96_d65_order_3_leave_one_out() {

@@ -17,11 +17,11 @@
 
 use nsrm::gpu::{Engine, GpuError, GpuOptions};
 use nsrm::model::fast::{FastModel, Threads};
-use nsrm::model::{fit, pixel, Kind, Model, MAX_ORDER};
+use nsrm::model::{pixel, Kind, Model};
 use nsrm::{Frame, Layout};
 
 mod common;
-use common::{summands, training};
+use common::{fitted_models as models, summands};
 
 /// The policy's pixels, by name. `huge` only where the model is exposure-invariant (PRM's cubes and
 /// fourth powers of 1e30 overflow f32 as they would in any f32 evaluation).
@@ -56,19 +56,6 @@ fn policy_pixels(kind: Kind) -> Vec<(&'static str, [f32; 3])> {
 fn frame_of(pixels: &[(&str, [f32; 3])]) -> Frame {
     let data = pixels.iter().flat_map(|(_, p)| *p).collect();
     Frame::from_data(pixels.len(), 1, Layout::Rgb, data).unwrap()
-}
-
-fn models() -> Vec<Model> {
-    let mut v = Vec::new();
-    for kind in Kind::ALL {
-        for order in 1..=MAX_ORDER {
-            if kind == Kind::Lrm && order > 1 {
-                continue;
-            }
-            v.push(fit(kind, order, training()).unwrap());
-        }
-    }
-    v
 }
 
 /// Checks `out` (one path's result on `policy_pixels`) against the policy and the reference.

@@ -125,6 +125,37 @@ pub fn training() -> &'static TrainingSet {
     })
 }
 
+/// Every kind at every order (LRM once: it has only order 1), fitted on [`training`]: realistic
+/// coefficients, including PRM 4's large ones of both signs.
+pub fn fitted_models() -> Vec<Model> {
+    let mut v = Vec::new();
+    for kind in nsrm::model::Kind::ALL {
+        for order in 1..=nsrm::model::MAX_ORDER {
+            if kind == nsrm::model::Kind::Lrm && order > 1 {
+                continue;
+            }
+            v.push(nsrm::model::fit(kind, order, training()).unwrap());
+        }
+    }
+    v
+}
+
+/// The ColorChecker SG spectra in `../shared/data`, or `None` (after a SKIP line) when absent:
+/// they stay outside the repository.
+pub fn sg_path() -> Option<PathBuf> {
+    let p =
+        PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../shared/data/colorchecker_sg_140.csv");
+    if p.exists() {
+        Some(p)
+    } else {
+        eprintln!(
+            "SKIP: {} is absent (the ColorChecker SG spectra stay outside the repository)",
+            p.display()
+        );
+        None
+    }
+}
+
 /// A runtime directory for Mesa (once per test process) when the environment has none.
 #[cfg(feature = "cli")]
 fn xdg_runtime_dir() -> Option<PathBuf> {

@@ -104,7 +104,7 @@ fn render_chart_flags_are_bounded() {
             "-o",
             "c.exr",
         ],
-        "--noise -1 is out of range",
+        "--noise: noise -1 is out of range",
     );
     // The largest accepted values still give finite pixels.
     let dir = tempfile::tempdir().unwrap();

@@ -124,7 +124,7 @@ fn huge_headers_are_refused_before_allocating() {
     set(&mut b, ROWS_PER_STRIP, 100_000);
     let e = read(&b, Limits::default()).unwrap_err();
     assert!(
-        e.contains("100000×100000") && e.contains("--max-pixels"),
+        e.contains("100000×100000") && e.contains("limit of 268435456 pixels"),
         "{e}"
     );
     // Within --max-pixels but more than the (uncompressed) file holds.

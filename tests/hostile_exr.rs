@@ -143,8 +143,12 @@ fn a_huge_header_costs_an_error() {
     assert!(bytes.len() < 500);
     let p = write(dir.path(), "huge.exr", &bytes);
     let e = read(&p).unwrap_err();
-    assert!(matches!(e, IoError::TooLarge { .. }), "{e}");
-    assert!(e.to_string().contains("--max-pixels"), "{e}");
+    assert!(matches!(e, IoError::OverLimit { .. }), "{e}");
+    assert!(e.to_string().contains("limit of 268435456 pixels"), "{e}");
+    assert_eq!(
+        e.concern(),
+        Some(nsrm::error::Concern::Remedy(nsrm::error::Param::MaxPixels))
+    );
     // Even with no pixel limit, the file is too small for its own offset table.
     let opts = ReadOptions {
         limits: Limits {

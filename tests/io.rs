@@ -1,6 +1,8 @@
 //! Round trips and refusals of `nsrm::io`: EXR (half/float/uint, RGB/RGBA, tiled, layers, parts,
 //! mip levels, extra channels, attributes) and TIFF (u16/f32 in, f32 out).
 
+mod common;
+
 use exr::compression::Compression;
 use exr::image::{
     AnyChannel, AnyChannels, AnyImage, Blocks, Encoding, FlatSamples, Image, Layer, Levels,
@@ -10,6 +12,7 @@ use exr::meta::attribute::{AttributeValue, Chromaticities, IntegerBounds, LineOr
 use exr::meta::header::{ImageAttributes, LayerAttributes};
 use exr::prelude::{f16, SmallVec, WritableImage};
 use nsrm::colorimetry::spaces::OutputSpace;
+use nsrm::error::{Concern, Param};
 use nsrm::io::{read_frame, Decoded, FileFormat, IoError, ReadOptions, WriteOptions};
 use nsrm::{Frame, Layout};
 use std::path::Path;
@@ -248,10 +251,10 @@ fn layers_by_name_in_one_part() {
     let msg = e.to_string();
     assert!(matches!(e, IoError::Channels { .. }), "{msg}");
     assert!(msg.contains("aovs.exr"), "{msg}");
-    assert!(
-        msg.contains("beauty, diffuse (pick one with --layer)"),
-        "{msg}"
-    );
+    assert!(msg.contains("beauty, diffuse (pick one)"), "{msg}");
+    // The library names no flag; it says the layer is the way out (the binary adds `--layer`).
+    assert!(!msg.contains("--"), "{msg}");
+    assert_eq!(e.concern(), Some(Concern::Remedy(Param::Layer)));
     let e = Decoded::read(
         &src,
         &ReadOptions {
@@ -261,6 +264,7 @@ fn layers_by_name_in_one_part() {
     )
     .unwrap_err();
     assert!(e.to_string().contains("no layer `specular`"), "{e}");
+    assert_eq!(e.concern(), Some(Concern::Value(Param::Layer)));
 
     let d = Decoded::read(
         &src,
@@ -291,6 +295,31 @@ fn layers_by_name_in_one_part() {
         level0(channel(&back, 0, "beauty.G")),
         FlatSamples::F16(_)
     ));
+
+    // The binary adds the flag: a hint for the way out, a prefix for the value at fault (one
+    // line per failed file of the batch).
+    common::model(dir.path());
+    let o = common::nsrm_in(dir.path(), &["apply", "--model", "m.json", "aovs.exr"]);
+    let err = common::stderr(&o);
+    assert_eq!(o.status.code(), Some(1), "{err}");
+    assert!(
+        err.lines().any(|l| l.contains("aovs.exr")
+            && l.contains("beauty, diffuse (pick one)")
+            && l.contains("hint: pick the layer with --layer NAME")),
+        "{err}"
+    );
+    let o = common::nsrm_in(
+        dir.path(),
+        &[
+            "apply", "--model", "m.json", "--layer", "specular", "aovs.exr",
+        ],
+    );
+    let err = common::stderr(&o);
+    assert!(
+        err.lines()
+            .any(|l| l.contains("--layer: ") && l.contains("no layer `specular`")),
+        "{err}"
+    );
 }
 
 #[test]
@@ -504,6 +533,7 @@ fn tiff_in_u16_and_f32_and_out_f32() {
     )
     .unwrap_err();
     assert!(e.to_string().contains("no layers"), "{e}");
+    assert_eq!(e.concern(), Some(Concern::Value(Param::Layer)));
 
     // TIFF in → EXR out keeps alpha; TIFF in → TIFF out is 32-bit float.
     let dec = Decoded::read(&f32_path, &ReadOptions::default()).unwrap();

@@ -452,7 +452,7 @@ pub fn detect(
     if score > DETECT_MATCH_LIMIT {
         return Err(fail(
             format!(
-                "a grid of {} patches was found, but its colours match reference {} only loosely (median ΔE00 {score:.1}, limit {DETECT_MATCH_LIMIT} for a found chart): refused rather than risk a wrong placement; give --corners",
+                "a grid of {} patches was found, but its colours match reference {} only loosely (median ΔE00 {score:.1}, limit {DETECT_MATCH_LIMIT} for a found chart): refused rather than risk a wrong placement; give the chart's corners",
                 lattice.len(),
                 reference.name
             ),
@@ -463,7 +463,7 @@ pub fn detect(
     if persp > PERSPECTIVE_LIMIT {
         return Err(fail(
             format!(
-                "the chart is seen under strong perspective (patch scale varies {persp:.2}× across it, limit {PERSPECTIVE_LIMIT}): refused rather than risk misplaced patches; shoot it more squarely or give --corners"
+                "the chart is seen under strong perspective (patch scale varies {persp:.2}× across it, limit {PERSPECTIVE_LIMIT}): refused rather than risk misplaced patches; shoot it more squarely or give the chart's corners"
             ),
             candidates,
         ));

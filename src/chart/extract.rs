@@ -17,6 +17,7 @@
 use super::reference::Reference;
 use super::{ChartError, ChartKind, Homography};
 use crate::colorimetry::delta_e00_xyz;
+use crate::error::Param;
 use crate::frame::Frame;
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
@@ -30,6 +31,27 @@ pub struct ExtractOptions {
     pub white_level: Option<f64>,
     pub dark_fraction: f64,
     pub nonuniform: f64,
+}
+
+impl ExtractOptions {
+    /// Checks the options (before any frame is read, if the caller likes): a sample fraction in
+    /// (0, 1] and a finite, positive white level.
+    pub fn validate(&self) -> Result<(), ChartError> {
+        if !(self.sample_fraction > 0.0 && self.sample_fraction <= 1.0) {
+            return Err(ChartError::Invalid(
+                "the sample fraction must be in (0, 1]".into(),
+            ));
+        }
+        if let Some(w) = self.white_level {
+            if !(w.is_finite() && w > 0.0) {
+                return Err(ChartError::value(
+                    Param::WhiteLevel,
+                    format!("white level {w}: it must be a positive number"),
+                ));
+            }
+        }
+        Ok(())
+    }
 }
 
 impl Default for ExtractOptions {
@@ -276,18 +298,7 @@ pub fn extract(
     opts: &ExtractOptions,
 ) -> Result<Extraction, ChartError> {
     let kind = reference.chart;
-    if !(opts.sample_fraction > 0.0 && opts.sample_fraction <= 1.0) {
-        return Err(ChartError::Invalid(
-            "the sample fraction must be in (0, 1]".into(),
-        ));
-    }
-    if let Some(w) = opts.white_level {
-        if !(w.is_finite() && w > 0.0) {
-            return Err(ChartError::Invalid(format!(
-                "--white-level {w} must be a positive number"
-            )));
-        }
-    }
+    opts.validate()?;
     let hinv = h
         .inverse()
         .ok_or_else(|| ChartError::Geometry("the chart transform is singular".into()))?;
@@ -529,7 +540,7 @@ pub fn verify(ex: &Extraction, reference: &Reference) -> Result<f64, ChartError>
     })?;
     if score > MATCH_LIMIT {
         return Err(ChartError::Implausible(format!(
-            "the patch colours do not match reference {} (median ΔE00 {score:.1} after the best linear map, limit {MATCH_LIMIT}): wrong chart, wrong --corners order, or not a chart",
+            "the patch colours do not match reference {} (median ΔE00 {score:.1} after the best linear map, limit {MATCH_LIMIT}): wrong chart, corners in the wrong order, or not a chart",
             reference.name
         )));
     }

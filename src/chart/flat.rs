@@ -16,6 +16,7 @@ use super::extract::{cell_means, sample_side, ExtractOptions, Extraction};
 use super::reference::Reference;
 use super::ChartError;
 use crate::colorimetry::xyz_to_lab;
+use crate::error::Param;
 use crate::frame::Frame;
 
 /// Light factors per patch (per channel), to divide the readings by.
@@ -71,15 +72,20 @@ pub fn from_flat_frame(
     opts: &ExtractOptions,
 ) -> Result<Flat, ChartError> {
     if (flat.width, flat.height) != frame_size {
-        return Err(ChartError::Invalid(format!(
-            "--flat: the flat frame is {}×{}, the chart frame {}×{}",
-            flat.width, flat.height, frame_size.0, frame_size.1
-        )));
+        return Err(ChartError::value(
+            Param::Flat,
+            format!(
+                "the flat frame is {}×{}, the chart frame {}×{}",
+                flat.width, flat.height, frame_size.0, frame_size.1
+            ),
+        ));
     }
     let means = cell_means(flat, ex.chart, &ex.homography, sample_side(ex.chart, opts));
     let factors = means
         .into_iter()
-        .map(|m| m.ok_or_else(|| ChartError::Invalid("--flat: a patch is outside the flat".into())))
+        .map(|m| {
+            m.ok_or_else(|| ChartError::value(Param::Flat, "a patch is outside the flat frame"))
+        })
         .collect::<Result<Vec<_>, _>>()?;
     finish("flat frame", factors, 0)
 }
@@ -97,7 +103,7 @@ pub fn from_neutrals(ex: &Extraction, reference: &Reference) -> Result<Flat, Cha
     }
     if pts.len() < 3 {
         return Err(ChartError::Implausible(format!(
-            "--flat neutrals: only {} usable neutral patches",
+            "light from the neutral patches: only {} of them are usable (3 are needed)",
             pts.len()
         )));
     }

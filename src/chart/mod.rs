@@ -31,6 +31,7 @@ pub mod overlay;
 pub mod reference;
 pub mod scene;
 
+use crate::error::Param;
 use serde::{Deserialize, Serialize};
 
 /// Errors of chart reading.
@@ -51,8 +52,27 @@ pub enum ChartError {
     Implausible(String),
     #[error("{0}")]
     Invalid(String),
+    /// Options out of range (named in words in the message): a usage error.
+    #[error("{0}")]
+    Options(String),
+    /// About one parameter of the request (`concern` says which and how).
+    #[error("{why}")]
+    Param {
+        concern: crate::error::Concern,
+        why: String,
+    },
     #[error(transparent)]
     Io(#[from] crate::io::IoError),
+}
+
+impl ChartError {
+    /// A usage error about the value given for `p`.
+    pub(crate) fn value(p: crate::error::Param, why: impl Into<String>) -> ChartError {
+        ChartError::Param {
+            concern: crate::error::Concern::Value(p),
+            why: why.into(),
+        }
+    }
 }
 
 /// The kind of chart.
@@ -379,9 +399,9 @@ impl Homography {
     }
 }
 
-/// Parses `--corners`: four `X,Y` pairs separated by spaces (or `;`).
+/// Parses a chart's corners: four `X,Y` pairs separated by spaces (or `;`).
 pub fn parse_corners(spec: &str) -> Result<[[f64; 2]; 4], ChartError> {
-    let bad = |why: &str| ChartError::Invalid(format!("--corners `{spec}`: {why}"));
+    let bad = |why: &str| ChartError::value(Param::Corners, format!("corners `{spec}`: {why}"));
     let parts: Vec<&str> = spec
         .split(|c: char| c.is_whitespace() || c == ';')
         .filter(|s| !s.is_empty())
@@ -406,7 +426,7 @@ pub fn parse_corners(spec: &str) -> Result<[[f64; 2]; 4], ChartError> {
     Ok(out)
 }
 
-/// The chart → image transform for `--corners` (pixel coordinates: pixel `(x, y)` covers
+/// The chart → image transform from the chart's four corners in the frame (pixel coordinates: pixel `(x, y)` covers
 /// `[x, x+1) × [y, y+1)`, so its centre is `(x + 0.5, y + 0.5)`).
 pub fn homography_from_corners(
     kind: ChartKind,
@@ -416,12 +436,15 @@ pub fn homography_from_corners(
 ) -> Result<Homography, ChartError> {
     for (k, c) in corners.iter().enumerate() {
         if !(c[0] >= 0.0 && c[1] >= 0.0 && c[0] <= width as f64 && c[1] <= height as f64) {
-            return Err(ChartError::Geometry(format!(
-                "--corners: corner {} ({}, {}) is outside the {width}×{height} frame",
-                k + 1,
-                c[0],
-                c[1]
-            )));
+            return Err(ChartError::value(
+                Param::Corners,
+                format!(
+                    "corner {} ({}, {}) is outside the {width}×{height} frame",
+                    k + 1,
+                    c[0],
+                    c[1]
+                ),
+            ));
         }
     }
     // The quadrilateral must be convex and not degenerate.
@@ -430,8 +453,9 @@ pub fn homography_from_corners(
         let (a, b, c) = (corners[k], corners[(k + 1) % 4], corners[(k + 2) % 4]);
         let cross = (b[0] - a[0]) * (c[1] - b[1]) - (b[1] - a[1]) * (c[0] - b[0]);
         if cross.abs() < 1e-6 || (sign != 0.0 && cross.signum() != sign) {
-            return Err(ChartError::Geometry(
-                "--corners do not form a convex quadrilateral".into(),
+            return Err(ChartError::value(
+                Param::Corners,
+                "the corners do not form a convex quadrilateral",
             ));
         }
         sign = cross.signum();

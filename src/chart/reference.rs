@@ -4,6 +4,7 @@
 
 use super::{ChartError, ChartKind};
 use crate::colorimetry::{lab_to_xyz, xyy_to_xyz};
+use crate::error::{Concern, Param};
 use std::path::Path;
 
 /// Largest reference file read (bytes).
@@ -304,9 +305,12 @@ fn from_rows(
     let err = |why: String| ChartError::Reference(format!("{src}: {why}"));
     if rows.lab && white.is_none() {
         // Lab tables of chart makers are D50; say so rather than guess silently.
-        return Err(err(
-            "Lab values need their reference white: pass --reference-white X,Y,Z or an illuminant (D50 for X-Rite tables)".into(),
-        ));
+        return Err(ChartError::Param {
+            concern: Concern::Remedy(Param::ReferenceWhite),
+            why: format!(
+                "{src}: Lab values need their reference white: give it as X,Y,Z or an illuminant (D50 for X-Rite tables)"
+            ),
+        });
     }
     let white = white.unwrap_or_else(d50_white);
     let mut xyz: Vec<Option<[f64; 3]>> = vec![None; chart.cells()];

@@ -4,6 +4,7 @@
 //! noise-free patch values and the pose are kept as ground truth ([`SceneTruth`]).
 
 use super::{ChartError, ChartKind, Homography};
+use crate::error::{Concern, Param};
 use crate::frame::{Frame, Layout};
 use crate::io::chart::Gaussian;
 use crate::spectral::{parse_csv, simulate, Camera, Grid, Illuminant, Reflectances};
@@ -43,9 +44,12 @@ impl ChartColours {
             (_, Some(r)) => r.to_string(),
             (ChartKind::Cc24, None) => "cc24".to_string(),
             (ChartKind::Sg, None) => {
-                return Err(ChartError::Invalid(
-                    "an SG scene needs its spectra: --reflectances FILE (e.g. ../shared/data/colorchecker_sg_140.csv)".into(),
-                ))
+                return Err(ChartError::Param {
+                    concern: Concern::Remedy(Param::Reflectances),
+                    why: "an SG scene needs its spectra: a reflectance CSV with columns A1..N10 \
+                          (e.g. ../shared/data/colorchecker_sg_140.csv)"
+                        .into(),
+                })
             }
         };
         let cam = Camera::from_name_or_path(camera).map_err(err)?;
@@ -181,7 +185,7 @@ impl SceneOptions {
     }
 
     fn check(&self) -> Result<(), ChartError> {
-        let bad = |w: &str| Err(ChartError::Invalid(w.to_string()));
+        let bad = |w: &str| Err(ChartError::Options(w.to_string()));
         if self.width < 16 || self.height < 16 || self.width.saturating_mul(self.height) > 1 << 27 {
             return bad("the frame must be 16×16 to 134 Mpixels");
         }
@@ -469,8 +473,8 @@ pub fn render(
     let light_mean =
         centres.iter().map(|c| light_raw(c[0], c[1])).sum::<f64>() / centres.len() as f64;
     if !(light_mean > 0.0) {
-        return Err(ChartError::Invalid(
-            "the light is not positive on the chart".into(),
+        return Err(ChartError::Options(
+            "the light is not positive on the chart (vignetting and gradient too strong)".into(),
         ));
     }
     let light = |x: f64, y: f64| light_raw(x, y) / light_mean;

@@ -576,7 +576,7 @@ fn run_pipeline(
                     }
                     Err(e) => {
                         permits.release();
-                        fail(i, e.to_string())
+                        fail(i, super::common::explain_line(e.into()))
                     }
                 }
             });
@@ -614,7 +614,7 @@ fn run_pipeline(
                     Err(_) if interrupt.stopped() || nsrm::atomic::writes_aborted() => {
                         lock(results).push((i, Outcome::Aborted));
                     }
-                    Err(e) => fail(i, e.to_string()),
+                    Err(e) => fail(i, super::common::explain_line(e.into())),
                 }
             });
         }

@@ -45,6 +45,10 @@ pub struct CaptureOptions {
     /// (a smooth surface fitted to the chart's neutral patches).
     #[arg(long, value_name = "FRAME|neutrals")]
     pub flat: Option<String>,
+    /// Most pixels the frame (and the flat frame) may have, as in `apply`.
+    #[arg(long, value_name = "N", default_value_t = nsrm::io::DEFAULT_MAX_PIXELS,
+          value_parser = clap::value_parser!(u64).range(1..))]
+    pub max_pixels: u64,
 }
 
 /// A read chart.
@@ -99,33 +103,26 @@ impl CaptureOptions {
     pub fn read(&self, path: &Path, failure_overlay: Option<(&Path, bool)>) -> Result<Capture> {
         let reference = self.reference()?;
         let kind = reference.chart;
-        let corners = self
-            .corners
-            .as_deref()
-            .map(parse_corners)
-            .transpose()
-            .map_err(|e| UsageError(e.to_string()))?;
+        let corners = self.corners.as_deref().map(parse_corners).transpose()?;
         let opts = ExtractOptions {
             white_level: self.white_level,
             ..Default::default()
         };
-        if let Some(w) = self.white_level {
-            if !(w.is_finite() && w > 0.0) {
-                return Err(UsageError(format!("--white-level {w} must be positive")).into());
-            }
-        }
+        opts.validate()?;
+        let limits = nsrm::io::Limits {
+            max_pixels: self.max_pixels,
+        };
         let frame = nsrm::io::read_frame(
             path,
             &nsrm::io::ReadOptions {
                 layer: self.layer.clone(),
-                ..Default::default()
+                limits,
             },
         )?;
         let sha256 = sha256_file(path)?;
         let (h, detection) = match corners {
             Some(c) => (
-                homography_from_corners(kind, &c, frame.width, frame.height)
-                    .map_err(|e| UsageError(e.to_string()))?,
+                homography_from_corners(kind, &c, frame.width, frame.height)?,
                 None,
             ),
             None => match detect(&frame, &reference, &DetectOptions::default()) {
@@ -153,8 +150,14 @@ impl CaptureOptions {
                 Some(flat::from_neutrals(&ex, &reference)?)
             }
             Some(f) => {
-                let ff = nsrm::io::read_frame(Path::new(f), &Default::default())
-                    .with_context(|| format!("--flat {f}"))?;
+                let ff = nsrm::io::read_frame(
+                    Path::new(f),
+                    &nsrm::io::ReadOptions {
+                        limits,
+                        ..Default::default()
+                    },
+                )
+                .with_context(|| format!("--flat {f}"))?;
                 Some(flat::from_flat_frame(
                     &ff,
                     (frame.width, frame.height),

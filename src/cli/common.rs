@@ -2,6 +2,7 @@
 
 use anyhow::{Context, Result};
 use clap::Args as ClapArgs;
+use nsrm::error::{Concern, Param};
 use nsrm::model::Kind;
 use nsrm::spectral::{simulate, Camera, Grid, Illuminant, Reflectances};
 use nsrm::training::{parse_white, TrainingSet};
@@ -122,4 +123,59 @@ pub fn parse_orders(spec: &str, flag: &str) -> Result<Vec<u8>> {
         }
     }
     Ok(v)
+}
+
+/// The flag that sets each library parameter: the one place the binary spells them.
+pub fn flag(p: Param) -> &'static str {
+    match p {
+        Param::MaxPixels => "--max-pixels",
+        Param::Layer => "--layer",
+        Param::Exposure => "--exposure",
+        Param::Noise => "--noise",
+        Param::PatchSize => "--patch-size",
+        Param::Gap => "--gap",
+        Param::Columns => "--columns",
+        Param::Corners => "--corners",
+        Param::Flat => "--flat",
+        Param::ReferenceWhite => "--reference-white",
+        Param::Reflectances => "--reflectances",
+        Param::WhiteLevel => "--white-level",
+        Param::WhitePatch => "--white-patch",
+    }
+}
+
+/// What to do about a failure that `p`'s flag is the way out of.
+fn remedy(p: Param) -> String {
+    let f = flag(p);
+    match p {
+        Param::MaxPixels => format!("raise the limit with {f} N if the frame is genuine"),
+        Param::Layer => format!("pick the layer with {f} NAME"),
+        Param::Corners => format!(
+            "give the chart's corners with {f} \"X,Y X,Y X,Y X,Y\" (first patch's corner first, \
+             then clockwise)"
+        ),
+        Param::ReferenceWhite => format!("pass {f} X,Y,Z or an illuminant (D50 for X-Rite tables)"),
+        Param::Reflectances => format!("pass {f} FILE"),
+        Param::WhitePatch => format!("name a neutral patch with {f} LABEL"),
+        _ => format!("see {f}"),
+    }
+}
+
+/// An error as the binary reports it: the whole context chain, with the flag whose value is at
+/// fault in front (`--corners: …`), and a hint naming the flag that is the way out, if any.
+pub fn explain(e: &anyhow::Error) -> (String, Option<String>) {
+    let concern = e.chain().find_map(nsrm::error::concern);
+    match concern {
+        Some(Concern::Value(p)) => (format!("{}: {e:#}", flag(p)), None),
+        Some(Concern::Remedy(p)) => (format!("{e:#}"), Some(remedy(p))),
+        None => (format!("{e:#}"), None),
+    }
+}
+
+/// [`explain`] on one line (a batch's per-file failures).
+pub fn explain_line(e: anyhow::Error) -> String {
+    match explain(&e) {
+        (msg, Some(hint)) => format!("{msg} (hint: {hint})"),
+        (msg, None) => msg,
+    }
 }

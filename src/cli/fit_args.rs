@@ -2,7 +2,7 @@
 
 use super::common::UsageError;
 use super::values;
-use anyhow::Result;
+use anyhow::{Context, Result};
 use nsrm::model::fit::{FitOptions, Normalise, Objective, Ridge, White};
 
 /// How the matrix is fitted (the paper: least squares, raw input, no constraint, no ridge).
@@ -35,10 +35,9 @@ pub struct FitVariantArgs {
 impl FitVariantArgs {
     /// The options these flags name.
     pub fn options(&self) -> Result<FitOptions> {
-        let usage = |flag: &str, e: nsrm::model::ModelError| UsageError(format!("--{flag}: {e}"));
-        let objective = Objective::parse(&self.objective).map_err(|e| usage("objective", e))?;
+        let objective = Objective::parse(&self.objective).context("--objective")?;
         let ridge = match &self.ridge {
-            Some(s) => Ridge::parse(s).map_err(|e| usage("ridge", e))?,
+            Some(s) => Ridge::parse(s).context("--ridge")?,
             None => Ridge::None,
         };
         let normalise = Normalise::from(self.normalise);

@@ -87,8 +87,12 @@ pub fn main() -> ExitCode {
     match result {
         Ok(code) => code,
         Err(e) => {
-            eprintln!("nsrm: error: {e:#}");
-            // The library names no flags; the binary says which one changes the outcome.
+            // The library names no flags; the binary says which one is at fault or the way out.
+            let (msg, hint) = common::explain(&e);
+            eprintln!("nsrm: error: {msg}");
+            if let Some(hint) = hint {
+                eprintln!("nsrm: hint: {hint}");
+            }
             if e.chain().any(|c| {
                 matches!(
                     c.downcast_ref::<nsrm::atomic::WriteError>(),

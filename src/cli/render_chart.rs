@@ -1,7 +1,7 @@
 //! `nsrm render-chart`: a synthetic linear camera-RGB frame of a chart, for testing `apply`.
 
 use super::common::{TrainingArgs, UsageError};
-use anyhow::Result;
+use anyhow::{Context, Result};
 use nsrm::io::chart::{self, ChartOptions};
 use std::path::PathBuf;
 use std::process::ExitCode;
@@ -57,24 +57,11 @@ pub fn run(a: Args) -> Result<ExitCode> {
         seed: a.seed,
     };
     // Refuse bad options before the (slower) simulation.
-    if a.patch_size == 0 || a.columns == Some(0) {
-        return Err(UsageError("--patch-size and --columns must be at least 1".into()).into());
-    }
-    for (flag, v) in [("--patch-size", a.patch_size), ("--gap", a.gap)] {
-        if v > chart::MAX_PATCH_PIXELS {
-            return Err(UsageError(format!(
-                "{flag} {v} is too big: the limit is {} pixels",
-                chart::MAX_PATCH_PIXELS
-            ))
-            .into());
-        }
-    }
-    chart::check_exposure_noise(a.exposure, a.noise).map_err(UsageError)?;
+    opts.validate()?;
     nsrm::atomic::check_clobber(&a.output, a.overwrite)?;
     nsrm::atomic::check_clobber(&chart::layout_path(&a.output), a.overwrite)?;
     let data = a.training.load(&a.illuminant)?;
-    let (frame, layout) =
-        chart::render(&data, &opts).map_err(|e| UsageError(format!("rendering the chart: {e}")))?;
+    let (frame, layout) = chart::render(&data, &opts).context("rendering the chart")?;
     chart::write(&frame, &layout, &a.output, a.overwrite)?;
     eprintln!(
         "{} patches ({} columns, {} px) rendered to {} ({}×{}); layout in {}",

@@ -90,12 +90,7 @@ pub fn run(a: Args) -> Result<ExitCode> {
     }
     let tpath = truth_path(&a.output);
     nsrm::atomic::check_clobber(&tpath, a.overwrite)?;
-    let corners = a
-        .corners
-        .as_deref()
-        .map(parse_corners)
-        .transpose()
-        .map_err(|e| UsageError(e.to_string()))?;
+    let corners = a.corners.as_deref().map(parse_corners).transpose()?;
     let colours =
         ChartColours::simulate(kind, &a.camera, &a.illuminant, a.reflectances.as_deref())?;
     let opts = if a.envelope {
@@ -124,7 +119,7 @@ pub fn run(a: Args) -> Result<ExitCode> {
             ..Default::default()
         }
     };
-    let (frame, flat, truth) = render(&colours, &opts).map_err(|e| UsageError(e.to_string()))?;
+    let (frame, flat, truth) = render(&colours, &opts)?;
     let json = serde_json::to_string_pretty(&truth)?;
     let note = format!(
         "nsrm scene: {} chart, seed {}, camera {}, illuminant {}; linear camera RGB",

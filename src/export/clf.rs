@@ -118,7 +118,7 @@ pub fn write(e: &LutExport, report: Option<&ErrorReport>) -> String {
     );
     let _ = writeln!(
         s,
-        "  <OutputDescriptor>{}: scene-linear, the training white at Y = 1 (as nsrm apply --output-space {} writes it)</OutputDescriptor>",
+        "  <OutputDescriptor>{}: scene-linear, the training white at Y = 1 (as nsrm's apply writes it in output space {})</OutputDescriptor>",
         e.space.interop_id(),
         e.space.name()
     );

@@ -27,7 +27,7 @@ pub fn write(e: &LutExport, report: Option<&ErrorReport>) -> Result<String, Expo
     );
     let _ = writeln!(
         s,
-        "# Input: linear camera RGB, not white-balanced (training white G = 1). Output: {} ({}), scene-linear, training white at Y = 1, as nsrm apply --output-space {} writes it.",
+        "# Input: linear camera RGB, not white-balanced (training white G = 1). Output: {} ({}), scene-linear, training white at Y = 1, as nsrm's apply writes it in output space {}.",
         e.space.name(),
         e.space.interop_id(),
         e.space.name()

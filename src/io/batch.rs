@@ -394,7 +394,7 @@ impl Shard {
         if k == 0 || k > n {
             return Err(bad(
                 "K must be within 1..N (shards count from 1, like SLURM_ARRAY_TASK_ID with \
-                 --array=1-N; for a 0-based index pass index+1)",
+                 sbatch --array=1-N; for a 0-based index pass index+1)",
             ));
         }
         Ok(Shard { index: k, count: n })

@@ -4,6 +4,7 @@
 //! where each patch is and what its true RGB and XYZ are, so a corrected chart can be checked.
 
 use super::IoError;
+use crate::error::{Concern, Param};
 use crate::frame::{Frame, Layout};
 use crate::training::{Provenance, TrainingSet};
 use serde::{Deserialize, Serialize};
@@ -124,31 +125,77 @@ pub fn layout_path(chart: &Path) -> PathBuf {
     chart.with_extension("patches.json")
 }
 
-/// The range of `--exposure`: a camera RGB of 1 times it stays a normal f32 (≈ 1.2e-38 to
+/// The range of [`ChartOptions::exposure`]: a camera RGB of 1 times it stays a normal f32 (≈ 1.2e-38 to
 /// 3.4e38) with room for the patch values and the noise.
 pub const EXPOSURE_RANGE: (f64, f64) = (1e-30, 1e30);
-/// The largest `--noise` (standard deviation): noise draws up to ~40σ stay finite in f32.
+/// The largest [`ChartOptions::noise`] (a standard deviation): noise draws up to ~40σ stay finite in f32.
 pub const MAX_NOISE: f64 = 1e30;
-/// The largest `--patch-size` and `--gap` in pixels.
+/// The largest [`ChartOptions::patch_size`] and [`ChartOptions::gap`] in pixels.
 pub const MAX_PATCH_PIXELS: usize = 1 << 14;
 
-/// Checks `--exposure` and `--noise` against [`EXPOSURE_RANGE`] and [`MAX_NOISE`]; the message
-/// names the limit.
-pub fn check_exposure_noise(exposure: f64, noise: f64) -> Result<(), String> {
+/// Checks an exposure and a noise level against [`EXPOSURE_RANGE`] and [`MAX_NOISE`]; the
+/// message names the limit, the error the parameter ([`Param::Exposure`], [`Param::Noise`]).
+pub fn check_exposure_noise(exposure: f64, noise: f64) -> Result<(), IoError> {
     let (lo, hi) = EXPOSURE_RANGE;
     if !(exposure.is_finite() && (lo..=hi).contains(&exposure)) {
-        return Err(format!(
-            "--exposure {exposure} is out of range: it must be within {lo:e}..{hi:e} (so that the \
-             pixels stay finite, non-zero 32-bit floats)"
+        return Err(param(
+            Param::Exposure,
+            format!(
+                "exposure {exposure} is out of range: it must be within {lo:e}..{hi:e} (so that \
+                 the pixels stay finite, non-zero 32-bit floats)"
+            ),
         ));
     }
     if !(noise.is_finite() && (0.0..=MAX_NOISE).contains(&noise)) {
-        return Err(format!(
-            "--noise {noise} is out of range: it must be within 0..{MAX_NOISE:e} (so that the \
-             pixels stay finite 32-bit floats)"
+        return Err(param(
+            Param::Noise,
+            format!(
+                "noise {noise} is out of range: it must be within 0..{MAX_NOISE:e} (so that the \
+                 pixels stay finite 32-bit floats)"
+            ),
         ));
     }
     Ok(())
+}
+
+/// A usage error about the value of `p`.
+fn param(p: Param, why: String) -> IoError {
+    IoError::Param {
+        concern: Concern::Value(p),
+        why,
+    }
+}
+
+impl ChartOptions {
+    /// Checks each option on its own (whether they fit together depends on the patch count,
+    /// which [`render`] checks): a patch size of 1 to [`MAX_PATCH_PIXELS`], a gap up to it, at
+    /// least one column, and [`check_exposure_noise`].
+    pub fn validate(&self) -> Result<(), IoError> {
+        for (p, what, v, least) in [
+            (Param::PatchSize, "patch size", self.patch_size, 1),
+            (Param::Gap, "gap", self.gap, 0),
+        ] {
+            if v < least {
+                return Err(param(
+                    p,
+                    format!("the {what} must be at least {least} pixel"),
+                ));
+            }
+            if v > MAX_PATCH_PIXELS {
+                return Err(param(
+                    p,
+                    format!("{what} {v} is too big: the limit is {MAX_PATCH_PIXELS} pixels"),
+                ));
+            }
+        }
+        if self.columns == Some(0) {
+            return Err(param(
+                Param::Columns,
+                "the number of columns must be at least 1".into(),
+            ));
+        }
+        check_exposure_noise(self.exposure, self.noise)
+    }
 }
 
 /// Renders the chart of `data`.
@@ -156,18 +203,14 @@ pub fn render(data: &TrainingSet, opts: &ChartOptions) -> Result<(Frame, ChartLa
     if data.is_empty() {
         return Err(IoError::Invalid("the chart has no patches".into()));
     }
-    if opts.patch_size == 0 {
-        return Err(IoError::Invalid("--patch-size must be at least 1".into()));
-    }
-    check_exposure_noise(opts.exposure, opts.noise).map_err(IoError::Invalid)?;
+    opts.validate()?;
     let n = data.len();
     let columns = match opts.columns {
-        Some(0) => return Err(IoError::Invalid("--columns must be at least 1".into())),
         Some(c) => c.min(n),
         None => ((1.5 * n as f64).sqrt().ceil() as usize).clamp(1, n),
     };
     let rows = n.div_ceil(columns);
-    // Checked: --patch-size and --gap come from the command line.
+    // Checked: the patch size and the gap come from the caller.
     let side = |k: usize| {
         opts.patch_size
             .checked_add(opts.gap)
@@ -175,16 +218,20 @@ pub fn render(data: &TrainingSet, opts: &ChartOptions) -> Result<(Frame, ChartLa
             .and_then(|v| v.checked_add(opts.gap))
     };
     let (Some(width), Some(height)) = (side(columns), side(rows)) else {
-        return Err(IoError::Invalid(format!(
-            "a chart of {columns}×{rows} patches of {} px with {} px gaps is too big to count",
-            opts.patch_size, opts.gap
-        )));
+        return Err(param(
+            Param::PatchSize,
+            format!(
+                "a chart of {columns}×{rows} patches of {} px with {} px gaps is too big to count",
+                opts.patch_size, opts.gap
+            ),
+        ));
     };
     let pitch = opts.patch_size + opts.gap;
     if width.checked_mul(height).is_none_or(|p| p > 1 << 28) {
-        return Err(IoError::Invalid(format!(
-            "a {width}×{height} chart is too big (the limit is 2^28 = 268435456 pixels)"
-        )));
+        return Err(param(
+            Param::PatchSize,
+            format!("a {width}×{height} chart is too big (the limit is 2^28 = 268435456 pixels)"),
+        ));
     }
     let mut frame = Frame::new(width, height, Layout::Rgb);
     let mut patches = Vec::with_capacity(n);

@@ -50,8 +50,14 @@ pub enum IoError {
     },
     #[error("{}: unsupported: {why}", path.display())]
     Unsupported { path: PathBuf, why: String },
+    /// The camera RGB cannot be found; `concern` says when the layer is the way out (several
+    /// layers and none named) or the cause (a layer named that is not there).
     #[error("{}: {why}", path.display())]
-    Channels { path: PathBuf, why: String },
+    Channels {
+        path: PathBuf,
+        why: String,
+        concern: Option<crate::error::Concern>,
+    },
     #[error("{}: cannot encode: {why}", path.display())]
     Encode { path: PathBuf, why: String },
     #[error(transparent)]
@@ -62,7 +68,16 @@ pub enum IoError {
     Shard { spec: String, why: String },
     #[error("{0}")]
     Invalid(String),
-    /// A header asks for more than [`Limits`] allow, or more than the file can hold.
+    /// A parameter of the request is out of range (`concern` says which).
+    #[error("{why}")]
+    Param {
+        concern: crate::error::Concern,
+        why: String,
+    },
+    /// A header asks for more pixels than [`Limits::max_pixels`] allows.
+    #[error("{}: {why}", path.display())]
+    OverLimit { path: PathBuf, why: String },
+    /// A header asks for more than the file can hold or the machine can address.
     #[error("{}: {why}", path.display())]
     TooLarge { path: PathBuf, why: String },
     /// The file is damaged: missing, repeated or out-of-file data blocks, and the like.
@@ -112,11 +127,13 @@ impl Limits {
         };
         let pixels = width.checked_mul(height).filter(|&p| p <= self.max_pixels);
         let Some(pixels) = pixels else {
-            return Err(too(format!(
-                "the header claims {width}×{height} pixels, more than the limit of {} \
-                 (--max-pixels)",
-                self.max_pixels
-            )));
+            return Err(IoError::OverLimit {
+                path: path.to_path_buf(),
+                why: format!(
+                    "the header claims {width}×{height} pixels, more than the limit of {} pixels",
+                    self.max_pixels
+                ),
+            });
         };
         let bytes = pixels
             .checked_mul(channels)
@@ -351,7 +368,8 @@ impl Decoded {
                 if let Some(layer) = &opts.layer {
                     return Err(IoError::Channels {
                         path: path.to_path_buf(),
-                        why: format!("a TIFF has no layers, but --layer `{layer}` was given"),
+                        why: format!("a TIFF has no layers, but layer `{layer}` was asked for"),
+                        concern: Some(crate::error::Concern::Value(crate::error::Param::Layer)),
                     });
                 }
                 tif::read(path, &opts.limits)

@@ -9,6 +9,7 @@
 
 mod chunks;
 
+use crate::error::{Concern, Param};
 pub use chunks::{DEFAULT_ZIP_LEVEL, MAX_ZIP_LEVEL};
 
 use super::{Container, Decoded, ExrCompression, FileFormat, IoError, ReadOptions, WriteOptions};
@@ -69,9 +70,10 @@ pub(super) fn read(path: &Path, opts: &ReadOptions) -> Result<Decoded, IoError> 
         err,
     })?;
     let table = chunks::Table::read(path, &file, &opts.limits)?;
-    let channels_err = |why| IoError::Channels {
+    let channels_err = |(why, concern)| IoError::Channels {
         path: path.to_path_buf(),
         why,
+        concern,
     };
     if table.fast() {
         let h = &table.meta.headers[0];
@@ -219,11 +221,15 @@ fn encode_err(dest: &Path, e: ::exr::error::Error) -> IoError {
     }
 }
 
-/// Finds the part and channel indices of the camera RGB.
+/// The part, the R, G, B channel indices and the alpha channel index of the camera RGB.
+type Located = (usize, [usize; 3], Option<usize>);
+
+/// Finds the part and channel indices of the camera RGB; the error says whether the layer is its
+/// cause (one was named that is not there) or the way out (several offer R, G, B).
 fn locate(
     image: &[PartNames],
     want: Option<&str>,
-) -> Result<(usize, [usize; 3], Option<usize>), String> {
+) -> Result<Located, (String, Option<Concern>)> {
     let find = |li: usize, prefix: &str| -> Option<([usize; 3], Option<usize>)> {
         let list = &image[li].channels;
         let idx = |n: &str| {
@@ -249,9 +255,12 @@ fn locate(
                     return Ok((li, rgb, a));
                 }
             }
-            Err(format!(
-                "no layer `{name}` with R, G and B channels ({})",
-                describe(image)
+            Err((
+                format!(
+                    "no layer `{name}` with R, G and B channels ({})",
+                    describe(image).0
+                ),
+                Some(Concern::Value(Param::Layer)),
             ))
         }
         None => {
@@ -265,18 +274,22 @@ fn locate(
                 .into_iter()
                 .filter(|n| !list.iter().any(|c| c == n))
                 .collect();
-            Err(format!(
-                "no {} channel{} ({})",
-                missing.join(", "),
-                if missing.len() == 1 { "" } else { "s" },
-                describe(image)
+            let (described, layers) = describe(image);
+            Err((
+                format!(
+                    "no {} channel{} ({described})",
+                    missing.join(", "),
+                    if missing.len() == 1 { "" } else { "s" },
+                ),
+                layers.then_some(Concern::Remedy(Param::Layer)),
             ))
         }
     }
 }
 
-/// `channels: …; layers with R, G, B: … (pick one with --layer)` for error messages.
-fn describe(image: &[PartNames]) -> String {
+/// `channels: …; layers with R, G, B: … (pick one)` for error messages, and whether there are
+/// such layers.
+fn describe(image: &[PartNames]) -> (String, bool) {
     let mut names = Vec::new();
     let mut layers: Vec<String> = Vec::new();
     for l in image {
@@ -314,12 +327,9 @@ fn describe(image: &[PartNames]) -> String {
         format!("channels: {}", names.join(", "))
     };
     if !layers.is_empty() {
-        s += &format!(
-            "; layers with R, G, B: {} (pick one with --layer)",
-            layers.join(", ")
-        );
+        s += &format!("; layers with R, G, B: {} (pick one)", layers.join(", "));
     }
-    s
+    (s, !layers.is_empty())
 }
 
 fn push_f32(out: &mut [f32], stride: usize, offset: usize, samples: &FlatSamples) {

@@ -51,7 +51,7 @@ impl Objective {
     pub fn parse(s: &str) -> Result<Objective, ModelError> {
         let s = s.trim();
         let bad = || {
-            ModelError::Invalid(format!(
+            ModelError::Spec(format!(
                 "objective `{s}`: expected ls, de00 or de00:P with 2 ≤ P ≤ 64"
             ))
         };
@@ -118,7 +118,7 @@ impl Ridge {
         match s.parse::<f64>() {
             Ok(0.0) => Ok(Ridge::None),
             Ok(v) if v.is_finite() && v > 0.0 && v <= 1e12 => Ok(Ridge::Lambda(v)),
-            _ => Err(ModelError::Invalid(format!(
+            _ => Err(ModelError::Spec(format!(
                 "ridge `{s}`: expected auto (GCV), auto-loo or a number in [0, 1e12]"
             ))),
         }
@@ -141,7 +141,7 @@ impl Normalise {
         match s.trim().to_ascii_lowercase().as_str() {
             "raw" => Ok(Normalise::Raw),
             "white-balanced" | "wb" => Ok(Normalise::WhiteBalanced),
-            other => Err(ModelError::Invalid(format!(
+            other => Err(ModelError::Spec(format!(
                 "normalise `{other}`: expected raw or white-balanced"
             ))),
         }
@@ -522,13 +522,7 @@ pub fn fit_with(
             patches: n,
         });
     }
-    let white_rgb = || {
-        data.white_rgb.ok_or_else(|| {
-            ModelError::Invalid(
-                "the training data has no camera response of its white (measured data): name a neutral patch (--white-patch)".into(),
-            )
-        })
-    };
+    let white_rgb = || data.white_rgb.ok_or(ModelError::NoWhite);
     let gains = match opts.normalise {
         Normalise::Raw => [1.0; 3],
         Normalise::WhiteBalanced => {

@@ -55,6 +55,13 @@ pub enum ModelError {
     },
     #[error("{0}")]
     Invalid(String),
+    /// A malformed fit option (objective, ridge, normalisation): a usage error.
+    #[error("{0}")]
+    Spec(String),
+    /// The fit needs the camera response of the training white, and measured data has none:
+    /// name a neutral patch ([`White::Patch`](fit::White::Patch)).
+    #[error("the training data has no camera response of its white (measured data): name a neutral patch to take it from")]
+    NoWhite,
     #[error("{path}: cannot read: {err}")]
     Io { path: String, err: std::io::Error },
     #[error("{path}: not a model file: {err}")]

@@ -190,11 +190,10 @@ impl Table {
             )?;
         }
         if pixels > limits.max_pixels {
-            return Err(IoError::TooLarge {
+            return Err(IoError::OverLimit {
                 path: path.to_path_buf(),
                 why: format!(
-                    "the headers claim {pixels} pixels in all, more than the limit of {} \
-                     (--max-pixels)",
+                    "the headers claim {pixels} pixels in all, more than the limit of {} pixels",
                     limits.max_pixels
                 ),
             });

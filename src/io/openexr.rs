@@ -226,10 +226,7 @@ type Located = (usize, [usize; 3], Option<usize>);
 
 /// Finds the part and channel indices of the camera RGB; the error says whether the layer is its
 /// cause (one was named that is not there) or the way out (several offer R, G, B).
-fn locate(
-    image: &[PartNames],
-    want: Option<&str>,
-) -> Result<Located, (String, Option<Concern>)> {
+fn locate(image: &[PartNames], want: Option<&str>) -> Result<Located, (String, Option<Concern>)> {
     let find = |li: usize, prefix: &str| -> Option<([usize; 3], Option<usize>)> {
         let list = &image[li].channels;
         let idx = |n: &str| {

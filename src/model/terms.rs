@@ -238,45 +238,26 @@ mod tests {
     /// The term names are the model file format: frozen here for every kind and order.
     #[test]
     fn term_names_are_frozen_for_every_kind_and_order() {
+        const FROZEN: [(Kind, u8, &str); 12] = [
+            (Kind::Prm, 1, "R G B"),
+            (Kind::Rprm, 1, "R G B"),
+            (Kind::Nsrm, 1, "1 r g"),
+            (Kind::Prm, 2, "R G B R^2 G^2 B^2 R*G G*B R*B"),
+            (Kind::Rprm, 2, "R G B sqrt(R*G) sqrt(G*B) sqrt(R*B)"),
+            (Kind::Nsrm, 2, "1 r g r^2 g^2 r*g"),
+            (Kind::Prm, 3, "R G B R^2 G^2 B^2 R*G G*B R*B R^3 G^3 B^3 R*G^2 R*B^2 G*B^2 R^2*G R^2*B G^2*B R*G*B"),
+            (Kind::Rprm, 3, "R G B sqrt(R*G) sqrt(G*B) sqrt(R*B) cbrt(R*G^2) cbrt(R*B^2) cbrt(G*B^2) cbrt(R^2*G) cbrt(G^2*B) cbrt(R^2*B) cbrt(R*G*B)"),
+            (Kind::Nsrm, 3, "1 r g r^2 g^2 r*g r^3 g^3 r*g^2 r^2*g"),
+            (Kind::Prm, 4, "R G B R^2 G^2 B^2 R*G G*B R*B R^3 G^3 B^3 R*G^2 R*B^2 G*B^2 R^2*G R^2*B G^2*B R*G*B R^4 G^4 B^4 R^3*G R^3*B G^3*B R*G^3 G*B^3 R*B^3 R^2*G^2 G^2*B^2 R^2*B^2 R^2*G*B R*G^2*B R*G*B^2"),
+            (Kind::Rprm, 4, "R G B sqrt(R*G) sqrt(G*B) sqrt(R*B) cbrt(R*G^2) cbrt(R*B^2) cbrt(G*B^2) cbrt(R^2*G) cbrt(G^2*B) cbrt(R^2*B) cbrt(R*G*B) root4(R^3*G) root4(R^3*B) root4(G^3*B) root4(R*G^3) root4(G*B^3) root4(R*B^3) root4(R^2*G*B) root4(R*G^2*B) root4(R*G*B^2)"),
+            (Kind::Nsrm, 4, "1 r g r^2 g^2 r*g r^3 g^3 r*g^2 r^2*g r^4 g^4 r*g^3 r^2*g^2 r^3*g"),
+        ];
         for order in 1..=4 {
             assert_eq!(names(Kind::Lrm, order), ["R", "G", "B"]);
         }
-        assert_eq!(names(Kind::Prm, 1).join(" "), "R G B");
-        assert_eq!(names(Kind::Rprm, 1).join(" "), "R G B");
-        assert_eq!(names(Kind::Nsrm, 1).join(" "), "1 r g");
-        assert_eq!(
-            names(Kind::Prm, 2).join(" "),
-            "R G B R^2 G^2 B^2 R*G G*B R*B"
-        );
-        assert_eq!(
-            names(Kind::Rprm, 2).join(" "),
-            "R G B sqrt(R*G) sqrt(G*B) sqrt(R*B)"
-        );
-        assert_eq!(names(Kind::Nsrm, 2).join(" "), "1 r g r^2 g^2 r*g");
-        assert_eq!(
-            names(Kind::Prm, 3).join(" "),
-            "R G B R^2 G^2 B^2 R*G G*B R*B R^3 G^3 B^3 R*G^2 R*B^2 G*B^2 R^2*G R^2*B G^2*B R*G*B"
-        );
-        assert_eq!(
-            names(Kind::Rprm, 3).join(" "),
-            "R G B sqrt(R*G) sqrt(G*B) sqrt(R*B) cbrt(R*G^2) cbrt(R*B^2) cbrt(G*B^2) cbrt(R^2*G) cbrt(G^2*B) cbrt(R^2*B) cbrt(R*G*B)"
-        );
-        assert_eq!(
-            names(Kind::Nsrm, 3).join(" "),
-            "1 r g r^2 g^2 r*g r^3 g^3 r*g^2 r^2*g"
-        );
-        assert_eq!(
-            names(Kind::Prm, 4).join(" "),
-            "R G B R^2 G^2 B^2 R*G G*B R*B R^3 G^3 B^3 R*G^2 R*B^2 G*B^2 R^2*G R^2*B G^2*B R*G*B R^4 G^4 B^4 R^3*G R^3*B G^3*B R*G^3 G*B^3 R*B^3 R^2*G^2 G^2*B^2 R^2*B^2 R^2*G*B R*G^2*B R*G*B^2"
-        );
-        assert_eq!(
-            names(Kind::Rprm, 4).join(" "),
-            "R G B sqrt(R*G) sqrt(G*B) sqrt(R*B) cbrt(R*G^2) cbrt(R*B^2) cbrt(G*B^2) cbrt(R^2*G) cbrt(G^2*B) cbrt(R^2*B) cbrt(R*G*B) root4(R^3*G) root4(R^3*B) root4(G^3*B) root4(R*G^3) root4(G*B^3) root4(R*B^3) root4(R^2*G*B) root4(R*G^2*B) root4(R*G*B^2)"
-        );
-        assert_eq!(
-            names(Kind::Nsrm, 4).join(" "),
-            "1 r g r^2 g^2 r*g r^3 g^3 r*g^2 r^2*g r^4 g^4 r*g^3 r^2*g^2 r^3*g"
-        );
+        for (kind, order, want) in FROZEN {
+            assert_eq!(names(kind, order).join(" "), want, "{kind:?} order {order}");
+        }
     }
 
     #[test]

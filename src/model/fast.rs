@@ -22,10 +22,12 @@
 //! * The generic kernel (`BlockKernel`) works on blocks of [`LANES`] pixels de-interleaved into
 //!   one fixed-size array per channel (`[f32; LANES]`); its last partial block goes through a
 //!   zero-padded copy.
-//! * The chunk loops are compiled three times with the `multiversion` crate, for baseline x86-64,
-//!   AVX2 + FMA and AVX-512 (F + VL: 16 pixels per register, two-source permutes for the
-//!   de-interleave), and the CPU is detected once at run time (safe code: no intrinsics). Only
-//!   the FMA clones fuse multiply-adds (`madd`); the baseline never calls libm's software `fmaf`.
+//! * The chunk loops are compiled with the `multiversion` crate for baseline x86-64, AVX2 + FMA
+//!   and (the per-pixel kernels only) AVX-512 (F + VL: 16 pixels per register, two-source permutes
+//!   for the de-interleave), and the CPU is detected once at run time (safe code: no intrinsics).
+//!   The generic kernel stops at AVX2: its lane arrays ran 20–30 % slower in the AVX-512 clone.
+//!   Only the FMA clones fuse multiply-adds (`madd`); the baseline never calls libm's software
+//!   `fmaf`.
 //! * One monomorphised kernel per model shape: LRM (also PRM 1 and RPRM 1, the same three terms),
 //!   PRM 3, RPRM 3 and NSRM 3 are written out by hand; every other kind/order (and any other term
 //!   list) runs a generic kernel driven by a product plan built once from the model's
@@ -289,6 +291,10 @@ fn rows<const L: usize>(matrix: &[f64]) -> [[f32; L]; 3] {
 /// How a kernel runs over one chunk. Every implementation is `#[inline(always)]`, so it is
 /// compiled into each multiversioned clone of [`chunk_in_place`] / [`chunk_into`].
 trait Chunks: Sync {
+    /// Whether the AVX-512 clone runs this kernel where the CPU has it: true for the pixel
+    /// kernels; the block kernels' lane arrays of 8 measured 20–30 % slower there than in the
+    /// AVX2 clone, so they stop at AVX2.
+    const AVX512: bool;
     fn run_in_place<const C: usize>(&self, data: &mut [f32], fma: bool);
     fn run_into<const C: usize>(&self, src: &[f32], dst: &mut [f32], fma: bool);
 }
@@ -419,6 +425,8 @@ fn guarded_block<K: PixelKernel, const C: usize>(k: &K, blk: &mut [f32], fma: bo
 }
 
 impl<K: PixelKernel> Chunks for K {
+    const AVX512: bool = true;
+
     #[inline(always)]
     fn run_in_place<const C: usize>(&self, data: &mut [f32], fma: bool) {
         if !K::GUARDED {
@@ -470,6 +478,8 @@ impl<K: PixelKernel> Chunks for K {
 struct Blocks<'a, K>(&'a K);
 
 impl<K: BlockKernel> Chunks for Blocks<'_, K> {
+    const AVX512: bool = false;
+
     #[inline(always)]
     fn run_in_place<const C: usize>(&self, data: &mut [f32], fma: bool) {
         let k = self.0;
@@ -519,7 +529,8 @@ impl<K: BlockKernel> Chunks for Blocks<'_, K> {
 fn in_place<K: Chunks, const C: usize>(k: &K, data: &mut [f32], threads: Threads, code: Code) {
     let n = CHUNK_PIXELS * C;
     let run = |chunk: &mut [f32]| match code {
-        Code::Detected => chunk_in_place::<K, C>(k, chunk),
+        Code::Detected if K::AVX512 => chunk_in_place::<K, C>(k, chunk),
+        Code::Detected => chunk_in_place_avx2::<K, C>(k, chunk),
         Code::Baseline => k.run_in_place::<C>(chunk, false),
     };
     match threads {
@@ -530,15 +541,16 @@ fn in_place<K: Chunks, const C: usize>(k: &K, data: &mut [f32], threads: Threads
 
 fn into<K: Chunks, const C: usize>(k: &K, src: &[f32], dst: &mut [f32], threads: Threads) {
     let n = CHUNK_PIXELS * C;
+    let run = |(s, d): (&[f32], &mut [f32])| {
+        if K::AVX512 {
+            chunk_into::<K, C>(k, s, d)
+        } else {
+            chunk_into_avx2::<K, C>(k, s, d)
+        }
+    };
     match threads {
-        Threads::All => src
-            .par_chunks(n)
-            .zip(dst.par_chunks_mut(n))
-            .for_each(|(s, d)| chunk_into::<K, C>(k, s, d)),
-        Threads::Single => src
-            .chunks(n)
-            .zip(dst.chunks_mut(n))
-            .for_each(|(s, d)| chunk_into::<K, C>(k, s, d)),
+        Threads::All => src.par_chunks(n).zip(dst.par_chunks_mut(n)).for_each(run),
+        Threads::Single => src.chunks(n).zip(dst.chunks_mut(n)).for_each(run),
     }
 }
 
@@ -556,6 +568,20 @@ fn chunk_in_place<K: Chunks, const C: usize>(k: &K, data: &mut [f32]) {
 /// [`chunk_in_place`] into a second chunk (the same clones).
 #[multiversion::multiversion(targets("x86_64+avx2+fma+avx512f+avx512vl", "x86_64+avx2+fma"))]
 fn chunk_into<K: Chunks, const C: usize>(k: &K, src: &[f32], dst: &mut [f32]) {
+    const FMA: bool = multiversion::target::selected_target!().supports_feature_str("fma");
+    k.run_into::<C>(src, dst, FMA)
+}
+
+/// [`chunk_in_place`] without the AVX-512 clone (kernels with `AVX512 = false`).
+#[multiversion::multiversion(targets("x86_64+avx2+fma"))]
+fn chunk_in_place_avx2<K: Chunks, const C: usize>(k: &K, data: &mut [f32]) {
+    const FMA: bool = multiversion::target::selected_target!().supports_feature_str("fma");
+    k.run_in_place::<C>(data, FMA)
+}
+
+/// [`chunk_into`] without the AVX-512 clone.
+#[multiversion::multiversion(targets("x86_64+avx2+fma"))]
+fn chunk_into_avx2<K: Chunks, const C: usize>(k: &K, src: &[f32], dst: &mut [f32]) {
     const FMA: bool = multiversion::target::selected_target!().supports_feature_str("fma");
     k.run_into::<C>(src, dst, FMA)
 }
@@ -655,7 +681,7 @@ pub fn cbrt_s(x: f32) -> f32 {
     cbrt_m(x, false)
 }
 
-/// [`cbrt_s`] as the kernels call it: with `fma` (a compile-time constant in each clone) the
+/// [`cbrt_s`] as the RPRM 3 kernel calls it: with `fma` (a compile-time constant in each clone) the
 /// steps are fused multiply-adds and the first guess divides by 3 with a multiply
 /// ([`third_mul`]); the same error bound (the unit test checks both forms).
 #[inline(always)]
@@ -1000,7 +1026,7 @@ impl BlockKernel for Plan {
     }
 
     #[inline(always)]
-    fn block(&self, x: &[Lanes; 3], v: &mut Vec<Lanes>, fma: bool) -> [Lanes; 3] {
+    fn block(&self, x: &[Lanes; 3], v: &mut Vec<Lanes>, _fma: bool) -> [Lanes; 3] {
         let mut scale = [1.0f32; LANES];
         let mut black = [false; LANES];
         let mut vars = *x;
@@ -1026,7 +1052,9 @@ impl BlockKernel for Plan {
                 }
                 3 => {
                     for i in 0..LANES {
-                        dst[i] = cbrt_m(src[i], fma);
+                        // Not `cbrt_m(·, fma)`: in these lane loops LLVM left parts of the
+                        // fused form scalar (RPRM 4 ran a third slower).
+                        dst[i] = cbrt_s(src[i]);
                     }
                 }
                 _ => {

@@ -52,7 +52,7 @@ use crate::model::{Kind, Model};
 use rayon::prelude::*;
 use std::collections::HashMap;
 
-/// Pixels per block: one `[f32; LANES]` array per channel (two AVX or four SSE registers).
+/// Pixels per block: one `[f32; LANES]` array per channel (one AVX or two SSE registers).
 pub const LANES: usize = 8;
 
 /// Pixels per rayon task (64 Ki pixels: 768 KiB of packed RGB f32).

@@ -675,7 +675,7 @@ fn third_mul(x: u32) -> u32 {
 /// `y = a·z²`, and one second-order correction of `y` itself, `y ← y·(1 − c/3 + 2c²/9)` with
 /// `c = w² − 1`, `w = y·z` (`w² = y³/a`, so it never overflows). Max relative error about 1 ulp
 /// over every f32, subnormals included (the unit test below bounds it by 1.3e-7);
-/// `±0 → ±0`, `±∞ → ±∞`, NaN → NaN. This is [`cbrt_m`] without FMA (the baseline's bits).
+/// `±0 → ±0`, `±∞ → ±∞`, NaN → NaN. This is `cbrt_m` without FMA (the baseline's bits).
 #[inline(always)]
 pub fn cbrt_s(x: f32) -> f32 {
     cbrt_m(x, false)

@@ -8,6 +8,7 @@
 //! through the `exr` crate's whole-image reader and writer.
 
 mod chunks;
+mod piz;
 
 pub use chunks::{DEFAULT_ZIP_LEVEL, MAX_ZIP_LEVEL};
 

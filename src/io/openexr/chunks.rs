@@ -17,8 +17,9 @@
 //!   back unchanged. ZIP and ZIPS go through libdeflate (`libdeflater`), with OpenEXR's byte interleave
 //!   and predictor done here; a block whose first half (the even bytes: for noisy floats the low
 //!   mantissa bytes) does not compress gets that half stored, only the second half deflated
-//!   ([`zlib_storing_noise`]: half the deflate time, the same size within 0.001 %). RLE and PIZ
-//!   blocks use the `exr` crate's codecs, block by block, in parallel. Each thread keeps its codecs and block buffers across chunks and frames, and a
+//!   ([`zlib_storing_noise`]: half the deflate time, the same size within 0.001 %). PIZ blocks
+//!   are decoded natively ([`super::piz`]) and encoded, like RLE blocks both ways, by the `exr`
+//!   crate's codecs, block by block, in parallel. Each thread keeps its codecs and block buffers across chunks and frames, and a
 //!   decoded frame may reuse a written frame's buffer ([`super::super::FramePool`]): no buffer is
 //!   allocated, zero-filled or faulted in per chunk.
 //! * [`write_chunks`]: the output file's offset table and chunks are written here, not by the
@@ -634,6 +635,8 @@ struct Codec {
     a: Vec<u8>,
     b: Vec<u8>,
     c: Vec<u8>,
+    /// PIZ's 16-bit words.
+    words: Vec<u16>,
 }
 
 /// The highest deflate level libdeflate has (`--zip-level` accepts 0 to this).
@@ -647,6 +650,7 @@ thread_local! {
             a: Vec::new(),
             b: Vec::new(),
             c: Vec::new(),
+            words: Vec::new(),
         })
     };
 }
@@ -662,6 +666,7 @@ fn with_codec<R>(f: impl FnOnce(&mut Codec) -> R) -> R {
             a: Vec::new(),
             b: Vec::new(),
             c: Vec::new(),
+            words: Vec::new(),
         }),
     })
 }
@@ -714,6 +719,19 @@ impl Codec {
                     )));
                 }
                 unpredict_deinterleave(&self.c, sized(&mut self.a, raw_len));
+            }
+            Compression::PIZ => {
+                let types: Vec<SampleType> =
+                    header.channels.list.iter().map(|c| c.sample_type).collect();
+                super::piz::decode(
+                    &self.b,
+                    &types,
+                    bounds.size.0,
+                    bounds.size.1,
+                    sized(&mut self.a, raw_len),
+                    &mut self.words,
+                )
+                .map_err(bad)?;
             }
             other => {
                 let data = self.b.clone();

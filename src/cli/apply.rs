@@ -547,6 +547,10 @@ fn run_pipeline(
     // stays under (jobs + 2) decoded frames.
     let permits = Permits::new(s.workers + 1);
     let permits = &permits;
+    // Frame buffers of written frames, reused by the next decodes: never more buffers than
+    // frames alive at once, so the bound above holds.
+    let pool = fio::FramePool::new(s.workers + 1);
+    let pool = &pool;
     std::thread::scope(|scope| {
         let (dec_tx, dec_rx) = sync_channel::<(usize, Decoded)>(s.workers);
         let (enc_tx, enc_rx) = sync_channel::<(usize, Decoded)>(s.workers);
@@ -566,7 +570,7 @@ fn run_pipeline(
                     break;
                 };
                 let t = Instant::now();
-                match Decoded::read(&jobs[i].input, &s.read) {
+                match Decoded::read_pooled(&jobs[i].input, &s.read, pool) {
                     Ok(d) => {
                         lock(shared_timing).decode += t.elapsed();
                         if tx.send((i, d)).is_err() {
@@ -596,7 +600,7 @@ fn run_pipeline(
                 }
                 let t = Instant::now();
                 let pixels = d.pixels();
-                let encoded = encode(&jobs[i], d, s);
+                let encoded = encode(&jobs[i], d, s, pool);
                 permits.release();
                 match encoded {
                     Ok(()) => {
@@ -683,12 +687,13 @@ fn lock<T>(m: &Mutex<T>) -> std::sync::MutexGuard<'_, T> {
 
 /// Writes the output and its preview together: both are staged (encoded into temporaries),
 /// then committed with [`nsrm::atomic::commit_all`], so both appear or neither.
-fn encode(job: &Job, d: Decoded, s: &Settings) -> Result<(), fio::IoError> {
+fn encode(job: &Job, d: Decoded, s: &Settings, pool: &fio::FramePool) -> Result<(), fio::IoError> {
     let png = match &job.preview {
         Some(_) => Some(preview::encode_png(&d.frame, &s.to_srgb)?),
         None => None,
     };
-    let ((), mut staged) = nsrm::atomic::collect_staged(|| d.write(&job.output, &s.write))?;
+    let ((), mut staged) =
+        nsrm::atomic::collect_staged(|| d.write_recycling(&job.output, &s.write, pool))?;
     if let (Some(path), Some(png)) = (&job.preview, png) {
         staged.push(nsrm::atomic::stage_bytes(path, &png, s.write.overwrite)?);
     }

@@ -163,6 +163,83 @@ pub fn try_filled<T: Clone>(path: &Path, n: usize, value: T) -> Result<Vec<T>, I
     Ok(v)
 }
 
+/// A vector of `n` zeros, allocated fallibly (see [`try_filled`]) and zeroed lazily: a large
+/// allocation takes fresh pages from the kernel, which come zeroed, so nothing is written until
+/// the caller writes the samples (no pass over the whole buffer first).
+pub fn try_zeroed<T: bytemuck::Zeroable>(path: &Path, n: usize) -> Result<Vec<T>, IoError> {
+    bytemuck::allocation::try_zeroed_vec(n).map_err(|()| IoError::TooLarge {
+        path: path.to_path_buf(),
+        why: format!(
+            "not enough memory for {n} samples ({} bytes)",
+            n.saturating_mul(std::mem::size_of::<T>())
+        ),
+    })
+}
+
+/// Frame sample buffers handed back by [`Decoded::write_recycling`] for the next
+/// [`Decoded::read_pooled`]: a batch then allocates only as many frame buffers as it holds
+/// frames at once, instead of one per frame (a fresh 24-Mpixel frame costs ~70 000 page faults,
+/// each zeroing a page, and its release as much again). Holds at most `max` buffers; cloning
+/// shares the pool.
+#[derive(Debug, Clone, Default)]
+pub struct FramePool {
+    buffers: std::sync::Arc<std::sync::Mutex<Vec<Vec<f32>>>>,
+    max: usize,
+}
+
+impl FramePool {
+    /// A pool keeping at most `max` idle buffers.
+    pub fn new(max: usize) -> FramePool {
+        FramePool {
+            buffers: Default::default(),
+            max,
+        }
+    }
+
+    fn lock(&self) -> std::sync::MutexGuard<'_, Vec<Vec<f32>>> {
+        self.buffers.lock().unwrap_or_else(|e| e.into_inner())
+    }
+
+    /// Keeps `buffer` for a later frame (dropped when the pool is full).
+    pub fn give(&self, buffer: Vec<f32>) {
+        if buffer.capacity() == 0 {
+            return;
+        }
+        let mut b = self.lock();
+        if b.len() < self.max {
+            b.push(buffer);
+        }
+    }
+
+    /// Idle buffers held now.
+    pub fn idle(&self) -> usize {
+        self.lock().len()
+    }
+
+    /// A buffer of `n` samples whose contents are left over from an earlier frame (only for a
+    /// reader that overwrites every sample), or `None` if no idle buffer is large enough; then
+    /// one idle buffer is released, so the caller's new allocation does not add to the memory
+    /// held.
+    pub(crate) fn take(&self, n: usize) -> Option<Vec<f32>> {
+        let mut b = self.lock();
+        match b.iter().position(|v| v.capacity() >= n) {
+            Some(i) => {
+                let mut v = b.swap_remove(i);
+                drop(b);
+                // Zeroes only what lies past the old length (nothing for same-size frames).
+                v.resize(n, 0.0);
+                Some(v)
+            }
+            None => {
+                let old = b.pop();
+                drop(b);
+                drop(old);
+                None
+            }
+        }
+    }
+}
+
 /// An empty vector with room for `n` elements, allocated fallibly (see [`try_filled`]).
 pub fn try_with_capacity<T>(path: &Path, n: usize) -> Result<Vec<T>, IoError> {
     let mut v = Vec::new();
@@ -362,8 +439,26 @@ impl Decoded {
 
     /// Decodes `path` (EXR or TIFF, told by its signature, not its name).
     pub fn read(path: &Path, opts: &ReadOptions) -> Result<Decoded, IoError> {
+        Decoded::read_from(path, opts, None)
+    }
+
+    /// [`read`](Self::read), taking the frame's buffer from `pool` where one fits (the
+    /// chunk-level EXR path, which overwrites every sample).
+    pub fn read_pooled(
+        path: &Path,
+        opts: &ReadOptions,
+        pool: &FramePool,
+    ) -> Result<Decoded, IoError> {
+        Decoded::read_from(path, opts, Some(pool))
+    }
+
+    fn read_from(
+        path: &Path,
+        opts: &ReadOptions,
+        pool: Option<&FramePool>,
+    ) -> Result<Decoded, IoError> {
         match FileFormat::sniff(path)? {
-            FileFormat::Exr => openexr::read(path, opts),
+            FileFormat::Exr => openexr::read(path, opts, pool),
             FileFormat::Tiff => {
                 if let Some(layer) = &opts.layer {
                     return Err(IoError::Channels {
@@ -381,11 +476,48 @@ impl Decoded {
     /// input. Writing a TIFF refuses an EXR input that has channels other than RGB(A), since a
     /// TIFF cannot carry them.
     pub fn write(self, dest: &Path, opts: &WriteOptions) -> Result<(), IoError> {
+        self.write_returning(dest, opts).0
+    }
+
+    /// [`write`](Self::write), then gives the frame's buffer to `pool` (whether or not the
+    /// write succeeded) for a later [`read_pooled`](Self::read_pooled).
+    pub fn write_recycling(
+        self,
+        dest: &Path,
+        opts: &WriteOptions,
+        pool: &FramePool,
+    ) -> Result<(), IoError> {
+        let (r, buffer) = self.write_returning(dest, opts);
+        pool.give(buffer);
+        r
+    }
+
+    /// [`write`](Self::write), and the frame's sample buffer.
+    fn write_returning(self, dest: &Path, opts: &WriteOptions) -> (Result<(), IoError>, Vec<f32>) {
+        let Decoded {
+            path,
+            frame,
+            levels,
+            container,
+            ..
+        } = self;
+        let r = Decoded::write_parts(&path, &frame, &levels, container, dest, opts);
+        (r, frame.data)
+    }
+
+    fn write_parts(
+        path: &Path,
+        frame: &Frame,
+        levels: &[Frame],
+        container: Container,
+        dest: &Path,
+        opts: &WriteOptions,
+    ) -> Result<(), IoError> {
         crate::atomic::check_clobber(dest, opts.overwrite)?;
-        match (opts.format, self.container) {
-            (FileFormat::Exr, Container::Exr(c)) => c.write(self.frame, self.levels, dest, opts),
+        match (opts.format, container) {
+            (FileFormat::Exr, Container::Exr(c)) => c.write(frame, levels, dest, opts),
             (FileFormat::Exr, Container::Tiff(c)) => openexr::write_new(
-                &self.frame,
+                frame,
                 c.alpha.as_deref(),
                 dest,
                 &openexr::NewExr::output(opts),
@@ -397,16 +529,16 @@ impl Decoded {
                         path: dest.to_path_buf(),
                         why: format!(
                             "the input {} has channels a TIFF cannot carry ({}); write OpenEXR instead",
-                            self.path.display(),
+                            path.display(),
                             extra.join(", ")
                         ),
                     });
                 }
                 let alpha = c.alpha_f32();
-                tif::write(&self.frame, alpha.as_deref(), dest, opts.overwrite)
+                tif::write(frame, alpha.as_deref(), dest, opts.overwrite)
             }
             (FileFormat::Tiff, Container::Tiff(c)) => {
-                tif::write(&self.frame, c.alpha.as_deref(), dest, opts.overwrite)
+                tif::write(frame, c.alpha.as_deref(), dest, opts.overwrite)
             }
         }
     }
@@ -480,6 +612,24 @@ fn split_alpha(frame: &Frame) -> (Frame, Option<Vec<f32>>) {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn frame_pool_reuses_and_stays_bounded() {
+        let pool = FramePool::new(2);
+        assert!(pool.take(10).is_none());
+        pool.give(vec![1.0; 10]);
+        pool.give(vec![2.0; 20]);
+        pool.give(vec![3.0; 30]);
+        assert_eq!(pool.idle(), 2, "at most `max` idle buffers");
+        let v = pool.take(15).expect("the 20-sample buffer fits");
+        assert_eq!(v.len(), 15);
+        assert_eq!(pool.idle(), 1);
+        // Nothing fits: one idle buffer is released instead.
+        assert!(pool.take(100).is_none());
+        assert_eq!(pool.idle(), 0);
+        pool.give(Vec::new());
+        assert_eq!(pool.idle(), 0, "empty buffers are not kept");
+    }
 
     #[test]
     fn format_names() {

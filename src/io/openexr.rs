@@ -3,11 +3,12 @@
 //! Every file's headers and offset tables are checked first ([`chunks::Table::read`]): sizes
 //! against [`super::Limits`], every chunk present exactly once and inside the file. Single-part
 //! scanline files (none, RLE, ZIPS, ZIP or PIZ; the common camera-plate case) then take the
-//! chunk-level path of [`chunks`]: parallel within the frame, zlib-rs for ZIP. Everything else
+//! chunk-level path of [`chunks`]: parallel within the frame, libdeflate for ZIP. Everything else
 //! (tiles, mip/rip levels, multi-part, subsampled channels, lossy or decreasing-y inputs) goes
 //! through the `exr` crate's whole-image reader and writer.
 
 mod chunks;
+mod piz;
 
 use crate::error::{Concern, Param};
 pub use chunks::{DEFAULT_ZIP_LEVEL, MAX_ZIP_LEVEL};
@@ -64,7 +65,11 @@ struct PartNames {
     channels: Vec<String>,
 }
 
-pub(super) fn read(path: &Path, opts: &ReadOptions) -> Result<Decoded, IoError> {
+pub(super) fn read(
+    path: &Path,
+    opts: &ReadOptions,
+    pool: Option<&super::FramePool>,
+) -> Result<Decoded, IoError> {
     let file = std::fs::File::open(path).map_err(|err| IoError::Read {
         path: path.to_path_buf(),
         err,
@@ -82,7 +87,7 @@ pub(super) fn read(path: &Path, opts: &ReadOptions) -> Result<Decoded, IoError> 
             channels: h.channels.list.iter().map(|c| c.name.to_string()).collect(),
         }];
         let (_, rgb, alpha) = locate(&names, opts.layer.as_deref()).map_err(channels_err)?;
-        let (frame, container) = chunks::decode(path, &file, table, rgb, alpha)?;
+        let (frame, container) = chunks::decode(path, &file, table, rgb, alpha, pool)?;
         return Ok(Decoded {
             path: path.to_path_buf(),
             format: FileFormat::Exr,
@@ -175,8 +180,8 @@ impl ExrContainer {
     /// Puts the corrected frames back and writes the whole image to `dest`.
     pub(super) fn write(
         self,
-        frame: Frame,
-        levels: Vec<Frame>,
+        frame: &Frame,
+        levels: &[Frame],
         dest: &Path,
         opts: &WriteOptions,
     ) -> Result<(), IoError> {
@@ -194,7 +199,7 @@ impl ExrContainer {
                 }
                 let compression = chosen(opts.compression, c.header.compression);
                 crate::atomic::write_with(dest, opts.overwrite, |w| {
-                    c.write(&frame, w, compression, opts.half, opts.zip_level, |h| {
+                    c.write(frame, w, compression, opts.half, opts.zip_level, |h| {
                         set_header_colour(
                             &mut h.shared_attributes,
                             &mut h.own_attributes,
@@ -446,8 +451,8 @@ impl ImageContainer {
     /// Puts the corrected frames back and writes the whole image to `dest`.
     fn write(
         self,
-        frame: Frame,
-        levels: Vec<Frame>,
+        frame: &Frame,
+        levels: &[Frame],
         dest: &Path,
         opts: &WriteOptions,
     ) -> Result<(), IoError> {
@@ -457,7 +462,7 @@ impl ImageContainer {
             rgb,
             ..
         } = self;
-        let frames: Vec<Frame> = std::iter::once(frame).chain(levels).collect();
+        let frames: Vec<&Frame> = std::iter::once(frame).chain(levels).collect();
         let list = &mut image.layer_data[layer].channel_data.list;
         for (ci, &c) in rgb.iter().enumerate() {
             let slots = list[c].sample_data.levels_as_slice_mut();

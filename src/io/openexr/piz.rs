@@ -826,13 +826,12 @@ mod tests {
                         .collect();
                     let channels = ChannelList::new(list.into_iter().collect());
                     let bpp = channels.bytes_per_pixel;
-                    let header =
-                        Header::new("x".try_into().unwrap(), Vec2(w, h), channels.list.clone())
-                            .with_encoding(
-                                Compression::PIZ,
-                                BlockDescription::ScanLines,
-                                LineOrder::Increasing,
-                            );
+                    let header = Header::new("x".into(), Vec2(w, h), channels.list.clone())
+                        .with_encoding(
+                            Compression::PIZ,
+                            BlockDescription::ScanLines,
+                            LineOrder::Increasing,
+                        );
                     // Noise, smooth ramps, constant, sparse values.
                     let raw: Vec<u8> = (0..w * h * bpp)
                         .map(|i| match kind {
@@ -909,13 +908,12 @@ mod tests {
                         .collect();
                     let channels = ChannelList::new(list.into_iter().collect());
                     let bpp = channels.bytes_per_pixel;
-                    let header =
-                        Header::new("x".try_into().unwrap(), Vec2(w, h), channels.list.clone())
-                            .with_encoding(
-                                Compression::PIZ,
-                                BlockDescription::ScanLines,
-                                LineOrder::Increasing,
-                            );
+                    let header = Header::new("x".into(), Vec2(w, h), channels.list.clone())
+                        .with_encoding(
+                            Compression::PIZ,
+                            BlockDescription::ScanLines,
+                            LineOrder::Increasing,
+                        );
                     let raw: Vec<u8> = (0..w * h * bpp)
                         .map(|i| match kind {
                             0 => rand() as u8,
@@ -936,6 +934,13 @@ mod tests {
                     let mut out = vec![0u8; raw.len()];
                     decode(&packed, types, w, h, &mut out, &mut words).unwrap();
                     assert_eq!(out, raw, "here: {types:?} {w}x{h} kind {kind}");
+                    // Damaged data: an error or other pixels, never a panic.
+                    for k in 0..16 {
+                        let mut bad = packed.clone();
+                        let at = (rand() as usize) % bad.len();
+                        bad[at] ^= 1 << (k % 8);
+                        let _ = decode(&bad, types, w, h, &mut out, &mut words);
+                    }
                     let bounds = IntegerBounds::new(Vec2(0, 0), Vec2(w, h));
                     let theirs = Compression::PIZ
                         .decompress_image_section_from_le(&header, packed.clone(), bounds, true)

@@ -18,8 +18,8 @@
 //!   and predictor done here; a block whose first half (the even bytes: for noisy floats the low
 //!   mantissa bytes) does not compress gets that half stored, only the second half deflated
 //!   ([`zlib_storing_noise`]: half the deflate time, the same size within 0.001 %). PIZ blocks
-//!   are decoded natively ([`super::piz`]) and encoded, like RLE blocks both ways, by the `exr`
-//!   crate's codecs, block by block, in parallel. Each thread keeps its codecs and block buffers across chunks and frames, and a
+//!   are decoded and encoded natively ([`super::piz`]), RLE blocks by the `exr` crate's codec,
+//!   block by block, in parallel. Each thread keeps its codecs and block buffers across chunks and frames, and a
 //!   decoded frame may reuse a written frame's buffer ([`super::super::FramePool`]): no buffer is
 //!   allocated, zero-filled or faulted in per chunk.
 //! * [`write_chunks`]: the output file's offset table and chunks are written here, not by the
@@ -793,17 +793,41 @@ impl Codec {
                     Err(libdeflater::CompressionError::InsufficientSpace) => stored(out),
                 }
             }
-            other => {
-                let data = other
-                    .compress_image_section_to_le(header, raw.to_vec(), bounds)
-                    .map_err(|e| e.to_string())?;
-                // The exr crate stores a block raw unless it shrinks.
-                let n = data.len().min(raw_len);
-                out[..n].copy_from_slice(&data[..n]);
-                Ok(n)
+            Compression::PIZ => {
+                let types: Vec<SampleType> =
+                    header.channels.list.iter().map(|c| c.sample_type).collect();
+                let (w, h) = (bounds.size.0, bounds.size.1);
+                match super::piz::encode(raw, &types, w, h, &mut self.b, &mut self.words) {
+                    Ok(()) if self.b.len() < raw_len => {
+                        out[..self.b.len()].copy_from_slice(&self.b);
+                        Ok(self.b.len())
+                    }
+                    Ok(()) => stored(out),
+                    // Codes too long for this encoder (not seen in practice): the exr crate's.
+                    Err(_) => exr_encode(Compression::PIZ, header, bounds, raw, out),
+                }
             }
+            other => exr_encode(other, header, bounds, raw, out),
         }
     }
+}
+
+/// Encodes `raw` with the `exr` crate's codec for `compression` into `out` (room for
+/// `raw.len()` bytes); returns the length written.
+fn exr_encode(
+    compression: Compression,
+    header: &Header,
+    bounds: IntegerBounds,
+    raw: &[u8],
+    out: &mut [u8],
+) -> Result<usize, String> {
+    let data = compression
+        .compress_image_section_to_le(header, raw.to_vec(), bounds)
+        .map_err(|e| e.to_string())?;
+    // The exr crate stores a block raw unless it shrinks.
+    let n = data.len().min(raw.len());
+    out[..n].copy_from_slice(&data[..n]);
+    Ok(n)
 }
 
 /// How [`zlib_storing_noise`] ended.

@@ -300,8 +300,8 @@ trait Chunks: Sync {
 }
 
 /// A kernel written for one pixel: the chunk loops call it pixel by pixel, reading and writing
-/// the interleaved data directly, and the loop vectoriser evaluates [`PIXEL_BLOCK`] or more
-/// pixels per iteration with de-interleaving shuffles in registers.
+/// the interleaved data directly, and the loop vectoriser evaluates 8 (AVX2) or 16 (AVX-512)
+/// pixels per vector, de-interleaving them with shuffles in registers.
 trait PixelKernel: Sync {
     /// Whether [`pixel`](Self::pixel) is only right on blocks of finite pixels (PRM 3's nested
     /// form): then a block of [`LANES`] pixels with a non-finite pixel, or a pixel whose

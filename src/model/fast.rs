@@ -38,7 +38,10 @@
 //!   defines them). The cube root needs no libm and no division ([`cbrt_s`]): a bit-pattern first
 //!   guess of `x^(-1/3)`, one third-order step, `x·z²` and one second-order correction (max
 //!   relative error 1.3e-7, about 1 ulp, over all f32 including subnormals; `±0 → ±0`,
-//!   `±∞ → ±∞`, NaN → NaN).
+//!   `±∞ → ±∞`, NaN → NaN). The FMA clones fuse its steps and divide the bit pattern by 3 with
+//!   one multiply. RPRM 3 goes 16 pixels at a time like PRM 3: a step whose values are all 0 or
+//!   finite and at least 1e-30 in magnitude (integer compares) skips the cube root's rescaling
+//!   of tiny values and its ±∞ select, with the same result.
 //!
 //! # Accuracy
 //! Every kernel follows the [pixel policy](super::pixel) exactly (NaN/Inf propagate, NSRM `s ≤ 0 → 0`,
@@ -300,21 +303,36 @@ trait Chunks: Sync {
 }
 
 /// A kernel written for one pixel: the chunk loops call it pixel by pixel, reading and writing
-/// the interleaved data directly, and the loop vectoriser evaluates [`PIXEL_BLOCK`] or more
-/// pixels per iteration with de-interleaving shuffles in registers.
+/// the interleaved data directly, and the loop vectoriser evaluates 8 (AVX2) or 16 (AVX-512)
+/// pixels per vector, de-interleaving them with shuffles in registers.
 trait PixelKernel: Sync {
-    /// Whether [`pixel`](Self::pixel) is only right on blocks of finite pixels (PRM 3's nested
-    /// form): then a block of [`LANES`] pixels with a non-finite pixel, or a pixel whose
-    /// `R + G + B` overflows, takes [`fallback`](Self::fallback) instead.
-    const GUARDED: bool = false;
+    /// Whether the chunk loop goes in steps of [`PIXEL_BLOCK`] pixels with one cheap test each
+    /// ([`step_ok`](Self::step_ok)): a step that passes runs `pixel::<true>`, one that fails (and
+    /// the last partial step) [`slow_in_place`](Self::slow_in_place). Otherwise every pixel runs
+    /// `pixel::<false>`.
+    const STEPPED: bool = false;
+    /// The step test, on the interleaved values (alpha included).
+    fn step_ok(_blk: &[f32]) -> bool {
+        true
+    }
+    /// One pixel. `STEP_OK`: the pixel is in a step that passed [`step_ok`](Self::step_ok), so
+    /// the kernel may skip the handling of values the test excludes (with the same result).
     /// `fma`: whether the code is being compiled for a target with fused multiply-add (a
     /// compile-time constant in each multiversioned clone; see [`madd`]).
-    fn pixel(&self, x: [f32; 3], fma: bool) -> [f32; 3];
-    /// The block path of a guarded kernel (unused otherwise).
+    fn pixel<const STEP_OK: bool>(&self, x: [f32; 3], fma: bool) -> [f32; 3];
+    /// A step that failed the test, or the last partial step, in place.
+    #[inline(always)]
+    fn slow_in_place<const C: usize>(&self, blk: &mut [f32], fma: bool)
+    where
+        Self: Sized,
+    {
+        map_in_place::<Self, C, false>(self, blk, fma)
+    }
+    /// The block path of [`guarded_block`] (PRM 3's term sums; unused otherwise).
     fn fallback(&self, x: &[Lanes; 3], fma: bool) -> [Lanes; 3] {
         let mut y = [[0.0; LANES]; 3];
         for i in 0..LANES {
-            let p = self.pixel([x[0][i], x[1][i], x[2][i]], fma);
+            let p = self.pixel::<false>([x[0][i], x[1][i], x[2][i]], fma);
             for c in 0..3 {
                 y[c][i] = p[c];
             }
@@ -333,7 +351,7 @@ trait BlockKernel: Sync {
     fn block(&self, x: &[Lanes; 3], scratch: &mut Self::Scratch, fma: bool) -> [Lanes; 3];
 }
 
-/// Pixels per step of a guarded kernel's loop: two [`LANES`] blocks, one cheap finiteness test.
+/// Pixels per step of a stepped kernel's loop (two [`LANES`] blocks): one cheap test per step.
 const PIXEL_BLOCK: usize = 2 * LANES;
 
 /// Magnitudes below this are finite and so is the sum of three of them.
@@ -383,9 +401,14 @@ fn rgb_of<const C: usize>(x: &[Lanes; C]) -> [Lanes; 3] {
 /// `dst = f(src)` pixel by pixel (alpha copied): the loop the vectoriser turns into interleaved
 /// loads, packed arithmetic and interleaved stores.
 #[inline(always)]
-fn map_into<K: PixelKernel, const C: usize>(k: &K, src: &[f32], dst: &mut [f32], fma: bool) {
+fn map_into<K: PixelKernel, const C: usize, const STEP_OK: bool>(
+    k: &K,
+    src: &[f32],
+    dst: &mut [f32],
+    fma: bool,
+) {
     for (s, d) in src.chunks_exact(C).zip(dst.chunks_exact_mut(C)) {
-        let y = k.pixel([s[0], s[1], s[2]], fma);
+        let y = k.pixel::<STEP_OK>([s[0], s[1], s[2]], fma);
         d[0] = y[0];
         d[1] = y[1];
         d[2] = y[2];
@@ -397,17 +420,21 @@ fn map_into<K: PixelKernel, const C: usize>(k: &K, src: &[f32], dst: &mut [f32],
 
 /// [`map_into`] in place (alpha untouched).
 #[inline(always)]
-fn map_in_place<K: PixelKernel, const C: usize>(k: &K, data: &mut [f32], fma: bool) {
+fn map_in_place<K: PixelKernel, const C: usize, const STEP_OK: bool>(
+    k: &K,
+    data: &mut [f32],
+    fma: bool,
+) {
     for p in data.chunks_exact_mut(C) {
-        let y = k.pixel([p[0], p[1], p[2]], fma);
+        let y = k.pixel::<STEP_OK>([p[0], p[1], p[2]], fma);
         p[0] = y[0];
         p[1] = y[1];
         p[2] = y[2];
     }
 }
 
-/// One block of at most [`LANES`] pixels of a guarded kernel, in place: the pixel loop when the
-/// block is finite, else the fallback (a partial block through a zero-padded copy).
+/// One block of at most [`LANES`] pixels, in place: the pixel loop when the block is finite,
+/// else the fallback (a partial block through a zero-padded copy). PRM 3's slow path.
 #[inline(always)]
 fn guarded_block<K: PixelKernel, const C: usize>(k: &K, blk: &mut [f32], fma: bool) {
     let mut buf = [[0.0f32; LANES]; 4];
@@ -416,7 +443,7 @@ fn guarded_block<K: PixelKernel, const C: usize>(k: &K, blk: &mut [f32], fma: bo
     buf[..n].copy_from_slice(blk);
     let x = load::<C>(buf);
     if all_finite(&rgb_of(&x)) {
-        map_in_place::<K, C>(k, blk, fma);
+        map_in_place::<K, C, false>(k, blk, fma);
     } else {
         let y = k.fallback(&rgb_of(&x), fma);
         store::<C>(&y, &x, buf);
@@ -429,47 +456,39 @@ impl<K: PixelKernel> Chunks for K {
 
     #[inline(always)]
     fn run_in_place<const C: usize>(&self, data: &mut [f32], fma: bool) {
-        if !K::GUARDED {
-            return map_in_place::<K, C>(self, data, fma);
+        if !K::STEPPED {
+            return map_in_place::<K, C, false>(self, data, fma);
         }
         let mut steps = data.chunks_exact_mut(C * PIXEL_BLOCK);
         for s in &mut steps {
-            if quick_finite(s) {
-                map_in_place::<K, C>(self, s, fma);
+            if K::step_ok(s) {
+                map_in_place::<K, C, true>(self, s, fma);
             } else {
-                for blk in s.chunks_mut(C * LANES) {
-                    guarded_block::<K, C>(self, blk, fma);
-                }
+                self.slow_in_place::<C>(s, fma);
             }
         }
-        for blk in steps.into_remainder().chunks_mut(C * LANES) {
-            guarded_block::<K, C>(self, blk, fma);
-        }
+        self.slow_in_place::<C>(steps.into_remainder(), fma);
     }
 
     #[inline(always)]
     fn run_into<const C: usize>(&self, src: &[f32], dst: &mut [f32], fma: bool) {
-        if !K::GUARDED {
-            return map_into::<K, C>(self, src, dst, fma);
+        if !K::STEPPED {
+            return map_into::<K, C, false>(self, src, dst, fma);
         }
         let n = C * PIXEL_BLOCK;
         let mut s_steps = src.chunks_exact(n);
         let mut d_steps = dst.chunks_exact_mut(n);
         for (s, d) in (&mut s_steps).zip(&mut d_steps) {
-            if quick_finite(s) {
-                map_into::<K, C>(self, s, d, fma);
+            if K::step_ok(s) {
+                map_into::<K, C, true>(self, s, d, fma);
             } else {
                 d.copy_from_slice(s);
-                for blk in d.chunks_mut(C * LANES) {
-                    guarded_block::<K, C>(self, blk, fma);
-                }
+                self.slow_in_place::<C>(d, fma);
             }
         }
         let (s, d) = (s_steps.remainder(), d_steps.into_remainder());
         d.copy_from_slice(s);
-        for blk in d.chunks_mut(C * LANES) {
-            guarded_block::<K, C>(self, blk, fma);
-        }
+        self.slow_in_place::<C>(d, fma);
     }
 }
 
@@ -678,16 +697,29 @@ fn third_mul(x: u32) -> u32 {
 /// `±0 → ±0`, `±∞ → ±∞`, NaN → NaN. This is `cbrt_m` without FMA (the baseline's bits).
 #[inline(always)]
 pub fn cbrt_s(x: f32) -> f32 {
-    cbrt_m(x, false)
+    cbrt_m::<false>(x, false)
 }
 
-/// [`cbrt_s`] as the RPRM 3 kernel calls it: with `fma` (a compile-time constant in each clone) the
-/// steps are fused multiply-adds and the first guess divides by 3 with a multiply
-/// ([`third_mul`]); the same error bound (the unit test checks both forms).
+/// Whether `x` is 0 or finite of magnitude at least `CBRT_TINY`: the values for which
+/// `cbrt_m::<true>` is right (integer compares on the bit pattern, no shuffles).
 #[inline(always)]
-fn cbrt_m(x: f32, fma: bool) -> f32 {
+fn cbrt_plain(x: f32) -> bool {
+    let b = x.to_bits() & 0x7fff_ffff;
+    let lo = CBRT_TINY.to_bits();
+    b == 0 || b.wrapping_sub(lo) <= f32::MAX.to_bits() - lo
+}
+
+/// [`cbrt_s`] as the RPRM 3 kernel calls it. With `fma` (a compile-time constant in each clone)
+/// the steps are fused multiply-adds, the first guess divides by 3 with a multiply
+/// ([`third_mul`]) and the last correction is `y·(1 − d)^(-2/3) ≈ y·(1 + 2d/3 + 5d²/9)` with
+/// `d = 1 − y·z` in one fused multiply-add (one multiply fewer; max relative error 9.6e-8).
+/// `PLAIN` (a compile-time constant): `x` is 0 or finite of magnitude at least `CBRT_TINY`
+/// ([`cbrt_plain`]), so the rescaling of tiny values and the ±∞ select are left out; for such `x`
+/// the result is the same bits either way. The unit test checks every form.
+#[inline(always)]
+fn cbrt_m<const PLAIN: bool>(x: f32, fma: bool) -> f32 {
     let a = x.abs();
-    let tiny = a < CBRT_TINY;
+    let tiny = !PLAIN && a < CBRT_TINY;
     let s = if tiny { a * TWO_96 } else { a };
     let bits = s.to_bits();
     let t = if fma { third_mul(bits) } else { third(bits) };
@@ -698,11 +730,20 @@ fn cbrt_m(x: f32, fma: bool) -> f32 {
     let e = madd(-s, z2 * z, 1.0, fma);
     let z = madd(z * e, madd(e, 2.0 / 9.0, 1.0 / 3.0, fma), z, fma);
     let y = s * z * z;
-    // y·(y³/a)^(-1/3) to second order in c = y³/a − 1 = w² − 1 (w = y·z, so w² = y³/a):
-    // y·(1 − c/3 + 2c²/9), which leaves an error of order c³ (≈ 1e-10 from c ≈ 1e-3).
-    let w = y * z;
-    let c = madd(w, w, -1.0, fma);
-    let y = madd(y * c, madd(c, 2.0 / 9.0, -1.0 / 3.0, fma), y, fma);
+    let y = if fma {
+        // y = a·z² and a·z³ = 1 − d, so a^(1/3) = y·(1 − d)^(-2/3), to second order in d.
+        let d = madd(-y, z, 1.0, fma);
+        madd(y * d, madd(d, 5.0 / 9.0, 2.0 / 3.0, fma), y, fma)
+    } else {
+        // y·(y³/a)^(-1/3) to second order in c = y³/a − 1 = w² − 1 (w = y·z, so w² = y³/a):
+        // y·(1 − c/3 + 2c²/9), which leaves an error of order c³ (≈ 1e-10 from c ≈ 1e-3).
+        let w = y * z;
+        let c = madd(w, w, -1.0, fma);
+        madd(y * c, madd(c, 2.0 / 9.0, -1.0 / 3.0, fma), y, fma)
+    };
+    if PLAIN {
+        return y.copysign(x);
+    }
     let y = y * if tiny { TWO_M32 } else { 1.0 };
     // ±∞ → ±∞ and NaN → NaN (the iteration would not keep them); ±0 → ±0 comes out of a·z².
     let y = if a.is_finite() { y } else { a };
@@ -754,7 +795,7 @@ struct Linear {
 
 impl PixelKernel for Linear {
     #[inline(always)]
-    fn pixel(&self, x: [f32; 3], fma: bool) -> [f32; 3] {
+    fn pixel<const STEP_OK: bool>(&self, x: [f32; 3], fma: bool) -> [f32; 3] {
         let mut y = [0.0; 3];
         for (yk, m) in y.iter_mut().zip(&self.m) {
             *yk = dot(m, &x, fma);
@@ -770,12 +811,26 @@ struct Prm3 {
 }
 
 impl PixelKernel for Prm3 {
-    // A block with a non-finite input (or a sum that overflows) keeps the term sums, which give
-    // exactly the f64 reference's NaN/±∞ (a nested form turns ∞·0 terms into ±∞).
-    const GUARDED: bool = true;
+    // A block of LANES pixels with a non-finite input (or a sum that overflows) keeps the term
+    // sums, which give exactly the f64 reference's NaN/±∞ (a nested form turns ∞·0 terms into
+    // ±∞). The step test is a cheap sufficient one; a step that fails it is tested again block by
+    // block, exactly.
+    const STEPPED: bool = true;
 
     #[inline(always)]
-    fn pixel(&self, [r, g, b]: [f32; 3], fma: bool) -> [f32; 3] {
+    fn step_ok(blk: &[f32]) -> bool {
+        quick_finite(blk)
+    }
+
+    #[inline(always)]
+    fn slow_in_place<const C: usize>(&self, blk: &mut [f32], fma: bool) {
+        for b in blk.chunks_mut(C * LANES) {
+            guarded_block::<Self, C>(self, b, fma);
+        }
+    }
+
+    #[inline(always)]
+    fn pixel<const STEP_OK: bool>(&self, [r, g, b]: [f32; 3], fma: bool) -> [f32; 3] {
         // The nested (multivariate Horner) form, one multiply-add per coefficient and one
         // multiply per channel:
         //   y = R·(m0 + R(m3 + R·m9 + G·m15 + B·m16) + G(m6 + G·m12 + B·m18) + B(m8 + B·m13))
@@ -852,11 +907,28 @@ struct Rprm3 {
 }
 
 impl PixelKernel for Rprm3 {
+    // Steps whose values are all 0 or finite magnitudes of at least CBRT_TINY skip the cube
+    // root's rescaling of tiny values and its ±∞ select (the same result there).
+    const STEPPED: bool = true;
+
     #[inline(always)]
-    fn pixel(&self, [r, g, b]: [f32; 3], fma: bool) -> [f32; 3] {
+    fn step_ok(blk: &[f32]) -> bool {
+        let mut ok = true;
+        for &v in blk {
+            ok &= cbrt_plain(v);
+        }
+        ok
+    }
+
+    #[inline(always)]
+    fn pixel<const STEP_OK: bool>(&self, [r, g, b]: [f32; 3], fma: bool) -> [f32; 3] {
         // The six roots, the 13 terms (products of roots) and their three sums.
         let (sr, sg, sb) = (sqrt_s(r), sqrt_s(g), sqrt_s(b));
-        let (cr, cg, cb) = (cbrt_m(r, fma), cbrt_m(g, fma), cbrt_m(b, fma));
+        let (cr, cg, cb) = (
+            cbrt_m::<STEP_OK>(r, fma),
+            cbrt_m::<STEP_OK>(g, fma),
+            cbrt_m::<STEP_OK>(b, fma),
+        );
         let (cr2, cg2, cb2) = (cr * cr, cg * cg, cb * cb);
         let t = [
             r,
@@ -891,7 +963,7 @@ struct Nsrm3 {
 
 impl PixelKernel for Nsrm3 {
     #[inline(always)]
-    fn pixel(&self, x: [f32; 3], fma: bool) -> [f32; 3] {
+    fn pixel<const STEP_OK: bool>(&self, x: [f32; 3], fma: bool) -> [f32; 3] {
         // The input gains (white-balanced NSRM; exact for a gain of 1), then s, r, g.
         let (cr, cg, cb) = (
             x[0] * self.gain[0],
@@ -1106,7 +1178,7 @@ mod tests {
         // Both forms: the baseline's (`cbrt_s`) and the FMA clones' (here with libm's `fmaf`,
         // which rounds exactly as the FMA instructions do).
         for fma in [false, true] {
-            let cbrt = |v: f32| cbrt_m(v, fma);
+            let cbrt = |v: f32| cbrt_m::<false>(v, fma);
             let mut worst = 0.0f64;
             let mut x = f32::MIN_POSITIVE / 1024.0;
             while x < f32::MAX / 1.01 {
@@ -1121,6 +1193,28 @@ mod tests {
                 worst < 1.3e-7,
                 "cbrt (fma {fma}) worst relative error {worst:e}"
             );
+            // The plain form where it applies: the same bits (0 included).
+            let mut x = CBRT_TINY;
+            while x < f32::MAX / 1.01 {
+                for v in [x, -x] {
+                    assert!(cbrt_plain(v));
+                    assert_eq!(cbrt_m::<true>(v, fma).to_bits(), cbrt(v).to_bits(), "{v:e}");
+                }
+                x *= 1.000_37;
+            }
+            for v in [0.0f32, -0.0, f32::MAX, -f32::MAX] {
+                assert!(cbrt_plain(v));
+                assert_eq!(cbrt_m::<true>(v, fma).to_bits(), cbrt(v).to_bits(), "{v:e}");
+            }
+            for v in [
+                CBRT_TINY / 1.001,
+                1e-40,
+                f32::INFINITY,
+                f32::NEG_INFINITY,
+                f32::NAN,
+            ] {
+                assert!(!cbrt_plain(v), "{v:e}");
+            }
             assert_eq!(cbrt(0.0).to_bits(), 0.0f32.to_bits());
             assert_eq!(cbrt(-0.0).to_bits(), (-0.0f32).to_bits());
             assert_eq!(cbrt(f32::INFINITY), f32::INFINITY);

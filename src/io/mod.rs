@@ -383,8 +383,9 @@ pub struct WriteOptions {
     pub space: OutputSpace,
     /// Replace an existing destination.
     pub overwrite: bool,
-    /// EXR only: the deflate level (0–9) of ZIP and ZIPS outputs written by the chunk-level
-    /// path; [`DEFAULT_ZIP_LEVEL`] (`--zip-level`) is chosen for speed.
+    /// EXR only: the deflate level (libdeflate's, 0–12: [`MAX_ZIP_LEVEL`]) of ZIP and ZIPS
+    /// outputs written by the chunk-level path; [`DEFAULT_ZIP_LEVEL`] (`--zip-level`) is chosen
+    /// for speed.
     pub zip_level: u8,
 }
 

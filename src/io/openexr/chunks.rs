@@ -576,18 +576,26 @@ fn f32s(s: &[u8]) -> impl Iterator<Item = f32> + '_ {
 }
 
 /// OpenEXR's ZIP preprocessing undone: `d` (byte-predicted, even bytes then odd bytes) → `out`.
+/// The running sums of the two halves are kept side by side, so each output pair is written at
+/// once; the second half's sum starts where the first half's ends (its total, summed first).
 fn unpredict_deinterleave(d: &[u8], out: &mut [u8]) {
     let half = d.len().div_ceil(2);
     let (lo, hi) = d.split_at(half);
     // t[0] = d[0], then t[i] = t[i - 1] + d[i] - 128.
-    let mut prev = 128u8;
-    for (o, &v) in out.iter_mut().step_by(2).zip(lo) {
-        prev = prev.wrapping_add(v).wrapping_sub(128);
-        *o = prev;
+    let total = lo.iter().fold(0u8, |s, &v| s.wrapping_add(v));
+    let (mut a, mut b) = (
+        128u8,
+        (128u8.wrapping_add(total)).wrapping_sub((half % 2 * 128) as u8),
+    );
+    let mut pairs = out.chunks_exact_mut(2);
+    for ((o, &l), &h) in pairs.by_ref().zip(lo).zip(hi) {
+        a = a.wrapping_add(l).wrapping_sub(128);
+        b = b.wrapping_add(h).wrapping_sub(128);
+        o[0] = a;
+        o[1] = b;
     }
-    for (o, &v) in out.iter_mut().skip(1).step_by(2).zip(hi) {
-        prev = prev.wrapping_add(v).wrapping_sub(128);
-        *o = prev;
+    if let ([last], Some(&l)) = (pairs.into_remainder(), lo.get(half.wrapping_sub(1))) {
+        *last = a.wrapping_add(l).wrapping_sub(128);
     }
 }
 
@@ -603,25 +611,20 @@ fn interleave_predict(raw: &[u8], d: &mut Vec<u8>) {
     let half = n.div_ceil(2);
     let (lo, hi) = d.split_at_mut(half);
     let delta = |a: u8, b: u8| b.wrapping_sub(a).wrapping_add(128);
-    // t[k] = raw[2k] for k < half: d[k] = raw[2k] - raw[2k - 2] + 128.
+    // t[k] = raw[2k] for k < half: d[k] = raw[2k] - raw[2k - 2] + 128; t[half + k] = raw[2k + 1],
+    // whose predecessor for k = 0 is the last even byte.
     lo[0] = raw[0];
-    for ((o, p), q) in lo[1..]
-        .iter_mut()
-        .zip(raw.iter().step_by(2))
-        .zip(raw.get(2..).unwrap_or_default().iter().step_by(2))
-    {
-        *o = delta(*p, *q);
+    if n >= 2 {
+        hi[0] = delta(raw[2 * (half - 1)], raw[1]);
     }
-    // t[half + k] = raw[2k + 1]; its predecessor for k = 0 is the last even byte.
-    if let Some(&first) = raw.get(1) {
-        hi[0] = delta(raw[2 * (half - 1)], first);
-        for ((o, p), q) in hi[1..]
-            .iter_mut()
-            .zip(raw[1..].iter().step_by(2))
-            .zip(raw.get(3..).unwrap_or_default().iter().step_by(2))
-        {
-            *o = delta(*p, *q);
-        }
+    let pairs = raw.chunks_exact(2).zip(raw[2.min(n)..].chunks_exact(2));
+    for ((l, h), (p, c)) in lo[1..].iter_mut().zip(hi.iter_mut().skip(1)).zip(pairs) {
+        *l = delta(p[0], c[0]);
+        *h = delta(p[1], c[1]);
+    }
+    // An odd length: the last even byte has no odd partner.
+    if n % 2 == 1 && n >= 3 {
+        lo[half - 1] = delta(raw[n - 3], raw[n - 1]);
     }
 }
 

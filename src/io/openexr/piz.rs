@@ -358,54 +358,68 @@ fn wdec16(l: u16, h: u16) -> (u16, u16) {
 }
 
 /// OpenEXR's inverse 2-D wavelet (`wav2Decode`) of the `nx` × `ny` plane in `v` with strides
-/// `ox` (x) and `oy` (y).
+/// `ox` (x) and `oy` (y): the levels of [`wavelet_encode`] in reverse order.
 fn wavelet_decode(v: &mut [u16], nx: usize, ox: usize, ny: usize, oy: usize, max: u16) {
     let dec = if max < (1 << 14) { wdec14 } else { wdec16 };
     let n = nx.min(ny);
     let mut p = 1usize;
-    while p <= n {
+    while 2 * p <= n {
         p <<= 1;
     }
-    p >>= 1;
-    let mut p2 = p;
+    // p is the largest power of two ≤ n; the encoder's levels were 1, 2, … p/2.
     p >>= 1;
     while p >= 1 {
-        let (oy1, oy2, ox1, ox2) = (oy * p, oy * p2, ox * p, ox * p2);
-        let mut py = 0usize;
-        let ey = oy * (ny - p2);
-        while py <= ey {
-            let mut px = py;
-            let ex = py + ox * (nx - p2);
-            while px <= ex {
-                let (p01, p10) = (px + ox1, px + oy1);
-                let p11 = p10 + ox1;
-                let (i00, i10) = dec(v[px], v[p10]);
-                let (i01, i11) = dec(v[p01], v[p11]);
-                (v[px], v[p01]) = dec(i00, i01);
-                (v[p10], v[p11]) = dec(i10, i11);
-                px += ox2;
-            }
-            if nx & p != 0 {
-                let p10 = px + oy1;
-                let (i00, b) = dec(v[px], v[p10]);
-                v[p10] = b;
-                v[px] = i00;
-            }
-            py += oy2;
-        }
-        if ny & p != 0 {
-            let mut px = py;
-            let ex = py + ox * (nx - p2);
-            while px <= ex {
-                let p01 = px + ox1;
-                let (i00, b) = dec(v[px], v[p01]);
-                v[p01] = b;
-                v[px] = i00;
-                px += ox2;
-            }
-        }
-        p2 = p;
+        wavelet_level::<false>(v, nx, ox, ny, oy, p, dec);
         p >>= 1;
+    }
+}
+
+/// One level of the 2-D Haar wavelet at spacing `p`: the 1-D step `f` on the pairs of every
+/// 2×2 group, rows then columns when encoding and columns then rows when decoding (the inverse
+/// order), and on the lone pairs of an odd last column and row.
+#[inline(always)]
+#[allow(clippy::too_many_arguments)]
+fn wavelet_level<const ENCODE: bool>(
+    v: &mut [u16],
+    nx: usize,
+    ox: usize,
+    ny: usize,
+    oy: usize,
+    p: usize,
+    f: fn(u16, u16) -> (u16, u16),
+) {
+    let p2 = 2 * p;
+    let (oy1, oy2, ox1, ox2) = (oy * p, oy * p2, ox * p, ox * p2);
+    let mut py = 0usize;
+    let ey = oy * (ny - p2);
+    while py <= ey {
+        let mut px = py;
+        let ex = py + ox * (nx - p2);
+        while px <= ex {
+            let (p01, p10) = (px + ox1, px + oy1);
+            let p11 = p10 + ox1;
+            // Encoding pairs (00, 01) and (10, 11) first; decoding, its transpose.
+            let (pa, pb) = if ENCODE { (p01, p10) } else { (p10, p01) };
+            let (i00, ia) = f(v[px], v[pa]);
+            let (ib, i11) = f(v[pb], v[p11]);
+            (v[px], v[pb]) = f(i00, ib);
+            (v[pa], v[p11]) = f(ia, i11);
+            px += ox2;
+        }
+        if nx & p != 0 {
+            let p10 = px + oy1;
+            (v[px], v[p10]) = f(v[px], v[p10]);
+        }
+        py += oy2;
+    }
+    if ny & p != 0 {
+        let mut px = py;
+        let ex = py + ox * (nx - p2);
+        while px <= ex {
+            let p01 = px + ox1;
+            (v[px], v[p01]) = f(v[px], v[p01]);
+            px += ox2;
+        }
     }
 }
 
@@ -743,44 +757,10 @@ fn wenc16(a: u16, b: u16) -> (u16, u16) {
 fn wavelet_encode(v: &mut [u16], nx: usize, ox: usize, ny: usize, oy: usize, max: u16) {
     let enc = if max < (1 << 14) { wenc14 } else { wenc16 };
     let n = nx.min(ny);
-    let (mut p, mut p2) = (1usize, 2usize);
-    while p2 <= n {
-        let (oy1, oy2, ox1, ox2) = (oy * p, oy * p2, ox * p, ox * p2);
-        let mut py = 0usize;
-        let ey = oy * (ny - p2);
-        while py <= ey {
-            let mut px = py;
-            let ex = py + ox * (nx - p2);
-            while px <= ex {
-                let (p01, p10) = (px + ox1, px + oy1);
-                let p11 = p10 + ox1;
-                let (i00, i01) = enc(v[px], v[p01]);
-                let (i10, i11) = enc(v[p10], v[p11]);
-                (v[px], v[p10]) = enc(i00, i10);
-                (v[p01], v[p11]) = enc(i01, i11);
-                px += ox2;
-            }
-            if nx & p != 0 {
-                let p10 = px + oy1;
-                let (i00, b) = enc(v[px], v[p10]);
-                v[p10] = b;
-                v[px] = i00;
-            }
-            py += oy2;
-        }
-        if ny & p != 0 {
-            let mut px = py;
-            let ex = py + ox * (nx - p2);
-            while px <= ex {
-                let p01 = px + ox1;
-                let (i00, b) = enc(v[px], v[p01]);
-                v[p01] = b;
-                v[px] = i00;
-                px += ox2;
-            }
-        }
-        p = p2;
-        p2 <<= 1;
+    let mut p = 1usize;
+    while 2 * p <= n {
+        wavelet_level::<true>(v, nx, ox, ny, oy, p, enc);
+        p <<= 1;
     }
 }
 

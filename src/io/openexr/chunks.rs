@@ -644,17 +644,22 @@ struct Codec {
 /// The highest deflate level libdeflate has (`--zip-level` accepts 0 to this).
 pub const MAX_ZIP_LEVEL: u8 = 12;
 
-thread_local! {
-    static CODEC: std::cell::RefCell<Codec> = const {
-        std::cell::RefCell::new(Codec {
+impl Codec {
+    /// No codecs made and no buffers held yet.
+    const fn empty() -> Codec {
+        Codec {
             inflate: None,
             deflate: None,
             a: Vec::new(),
             b: Vec::new(),
             c: Vec::new(),
             words: Vec::new(),
-        })
-    };
+        }
+    }
+}
+
+thread_local! {
+    static CODEC: std::cell::RefCell<Codec> = const { std::cell::RefCell::new(Codec::empty()) };
 }
 
 /// Runs `f` with this thread's [`Codec`].
@@ -662,14 +667,7 @@ fn with_codec<R>(f: impl FnOnce(&mut Codec) -> R) -> R {
     CODEC.with(|c| match c.try_borrow_mut() {
         Ok(mut codec) => f(&mut codec),
         // Not reached (no codec call nests another); a fresh one keeps it correct anyway.
-        Err(_) => f(&mut Codec {
-            inflate: None,
-            deflate: None,
-            a: Vec::new(),
-            b: Vec::new(),
-            c: Vec::new(),
-            words: Vec::new(),
-        }),
+        Err(_) => f(&mut Codec::empty()),
     })
 }
 

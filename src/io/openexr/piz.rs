@@ -773,93 +773,32 @@ mod tests {
     use ::exr::meta::header::Header;
     use ::exr::meta::BlockDescription;
 
-    /// Blocks PIZ-compressed by the `exr` crate (OpenEXR's format) decode here to the same bytes.
-    #[test]
-    fn decodes_what_the_exr_crate_encodes() {
-        let mut state = 0x9e37_79b9_7f4a_7c15u64;
-        let mut rand = move || {
-            state ^= state << 13;
-            state ^= state >> 7;
-            state ^= state << 17;
-            state
-        };
-        let layouts: [&[SampleType]; 4] = [
-            &[SampleType::F32; 3],
-            &[
-                SampleType::F16,
-                SampleType::F32,
-                SampleType::F32,
-                SampleType::F32,
-            ],
-            &[SampleType::F16; 2],
-            &[SampleType::U32, SampleType::F32, SampleType::F16],
-        ];
-        let mut words = Vec::new();
-        let mut decoded = 0;
-        for types in layouts {
-            for (w, h) in [(1usize, 1usize), (7, 3), (33, 32), (64, 17), (300, 32)] {
-                for kind in 0..4 {
-                    let list: Vec<ChannelDescription> = types
-                        .iter()
-                        .enumerate()
-                        .map(|(i, &t)| ChannelDescription::named(["a", "b", "c", "d"][i], t))
-                        .collect();
-                    let channels = ChannelList::new(list.into_iter().collect());
-                    let bpp = channels.bytes_per_pixel;
-                    let header = Header::new("x".into(), Vec2(w, h), channels.list.clone())
-                        .with_encoding(
-                            Compression::PIZ,
-                            BlockDescription::ScanLines,
-                            LineOrder::Increasing,
-                        );
-                    // Noise, smooth ramps, constant, sparse values.
-                    let raw: Vec<u8> = (0..w * h * bpp)
-                        .map(|i| match kind {
-                            0 => rand() as u8,
-                            1 => ((i / 7) % 251) as u8,
-                            2 => 0x3c,
-                            _ => {
-                                if rand() % 9 == 0 {
-                                    rand() as u8
-                                } else {
-                                    0
-                                }
-                            }
-                        })
-                        .collect();
-                    let bounds = IntegerBounds::new(Vec2(0, 0), Vec2(w, h));
-                    let packed = Compression::PIZ
-                        .compress_image_section_to_le(&header, raw.clone(), bounds)
-                        .unwrap();
-                    if packed.len() >= raw.len() {
-                        continue; // stored raw
-                    }
-                    let mut out = vec![0u8; raw.len()];
-                    decode(&packed, types, w, h, &mut out, &mut words)
-                        .unwrap_or_else(|e| panic!("{types:?} {w}x{h} kind {kind}: {e}"));
-                    assert_eq!(out, raw, "{types:?} {w}x{h} kind {kind}");
-                    decoded += 1;
-                    // Truncated data: an error, never a panic.
-                    for cut in [0, 1, 4, packed.len() / 2, packed.len() - 1] {
-                        let _ = decode(&packed[..cut], types, w, h, &mut out, &mut words);
-                    }
-                }
-            }
+    /// A xorshift generator: reproducible noise for the test blocks.
+    struct Rng(u64);
+
+    impl Rng {
+        fn next(&mut self) -> u64 {
+            self.0 ^= self.0 << 13;
+            self.0 ^= self.0 >> 7;
+            self.0 ^= self.0 << 17;
+            self.0
         }
-        assert!(decoded >= 20, "{decoded} blocks decoded");
     }
 
-    /// Blocks encoded here decode to the same bytes in the `exr` crate's PIZ decoder and here.
-    #[test]
-    fn the_exr_crate_decodes_what_is_encoded_here() {
-        let mut state = 0x2545_f491_4f6c_dd1du64;
-        let mut rand = move || {
-            state ^= state << 13;
-            state ^= state >> 7;
-            state ^= state << 17;
-            state
-        };
-        let layouts: [&[SampleType]; 4] = [
+    /// A test block: its channel types, size, kind of data, PIZ header and raw bytes.
+    struct Block {
+        types: &'static [SampleType],
+        w: usize,
+        h: usize,
+        kind: usize,
+        header: Header,
+        raw: Vec<u8>,
+    }
+
+    /// Four channel layouts × six sizes × five kinds of data (noise, ramps, a constant, sparse
+    /// values, few distinct values in long runs).
+    fn blocks(rng: &mut Rng) -> Vec<Block> {
+        let layouts: [&'static [SampleType]; 4] = [
             &[SampleType::F32; 3],
             &[
                 SampleType::F16,
@@ -870,16 +809,10 @@ mod tests {
             &[SampleType::F16; 2],
             &[SampleType::U32, SampleType::F32, SampleType::F16],
         ];
-        let (mut words, mut packed) = (Vec::new(), Vec::new());
+        let mut out = Vec::new();
         for types in layouts {
-            for (w, h) in [
-                (1usize, 1usize),
-                (2, 2),
-                (7, 3),
-                (33, 32),
-                (64, 17),
-                (300, 32),
-            ] {
+            let sizes = [(1, 1), (2, 2), (7, 3), (33, 32), (64, 17), (300, 32)];
+            for (w, h) in sizes {
                 for kind in 0..5 {
                     let list: Vec<ChannelDescription> = types
                         .iter()
@@ -896,12 +829,12 @@ mod tests {
                         );
                     let raw: Vec<u8> = (0..w * h * bpp)
                         .map(|i| match kind {
-                            0 => rand() as u8,
+                            0 => rng.next() as u8,
                             1 => ((i / 7) % 251) as u8,
                             2 => 0x3c,
                             3 => {
-                                if rand() % 9 == 0 {
-                                    rand() as u8
+                                if rng.next() % 9 == 0 {
+                                    rng.next() as u8
                                 } else {
                                     0
                                 }
@@ -910,24 +843,70 @@ mod tests {
                             _ => ((i / 200) % 3) as u8,
                         })
                         .collect();
-                    encode(&raw, types, w, h, &mut packed, &mut words).unwrap();
-                    let mut out = vec![0u8; raw.len()];
-                    decode(&packed, types, w, h, &mut out, &mut words).unwrap();
-                    assert_eq!(out, raw, "here: {types:?} {w}x{h} kind {kind}");
-                    // Damaged data: an error or other pixels, never a panic.
-                    for k in 0..16 {
-                        let mut bad = packed.clone();
-                        let at = (rand() as usize) % bad.len();
-                        bad[at] ^= 1 << (k % 8);
-                        let _ = decode(&bad, types, w, h, &mut out, &mut words);
-                    }
-                    let bounds = IntegerBounds::new(Vec2(0, 0), Vec2(w, h));
-                    let theirs = Compression::PIZ
-                        .decompress_image_section_from_le(&header, packed.clone(), bounds, true)
-                        .unwrap_or_else(|e| panic!("exr: {types:?} {w}x{h} kind {kind}: {e}"));
-                    assert_eq!(theirs, raw, "exr: {types:?} {w}x{h} kind {kind}");
+                    out.push(Block {
+                        types,
+                        w,
+                        h,
+                        kind,
+                        header,
+                        raw,
+                    });
                 }
             }
+        }
+        out
+    }
+
+    /// Blocks PIZ-compressed by the `exr` crate (OpenEXR's format) decode here to the same bytes.
+    #[test]
+    fn decodes_what_the_exr_crate_encodes() {
+        let mut words = Vec::new();
+        let mut decoded = 0;
+        for b in blocks(&mut Rng(0x9e37_79b9_7f4a_7c15)) {
+            let (types, w, h, kind, raw) = (b.types, b.w, b.h, b.kind, &b.raw);
+            let bounds = IntegerBounds::new(Vec2(0, 0), Vec2(w, h));
+            let packed = Compression::PIZ
+                .compress_image_section_to_le(&b.header, raw.clone(), bounds)
+                .unwrap();
+            if packed.len() >= raw.len() {
+                continue; // stored raw
+            }
+            let mut out = vec![0u8; raw.len()];
+            decode(&packed, types, w, h, &mut out, &mut words)
+                .unwrap_or_else(|e| panic!("{types:?} {w}x{h} kind {kind}: {e}"));
+            assert_eq!(&out, raw, "{types:?} {w}x{h} kind {kind}");
+            decoded += 1;
+            // Truncated data: an error, never a panic.
+            for cut in [0, 1, 4, packed.len() / 2, packed.len() - 1] {
+                let _ = decode(&packed[..cut], types, w, h, &mut out, &mut words);
+            }
+        }
+        assert!(decoded >= 20, "{decoded} blocks decoded");
+    }
+
+    /// Blocks encoded here decode to the same bytes in the `exr` crate's PIZ decoder and here.
+    #[test]
+    fn the_exr_crate_decodes_what_is_encoded_here() {
+        let mut rng = Rng(0x2545_f491_4f6c_dd1d);
+        let (mut words, mut packed) = (Vec::new(), Vec::new());
+        for b in blocks(&mut rng) {
+            let (types, w, h, kind, raw) = (b.types, b.w, b.h, b.kind, &b.raw);
+            encode(raw, types, w, h, &mut packed, &mut words).unwrap();
+            let mut out = vec![0u8; raw.len()];
+            decode(&packed, types, w, h, &mut out, &mut words).unwrap();
+            assert_eq!(&out, raw, "here: {types:?} {w}x{h} kind {kind}");
+            // Damaged data: an error or other pixels, never a panic.
+            for k in 0..16 {
+                let mut bad = packed.clone();
+                let at = (rng.next() as usize) % bad.len();
+                bad[at] ^= 1 << (k % 8);
+                let _ = decode(&bad, types, w, h, &mut out, &mut words);
+            }
+            let bounds = IntegerBounds::new(Vec2(0, 0), Vec2(w, h));
+            let theirs = Compression::PIZ
+                .decompress_image_section_from_le(&b.header, packed.clone(), bounds, true)
+                .unwrap_or_else(|e| panic!("exr: {types:?} {w}x{h} kind {kind}: {e}"));
+            assert_eq!(&theirs, raw, "exr: {types:?} {w}x{h} kind {kind}");
         }
     }
 }

@@ -102,26 +102,12 @@ pub(super) fn decode(
     words.resize(count, 0);
     huffman_decode(huffman, words)?;
 
-    let mut at = 0;
-    for &t in types {
-        let size = words_of(t);
-        let n = width * lines * size;
-        let plane = &mut words[at..at + n];
-        for j in 0..size {
-            wavelet_decode(&mut plane[j..], width, size, lines, width * size, max_value);
-        }
-        at += n;
-    }
+    wavelets(words, types, width, lines, max_value, wavelet_decode);
     for w in words.iter_mut() {
         *w = lut[usize::from(*w)];
     }
     // Each channel's plane holds its lines one after the other; the file interleaves them by line.
-    let mut starts = Vec::with_capacity(types.len());
-    let mut at = 0;
-    for &t in types {
-        starts.push(at);
-        at += width * lines * words_of(t);
-    }
+    let starts = plane_starts(types, width, lines);
     let mut o = out.chunks_exact_mut(2);
     for y in 0..lines {
         for (&t, &s) in types.iter().zip(&starts) {
@@ -132,6 +118,37 @@ pub(super) fn decode(
         }
     }
     Ok(())
+}
+
+/// Where each channel's plane starts among a block's 16-bit words (a plane holds the channel's
+/// lines one after the other; the file interleaves the channels line by line).
+fn plane_starts(types: &[SampleType], width: usize, lines: usize) -> Vec<usize> {
+    let mut starts = Vec::with_capacity(types.len());
+    let mut at = 0;
+    for &t in types {
+        starts.push(at);
+        at += width * lines * words_of(t);
+    }
+    starts
+}
+
+/// The 2-D wavelet `f` (encode or decode) over each channel's plane, per 16-bit half of a 32-bit
+/// channel.
+fn wavelets(
+    words: &mut [u16],
+    types: &[SampleType],
+    width: usize,
+    lines: usize,
+    max_value: u16,
+    f: fn(&mut [u16], usize, usize, usize, usize, u16),
+) {
+    for (&t, s) in types.iter().zip(plane_starts(types, width, lines)) {
+        let size = words_of(t);
+        let plane = &mut words[s..s + width * lines * size];
+        for j in 0..size {
+            f(&mut plane[j..], width, size, lines, width * size, max_value);
+        }
+    }
 }
 
 fn words_of(t: SampleType) -> usize {
@@ -448,12 +465,7 @@ pub(super) fn encode(
     // The file interleaves the channels by line; each gets a plane of its lines here.
     words.clear();
     words.resize(count, 0);
-    let mut starts = Vec::with_capacity(types.len());
-    let mut at = 0;
-    for &t in types {
-        starts.push(at);
-        at += width * lines * words_of(t);
-    }
+    let starts = plane_starts(types, width, lines);
     let mut src = raw.chunks_exact(2);
     for y in 0..lines {
         for (&t, &s) in types.iter().zip(&starts) {
@@ -490,16 +502,7 @@ pub(super) fn encode(
     for w in words.iter_mut() {
         *w = lut[usize::from(*w)];
     }
-    let mut at = 0;
-    for &t in types {
-        let size = words_of(t);
-        let n = width * lines * size;
-        let plane = &mut words[at..at + n];
-        for j in 0..size {
-            wavelet_encode(&mut plane[j..], width, size, lines, width * size, max_value);
-        }
-        at += n;
-    }
+    wavelets(words, types, width, lines, max_value, wavelet_encode);
 
     out.clear();
     out.extend_from_slice(&(min_nz as u16).to_le_bytes());

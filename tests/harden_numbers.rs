@@ -68,6 +68,33 @@ fn grid_shard_and_sizes_are_bounded() {
         &["apply", "--model", "m.json", "--max-pixels", "0", "a.exr"],
         "--max-pixels",
     );
+    let extract = |n: &'static str| {
+        vec![
+            "chart",
+            "extract",
+            "a.exr",
+            "--chart",
+            "cc24",
+            "--max-pixels",
+            n,
+            "-o",
+            "p.csv",
+        ]
+    };
+    usage_error(&extract("0"), "--max-pixels");
+    // A frame over the limit is refused before it is read, with the flag that lifts the limit.
+    let dir = tempfile::tempdir().unwrap();
+    exr(&dir.path().join("a.exr"), 2, 2);
+    let o = nsrm_in(dir.path(), &extract("3"));
+    no_crash(&o, "chart extract --max-pixels 3");
+    assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
+    let err = stderr(&o);
+    assert!(err.contains("more than the limit of 3 pixels"), "{err}");
+    assert!(
+        err.contains("hint: raise the limit with --max-pixels N"),
+        "{err}"
+    );
+    assert!(!dir.path().join("p.csv").exists());
 }
 
 #[test]

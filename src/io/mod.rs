@@ -179,11 +179,11 @@ pub fn try_zeroed<T: bytemuck::Zeroable>(path: &Path, n: usize) -> Result<Vec<T>
 /// Frame sample buffers handed back by [`Decoded::write_recycling`] for the next
 /// [`Decoded::read_pooled`]: a batch then allocates only as many frame buffers as it holds
 /// frames at once, instead of one per frame (a fresh 24-Mpixel frame costs ~70 000 page faults,
-/// each zeroing a page, and its release as much again). Holds at most `max` buffers; cloning
-/// shares the pool.
-#[derive(Debug, Clone, Default)]
+/// each zeroing a page, and its release as much again). Holds at most `max` buffers; the
+/// decoding and encoding threads share it by reference.
+#[derive(Debug)]
 pub struct FramePool {
-    buffers: std::sync::Arc<std::sync::Mutex<Vec<Vec<f32>>>>,
+    buffers: std::sync::Mutex<Vec<Vec<f32>>>,
     max: usize,
 }
 

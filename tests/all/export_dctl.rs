@@ -3,7 +3,7 @@
 //! run on test pixels; its output must match the f64 model with the output space folded in, as
 //! `nsrm apply` writes it, to the f32 accuracy of the GPU shaders.
 
-mod common;
+use crate::common;
 
 use nsrm::colorimetry::spaces::OutputSpace;
 use nsrm::model::fit::{fit_with, FitOptions, Normalise};

@@ -2,7 +2,7 @@
 //! overflow f32 or memory are refused with the limit in the message): usage errors, exit 2,
 //! never a panic (debug builds check overflow, so a panic here would show).
 
-mod common;
+use crate::common;
 use common::*;
 
 fn usage_error(args: &[&str], want: &str) {

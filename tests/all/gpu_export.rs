@@ -3,7 +3,7 @@
 
 use std::path::Path;
 
-mod common;
+use crate::common;
 
 fn nsrm(args: &[&str]) -> std::process::Output {
     common::nsrm().args(args).output().expect("run nsrm")

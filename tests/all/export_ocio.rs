@@ -7,7 +7,7 @@
 //! installs it). Without them each test prints `SKIP: …` and passes, except under `CI=true`,
 //! where they fail.
 
-mod common;
+use crate::common;
 
 use nsrm::colorimetry::delta_e00_xyz;
 use nsrm::colorimetry::spaces::{self, OutputSpace};

@@ -20,7 +20,7 @@ use nsrm::model::fast::{FastModel, Threads};
 use nsrm::model::{pixel, Kind, Model};
 use nsrm::{Frame, Layout};
 
-mod common;
+use crate::common;
 use common::{fitted_models as models, summands};
 
 /// The policy's pixels, by name. `huge` only where the model is exposure-invariant (PRM's cubes and

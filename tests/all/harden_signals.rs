@@ -3,7 +3,7 @@
 //! removes its temporaries, prints the summary and exits 130 / 143 / 129; every output present
 //! is complete. Stale temporaries of a killed run are reported and kept unless asked.
 
-mod common;
+use crate::common;
 use common::*;
 use std::path::Path;
 use std::process::{Command, Stdio};

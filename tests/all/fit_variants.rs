@@ -12,7 +12,7 @@ use nsrm::spectral::{simulate_named, Grid};
 const ILLUMINANTS: [&str; 6] = ["D65", "FL3.15", "FL7", "TL865", "LED-B5", "LED-YAG"];
 use nsrm::TrainingSet;
 
-mod common;
+use crate::common;
 use common::sg_path;
 
 fn de00(power: f64) -> FitOptions {

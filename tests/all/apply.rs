@@ -7,7 +7,7 @@ use nsrm::io::chart::{layout_path, ChartLayout};
 use nsrm::io::{read_frame, ReadOptions};
 use std::path::{Path, PathBuf};
 
-mod common;
+use crate::common;
 use common::{nsrm_in as nsrm, nsrm_ok as ok};
 
 /// Renders the rawtoaces-190 chart under D65 and fits NSRM order 3 on the same data.

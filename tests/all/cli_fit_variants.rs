@@ -1,6 +1,6 @@
 //! `nsrm fit` and `nsrm eval` with the fit-variant flags (issue 11), run as a user would.
 
-mod common;
+use crate::common;
 use common::nsrm;
 
 #[test]

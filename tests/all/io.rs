@@ -1,7 +1,7 @@
 //! Round trips and refusals of `nsrm::io`: EXR (half/float/uint, RGB/RGBA, tiled, layers, parts,
 //! mip levels, extra channels, attributes) and TIFF (u16/f32 in, f32 out).
 
-mod common;
+use crate::common;
 
 use exr::compression::Compression;
 use exr::image::{

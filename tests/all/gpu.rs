@@ -19,7 +19,7 @@ use nsrm::spectral::{simulate_named, Grid};
 use nsrm::{Frame, Layout};
 
 /// The embedding example, for its functions (chart → Corrector pass → display pass → RGBA8).
-#[path = "../examples/embed.rs"]
+#[path = "../../examples/embed.rs"]
 #[allow(dead_code)]
 mod embed;
 
@@ -47,7 +47,7 @@ fn engine(tile_pixels: Option<usize>) -> Option<Engine> {
     }
 }
 
-mod common;
+use crate::common;
 use common::{awkward_frame as random_frame, f32_bound, summands, training, Rng};
 
 fn model(kind: Kind, order: u8) -> Model {

@@ -6,7 +6,7 @@ use nsrm::eval::{evaluate, Protocol};
 use nsrm::model::Kind;
 use nsrm::spectral::{simulate, Camera, Grid, Illuminant, Reflectances};
 
-mod common;
+use crate::common;
 use common::sg_path;
 
 #[test]

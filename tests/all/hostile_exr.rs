@@ -3,7 +3,7 @@
 //! turned into black rows), a small file cannot drive memory up, and a bad frame in a
 //! `--continue-on-error` batch fails alone. Ends with a bounded fuzz over mutated real files.
 
-mod common;
+use crate::common;
 
 use nsrm::io::{Decoded, IoError, Limits, ReadOptions};
 use proptest::prelude::*;

@@ -23,7 +23,7 @@ use nsrm::model::fit::{fit_with, FitOptions, Normalise};
 use nsrm::model::{fit, terms, Kind, Model, MAX_ORDER};
 use nsrm::{Frame, Layout};
 
-mod common;
+use crate::common;
 use common::{
     awkward_frame as random_frame, f32_bound, summands as term_magnitude, training, Rng, F32_REL,
 };

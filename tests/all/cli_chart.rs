@@ -3,7 +3,7 @@
 
 use std::path::{Path, PathBuf};
 
-mod common;
+use crate::common;
 use common::{nsrm, tempdir};
 
 fn run(args: &[&str]) -> (bool, String) {

@@ -1,6 +1,6 @@
 //! The `nsrm eval` and `nsrm fit` commands, run as a user would.
 
-mod common;
+use crate::common;
 use common::{nsrm, tempdir};
 
 #[test]

@@ -2,7 +2,7 @@
 //! file is never converted into made-up pixels. The files are crafted here from a valid TIFF
 //! by rewriting its directory entries.
 
-mod common;
+use crate::common;
 use common::*;
 use nsrm::io::{Decoded, Limits, ReadOptions};
 use std::path::Path;

@@ -2,7 +2,7 @@
 //! not exist yet, symlinks and hard links, `--preview` names, and destinations that are not
 //! regular files, with and without `--overwrite`.
 
-mod common;
+use crate::common;
 use common::*;
 use std::path::Path;
 

@@ -1,7 +1,7 @@
 //! Family 5 (input size is bounded, parsing is linear) and family 7 (every input is reported,
 //! by the right name, once).
 
-mod common;
+use crate::common;
 use common::*;
 use nsrm::TrainingSet;
 use std::path::Path;

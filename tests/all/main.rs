@@ -1,0 +1,49 @@
+//! The integration tests, one binary: each module is one file of tests/all/, gated by the cargo
+//! features it needs. `common` holds what they share.
+
+mod common;
+#[cfg(feature = "cli")]
+mod apply;
+#[cfg(feature = "chart")]
+mod chart;
+mod ciede2000_sharma;
+#[cfg(feature = "cli")]
+mod cli_chart;
+#[cfg(feature = "cli")]
+mod cli_eval_fit;
+#[cfg(feature = "cli")]
+mod cli_fit_variants;
+#[cfg(feature = "cli")]
+mod export_dctl;
+#[cfg(feature = "cli")]
+mod export_ocio;
+#[cfg(feature = "io")]
+mod exr_fast;
+mod fast;
+mod fit_hostile;
+mod fit_variants;
+#[cfg(all(feature = "gpu", feature = "io"))]
+mod gpu;
+#[cfg(feature = "cli")]
+mod gpu_export;
+#[cfg(feature = "io")]
+mod harden_fuzz;
+#[cfg(feature = "cli")]
+mod harden_inputs;
+#[cfg(feature = "cli")]
+mod harden_numbers;
+#[cfg(feature = "cli")]
+mod harden_outputs;
+#[cfg(feature = "cli")]
+mod harden_signals;
+#[cfg(feature = "cli")]
+mod harden_tiff;
+#[cfg(feature = "cli")]
+mod hostile_exr;
+#[cfg(feature = "io")]
+mod io;
+mod model_properties;
+mod paper_table1;
+mod parsers_fuzz;
+#[cfg(feature = "gpu")]
+mod pixel_policy;

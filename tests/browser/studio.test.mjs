@@ -59,6 +59,9 @@ try {
     headless: true,
     args: ['--no-sandbox', '--enable-unsafe-webgpu', '--window-size=1500,1100'],
     defaultViewport: { width: 1500, height: 1100 },
+    // Chromium's profile, dconf and caches in the work directory, never the caller's.
+    userDataDir: path.join(WORK, 'chromium-profile'),
+    env: { ...process.env, HOME: WORK, XDG_CONFIG_HOME: path.join(WORK, 'config'), XDG_CACHE_HOME: path.join(WORK, 'cache') },
   });
   const page = await browser.newPage();
   page.on('console', (m) => {

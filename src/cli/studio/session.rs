@@ -495,7 +495,7 @@ impl FrameState {
             }
             Err(e) => {
                 self.capture = None;
-                self.error = Some(super::super::common::explain_line(e));
+                self.error = Some(explain_for_page(e));
             }
         }
     }
@@ -546,7 +546,7 @@ impl FrameState {
     fn capture(&self) -> Result<&Capture> {
         self.capture.as_ref().ok_or_else(|| {
             BadRequest(format!(
-                "no reading of the chart yet ({}): drag the four corners onto the chart's patch grid",
+                "no reading of the chart yet: {}",
                 self.error.as_deref().unwrap_or("not read")
             ))
             .into()
@@ -913,6 +913,28 @@ impl FrameState {
             ));
         }
         lines.join("\n")
+    }
+}
+
+/// An error as the page shows it: the page's way out (drag the corners, pick a setting) where the
+/// CLI's hint would name a flag.
+fn explain_for_page(e: anyhow::Error) -> String {
+    use nsrm::error::{Concern, Param};
+    let page_remedy = |p: Param| {
+        match p {
+        Param::Corners => Some(
+            "drag the four numbered corners onto the outer corners of the patch grid (1 = the first patch's corner, then clockwise)",
+        ),
+        Param::Reflectances | Param::ReferenceWhite => Some("pick another reference"),
+        Param::Flat => Some("pick another flat field"),
+        _ => None,
+    }
+    };
+    match e.chain().find_map(nsrm::error::concern) {
+        Some(Concern::Remedy(p)) | Some(Concern::Value(p)) if page_remedy(p).is_some() => {
+            format!("{e:#}. Way out: {}.", page_remedy(p).unwrap_or_default())
+        }
+        _ => super::super::common::explain_line(e),
     }
 }
 

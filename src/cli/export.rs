@@ -124,18 +124,17 @@ pub fn run(a: Args) -> Result<ExitCode> {
             );
         }
     }
-    nsrm::atomic::check_clobber(&a.output, a.overwrite)?;
+    let companion = nsrm::export::companion_path(format, &a.output)?;
+    let mut inputs = vec![a.model.as_path()];
+    inputs.extend(a.training.as_deref());
+    let mut outputs = vec![a.output.as_path()];
+    outputs.extend(companion.as_deref());
+    let session = super::outputs::open(a.overwrite, &inputs, &outputs)?;
     let model = Model::load(&a.model)?;
     let data = training_set(&a, &model)?;
+    let mut unit = session.unit();
     let written = match export_to(
-        &model,
-        format,
-        space,
-        options,
-        &data.rgb,
-        a.max_de00,
-        &a.output,
-        a.overwrite,
+        &model, format, space, options, &data.rgb, a.max_de00, &a.output, &mut unit,
     ) {
         Ok(w) => w,
         Err(e @ ExportError::TooInaccurate { limit, .. }) => {
@@ -146,6 +145,7 @@ pub fn run(a: Args) -> Result<ExitCode> {
                 .with_context(|| format!("exporting {} as {}", a.model.display(), format.name()))
         }
     };
+    unit.commit()?;
     let what = if written.exact {
         "exact Matrix".to_string()
     } else {

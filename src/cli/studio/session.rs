@@ -833,6 +833,9 @@ impl FrameState {
         std::fs::create_dir_all(&dir).with_context(|| format!("creating {}", dir.display()))?;
         let name = format!("model.{}", format.name());
         let dest = dir.join(&name);
+        // Written through an output session of its own, into this run's temporary directory.
+        let session = nsrm::output::Session::new(false);
+        let mut unit = session.unit();
         let r = export_to(
             &f.model,
             format,
@@ -841,11 +844,14 @@ impl FrameState {
             &training.rgb,
             None,
             &dest,
-            false,
+            &mut unit,
         );
-        let bytes = r.map_err(anyhow::Error::from).and_then(|_| {
-            std::fs::read(&dest).with_context(|| format!("reading {}", dest.display()))
-        });
+        let bytes = r
+            .map_err(anyhow::Error::from)
+            .and_then(|_| unit.commit().map_err(anyhow::Error::from))
+            .and_then(|_| {
+                std::fs::read(&dest).with_context(|| format!("reading {}", dest.display()))
+            });
         let _ = std::fs::remove_dir_all(&dir);
         Ok((bytes?, name))
     }

@@ -622,6 +622,12 @@ fn the_page_in_a_real_browser() {
         .env("NSRM_CHROMIUM", &chromium)
         .env("STUDIO_OUT", &out_dir)
         .env("STUDIO_WORK", &work)
+        // Chromium's (and GLib's) per-user files in the work directory, never the caller's home
+        // or the repository.
+        .env("HOME", &work)
+        .env("XDG_CONFIG_HOME", work.join("config"))
+        .env("XDG_CACHE_HOME", work.join("cache"))
+        .env("XDG_RUNTIME_DIR", &work)
         .output()
         .expect("running node");
     let text = format!(
@@ -631,4 +637,8 @@ fn the_page_in_a_real_browser() {
     );
     println!("{text}");
     assert!(out.status.success(), "the browser test failed:\n{text}");
+    assert!(
+        !root.join("dconf").exists(),
+        "the browser left a dconf directory in the repository"
+    );
 }

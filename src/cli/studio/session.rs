@@ -726,7 +726,7 @@ impl FrameState {
             .iter()
             .map(|(kind, orders)| {
                 format!(
-                    "nsrm eval --capture {} {}{} --models {} --orders {} --json",
+                    "nsrm eval --capture {} {}{} --kinds {} --orders {} --json",
                     quote(&self.shown),
                     self.capture_flags().join(" "),
                     self.patches_flag(&req.flags()),
@@ -801,7 +801,8 @@ impl FrameState {
     }
 
     pub fn patches_csv(&self) -> Result<String> {
-        Ok(self.capture()?.extraction.to_csv())
+        let c = self.capture()?;
+        Ok(c.extraction.to_csv(&c.reference))
     }
 
     /// Exports the last fit as `export --model model.json --training patches.csv` does: the
@@ -908,7 +909,7 @@ impl FrameState {
             let m = &f.request;
             let kind = m.kind.to_ascii_lowercase();
             lines.push(format!(
-                "nsrm fit --capture {frame} {cap}{} --model {kind} --order {} -o model.json",
+                "nsrm fit --capture {frame} {cap}{} --kind {kind} --order {} -o model.json",
                 self.patches_flag(&m.flags()),
                 m.order
             ));

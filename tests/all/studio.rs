@@ -580,6 +580,18 @@ fn uploads_hostile_input_and_cleanup() {
     assert_eq!(code, 400, "an export before a fit");
     assert_eq!(srv.call("GET", "/api/info", b"").0, 200);
 
+    // Closing a frame removes its upload; it is then gone from the API.
+    let id2 = st2["id"].as_str().unwrap();
+    assert_eq!(
+        srv.json("GET", &format!("/api/frames/{id2}"), "")["id"],
+        id2
+    );
+    let upload_dir = tmp.join(id2);
+    assert!(upload_dir.join("m.exr").is_file());
+    srv.json("DELETE", &format!("/api/frames/{id2}"), "");
+    assert!(!upload_dir.exists());
+    assert_eq!(srv.call("GET", &format!("/api/frames/{id2}"), b"").0, 404);
+
     // SIGTERM: the temporary directory goes, nothing was written in the working directory.
     let status = srv.stop().expect("stopped within 10 s");
     assert!(!status.success());

@@ -110,12 +110,19 @@ fn by_chunks<R: std::io::Read + std::io::Seek>(
                 .map_err(|_| unsupported(path, "too many chunks"))?;
             let (x0, y0) = ((k % across) * cw, (k / across) * ch);
             let (dw, dh) = (cw.min(width - x0), ch.min(height - y0));
-            let buf = dec.read_chunk(index).map_err(tiff_err)?;
-            let data = to_f32(path, buf, dw * dh * if planar { 1 } else { channels })?;
-            let texels = dw * dh;
-            let spc = data.len().checked_div(texels).unwrap_or(0);
+            // The crate's own idea of the chunk's data size: for planes after the first it
+            // counts edge tiles as whole (tiff 0.11 `get_padding` takes the plane's tiles for
+            // further rows), which is harmless here since a tile is stored whole; only the
+            // image's part of it is used.
+            let (cdw, cdh) = dec.chunk_data_dimensions(index);
+            let (cdw, cdh) = (cdw as usize, cdh as usize);
             let need = if planar { 1 } else { channels };
-            if spc < need || data.len() != texels * spc {
+            let buf = dec.read_chunk(index).map_err(tiff_err)?;
+            let data = to_f32(path, buf, cdw * cdh * need)?;
+            let texels = cdw * cdh;
+            let spc = data.len().checked_div(texels).unwrap_or(0);
+            let fits = cdw >= dw && cdh >= dh && data.len() == texels * spc;
+            if !fits || spc < need || (planar && spc != 1) {
                 return Err(corrupt(format!(
                     "chunk {index} holds {} {} samples for its {dw}×{dh} pixels of {need}",
                     data.len(),
@@ -127,9 +134,9 @@ fn by_chunks<R: std::io::Read + std::io::Seek>(
                     }
                 )));
             }
-            for (row, src) in data.chunks_exact(dw * spc).enumerate() {
+            for (row, src) in data.chunks_exact(cdw * spc).take(dh).enumerate() {
                 let base = ((y0 + row) * width + x0) * channels;
-                for (i, px) in src.chunks_exact(spc).enumerate() {
+                for (i, px) in src.chunks_exact(spc).take(dw).enumerate() {
                     let dst = base + i * channels;
                     if planar {
                         out[dst + plane] = px[0];

@@ -257,6 +257,8 @@ import sys, numpy as np, tifffile
 d = sys.argv[1]
 rng = np.random.default_rng(19)
 def save(name, arr, want, **kw):
+    if kw.get("planarconfig") == "separate":
+        arr = np.moveaxis(arr, 2, 0)  # samples first
     tifffile.imwrite(f"{d}/{name}.tif", arr, photometric="rgb", **kw)
     np.ascontiguousarray(want, dtype="<f4").tofile(f"{d}/{name}.bin")
 a = rng.random((18, 20, 3)).astype("float32")
@@ -271,7 +273,7 @@ save("rgb_extra", b, b[..., :3], extrasamples=[0])
 # RGB + alpha + an unspecified sample, chunky and planar: RGBA read.
 c = rng.random((18, 20, 5)).astype("float32")
 save("rgba_extra", c, c[..., :4], extrasamples=[2, 0])
-save("rgba_extra_planar", np.moveaxis(c, 2, 0), c[..., :4], extrasamples=[2, 0], planarconfig="separate", tile=(16, 16))
+save("rgba_extra_planar", c, c[..., :4], extrasamples=[2, 0], planarconfig="separate", tile=(16, 16))
 u = (rng.random((18, 20, 4)) * 65535).astype("uint16")
 save("rgb16_extra", u, u[..., :3].astype("float32") / np.float32(65535), extrasamples=[0])
 save("rgb16_planar_tiled", u[..., :3], u[..., :3].astype("float32") / np.float32(65535), planarconfig="separate", tile=(16, 16))
@@ -331,8 +333,26 @@ fn tifffile_layouts_are_read_sample_for_sample() {
             .unwrap_or_else(|e| panic!("{name}: {e}"));
         assert_eq!(f.layout.channels(), channels, "{name}");
         assert_eq!(f.data.len(), want.len(), "{name}");
-        let bad = f.data.iter().zip(&want).filter(|(a, b)| a != b).count();
-        assert_eq!(bad, 0, "{name}: {bad} samples differ");
+        let bad: Vec<(usize, usize, usize)> = f
+            .data
+            .iter()
+            .zip(&want)
+            .enumerate()
+            .filter(|(_, (a, b))| a != b)
+            .map(|(i, _)| {
+                (
+                    (i / channels) % f.width,
+                    i / channels / f.width,
+                    i % channels,
+                )
+            })
+            .collect();
+        assert!(
+            bad.is_empty(),
+            "{name}: {} samples differ, (x, y, channel) {:?}",
+            bad.len(),
+            &bad[..bad.len().min(12)]
+        );
     }
     // In a batch, with --continue-on-error: every file converted, nothing fails.
     model(d);

@@ -68,11 +68,15 @@ impl SpectralError {
 }
 
 impl TrainingError {
-    /// True for a malformed patch selection or white point.
+    /// True for a malformed patch selection or white point, a white that is missing or that
+    /// contradicts the file's.
     pub fn is_usage(&self) -> bool {
         matches!(
             self,
-            TrainingError::PatchSpec { .. } | TrainingError::White { .. }
+            TrainingError::PatchSpec { .. }
+                | TrainingError::White { .. }
+                | TrainingError::NeedsWhite { .. }
+                | TrainingError::WhiteConflict { .. }
         )
     }
 }

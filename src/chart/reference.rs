@@ -39,7 +39,7 @@ pub const BUILTIN: &[(&str, ChartKind, &str)] = &[
 
 /// XYZ of the D50 white, `Y = 100`.
 pub fn d50_white() -> [f64; 3] {
-    xyy_to_xyz(D50_XY[0], D50_XY[1], 100.0)
+    crate::training::d50_white()
 }
 
 /// Reference colours of every patch of a chart.

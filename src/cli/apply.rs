@@ -30,20 +30,14 @@ pub struct Args {
     /// Model file written by `nsrm fit`.
     #[arg(long, value_name = "FILE")]
     model: PathBuf,
-    /// Where to correct: `gpu`, `cpu`, or `auto` (the GPU when an adapter exists, else the CPU).
-    #[arg(long, value_enum, ignore_case = true, default_value_t = values::Device::Auto)]
-    device: values::Device,
+    #[command(flatten)]
+    device: values::DeviceArg,
     /// GPU adapter: a substring of its name (case-insensitive); default `NSRM_ADAPTER`, else the
     /// system's choice.
     #[arg(long, value_name = "NAME")]
     adapter: Option<String>,
     /// Output directory (created if missing); default: beside each input.
-    #[arg(
-        short = 'o',
-        long = "output-dir",
-        visible_alias = "output",
-        value_name = "DIR"
-    )]
+    #[arg(short = 'o', long = "output", alias = "output-dir", value_name = "DIR")]
     output_dir: Option<PathBuf>,
     /// Appended to each output's name (before a trailing frame number: plate.0101.exr →
     /// plate_xyz.0101.exr). Default: `_` and the output space (`_xyz`, `_acescg`, …).
@@ -135,15 +129,27 @@ impl Corrector {
             adapter: adapter.map(str::to_string),
             tile_pixels: None,
         };
-        let engine = nsrm::gpu::open(device, &opts)
+        let opened = nsrm::gpu::open_device(device, &opts)
             .with_context(|| format!("--device {}", device.name()))?;
-        Ok(match engine {
-            Some(e) => Corrector::Gpu(Box::new(e)),
-            None => {
+        Ok(match opened {
+            nsrm::gpu::Opened::Gpu(e) => {
                 if device == DeviceChoice::Auto {
                     eprintln!(
-                        "nsrm apply: no GPU adapter found; correcting on the CPU \
-                         (for the GPU install a Vulkan driver, e.g. mesa-vulkan-drivers libvulkan1)"
+                        "nsrm apply: --device auto: correcting on the GPU {}",
+                        e.adapter_name()
+                    );
+                }
+                Corrector::Gpu(e)
+            }
+            nsrm::gpu::Opened::Cpu(why) => {
+                if device == DeviceChoice::Auto {
+                    eprintln!(
+                        "nsrm apply: --device auto: correcting on the CPU: {why}{}",
+                        if matches!(why, nsrm::gpu::CpuReason::SoftwareOnly { .. }) {
+                            " (--device gpu uses it anyway)"
+                        } else {
+                            ""
+                        }
                     );
                 }
                 Corrector::Cpu(Box::new(FastModel::new(model)))
@@ -240,7 +246,7 @@ fn parse_request(a: &Args) -> Result<Request> {
     if a.half && format != FileFormat::Exr {
         return Err(UsageError("--half applies to EXR output only".into()).into());
     }
-    let device = DeviceChoice::from(a.device);
+    let device = DeviceChoice::from(a.device.device);
     if a.jobs == Some(0) {
         return Err(UsageError("--jobs must be at least 1".into()).into());
     }

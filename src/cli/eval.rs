@@ -23,9 +23,14 @@ pub struct Args {
         conflicts_with = "training"
     )]
     illuminants: Vec<String>,
-    /// Models to evaluate, comma-separated.
-    #[arg(long, default_value = "lrm,prm,rprm,nsrm", value_name = "LIST")]
-    models: String,
+    /// Model kinds to evaluate, comma-separated (`--models` is the old spelling).
+    #[arg(
+        long,
+        alias = "models",
+        default_value = "lrm,prm,rprm,nsrm",
+        value_name = "LIST"
+    )]
+    kinds: String,
     /// Polynomial order, 1..4 (LRM is always linear).
     #[arg(long, default_value_t = 3, conflicts_with = "orders")]
     order: u8,
@@ -95,7 +100,7 @@ fn describe(name: &str, opts: &FitOptions, r: EvalResult) -> VariantResult {
 }
 
 pub fn run(a: Args) -> Result<ExitCode> {
-    let kinds = parse_models(&a.models)?;
+    let kinds = parse_models(&a.kinds)?;
     let orders = match &a.orders {
         Some(s) => parse_orders(s, "--orders")?,
         None => parse_orders(&a.order.to_string(), "--order")?,
@@ -113,11 +118,18 @@ pub fn run(a: Args) -> Result<ExitCode> {
     let outputs: Vec<&Path> = a.plot.iter().map(PathBuf::as_path).collect();
     let session = super::outputs::open(a.overwrite, &inputs, &outputs)?;
     let captured = super::capture::for_model(a.capture.as_deref(), &a.chart)?;
+    if let Some(c) = &captured {
+        if let Some(w) = c.other_chart_warning() {
+            eprintln!("{w}");
+        }
+        eprintln!("{}", c.summary());
+    }
     let illuminants: Vec<String> = if captured.is_some() {
         vec!["capture".to_string()]
     } else if a.training.training.is_some() {
         vec![a
             .training
+            .white
             .white
             .clone()
             .unwrap_or_else(|| "measured".to_string())]
@@ -219,8 +231,9 @@ pub fn run(a: Args) -> Result<ExitCode> {
             .filter(|r| r.variant == "ls" || r.variant == "custom")
             .map(|r| r.result.clone())
             .collect();
+        let title = format!("ΔE00 per patch: {}", plot_title(&a, protocol));
         let mut unit = session.unit();
-        plot::histograms(&plain, p, &mut unit)
+        plot::histograms(&plain, Some(&title), p, &mut unit)
             .with_context(|| format!("writing the plot {}", p.display()))?;
         unit.commit()?;
         if !a.json {
@@ -228,6 +241,41 @@ pub fn run(a: Args) -> Result<ExitCode> {
         }
     }
     Ok(ExitCode::SUCCESS)
+}
+
+/// Data set, camera and method in a few words (the plot's title).
+fn plot_title(a: &Args, protocol: Protocol) -> String {
+    let name = |p: &std::path::Path| {
+        p.file_name()
+            .map(|n| n.to_string_lossy().into_owned())
+            .unwrap_or_else(|| p.display().to_string())
+    };
+    let source = match (&a.capture, &a.training.training) {
+        (Some(p), _) => format!("chart in {}", name(p)),
+        (_, Some(p)) => format!("measured {}", name(p)),
+        _ => format!(
+            "{} under the camera {}",
+            name(std::path::Path::new(&a.training.reflectances)),
+            name(std::path::Path::new(&a.training.camera))
+        ),
+    };
+    let patches = if a.training.patches == "all" {
+        String::new()
+    } else {
+        format!(" (patches {})", a.training.patches)
+    };
+    format!(
+        "{source}{patches}; {}, {}",
+        proto_name(protocol),
+        a.fit.method_name()
+    )
+}
+
+fn proto_name(protocol: Protocol) -> &'static str {
+    match protocol {
+        Protocol::LeaveOneOut => "leave-one-out",
+        Protocol::InSample => "in-sample",
+    }
 }
 
 fn header(a: &Args, protocol: Protocol, n: usize) {
@@ -239,10 +287,7 @@ fn header(a: &Args, protocol: Protocol, n: usize) {
             a.training.camera, a.training.reflectances, a.training.grid
         ),
     };
-    let proto = match protocol {
-        Protocol::LeaveOneOut => "leave-one-out",
-        Protocol::InSample => "in-sample",
-    };
+    let proto = proto_name(protocol);
     println!(
         "CIEDE2000, {proto}, {n} patches ({}); {source}",
         a.training.patches

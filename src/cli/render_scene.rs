@@ -18,23 +18,28 @@ pub struct Args {
     /// ../shared/data/colorchecker_sg_140.csv); default for cc24: the built-in cc24.
     #[arg(long, value_name = "FILE")]
     reflectances: Option<String>,
+    /// Camera sensitivities: a built-in name (nikon-d5100) or a CSV file (wavelength, R, G, B).
     #[arg(long, default_value = "nikon-d5100", value_name = "NAME|FILE")]
     camera: String,
+    /// Illuminant the chart is lit by: a built-in name or a CSV file.
     #[arg(long, default_value = "D65", value_name = "NAME|FILE")]
     illuminant: String,
-    #[arg(long, default_value_t = 1200)]
+    /// Frame width in pixels.
+    #[arg(long, default_value_t = 1200, value_name = "PX")]
     width: usize,
-    #[arg(long, default_value_t = 800)]
+    /// Frame height in pixels.
+    #[arg(long, default_value_t = 800, value_name = "PX")]
     height: usize,
     /// Place the patch grid at these corners ("X,Y X,Y X,Y X,Y", first patch first, clockwise);
     /// default: a random pose from --seed.
-    #[arg(long, allow_hyphen_values = true)]
+    #[arg(long, allow_hyphen_values = true, value_name = "\"X,Y X,Y X,Y X,Y\"")]
     corners: Option<String>,
     /// A random scene inside the detection envelope (exposure, light, blur and noise drawn from
     /// --seed too; the options below are then ignored).
     #[arg(long)]
     envelope: bool,
-    #[arg(long, default_value_t = 1)]
+    /// Seed of the random pose, clutter and noise (and, with --envelope, of everything).
+    #[arg(long, default_value_t = 1, value_name = "N")]
     seed: u64,
     /// Multiplies camera RGB (the evenly lit perfect white has G = exposure).
     #[arg(long, default_value_t = 0.8)]
@@ -57,25 +62,31 @@ pub struct Args {
     /// Linear light gradient across the frame (0..1).
     #[arg(long, default_value_t = 0.0)]
     gradient: f64,
-    /// Background shapes.
-    #[arg(long, default_value_t = 20)]
+    /// Background shapes (the envelope's 25).
+    #[arg(long, default_value_t = 25, value_name = "N")]
     clutter: usize,
     /// Hide a corner of the chart behind an object.
     #[arg(long)]
     occlusion: bool,
-    /// Random pose: chart area fraction range and largest tilt.
-    #[arg(long, default_value_t = 0.1)]
+    /// Random pose: smallest chart area, a fraction of the frame (the envelope's 0.05).
+    #[arg(long, default_value_t = 0.05, value_name = "F")]
     min_area: f64,
-    #[arg(long, default_value_t = 0.4)]
+    /// Random pose: largest chart area, a fraction of the frame (the envelope's 0.4).
+    #[arg(long, default_value_t = 0.4, value_name = "F")]
     max_area: f64,
-    #[arg(long, default_value_t = 30.0)]
+    /// Random pose: largest tilt in degrees (the envelope's 30).
+    #[arg(long, default_value_t = 30.0, value_name = "DEG")]
     max_tilt: f64,
+    /// Random pose: smallest tilt in degrees; the tilt is drawn from MIN..MAX.
+    #[arg(long, default_value_t = 0.0, value_name = "DEG")]
+    min_tilt: f64,
     /// Also write a flat frame (a grey card under the same light) here.
     #[arg(long, value_name = "FILE")]
     flat_output: Option<PathBuf>,
     /// The frame: .exr or .tif/.tiff. The truth goes to NAME.scene.json beside it.
     #[arg(short, long, value_name = "FILE")]
     output: PathBuf,
+    /// Replace existing output files.
     #[arg(long)]
     overwrite: bool,
 }
@@ -126,6 +137,7 @@ pub fn run(a: Args) -> Result<ExitCode> {
             min_area: a.min_area,
             max_area: a.max_area,
             max_tilt_deg: a.max_tilt,
+            min_tilt_deg: a.min_tilt,
             ..Default::default()
         }
     };

@@ -30,10 +30,7 @@ fn tool(name: &str) -> Option<PathBuf> {
     if found.is_none() {
         let msg =
             format!("`{name}` (OpenColorIO) is not installed: apt-get install opencolorio-tools");
-        if std::env::var("CI").as_deref() == Ok("true") {
-            panic!("{msg} (required under CI=true)");
-        }
-        println!("SKIP: {msg}");
+        crate::common::skip(&msg);
     }
     found
 }

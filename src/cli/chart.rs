@@ -324,7 +324,14 @@ fn check_rate_ranges(a: &RateArgs) -> Result<()> {
             0.0,
             30.0,
         ),
-        ("--min-stops", a.min_stops, "--max-stops", a.max_stops, 0.0, 4.0),
+        (
+            "--min-stops",
+            a.min_stops,
+            "--max-stops",
+            a.max_stops,
+            0.0,
+            4.0,
+        ),
         ("--min-blur", a.min_blur, "--max-blur", a.max_blur, 0.0, 1.2),
     ];
     for (lo_flag, lo, hi_flag, hi, lo_default, hi_default) in pairs {

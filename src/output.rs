@@ -123,6 +123,11 @@ impl WriteError {
 struct Shared {
     abort: Arc<AtomicBool>,
     temps: Mutex<BTreeSet<PathBuf>>,
+    /// Directories the session created for its outputs, outermost first; removed again (when
+    /// still empty) if the run ends having committed nothing.
+    made_dirs: Mutex<Vec<PathBuf>>,
+    /// Whether any unit was committed.
+    committed: AtomicBool,
 }
 
 impl Shared {
@@ -132,6 +137,18 @@ impl Shared {
 
     fn aborted(&self) -> bool {
         self.abort.load(Ordering::SeqCst)
+    }
+
+    /// Removes the directories this session made, innermost first, if nothing was committed
+    /// (a directory something else was put in stays: `remove_dir` only removes empty ones).
+    fn unmake_dirs(&self) {
+        if self.committed.load(Ordering::SeqCst) {
+            return;
+        }
+        let mut dirs = self.made_dirs.lock().unwrap_or_else(|e| e.into_inner());
+        for d in std::mem::take(&mut *dirs).iter().rev() {
+            let _ = std::fs::remove_dir(d);
+        }
     }
 }
 
@@ -155,7 +172,9 @@ impl AbortHandle {
     pub fn abort(&self) -> usize {
         let mut temps = self.shared.temps();
         self.shared.abort.store(true, Ordering::SeqCst);
-        remove_all(&mut temps)
+        let n = remove_all(&mut temps);
+        self.shared.unmake_dirs();
+        n
     }
 
     /// Whether the session was aborted.
@@ -221,6 +240,8 @@ impl Session {
             shared: Arc::new(Shared {
                 abort: Arc::new(AtomicBool::new(false)),
                 temps: Mutex::new(BTreeSet::new()),
+                made_dirs: Mutex::new(Vec::new()),
+                committed: AtomicBool::new(false),
             }),
             inputs: Vec::new(),
             outputs: Vec::new(),
@@ -262,7 +283,8 @@ impl Session {
         Ok(())
     }
 
-    /// Records an output of the run, before any work: creates its parent directories, resolves
+    /// Records an output of the run, before any work: creates its parent directories (removed
+    /// again if the session ends, or is aborted, having committed nothing), resolves
     /// it (following `..` and symbolic links) and fails if it is an input, another output, an
     /// existing file the session may not replace, or not a regular file.
     pub fn output(&mut self, path: &Path) -> Result<(), WriteError> {
@@ -278,7 +300,7 @@ impl Session {
             path: path.to_path_buf(),
             err,
         };
-        std::fs::create_dir_all(parent).map_err(io)?;
+        self.make_dirs(parent).map_err(io)?;
         let dir = std::fs::canonicalize(parent).map_err(io)?;
         // A symbolic link at the name is compared as the file it points to.
         let resolved = std::fs::canonicalize(path).unwrap_or_else(|_| dir.join(name));
@@ -301,6 +323,27 @@ impl Session {
         }
         self.check_clobber(path)?;
         self.outputs.push(known);
+        Ok(())
+    }
+
+    /// Creates `dir` and its missing parents, remembering those it made (see [`Drop`]).
+    fn make_dirs(&self, dir: &Path) -> std::io::Result<()> {
+        let mut missing = Vec::new();
+        let mut d = Some(dir);
+        while let Some(p) = d.filter(|p| !p.as_os_str().is_empty()) {
+            if std::fs::symlink_metadata(p).is_ok() {
+                break;
+            }
+            missing.push(p.to_path_buf());
+            d = p.parent();
+        }
+        std::fs::create_dir_all(dir)?;
+        let mut made = self
+            .shared
+            .made_dirs
+            .lock()
+            .unwrap_or_else(|e| e.into_inner());
+        made.extend(missing.into_iter().rev());
         Ok(())
     }
 
@@ -334,6 +377,13 @@ impl Session {
     /// How many temporaries this session holds now.
     pub fn temporaries_held(&self) -> usize {
         self.shared.temps().len()
+    }
+}
+
+/// A run that ends having committed nothing (refused, failed) leaves no directory it made.
+impl Drop for Session {
+    fn drop(&mut self) {
+        self.shared.unmake_dirs();
     }
 }
 
@@ -661,6 +711,9 @@ impl Unit {
                 temps.remove(&b);
             }
         }
+        if !staged.is_empty() {
+            shared.committed.store(true, Ordering::SeqCst);
+        }
         Ok(())
     }
 }
@@ -857,6 +910,13 @@ mod tests {
         }
         s.output(&d.join("new/deep/o.csv")).unwrap();
         assert!(d.join("new/deep").is_dir());
+        {
+            // A session that commits nothing takes back the directories it made.
+            let mut t = Session::new(false);
+            t.output(&d.join("gone/too/x")).unwrap();
+            assert!(d.join("gone/too").is_dir());
+        }
+        assert!(!d.join("gone").exists());
         let e = s.output(&d.join("new/./deep/../deep/o.csv")).unwrap_err();
         assert!(matches!(e, WriteError::SameOutput { .. }), "{e}");
         assert!(matches!(

@@ -197,8 +197,8 @@ impl SceneOptions {
         let within = |v: f64| pos(v) && (lo..=hi).contains(&v);
         if !(within(self.exposure) && within(self.white_level)) {
             return Err(ChartError::Options(format!(
-                "exposure {} and white level {} must be within {lo:e}..{hi:e} (so that the pixels \
-                 stay finite, non-zero 32-bit floats)",
+                "exposure {:e} and white level {:e} must be within {lo:e}..{hi:e} (so that the \
+                 pixels stay finite, non-zero 32-bit floats)",
                 self.exposure, self.white_level
             )));
         }
@@ -210,8 +210,8 @@ impl SceneOptions {
             && self.blur <= 20.0)
         {
             return Err(ChartError::Options(format!(
-                "noise {} and shot noise {} must be within 0..{max_noise:e} and blur {} within \
-                 0..20 px",
+                "noise {:e} and shot noise {:e} must be within 0..{max_noise:e} and blur {} \
+                 within 0..20 px",
                 self.noise, self.shot_noise, self.blur
             )));
         }

@@ -72,6 +72,21 @@ enum Command {
 
 /// Parses the command line, runs the subcommand, and maps errors to exit codes.
 pub fn main() -> ExitCode {
+    // A decoder's panic is contained per file by the library (reported as that file's error);
+    // this hook keeps its message to one line. An uncontained panic still exits 101.
+    std::panic::set_hook(Box::new(|info| {
+        let what = info
+            .payload()
+            .downcast_ref::<&str>()
+            .map(|s| s.to_string())
+            .or_else(|| info.payload().downcast_ref::<String>().cloned())
+            .unwrap_or_default();
+        let at = info
+            .location()
+            .map(|l| format!(" at {}:{}", l.file(), l.line()))
+            .unwrap_or_default();
+        eprintln!("nsrm: internal error{at}: {what}");
+    }));
     let cli = match Cli::try_parse() {
         Ok(c) => c,
         Err(e) => {

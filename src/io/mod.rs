@@ -451,7 +451,29 @@ impl Decoded {
         Decoded::read_from(path, opts, Some(pool))
     }
 
+    /// Decodes `path`; a panic inside a decoder crate (an assertion it trips on a layout it
+    /// mishandles) is contained here and reported as this file's error, so it never ends the
+    /// process or a batch.
     fn read_from(
+        path: &Path,
+        opts: &ReadOptions,
+        pool: Option<&FramePool>,
+    ) -> Result<Decoded, IoError> {
+        let run = std::panic::AssertUnwindSafe(|| Decoded::decode(path, opts, pool));
+        std::panic::catch_unwind(run).unwrap_or_else(|payload| {
+            let what = payload
+                .downcast_ref::<&str>()
+                .map(|s| s.to_string())
+                .or_else(|| payload.downcast_ref::<String>().cloned())
+                .unwrap_or_else(|| "no message".into());
+            Err(IoError::Unsupported {
+                path: path.to_path_buf(),
+                why: format!("the decoder failed on this file's layout ({what})"),
+            })
+        })
+    }
+
+    fn decode(
         path: &Path,
         opts: &ReadOptions,
         pool: Option<&FramePool>,

@@ -28,6 +28,8 @@ mod fit_variants;
 mod gpu;
 #[cfg(feature = "cli")]
 mod gpu_export;
+#[cfg(feature = "cli")]
+mod harden_commands;
 #[cfg(feature = "io")]
 mod harden_fuzz;
 #[cfg(feature = "cli")]

@@ -10,6 +10,7 @@ use nsrm::chart::extract::{extract, verify, ExtractOptions, Extraction};
 use nsrm::chart::flat::{self, Flat};
 use nsrm::chart::reference::Reference;
 use nsrm::chart::{homography_from_corners, overlay, parse_corners, ChartKind};
+use nsrm::output::{Session, Unit};
 use nsrm::training::{CaptureProvenance, TrainingSet};
 use nsrm::Frame;
 use sha2::{Digest, Sha256};
@@ -100,9 +101,23 @@ impl CaptureOptions {
         Reference::load(&spec, kind, white).context("--reference")
     }
 
+    /// The files these options read (a reference file, a flat frame), for the run's session.
+    pub fn input_files(&self) -> Vec<&Path> {
+        let mut v = Vec::new();
+        if let Some(r) = self.reference.as_deref().and_then(super::outputs::file_arg) {
+            v.push(r);
+        }
+        if let Some(f) = self.flat.as_deref() {
+            if !f.eq_ignore_ascii_case("neutrals") {
+                v.push(Path::new(f));
+            }
+        }
+        v
+    }
+
     /// Reads the chart in `path`. On failure with `failure_overlay`, the frame and the rejected
-    /// detection candidates are drawn there.
-    pub fn read(&self, path: &Path, failure_overlay: Option<(&Path, bool)>) -> Result<Capture> {
+    /// detection candidates are drawn there (committed on its own in `session`).
+    pub fn read(&self, path: &Path, failure_overlay: Option<(&Path, &Session)>) -> Result<Capture> {
         let reference = self.reference()?;
         let kind = reference.chart;
         let corners = self.corners.as_deref().map(parse_corners).transpose()?;
@@ -130,8 +145,10 @@ impl CaptureOptions {
             None => match detect(&frame, &reference, &DetectOptions::default()) {
                 Ok(d) => (d.homography, Some(d)),
                 Err(f) => {
-                    if let Some((p, overwrite)) = failure_overlay {
-                        write_overlay(&frame, None, &f.candidates, None, p, overwrite)?;
+                    if let Some((p, session)) = failure_overlay {
+                        let mut unit = session.unit();
+                        write_overlay(&frame, None, &f.candidates, None, p, &mut unit)?;
+                        unit.commit()?;
                         eprintln!(
                             "overlay with the {} rejected candidate regions written to {}",
                             f.candidates.len(),
@@ -332,18 +349,18 @@ impl Capture {
     }
 }
 
-/// Writes an overlay PNG (atomically).
+/// Stages an overlay PNG in `unit`.
 pub fn write_overlay(
     frame: &Frame,
     reading: Option<&Extraction>,
     candidates: &[Candidate],
     swatches: Option<(&[overlay::Swatch], [f64; 3])>,
     dest: &Path,
-    overwrite: bool,
+    unit: &mut Unit,
 ) -> Result<()> {
     let img = overlay::render(frame, reading, candidates, swatches);
     let png = overlay::encode(&img)?;
-    nsrm::atomic::write_atomic(dest, &png, overwrite)
+    unit.write_bytes(dest, &png)
         .with_context(|| format!("writing the overlay {}", dest.display()))?;
     Ok(())
 }

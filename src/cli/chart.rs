@@ -10,7 +10,7 @@ use nsrm::chart::extract::{extract, ExtractOptions};
 use nsrm::chart::reference::Reference;
 use nsrm::chart::scene::{render, ChartColours, SceneOptions};
 use nsrm::chart::ChartKind;
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 use std::time::Instant;
 
@@ -113,32 +113,35 @@ pub fn run(c: Command) -> Result<ExitCode> {
 
 fn run_extract(a: ExtractArgs) -> Result<ExitCode> {
     a.capture.kind()?;
-    for p in std::iter::once(&a.output).chain(&a.json).chain(&a.overlay) {
-        nsrm::atomic::check_clobber(p, a.overwrite)?;
-    }
     if let Some(o) = &a.overlay {
         if !o.extension().is_some_and(|e| e.eq_ignore_ascii_case("png")) {
             return Err(UsageError(format!("--overlay {}: must be a .png", o.display())).into());
         }
     }
+    let mut inputs = vec![a.frame.as_path()];
+    inputs.extend(a.capture.input_files());
+    let outputs: Vec<&Path> = std::iter::once(&a.output)
+        .chain(&a.json)
+        .chain(&a.overlay)
+        .map(PathBuf::as_path)
+        .collect();
+    let session = super::outputs::open(a.overwrite, &inputs, &outputs)?;
     let cap = a
         .capture
-        .read(&a.frame, a.overlay.as_deref().map(|p| (p, a.overwrite)))?;
-    // Everything is computed; now write.
-    nsrm::atomic::write_atomic(
-        &a.output,
-        cap.extraction.to_csv(&cap.reference).as_bytes(),
-        a.overwrite,
-    )
-    .with_context(|| format!("writing {}", a.output.display()))?;
+        .read(&a.frame, a.overlay.as_deref().map(|p| (p, &session)))?;
+    // Everything is computed; now write, all together.
+    let mut unit = session.unit();
+    unit.write_bytes(&a.output, cap.extraction.to_csv(&cap.reference).as_bytes())
+        .with_context(|| format!("writing {}", a.output.display()))?;
     if let Some(j) = &a.json {
         let text = serde_json::to_string_pretty(&cap.report())?;
-        nsrm::atomic::write_atomic(j, text.as_bytes(), a.overwrite)
+        unit.write_bytes(j, text.as_bytes())
             .with_context(|| format!("writing {}", j.display()))?;
     }
     if let Some(o) = &a.overlay {
-        write_overlay(&cap.frame, Some(&cap.extraction), &[], None, o, a.overwrite)?;
+        write_overlay(&cap.frame, Some(&cap.extraction), &[], None, o, &mut unit)?;
     }
+    unit.commit()?;
     if let Some(w) = cap.other_chart_warning() {
         eprintln!("{w}");
     }
@@ -155,6 +158,16 @@ fn run_rate(a: RateArgs) -> Result<ExitCode> {
     if a.scenes == 0 || a.scenes > 100_000 {
         return Err(UsageError("--scenes must be 1..100000".into()).into());
     }
+    if a.seed.checked_add(a.scenes - 1).is_none() {
+        return Err(UsageError(format!(
+            "--seed {} + --scenes {}: the last seed would pass {} (the largest seed)",
+            a.seed,
+            a.scenes,
+            u64::MAX
+        ))
+        .into());
+    }
+    check_rate_ranges(&a)?;
     let colours =
         ChartColours::simulate(kind, &a.camera, &a.illuminant, a.reflectances.as_deref())?;
     let reference = Reference::load(kind.default_reference(), kind, None)?;
@@ -268,6 +281,74 @@ fn run_rate(a: RateArgs) -> Result<ExitCode> {
     } else {
         ExitCode::from(1)
     })
+}
+
+/// The scene ranges of `chart rate`: each a finite number ≥ 0 (areas in (0, 0.9], tilts up to
+/// 60°, blur up to 20 px), and each MIN at most its MAX — never clamped silently.
+fn check_rate_ranges(a: &RateArgs) -> Result<()> {
+    let limits: [(&str, Option<f64>, f64); 8] = [
+        ("--min-area", a.min_area, 0.9),
+        ("--max-area", a.max_area, 0.9),
+        ("--min-tilt", a.min_tilt, 60.0),
+        ("--max-tilt", a.max_tilt, 60.0),
+        ("--min-stops", a.min_stops, 100.0),
+        ("--max-stops", a.max_stops, 100.0),
+        ("--min-blur", a.min_blur, 20.0),
+        ("--max-blur", a.max_blur, 20.0),
+    ];
+    for (flag, v, hi) in limits {
+        if let Some(v) = v {
+            if !(v.is_finite() && (0.0..=hi).contains(&v)) {
+                return Err(UsageError(format!("{flag} {v}: must be a number in 0..{hi}")).into());
+            }
+        }
+    }
+    if a.min_area == Some(0.0) {
+        return Err(UsageError("--min-area 0: a chart needs some area".into()).into());
+    }
+    // The defaults are the envelope's (SceneOptions::envelope).
+    let pairs = [
+        (
+            "--min-area",
+            a.min_area,
+            "--max-area",
+            a.max_area,
+            0.05,
+            0.4,
+        ),
+        (
+            "--min-tilt",
+            a.min_tilt,
+            "--max-tilt",
+            a.max_tilt,
+            0.0,
+            30.0,
+        ),
+        (
+            "--min-stops",
+            a.min_stops,
+            "--max-stops",
+            a.max_stops,
+            0.0,
+            4.0,
+        ),
+        ("--min-blur", a.min_blur, "--max-blur", a.max_blur, 0.0, 1.2),
+    ];
+    for (lo_flag, lo, hi_flag, hi, lo_default, hi_default) in pairs {
+        let (l, h) = (lo.unwrap_or(lo_default), hi.unwrap_or(hi_default));
+        if l > h {
+            return Err(UsageError(format!(
+                "{lo_flag} {l} is above {hi_flag} {h}{}",
+                if hi.is_none() || lo.is_none() {
+                    " (its default)"
+                } else {
+                    ""
+                }
+            ))
+            .into());
+        }
+    }
+    Ok(())
 }
 
 /// The patch pitch in frame pixels near the chart's centre.

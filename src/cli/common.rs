@@ -62,6 +62,18 @@ impl WhiteArg {
 }
 
 impl TrainingArgs {
+    /// The files these options read (for `illuminant`), for the run's output session: the
+    /// measured CSV, or the spectra given as files (built-in names are no files).
+    pub fn input_files<'a>(&'a self, illuminant: &'a str) -> Vec<&'a std::path::Path> {
+        match &self.training {
+            Some(p) => vec![p.as_path()],
+            None => [self.camera.as_str(), self.reflectances.as_str(), illuminant]
+                .into_iter()
+                .filter_map(super::outputs::file_arg)
+                .collect(),
+        }
+    }
+
     /// Builds the training set for `illuminant` (ignored with `--training`).
     pub fn load(&self, illuminant: &str) -> Result<TrainingSet> {
         let data = match &self.training {

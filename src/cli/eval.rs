@@ -8,7 +8,7 @@ use nsrm::model::fit::{FitOptions, Normalise, Ridge, White};
 use nsrm::model::Kind;
 use nsrm::spectral::display_name;
 use serde::Serialize;
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 
 #[derive(Debug, clap::Args)]
@@ -59,7 +59,9 @@ pub struct Args {
     fit: FitVariantArgs,
     /// Compare the fit variants: every model × {ls, de00, de00+preserve-white, ridge-auto, and
     /// for NSRM white-balanced}, with mean / median / p95 / max ΔE00 (one table; `--json` too).
-    #[arg(long, conflicts_with_all = ["objective", "preserve_white", "white_patch", "ridge", "normalise"])]
+    /// Measured data and captures have no perfect white: name a neutral patch with
+    /// `--white-patch` for the variants that use a white.
+    #[arg(long, conflicts_with_all = ["objective", "preserve_white", "ridge", "normalise"])]
     variants: bool,
 }
 
@@ -106,6 +108,15 @@ pub fn run(a: Args) -> Result<ExitCode> {
     if let Some(p) = &a.plot {
         plot::Format::from_path(p)?;
     }
+    let mut inputs: Vec<&Path> = Vec::new();
+    inputs.extend(a.capture.as_deref());
+    inputs.extend(a.chart.input_files());
+    for ill in &a.illuminants {
+        inputs.extend(a.training.input_files(ill));
+    }
+    inputs.extend(a.training.input_files("D65"));
+    let outputs: Vec<&Path> = a.plot.iter().map(PathBuf::as_path).collect();
+    let session = super::outputs::open(a.overwrite, &inputs, &outputs)?;
     let captured = super::capture::for_model(a.capture.as_deref(), &a.chart)?;
     if let Some(c) = &captured {
         if let Some(w) = c.other_chart_warning() {
@@ -132,7 +143,12 @@ pub fn run(a: Args) -> Result<ExitCode> {
     } else {
         Protocol::LeaveOneOut
     };
-    let custom = a.fit.options()?;
+    // With --variants, --white-patch names the white of the variants that use one.
+    let custom = if a.variants {
+        FitOptions::default()
+    } else {
+        a.fit.options()?
+    };
     let custom_name = if a.fit.is_default() { "ls" } else { "custom" };
     let mut results: Vec<VariantResult> = Vec::new();
     let mut n_patches = 0;
@@ -158,7 +174,13 @@ pub fn run(a: Args) -> Result<ExitCode> {
                 let list: Vec<(String, FitOptions)> = if a.variants {
                     variants(kind)
                         .into_iter()
-                        .map(|v| (v.name.to_string(), v.opts))
+                        .map(|v| {
+                            let mut opts = v.opts;
+                            if let Some(l) = &a.fit.white_patch {
+                                opts.white = White::Patch(l.clone());
+                            }
+                            (v.name.to_string(), opts)
+                        })
                         .collect()
                 } else {
                     let mut o = custom.clone();
@@ -171,7 +193,14 @@ pub fn run(a: Args) -> Result<ExitCode> {
                 for (name, opts) in list {
                     let r = evaluate_with(kind, order, &data, protocol, &ill_name, &opts)
                         .with_context(|| {
-                            format!("evaluating {kind} order {eff} ({name}) under {ill_name}")
+                            let source = match (&a.capture, &a.training.training) {
+                                (Some(f), _) => format!(" on the chart read from {}", f.display()),
+                                (None, Some(t)) => format!(" on the patches of {}", t.display()),
+                                (None, None) => String::new(),
+                            };
+                            format!(
+                                "evaluating {kind} order {eff} ({name}) under {ill_name}{source}"
+                            )
                         })?;
                     results.push(describe(&name, &opts, r));
                 }
@@ -203,8 +232,10 @@ pub fn run(a: Args) -> Result<ExitCode> {
             .map(|r| r.result.clone())
             .collect();
         let title = format!("ΔE00 per patch: {}", plot_title(&a, protocol));
-        plot::histograms(&plain, Some(&title), p, a.overwrite)
+        let mut unit = session.unit();
+        plot::histograms(&plain, Some(&title), p, &mut unit)
             .with_context(|| format!("writing the plot {}", p.display()))?;
+        unit.commit()?;
         if !a.json {
             println!("\nplot written to {}", p.display());
         }

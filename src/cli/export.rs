@@ -121,33 +121,18 @@ pub fn run(a: Args) -> Result<ExitCode> {
             );
         }
     }
-    nsrm::atomic::check_clobber(&a.output, a.overwrite)?;
+    let companion = nsrm::export::companion_path(format, &a.output)?;
+    let mut inputs = vec![a.model.as_path()];
+    inputs.extend(a.training.as_deref());
+    let mut outputs = vec![a.output.as_path()];
+    outputs.extend(companion.as_deref());
+    let session = super::outputs::open(a.overwrite, &inputs, &outputs)?;
     let model = Model::load(&a.model)?;
     let data = training_set(&a, &model)?;
-    // A missing output directory is created, as `apply -o` does (and removed again, if still
-    // empty, when the export fails).
-    let created = match a.output.parent().filter(|d| !d.as_os_str().is_empty()) {
-        Some(d) if !d.exists() => {
-            std::fs::create_dir_all(d)
-                .with_context(|| format!("creating the output directory {}", d.display()))?;
-            Some(d.to_path_buf())
-        }
-        _ => None,
-    };
-    let result = export_to(
-        &model,
-        format,
-        space,
-        options,
-        &data.rgb,
-        a.max_de00,
-        &a.output,
-        a.overwrite,
-    );
-    if let (Err(_), Some(d)) = (&result, &created) {
-        let _ = std::fs::remove_dir(d);
-    }
-    let written = match result {
+    let mut unit = session.unit();
+    let written = match export_to(
+        &model, format, space, options, &data.rgb, a.max_de00, &a.output, &mut unit,
+    ) {
         Ok(w) => w,
         Err(e @ ExportError::TooInaccurate { limit, .. }) => {
             return Err(e).context(format!("--max-de00 {limit}"))
@@ -157,6 +142,7 @@ pub fn run(a: Args) -> Result<ExitCode> {
                 .with_context(|| format!("exporting {} as {}", a.model.display(), format.name()))
         }
     };
+    unit.commit()?;
     let what = if written.exact {
         "exact Matrix".to_string()
     } else {

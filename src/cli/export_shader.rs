@@ -50,7 +50,7 @@ fn scale_note(space: OutputSpace) -> String {
 /// `--lang dctl`: the exact model as a Resolve DCTL.
 fn run_dctl(a: &Args) -> Result<ExitCode> {
     let space = output_space(a);
-    nsrm::atomic::check_clobber(&a.output, a.overwrite)?;
+    let session = super::outputs::open(a.overwrite, &[&a.model], &[&a.output])?;
     let model = Model::load(&a.model)?;
     let folded = nsrm::colorimetry::output_model(&model, space)?;
     let header = vec![
@@ -65,7 +65,7 @@ fn run_dctl(a: &Args) -> Result<ExitCode> {
     ];
     let text = nsrm::export::dctl::generate(&folded, &header)
         .with_context(|| format!("exporting {} as DCTL", a.model.display()))?;
-    nsrm::atomic::write_atomic(&a.output, text.as_bytes(), a.overwrite)?;
+    session.write_bytes(&a.output, text.as_bytes())?;
     eprintln!(
         "{} order {} ({} terms) as DCTL ({}): {} bytes written to {}",
         model.kind(),
@@ -84,7 +84,7 @@ pub fn run(a: Args) -> Result<ExitCode> {
     };
     let layout = Layout::from(a.layout.layout);
     let space = output_space(&a);
-    nsrm::atomic::check_clobber(&a.output, a.overwrite)?;
+    let session = super::outputs::open(a.overwrite, &[&a.model], &[&a.output])?;
     let model = Model::load(&a.model)?;
     let model = nsrm::colorimetry::output_model(&model, space)?;
     let bytes = export(&model, layout, lang).with_context(|| {
@@ -95,7 +95,7 @@ pub fn run(a: Args) -> Result<ExitCode> {
             lang.name()
         )
     })?;
-    nsrm::atomic::write_atomic(&a.output, &bytes, a.overwrite)?;
+    session.write_bytes(&a.output, &bytes)?;
     eprintln!(
         "{} order {} ({} terms, {} pixels) as {} ({}): {} bytes written to {} \
          (entry point `main`, workgroup 256, pixels at group 0 binding 1)",

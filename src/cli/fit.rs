@@ -8,7 +8,7 @@ use nsrm::colorimetry::delta_e00_xyz;
 use nsrm::model::fit::{fit_with, Normalise};
 use nsrm::model::Kind;
 use rayon::prelude::*;
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 
 #[derive(Debug, clap::Args)]
@@ -68,10 +68,15 @@ pub fn run(a: Args) -> Result<ExitCode> {
         ))
         .into());
     }
-    nsrm::atomic::check_clobber(&a.output, a.overwrite)?;
-    if let Some(o) = &a.overlay {
-        nsrm::atomic::check_clobber(o, a.overwrite)?;
-    }
+    let mut inputs: Vec<&Path> = Vec::new();
+    inputs.extend(a.capture.as_deref());
+    inputs.extend(a.chart.input_files());
+    inputs.extend(a.training.input_files(&a.illuminant));
+    let outputs: Vec<&Path> = std::iter::once(&a.output)
+        .chain(&a.overlay)
+        .map(PathBuf::as_path)
+        .collect();
+    let session = super::outputs::open(a.overwrite, &inputs, &outputs)?;
     let captured = super::capture::for_model(a.capture.as_deref(), &a.chart)?;
     if let Some(c) = &captured {
         if let Some(w) = c.other_chart_warning() {
@@ -83,11 +88,22 @@ pub fn run(a: Args) -> Result<ExitCode> {
         Some(c) => c.training_set().select(&a.training.patches)?,
         None => a.training.load(&a.illuminant)?,
     };
-    let fitted = fit_with(kind, a.order, &data, &opts)
-        .with_context(|| format!("fitting {kind} order {} on {} patches", a.order, data.len()))?;
+    let source = match (&a.capture, &a.training.training) {
+        (Some(f), _) => format!(" read from {}", f.display()),
+        (None, Some(t)) => format!(" of {}", t.display()),
+        (None, None) => " simulated from spectra".to_string(),
+    };
+    let fitted = fit_with(kind, a.order, &data, &opts).with_context(|| {
+        format!(
+            "fitting {kind} order {} on {} patches{source}",
+            a.order,
+            data.len()
+        )
+    })?;
     let model = &fitted.model;
     let report = &fitted.report;
-    nsrm::atomic::write_atomic(&a.output, model.to_json().as_bytes(), a.overwrite)?;
+    let mut unit = session.unit();
+    unit.write_bytes(&a.output, model.to_json().as_bytes())?;
     if let (Some(c), Some(o)) = (&captured, &a.overlay) {
         let sw = super::capture::swatches(c, model);
         super::capture::write_overlay(
@@ -96,9 +112,10 @@ pub fn run(a: Args) -> Result<ExitCode> {
             &[],
             Some((&sw, c.reference.white)),
             o,
-            a.overwrite,
+            &mut unit,
         )?;
     }
+    unit.commit()?;
     // In parallel: a measured set can hold 10^6 patches.
     let de: Vec<f64> = data
         .rgb

@@ -14,6 +14,7 @@ mod export;
 mod export_shader;
 mod fit;
 mod fit_args;
+mod outputs;
 mod render_chart;
 mod render_scene;
 mod runtime_dir;
@@ -102,8 +103,8 @@ pub fn main() -> ExitCode {
             }
             if e.chain().any(|c| {
                 matches!(
-                    c.downcast_ref::<nsrm::atomic::WriteError>(),
-                    Some(nsrm::atomic::WriteError::Exists(_))
+                    c.downcast_ref::<nsrm::output::WriteError>(),
+                    Some(nsrm::output::WriteError::Exists(_))
                 )
             }) {
                 eprintln!("\n  hint: pass --overwrite to replace it");

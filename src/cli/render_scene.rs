@@ -6,7 +6,7 @@ use super::values;
 use anyhow::{Context, Result};
 use nsrm::chart::scene::{render, truth_path, ChartColours, SceneOptions};
 use nsrm::chart::{parse_corners, ChartKind};
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 
 #[derive(Debug, clap::Args)]
@@ -97,10 +97,20 @@ pub fn run(a: Args) -> Result<ExitCode> {
         if nsrm::io::FileFormat::from_extension(p).is_none() {
             return Err(UsageError(format!("{}: must be .exr, .tif or .tiff", p.display())).into());
         }
-        nsrm::atomic::check_clobber(p, a.overwrite)?;
     }
     let tpath = truth_path(&a.output);
-    nsrm::atomic::check_clobber(&tpath, a.overwrite)?;
+    let inputs: Vec<&Path> = [
+        Some(a.camera.as_str()),
+        Some(a.illuminant.as_str()),
+        a.reflectances.as_deref(),
+    ]
+    .into_iter()
+    .flatten()
+    .filter_map(super::outputs::file_arg)
+    .collect();
+    let mut outputs = vec![a.output.as_path(), tpath.as_path()];
+    outputs.extend(a.flat_output.as_deref());
+    let session = super::outputs::open(a.overwrite, &inputs, &outputs)?;
     let corners = a.corners.as_deref().map(parse_corners).transpose()?;
     let colours =
         ChartColours::simulate(kind, &a.camera, &a.illuminant, a.reflectances.as_deref())?;
@@ -140,13 +150,15 @@ pub fn run(a: Args) -> Result<ExitCode> {
         truth.camera,
         truth.illuminant
     );
-    nsrm::io::chart::write_camera_frame(&frame, &a.output, &note, a.overwrite)
+    let mut unit = session.unit();
+    nsrm::io::chart::write_camera_frame(&frame, &a.output, &note, &mut unit)
         .with_context(|| format!("writing {}", a.output.display()))?;
     if let Some(f) = &a.flat_output {
-        nsrm::io::chart::write_camera_frame(&flat, f, "nsrm scene: flat frame", a.overwrite)
+        nsrm::io::chart::write_camera_frame(&flat, f, "nsrm scene: flat frame", &mut unit)
             .with_context(|| format!("writing {}", f.display()))?;
     }
-    nsrm::atomic::write_atomic(&tpath, json.as_bytes(), a.overwrite)?;
+    unit.write_bytes(&tpath, json.as_bytes())?;
+    unit.commit()?;
     eprintln!(
         "{} chart rendered to {} ({}×{}; area {:.1} %, rotation {:.0}°, tilt {:.0}°, exposure {:.3}); truth in {}",
         kind.name(),

@@ -18,7 +18,7 @@ pub enum PlotError {
     #[error("nothing to plot")]
     Empty,
     #[error(transparent)]
-    Write(#[from] crate::atomic::WriteError),
+    Write(#[from] crate::output::WriteError),
     #[error("encoding the PNG: {0}")]
     Png(String),
     /// The embedded font did not parse, or plotters failed to draw.
@@ -335,14 +335,15 @@ pub fn to_image(results: &[EvalResult], title: Option<&str>) -> Result<image::Rg
         .ok_or_else(|| PlotError::Draw("the bitmap has the wrong size".into()))
 }
 
-/// Draws the histograms of `results` into `path` (.svg or .png, written atomically), with
-/// `title` (what was evaluated: data set, camera, protocol) above the panels.
+/// Draws the histograms of `results` into `path` (.svg or .png), staged in `unit`, with `title`
+/// (what was evaluated: data set, camera, protocol) above the panels.
 pub fn histograms(
     results: &[EvalResult],
     title: Option<&str>,
     path: &Path,
-    overwrite: bool,
+    unit: &mut crate::output::Unit,
 ) -> Result<(), PlotError> {
+    unit.check_clobber(path)?;
     let format = Format::from_path(path)?;
     let bytes = match format {
         Format::Svg => to_svg(results, title)?.into_bytes(),
@@ -354,7 +355,7 @@ pub fn histograms(
             buf.into_inner()
         }
     };
-    crate::atomic::write_atomic(path, &bytes, overwrite)?;
+    unit.write_bytes(path, &bytes)?;
     Ok(())
 }
 
@@ -418,7 +419,13 @@ mod tests {
     fn png_decodes_at_the_figure_size_and_is_not_blank() {
         let d = tempfile::tempdir().unwrap();
         let p = d.path().join("fig.png");
-        histograms(&sample(), None, &p, false).unwrap();
+        let write = |results: &[EvalResult], overwrite: bool| {
+            let session = crate::output::Session::new(overwrite);
+            let mut unit = session.unit();
+            histograms(results, None, &p, &mut unit)?;
+            Ok::<(), PlotError>(unit.commit()?)
+        };
+        write(&sample(), false).unwrap();
         let img = image::open(&p).unwrap().to_rgb8();
         assert_eq!(img.dimensions(), (2 * PANEL_W, PANEL_H + 16 + LEGEND_ROW));
         // Bars in both models' colours, dark text and axes, and mostly white background.
@@ -433,11 +440,11 @@ mod tests {
         // Refused without --overwrite, and the file is left as it was.
         let before = std::fs::read(&p).unwrap();
         assert!(matches!(
-            histograms(&sample()[..1], None, &p, false),
+            write(&sample()[..1], false),
             Err(PlotError::Write(_))
         ));
         assert_eq!(std::fs::read(&p).unwrap(), before);
-        histograms(&sample()[..1], None, &p, true).unwrap();
+        write(&sample()[..1], true).unwrap();
         assert_ne!(std::fs::read(&p).unwrap(), before);
     }
 

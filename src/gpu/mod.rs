@@ -90,7 +90,7 @@ pub enum GpuError {
     #[error("cannot encode the image: {0}")]
     Image(#[from] image::ImageError),
     #[error(transparent)]
-    Write(#[from] crate::atomic::WriteError),
+    Write(#[from] crate::output::WriteError),
 }
 
 /// Options for [`Engine::new`] / [`open`].

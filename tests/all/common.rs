@@ -325,16 +325,28 @@ pub fn exr(path: &Path, w: usize, h: usize) {
         half: false,
         compression: ExrCompression::None,
         space: nsrm::colorimetry::spaces::OutputSpace::Xyz,
-        overwrite: true,
         zip_level: nsrm::io::DEFAULT_ZIP_LEVEL,
     };
-    nsrm::io::write_exr(&frame(w, h), path, &opts).unwrap();
+    committed(true, |u| nsrm::io::write_exr(&frame(w, h), path, &opts, u)).unwrap();
+}
+
+/// Runs library writers on one unit of a fresh output session (replacing existing files when
+/// `overwrite`) and commits it.
+pub fn committed<E: From<nsrm::output::WriteError>>(
+    overwrite: bool,
+    write: impl FnOnce(&mut nsrm::output::Unit) -> Result<(), E>,
+) -> Result<(), E> {
+    let session = nsrm::output::Session::new(overwrite);
+    let mut unit = session.unit();
+    write(&mut unit)?;
+    unit.commit()?;
+    Ok(())
 }
 
 /// Writes a small 32-bit float TIFF frame at `path`.
 #[cfg(feature = "io")]
 pub fn tiff(path: &Path, w: usize, h: usize) {
-    nsrm::io::write_tiff(&frame(w, h), path, true).unwrap();
+    committed(true, |u| nsrm::io::write_tiff(&frame(w, h), path, u)).unwrap();
 }
 
 /// Bytes of a file, for checking inputs are never written.

@@ -79,10 +79,9 @@ fn write_frame(frame: &Frame, path: &Path) {
         half: false,
         compression: ExrCompression::None,
         space: OutputSpace::Xyz,
-        overwrite: true,
         zip_level: nsrm::io::DEFAULT_ZIP_LEVEL,
     };
-    write_exr(frame, path, &opts).unwrap();
+    crate::common::committed(true, |u| write_exr(frame, path, &opts, u)).unwrap();
 }
 
 fn read(path: &Path) -> Vec<[f64; 3]> {

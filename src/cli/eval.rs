@@ -254,7 +254,7 @@ fn plot_title(a: &Args, protocol: Protocol) -> String {
         (Some(p), _) => format!("chart in {}", name(p)),
         (_, Some(p)) => format!("measured {}", name(p)),
         _ => format!(
-            "{} under the camera {}",
+            "{}, camera {}",
             name(std::path::Path::new(&a.training.reflectances)),
             name(std::path::Path::new(&a.training.camera))
         ),
@@ -265,7 +265,7 @@ fn plot_title(a: &Args, protocol: Protocol) -> String {
         format!(" (patches {})", a.training.patches)
     };
     format!(
-        "{source}{patches}; {}, {}",
+        "{source}{patches}\n{}, {}",
         proto_name(protocol),
         a.fit.method_name()
     )

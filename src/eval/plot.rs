@@ -79,8 +79,8 @@ const LEGEND_ROW: u32 = 20;
 const LEGEND_COLS: usize = 4;
 const LEGEND_ENTRY: u32 = 110;
 const LEGEND_LEFT: u32 = 52;
-/// The band of the figure's title, when it has one.
-const TITLE_H: u32 = 30;
+/// The height of each line of the figure's title, when it has one (lines: `\n` in the title).
+const TITLE_LINE_H: u32 = 22;
 
 /// The family the embedded font is registered under. plotters writes it verbatim as the SVG
 /// `font-family`, so viewers without DejaVu fall back to their sans-serif face.
@@ -190,7 +190,7 @@ impl Figure {
             nbins,
             ytop,
             ystep,
-            title: title.map(|t| t.replace(|c: char| c.is_control(), " ")),
+            title: title.map(|t| t.replace(|c: char| c.is_control() && c != '\n', " ")),
         })
     }
 
@@ -201,10 +201,9 @@ impl Figure {
     }
 
     fn title_h(&self) -> u32 {
-        if self.title.is_some() {
-            TITLE_H
-        } else {
-            0
+        match &self.title {
+            Some(t) => 8 + TITLE_LINE_H * t.lines().count().max(1) as u32,
+            None => 0,
         }
     }
 
@@ -223,13 +222,16 @@ impl Figure {
         let (head, body) = root.split_vertically(self.title_h());
         if let Some(t) = &self.title {
             let (w, _) = head.dim_in_pixel();
-            let style = font(17.0).pos(Pos::new(HPos::Center, VPos::Center));
-            head.draw(&Text::new(
-                t.as_str(),
-                (w as i32 / 2, TITLE_H as i32 / 2 + 2),
-                style,
-            ))
-            .map_err(draw_err)?;
+            for (i, line) in t.lines().enumerate() {
+                // DejaVu Sans averages about 0.56 of its size per character: the line is made
+                // small enough to fit the figure's width (a one-panel figure is 470 px wide).
+                let chars = line.chars().count().max(1) as f64;
+                let size = (w.saturating_sub(16) as f64 / (0.56 * chars)).clamp(9.0, 17.0);
+                let style = font(size).pos(Pos::new(HPos::Center, VPos::Center));
+                let y = 4 + TITLE_LINE_H as i32 * i as i32 + TITLE_LINE_H as i32 / 2;
+                head.draw(&Text::new(line, (w as i32 / 2, y), style))
+                    .map_err(draw_err)?;
+            }
         }
         let (top, legend) = body.split_vertically(PANEL_H);
         let areas = top.split_evenly((1, self.panels.len()));
@@ -335,7 +337,8 @@ pub fn to_image(results: &[EvalResult], title: Option<&str>) -> Result<image::Rg
         .ok_or_else(|| PlotError::Draw("the bitmap has the wrong size".into()))
 }
 
-/// Draws the histograms of `results` into `path` (.svg or .png), staged in `unit`.
+/// Draws the histograms of `results` into `path` (.svg or .png), staged in `unit`, with `title`
+/// (what was evaluated: data set, camera, protocol) above the panels.
 pub fn histograms(
     results: &[EvalResult],
     title: Option<&str>,

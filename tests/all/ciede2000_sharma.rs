@@ -4,7 +4,7 @@ use nsrm::colorimetry::ciede2000;
 
 #[test]
 fn all_34_sharma_pairs_to_1e_4() {
-    let text = include_str!("data/sharma2005_ciede2000_pairs.csv");
+    let text = include_str!("../data/sharma2005_ciede2000_pairs.csv");
     let mut n = 0;
     for line in text.lines().skip(1).filter(|l| !l.trim().is_empty()) {
         let v: Vec<f64> = line.split(',').map(|c| c.trim().parse().unwrap()).collect();

@@ -222,7 +222,13 @@ fn generate(engine: Engine, mut g: GenArgs) -> Result<ExitCode> {
     if matches!(engine, Engine::Openjd) {
         task.extend([lit("--path-mapping-rules"), Arg::PathMappingRules]);
     }
-    task.extend([lit("--"), lit("--model"), Arg::Model, lit("-o"), Arg::OutputDir]);
+    task.extend([
+        lit("--"),
+        lit("--model"),
+        Arg::Model,
+        lit("-o"),
+        Arg::OutputDir,
+    ]);
     if let Some(p) = &preview {
         task.extend([lit("--preview"), lit(p)]);
     }
@@ -367,7 +373,10 @@ fn run_shard(r: RunArgs) -> Result<ExitCode> {
         .map_err(|e| UsageError(format!("apply's arguments after --: {e}")))?
         .a;
     let parts = a.farm_parts();
-    if let Some(flag) = parts.policy_flag.or(parts.overwrite.then_some("--overwrite")) {
+    if let Some(flag) = parts
+        .policy_flag
+        .or(parts.overwrite.then_some("--overwrite"))
+    {
         return Err(UsageError(format!(
             "{flag} is decided by the farm task itself (it keeps finished outputs and replaces broken ones); leave it out"
         ))
@@ -399,9 +408,10 @@ fn run_shard(r: RunArgs) -> Result<ExitCode> {
             .collect::<Result<_>>()?
     };
     let batch_id = Batch::of(&all_names);
-    let previous = ShardManifest::read(&out_dir.join(manifest::file_name(shard.index, shard.count)))
-        .ok()
-        .filter(|m| m.batch == batch_id);
+    let previous =
+        ShardManifest::read(&out_dir.join(manifest::file_name(shard.index, shard.count)))
+            .ok()
+            .filter(|m| m.batch == batch_id);
     let same_run = previous
         .as_ref()
         .is_some_and(|m| m.model.sha256 == model_sha && m.settings == settings);
@@ -472,7 +482,11 @@ fn run_shard(r: RunArgs) -> Result<ExitCode> {
         match f {
             Found::Done(e) => outputs.push(e),
             Found::Todo(replaced) => {
-                let how = if replaced { How::Replaced } else { How::Converted };
+                let how = if replaced {
+                    How::Replaced
+                } else {
+                    How::Converted
+                };
                 match entry(j, how) {
                     Ok(e) => outputs.push(e),
                     Err(why) => failures.push(Failure {
@@ -581,9 +595,11 @@ fn check_existing(
     let record = previous.and_then(|m| m.outputs.iter().find(|e| e.output == name));
     match (record, same_run) {
         (Some(rec), true) => Ok(match entry(j, How::Kept) {
-            Ok(e) if e.bytes == rec.bytes
-                && e.sha256 == rec.sha256
-                && e.preview.as_ref().map(|p| &p.sha256) == rec.preview.as_ref().map(|p| &p.sha256) =>
+            Ok(e)
+                if e.bytes == rec.bytes
+                    && e.sha256 == rec.sha256
+                    && e.preview.as_ref().map(|p| &p.sha256)
+                        == rec.preview.as_ref().map(|p| &p.sha256) =>
             {
                 Found::Done(e)
             }

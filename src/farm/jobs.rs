@@ -345,7 +345,12 @@ pub fn slurm(spec: &JobSpec) -> Result<Vec<JobFile>, FarmError> {
     let list = spec.input_list();
     let end = heredoc_end(&list);
     let n = spec.shards;
-    let task = sh_command(spec, &spec.task, &format!("\"$SLURM_ARRAY_TASK_ID/{n}\""), "-")?;
+    let task = sh_command(
+        spec,
+        &spec.task,
+        &format!("\"$SLURM_ARRAY_TASK_ID/{n}\""),
+        "-",
+    )?;
     let verify = sh_command(spec, &spec.verify, "", "")?;
     let array = format!(
         "#!/bin/sh\n\
@@ -425,9 +430,7 @@ pub fn kube(spec: &JobSpec, k: &Kube) -> Result<Vec<JobFile>, FarmError> {
     let n = spec.shards;
     let list_path = format!("{KUBE_LIST_DIR}/inputs.txt");
     let task = sh_command(spec, &spec.task, "\"$shard\"", &list_path)?;
-    let script = format!(
-        "set -eu\nshard=\"$((JOB_COMPLETION_INDEX + 1))/{n}\"\nexec {task}\n"
-    );
+    let script = format!("set -eu\nshard=\"$((JOB_COMPLETION_INDEX + 1))/{n}\"\nexec {task}\n");
     let verify = sh_command(spec, &spec.verify, "", "")?;
     let volume = |with_list: bool| {
         let mut mounts = vec![Node::map([
@@ -487,7 +490,10 @@ pub fn kube(spec: &JobSpec, k: &Kube) -> Result<Vec<JobFile>, FarmError> {
                 ("completionMode", Node::str("Indexed")),
                 ("completions", Node::Int(n as i64)),
                 ("parallelism", Node::Int(k.parallelism.min(n) as i64)),
-                ("backoffLimitPerIndex", Node::Int(k.retries_per_index as i64)),
+                (
+                    "backoffLimitPerIndex",
+                    Node::Int(k.retries_per_index as i64),
+                ),
                 (
                     "template",
                     Node::map([
@@ -556,11 +562,7 @@ pub fn kube(spec: &JobSpec, k: &Kube) -> Result<Vec<JobFile>, FarmError> {
     Ok(vec![
         JobFile {
             name: "job.yaml".into(),
-            text: format!(
-                "{}---\n{}",
-                yaml::to_string(&config),
-                yaml::to_string(&job)
-            ),
+            text: format!("{}---\n{}", yaml::to_string(&config), yaml::to_string(&job)),
             executable: false,
         },
         JobFile {

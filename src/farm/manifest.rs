@@ -173,7 +173,10 @@ impl ShardManifest {
             )));
         }
         if m.shards == 0 || m.shard == 0 || m.shard > m.shards {
-            return Err(bad(format!("shard {}/{} is not a shard", m.shard, m.shards)));
+            return Err(bad(format!(
+                "shard {}/{} is not a shard",
+                m.shard, m.shards
+            )));
         }
         Ok(m)
     }
@@ -187,7 +190,10 @@ mod tests {
     fn file_names_round_trip_and_others_are_refused() {
         assert_eq!(file_name(2, 8), "nsrm-farm.shard-0002-of-0008.json");
         assert_eq!(parse_file_name(&file_name(2, 8)), Some((2, 8)));
-        assert_eq!(parse_file_name(&file_name(12345, 99999)), Some((12345, 99999)));
+        assert_eq!(
+            parse_file_name(&file_name(12345, 99999)),
+            Some((12345, 99999))
+        );
         for bad in [
             "nsrm-farm.shard-0002-of-.json",
             "nsrm-farm.shard-x-of-2.json",

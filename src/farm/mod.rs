@@ -24,11 +24,7 @@ use std::path::{Path, PathBuf};
 pub enum FarmError {
     /// A file cannot be read or written.
     #[error("{}: {err}", path.display())]
-    Io {
-        path: PathBuf,
-        #[source]
-        err: std::io::Error,
-    },
+    Io { path: PathBuf, err: std::io::Error },
     /// A manifest or rules file is not what it should be.
     #[error("{}: {why}", path.display())]
     Format { path: PathBuf, why: String },

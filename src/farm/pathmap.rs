@@ -33,7 +33,8 @@ pub struct PathMap {
 
 #[derive(Deserialize)]
 struct RulesFile {
-    version: String,
+    #[serde(default)]
+    version: Option<String>,
     #[serde(default)]
     path_mapping_rules: Vec<Rule>,
 }
@@ -116,10 +117,12 @@ impl PathMap {
         };
         let file: RulesFile =
             serde_json::from_slice(&bytes).map_err(|e| bad(format!("path mapping rules: {e}")))?;
-        if file.version != "pathmapping-1.0" {
+        // A session without rules may write a file with no version.
+        if file.version.as_deref() != Some("pathmapping-1.0") && !file.path_mapping_rules.is_empty()
+        {
             return Err(bad(format!(
                 "path mapping rules of version `{}`; `pathmapping-1.0` is understood",
-                file.version
+                file.version.as_deref().unwrap_or("(none)")
             )));
         }
         for r in file.path_mapping_rules {
@@ -148,10 +151,13 @@ impl PathMap {
             if !absolute || raw.len() < src.len() {
                 continue;
             }
-            let matches = src.iter().zip(&raw).all(|(a, b)| match r.source_path_format {
-                SourceFormat::Posix => a == b,
-                SourceFormat::Windows => *a == b.to_lowercase(),
-            });
+            let matches = src
+                .iter()
+                .zip(&raw)
+                .all(|(a, b)| match r.source_path_format {
+                    SourceFormat::Posix => a == b,
+                    SourceFormat::Windows => *a == b.to_lowercase(),
+                });
             if matches && best.as_ref().is_none_or(|(n, _, _)| src.len() > *n) {
                 best = Some((src.len(), r, raw[src.len()..].to_vec()));
             }
@@ -210,7 +216,16 @@ mod tests {
         let mut empty = PathMap::new();
         empty.add_openjd_file(&f).unwrap();
         assert!(empty.is_empty());
-        std::fs::write(&f, r#"{"version": "pathmapping-9"}"#).unwrap();
+        std::fs::write(&f, "{}").unwrap();
+        let mut empty = PathMap::new();
+        empty.add_openjd_file(&f).unwrap();
+        assert!(empty.is_empty());
+        std::fs::write(
+            &f,
+            r#"{"version": "pathmapping-9", "path_mapping_rules": [
+                {"source_path_format": "POSIX", "source_path": "/a", "destination_path": "/b"}]}"#,
+        )
+        .unwrap();
         assert!(PathMap::new().add_openjd_file(&f).is_err());
         std::fs::remove_dir_all(&dir).unwrap();
     }

@@ -140,8 +140,17 @@ fn apply_writes_the_same_bytes_every_run() {
         let out = format!("{run}-out");
         let prev = format!("{run}-prev");
         let mut args = vec![
-            "apply", "--device", "cpu", "--model", "m.json", "-o", &out, "--preview", &prev,
-            "--format", extra,
+            "apply",
+            "--device",
+            "cpu",
+            "--model",
+            "m.json",
+            "-o",
+            &out,
+            "--preview",
+            &prev,
+            "--format",
+            extra,
         ];
         if extra == "tiff" {
             args.push("in/scan.0001.exr");
@@ -158,7 +167,10 @@ fn apply_writes_the_same_bytes_every_run() {
     // The custom attributes are there, in name order (as are the standard ones).
     for (name, bytes) in &a {
         let names = header_names(bytes);
-        assert!(names.iter().filter(|n| n.starts_with("studio")).count() == 12, "{name}: {names:?}");
+        assert!(
+            names.iter().filter(|n| n.starts_with("studio")).count() == 12,
+            "{name}: {names:?}"
+        );
         let mut sorted = names.clone();
         sorted.sort();
         assert_eq!(names, sorted, "{name}");
@@ -168,10 +180,16 @@ fn apply_writes_the_same_bytes_every_run() {
 
 /// A batch of plates for the farm tests: `n` scanline EXRs of `w`×`h` in `dir/in`.
 fn batch(dir: &Path, n: usize, w: usize, h: usize) {
-    model(dir);
     std::fs::create_dir_all(dir.join("in")).unwrap();
+    model(dir);
     for i in 0..n {
-        plate(&dir.join(format!("in/shot.{:04}.exr", i + 1)), w, h, i, false);
+        plate(
+            &dir.join(format!("in/shot.{:04}.exr", i + 1)),
+            w,
+            h,
+            i,
+            false,
+        );
     }
 }
 
@@ -194,11 +212,20 @@ fn shards_retry_safely_and_verify_names_what_is_wrong() {
     assert_ok(&run(1, &[]));
     let v = verify();
     assert_eq!(v.status.code(), Some(1));
-    assert!(stderr(&v).contains("shard 2/2: no manifest"), "{}", stderr(&v));
+    assert!(
+        stderr(&v).contains("shard 2/2: no manifest"),
+        "{}",
+        stderr(&v)
+    );
     assert_ok(&run(2, &[]));
     let v = verify();
     assert_ok(&v);
-    nsrm_ok(&dir, &["apply", "--device", "cpu", "--model", "m.json", "-o", "single", "in"]);
+    nsrm_ok(
+        &dir,
+        &[
+            "apply", "--device", "cpu", "--model", "m.json", "-o", "single", "in",
+        ],
+    );
     assert_eq!(outputs(&dir.join("out")), outputs(&dir.join("single")));
     let m1 = manifest(&dir.join("out"), 1, 2);
     assert!(hows(&m1).iter().all(|(_, h)| h == "converted"), "{m1}");
@@ -224,7 +251,11 @@ fn shards_retry_safely_and_verify_names_what_is_wrong() {
     );
     let v = verify();
     assert_eq!(v.status.code(), Some(1));
-    assert!(stderr(&v).contains("an nsrm temporary is left"), "{}", stderr(&v));
+    assert!(
+        stderr(&v).contains("an nsrm temporary is left"),
+        "{}",
+        stderr(&v)
+    );
     std::fs::remove_file(&other).unwrap();
     assert_ok(&verify());
 
@@ -234,11 +265,18 @@ fn shards_retry_safely_and_verify_names_what_is_wrong() {
     std::fs::write(&third, &full[..full.len() / 2]).unwrap();
     let v = verify();
     assert_eq!(v.status.code(), Some(1));
-    assert!(stderr(&v).contains("shot_xyz.0003.exr") && stderr(&v).contains("bytes"), "{}", stderr(&v));
+    assert!(
+        stderr(&v).contains("shot_xyz.0003.exr") && stderr(&v).contains("bytes"),
+        "{}",
+        stderr(&v)
+    );
     assert_ok(&run(1, &[]));
     assert_eq!(std::fs::read(&third).unwrap(), full);
     let m1 = manifest(&dir.join("out"), 1, 2);
-    assert!(hows(&m1).contains(&("shot_xyz.0003.exr".into(), "replaced".into())), "{m1}");
+    assert!(
+        hows(&m1).contains(&("shot_xyz.0003.exr".into(), "replaced".into())),
+        "{m1}"
+    );
     assert_eq!(identity(&first), before);
     assert_ok(&verify());
 
@@ -254,20 +292,29 @@ fn shards_retry_safely_and_verify_names_what_is_wrong() {
     std::fs::write(dir.join("m2.json"), m.replace("50.0", "51.0")).unwrap();
     let out = nsrm_in(
         &dir,
-        &["farm", "run", "--shard", "2/2", "--", "--device", "cpu", "--model", "m2.json", "-o", "out", "in"],
+        &[
+            "farm", "run", "--shard", "2/2", "--", "--device", "cpu", "--model", "m2.json", "-o",
+            "out", "in",
+        ],
     );
     assert_ok(&out);
     let m2 = manifest(&dir.join("out"), 2, 2);
     assert!(hows(&m2).iter().all(|(_, h)| h == "replaced"), "{m2}");
     let v = verify();
     assert_eq!(v.status.code(), Some(1));
-    assert!(stderr(&v).contains("applied another model"), "{}", stderr(&v));
+    assert!(
+        stderr(&v).contains("applied another model"),
+        "{}",
+        stderr(&v)
+    );
 
     // The task decides the per-run policies itself.
     for flag in ["--overwrite", "--skip-existing", "--dry-run"] {
         let o = nsrm_in(
             &dir,
-            &["farm", "run", "--shard", "1/2", "--", "--model", "m.json", "-o", "out", flag, "in"],
+            &[
+                "farm", "run", "--shard", "1/2", "--", "--model", "m.json", "-o", "out", flag, "in",
+            ],
         );
         assert_eq!(o.status.code(), Some(2), "{flag}: {}", stderr(&o));
     }
@@ -290,25 +337,60 @@ fn openjd_runs_every_task_and_the_union_equals_one_apply() {
     let made = nsrm_in(
         &submit,
         &[
-            "farm", "openjd", "--shards", "3", "--job-dir", "job", "--program", program,
-            "--name", "plates", "--device", "cpu", "--model", "m.json", "-o", "out", "in",
+            "farm",
+            "openjd",
+            "--shards",
+            "3",
+            "--job-dir",
+            "job",
+            "--program",
+            program,
+            "--name",
+            "plates",
+            "--device",
+            "cpu",
+            "--model",
+            "m.json",
+            "-o",
+            "out",
+            "in",
         ],
     );
     assert_ok(&made);
-    for f in ["template.yaml", "parameter_values.yaml", "parameter_values.json"] {
+    for f in [
+        "template.yaml",
+        "parameter_values.yaml",
+        "parameter_values.json",
+    ] {
         assert!(submit.join("job").join(f).is_file(), "{f}");
     }
     // Refused without --overwrite the second time.
     let again = nsrm_in(
         &submit,
-        &["farm", "openjd", "--shards", "3", "--job-dir", "job", "--model", "m.json", "-o", "out", "in"],
+        &[
+            "farm",
+            "openjd",
+            "--shards",
+            "3",
+            "--job-dir",
+            "job",
+            "--model",
+            "m.json",
+            "-o",
+            "out",
+            "in",
+        ],
     );
     assert!(!again.status.success());
     // The whole tree moves: the worker finds it elsewhere.
     let worker = root.join("worker");
     std::fs::rename(&submit, &worker).unwrap();
     let template = worker.join("job/template.yaml");
-    let check = Command::new("openjd").arg("check").arg(&template).output().unwrap();
+    let check = Command::new("openjd")
+        .arg("check")
+        .arg(&template)
+        .output()
+        .unwrap();
     assert_ok(&check);
     let rules = worker.join("rules.json");
     std::fs::write(
@@ -324,7 +406,10 @@ fn openjd_runs_every_task_and_the_union_equals_one_apply() {
             .arg("run")
             .arg(&template)
             .args(["--step", step, "-p"])
-            .arg(format!("file://{}", worker.join("job/parameter_values.json").display()))
+            .arg(format!(
+                "file://{}",
+                worker.join("job/parameter_values.json").display()
+            ))
             .arg("--path-mapping-rules")
             .arg(format!("file://{}", rules.display()))
             .env("NO_COLOR", "1")
@@ -332,14 +417,22 @@ fn openjd_runs_every_task_and_the_union_equals_one_apply() {
             .unwrap();
         let log = String::from_utf8_lossy(&o.stdout).into_owned() + &stderr(&o);
         assert!(o.status.success(), "openjd run --step {step}:\n{log}");
-        eprintln!("openjd run --step {step}: {:.2} s", t.elapsed().as_secs_f64());
+        eprintln!(
+            "openjd run --step {step}: {:.2} s",
+            t.elapsed().as_secs_f64()
+        );
         log
     };
     let log = openjd("Apply");
     assert_eq!(log.matches("nsrm farm run: shard").count(), 3, "{log}");
     let log = openjd("Verify");
     assert!(log.contains("nsrm farm verify: OK"), "{log}");
-    nsrm_ok(&worker, &["apply", "--device", "cpu", "--model", "m.json", "-o", "single", "in"]);
+    nsrm_ok(
+        &worker,
+        &[
+            "apply", "--device", "cpu", "--model", "m.json", "-o", "single", "in",
+        ],
+    );
     let out = outputs(&worker.join("out"));
     assert_eq!(out.len(), 7);
     assert_eq!(out, outputs(&worker.join("single")));
@@ -347,7 +440,13 @@ fn openjd_runs_every_task_and_the_union_equals_one_apply() {
         let m = manifest(&worker.join("out"), k, 3);
         assert!(hows(&m).iter().all(|(_, h)| h == "converted"), "{m}");
         // The worker's paths, not the submitter's.
-        assert!(m["model"]["path"].as_str().unwrap().starts_with(worker.to_str().unwrap()), "{m}");
+        assert!(
+            m["model"]["path"]
+                .as_str()
+                .unwrap()
+                .starts_with(worker.to_str().unwrap()),
+            "{m}"
+        );
     }
     // A retry of the whole step redoes nothing.
     let first = worker.join("out/shot_xyz.0001.exr");
@@ -369,9 +468,29 @@ fn kubernetes_manifest_has_the_indexed_job_shape() {
     nsrm_ok(
         &dir,
         &[
-            "farm", "k8s", "--shards", "2", "--job-dir", "job", "--image", "registry.example/nsrm:1",
-            "--claim", "show-pvc", "--mount", "/data", "--parallelism", "5", "--path-map", &map,
-            "--model", "m.json", "-o", "out", "--output-space", "acescg", "in",
+            "farm",
+            "k8s",
+            "--shards",
+            "2",
+            "--job-dir",
+            "job",
+            "--image",
+            "registry.example/nsrm:1",
+            "--claim",
+            "show-pvc",
+            "--mount",
+            "/data",
+            "--parallelism",
+            "5",
+            "--path-map",
+            &map,
+            "--model",
+            "m.json",
+            "-o",
+            "out",
+            "--output-space",
+            "acescg",
+            "in",
         ],
     );
     let text = std::fs::read_to_string(dir.join("job/job.yaml")).unwrap();
@@ -397,19 +516,40 @@ fn kubernetes_manifest_has_the_indexed_job_shape() {
     let c = &pod["containers"][0];
     assert_eq!(c["image"], "registry.example/nsrm:1");
     let script = c["command"][2].as_str().unwrap();
-    assert!(script.contains("$((JOB_COMPLETION_INDEX + 1))/2"), "{script}");
-    assert!(script.contains("--inputs-from /etc/nsrm-batch/inputs.txt"), "{script}");
-    assert!(script.contains("--model /data/show/m.json -o /data/show/out"), "{script}");
+    assert!(
+        script.contains("$((JOB_COMPLETION_INDEX + 1))/2"),
+        "{script}"
+    );
+    assert!(
+        script.contains("--inputs-from /etc/nsrm-batch/inputs.txt"),
+        "{script}"
+    );
+    assert!(
+        script.contains("--model /data/show/m.json -o /data/show/out"),
+        "{script}"
+    );
     assert!(script.contains("--output-space acescg"), "{script}");
     let mounts = c["volumeMounts"].as_array().unwrap();
-    assert!(mounts.iter().any(|m| m["mountPath"] == "/data" && m["name"] == "data"));
+    assert!(mounts
+        .iter()
+        .any(|m| m["mountPath"] == "/data" && m["name"] == "data"));
     let vols = pod["volumes"].as_array().unwrap();
-    assert!(vols.iter().any(|v| v["persistentVolumeClaim"]["claimName"] == "show-pvc"));
-    assert!(vols.iter().any(|v| v["configMap"]["name"] == cm["metadata"]["name"]));
+    assert!(vols
+        .iter()
+        .any(|v| v["persistentVolumeClaim"]["claimName"] == "show-pvc"));
+    assert!(vols
+        .iter()
+        .any(|v| v["configMap"]["name"] == cm["metadata"]["name"]));
     let verify: serde_json::Value =
-        serde_norway::from_str(&std::fs::read_to_string(dir.join("job/verify.yaml")).unwrap()).unwrap();
-    let cmd = verify["spec"]["template"]["spec"]["containers"][0]["command"][2].as_str().unwrap();
-    assert!(cmd.contains("farm verify /data/show/out --shards 2 --model /data/show/m.json"), "{cmd}");
+        serde_norway::from_str(&std::fs::read_to_string(dir.join("job/verify.yaml")).unwrap())
+            .unwrap();
+    let cmd = verify["spec"]["template"]["spec"]["containers"][0]["command"][2]
+        .as_str()
+        .unwrap();
+    assert!(
+        cmd.contains("farm verify /data/show/out --shards 2 --model /data/show/m.json"),
+        "{cmd}"
+    );
     // The script runs in a shell as it stands: index 1 is shard 2/2.
     let o = Command::new("sh")
         .arg("-c")
@@ -417,7 +557,10 @@ fn kubernetes_manifest_has_the_indexed_job_shape() {
         .env("JOB_COMPLETION_INDEX", "1")
         .output()
         .unwrap();
-    assert!(String::from_utf8_lossy(&o.stdout).contains("--shard 2/2 "), "{o:?}");
+    assert!(
+        String::from_utf8_lossy(&o.stdout).contains("--shard 2/2 "),
+        "{o:?}"
+    );
     let _ = std::fs::remove_dir_all(&dir);
 }
 
@@ -441,10 +584,19 @@ impl Daemons {
 
     fn logs(&self) -> String {
         let mut s = String::new();
-        for f in ["munged.out", "slurmctld.out", "slurmd.out", "slurmctld.log", "slurmd.log"] {
+        for f in [
+            "munged.out",
+            "slurmctld.out",
+            "slurmd.out",
+            "slurmctld.log",
+            "slurmd.log",
+        ] {
             if let Ok(t) = std::fs::read_to_string(self.dir.join(f)) {
                 let tail: Vec<&str> = t.lines().rev().take(15).collect();
-                s += &format!("--- {f}\n{}\n", tail.into_iter().rev().collect::<Vec<_>>().join("\n"));
+                s += &format!(
+                    "--- {f}\n{}\n",
+                    tail.into_iter().rev().collect::<Vec<_>>().join("\n")
+                );
             }
         }
         s
@@ -497,7 +649,10 @@ fn slurm_runs_the_array_and_a_killed_task_resumes() {
     }
     let uid = Command::new("id").arg("-u").output().unwrap();
     if String::from_utf8_lossy(&uid.stdout).trim() != "0" {
-        assert!(std::env::var("CI").as_deref() != Ok("true"), "the Slurm test needs root under CI");
+        assert!(
+            std::env::var("CI").as_deref() != Ok("true"),
+            "the Slurm test needs root under CI"
+        );
         eprintln!("SKIP: a single-node Slurm needs root here");
         return;
     }
@@ -508,15 +663,20 @@ fn slurm_runs_the_array_and_a_killed_task_resumes() {
     {
         use std::os::unix::fs::PermissionsExt;
         std::fs::set_permissions(&sd, std::fs::Permissions::from_mode(0o755)).unwrap();
-        let key: Vec<u8> = (0..1024u32).map(|i| (i.wrapping_mul(2654435761) >> 13) as u8).collect();
+        let key: Vec<u8> = (0..1024u32)
+            .map(|i| (i.wrapping_mul(2654435761) >> 13) as u8)
+            .collect();
         std::fs::write(sd.join("munge.key"), key).unwrap();
-        std::fs::set_permissions(sd.join("munge.key"), std::fs::Permissions::from_mode(0o400)).unwrap();
+        std::fs::set_permissions(sd.join("munge.key"), std::fs::Permissions::from_mode(0o400))
+            .unwrap();
     }
     let host = String::from_utf8(Command::new("hostname").arg("-s").output().unwrap().stdout)
         .unwrap()
         .trim()
         .to_string();
-    let cpus = std::thread::available_parallelism().map(|n| n.get()).unwrap_or(1);
+    let cpus = std::thread::available_parallelism()
+        .map(|n| n.get())
+        .unwrap_or(1);
     let s = sd.display();
     let conf = sd.join("slurm.conf");
     std::fs::write(
@@ -559,8 +719,14 @@ fn slurm_runs_the_array_and_a_killed_task_resumes() {
         "munged did not start:\n{}",
         d.logs()
     );
-    d.start("slurmctld", Command::new("slurmctld").arg("-D").arg("-f").arg(&conf));
-    d.start("slurmd", Command::new("slurmd").arg("-D").arg("-f").arg(&conf));
+    d.start(
+        "slurmctld",
+        Command::new("slurmctld").arg("-D").arg("-f").arg(&conf),
+    );
+    d.start(
+        "slurmd",
+        Command::new("slurmd").arg("-D").arg("-f").arg(&conf),
+    );
     let slurm = |prog: &str| {
         let mut c = Command::new(prog);
         c.env("SLURM_CONF", &conf);
@@ -578,9 +744,27 @@ fn slurm_runs_the_array_and_a_killed_task_resumes() {
     // task is still running when it is killed.
     batch(&dir, 10, 512, 512);
     let program = env!("CARGO_BIN_EXE_nsrm");
-    let apply_opts = ["--device", "cpu", "--jobs", "1", "--compression", "zip", "--zip-level", "12"];
+    let apply_opts = [
+        "--device",
+        "cpu",
+        "--jobs",
+        "1",
+        "--compression",
+        "zip",
+        "--zip-level",
+        "12",
+    ];
     let mut args = vec![
-        "farm", "slurm", "--shards", "2", "--job-dir", "job", "--program", program, "--name", "plates",
+        "farm",
+        "slurm",
+        "--shards",
+        "2",
+        "--job-dir",
+        "job",
+        "--program",
+        program,
+        "--name",
+        "plates",
     ];
     args.extend(apply_opts);
     args.extend(["--model", "m.json", "-o", "out", "in"]);
@@ -610,9 +794,19 @@ fn slurm_runs_the_array_and_a_killed_task_resumes() {
     });
     assert!(some.is_some(), "shard 1 wrote nothing:\n{}", d.logs());
     let task = format!("{first_job}_1");
-    assert_ok(&slurm("scancel").args(["--full", "--signal=KILL", &task]).output().unwrap());
+    assert_ok(
+        &slurm("scancel")
+            .args(["--full", "--signal=KILL", &task])
+            .output()
+            .unwrap(),
+    );
     assert!(
-        poll(Duration::from_secs(60), Duration::from_millis(100), squeue_empty).is_some(),
+        poll(
+            Duration::from_secs(60),
+            Duration::from_millis(100),
+            squeue_empty
+        )
+        .is_some(),
         "the killed task did not end"
     );
     let finished: Vec<&PathBuf> = shard1.iter().filter(|p| p.exists()).collect();
@@ -641,7 +835,12 @@ fn slurm_runs_the_array_and_a_killed_task_resumes() {
         .unwrap();
     assert_ok(&o);
     assert!(
-        poll(Duration::from_secs(180), Duration::from_millis(250), squeue_empty).is_some(),
+        poll(
+            Duration::from_secs(180),
+            Duration::from_millis(250),
+            squeue_empty
+        )
+        .is_some(),
         "the job did not finish in 180 s:\n{}",
         d.logs()
     );
@@ -669,7 +868,10 @@ fn slurm_runs_the_array_and_a_killed_task_resumes() {
     assert!(verify_log.contains("nsrm farm verify: OK"), "{logs:?}");
     let m1 = manifest(&dir.join("out"), 1, 2);
     let h1 = hows(&m1);
-    eprintln!("slurm: shard 1 on re-run: {h1:?}; stale temporaries removed: {}", m1["stale_temporaries_removed"]);
+    eprintln!(
+        "slurm: shard 1 on re-run: {h1:?}; stale temporaries removed: {}",
+        m1["stale_temporaries_removed"]
+    );
     for (p, id) in finished.iter().zip(&before) {
         let name = p.file_name().unwrap().to_string_lossy().into_owned();
         assert!(h1.contains(&(name, "adopted".to_string())), "{m1}");
@@ -685,13 +887,20 @@ fn slurm_runs_the_array_and_a_killed_task_resumes() {
         stale.len(),
         "{m1} {stale:?}"
     );
-    assert!(hows(&manifest(&dir.join("out"), 2, 2)).iter().all(|(_, h)| h == "converted"));
+    assert!(hows(&manifest(&dir.join("out"), 2, 2))
+        .iter()
+        .all(|(_, h)| h == "converted"));
     let mut single = vec!["apply"];
     single.extend(apply_opts);
     single.extend(["--model", "m.json", "-o", "single", "in"]);
     nsrm_ok(&dir, &single);
     assert_eq!(outputs(&dir.join("out")), outputs(&dir.join("single")));
-    assert_ok(&nsrm_in(&dir, &["farm", "verify", "out", "--shards", "2", "--model", "m.json"]));
+    assert_ok(&nsrm_in(
+        &dir,
+        &[
+            "farm", "verify", "out", "--shards", "2", "--model", "m.json",
+        ],
+    ));
     drop(d);
     let _ = std::fs::remove_dir_all(&dir);
 }

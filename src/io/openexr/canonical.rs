@@ -253,15 +253,27 @@ mod tests {
         let want = file(false, &[vec![b.clone(), c.clone(), a.clone()]], &tail);
         assert_eq!(sort_attributes(&mut f), Some(want.len() - tail.len()));
         assert_eq!(f, want);
-        let mut m = file(true, &[vec![a.clone(), b.clone()], vec![c.clone(), a.clone()]], &tail);
-        let want = file(true, &[vec![b.clone(), a.clone()], vec![a.clone(), c.clone()]], &tail);
+        let mut m = file(
+            true,
+            &[vec![a.clone(), b.clone()], vec![c.clone(), a.clone()]],
+            &tail,
+        );
+        let want = file(
+            true,
+            &[vec![b.clone(), a.clone()], vec![a.clone(), c.clone()]],
+            &tail,
+        );
         assert_eq!(sort_attributes(&mut m), Some(want.len() - tail.len()));
         assert_eq!(m, want);
     }
 
     #[test]
     fn incomplete_or_foreign_bytes_are_left_alone() {
-        let full = file(false, &[vec![attr("b", "int", &[0; 4]), attr("a", "int", &[1; 4])]], &[]);
+        let full = file(
+            false,
+            &[vec![attr("b", "int", &[0; 4]), attr("a", "int", &[1; 4])]],
+            &[],
+        );
         for cut in 0..full.len() {
             let mut part = full[..cut].to_vec();
             assert_eq!(sort_attributes(&mut part), None, "cut at {cut}");
@@ -279,7 +291,11 @@ mod tests {
         let tail: Vec<u8> = (0..100u8).collect();
         let f = file(
             false,
-            &[vec![attr("c", "int", &[3; 4]), attr("a", "int", &[1; 4]), attr("b", "int", &[2; 4])]],
+            &[vec![
+                attr("c", "int", &[3; 4]),
+                attr("a", "int", &[1; 4]),
+                attr("b", "int", &[2; 4]),
+            ]],
             &tail,
         );
         let mut want = f.clone();

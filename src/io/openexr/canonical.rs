@@ -255,12 +255,12 @@ mod tests {
         assert_eq!(f, want);
         let mut m = file(
             true,
-            &[vec![a.clone(), b.clone()], vec![c.clone(), a.clone()]],
+            &[vec![a.clone(), b.clone()], vec![a.clone(), c.clone()]],
             &tail,
         );
         let want = file(
             true,
-            &[vec![b.clone(), a.clone()], vec![a.clone(), c.clone()]],
+            &[vec![b.clone(), a.clone()], vec![c.clone(), a.clone()]],
             &tail,
         );
         assert_eq!(sort_attributes(&mut m), Some(want.len() - tail.len()));

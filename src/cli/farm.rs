@@ -291,20 +291,21 @@ fn generate(engine: Engine, mut g: GenArgs) -> Result<ExitCode> {
 
 /// Writes the job's files together: all staged, then committed (all appear or none).
 fn write_job(dir: &Path, files: &[JobFile], overwrite: bool) -> Result<()> {
-    std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
-    let mut staged = Vec::new();
+    let dests: Vec<PathBuf> = files.iter().map(|f| dir.join(&f.name)).collect();
+    let dests: Vec<&Path> = dests.iter().map(PathBuf::as_path).collect();
+    let session = super::outputs::open(overwrite, &[], &dests)?;
+    let mut unit = session.unit();
     for f in files {
-        let dest = dir.join(&f.name);
-        let s = nsrm::atomic::stage_bytes(&dest, f.text.as_bytes(), overwrite)?;
-        #[cfg(unix)]
-        if f.executable {
-            use std::os::unix::fs::PermissionsExt;
-            std::fs::set_permissions(s.temp(), std::fs::Permissions::from_mode(0o755))
-                .with_context(|| format!("making {} executable", dest.display()))?;
-        }
-        staged.push(s);
+        unit.write_bytes(&dir.join(&f.name), f.text.as_bytes())?;
     }
-    nsrm::atomic::commit_all(staged)?;
+    unit.commit()?;
+    #[cfg(unix)]
+    for f in files.iter().filter(|f| f.executable) {
+        use std::os::unix::fs::PermissionsExt;
+        let dest = dir.join(&f.name);
+        std::fs::set_permissions(&dest, std::fs::Permissions::from_mode(0o755))
+            .with_context(|| format!("making {} executable", dest.display()))?;
+    }
     Ok(())
 }
 
@@ -521,7 +522,9 @@ fn run_shard(r: RunArgs) -> Result<ExitCode> {
             total_s: secs(t0),
         },
     };
-    let path = m.write(&out_dir).context("writing the shard manifest")?;
+    let path = m
+        .write(&out_dir, &nsrm::output::Session::new(true))
+        .context("writing the shard manifest")?;
     let count = |h: How| m.outputs.iter().filter(|e| e.how == h).count();
     eprintln!(
         "nsrm farm run: shard {shard}: {} converted, {} replaced, {} kept, {} adopted (complete, found without a record), {} failed; {} stale temporar{} removed; {:.2} s; manifest {}",

@@ -144,16 +144,21 @@ impl ShardManifest {
         dir.join(file_name(self.shard, self.shards))
     }
 
-    /// Writes the manifest into `dir` atomically (a temporary, synced, then renamed over the
-    /// shard's previous manifest, which is this shard's own record).
-    pub fn write(&self, dir: &Path) -> Result<PathBuf, FarmError> {
+    /// Writes the manifest into `dir` atomically (a temporary, synced, then moved over the
+    /// shard's previous manifest, which is this shard's own record) through `session`, which
+    /// must replace existing outputs.
+    pub fn write(
+        &self,
+        dir: &Path,
+        session: &crate::output::Session,
+    ) -> Result<PathBuf, FarmError> {
         let path = self.path_in(dir);
         let mut json = serde_json::to_vec_pretty(self).map_err(|e| FarmError::Format {
             path: path.clone(),
             why: e.to_string(),
         })?;
         json.push(b'\n');
-        crate::atomic::write_atomic(&path, &json, true)?;
+        session.write_bytes(&path, &json)?;
         Ok(path)
     }
 

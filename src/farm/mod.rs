@@ -34,7 +34,7 @@ pub enum FarmError {
     Usage(String),
     /// Writing the manifest failed.
     #[error(transparent)]
-    Write(#[from] crate::atomic::WriteError),
+    Write(#[from] crate::output::WriteError),
 }
 
 impl FarmError {

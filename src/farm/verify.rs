@@ -191,7 +191,7 @@ pub fn verify(dir: &Path, expect: &Expect) -> Result<Report, FarmError> {
 }
 
 fn with_temporaries(mut r: Report, dir: &Path) -> Report {
-    for t in crate::atomic::stale_temporaries(dir) {
+    for t in crate::output::stale_temporaries(dir) {
         r.problems.push(format!(
             "{}: an nsrm temporary is left (a task was killed; re-run its shard, which removes it)",
             t.display()

@@ -15,9 +15,9 @@ use crate::error::{Concern, Param};
 pub use chunks::{DEFAULT_ZIP_LEVEL, MAX_ZIP_LEVEL};
 
 use super::{Container, Decoded, ExrCompression, FileFormat, IoError, ReadOptions, WriteOptions};
-use crate::atomic::WriteError;
 use crate::colorimetry::spaces::OutputSpace;
 use crate::frame::{Frame, Layout};
+use crate::output::{Unit, WriteError};
 use ::exr::compression::Compression;
 use ::exr::image::{
     AnyChannel, AnyChannels, AnyImage, Blocks, Encoding, FlatSamples, Image, Layer, Levels,
@@ -185,9 +185,10 @@ impl ExrContainer {
         levels: &[Frame],
         dest: &Path,
         opts: &WriteOptions,
+        unit: &mut Unit,
     ) -> Result<(), IoError> {
         match self {
-            ExrContainer::Image(c) => (*c).write(frame, levels, dest, opts),
+            ExrContainer::Image(c) => (*c).write(frame, levels, dest, opts, unit),
             ExrContainer::Chunked(c) => {
                 if !levels.is_empty() {
                     return Err(IoError::Encode {
@@ -199,7 +200,7 @@ impl ExrContainer {
                     });
                 }
                 let compression = chosen(opts.compression, c.header.compression);
-                crate::atomic::write_with(dest, opts.overwrite, |w| {
+                unit.write_with(dest, |w| {
                     c.write(frame, w, compression, opts.half, opts.zip_level, |h| {
                         set_header_colour(
                             &mut h.shared_attributes,
@@ -456,6 +457,7 @@ impl ImageContainer {
         levels: &[Frame],
         dest: &Path,
         opts: &WriteOptions,
+        unit: &mut Unit,
     ) -> Result<(), IoError> {
         let ImageContainer {
             mut image,
@@ -486,7 +488,7 @@ impl ImageContainer {
             l.encoding.compression = chosen(opts.compression, l.encoding.compression);
         }
         set_colour_attributes(&mut image, layer, Some(opts.space));
-        write_image(&image, dest, opts.overwrite)
+        write_image(&image, dest, unit)
     }
 }
 
@@ -558,7 +560,6 @@ pub(super) struct NewExr<'a> {
     pub space: Option<OutputSpace>,
     /// Extra text attributes (`comments` goes to the standard attribute).
     pub text: &'a [(&'a str, &'a str)],
-    pub overwrite: bool,
 }
 
 impl NewExr<'static> {
@@ -569,7 +570,6 @@ impl NewExr<'static> {
             compression: opts.compression,
             space: Some(opts.space),
             text: &[],
-            overwrite: opts.overwrite,
         }
     }
 }
@@ -581,13 +581,13 @@ pub(super) fn write_new(
     alpha: Option<&[f32]>,
     dest: &Path,
     how: &NewExr<'_>,
+    unit: &mut Unit,
 ) -> Result<(), IoError> {
     let NewExr {
         half,
         compression,
         space,
         text,
-        overwrite,
     } = *how;
     let mut list = ::exr::prelude::SmallVec::new();
     for (ci, name) in ["R", "G", "B"].into_iter().enumerate() {
@@ -634,12 +634,12 @@ pub(super) fn write_new(
         ::exr::prelude::SmallVec::from_vec(vec![layer]),
     );
     set_colour_attributes(&mut image, 0, space);
-    write_image(&image, dest, overwrite)
+    write_image(&image, dest, unit)
 }
 
 /// Writes `image` to a temporary file beside `dest`, then moves it into place.
-fn write_image(image: &AnyImage, dest: &Path, overwrite: bool) -> Result<(), IoError> {
-    crate::atomic::write_with(dest, overwrite, |w| {
+fn write_image(image: &AnyImage, dest: &Path, unit: &mut Unit) -> Result<(), IoError> {
+    unit.write_with(dest, |w| {
         // Attributes sorted by name: the same image gives the same bytes (canonical.rs).
         let mut sorted = canonical::SortedHeader::new(w);
         image

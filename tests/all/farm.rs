@@ -824,7 +824,7 @@ fn slurm_runs_the_array_and_a_killed_task_resumes() {
     );
     assert!(!dir.join("out/nsrm-farm.shard-0001-of-0002.json").exists());
     let before: Vec<_> = finished.iter().map(|p| identity(p)).collect();
-    let stale = nsrm::atomic::stale_temporaries(&dir.join("out"));
+    let stale = nsrm::output::stale_temporaries(&dir.join("out"));
 
     // The whole job: the array (both shards) and the verification after it.
     let t = Instant::now();

@@ -22,6 +22,8 @@ mod exr_fast;
 #[cfg(feature = "cli")]
 mod farm;
 mod fast;
+#[cfg(feature = "cli")]
+mod first_hour;
 mod fit_hostile;
 mod fit_variants;
 #[cfg(all(feature = "gpu", feature = "io"))]
@@ -49,3 +51,7 @@ mod paper_table1;
 mod parsers_fuzz;
 #[cfg(feature = "gpu")]
 mod pixel_policy;
+#[cfg(feature = "cli")]
+mod readme;
+#[cfg(feature = "cli")]
+mod white;

@@ -795,8 +795,10 @@ fn slurm_runs_the_array_and_a_killed_task_resumes() {
     assert!(some.is_some(), "shard 1 wrote nothing:\n{}", d.logs());
     let task = format!("{first_job}_1");
     assert_ok(
+        // `--batch`: the signal itself, to the batch step (nsrm, exec'd by the script); a
+        // plain `scancel --signal=KILL` cancels the job, which starts with SIGTERM.
         &slurm("scancel")
-            .args(["--full", "--signal=KILL", &task])
+            .args(["--batch", "--signal=KILL", &task])
             .output()
             .unwrap(),
     );
@@ -822,7 +824,16 @@ fn slurm_runs_the_array_and_a_killed_task_resumes() {
         finished.len(),
         shard1.len()
     );
-    assert!(!dir.join("out/nsrm-farm.shard-0001-of-0002.json").exists());
+    let task_log =
+        std::fs::read_to_string(job.join(format!("plates-{first_job}_1.out"))).unwrap_or_default();
+    assert!(
+        !task_log.contains("interrupted by"),
+        "not a SIGKILL: {task_log}"
+    );
+    assert!(
+        !dir.join("out/nsrm-farm.shard-0001-of-0002.json").exists(),
+        "{task_log}"
+    );
     let before: Vec<_> = finished.iter().map(|p| identity(p)).collect();
     let stale = nsrm::output::stale_temporaries(&dir.join("out"));
 

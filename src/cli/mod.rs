@@ -19,6 +19,8 @@ mod outputs;
 mod render_chart;
 mod render_scene;
 mod runtime_dir;
+#[cfg(feature = "studio")]
+mod studio;
 mod terms;
 mod values;
 
@@ -67,6 +69,10 @@ enum Command {
     /// Render a synthetic photo of a CC24 or SG chart (pose, clutter, uneven light, blur, noise)
     /// with its ground truth.
     RenderScene(render_scene::Args),
+    /// A local calibration studio in the browser: open a frame, fix the chart reading, fit,
+    /// compare and export (serves on 127.0.0.1 with a per-run token).
+    #[cfg(feature = "studio")]
+    Studio(studio::Args),
 }
 
 /// Parses the command line, runs the subcommand, and maps errors to exit codes.
@@ -95,6 +101,8 @@ pub fn main() -> ExitCode {
         Command::Terms(a) => terms::run(a),
         Command::RenderChart(a) => render_chart::run(a),
         Command::RenderScene(a) => render_scene::run(a),
+        #[cfg(feature = "studio")]
+        Command::Studio(a) => studio::run(a),
     };
     match result {
         Ok(code) => code,

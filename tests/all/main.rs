@@ -53,5 +53,7 @@ mod parsers_fuzz;
 mod pixel_policy;
 #[cfg(feature = "cli")]
 mod readme;
+#[cfg(feature = "studio")]
+mod studio;
 #[cfg(feature = "cli")]
 mod white;

@@ -226,6 +226,8 @@ pub fn is_usage(err: &(dyn std::error::Error + 'static)) -> bool {
         crate::io::IoError,
         #[cfg(feature = "io")]
         crate::io::batch::PlanError,
+        #[cfg(feature = "farm")]
+        crate::farm::FarmError,
         #[cfg(feature = "export")]
         crate::export::ExportError,
         #[cfg(feature = "chart")]

@@ -37,6 +37,7 @@
 //! | `export` | `gpu::export`: the shaders in SPIR-V, GLSL, HLSL and MSL (naga's back ends); implies `gpu` |
 //! | `plot` | `eval::plot`: the paper's Fig. 1 as SVG or PNG |
 //! | `chart` | chart detection in captured frames; implies `io` |
+//! | `farm` | [`farm`]: per-shard manifests, their verification, path mapping, farm job files; implies `io` |
 //! | `cli` (default) | the `nsrm` binary; implies all of the above |
 //!
 //! A renderer embeds the correction pass with
@@ -52,6 +53,8 @@ pub mod error;
 pub mod eval;
 #[cfg(feature = "export")]
 pub mod export;
+#[cfg(feature = "farm")]
+pub mod farm;
 pub mod frame;
 #[cfg(feature = "gpu")]
 pub mod gpu;

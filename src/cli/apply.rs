@@ -762,3 +762,174 @@ fn refusal(r: &batch::Refusal) -> String {
         batch::Refusal::PreviewExists(_) => format!("{r}: pass --overwrite to replace it"),
     }
 }
+
+/// `apply`'s options as `nsrm farm` takes them apart: the paths (which a farm maps to the
+/// workers' mounts), the per-run policies a farm task sets itself, and the rest as words.
+pub(super) struct FarmParts<'a> {
+    pub model: &'a mut PathBuf,
+    pub output_dir: &'a mut Option<PathBuf>,
+    pub preview: &'a mut Option<PathBuf>,
+    pub inputs: &'a mut Vec<PathBuf>,
+    pub continue_on_error: &'a mut bool,
+    /// `--overwrite` (for `nsrm farm`'s job files: replace them).
+    pub overwrite: bool,
+    /// Set when one of `--skip-existing`, `--shard`, `--dry-run`,
+    /// `--remove-stale-temporaries` was given (a farm task decides those itself).
+    pub policy_flag: Option<&'static str>,
+}
+
+impl Args {
+    pub(super) fn farm_parts(&mut self) -> FarmParts<'_> {
+        let policy_flag = [
+            (self.skip_existing, "--skip-existing"),
+            (self.shard.is_some(), "--shard"),
+            (self.dry_run, "--dry-run"),
+            (self.remove_stale_temporaries, "--remove-stale-temporaries"),
+        ]
+        .into_iter()
+        .find(|(set, _)| *set)
+        .map(|(_, f)| f);
+        FarmParts {
+            model: &mut self.model,
+            output_dir: &mut self.output_dir,
+            preview: &mut self.preview,
+            inputs: &mut self.inputs,
+            continue_on_error: &mut self.continue_on_error,
+            overwrite: self.overwrite,
+            policy_flag,
+        }
+    }
+
+    /// The conversion settings as `apply` words (no paths, no per-run policy): parsing them
+    /// back with the paths gives the same conversion.
+    pub(super) fn settings_argv(&self) -> Vec<String> {
+        fn name(v: impl clap::ValueEnum) -> String {
+            v.to_possible_value()
+                .map(|p| p.get_name().to_string())
+                .unwrap_or_default()
+        }
+        let mut w: Vec<String> = vec![
+            "--device".into(),
+            name(self.device.device),
+            "--format".into(),
+            name(self.format),
+            "--compression".into(),
+            name(self.compression),
+            "--zip-level".into(),
+            self.zip_level.to_string(),
+            "--output-space".into(),
+            name(self.output_space),
+            "--max-pixels".into(),
+            self.max_pixels.to_string(),
+        ];
+        let mut opt = |flag: &str, v: &Option<String>| {
+            if let Some(v) = v {
+                w.push(format!("{flag}={v}"));
+            }
+        };
+        opt("--adapter", &self.adapter);
+        opt("--suffix", &self.suffix);
+        opt("--layer", &self.layer);
+        opt("--jobs", &self.jobs.map(|j| j.to_string()));
+        for (set, flag) in [
+            (self.half, "--half"),
+            (self.continue_on_error, "--continue-on-error"),
+            (self.timing, "--timing"),
+        ] {
+            if set {
+                w.push(flag.into());
+            }
+        }
+        w
+    }
+
+    /// The batch planned as a farm task sees it: shard `shard` of every input, existing
+    /// outputs marked to skip (the task decides whether they are finished), directories created.
+    pub(super) fn farm_plan(&self, inputs: &[PathBuf], shard: Shard) -> Result<BatchPlan> {
+        let req = parse_request(self)?;
+        Ok(batch::plan_batch(
+            inputs,
+            &PlanOptions {
+                out_dir: self.output_dir.as_deref(),
+                suffix: &req.suffix,
+                format: req.format,
+                preview_dir: self.preview.as_deref(),
+                existing: Existing::Skip,
+                shard: Some(shard),
+                create_dirs: true,
+            },
+        )?)
+    }
+
+    /// The pixel limit and layer a frame is read with (for a farm task's full read of an
+    /// output it finds).
+    pub(super) fn farm_read_options(&self) -> ReadOptions {
+        ReadOptions {
+            layer: self.layer.clone(),
+            limits: Limits {
+                max_pixels: self.max_pixels,
+            },
+        }
+    }
+}
+
+#[cfg(test)]
+mod farm_tests {
+    use super::*;
+    use clap::Parser;
+
+    #[derive(Parser)]
+    struct Cmd {
+        #[command(flatten)]
+        a: Args,
+    }
+
+    #[test]
+    fn settings_words_parse_back_to_the_same_settings() {
+        for given in [
+            vec!["--model", "m.json", "x.exr"],
+            vec![
+                "--model",
+                "m.json",
+                "-o",
+                "out",
+                "--half",
+                "--suffix",
+                "_a b",
+                "--layer",
+                "cam",
+                "--jobs",
+                "3",
+                "--output-space",
+                "acescg",
+                "--compression",
+                "piz",
+                "--zip-level",
+                "7",
+                "--device",
+                "cpu",
+                "--adapter",
+                "lava",
+                "--max-pixels",
+                "99",
+                "--continue-on-error",
+                "--timing",
+                "--format",
+                "exr",
+                "x.exr",
+            ],
+        ] {
+            let a = Cmd::try_parse_from(std::iter::once("apply").chain(given.clone()))
+                .unwrap()
+                .a;
+            let mut again: Vec<String> = vec!["apply".into(), "--model".into(), "m.json".into()];
+            if a.output_dir.is_some() {
+                again.extend(["-o".into(), "out".into()]);
+            }
+            again.extend(a.settings_argv());
+            again.push("x.exr".into());
+            let b = Cmd::try_parse_from(&again).unwrap().a;
+            assert_eq!(format!("{:?}", a), format!("{:?}", b), "{given:?}");
+        }
+    }
+}

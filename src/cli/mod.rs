@@ -12,6 +12,7 @@ mod common;
 mod eval;
 mod export;
 mod export_shader;
+mod farm;
 mod fit;
 mod fit_args;
 mod outputs;
@@ -55,6 +56,10 @@ enum Command {
     /// Write a self-contained compute shader (WGSL, GLSL, HLSL, MSL or SPIR-V) with a model's
     /// matrix baked in.
     ExportShader(export_shader::Args),
+    /// Batches on farm engines: job files for Open Job Description (Deadline Cloud), Slurm and
+    /// Kubernetes; `farm run` (one retry-safe shard with its manifest); `farm verify`.
+    #[command(subcommand)]
+    Farm(farm::Command),
     /// Fit one model and write it as a JSON model file.
     Fit(fit::Args),
     /// List the terms of a model kind and order (the single definition the shaders use).
@@ -106,6 +111,7 @@ pub fn main() -> ExitCode {
         Command::Eval(a) => eval::run(a),
         Command::Export(a) => export::run(a),
         Command::ExportShader(a) => export_shader::run(a),
+        Command::Farm(c) => farm::run(c),
         Command::Fit(a) => fit::run(a),
         Command::Terms(a) => terms::run(a),
         Command::RenderChart(a) => render_chart::run(a),

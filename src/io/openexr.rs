@@ -7,6 +7,7 @@
 //! (tiles, mip/rip levels, multi-part, subsampled channels, lossy or decreasing-y inputs) goes
 //! through the `exr` crate's whole-image reader and writer.
 
+mod canonical;
 mod chunks;
 mod piz;
 
@@ -639,9 +640,15 @@ pub(super) fn write_new(
 /// Writes `image` to a temporary file beside `dest`, then moves it into place.
 fn write_image(image: &AnyImage, dest: &Path, unit: &mut Unit) -> Result<(), IoError> {
     unit.write_with(dest, |w| {
+        // Attributes sorted by name: the same image gives the same bytes (canonical.rs).
+        let mut sorted = canonical::SortedHeader::new(w);
         image
             .write()
-            .to_buffered(w)
-            .map_err(|e| encode_err(dest, e))
+            .to_buffered(&mut sorted)
+            .map_err(|e| encode_err(dest, e))?;
+        sorted
+            .finish()
+            .map(|_| ())
+            .map_err(|e| encode_err(dest, e.into()))
     })
 }

@@ -19,6 +19,8 @@ mod export_dctl;
 mod export_ocio;
 #[cfg(feature = "io")]
 mod exr_fast;
+#[cfg(feature = "cli")]
+mod farm;
 mod fast;
 #[cfg(feature = "cli")]
 mod first_hour;

@@ -1140,6 +1140,8 @@ fn write_chunks<W: std::io::Write + std::io::Seek>(
     ::exr::meta::magic_number::write(&mut head)?;
     requirements.write(&mut head)?;
     Header::write_all(&headers, &mut head, false)?;
+    // Attributes sorted by name: the same frame gives the same bytes (canonical.rs).
+    super::canonical::sort_attributes(&mut head);
     let header = &headers[0];
     let n = header.chunk_count;
     let table_at = head.len() as u64;

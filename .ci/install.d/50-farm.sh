@@ -1,0 +1,19 @@
+#!/bin/sh
+# The farm engines the farm tests run for real: Open Job Description's CLI (`openjd check` /
+# `openjd run`, the job format of AWS Deadline Cloud) and a single-node Slurm (slurmctld, slurmd,
+# the client commands and munge). Installs only what is missing.
+set -eu
+if ! command -v openjd >/dev/null 2>&1; then
+    pip install -q openjd-cli || pip install -q --break-system-packages openjd-cli
+fi
+missing=""
+for c in slurmctld:slurmctld slurmd:slurmd sbatch:slurm-client munged:munge; do
+    command -v "${c%%:*}" >/dev/null 2>&1 || missing="$missing ${c#*:}"
+done
+if [ -n "$missing" ]; then
+    apt-get update -qq
+    # shellcheck disable=SC2086
+    DEBIAN_FRONTEND=noninteractive apt-get install -y -qq $missing >/dev/null
+fi
+command -v openjd >/dev/null && command -v slurmctld >/dev/null && command -v slurmd >/dev/null \
+    && command -v sbatch >/dev/null && command -v munged >/dev/null

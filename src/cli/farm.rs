@@ -1,0 +1,666 @@
+//! `nsrm farm`: batches on farm engines.
+//!
+//! - `nsrm farm openjd|slurm|k8s --shards N --job-dir DIR [apply's options] INPUT… -o OUT`
+//!   writes a ready job for the engine (see `nsrm::farm::jobs`).
+//! - `nsrm farm run --shard K/N [--inputs-from FILE] [--path-map FROM=TO]… -- [apply's
+//!   options] [INPUT…]` is one task: it keeps the shard's finished outputs (checked against
+//!   its manifest, or read in full), removes stale temporaries of its own outputs, converts
+//!   the rest with `apply`, and writes the shard's manifest beside the outputs.
+//! - `nsrm farm verify OUT` checks the batch is whole (exit 1 naming what is not).
+
+use super::apply;
+use super::common::UsageError;
+use anyhow::{Context, Result};
+use clap::Parser;
+use nsrm::farm::jobs::{self, Arg, JobFile, JobSpec};
+use nsrm::farm::manifest::{self, Batch, Entry, Failure, How, ModelRecord, ShardManifest};
+use nsrm::farm::pathmap::PathMap;
+use nsrm::farm::verify::{self, Expect};
+use nsrm::io::batch::{self, Shard};
+use std::path::{Path, PathBuf};
+use std::process::ExitCode;
+use std::time::{Instant, SystemTime, UNIX_EPOCH};
+
+#[derive(Debug, clap::Subcommand)]
+pub enum Command {
+    /// Write an Open Job Description job bundle (template.yaml, parameter_values.yaml/.json):
+    /// the format AWS Deadline Cloud submits; `openjd run` runs it locally.
+    Openjd(GenArgs),
+    /// Write a Slurm array job (array.sbatch, verify.sbatch, submit.sh).
+    Slurm(GenArgs),
+    /// Write a Kubernetes Indexed Job (job.yaml: the input list as a ConfigMap and the Job;
+    /// verify.yaml: the verification, to apply once the Job has completed).
+    K8s(KubeArgs),
+    /// Run one shard as a farm task: keep its finished outputs, convert the rest, write its
+    /// manifest.
+    Run(RunArgs),
+    /// Check that a batch is whole: every shard's manifest, every output there with the hash
+    /// recorded, one model, no temporaries. Exit status 1 naming what is missing or wrong.
+    Verify(VerifyArgs),
+}
+
+#[derive(Debug, clap::Args)]
+pub struct GenArgs {
+    /// Shards the batch is split into (one farm task each).
+    #[arg(long, value_name = "N")]
+    shards: usize,
+    /// Where the job's files are written (created if missing); with --overwrite, files of the
+    /// same names there are replaced.
+    #[arg(long, value_name = "DIR")]
+    job_dir: PathBuf,
+    /// The job's name (letters, digits, -, _, .).
+    #[arg(long, default_value = "nsrm-apply")]
+    name: String,
+    /// The nsrm program on the workers.
+    #[arg(long, value_name = "PATH", default_value = "nsrm")]
+    program: String,
+    /// Rewrite paths under FROM (as named here) to TO (as the workers mount it); repeatable,
+    /// the longest FROM wins. Slurm and Kubernetes only: an Open Job Description worker maps
+    /// paths with its own path-mapping rules.
+    #[arg(long = "path-map", value_name = "FROM=TO")]
+    path_map: Vec<String>,
+    /// apply's options and inputs (-o is required; --overwrite replaces the job's files).
+    #[command(flatten)]
+    apply: apply::Args,
+}
+
+#[derive(Debug, clap::Args)]
+pub struct KubeArgs {
+    /// Container image with nsrm (and /bin/sh).
+    #[arg(long, value_name = "IMAGE")]
+    image: String,
+    /// PersistentVolumeClaim holding the inputs, the model and the outputs.
+    #[arg(long, value_name = "NAME")]
+    claim: String,
+    /// Where the claim is mounted in the pods (map paths onto it with --path-map).
+    #[arg(long, value_name = "DIR", default_value = "/data")]
+    mount: String,
+    /// Pods running at once.
+    #[arg(long, value_name = "P", default_value_t = 4)]
+    parallelism: usize,
+    /// Retries of one shard before it counts as failed (backoffLimitPerIndex).
+    #[arg(long, value_name = "N", default_value_t = 3)]
+    retries: usize,
+    #[command(flatten)]
+    gen: GenArgs,
+}
+
+#[derive(Debug, clap::Args)]
+pub struct RunArgs {
+    /// This task's shard: K of N (K from 1).
+    #[arg(long, value_name = "K/N")]
+    shard: String,
+    /// A file listing the batch's inputs, one per line (`-`: standard input), added to the
+    /// inputs given after `--`.
+    #[arg(long, value_name = "FILE")]
+    inputs_from: Option<PathBuf>,
+    /// Rewrite listed inputs and the preview directory under FROM to TO; repeatable.
+    #[arg(long = "path-map", value_name = "FROM=TO")]
+    path_map: Vec<String>,
+    /// An Open Job Description path-mapping rules file (a session's PathMappingRulesFile),
+    /// applied like --path-map.
+    #[arg(long, value_name = "FILE")]
+    path_mapping_rules: Option<PathBuf>,
+    /// apply's options and inputs (-o is required).
+    #[arg(last = true, value_name = "APPLY_ARGS")]
+    apply: Vec<std::ffi::OsString>,
+}
+
+#[derive(Debug, clap::Args)]
+pub struct VerifyArgs {
+    /// The batch's output directory.
+    #[arg(value_name = "DIR")]
+    dir: PathBuf,
+    /// Shards the job was made with (default: as the manifests say).
+    #[arg(long, value_name = "N")]
+    shards: Option<usize>,
+    /// The model the job applies: every shard must have applied this file.
+    #[arg(long, value_name = "FILE")]
+    model: Option<PathBuf>,
+}
+
+/// `apply`'s arguments parsed on their own.
+#[derive(Parser)]
+#[command(name = "nsrm farm run --")]
+struct ApplyCmd {
+    #[command(flatten)]
+    a: apply::Args,
+}
+
+pub fn run(c: Command) -> Result<ExitCode> {
+    match c {
+        Command::Openjd(g) => generate(Engine::Openjd, g),
+        Command::Slurm(g) => generate(Engine::Slurm, g),
+        Command::K8s(k) => {
+            let kube = jobs::Kube {
+                image: k.image,
+                claim: k.claim,
+                mount_path: k.mount,
+                parallelism: k.parallelism,
+                retries_per_index: k.retries,
+            };
+            generate(Engine::Kube(kube), k.gen)
+        }
+        Command::Run(r) => run_shard(r),
+        Command::Verify(v) => run_verify(v),
+    }
+}
+
+enum Engine {
+    Openjd,
+    Slurm,
+    Kube(jobs::Kube),
+}
+
+fn utf8(p: &Path, what: &str) -> Result<String> {
+    p.to_str().map(str::to_string).ok_or_else(|| {
+        UsageError(format!(
+            "{what} {}: a farm job lists paths as text; this one is not UTF-8",
+            p.display()
+        ))
+        .into()
+    })
+}
+
+fn absolute(p: &Path) -> Result<PathBuf> {
+    std::path::absolute(p).with_context(|| format!("{}", p.display()))
+}
+
+fn generate(engine: Engine, mut g: GenArgs) -> Result<ExitCode> {
+    if g.shards == 0 {
+        return Err(UsageError("--shards must be at least 1".into()).into());
+    }
+    let mut map = PathMap::new();
+    for spec in &g.path_map {
+        map.add_pair(spec).context("--path-map")?;
+    }
+    if matches!(engine, Engine::Openjd) && !map.is_empty() {
+        return Err(UsageError(
+            "--path-map is for Slurm and Kubernetes jobs; an Open Job Description worker maps \
+             paths with its own path-mapping rules (openjd run --path-mapping-rules, or the \
+             farm's storage profiles)"
+                .into(),
+        )
+        .into());
+    }
+    let settings = g.apply.settings_argv();
+    let parts = g.apply.farm_parts();
+    if let Some(flag) = parts.policy_flag {
+        return Err(UsageError(format!(
+            "{flag} is decided by each farm task (a retried task keeps its finished outputs); leave it out"
+        ))
+        .into());
+    }
+    let overwrite = parts.overwrite;
+    let out = parts
+        .output_dir
+        .clone()
+        .ok_or_else(|| UsageError("-o (the batch's output directory) is required".into()))?;
+    let m = |p: &Path, what: &str| -> Result<String> { Ok(map.map(&utf8(&absolute(p)?, what)?)) };
+    let model = m(parts.model, "--model")?;
+    let output_dir = m(&out, "-o")?;
+    let preview = parts
+        .preview
+        .as_deref()
+        .map(|p| m(p, "--preview"))
+        .transpose()?;
+    let found = batch::expand_inputs(parts.inputs)?;
+    let mut inputs = Vec::with_capacity(found.len());
+    for i in &found {
+        inputs.push(m(i, "input")?);
+    }
+
+    let lit = |s: &str| Arg::Lit(s.to_string());
+    let mut task = vec![
+        lit("farm"),
+        lit("run"),
+        lit("--shard"),
+        Arg::Shard,
+        lit("--inputs-from"),
+        Arg::InputList,
+    ];
+    if matches!(engine, Engine::Openjd) {
+        task.extend([lit("--path-mapping-rules"), Arg::PathMappingRules]);
+    }
+    task.extend([
+        lit("--"),
+        lit("--model"),
+        Arg::Model,
+        lit("-o"),
+        Arg::OutputDir,
+    ]);
+    if let Some(p) = &preview {
+        task.extend([lit("--preview"), lit(p)]);
+    }
+    task.extend(settings.iter().map(|s| lit(s)));
+    let verify = vec![
+        lit("farm"),
+        lit("verify"),
+        Arg::OutputDir,
+        lit("--shards"),
+        Arg::Shards,
+        lit("--model"),
+        Arg::Model,
+    ];
+    let spec = JobSpec {
+        name: g.name.clone(),
+        shards: g.shards,
+        inputs,
+        model,
+        output_dir,
+        program: g.program.clone(),
+        task,
+        verify,
+    };
+    let (files, how) = match &engine {
+        Engine::Openjd => (
+            jobs::openjd(&spec)?,
+            format!(
+                "openjd run {dir}/template.yaml --step Apply -p file://{dir}/parameter_values.json, then --step Verify; or submit {dir} as a Deadline Cloud job bundle",
+                dir = g.job_dir.display()
+            ),
+        ),
+        Engine::Slurm => (
+            jobs::slurm(&spec)?,
+            format!("sh {}/submit.sh", g.job_dir.display()),
+        ),
+        Engine::Kube(k) => (
+            jobs::kube(&spec, k)?,
+            format!(
+                "kubectl apply -f {dir}/job.yaml; kubectl wait --for=condition=complete job/{name}; kubectl apply -f {dir}/verify.yaml",
+                dir = g.job_dir.display(),
+                name = g.name
+            ),
+        ),
+    };
+    write_job(&g.job_dir, &files, overwrite)?;
+    eprintln!(
+        "nsrm farm: {} input(s) in {} shard(s); wrote {} in {}",
+        spec.inputs.len(),
+        spec.shards,
+        files
+            .iter()
+            .map(|f| f.name.as_str())
+            .collect::<Vec<_>>()
+            .join(", "),
+        g.job_dir.display()
+    );
+    eprintln!("nsrm farm: run it with: {how}");
+    Ok(ExitCode::SUCCESS)
+}
+
+/// Writes the job's files together: all staged, then committed (all appear or none).
+fn write_job(dir: &Path, files: &[JobFile], overwrite: bool) -> Result<()> {
+    let dests: Vec<PathBuf> = files.iter().map(|f| dir.join(&f.name)).collect();
+    let dests: Vec<&Path> = dests.iter().map(PathBuf::as_path).collect();
+    let session = super::outputs::open(overwrite, &[], &dests)?;
+    let mut unit = session.unit();
+    for f in files {
+        unit.write_bytes(&dir.join(&f.name), f.text.as_bytes())?;
+    }
+    unit.commit()?;
+    #[cfg(unix)]
+    for f in files.iter().filter(|f| f.executable) {
+        use std::os::unix::fs::PermissionsExt;
+        let dest = dir.join(&f.name);
+        std::fs::set_permissions(&dest, std::fs::Permissions::from_mode(0o755))
+            .with_context(|| format!("making {} executable", dest.display()))?;
+    }
+    Ok(())
+}
+
+/// Reads an input list: one path per line, blank lines ignored.
+fn read_list(path: &Path) -> Result<Vec<String>> {
+    const LIMIT: u64 = nsrm::farm::MAX_RECORD_BYTES;
+    let bytes = if path == Path::new("-") {
+        use std::io::Read;
+        let mut v = Vec::new();
+        std::io::stdin()
+            .take(LIMIT + 1)
+            .read_to_end(&mut v)
+            .context("reading the input list from standard input")?;
+        if v.len() as u64 > LIMIT {
+            anyhow::bail!("the input list on standard input is over {LIMIT} bytes");
+        }
+        v
+    } else {
+        nsrm::farm::read_bounded(path, LIMIT).context("--inputs-from")?
+    };
+    let text = String::from_utf8(bytes)
+        .map_err(|_| anyhow::anyhow!("{}: the input list is not UTF-8", path.display()))?;
+    Ok(text
+        .lines()
+        .map(|l| l.strip_suffix('\r').unwrap_or(l))
+        .filter(|l| !l.trim().is_empty())
+        .map(str::to_string)
+        .collect())
+}
+
+fn secs(t: Instant) -> f64 {
+    (t.elapsed().as_secs_f64() * 1e3).round() / 1e3
+}
+
+/// What a farm task found for one of its outputs before converting.
+enum Found {
+    /// Finished: kept as it is.
+    Done(Entry),
+    /// To convert (`true`: something broken or stale is there and is replaced).
+    Todo(bool),
+}
+
+fn run_shard(r: RunArgs) -> Result<ExitCode> {
+    let t0 = Instant::now();
+    let started_unix = SystemTime::now()
+        .duration_since(UNIX_EPOCH)
+        .map(|d| d.as_secs_f64())
+        .unwrap_or(0.0);
+    let shard = Shard::parse(&r.shard).context("--shard")?;
+    let mut map = PathMap::new();
+    for spec in &r.path_map {
+        map.add_pair(spec).context("--path-map")?;
+    }
+    if let Some(f) = &r.path_mapping_rules {
+        map.add_openjd_file(f).context("--path-mapping-rules")?;
+    }
+    let mut argv: Vec<std::ffi::OsString> = vec!["nsrm farm run --".into()];
+    argv.extend(r.apply.iter().cloned());
+    if let Some(list) = &r.inputs_from {
+        if !r.apply.iter().any(|a| a == "--") {
+            argv.push("--".into());
+        }
+        argv.extend(read_list(list)?.iter().map(|l| map.map(l).into()));
+    }
+    let mut a = ApplyCmd::try_parse_from(&argv)
+        .map_err(|e| UsageError(format!("apply's arguments after --: {e}")))?
+        .a;
+    let parts = a.farm_parts();
+    if let Some(flag) = parts
+        .policy_flag
+        .or(parts.overwrite.then_some("--overwrite"))
+    {
+        return Err(UsageError(format!(
+            "{flag} is decided by the farm task itself (it keeps finished outputs and replaces broken ones); leave it out"
+        ))
+        .into());
+    }
+    *parts.continue_on_error = true;
+    if let Some(p) = parts.preview.as_mut() {
+        *p = PathBuf::from(map.map(&utf8(p, "--preview")?));
+    }
+    let out_dir = parts
+        .output_dir
+        .clone()
+        .ok_or_else(|| UsageError("-o (the batch's output directory) is required".into()))?;
+    let model_path = parts.model.clone();
+    let inputs = batch::expand_inputs(parts.inputs)?;
+    let settings = a.settings_argv();
+    let (_, model_sha) = nsrm::farm::sha256_file(&model_path).context("--model")?;
+    let plan = a
+        .farm_plan(&inputs, shard)
+        .context("planning the outputs (--suffix, -o, --preview)")?;
+    // Every output's name in the batch (all shards), for the batch's identity.
+    let all_names: Vec<String> = {
+        let full = a
+            .farm_plan(&inputs, Shard { index: 1, count: 1 })
+            .context("planning the outputs")?;
+        full.jobs
+            .iter()
+            .map(|j| name_of(&j.output))
+            .collect::<Result<_>>()?
+    };
+    let batch_id = Batch::of(&all_names);
+    let previous =
+        ShardManifest::read(&out_dir.join(manifest::file_name(shard.index, shard.count)))
+            .ok()
+            .filter(|m| m.batch == batch_id);
+    let same_run = previous
+        .as_ref()
+        .is_some_and(|m| m.model.sha256 == model_sha && m.settings == settings);
+
+    // Stale temporaries of this shard's own outputs (a killed run's): removed.
+    let mine: Vec<String> = plan
+        .jobs
+        .iter()
+        .flat_map(|j| [Some(&j.output), j.preview.as_ref()])
+        .flatten()
+        .filter_map(|p| p.file_name().map(|n| format!(".{}.", n.to_string_lossy())))
+        .collect();
+    let mut removed = Vec::new();
+    for t in &plan.stale_temporaries {
+        let name = t.file_name().map(|n| n.to_string_lossy().into_owned());
+        if let Some(name) = name.filter(|n| mine.iter().any(|m| n.starts_with(m.as_str()))) {
+            match std::fs::remove_file(t) {
+                Ok(()) => removed.push(name),
+                Err(e) => eprintln!("nsrm farm run: cannot remove {}: {e}", t.display()),
+            }
+        }
+    }
+
+    // What is finished already.
+    let read_opts = a.farm_read_options();
+    let mut found = Vec::with_capacity(plan.jobs.len());
+    for j in &plan.jobs {
+        found.push(check_existing(j, previous.as_ref(), same_run, &read_opts)?);
+    }
+    let check_s = secs(t0);
+
+    // Convert the rest.
+    let todo: Vec<&batch::Job> = plan
+        .jobs
+        .iter()
+        .zip(&found)
+        .filter(|(_, f)| matches!(f, Found::Todo(_)))
+        .map(|(j, _)| j)
+        .collect();
+    let replace = found.iter().any(|f| matches!(f, Found::Todo(true)));
+    let t1 = Instant::now();
+    let mut status = ExitCode::SUCCESS;
+    if !todo.is_empty() {
+        let mut words: Vec<std::ffi::OsString> = vec!["nsrm farm run --".into()];
+        words.extend(["--model".into(), model_path.clone().into_os_string()]);
+        words.extend(["-o".into(), out_dir.clone().into_os_string()]);
+        if let Some(p) = a.farm_parts().preview.clone() {
+            words.extend(["--preview".into(), p.into_os_string()]);
+        }
+        words.extend(settings.iter().map(Into::into));
+        if replace {
+            words.push("--overwrite".into());
+        }
+        words.push("--".into());
+        words.extend(todo.iter().map(|j| j.input.clone().into_os_string()));
+        let args = ApplyCmd::try_parse_from(&words)
+            .map_err(|e| anyhow::anyhow!("internal: apply's arguments: {e}"))?
+            .a;
+        status = apply::run(args)?;
+    }
+    let convert_s = secs(t1);
+
+    // Record.
+    let t2 = Instant::now();
+    let mut outputs = Vec::new();
+    let mut failures = Vec::new();
+    for (j, f) in plan.jobs.iter().zip(found) {
+        match f {
+            Found::Done(e) => outputs.push(e),
+            Found::Todo(replaced) => {
+                let how = if replaced {
+                    How::Replaced
+                } else {
+                    How::Converted
+                };
+                match entry(j, how) {
+                    Ok(e) => outputs.push(e),
+                    Err(why) => failures.push(Failure {
+                        input: j.input.display().to_string(),
+                        output: name_of(&j.output).unwrap_or_default(),
+                        why,
+                    }),
+                }
+            }
+        }
+    }
+    let hash_s = secs(t2);
+    let m = ShardManifest {
+        format: manifest::FORMAT.into(),
+        nsrm_version: env!("CARGO_PKG_VERSION").into(),
+        shard: shard.index,
+        shards: shard.count,
+        batch: batch_id,
+        model: ModelRecord {
+            path: model_path.display().to_string(),
+            sha256: model_sha,
+        },
+        settings,
+        outputs,
+        failures,
+        stale_temporaries_removed: removed,
+        timings: manifest::Timings {
+            started_unix,
+            check_s,
+            convert_s,
+            hash_s,
+            total_s: secs(t0),
+        },
+    };
+    let path = m
+        .write(&out_dir, &nsrm::output::Session::new(true))
+        .context("writing the shard manifest")?;
+    let count = |h: How| m.outputs.iter().filter(|e| e.how == h).count();
+    eprintln!(
+        "nsrm farm run: shard {shard}: {} converted, {} replaced, {} kept, {} adopted (complete, found without a record), {} failed; {} stale temporar{} removed; {:.2} s; manifest {}",
+        count(How::Converted),
+        count(How::Replaced),
+        count(How::Kept),
+        count(How::Adopted),
+        m.failures.len(),
+        m.stale_temporaries_removed.len(),
+        if m.stale_temporaries_removed.len() == 1 { "y" } else { "ies" },
+        m.timings.total_s,
+        path.display()
+    );
+    if !m.failures.is_empty() && status == ExitCode::SUCCESS {
+        status = ExitCode::from(1);
+    }
+    Ok(status)
+}
+
+fn name_of(p: &Path) -> Result<String> {
+    p.file_name()
+        .and_then(|n| n.to_str())
+        .map(str::to_string)
+        .ok_or_else(|| anyhow::anyhow!("{}: the output's name is not UTF-8", p.display()))
+}
+
+/// The record of a finished output (hashes the output and its preview).
+fn entry(j: &batch::Job, how: How) -> std::result::Result<Entry, String> {
+    if !j.output.is_file() {
+        return Err("no output after the conversion (see the task's log)".into());
+    }
+    let (bytes, sha256) = nsrm::farm::sha256_file(&j.output).map_err(|e| e.to_string())?;
+    let preview = match &j.preview {
+        None => None,
+        Some(p) => {
+            let (bytes, sha256) = nsrm::farm::sha256_file(p).map_err(|e| e.to_string())?;
+            Some(manifest::Preview {
+                path: p.display().to_string(),
+                bytes,
+                sha256,
+            })
+        }
+    };
+    Ok(Entry {
+        input: j.input.display().to_string(),
+        output: name_of(&j.output).map_err(|e| e.to_string())?,
+        bytes,
+        sha256,
+        preview,
+        how,
+    })
+}
+
+/// Whether `j`'s output is finished: recorded by an earlier run of this shard with the same
+/// model and settings and unchanged since (size and hash), or, with no record, complete (read
+/// in full). Anything else there is broken or stale and is converted again.
+fn check_existing(
+    j: &batch::Job,
+    previous: Option<&ShardManifest>,
+    same_run: bool,
+    read: &nsrm::io::ReadOptions,
+) -> Result<Found> {
+    let there = j.output.is_file() && j.preview.as_ref().is_none_or(|p| p.is_file());
+    if !j.output.exists() && j.preview.as_ref().is_none_or(|p| !p.exists()) {
+        return Ok(Found::Todo(false));
+    }
+    if !there {
+        return Ok(Found::Todo(true));
+    }
+    let name = name_of(&j.output)?;
+    let record = previous.and_then(|m| m.outputs.iter().find(|e| e.output == name));
+    match (record, same_run) {
+        (Some(rec), true) => Ok(match entry(j, How::Kept) {
+            Ok(e)
+                if e.bytes == rec.bytes
+                    && e.sha256 == rec.sha256
+                    && e.preview.as_ref().map(|p| &p.sha256)
+                        == rec.preview.as_ref().map(|p| &p.sha256) =>
+            {
+                Found::Done(e)
+            }
+            _ => Found::Todo(true),
+        }),
+        // Recorded by a run of another model or settings: stale.
+        (Some(_), false) => Ok(Found::Todo(true)),
+        (None, _) if previous.is_some() && !same_run => Ok(Found::Todo(true)),
+        (None, _) => {
+            let complete = nsrm::io::Decoded::read(&j.output, read).is_ok();
+            Ok(if complete {
+                match entry(j, How::Adopted) {
+                    Ok(e) => Found::Done(e),
+                    Err(_) => Found::Todo(true),
+                }
+            } else {
+                Found::Todo(true)
+            })
+        }
+    }
+}
+
+fn run_verify(v: VerifyArgs) -> Result<ExitCode> {
+    let model_sha256 = match &v.model {
+        Some(p) => Some(nsrm::farm::sha256_file(p).context("--model")?.1),
+        None => None,
+    };
+    if v.shards == Some(0) {
+        return Err(UsageError("--shards must be at least 1".into()).into());
+    }
+    let t = Instant::now();
+    let r = verify::verify(
+        &v.dir,
+        &Expect {
+            shards: v.shards,
+            model_sha256,
+        },
+    )?;
+    let summary = format!(
+        "{} manifest(s) of {} shard(s), {} input(s); {} output(s) match their hashes ({:.1} MB hashed in {:.2} s)",
+        r.manifests,
+        r.shards,
+        r.inputs,
+        r.outputs_ok,
+        r.bytes as f64 / 1e6,
+        t.elapsed().as_secs_f64()
+    );
+    if r.ok() {
+        println!("nsrm farm verify: OK: {}: {summary}", v.dir.display());
+        return Ok(ExitCode::SUCCESS);
+    }
+    eprintln!(
+        "nsrm farm verify: FAILED: {}: {} problem(s); {summary}",
+        v.dir.display(),
+        r.problems.len()
+    );
+    for p in &r.problems {
+        eprintln!("  {p}");
+    }
+    Ok(ExitCode::from(1))
+}

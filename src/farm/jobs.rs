@@ -1,0 +1,641 @@
+//! Job descriptions in the engines' own formats: an Open Job Description template (the format
+//! AWS Deadline Cloud submits, laid out as a job bundle), a Slurm array script with a dependent
+//! verification job, and a Kubernetes Indexed Job.
+//!
+//! The caller gives the command a worker runs for a shard and for the verification as a list of
+//! [`Arg`]s: literal words and the places where each engine puts its own values (the shard, the
+//! input list, the model, the output directory). Every file is generated text; nothing here
+//! runs anything.
+
+use super::yaml::{self, Node};
+use super::FarmError;
+
+/// One word of a worker's command line.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub enum Arg {
+    /// Passed as it is.
+    Lit(String),
+    /// `K/N`: this task's shard (1-based) and the shard count.
+    Shard,
+    /// The shard count.
+    Shards,
+    /// A file listing the batch's inputs, one per line (on Slurm, standard input: `-`).
+    InputList,
+    /// A file of Open Job Description path-mapping rules (Open Job Description only).
+    PathMappingRules,
+    /// The model file.
+    Model,
+    /// The output directory.
+    OutputDir,
+}
+
+/// A batch to describe as a job.
+#[derive(Debug, Clone)]
+pub struct JobSpec {
+    /// The job's name (letters, digits, `-`, `_`, `.`).
+    pub name: String,
+    pub shards: usize,
+    /// The inputs, one file each, as the workers (or, for Open Job Description, the submitter)
+    /// name them.
+    pub inputs: Vec<String>,
+    pub model: String,
+    pub output_dir: String,
+    /// The nsrm program on the workers.
+    pub program: String,
+    /// The command of one shard, after the program.
+    pub task: Vec<Arg>,
+    /// The verification's command, after the program.
+    pub verify: Vec<Arg>,
+}
+
+/// A generated file: its name in the job's directory, its text, and whether it is executable.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct JobFile {
+    pub name: String,
+    pub text: String,
+    pub executable: bool,
+}
+
+impl JobSpec {
+    /// Refuses what no job format can carry: no shards, no inputs, a line break or NUL in a path
+    /// (the input list is one path per line), a name that is not a plain word.
+    pub fn check(&self) -> Result<(), FarmError> {
+        let usage = |s: String| Err(FarmError::Usage(s));
+        if self.shards == 0 {
+            return usage("the shard count must be at least 1".into());
+        }
+        if self.inputs.is_empty() {
+            return usage("the batch has no inputs".into());
+        }
+        if self.name.is_empty()
+            || self.name.len() > 50
+            || !self
+                .name
+                .bytes()
+                .all(|b| b.is_ascii_alphanumeric() || matches!(b, b'-' | b'_' | b'.'))
+        {
+            return usage(format!(
+                "job name `{}`: use 1 to 50 letters, digits, `-`, `_` or `.`",
+                self.name
+            ));
+        }
+        for p in self
+            .inputs
+            .iter()
+            .chain([&self.model, &self.output_dir, &self.program])
+        {
+            if p.contains(['\n', '\r', '\0']) {
+                return usage(format!(
+                    "{p:?}: a path with a line break cannot be listed in a job"
+                ));
+            }
+        }
+        Ok(())
+    }
+
+    fn input_list(&self) -> String {
+        let mut s = String::new();
+        for i in &self.inputs {
+            s.push_str(i);
+            s.push('\n');
+        }
+        s
+    }
+}
+
+/// Open Job Description's text for one argument.
+fn openjd_arg(a: &Arg) -> Result<String, FarmError> {
+    Ok(match a {
+        Arg::Lit(s) if s.contains("{{") => {
+            return Err(FarmError::Usage(format!(
+                "`{s}`: `{{{{` would be read as an Open Job Description expression"
+            )))
+        }
+        Arg::Lit(s) => s.clone(),
+        Arg::Shard => "{{Task.Param.Shard}}/{{Param.Shards}}".into(),
+        Arg::Shards => "{{Param.Shards}}".into(),
+        Arg::InputList => "{{Task.File.Inputs}}".into(),
+        Arg::PathMappingRules => "{{Session.PathMappingRulesFile}}".into(),
+        Arg::Model => "{{Param.Model}}".into(),
+        Arg::OutputDir => "{{Param.OutputDir}}".into(),
+    })
+}
+
+/// An Open Job Description job bundle (`jobtemplate-2023-09`): `template.yaml` with job
+/// parameters `Shards` (INT), `Model` and `OutputDir` (PATH, so the worker's path-mapping rules
+/// apply to them) and `NsrmProgram`; a step `Apply` whose task parameter `Shard` ranges over
+/// `1-{{Param.Shards}}` and whose embedded file `Inputs` lists the batch; a step `Verify`
+/// depending on it. `parameter_values.yaml` holds the values in Deadline Cloud's job-bundle
+/// form, and `parameter_values.json` the same for `openjd run`'s job parameters.
+pub fn openjd(spec: &JobSpec) -> Result<Vec<JobFile>, FarmError> {
+    spec.check()?;
+    let args = |list: &[Arg]| -> Result<Node, FarmError> {
+        Ok(Node::List(
+            list.iter()
+                .map(|a| openjd_arg(a).map(Node::Str))
+                .collect::<Result<_, _>>()?,
+        ))
+    };
+    let param = |name: &str, ty: &str, extra: Vec<(&str, Node)>| {
+        let mut pairs = vec![("name", Node::str(name)), ("type", Node::str(ty))];
+        pairs.extend(extra);
+        Node::map(pairs)
+    };
+    let action = |list: &[Arg]| -> Result<Node, FarmError> {
+        Ok(Node::map([(
+            "onRun",
+            Node::map([
+                ("command", Node::str("{{Param.NsrmProgram}}")),
+                ("args", args(list)?),
+            ]),
+        )]))
+    };
+    let template = Node::map([
+        ("specificationVersion", Node::str("jobtemplate-2023-09")),
+        ("name", Node::str(&spec.name)),
+        (
+            "description",
+            Node::str(format!(
+                "nsrm: {} input(s) in {} shard(s); each shard writes a manifest beside its outputs, the Verify step checks the batch is whole",
+                spec.inputs.len(),
+                spec.shards
+            )),
+        ),
+        (
+            "parameterDefinitions",
+            Node::List(vec![
+                param(
+                    "Shards",
+                    "INT",
+                    vec![
+                        ("default", Node::Int(spec.shards as i64)),
+                        ("minValue", Node::Int(1)),
+                        (
+                            "description",
+                            Node::str("Shards the batch is split into (one task each)"),
+                        ),
+                    ],
+                ),
+                param(
+                    "Model",
+                    "PATH",
+                    vec![
+                        ("objectType", Node::str("FILE")),
+                        ("dataFlow", Node::str("IN")),
+                        ("description", Node::str("The model file (nsrm fit)")),
+                    ],
+                ),
+                param(
+                    "OutputDir",
+                    "PATH",
+                    vec![
+                        ("objectType", Node::str("DIRECTORY")),
+                        ("dataFlow", Node::str("OUT")),
+                        (
+                            "description",
+                            Node::str("Where the outputs and the shard manifests go"),
+                        ),
+                    ],
+                ),
+                param(
+                    "NsrmProgram",
+                    "STRING",
+                    vec![
+                        ("default", Node::str(&spec.program)),
+                        ("description", Node::str("The nsrm program on the workers")),
+                    ],
+                ),
+            ]),
+        ),
+        (
+            "steps",
+            Node::List(vec![
+                Node::map([
+                    ("name", Node::str("Apply")),
+                    (
+                        "parameterSpace",
+                        Node::map([(
+                            "taskParameterDefinitions",
+                            Node::List(vec![Node::map([
+                                ("name", Node::str("Shard")),
+                                ("type", Node::str("INT")),
+                                ("range", Node::str("1-{{Param.Shards}}")),
+                            ])]),
+                        )]),
+                    ),
+                    (
+                        "script",
+                        Node::map([
+                            (
+                                "embeddedFiles",
+                                Node::List(vec![Node::map([
+                                    ("name", Node::str("Inputs")),
+                                    ("type", Node::str("TEXT")),
+                                    ("data", Node::str(spec.input_list())),
+                                ])]),
+                            ),
+                            ("actions", action(&spec.task)?),
+                        ]),
+                    ),
+                ]),
+                Node::map([
+                    ("name", Node::str("Verify")),
+                    (
+                        "dependencies",
+                        Node::List(vec![Node::map([("dependsOn", Node::str("Apply"))])]),
+                    ),
+                    ("script", Node::map([("actions", action(&spec.verify)?)])),
+                ]),
+            ]),
+        ),
+    ]);
+    let values = [
+        ("Shards", spec.shards.to_string()),
+        ("Model", spec.model.clone()),
+        ("OutputDir", spec.output_dir.clone()),
+        ("NsrmProgram", spec.program.clone()),
+    ];
+    let bundle_values = Node::map([(
+        "parameterValues",
+        Node::List(
+            values
+                .iter()
+                .map(|(k, v)| Node::map([("name", Node::str(*k)), ("value", Node::str(v))]))
+                .collect(),
+        ),
+    )]);
+    let json: serde_json::Map<String, serde_json::Value> = values
+        .iter()
+        .map(|(k, v)| (k.to_string(), serde_json::Value::String(v.clone())))
+        .collect();
+    let mut json = serde_json::to_string_pretty(&json).unwrap_or_default();
+    json.push('\n');
+    Ok(vec![
+        JobFile {
+            name: "template.yaml".into(),
+            text: yaml::to_string(&template),
+            executable: false,
+        },
+        JobFile {
+            name: "parameter_values.yaml".into(),
+            text: yaml::to_string(&bundle_values),
+            executable: false,
+        },
+        JobFile {
+            name: "parameter_values.json".into(),
+            text: json,
+            executable: false,
+        },
+    ])
+}
+
+/// A word for a POSIX shell, single-quoted unless it is plainly safe.
+pub fn sh_quote(s: &str) -> String {
+    if !s.is_empty()
+        && s.bytes()
+            .all(|b| b.is_ascii_alphanumeric() || b"-_./=:,+@%".contains(&b))
+    {
+        s.to_string()
+    } else {
+        format!("'{}'", s.replace('\'', r"'\''"))
+    }
+}
+
+/// A delimiter for a here-document that no line of `text` equals.
+fn heredoc_end(text: &str) -> String {
+    let mut end = "NSRM_INPUTS_END".to_string();
+    while text.lines().any(|l| l == end) {
+        end.push('_');
+    }
+    end
+}
+
+/// The shell words of a command, with the engine's values for the placeholders.
+fn sh_command(
+    spec: &JobSpec,
+    list: &[Arg],
+    shard: &str,
+    input_list: &str,
+) -> Result<String, FarmError> {
+    let mut words = vec![sh_quote(&spec.program)];
+    for a in list {
+        words.push(match a {
+            Arg::Lit(s) => sh_quote(s),
+            Arg::Shard => shard.to_string(),
+            Arg::Shards => spec.shards.to_string(),
+            Arg::InputList => sh_quote(input_list),
+            Arg::PathMappingRules => {
+                return Err(FarmError::Usage(
+                    "path-mapping rule files are Open Job Description's; map the paths when the job is made".into(),
+                ))
+            }
+            Arg::Model => sh_quote(&spec.model),
+            Arg::OutputDir => sh_quote(&spec.output_dir),
+        });
+    }
+    Ok(words.join(" "))
+}
+
+/// A Slurm job: `array.sbatch` (an array job of `1-N` tasks, task `K` running shard `K/N` with
+/// the input list on its standard input), `verify.sbatch`, and `submit.sh`, which submits the
+/// array and then the verification with a dependency on every task of it (`afterany`, so the
+/// verification always reports, also on a failed task).
+pub fn slurm(spec: &JobSpec) -> Result<Vec<JobFile>, FarmError> {
+    spec.check()?;
+    let list = spec.input_list();
+    let end = heredoc_end(&list);
+    let n = spec.shards;
+    let task = sh_command(
+        spec,
+        &spec.task,
+        &format!("\"$SLURM_ARRAY_TASK_ID/{n}\""),
+        "-",
+    )?;
+    let verify = sh_command(spec, &spec.verify, "", "")?;
+    let array = format!(
+        "#!/bin/sh\n\
+         # nsrm: {inputs} input(s) in {n} shard(s). Task K of the array converts shard K/{n} and writes\n\
+         # its manifest beside the outputs; a re-run of a task keeps what is finished.\n\
+         #SBATCH -J {name}\n\
+         #SBATCH -a 1-{n}\n\
+         #SBATCH -o {name}-%A_%a.out\n\
+         set -eu\n\
+         exec {task} <<'{end}'\n{list}{end}\n",
+        inputs = spec.inputs.len(),
+        name = spec.name,
+    );
+    let verify = format!(
+        "#!/bin/sh\n\
+         # nsrm: checks every shard's outputs against its manifest.\n\
+         #SBATCH -J {name}-verify\n\
+         #SBATCH -o {name}-verify-%j.out\n\
+         set -eu\n\
+         exec {verify}\n",
+        name = spec.name,
+    );
+    let submit = "#!/bin/sh\n\
+         # Submits the array job, then the verification once every task of it has ended.\n\
+         set -eu\n\
+         cd \"$(dirname \"$0\")\"\n\
+         array=$(sbatch --parsable array.sbatch)\n\
+         array=${array%%;*}\n\
+         verify=$(sbatch --parsable --dependency=afterany:\"$array\" verify.sbatch)\n\
+         echo \"array job $array, verification job ${verify%%;*}\"\n"
+        .to_string();
+    Ok(vec![
+        JobFile {
+            name: "array.sbatch".into(),
+            text: array,
+            executable: true,
+        },
+        JobFile {
+            name: "verify.sbatch".into(),
+            text: verify,
+            executable: true,
+        },
+        JobFile {
+            name: "submit.sh".into(),
+            text: submit,
+            executable: true,
+        },
+    ])
+}
+
+/// Where a Kubernetes job runs: the container image, and the persistent volume claim holding
+/// the inputs, model and outputs, mounted at `mount_path` (the paths in the job are as the
+/// pods see them).
+#[derive(Debug, Clone)]
+pub struct Kube {
+    pub image: String,
+    pub claim: String,
+    pub mount_path: String,
+    /// Pods at once.
+    pub parallelism: usize,
+    /// Retries of one index before it counts as failed.
+    pub retries_per_index: usize,
+}
+
+/// Where the input list (a ConfigMap) is mounted in the pods.
+pub const KUBE_LIST_DIR: &str = "/etc/nsrm-batch";
+
+/// A Kubernetes batch: `job.yaml` with a ConfigMap holding the input list and an Indexed Job
+/// (`completionMode: Indexed`, `completions: N`) whose pod `JOB_COMPLETION_INDEX` (0-based) runs
+/// shard `index + 1`; `verify.yaml`, a Job to apply once the first has completed
+/// (Kubernetes orders no jobs).
+pub fn kube(spec: &JobSpec, k: &Kube) -> Result<Vec<JobFile>, FarmError> {
+    spec.check()?;
+    if k.parallelism == 0 {
+        return Err(FarmError::Usage("parallelism must be at least 1".into()));
+    }
+    let n = spec.shards;
+    let list_path = format!("{KUBE_LIST_DIR}/inputs.txt");
+    let task = sh_command(spec, &spec.task, "\"$shard\"", &list_path)?;
+    let script = format!("set -eu\nshard=\"$((JOB_COMPLETION_INDEX + 1))/{n}\"\nexec {task}\n");
+    let verify = sh_command(spec, &spec.verify, "", "")?;
+    let volume = |with_list: bool| {
+        let mut mounts = vec![Node::map([
+            ("name", Node::str("data")),
+            ("mountPath", Node::str(&k.mount_path)),
+        ])];
+        let mut volumes = vec![Node::map([
+            ("name", Node::str("data")),
+            (
+                "persistentVolumeClaim",
+                Node::map([("claimName", Node::str(&k.claim))]),
+            ),
+        ])];
+        if with_list {
+            mounts.push(Node::map([
+                ("name", Node::str("batch")),
+                ("mountPath", Node::str(KUBE_LIST_DIR)),
+                ("readOnly", Node::Bool(true)),
+            ]));
+            volumes.push(Node::map([
+                ("name", Node::str("batch")),
+                (
+                    "configMap",
+                    Node::map([("name", Node::str(format!("{}-inputs", spec.name)))]),
+                ),
+            ]));
+        }
+        (Node::List(mounts), Node::List(volumes))
+    };
+    let labels = Node::map([("app.kubernetes.io/name", Node::str("nsrm"))]);
+    let config = Node::map([
+        ("apiVersion", Node::str("v1")),
+        ("kind", Node::str("ConfigMap")),
+        (
+            "metadata",
+            Node::map([
+                ("name", Node::str(format!("{}-inputs", spec.name))),
+                ("labels", labels.clone()),
+            ]),
+        ),
+        (
+            "data",
+            Node::map([("inputs.txt", Node::str(spec.input_list()))]),
+        ),
+    ]);
+    let (mounts, volumes) = volume(true);
+    let job = Node::map([
+        ("apiVersion", Node::str("batch/v1")),
+        ("kind", Node::str("Job")),
+        (
+            "metadata",
+            Node::map([("name", Node::str(&spec.name)), ("labels", labels.clone())]),
+        ),
+        (
+            "spec",
+            Node::map([
+                ("completionMode", Node::str("Indexed")),
+                ("completions", Node::Int(n as i64)),
+                ("parallelism", Node::Int(k.parallelism.min(n) as i64)),
+                (
+                    "backoffLimitPerIndex",
+                    Node::Int(k.retries_per_index as i64),
+                ),
+                (
+                    "template",
+                    Node::map([
+                        ("metadata", Node::map([("labels", labels.clone())])),
+                        (
+                            "spec",
+                            Node::map([
+                                ("restartPolicy", Node::str("Never")),
+                                (
+                                    "containers",
+                                    Node::List(vec![Node::map([
+                                        ("name", Node::str("nsrm")),
+                                        ("image", Node::str(&k.image)),
+                                        ("command", Node::strs(["/bin/sh", "-c", &script])),
+                                        ("volumeMounts", mounts),
+                                    ])]),
+                                ),
+                                ("volumes", volumes),
+                            ]),
+                        ),
+                    ]),
+                ),
+            ]),
+        ),
+    ]);
+    let (mounts, volumes) = volume(false);
+    let verify_job = Node::map([
+        ("apiVersion", Node::str("batch/v1")),
+        ("kind", Node::str("Job")),
+        (
+            "metadata",
+            Node::map([
+                ("name", Node::str(format!("{}-verify", spec.name))),
+                ("labels", labels.clone()),
+            ]),
+        ),
+        (
+            "spec",
+            Node::map([
+                ("backoffLimit", Node::Int(0)),
+                (
+                    "template",
+                    Node::map([(
+                        "spec",
+                        Node::map([
+                            ("restartPolicy", Node::str("Never")),
+                            (
+                                "containers",
+                                Node::List(vec![Node::map([
+                                    ("name", Node::str("verify")),
+                                    ("image", Node::str(&k.image)),
+                                    (
+                                        "command",
+                                        Node::strs(["/bin/sh", "-c", &format!("exec {verify}")]),
+                                    ),
+                                    ("volumeMounts", mounts),
+                                ])]),
+                            ),
+                            ("volumes", volumes),
+                        ]),
+                    )]),
+                ),
+            ]),
+        ),
+    ]);
+    Ok(vec![
+        JobFile {
+            name: "job.yaml".into(),
+            text: format!("{}---\n{}", yaml::to_string(&config), yaml::to_string(&job)),
+            executable: false,
+        },
+        JobFile {
+            name: "verify.yaml".into(),
+            text: yaml::to_string(&verify_job),
+            executable: false,
+        },
+    ])
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn spec() -> JobSpec {
+        JobSpec {
+            name: "plates".into(),
+            shards: 3,
+            inputs: vec!["/in/a b.exr".into(), "/in/it's.exr".into()],
+            model: "/m/model.json".into(),
+            output_dir: "/out".into(),
+            program: "nsrm".into(),
+            task: vec![
+                Arg::Lit("farm".into()),
+                Arg::Shard,
+                Arg::InputList,
+                Arg::Model,
+                Arg::OutputDir,
+            ],
+            verify: vec![Arg::Lit("verify".into()), Arg::OutputDir, Arg::Shards],
+        }
+    }
+
+    #[test]
+    fn shell_words_survive_quotes_and_spaces() {
+        assert_eq!(sh_quote("plain/path.exr"), "plain/path.exr");
+        assert_eq!(sh_quote("a b"), "'a b'");
+        assert_eq!(sh_quote("it's"), r"'it'\''s'");
+        assert_eq!(sh_quote(""), "''");
+        let files = slurm(&spec()).unwrap();
+        let array = &files[0].text;
+        assert!(array.contains("#SBATCH -a 1-3\n"), "{array}");
+        assert!(
+            array.contains("exec nsrm farm \"$SLURM_ARRAY_TASK_ID/3\" - /m/model.json /out <<'NSRM_INPUTS_END'\n/in/a b.exr\n/in/it's.exr\nNSRM_INPUTS_END\n"),
+            "{array}"
+        );
+        assert!(files[1].text.contains("exec nsrm verify /out 3\n"));
+    }
+
+    #[test]
+    fn the_here_document_delimiter_is_no_input_line() {
+        let mut s = spec();
+        s.inputs.push("NSRM_INPUTS_END".into());
+        let array = &slurm(&s).unwrap()[0].text;
+        assert!(array.contains("<<'NSRM_INPUTS_END_'\n"), "{array}");
+    }
+
+    #[test]
+    fn what_no_job_can_carry_is_refused() {
+        let mut s = spec();
+        s.inputs.push("/in/new\nline.exr".into());
+        assert!(openjd(&s).unwrap_err().is_usage());
+        let mut s = spec();
+        s.shards = 0;
+        assert!(slurm(&s).unwrap_err().is_usage());
+        let mut s = spec();
+        s.task.push(Arg::Lit("{{Param.X}}".into()));
+        assert!(openjd(&s).unwrap_err().is_usage());
+        let mut s = spec();
+        s.task.push(Arg::PathMappingRules);
+        assert!(slurm(&s).unwrap_err().is_usage());
+        let mut s = spec();
+        s.name = "two words".into();
+        assert!(openjd(&s).unwrap_err().is_usage());
+    }
+}

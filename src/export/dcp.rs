@@ -32,8 +32,8 @@ use crate::model::dual_illuminant::{Combination, FrameWhite, Profile};
 use crate::model::Kind;
 
 /// Hue divisions (the map's hue axis, 0..360°) and saturation divisions (0..1) of the default map.
-pub const DEFAULT_HUE_DIVISIONS: usize = 180;
-pub const DEFAULT_SAT_DIVISIONS: usize = 64;
+pub const DEFAULT_HUE_DIVISIONS: usize = 720;
+pub const DEFAULT_SAT_DIVISIONS: usize = 256;
 /// Bounds on the map's divisions (the table is read into memory by readers).
 pub const MAX_HUE_DIVISIONS: usize = 720;
 pub const MAX_SAT_DIVISIONS: usize = 256;
@@ -1088,6 +1088,7 @@ mod tests {
         .unwrap();
         assert!(r.dense.count > 1000, "{}", r.summary());
         assert!(r.max() < 0.3, "{}", r.summary());
+        println!("single NSRM 3 DCP: {}", r.summary());
         let back = Dcp::parse(&dcp.to_bytes()).unwrap();
         assert_eq!(back, dcp);
         // A coarse map is measured as coarse.
@@ -1150,5 +1151,65 @@ mod tests {
         )
         .unwrap_err();
         assert!(e.to_string().contains("not one a DCP can name"), "{e}");
+    }
+}
+
+#[cfg(test)]
+mod diag {
+    use super::*;
+    #[test]
+    #[ignore]
+    fn where_is_the_worst() {
+        use crate::model::fit::{fit_with, FitOptions};
+        let d = crate::spectral::simulate_named(
+            "nikon-d5100",
+            "D65",
+            "rawtoaces-190",
+            &crate::spectral::Grid::default(),
+        )
+        .unwrap();
+        let o = FitOptions {
+            preserve_white: true,
+            ..Default::default()
+        };
+        let m = fit_with(Kind::Nsrm, 3, &d, &o).unwrap().model;
+        let p = Profile::single(m).unwrap();
+        for (hd, sd) in [(90, 30), (360, 128), (720, 256)] {
+            let dcp = build(
+                &p,
+                &[d.rgb.as_slice()],
+                DcpOptions {
+                    hue_divisions: hd,
+                    sat_divisions: sd,
+                },
+            )
+            .unwrap();
+            let w = p.calibrations()[0].white_rgb;
+            let c = p.combine(FrameWhite::Neutral(w)).unwrap();
+            let adapt =
+                temperature::bradford_between(c.white_xyz, d50()).map(|r| r.map(|v| v / 100.0));
+            let bal: Vec<[f64; 3]> = d
+                .rgb
+                .iter()
+                .map(|x| [0, 1, 2].map(|k| x[k] / w[k]))
+                .collect();
+            let chroma = super::super::dense_chromaticities(&bal, 0.005);
+            let mut worst = (0.0, [0.0; 3]);
+            for (r, g) in chroma {
+                let b = [r, g, 1.0 - r - g];
+                let rgb = [0, 1, 2].map(|j| b[j] * c.neutral[j]);
+                let exact = spaces::apply(&adapt, c.apply_f64(rgb));
+                let approx = dcp.eval_weighted(rgb, c.neutral, 1.0);
+                let de = crate::colorimetry::delta_e00_xyz(exact, approx, d50());
+                if de > worst.0 {
+                    worst = (de, b);
+                }
+            }
+            let b = worst.1;
+            let fm = dcp.sides[0].forward_matrix;
+            let pp = spaces::apply(&spaces::invert(&prophoto_to_xyz()), spaces::apply(&fm, b));
+            let hsv = rgb_to_hsv(pp);
+            println!("{hd}x{sd}: worst {:.4} at b {b:?} pp hsv {hsv:?}", worst.0);
+        }
     }
 }

@@ -162,9 +162,20 @@ fn a_grey_under_a_real_light_between_comes_out_neutral() {
             .combine(FrameWhite::Neutral(d.white_rgb.unwrap()))
             .unwrap();
         for i in 18..24 {
-            let out = c.apply_f64(d.rgb[i]);
-            let lab = nsrm::colorimetry::xyz_to_lab(out, c.white_xyz);
-            assert!(lab[1].hypot(lab[2]) < 0.5, "{light} patch {i}: {lab:?}");
+            let out = nsrm::colorimetry::xyz_to_lab(c.apply_f64(d.rgb[i]), c.white_xyz);
+            let want = nsrm::colorimetry::xyz_to_lab(d.xyz[i], d.white_xyz);
+            assert!(
+                (out[1] - want[1]).abs() < 0.5 && (out[2] - want[2]).abs() < 0.5,
+                "{light} patch {i}: {out:?} vs {want:?}"
+            );
+        }
+        // A flat grey (the camera's response to the light, scaled) is exactly the white, scaled.
+        let g = c.apply_f64(d.white_rgb.unwrap().map(|v| 0.18 * v));
+        for k in 0..3 {
+            assert!(
+                (g[k] - 0.18 * c.white_xyz[k]).abs() < 1e-6 * c.white_xyz[1],
+                "{light}"
+            );
         }
         // The white found is the light's own chromaticity (to what the camera can tell).
         let sum: f64 = d.white_xyz.iter().sum();

@@ -45,7 +45,7 @@ pub struct Args {
     )]
     stops: String,
     /// dcp: the hue/saturation map's divisions, HUExSAT (one value division), e.g. 90x30.
-    #[arg(long, default_value = "720x256", value_name = "HxS")]
+    #[arg(long, default_value = "600x55", value_name = "HxS")]
     dcp_map: String,
     /// Refuse the export (and write nothing) if its measured max ΔE00 exceeds X.
     #[arg(long, value_name = "X")]

@@ -32,8 +32,12 @@ use crate::model::dual_illuminant::{Combination, FrameWhite, Profile};
 use crate::model::Kind;
 
 /// Hue divisions (the map's hue axis, 0..360°) and saturation divisions (0..1) of the default map.
-pub const DEFAULT_HUE_DIVISIONS: usize = 720;
-pub const DEFAULT_SAT_DIVISIONS: usize = 256;
+/// The error is mostly along hue (the HSV hue has kinks where the output crosses a sextant, so
+/// bilinear interpolation converges only linearly there): on the D5100 NSRM 3 the dense-set
+/// maximum is 0.56 ΔE00 at 90×30, 0.24 at 360×92, 0.16 at 480×69 and 0.11 at 600×55. 600×55×3 =
+/// 99000 values stays under the 100000 per tag that exiftool lists without a warning.
+pub const DEFAULT_HUE_DIVISIONS: usize = 600;
+pub const DEFAULT_SAT_DIVISIONS: usize = 55;
 /// Bounds on the map's divisions (the table is read into memory by readers).
 pub const MAX_HUE_DIVISIONS: usize = 720;
 pub const MAX_SAT_DIVISIONS: usize = 256;
@@ -1174,7 +1178,7 @@ mod diag {
         };
         let m = fit_with(Kind::Nsrm, 3, &d, &o).unwrap().model;
         let p = Profile::single(m).unwrap();
-        for (hd, sd) in [(90, 30), (360, 128), (720, 256)] {
+        for (hd, sd) in [(360, 92), (240, 138), (480, 69), (600, 55)] {
             let dcp = build(
                 &p,
                 &[d.rgb.as_slice()],

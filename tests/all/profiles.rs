@@ -334,3 +334,65 @@ fn dcp_export_and_refusals() {
     assert!(listing.contains("Standard Light A"), "{listing}");
     assert!(!listing.contains("Warning"), "{listing}");
 }
+
+/// The two-illuminant comparison of the README (a measurement, not a check): spectral simulation
+/// of the built-in D5100 on the 190-patch set, models fitted (white-preserving) under StdA and D65,
+/// leave-one-out ΔE00 under lights between the two, each frame white-balanced by the camera's own
+/// response to the light. Run with `cargo test --release --test all profiles::two_illuminant_table
+/// -- --ignored --nocapture`.
+#[test]
+#[ignore]
+fn two_illuminant_table() {
+    use nsrm::TrainingSet;
+    let grid = Grid::default();
+    let sim = |ill: &str| simulate_named("nikon-d5100", ill, "rawtoaces-190", &grid).unwrap();
+    let (a, d65) = (sim("A"), sim("D65"));
+    let fit = |kind: Kind, d: &TrainingSet| {
+        let o = FitOptions {
+            preserve_white: true,
+            ..Default::default()
+        };
+        fit_with(kind, 3, d, &o).unwrap().model
+    };
+    println!("| light (CCT) | NSRM 3, StdA + D65 | NSRM 3, D65 only | NSRM 3, StdA only | LRM, StdA + D65 |");
+    println!("|---|---|---|---|---|");
+    for light in ["D50", "FL2", "FL11", "LED-B3"] {
+        let t = sim(light);
+        let white = FrameWhite::Neutral(t.white_rgb.unwrap());
+        let mut errs = vec![Vec::new(); 4];
+        for i in 0..t.len() {
+            let keep: Vec<usize> = (0..t.len()).filter(|&j| j != i).collect();
+            let (sa, sd) = (a.subset(&keep), d65.subset(&keep));
+            let (na, nd) = (fit(Kind::Nsrm, &sa), fit(Kind::Nsrm, &sd));
+            let (la, ld) = (fit(Kind::Lrm, &sa), fit(Kind::Lrm, &sd));
+            let profiles = [
+                Profile::dual(na.clone(), nd.clone()).unwrap(),
+                Profile::single(nd).unwrap(),
+                Profile::single(na).unwrap(),
+                Profile::dual(la, ld).unwrap(),
+            ];
+            for (e, p) in errs.iter_mut().zip(&profiles) {
+                let c = p.combine(white).unwrap();
+                let out = c.apply_f64(t.rgb[i]);
+                // The output is relative to the white the camera's neutral names, the reference
+                // to the light's own white: each in Lab against its white.
+                let lab = nsrm::colorimetry::xyz_to_lab(out, c.white_xyz);
+                let want = nsrm::colorimetry::xyz_to_lab(t.xyz[i], t.white_xyz);
+                e.push(nsrm::colorimetry::ciede2000(lab, want));
+            }
+        }
+        let cct = {
+            let s: f64 = t.white_xyz.iter().sum();
+            cct([t.white_xyz[0] / s, t.white_xyz[1] / s]).unwrap()
+        };
+        let cells: Vec<String> = errs
+            .iter()
+            .map(|e| {
+                let mean = e.iter().sum::<f64>() / e.len() as f64;
+                let max = e.iter().cloned().fold(0.0, f64::max);
+                format!("{mean:.3} / {max:.2}")
+            })
+            .collect();
+        println!("| {light} ({cct:.0} K) | {} |", cells.join(" | "));
+    }
+}

@@ -55,7 +55,17 @@ pub fn parse_white(s: &str) -> Result<FrameWhite> {
 /// set combined for that white (one part, or two whose outputs are summed).
 pub fn models_for_apply(path: &Path, white: Option<&str>) -> Result<Vec<Model>> {
     let Some(w) = white else {
-        return Ok(vec![Model::load(path).context("--model")?]);
+        return match Model::load(path) {
+            Ok(m) => Ok(vec![m]),
+            Err(e) => {
+                let dual = e.to_string().contains("two calibration illuminants");
+                Err(anyhow::Error::from(e).context(if dual {
+                    "--model (a two-illuminant model is combined for the frames' white: pass --white)"
+                } else {
+                    "--model"
+                }))
+            }
+        };
     };
     let fw = parse_white(w)?;
     let profile = Profile::load(path).context("--model")?;

@@ -35,11 +35,14 @@ pub fn run(a: Args) -> Result<ExitCode> {
             .into());
         }
     }
-    nsrm::atomic::check_clobber(&a.output, a.overwrite)?;
+    let inputs: Vec<&std::path::Path> = a.models.iter().map(|p| p.as_path()).collect();
+    let session = super::outputs::open(a.overwrite, &inputs, &[a.output.as_path()])?;
     let first = Model::load(&a.models[0]).with_context(|| a.models[0].display().to_string())?;
     let second = Model::load(&a.models[1]).with_context(|| a.models[1].display().to_string())?;
     let profile = Profile::dual(first, second).context("combining the two models")?;
-    nsrm::atomic::write_atomic(&a.output, profile.to_json().as_bytes(), a.overwrite)?;
+    let mut unit = session.unit();
+    unit.write_bytes(&a.output, profile.to_json().as_bytes())?;
+    unit.commit()?;
     let c = profile.calibrations();
     eprintln!(
         "{} order {}: calibration illuminants {:.0} K (x, y {:.4}, {:.4}) and {:.0} K (x, y {:.4}, {:.4}) → {}",

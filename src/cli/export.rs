@@ -55,9 +55,8 @@ pub struct Args {
     /// file's provenance (camera, illuminant, reflectances, grid, patches).
     #[arg(long, value_name = "FILE")]
     training: Option<PathBuf>,
-    /// Reference white of a measured --training file (as for `nsrm fit --white`).
-    #[arg(long, value_name = "X,Y,Z", requires = "training")]
-    white: Option<String>,
+    #[command(flatten)]
+    white: super::common::WhiteArg,
     /// Where to write the file (for ocio: the config).
     #[arg(short, long, value_name = "FILE")]
     output: PathBuf,
@@ -65,6 +64,9 @@ pub struct Args {
     #[arg(long)]
     overwrite: bool,
 }
+
+/// Max ΔE00 of an export above which it is flagged as poor (a visible departure from the model).
+const POOR_EXPORT_DE00: f64 = 5.0;
 
 fn parse_stops(s: &str) -> Result<[f64; 2]> {
     let bad = || UsageError(format!("--stops `{s}`: expected LO:HI, e.g. -6:4"));
@@ -77,12 +79,7 @@ fn parse_stops(s: &str) -> Result<[f64; 2]> {
 /// The training patches: `--training`, or re-simulated from the model's provenance.
 fn training_set(a: &Args, model: &Model) -> Result<TrainingSet> {
     if let Some(path) = &a.training {
-        let white = a
-            .white
-            .as_deref()
-            .map(nsrm::training::parse_white)
-            .transpose()?;
-        return super::common::read_measured(path, white);
+        return super::common::read_measured(path, a.white.get()?);
     }
     let p = model.provenance();
     let (Some(camera), Some(ill), Some(refl)) = (&p.camera, &p.illuminant, &p.reflectances) else {
@@ -126,7 +123,9 @@ fn run_dcp(a: &Args, stops: [f64; 2]) -> Result<ExitCode> {
     use nsrm::export::dcp::{export_to, DcpTraining};
     use nsrm::model::dual_illuminant::Profile;
     let opts = parse_map(&a.dcp_map)?;
-    nsrm::atomic::check_clobber(&a.output, a.overwrite)?;
+    let mut inputs = vec![a.model.as_path()];
+    inputs.extend(a.training.as_deref());
+    let session = super::outputs::open(a.overwrite, &inputs, &[a.output.as_path()])?;
     let profile = Profile::load(&a.model)?;
     if a.training.is_some() && profile.is_dual() {
         return Err(UsageError(
@@ -142,14 +141,9 @@ fn run_dcp(a: &Args, stops: [f64; 2]) -> Result<ExitCode> {
             white_rgb: d.white_rgb,
         });
     }
+    let mut unit = session.unit();
     let w = match export_to(
-        &profile,
-        &training,
-        opts,
-        stops,
-        a.max_de00,
-        &a.output,
-        a.overwrite,
+        &profile, &training, opts, stops, a.max_de00, &a.output, &mut unit,
     ) {
         Ok(w) => w,
         Err(e @ ExportError::TooInaccurate { limit, .. }) => {
@@ -157,6 +151,7 @@ fn run_dcp(a: &Args, stops: [f64; 2]) -> Result<ExitCode> {
         }
         Err(e) => return Err(e).with_context(|| format!("exporting {} as dcp", a.model.display())),
     };
+    unit.commit()?;
     let m = &profile.models()[0];
     eprintln!(
         "{} order {} → DNG camera profile ({}; hue/saturation map {}×{}×1): {}",
@@ -215,18 +210,17 @@ pub fn run(a: Args) -> Result<ExitCode> {
             );
         }
     }
-    nsrm::atomic::check_clobber(&a.output, a.overwrite)?;
+    let companion = nsrm::export::companion_path(format, &a.output)?;
+    let mut inputs = vec![a.model.as_path()];
+    inputs.extend(a.training.as_deref());
+    let mut outputs = vec![a.output.as_path()];
+    outputs.extend(companion.as_deref());
+    let session = super::outputs::open(a.overwrite, &inputs, &outputs)?;
     let model = Model::load(&a.model)?;
     let data = training_set(&a, &model)?;
+    let mut unit = session.unit();
     let written = match export_to(
-        &model,
-        format,
-        space,
-        options,
-        &data.rgb,
-        a.max_de00,
-        &a.output,
-        a.overwrite,
+        &model, format, space, options, &data.rgb, a.max_de00, &a.output, &mut unit,
     ) {
         Ok(w) => w,
         Err(e @ ExportError::TooInaccurate { limit, .. }) => {
@@ -237,6 +231,7 @@ pub fn run(a: Args) -> Result<ExitCode> {
                 .with_context(|| format!("exporting {} as {}", a.model.display(), format.name()))
         }
     };
+    unit.commit()?;
     let what = if written.exact {
         "exact Matrix".to_string()
     } else {
@@ -257,5 +252,11 @@ pub fn run(a: Args) -> Result<ExitCode> {
             .join(", ")
     );
     println!("approximation error: {}", written.report.summary());
+    let worst = written.report.max();
+    if worst > POOR_EXPORT_DE00 {
+        eprintln!(
+            "warning: the export's max ΔE00 is {worst:.1} (over {POOR_EXPORT_DE00}): it departs visibly from the model somewhere in its range; check the report above, narrow --stops or enlarge --lut-size, or set --max-de00 to refuse such exports"
+        );
+    }
     Ok(ExitCode::SUCCESS)
 }

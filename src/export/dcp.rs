@@ -954,7 +954,7 @@ pub struct DcpTraining {
 /// Builds, measures and writes the DCP of a model set. The error is measured with
 /// [`Dcp::eval`]'s pipeline against the combined model ([`measure`]) at each calibration white
 /// and, for two illuminants, at a white halfway between them in mired; `max_de00` is checked
-/// before anything is written, and the file is written atomically.
+/// before anything is written, and the file is written into `unit` (committed by the caller).
 pub fn export_to(
     profile: &Profile,
     training: &[DcpTraining],
@@ -962,7 +962,7 @@ pub fn export_to(
     stops: [f64; 2],
     max_de00: Option<f64>,
     out: &std::path::Path,
-    overwrite: bool,
+    unit: &mut crate::output::Unit,
 ) -> Result<DcpWritten, ExportError> {
     if let Some(x) = max_de00 {
         if !(x.is_finite() && x >= 0.0) {
@@ -971,7 +971,7 @@ pub fn export_to(
             )));
         }
     }
-    crate::atomic::check_clobber(out, overwrite)?;
+    unit.check_clobber(out)?;
     let sets: Vec<&[[f64; 3]]> = training.iter().map(|t| t.rgb.as_slice()).collect();
     let dcp = build(profile, &sets, opts)?;
     let mut whites: Vec<(FrameWhite, String)> = profile
@@ -1016,7 +1016,7 @@ pub fn export_to(
             })
         })
         .collect();
-    crate::atomic::write_atomic(out, &dcp.to_bytes(), overwrite)?;
+    unit.write_bytes(out, &dcp.to_bytes())?;
     Ok(DcpWritten {
         report,
         whites: whites.into_iter().map(|w| w.1).collect(),

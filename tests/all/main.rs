@@ -20,12 +20,16 @@ mod export_ocio;
 #[cfg(feature = "io")]
 mod exr_fast;
 mod fast;
+#[cfg(feature = "cli")]
+mod first_hour;
 mod fit_hostile;
 mod fit_variants;
 #[cfg(all(feature = "gpu", feature = "io"))]
 mod gpu;
 #[cfg(feature = "cli")]
 mod gpu_export;
+#[cfg(feature = "cli")]
+mod harden_commands;
 #[cfg(feature = "io")]
 mod harden_fuzz;
 #[cfg(feature = "cli")]
@@ -49,3 +53,9 @@ mod parsers_fuzz;
 mod pixel_policy;
 #[cfg(feature = "cli")]
 mod profiles;
+#[cfg(feature = "cli")]
+mod readme;
+#[cfg(feature = "studio")]
+mod studio;
+#[cfg(feature = "cli")]
+mod white;

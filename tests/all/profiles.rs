@@ -193,7 +193,7 @@ fn fit_cli(dir: &Path, kind: &str, ill: &str, out: &str) {
         dir,
         &[
             "fit",
-            "--model",
+            "--kind",
             kind,
             "--illuminant",
             ill,

@@ -83,6 +83,11 @@ pub struct Args {
     /// at Y = 1 (RGB spaces: white = 1, 1, 1 after Bradford adaptation from the training white).
     #[arg(long, value_enum, ignore_case = true, default_value_t = values::Space::Xyz)]
     output_space: values::Space,
+    /// The frames' white, for a two-illuminant model (or to white-balance a single one): a
+    /// temperature in kelvin (Planckian below 4000 K, CIE daylight from 4000 K), x,y, or
+    /// as-shot:R,G,B (the raw file's as-shot neutral). The output is XYZ relative to that white.
+    #[arg(long, value_name = "CCT|x,y|as-shot:R,G,B")]
+    white: Option<String>,
     /// Also write an 8-bit sRGB PNG of each frame here, for a quick look.
     #[arg(long, value_name = "DIR")]
     preview: Option<PathBuf>,
@@ -120,6 +125,8 @@ enum Outcome {
 enum Corrector {
     /// The multi-threaded f32 CPU path.
     Cpu(Box<FastModel>),
+    /// A two-illuminant model at a white between its illuminants: two models, outputs summed.
+    Mix(Vec<FastModel>),
     Gpu(Box<Engine>),
 }
 
@@ -160,6 +167,7 @@ impl Corrector {
     fn describe(&self) -> String {
         match self {
             Corrector::Cpu(f) => format!("CPU ({} kernel)", f.kernel_name()),
+            Corrector::Mix(f) => format!("CPU, {} models summed", f.len()),
             Corrector::Gpu(e) => format!("GPU {}", e.adapter_name()),
         }
     }
@@ -168,6 +176,23 @@ impl Corrector {
         for f in d.frames_mut() {
             match self {
                 Corrector::Cpu(fast) => fast.apply(f, Threads::All),
+                Corrector::Mix(parts) => {
+                    let src = f.clone();
+                    let ch = f.layout.channels();
+                    for (i, p) in parts.iter().enumerate() {
+                        if i == 0 {
+                            p.apply(f, Threads::All);
+                            continue;
+                        }
+                        let mut g = src.clone();
+                        p.apply(&mut g, Threads::All);
+                        for (a, b) in f.data.chunks_exact_mut(ch).zip(g.data.chunks_exact(ch)) {
+                            for k in 0..3 {
+                                a[k] += b[k];
+                            }
+                        }
+                    }
+                }
                 Corrector::Gpu(e) => e.apply(model, f)?,
             }
         }
@@ -286,8 +311,13 @@ fn parse_request(a: &Args) -> Result<Request> {
 /// cleanly by a signal) → report (the summary and the exit status).
 pub fn run(a: Args) -> Result<ExitCode> {
     let req = parse_request(&a)?;
-    let model = Model::load(&a.model).context("--model")?;
+    let mut parts = super::white::models_for_apply(&a.model, a.white.as_deref())?;
+    let model = parts.remove(0);
     let out_model = nsrm::colorimetry::output_model(&model, req.space)?;
+    let extra: Vec<Model> = parts
+        .iter()
+        .map(|m| nsrm::colorimetry::output_model(m, req.space))
+        .collect::<Result<_, _>>()?;
 
     // Plan.
     let all = batch::expand_inputs(&a.inputs)?;
@@ -363,7 +393,13 @@ pub fn run(a: Args) -> Result<ExitCode> {
     let mut timing = Timing::default();
     let mut corrector_name = String::new();
     if (!early_failure || a.continue_on_error) && !interrupt.stopped() {
-        let mut corrector = Corrector::open(req.device, a.adapter.as_deref(), &out_model)?;
+        let mut corrector = if extra.is_empty() {
+            Corrector::open(req.device, a.adapter.as_deref(), &out_model)?
+        } else {
+            let mut v = vec![FastModel::new(&out_model)];
+            v.extend(extra.iter().map(FastModel::new));
+            Corrector::Mix(v)
+        };
         corrector_name = corrector.describe();
         let todo = plan.to_convert();
         let workers = a.jobs.unwrap_or_else(|| {

@@ -18,7 +18,8 @@ pub struct Args {
     #[arg(long, value_name = "FILE")]
     model: PathBuf,
     /// clf (Academy/SMPTE Common LUT Format v3), cube (Resolve/OCIO .cube: 1D shaper + 3D LUT) or
-    /// ocio (an OpenColorIO v2 config, with its CLF written beside it as <stem>.clf).
+    /// ocio (an OpenColorIO v2 config, with its CLF written beside it as <stem>.clf) or dcp (a DNG
+    /// camera profile for Lightroom/ACR and RawTherapee; one or two illuminants).
     #[arg(long, value_enum, ignore_case = true)]
     format: values::ExportFormat,
     /// Output space, folded in exactly as `nsrm apply --output-space` does (training white at
@@ -43,6 +44,9 @@ pub struct Args {
         allow_hyphen_values = true
     )]
     stops: String,
+    /// dcp: the hue/saturation map's divisions, HUExSAT (one value division), e.g. 90x30.
+    #[arg(long, default_value = "600x55", value_name = "HxS")]
+    dcp_map: String,
     /// Refuse the export (and write nothing) if its measured max ΔE00 exceeds X.
     #[arg(long, value_name = "X")]
     max_de00: Option<f64>,
@@ -102,8 +106,93 @@ fn training_set(a: &Args, model: &Model) -> Result<TrainingSet> {
     Ok(data)
 }
 
+fn parse_map(s: &str) -> Result<nsrm::export::dcp::DcpOptions> {
+    let bad = || UsageError(format!("--dcp-map `{s}`: expected HUExSAT, e.g. 90x30"));
+    let (h, sat) = s.split_once(['x', 'X']).ok_or_else(bad)?;
+    let o = nsrm::export::dcp::DcpOptions {
+        hue_divisions: h.trim().parse().map_err(|_| bad())?,
+        sat_divisions: sat.trim().parse().map_err(|_| bad())?,
+    };
+    o.check()
+        .map_err(|e| UsageError(format!("--dcp-map: {e}")))?;
+    Ok(o)
+}
+
+/// `--format dcp`: one or two illuminants, from the model file as it is.
+fn run_dcp(a: &Args, stops: [f64; 2]) -> Result<ExitCode> {
+    use nsrm::export::dcp::{export_to, DcpTraining};
+    use nsrm::model::dual_illuminant::Profile;
+    let opts = parse_map(&a.dcp_map)?;
+    let mut inputs = vec![a.model.as_path()];
+    inputs.extend(a.training.as_deref());
+    let session = super::outputs::open(a.overwrite, &inputs, &[a.output.as_path()])?;
+    let profile = Profile::load(&a.model)?;
+    if a.training.is_some() && profile.is_dual() {
+        return Err(UsageError(
+            "--training gives one model's patches; a two-illuminant model's are re-simulated from its provenance".into(),
+        )
+        .into());
+    }
+    let mut training = Vec::new();
+    for m in profile.models() {
+        let d = training_set(a, m)?;
+        training.push(DcpTraining {
+            rgb: d.rgb,
+            white_rgb: d.white_rgb,
+        });
+    }
+    let mut unit = session.unit();
+    let w = match export_to(
+        &profile, &training, opts, stops, a.max_de00, &a.output, &mut unit,
+    ) {
+        Ok(w) => w,
+        Err(e @ ExportError::TooInaccurate { limit, .. }) => {
+            return Err(e).context(format!("--max-de00 {limit}"))
+        }
+        Err(e) => return Err(e).with_context(|| format!("exporting {} as dcp", a.model.display())),
+    };
+    unit.commit()?;
+    let m = &profile.models()[0];
+    eprintln!(
+        "{} order {} → DNG camera profile ({}; hue/saturation map {}×{}×1): {}",
+        m.kind(),
+        m.order(),
+        w.illuminants.join(" + "),
+        w.hue_divisions,
+        w.sat_divisions,
+        a.output.display()
+    );
+    for (i, miss) in w.white_miss.iter().enumerate() {
+        if let Some(d) = miss {
+            if *d > 0.01 {
+                eprintln!(
+                    "nsrm export: model {}'s own white is off by {d:.3} ΔE00 (a DCP maps the neutral exactly to D50, so it differs from the model there by that much); fit with --preserve-white to remove it",
+                    i + 1
+                );
+            }
+        }
+    }
+    println!(
+        "approximation error (DNG profile pipeline vs the model, D50; at {}): {}",
+        w.whites.join(", "),
+        w.report.summary()
+    );
+    Ok(ExitCode::SUCCESS)
+}
+
 pub fn run(a: Args) -> Result<ExitCode> {
     let format = Format::from(a.format);
+    if format == Format::Dcp {
+        let stops = parse_stops(&a.stops)?;
+        if let Some(x) = a.max_de00 {
+            if !(x.is_finite() && x >= 0.0) {
+                return Err(
+                    UsageError(format!("--max-de00 {x}: expected a non-negative number")).into(),
+                );
+            }
+        }
+        return run_dcp(&a, stops);
+    }
     let space = OutputSpace::from(a.output_space);
     let options = LutOptions {
         size: a.lut_size,

@@ -8,6 +8,7 @@ mod bench;
 mod bench_aids;
 mod capture;
 mod chart;
+mod combine;
 mod common;
 mod eval;
 mod export;
@@ -23,6 +24,7 @@ mod runtime_dir;
 mod studio;
 mod terms;
 mod values;
+mod white;
 
 use clap::{Parser, Subcommand};
 use std::process::ExitCode;
@@ -47,6 +49,9 @@ enum Command {
     /// `nsrm chart rate` measures detection on synthetic scenes.
     #[command(subcommand)]
     Chart(chart::Command),
+    /// Combine two model files fitted under two illuminants (e.g. StdA and D65) into one
+    /// two-illuminant model, interpolated by each frame's white as a DNG profile is.
+    Combine(combine::Args),
     /// Leave-one-out (or in-sample) ΔE00 of the models; without flags, the paper's experiment on
     /// built-in data (D5100, rawtoaces-190, D65/TL865/LED-B5), printed like its Table 1.
     Eval(eval::Args),
@@ -108,6 +113,7 @@ pub fn main() -> ExitCode {
         Command::Apply(a) => apply::run(a),
         Command::Bench(a) => bench::run(a),
         Command::Chart(c) => chart::run(c),
+        Command::Combine(a) => combine::run(a),
         Command::Eval(a) => eval::run(a),
         Command::Export(a) => export::run(a),
         Command::ExportShader(a) => export_shader::run(a),

@@ -83,7 +83,7 @@ value_enum!(
     /// `export --format`.
     ExportFormat => nsrm::export::Format,
     nsrm::export::Format::parse,
-    { Clf = "clf", Cube = "cube", Ocio = "ocio" }
+    { Clf = "clf", Cube = "cube", Ocio = "ocio", Dcp = "dcp" }
 );
 
 value_enum!(

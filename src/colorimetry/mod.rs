@@ -6,6 +6,7 @@
 pub mod dual;
 pub mod output;
 pub mod spaces;
+pub mod temperature;
 
 pub use dual::{Dual, Real};
 pub use output::{output_matrix, output_model, srgb8, srgb_oetf, to_linear_srgb};

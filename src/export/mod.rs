@@ -38,6 +38,7 @@
 
 pub mod clf;
 pub mod cube;
+pub mod dcp;
 pub mod dctl;
 pub mod nodes;
 pub mod ocio;
@@ -72,6 +73,8 @@ pub enum Format {
     Clf,
     Cube,
     Ocio,
+    /// A DNG Camera Profile ([`dcp`]), written from a model set by [`dcp::export_to`].
+    Dcp,
 }
 
 impl Format {
@@ -81,6 +84,7 @@ impl Format {
             "clf" => Some(Format::Clf),
             "cube" => Some(Format::Cube),
             "ocio" => Some(Format::Ocio),
+            "dcp" => Some(Format::Dcp),
             _ => None,
         }
     }
@@ -90,6 +94,7 @@ impl Format {
             Format::Clf => "clf",
             Format::Cube => "cube",
             Format::Ocio => "ocio",
+            Format::Dcp => "dcp",
         }
     }
 }
@@ -444,41 +449,56 @@ impl LutExport {
             let approx = spaces::apply(&back, self.eval(rgb));
             crate::colorimetry::delta_e00_xyz(exact, approx, white.map(|v| v * k))
         };
-        let training: Vec<f64> = training_rgb.iter().map(|&c| de(c, 1.0)).collect();
-        let (lo, hi) = (self.options.stops[0].exp2(), self.options.stops[1].exp2());
-        let s_ref = training_rgb
-            .iter()
-            .map(|c| c[0] + c[1] + c[2])
-            .fold(0.0, f64::max);
-        let chroma = dense_chromaticities(training_rgb, DENSE_STEP);
-        // Exposures every EXPOSURE_STEP stops across the range, offset from the lattice's powers
-        // of two.
-        let [slo, shi] = self.options.stops;
-        let n_exp = ((shi - slo) / EXPOSURE_STEP).floor() as usize;
-        let exposures: Vec<f64> = (0..n_exp)
-            .map(|i| slo + 0.137 + EXPOSURE_STEP * i as f64)
-            .collect();
-        let mut dense = Vec::new();
-        let mut out_of_range = 0;
-        for &e in &exposures {
-            let k = e.exp2();
-            for &(r, g) in &chroma {
-                let s = k * s_ref;
-                let rgb = [r * s, g * s, (1.0 - r - g) * s];
-                if rgb.iter().any(|&v| v < lo || v > hi) {
-                    out_of_range += 1;
-                    continue;
-                }
-                // The training white scaled to this exposure: the brightest patch stays near L* 100.
-                dense.push(de(rgb, k));
+        Ok(measure_fn(training_rgb, self.options.stops, true, de))
+    }
+}
+
+/// The measurement every export reports: `de(rgb, k)` (the ΔE00 of the export against the exact
+/// model at camera RGB `rgb`, judged against the training white × `k`) on the training patches
+/// (`k = 1`) and on the dense in-gamut set: chromaticities inside the training patches' hull
+/// ([`dense_chromaticities`]) at exposures every [`EXPOSURE_STEP`] stops across `stops` (relative
+/// to the brightest patch), leaving out samples with a channel outside `2^stops` when
+/// `skip_out_of_range`.
+pub fn measure_fn(
+    training_rgb: &[[f64; 3]],
+    stops: [f64; 2],
+    skip_out_of_range: bool,
+    de: impl Fn([f64; 3], f64) -> f64,
+) -> ErrorReport {
+    let training: Vec<f64> = training_rgb.iter().map(|&c| de(c, 1.0)).collect();
+    let (lo, hi) = (stops[0].exp2(), stops[1].exp2());
+    let s_ref = training_rgb
+        .iter()
+        .map(|c| c[0] + c[1] + c[2])
+        .fold(0.0, f64::max);
+    let chroma = dense_chromaticities(training_rgb, DENSE_STEP);
+    // Exposures every EXPOSURE_STEP stops across the range, offset from the lattice's powers
+    // of two.
+    let [slo, shi] = stops;
+    let n_exp = ((shi - slo) / EXPOSURE_STEP).floor() as usize;
+    let exposures: Vec<f64> = (0..n_exp)
+        .map(|i| slo + 0.137 + EXPOSURE_STEP * i as f64)
+        .collect();
+    let mut dense = Vec::new();
+    let mut out_of_range = 0;
+    for &e in &exposures {
+        let k = e.exp2();
+        for &(r, g) in &chroma {
+            let s = k * s_ref;
+            let rgb = [r * s, g * s, (1.0 - r - g) * s];
+            if skip_out_of_range && rgb.iter().any(|&v| v < lo || v > hi) {
+                out_of_range += 1;
+                continue;
             }
+            // The training white scaled to this exposure: the brightest patch stays near L* 100.
+            dense.push(de(rgb, k));
         }
-        Ok(ErrorReport {
-            training: ErrorStats::from(&training),
-            dense: ErrorStats::from(&dense),
-            exposures,
-            out_of_range,
-        })
+    }
+    ErrorReport {
+        training: ErrorStats::from(&training),
+        dense: ErrorStats::from(&dense),
+        exposures,
+        out_of_range,
     }
 }
 
@@ -549,6 +569,11 @@ pub fn export_to(
         unit.check_clobber(p)?;
     }
     let e = match format {
+        Format::Dcp => {
+            return Err(ExportError::Usage(
+                "a DCP is written from a model set (one or two illuminants): dcp::export_to".into(),
+            ))
+        }
         Format::Cube => LutExport::cube(model, space, options)?,
         Format::Clf | Format::Ocio => LutExport::clf(model, space, options, training_rgb)?,
     };
@@ -569,6 +594,7 @@ pub fn export_to(
     }
     let mut files = Vec::new();
     match format {
+        Format::Dcp => unreachable!("refused above"),
         Format::Clf => {
             unit.write_bytes(out, clf::write(&e, Some(&report)).as_bytes())?;
             files.push(out.to_path_buf());

@@ -26,7 +26,9 @@ pub const FORMAT: &str = "nsrm-model";
 /// The newest version written; files of a newer version are refused. A model is written with
 /// the oldest version that holds it: 1 without input gains, 2 with them (`input.gains`, a
 /// white-balanced NSRM), so builds that cannot apply gains refuse such a file by its version.
-pub const VERSION: u32 = 2;
+/// Version 3 is a two-illuminant file (`super::dual_illuminant`): a model document with the
+/// second model added; [`Model::from_json`] refuses it with a message that says so.
+pub const VERSION: u32 = 3;
 
 /// The first version with `input.gains`.
 const GAINS_VERSION: u32 = 2;
@@ -73,6 +75,12 @@ struct ModelFile {
     /// How the matrix was fitted (absent in files written before it was recorded).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     fit: Option<super::fit::FitReport>,
+    /// A two-illuminant file's second model and calibration record (read by
+    /// `dual_illuminant::Profile`; refused here).
+    #[serde(default, skip_serializing)]
+    second_illuminant: Option<serde::de::IgnoredAny>,
+    #[serde(default, skip_serializing, rename = "calibration_illuminants")]
+    _calibration_illuminants: Option<serde::de::IgnoredAny>,
 }
 
 impl Model {
@@ -108,6 +116,8 @@ impl Model {
                 patch_labels: self.patches.clone(),
             },
             fit: self.fit_report.clone(),
+            second_illuminant: None,
+            _calibration_illuminants: None,
         };
         let mut s = serde_json::to_string_pretty(&file).expect("a model serialises");
         s.push('\n');
@@ -123,6 +133,11 @@ impl Model {
             path: origin.to_string(),
             err,
         })?;
+        if f.second_illuminant.is_some() {
+            return Err(bad(
+                "the file holds two calibration illuminants (two models): read it as a two-illuminant model, which is combined for a frame's white".into(),
+            ));
+        }
         if f.format != FORMAT {
             return Err(bad(format!(
                 "format is `{}`, expected `{FORMAT}`",

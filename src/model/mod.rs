@@ -7,6 +7,7 @@
 //! gains first; the policy then holds for the gained pixel (`s = g_R·R + g_G·G + g_B·B`). Gains
 //! are positive, so exposure invariance is kept.
 
+pub mod dual_illuminant;
 pub mod fast;
 pub mod file;
 pub mod fit;

@@ -13,6 +13,9 @@ pub const ILLUMINANTS: &[(&str, &str)] = &[
     ("D65", include_str!("../../assets/illuminant_D65.csv")),
     ("FL3.15", include_str!("../../assets/illuminant_FL3.15.csv")),
     ("FL7", include_str!("../../assets/illuminant_FL7.csv")),
+    ("FL2", include_str!("../../assets/illuminant_FL2.csv")),
+    ("FL11", include_str!("../../assets/illuminant_FL11.csv")),
+    ("LED-B3", include_str!("../../assets/illuminant_LED-B3.csv")),
     ("TL865", include_str!("../../assets/illuminant_TL865.csv")),
     ("LED-B5", include_str!("../../assets/illuminant_LED-B5.csv")),
     (

@@ -8,12 +8,14 @@
 //! camera RGB so that the perfect white has `G = 1`, channel ratios kept (raw, not white-balanced).
 
 mod builtin;
+mod computed;
 mod csv;
 
 pub use builtin::{
     builtin_camera, builtin_illuminant, builtin_reflectances, cie1931_cmf, CAMERAS, ILLUMINANTS,
     REFLECTANCES,
 };
+pub use computed::computed_illuminant;
 pub use csv::parse_csv;
 
 use crate::training::{Provenance, TrainingSet};
@@ -247,7 +249,7 @@ impl Illuminant {
 
     /// A built-in name (`D65`, `FL3.15`, `FL7`, `TL865`, `LED-B5`, `LED-YAG`) or a CSV path.
     pub fn from_name_or_path(spec: &str) -> Result<Illuminant, SpectralError> {
-        let table = match builtin_illuminant(spec) {
+        let table = match builtin_illuminant(spec).or_else(|| computed::computed_illuminant(spec)) {
             Some(t) => t,
             None => table_from_path(spec, "illuminant", ILLUMINANTS)?,
         };

@@ -54,6 +54,8 @@ mod parsers_fuzz;
 #[cfg(feature = "gpu")]
 mod pixel_policy;
 #[cfg(feature = "cli")]
+mod profiles;
+#[cfg(feature = "cli")]
 mod readme;
 #[cfg(feature = "studio")]
 mod studio;

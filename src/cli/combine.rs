@@ -1,0 +1,60 @@
+//! `nsrm combine`: two model files of one kind and order, fitted under two illuminants, as one
+//! two-illuminant model file (combined for each frame's white by `apply --white`, and exported
+//! as a two-illuminant DCP).
+
+use super::common::UsageError;
+use anyhow::{Context, Result};
+use nsrm::model::dual_illuminant::Profile;
+use nsrm::Model;
+use std::path::PathBuf;
+use std::process::ExitCode;
+
+#[derive(Debug, clap::Args)]
+pub struct Args {
+    /// The two model files (`nsrm fit` under two illuminants, e.g. StdA and D65), in any order.
+    #[arg(required = true, num_args = 2, value_name = "MODEL")]
+    models: Vec<PathBuf>,
+    /// The two-illuminant model file to write.
+    #[arg(short, long, value_name = "FILE")]
+    output: PathBuf,
+    /// Replace an existing output file.
+    #[arg(long)]
+    overwrite: bool,
+}
+
+pub fn run(a: Args) -> Result<ExitCode> {
+    if a.models.len() != 2 {
+        return Err(UsageError("combine takes exactly two model files".into()).into());
+    }
+    for m in &a.models {
+        if m == &a.output {
+            return Err(UsageError(format!(
+                "-o {}: that is an input; write the combined model elsewhere",
+                a.output.display()
+            ))
+            .into());
+        }
+    }
+    let inputs: Vec<&std::path::Path> = a.models.iter().map(|p| p.as_path()).collect();
+    let session = super::outputs::open(a.overwrite, &inputs, &[a.output.as_path()])?;
+    let first = Model::load(&a.models[0]).with_context(|| a.models[0].display().to_string())?;
+    let second = Model::load(&a.models[1]).with_context(|| a.models[1].display().to_string())?;
+    let profile = Profile::dual(first, second).context("combining the two models")?;
+    let mut unit = session.unit();
+    unit.write_bytes(&a.output, profile.to_json().as_bytes())?;
+    unit.commit()?;
+    let c = profile.calibrations();
+    eprintln!(
+        "{} order {}: calibration illuminants {:.0} K (x, y {:.4}, {:.4}) and {:.0} K (x, y {:.4}, {:.4}) → {}",
+        profile.models()[0].kind(),
+        profile.models()[0].order(),
+        c[0].cct,
+        c[0].xy[0],
+        c[0].xy[1],
+        c[1].cct,
+        c[1].xy[0],
+        c[1].xy[1],
+        a.output.display()
+    );
+    Ok(ExitCode::SUCCESS)
+}

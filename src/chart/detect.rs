@@ -17,7 +17,7 @@
 //!    under moderate perspective ([`PERSPECTIVE_LIMIT`]); otherwise detection fails with a
 //!    message and the candidates, never a guess.
 
-use super::extract::{cell_means, match_score, MATCH_LIMIT};
+use super::extract::{cell_means, chart_score, MATCH_LIMIT};
 use super::reference::Reference;
 use super::{ChartError, Homography};
 use crate::frame::Frame;
@@ -229,7 +229,9 @@ pub fn detect(
     }
     let frame_area = (ws * hs) as f64;
     let min_area = 10.0f64.max(frame_area * 0.05 / kind.cells() as f64 * 0.08);
-    let max_area = frame_area * 0.5 / kind.cells() as f64;
+    // A patch is at most a cell of a chart whose patch grid fills the whole frame (a chart
+    // cropped tight, no surround): frame area / cells.
+    let max_area = frame_area / kind.cells() as f64;
     let mut blobs = Vec::new();
     let mut all = Vec::new();
     for s in stats.iter().skip(1) {
@@ -409,7 +411,7 @@ pub fn detect(
                         if inside * 2 < kind.cells() {
                             continue;
                         }
-                        if let Some(s) = match_score(&means, reference) {
+                        if let Some(s) = chart_score(&means, reference) {
                             // Orientation-preserving maps have a positive determinant.
                             let det = if swap { -sxf * syf } else { sxf * syf };
                             let obs_det = {

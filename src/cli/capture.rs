@@ -10,6 +10,7 @@ use nsrm::chart::extract::{extract, verify, ExtractOptions, Extraction};
 use nsrm::chart::flat::{self, Flat};
 use nsrm::chart::reference::{d50_white, Reference};
 use nsrm::chart::{homography_from_corners, overlay, parse_corners, ChartKind};
+use nsrm::io::display::{read_chart_frame, Encoding, Transfer};
 use nsrm::training::{CaptureProvenance, TrainingSet};
 use nsrm::Frame;
 use sha2::{Digest, Sha256};
@@ -45,15 +46,41 @@ pub struct CaptureOptions {
     /// (a smooth surface fitted to the chart's neutral patches).
     #[arg(long, value_name = "FRAME|neutrals")]
     pub flat: Option<String>,
+    /// How the frame's values are encoded: auto (sRGB for JPEG, PNG and 8-bit TIFF; linear for
+    /// EXR, 16-bit and float TIFF, raw), linear, or srgb (decoded with the sRGB transfer
+    /// function). Display-referred frames still carry the camera's tone curve: a model fitted
+    /// from one is marked so and warned about.
+    #[arg(long, value_enum, ignore_case = true, default_value = "auto")]
+    pub encoding: EncodingArg,
     /// Most pixels the frame (and the flat frame) may have, as in `apply`.
     #[arg(long, value_name = "N", default_value_t = nsrm::io::DEFAULT_MAX_PIXELS,
           value_parser = clap::value_parser!(u64).range(1..))]
     pub max_pixels: u64,
 }
 
+/// `--encoding`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub enum EncodingArg {
+    Auto,
+    Linear,
+    Srgb,
+}
+
+impl From<EncodingArg> for Encoding {
+    fn from(e: EncodingArg) -> Encoding {
+        match e {
+            EncodingArg::Auto => Encoding::Auto,
+            EncodingArg::Linear => Encoding::Linear,
+            EncodingArg::Srgb => Encoding::Srgb,
+        }
+    }
+}
+
 /// A read chart.
 pub struct Capture {
     pub frame: Frame,
+    /// How the frame's values were decoded.
+    pub transfer: Transfer,
     pub frame_path: PathBuf,
     pub sha256: String,
     pub reference: Reference,
@@ -112,13 +139,15 @@ impl CaptureOptions {
         let limits = nsrm::io::Limits {
             max_pixels: self.max_pixels,
         };
-        let frame = nsrm::io::read_frame(
+        let read = read_chart_frame(
             path,
             &nsrm::io::ReadOptions {
                 layer: self.layer.clone(),
                 limits,
             },
+            self.encoding.into(),
         )?;
+        let (frame, transfer) = (read.frame, read.transfer);
         let sha256 = sha256_file(path)?;
         let (h, detection) = match corners {
             Some(c) => (
@@ -180,6 +209,7 @@ impl CaptureOptions {
         }
         Ok(Capture {
             frame,
+            transfer,
             frame_path: path.to_path_buf(),
             sha256,
             reference,
@@ -249,6 +279,7 @@ impl Capture {
                 .map_or("none".to_string(), |f| f.method.clone()),
             light_nonuniformity: self.flat.as_ref().map_or(1.0, |f| f.nonuniformity),
             reference_match_de00: self.score,
+            encoding: self.transfer.describe().into(),
         }
     }
 
@@ -257,6 +288,40 @@ impl Capture {
         let mut t = self.extraction.training_set(&self.reference);
         t.provenance.capture = Some(self.provenance());
         t
+    }
+
+    /// One line saying how the chart was found and how well it matches.
+    pub fn summary(&self) -> String {
+        let used = self
+            .extraction
+            .patches
+            .iter()
+            .filter(|p| p.usable())
+            .count();
+        format!(
+            "{} chart {} in {} ({}; {}); {used} of {} patches usable; reference {} matches (median ΔE00 {:.2}){}",
+            self.reference.chart.name(),
+            match &self.detection {
+                Some(d) => format!(
+                    "found (lattice of {} patches, score {:.2} vs {:.2} for the next placement)",
+                    d.lattice, d.score, d.runner_up
+                ),
+                None => "read at --corners".into(),
+            },
+            self.frame_path.display(),
+            self.sha256.get(..12).unwrap_or(""),
+            self.transfer.describe(),
+            self.extraction.patches.len(),
+            self.reference.name,
+            self.score,
+            self.flat
+                .as_ref()
+                .map(|f| format!(
+                    "; light non-uniformity {:.3} (max/min, {})",
+                    f.nonuniformity, f.method
+                ))
+                .unwrap_or_default()
+        )
     }
 
     /// The full report (`--json`).
@@ -311,7 +376,18 @@ pub fn for_model(capture: Option<&Path>, o: &CaptureOptions) -> Result<Option<Ca
         )
         .into()),
         None => Ok(None),
-        Some(p) => Ok(Some(o.read(p, None)?)),
+        Some(p) => {
+            let cap = o.read(p, None)?;
+            eprintln!("{}", cap.summary());
+            if cap.transfer.display_referred() {
+                eprintln!(
+                    "warning: {} is display-referred ({}): its values carry the camera's tone curve and saturation, so a model fitted from them maps display values, not light; use a raw, linear EXR or 16-bit linear TIFF capture for a calibration",
+                    p.display(),
+                    cap.transfer.describe()
+                );
+            }
+            Ok(Some(cap))
+        }
     }
 }
 

@@ -7,7 +7,7 @@ as mcc's imread is not timed), each the median of --repeat runs, and what each f
 
     python3 benches/chart_real_vs_mcc.py [--nsrm target/release/nsrm] [--repeat 5] [FILES…]
 
-Default files: ../shared/realcharts/*.{jpg,tif}. The 8-bit linear TIFF is read by nsrm with
+Default files: $NSRM_SHARED/realcharts/*.{jpg,tif} ($NSRM_SHARED defaults to ../shared). The 8-bit linear TIFF is read by nsrm with
 --encoding linear (its NOTICE says so); mcc gets the same 8-bit pixels.
 Needs: pip install opencv-contrib-python-headless (.ci/install.d/30-opencv.sh).
 """
@@ -52,9 +52,10 @@ def main():
     ap.add_argument("--repeat", type=int, default=5)
     ap.add_argument("files", nargs="*")
     a = ap.parse_args()
+    shared = os.environ.get("NSRM_SHARED", os.path.join(root, "..", "shared"))
     files = a.files or sorted(
-        glob.glob(os.path.join(root, "..", "shared", "realcharts", "*.jpg"))
-        + glob.glob(os.path.join(root, "..", "shared", "realcharts", "*.tif")))
+        glob.glob(os.path.join(shared, "realcharts", "*.jpg"))
+        + glob.glob(os.path.join(shared, "realcharts", "*.tif")))
     if not files:
         sys.exit("no photographs (../shared/realcharts)")
     print(f"OpenCV {cv2.__version__}; {a.repeat} runs each, medians")

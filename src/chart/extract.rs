@@ -11,7 +11,8 @@
 //!   level: `--white-level`, else the level inferred from the frame by [`infer_white_level`]),
 //!   `dark` (the brightest channel's mean below [`ExtractOptions::dark_fraction`] of the white
 //!   level, or any channel's mean not positive), `nonuniform` (the means of the four quadrants of
-//!   the sampled area differ from the patch mean by more than [`ExtractOptions::nonuniform`] (4 %)
+//!   the sampled area differ from the patch mean by more than [`ExtractOptions::nonuniform`] (4 %),
+//!   by more than one code step of the integer encoding decoded ([`Quantisation`]), if any,
 //!   of it and by more than five standard errors: glare, dust, a finger, an edge).
 
 use super::reference::Reference;
@@ -31,6 +32,33 @@ pub struct ExtractOptions {
     pub white_level: Option<f64>,
     pub dark_fraction: f64,
     pub nonuniform: f64,
+    /// The integer encoding the frame was decoded from, if any: a quadrant must then differ by
+    /// more than one code step of it to count as non-uniform (dark channels of an 8-bit JPEG
+    /// are a few codes, whose steps are tens of percent of their value).
+    pub quantisation: Option<Quantisation>,
+}
+
+/// An integer encoding that values were decoded from.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Quantisation {
+    /// The largest code (255 for 8 bits).
+    pub max_code: f64,
+    /// Codes are sRGB-encoded (else linear).
+    pub srgb: bool,
+}
+
+impl Quantisation {
+    /// The difference between the decoded values of the codes around the (decoded) value `v`.
+    pub fn step(&self, v: f64) -> f64 {
+        if self.srgb {
+            use crate::colorimetry::output::srgb_oetf;
+            use crate::io::display::srgb_eotf;
+            let e = srgb_oetf(v.clamp(0.0, 1.0));
+            srgb_eotf((e + 1.0 / self.max_code).min(1.0)) - srgb_eotf(e)
+        } else {
+            1.0 / self.max_code
+        }
+    }
 }
 
 impl ExtractOptions {
@@ -62,6 +90,7 @@ impl Default for ExtractOptions {
             white_level: None,
             dark_fraction: 1e-3,
             nonuniform: 0.04,
+            quantisation: None,
         }
     }
 }
@@ -436,7 +465,8 @@ fn read_patch(
             let m = qsum[q][k] / qn[q] as f64;
             let dev = (m - rgb[k]).abs();
             let se = std[k] / (qn[q] as f64).sqrt();
-            dev > opts.nonuniform * rgb[k].abs() && dev > 5.0 * se
+            let step = opts.quantisation.map_or(0.0, |q| q.step(rgb[k]));
+            dev > opts.nonuniform * rgb[k].abs() && dev > 5.0 * se && dev > step
         })
     });
     if nonuniform {

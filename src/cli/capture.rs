@@ -6,7 +6,7 @@ use super::common::UsageError;
 use super::values;
 use anyhow::{anyhow, Context, Result};
 use nsrm::chart::detect::{detect, Candidate, DetectOptions, Detection};
-use nsrm::chart::extract::{extract, verify, ExtractOptions, Extraction};
+use nsrm::chart::extract::{extract, verify, ExtractOptions, Extraction, Quantisation};
 use nsrm::chart::flat::{self, Flat};
 use nsrm::chart::reference::{d50_white, Reference};
 use nsrm::chart::{homography_from_corners, overlay, parse_corners, ChartKind};
@@ -131,7 +131,7 @@ impl CaptureOptions {
         let reference = self.reference()?;
         let kind = reference.chart;
         let corners = self.corners.as_deref().map(parse_corners).transpose()?;
-        let opts = ExtractOptions {
+        let mut opts = ExtractOptions {
             white_level: self.white_level,
             ..Default::default()
         };
@@ -148,6 +148,10 @@ impl CaptureOptions {
             self.encoding.into(),
         )?;
         let (frame, transfer) = (read.frame, read.transfer);
+        opts.quantisation = read.max_code.map(|max_code| Quantisation {
+            max_code,
+            srgb: transfer == Transfer::SrgbDecoded,
+        });
         let sha256 = sha256_file(path)?;
         let (h, detection) = match corners {
             Some(c) => (
@@ -165,9 +169,30 @@ impl CaptureOptions {
                             p.display()
                         );
                     }
-                    return Err(anyhow!(f.error)).with_context(|| {
-                        format!("{}: looking for a {} chart", path.display(), kind.name())
-                    });
+                    // The other chart kind, with its built-in reference: a user who named the
+                    // wrong chart is told which one the frame holds.
+                    let other = match kind {
+                        ChartKind::Cc24 => ChartKind::Sg,
+                        ChartKind::Sg => ChartKind::Cc24,
+                    };
+                    let holds_other = Reference::load(other.default_reference(), other, None)
+                        .ok()
+                        .is_some_and(|r| detect(&frame, &r, &DetectOptions::default()).is_ok());
+                    let err = anyhow!(f.error).context(format!(
+                        "{}: looking for a {} chart",
+                        path.display(),
+                        kind.name()
+                    ));
+                    if holds_other {
+                        return Err(UsageError(format!(
+                            "{:#}; the frame holds a {} chart: give --chart {}",
+                            err,
+                            other.name(),
+                            other.name()
+                        ))
+                        .into());
+                    }
+                    return Err(err);
                 }
             },
         };

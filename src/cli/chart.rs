@@ -163,6 +163,15 @@ fn run_time(a: TimeArgs) -> Result<ExitCode> {
                 continue;
             }
         };
+        let ex_opts = ExtractOptions {
+            quantisation: read
+                .max_code
+                .map(|max_code| nsrm::chart::extract::Quantisation {
+                    max_code,
+                    srgb: read.transfer.display_referred(),
+                }),
+            ..Default::default()
+        };
         let mut times = Vec::new();
         let mut outcome = String::new();
         for _ in 0..a.repeat {
@@ -170,12 +179,8 @@ fn run_time(a: TimeArgs) -> Result<ExitCode> {
             let r = detect(&read.frame, &reference, &DetectOptions::default())
                 .map_err(|f| f.error)
                 .and_then(|d| {
-                    extract(
-                        &read.frame,
-                        &reference,
-                        &d.homography,
-                        &ExtractOptions::default(),
-                    )
+                    extract(&read.frame, &reference, &d.homography, &ex_opts)
+                        .and_then(|ex| nsrm::chart::extract::verify(&ex, &reference).map(|_| ex))
                 });
             times.push(t0.elapsed().as_secs_f64());
             outcome = match r {

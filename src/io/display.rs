@@ -75,6 +75,9 @@ pub struct ChartFrame {
     pub transfer: Transfer,
     /// `JPEG`, `PNG`, `TIFF`, `OpenEXR`, …
     pub format: &'static str,
+    /// The largest integer code of a display file decoded here (255, 65535); `None` for frames
+    /// read by the linear readers.
+    pub max_code: Option<f64>,
 }
 
 /// The sRGB electro-optical transfer function: an encoded value in `[0, 1]` to linear.
@@ -145,15 +148,16 @@ pub fn read_chart_frame(
     opts: &ReadOptions,
     encoding: Encoding,
 ) -> Result<ChartFrame, IoError> {
-    let (mut frame, integer_display, format) = match sniff(path)? {
+    let (frame, integer_display, format) = match sniff(path)? {
         Kind::Jpeg => (read_image(path, &opts.limits)?, true, "JPEG"),
         Kind::Png => (read_image(path, &opts.limits)?, true, "PNG"),
         Kind::Tiff8 => (read_image(path, &opts.limits)?, true, "TIFF (8-bit)"),
         Kind::Other => {
             let f = super::read_frame(path, opts)?;
-            (f, false, "frame")
+            ((f, None), false, "frame")
         }
     };
+    let (mut frame, max_code) = frame;
     if integer_display && opts.layer.is_some() {
         return Err(IoError::Channels {
             path: path.to_path_buf(),
@@ -173,6 +177,7 @@ pub fn read_chart_frame(
         frame,
         transfer,
         format,
+        max_code,
     })
 }
 
@@ -195,7 +200,7 @@ fn decode_srgb(frame: &mut Frame) {
 /// Decodes an 8/16-bit image with the `image` crate into RGB values scaled to `[0, 1]`
 /// (no transfer function yet). Dimensions are checked against `limits` from the header,
 /// before the pixels are decoded; the decoder's own allocation is bounded too.
-fn read_image(path: &Path, limits: &Limits) -> Result<Frame, IoError> {
+fn read_image(path: &Path, limits: &Limits) -> Result<(Frame, Option<f64>), IoError> {
     let open = || -> Result<image::ImageReader<std::io::BufReader<std::fs::File>>, IoError> {
         image::ImageReader::open(path)
             .map_err(|err| IoError::Read {
@@ -217,6 +222,13 @@ fn read_image(path: &Path, limits: &Limits) -> Result<Frame, IoError> {
     reader.limits(il);
     let img = reader.decode().map_err(|e| image_err(path, e))?;
     let mut data: Vec<f32> = super::try_with_capacity(path, n.saturating_mul(3))?;
+    let eight = matches!(
+        img,
+        image::DynamicImage::ImageRgb8(_)
+            | image::DynamicImage::ImageRgba8(_)
+            | image::DynamicImage::ImageLuma8(_)
+            | image::DynamicImage::ImageLumaA8(_)
+    );
     match img {
         image::DynamicImage::ImageRgb8(_)
         | image::DynamicImage::ImageRgba8(_)
@@ -239,10 +251,13 @@ fn read_image(path: &Path, limits: &Limits) -> Result<Frame, IoError> {
             );
         }
     }
-    Frame::from_data(w as usize, h as usize, Layout::Rgb, data).ok_or_else(|| IoError::Corrupt {
-        path: path.to_path_buf(),
-        why: "the decoded image does not hold its pixels".into(),
-    })
+    let frame = Frame::from_data(w as usize, h as usize, Layout::Rgb, data).ok_or_else(|| {
+        IoError::Corrupt {
+            path: path.to_path_buf(),
+            why: "the decoded image does not hold its pixels".into(),
+        }
+    })?;
+    Ok((frame, Some(if eight { 255.0 } else { 65535.0 })))
 }
 
 fn image_err(path: &Path, e: image::ImageError) -> IoError {

@@ -63,7 +63,7 @@ impl Transfer {
             Transfer::SrgbDecoded => {
                 "display-referred (sRGB decoded; camera tone curve not undone)"
             }
-            Transfer::DisplayAsLinear => "8-bit integer values taken as linear",
+            Transfer::DisplayAsLinear => "integer values of a JPEG/PNG/8-bit TIFF taken as linear",
         }
     }
 }

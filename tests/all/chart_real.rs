@@ -202,3 +202,49 @@ fn fit_from_a_camera_jpeg_warns_and_is_marked_display_referred() {
     let enc = m["training"]["capture"]["encoding"].as_str().unwrap_or("");
     assert!(enc.starts_with("display-referred"), "provenance: {enc}");
 }
+
+#[test]
+fn asking_for_the_wrong_chart_names_the_one_in_the_frame() {
+    // Issue 23: `chart extract --chart cc24` on an SG frame says the frame holds an SG.
+    let Some(dir) = realcharts() else { return };
+    let spectra = dir.join("../data/colorchecker_sg_140.csv");
+    if !spectra.exists() {
+        assert!(
+            std::env::var("CI").as_deref() != Ok("true"),
+            "SG spectra missing under CI=true"
+        );
+        eprintln!("SKIP: {} is absent", spectra.display());
+        return;
+    }
+    let d = tempdir("chart-wrong-kind");
+    let out = nsrm_in(
+        &d,
+        &[
+            "render-scene",
+            "--chart",
+            "sg",
+            "--reflectances",
+            spectra.to_str().unwrap(),
+            "--envelope",
+            "--seed",
+            "9",
+            "--width",
+            "900",
+            "--height",
+            "600",
+            "-o",
+            "sg.exr",
+        ],
+    );
+    assert!(out.status.success(), "{}", stderr(&out));
+    let out = nsrm_in(
+        &d,
+        &[
+            "chart", "extract", "sg.exr", "--chart", "cc24", "-o", "p.csv",
+        ],
+    );
+    let err = stderr(&out);
+    assert!(!out.status.success());
+    assert!(err.contains("holds a sg chart: give --chart sg"), "{err}");
+    assert!(!d.join("p.csv").exists());
+}

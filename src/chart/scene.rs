@@ -243,10 +243,11 @@ impl SceneOptions {
             return bad("at most 10000 clutter shapes");
         }
         if let Some(l) = self.look {
-            if !(nonneg(l.contrast) && l.contrast <= 10.0 && l.saturation.is_finite())
-                || !(0.0..=3.0).contains(&l.saturation)
-                || l.quality > 100
-            {
+            let ok = nonneg(l.contrast)
+                && l.contrast <= 10.0
+                && (0.0..=3.0).contains(&l.saturation)
+                && l.quality <= 100;
+            if !ok {
                 return bad(
                     "the camera look needs contrast 0..10, saturation 0..3, quality 0..100",
                 );

@@ -169,30 +169,9 @@ impl CaptureOptions {
                             p.display()
                         );
                     }
-                    // The other chart kind, with its built-in reference: a user who named the
-                    // wrong chart is told which one the frame holds.
-                    let other = match kind {
-                        ChartKind::Cc24 => ChartKind::Sg,
-                        ChartKind::Sg => ChartKind::Cc24,
-                    };
-                    let holds_other = Reference::load(other.default_reference(), other, None)
-                        .ok()
-                        .is_some_and(|r| detect(&frame, &r, &DetectOptions::default()).is_ok());
-                    let err = anyhow!(f.error).context(format!(
-                        "{}: looking for a {} chart",
-                        path.display(),
-                        kind.name()
-                    ));
-                    if holds_other {
-                        return Err(UsageError(format!(
-                            "{:#}; the frame holds a {} chart: give --chart {}",
-                            err,
-                            other.name(),
-                            other.name()
-                        ))
-                        .into());
-                    }
-                    return Err(err);
+                    return Err(anyhow!(f.error)).with_context(|| {
+                        format!("{}: looking for a {} chart", path.display(), kind.name())
+                    });
                 }
             },
         };

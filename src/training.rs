@@ -108,6 +108,10 @@ pub struct CaptureProvenance {
     pub light_nonuniformity: f64,
     /// Median ΔE00 of the patches against the reference after the best 3×3 linear map.
     pub reference_match_de00: f64,
+    /// How the frame's values were decoded: `linear`, or display-referred (sRGB decoded, the
+    /// camera's tone curve still in them). Empty in files written before it was recorded.
+    #[serde(default)]
+    pub encoding: String,
 }
 
 /// Patches with camera RGB and reference XYZ, and the reference white (for Lab).

@@ -12,12 +12,15 @@
 //!    lattice coordinates to the frame is fitted to its centroids (least squares) and refined.
 //! 4. Every placement of the chart on the lattice — 4 rotations × mirror × the offsets the lattice
 //!    allows — is scored by how well its patch colours match the reference (median ΔE00 after the
-//!    best 3×3 linear map, [`super::extract::match_score`]). The best must be plausible (below
-//!    [`DETECT_MATCH_LIMIT`]), clearly better than the next (ratio [`AMBIGUITY_RATIO`]) and seen
-//!    under moderate perspective ([`PERSPECTIVE_LIMIT`]); otherwise detection fails with a
-//!    message and the candidates, never a guess.
+//!    best 3×3 linear map, or after linearising each channel through the chart's own grey ramp
+//!    and then the best 3×3 map — a camera's tone curve — whichever is better,
+//!    [`super::extract::chart_score`]). The best must be plausible (below
+//!    [`DETECT_MATCH_LIMIT`], or [`MATCH_LIMIT`] when every cell of the chart was seen as a patch
+//!    and the next placement is [`COMPLETE_AMBIGUITY_RATIO`] worse), clearly better than the next
+//!    (ratio [`AMBIGUITY_RATIO`]) and seen under moderate perspective ([`PERSPECTIVE_LIMIT`]);
+//!    otherwise detection fails with a message and the candidates, never a guess.
 
-use super::extract::{cell_means, match_score, MATCH_LIMIT};
+use super::extract::{cell_means, chart_score, MATCH_LIMIT};
 use super::reference::Reference;
 use super::{ChartError, Homography};
 use crate::frame::Frame;
@@ -33,6 +36,12 @@ pub const AMBIGUITY_RATIO: f64 = 0.7;
 /// synthetic scenes score at most 2.5, a placement shifted by some cells on a partial lattice
 /// was seen at 7.6.
 pub const DETECT_MATCH_LIMIT: f64 = 5.0;
+
+/// With a complete lattice (every cell of the placement seen as a patch), a found chart may
+/// match up to [`MATCH_LIMIT`] when the next placement scores at least 1 / this times worse
+/// (stricter than [`AMBIGUITY_RATIO`]; the correct placements of the development photographs
+/// score 4× to 12× better than the next).
+pub const COMPLETE_AMBIGUITY_RATIO: f64 = 0.5;
 
 /// Perspective strength above which a found chart is refused: the ratio of the largest to the
 /// smallest patch scale (square root of the local area) over the chart's cells. Beyond it the
@@ -229,7 +238,9 @@ pub fn detect(
     }
     let frame_area = (ws * hs) as f64;
     let min_area = 10.0f64.max(frame_area * 0.05 / kind.cells() as f64 * 0.08);
-    let max_area = frame_area * 0.5 / kind.cells() as f64;
+    // A patch is at most a cell of a chart whose patch grid fills the whole frame (a chart
+    // cropped tight, no surround): frame area / cells.
+    let max_area = frame_area / kind.cells() as f64;
     let mut blobs = Vec::new();
     let mut all = Vec::new();
     for s in stats.iter().skip(1) {
@@ -361,7 +372,7 @@ pub fn detect(
     let (imin, imax, jmin, jmax) = extent(&lattice);
     let side = kind.patch_fraction() * 0.5;
     let small_frame = Frame::from_data(ws, hs, crate::frame::Layout::Rgb, small).expect("sized");
-    let mut scored: Vec<(f64, Homography, bool, usize)> = Vec::new();
+    let mut scored: Vec<(f64, Homography, bool, usize, bool)> = Vec::new();
     for swap in [false, true] {
         let (ai, aj) = if swap {
             (kind.rows() as i32, kind.columns() as i32)
@@ -409,7 +420,7 @@ pub fn detect(
                         if inside * 2 < kind.cells() {
                             continue;
                         }
-                        if let Some(s) = match_score(&means, reference) {
+                        if let Some(s) = chart_score(&means, reference) {
                             // Orientation-preserving maps have a positive determinant.
                             let det = if swap { -sxf * syf } else { sxf * syf };
                             let obs_det = {
@@ -420,7 +431,21 @@ pub fn detect(
                                     - (p1[1] - p0[1]) * (p2[0] - p0[0])
                             };
                             let mirrored = det * obs_det < 0.0;
-                            scored.push((s, hc, mirrored, kind.cells() - inside));
+                            // Every cell of the placement holds a lattice patch: nothing is
+                            // extrapolated past what was seen.
+                            let covered = lattice
+                                .iter()
+                                .filter(|(_, ij)| {
+                                    ij[0] >= si && ij[0] < si + ai && ij[1] >= sj && ij[1] < sj + aj
+                                })
+                                .count();
+                            scored.push((
+                                s,
+                                hc,
+                                mirrored,
+                                kind.cells() - inside,
+                                covered == kind.cells(),
+                            ));
                         }
                     }
                 }
@@ -429,7 +454,7 @@ pub fn detect(
     }
     scored.sort_by(|a, b| a.0.total_cmp(&b.0));
     let candidates = to_candidates(&accepted);
-    let Some((score, hc, mirrored, outside)) = scored.first().cloned() else {
+    let Some((score, hc, mirrored, outside, complete)) = scored.first().cloned() else {
         return Err(fail(
             format!(
                 "a grid of {} patches was found, but no placement of the chart fits it",
@@ -449,12 +474,23 @@ pub fn detect(
             candidates,
         ));
     }
-    if score > DETECT_MATCH_LIMIT {
+    // A complete lattice (every cell seen as a patch) with a decisive orientation may match
+    // up to MATCH_LIMIT: the looser match then cannot come from a placement shifted across a
+    // partial lattice (the failure DETECT_MATCH_LIMIT guards against), only from colours the
+    // camera rendered (tone curve, saturation, a strong cast).
+    let loose_ok =
+        complete && score <= MATCH_LIMIT && score <= COMPLETE_AMBIGUITY_RATIO * runner_up;
+    if score > DETECT_MATCH_LIMIT && !loose_ok {
         return Err(fail(
             format!(
-                "a grid of {} patches was found, but its colours match reference {} only loosely (median ΔE00 {score:.1}, limit {DETECT_MATCH_LIMIT} for a found chart): refused rather than risk a wrong placement; give the chart's corners",
+                "a grid of {} patches was found, but its colours match reference {} only loosely (median ΔE00 {score:.1}, next placement {runner_up:.1}; limit {DETECT_MATCH_LIMIT} for a found chart{}): refused rather than risk a wrong placement; give the chart's corners",
                 lattice.len(),
-                reference.name
+                reference.name,
+                if complete {
+                    format!(", or {MATCH_LIMIT} with a complete grid and the next placement {:.0}× worse", 1.0 / COMPLETE_AMBIGUITY_RATIO)
+                } else {
+                    String::new()
+                }
             ),
             candidates,
         ));

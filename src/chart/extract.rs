@@ -11,7 +11,8 @@
 //!   level: `--white-level`, else the level inferred from the frame by [`infer_white_level`]),
 //!   `dark` (the brightest channel's mean below [`ExtractOptions::dark_fraction`] of the white
 //!   level, or any channel's mean not positive), `nonuniform` (the means of the four quadrants of
-//!   the sampled area differ from the patch mean by more than [`ExtractOptions::nonuniform`] (4 %)
+//!   the sampled area differ from the patch mean by more than [`ExtractOptions::nonuniform`] (4 %),
+//!   by more than one code step of the integer encoding decoded ([`Quantisation`]), if any,
 //!   of it and by more than five standard errors: glare, dust, a finger, an edge).
 
 use super::reference::Reference;
@@ -31,6 +32,33 @@ pub struct ExtractOptions {
     pub white_level: Option<f64>,
     pub dark_fraction: f64,
     pub nonuniform: f64,
+    /// The integer encoding the frame was decoded from, if any: a quadrant must then differ by
+    /// more than one code step of it to count as non-uniform (dark channels of an 8-bit JPEG
+    /// are a few codes, whose steps are tens of percent of their value).
+    pub quantisation: Option<Quantisation>,
+}
+
+/// An integer encoding that values were decoded from.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Quantisation {
+    /// The largest code (255 for 8 bits).
+    pub max_code: f64,
+    /// Codes are sRGB-encoded (else linear).
+    pub srgb: bool,
+}
+
+impl Quantisation {
+    /// The difference between the decoded values of the codes around the (decoded) value `v`.
+    pub fn step(&self, v: f64) -> f64 {
+        if self.srgb {
+            use crate::colorimetry::output::srgb_oetf;
+            use crate::io::display::srgb_eotf;
+            let e = srgb_oetf(v.clamp(0.0, 1.0));
+            srgb_eotf((e + 1.0 / self.max_code).min(1.0)) - srgb_eotf(e)
+        } else {
+            1.0 / self.max_code
+        }
+    }
 }
 
 impl ExtractOptions {
@@ -62,6 +90,7 @@ impl Default for ExtractOptions {
             white_level: None,
             dark_fraction: 1e-3,
             nonuniform: 0.04,
+            quantisation: None,
         }
     }
 }
@@ -442,7 +471,8 @@ fn read_patch(
             let m = qsum[q][k] / qn[q] as f64;
             let dev = (m - rgb[k]).abs();
             let se = std[k] / (qn[q] as f64).sqrt();
-            dev > opts.nonuniform * rgb[k].abs() && dev > 5.0 * se
+            let step = opts.quantisation.map_or(0.0, |q| q.step(rgb[k]));
+            dev > opts.nonuniform * rgb[k].abs() && dev > 5.0 * se && dev > step
         })
     });
     if nonuniform {
@@ -527,7 +557,123 @@ pub fn match_score(rgb: &[Option<[f64; 3]>], reference: &Reference) -> Option<f6
 /// The median ΔE00 above which patch colours are taken not to match the reference.
 pub const MATCH_LIMIT: f64 = 8.0;
 
-/// Checks that the usable patches match the reference (see [`match_score`]); the median ΔE00.
+/// Reference patches this close to neutral (CIELAB chroma) form the grey ramp that
+/// [`tone_score`] linearises through: the CC24's bottom row (chroma ≤ 1), the SG's greys.
+pub const NEUTRAL_CHROMA: f64 = 4.0;
+
+/// Two neutral patches whose reference luminances differ by more than this factor must keep
+/// their order in every channel (a tone curve is monotone); CC24's neighbouring greys differ
+/// by 1.5× to 2.9×.
+pub const RAMP_ORDER_RATIO: f64 = 1.25;
+
+/// How well patch colours seen through an unknown camera tone curve match a reference: the
+/// per-channel curve is estimated from the chart's own grey ramp (the neutral patches,
+/// [`NEUTRAL_CHROMA`], in the order of their reference luminance: isotonic regression of
+/// luminance on the channel value, interpolated piecewise linearly), the linearised values are
+/// mapped by the best 3×3 matrix and scored by the median ΔE00 as in [`match_score`].
+///
+/// `None` when the ramp has fewer than four readable greys, or when it is out of order: two
+/// greys whose reference luminances differ by more than [`RAMP_ORDER_RATIO`] swap order in a
+/// channel by more than 1 % of the ramp's range — no tone curve does that, so such a placement
+/// is not this chart (or the greys are glared) and only the linear [`match_score`] may judge it.
+pub fn tone_score(rgb: &[Option<[f64; 3]>], reference: &Reference) -> Option<f64> {
+    let lin = linearise(rgb, reference)?;
+    match_score(&lin, reference)
+}
+
+/// The colour check used for found charts and `verify`: the better of the linear
+/// [`match_score`] and the tone-tolerant [`tone_score`].
+pub fn chart_score(rgb: &[Option<[f64; 3]>], reference: &Reference) -> Option<f64> {
+    match (match_score(rgb, reference), tone_score(rgb, reference)) {
+        (Some(a), Some(b)) => Some(a.min(b)),
+        (a, b) => a.or(b),
+    }
+}
+
+/// The values of `rgb` through per-channel curves fitted to the chart's grey ramp (see
+/// [`tone_score`]); `None` when the ramp cannot be used.
+pub fn linearise(rgb: &[Option<[f64; 3]>], reference: &Reference) -> Option<Vec<Option<[f64; 3]>>> {
+    let greys: Vec<(f64, [f64; 3])> = (0..rgb.len().min(reference.xyz.len()))
+        .filter_map(|i| {
+            let x = reference.xyz[i];
+            let lab = crate::colorimetry::xyz_to_lab(x, reference.white);
+            let v = rgb[i]?;
+            (lab[1].hypot(lab[2]) < NEUTRAL_CHROMA && v.iter().all(|c| c.is_finite()))
+                .then_some((x[1], v))
+        })
+        .collect();
+    if greys.len() < 4 {
+        return None;
+    }
+    let mut curves: Vec<Vec<(f64, f64)>> = Vec::with_capacity(3);
+    for k in 0..3 {
+        let lo = greys.iter().map(|g| g.1[k]).fold(f64::INFINITY, f64::min);
+        let hi = greys
+            .iter()
+            .map(|g| g.1[k])
+            .fold(f64::NEG_INFINITY, f64::max);
+        if !(hi > lo && hi > 0.0) {
+            return None;
+        }
+        let tol = 0.01 * (hi - lo);
+        for a in &greys {
+            for b in &greys {
+                if b.0 > RAMP_ORDER_RATIO * a.0 && a.1[k] > b.1[k] + tol {
+                    return None;
+                }
+            }
+        }
+        // Isotonic regression (pool adjacent violators) of luminance on the channel value.
+        let mut pts: Vec<(f64, f64)> = greys.iter().map(|g| (g.1[k], g.0)).collect();
+        pts.sort_by(|a, b| a.0.total_cmp(&b.0));
+        let mut blocks: Vec<(f64, f64, f64)> = Vec::new(); // (sum x, sum y, n)
+        for (x, y) in pts {
+            blocks.push((x, y, 1.0));
+            while blocks.len() > 1 {
+                let n = blocks.len();
+                let (a, b) = (blocks[n - 2], blocks[n - 1]);
+                if a.1 / a.2 >= b.1 / b.2 {
+                    blocks.pop();
+                    blocks[n - 2] = (a.0 + b.0, a.1 + b.1, a.2 + b.2);
+                } else {
+                    break;
+                }
+            }
+        }
+        let curve: Vec<(f64, f64)> = blocks.iter().map(|b| (b.0 / b.2, b.1 / b.2)).collect();
+        if curve.len() < 2 {
+            return None;
+        }
+        curves.push(curve);
+    }
+    let seg = |a: (f64, f64), b: (f64, f64), x: f64| -> f64 {
+        if b.0 > a.0 {
+            a.1 + (x - a.0) * (b.1 - a.1) / (b.0 - a.0)
+        } else {
+            a.1
+        }
+    };
+    let eval = |c: &[(f64, f64)], x: f64| -> f64 {
+        let n = c.len();
+        // Below the darkest grey: towards (0, 0) when the darkest grey is above zero.
+        if x <= c[0].0 {
+            return if c[0].0 > 0.0 && x >= 0.0 {
+                c[0].1 * x / c[0].0
+            } else {
+                seg(c[0], c[1], x)
+            };
+        }
+        let j = c.partition_point(|p| p.0 < x).clamp(1, n - 1);
+        seg(c[j - 1], c[j], x)
+    };
+    Some(
+        rgb.iter()
+            .map(|v| v.map(|v| [0, 1, 2].map(|k| eval(&curves[k], v[k]))))
+            .collect(),
+    )
+}
+
+/// Checks that the usable patches match the reference (see [`chart_score`]); the median ΔE00.
 pub fn verify(ex: &Extraction, reference: &Reference) -> Result<f64, ChartError> {
     let rgb: Vec<Option<[f64; 3]>> = ex
         .patches
@@ -541,7 +687,7 @@ pub fn verify(ex: &Extraction, reference: &Reference) -> Result<f64, ChartError>
             ex.patches.len()
         )));
     }
-    let score = match_score(&rgb, reference).ok_or_else(|| {
+    let score = chart_score(&rgb, reference).ok_or_else(|| {
         ChartError::Implausible("the patch colours are degenerate (all alike?)".into())
     })?;
     if score > MATCH_LIMIT {

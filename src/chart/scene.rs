@@ -126,6 +126,24 @@ pub struct SceneOptions {
     pub min_tilt_deg: f64,
     /// Reflectance of the chart body (neutral).
     pub body_reflectance: f64,
+    /// A camera's display rendering on top: tone curve, saturation, 8-bit sRGB and JPEG, then
+    /// decoded back with the plain sRGB transfer function (what nsrm reads from a camera JPEG).
+    pub look: Option<CameraLook>,
+    /// A ColorChecker Passport: its second page (creative enhancement: greys, skin tones,
+    /// colours in another layout) open beside the classic page.
+    pub second_page: bool,
+}
+
+/// A camera's rendering of a scene into a JPEG.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct CameraLook {
+    /// Strength of the S-shaped contrast curve applied after the sRGB encoding (0: none;
+    /// cameras: about 1 to 3).
+    pub contrast: f64,
+    /// Saturation gain in the display-encoded values (1: none; cameras: 1.1 to 1.5).
+    pub saturation: f64,
+    /// JPEG quality (1..=100); 0: 8-bit quantisation only.
+    pub quality: u8,
 }
 
 impl Default for SceneOptions {
@@ -149,6 +167,8 @@ impl Default for SceneOptions {
             max_tilt_deg: 30.0,
             min_tilt_deg: 0.0,
             body_reflectance: 0.035,
+            look: None,
+            second_page: false,
         }
     }
 }
@@ -181,6 +201,8 @@ impl SceneOptions {
             max_tilt_deg: 30.0,
             min_tilt_deg: 0.0,
             body_reflectance: 0.035,
+            look: None,
+            second_page: false,
         }
     }
 
@@ -233,6 +255,17 @@ impl SceneOptions {
         }
         if self.clutter > 10_000 {
             return bad("at most 10000 clutter shapes");
+        }
+        if let Some(l) = self.look {
+            let ok = nonneg(l.contrast)
+                && l.contrast <= 10.0
+                && (0.0..=3.0).contains(&l.saturation)
+                && l.quality <= 100;
+            if !ok {
+                return bad(
+                    "the camera look needs contrast 0..10, saturation 0..3, quality 0..100",
+                );
+            }
         }
         Ok(())
     }
@@ -493,8 +526,21 @@ pub fn render(
     }
     let light = |x: f64, y: f64| light_raw(x, y) / light_mean;
     let body_q = kind.body_corners().map(|c| hom.apply(c));
-    let in_front = kind.body_corners().iter().all(|c| hom.w(*c) > 0.0);
-    let (bx0, by0, bx1, by1) = body_q.iter().fold(
+    let second = opts.second_page.then(|| SecondPage::new(colours, &mut g));
+    // The drawn body: the chart's, and the second page's beside it.
+    let drawn: Vec<[f64; 2]> = kind
+        .body_corners()
+        .iter()
+        .flat_map(|c| {
+            let mut v = vec![*c];
+            if second.is_some() {
+                v.push([c[0] - SECOND_PAGE_SHIFT, c[1]]);
+            }
+            v
+        })
+        .collect();
+    let in_front = drawn.iter().all(|c| hom.w(*c) > 0.0);
+    let (bx0, by0, bx1, by1) = drawn.iter().map(|c| hom.apply(*c)).fold(
         (f64::MAX, f64::MAX, f64::MIN, f64::MIN),
         |(a, b, c, d), p| (a.min(p[0]), b.min(p[1]), c.max(p[0]), d.max(p[1])),
     );
@@ -509,8 +555,18 @@ pub fn render(
             return bg;
         }
         let q = hinv.apply(p);
-        if q[0] < -m || q[1] < -m || q[0] > cols + m || q[1] > rows + m {
+        let left = if second.is_some() {
+            -SECOND_PAGE_SHIFT - m
+        } else {
+            -m
+        };
+        if q[0] < left || q[1] < -m || q[0] > cols + m || q[1] > rows + m {
             return bg;
+        }
+        if let Some(page) = &second {
+            if let Some(c) = page.at(q, gpos) {
+                return c;
+            }
         }
         if q[0] >= 0.0 && q[1] >= 0.0 && q[0] < cols && q[1] < rows {
             let (c, r) = (q[0].floor(), q[1].floor());
@@ -591,6 +647,9 @@ pub fn render(
                 }
             });
     }
+    if let Some(look) = opts.look {
+        apply_look(&mut frame, look, opts.white_level)?;
+    }
     // Truth.
     let side = kind.patch_fraction() * 0.5;
     let patches = (0..kind.cells())
@@ -653,6 +712,307 @@ pub fn render(
         patches,
     };
     Ok((frame, flat, truth))
+}
+
+/// How far (chart units) the Passport's second page is shifted left of the classic page: the
+/// chart's width, both margins and a hinge of half a pitch.
+const SECOND_PAGE_SHIFT: f64 = 6.0 + 2.0 * 0.4 + 0.5;
+
+/// The creative-enhancement page of a ColorChecker Passport, in the classic page's cell size
+/// (6 × 4 cells shifted left by [`SECOND_PAGE_SHIFT`]): a warm-to-cool neutral row, skin tones,
+/// a row of the classic page's colours in another order, and a grey ramp — the things that
+/// could pass for a classic page.
+struct SecondPage {
+    cells: Vec<[f64; 3]>,
+}
+
+impl SecondPage {
+    fn new(colours: &ChartColours, g: &mut Gaussian) -> SecondPage {
+        let w = colours.white_rgb;
+        let mut cells = Vec::with_capacity(24);
+        // Row 1: near-neutrals from warm to cool at mid lightness.
+        for k in 0..6 {
+            let t = k as f64 / 5.0 - 0.5;
+            cells.push([
+                w[0] * 0.45 * (1.0 + 0.3 * t),
+                w[1] * 0.45,
+                w[2] * 0.45 * (1.0 - 0.3 * t),
+            ]);
+        }
+        // Row 2: skin tones (the classic page's two, lightened and darkened).
+        for k in 0..6 {
+            let base = colours.rgb[k % 2];
+            let f = 0.6 + 0.25 * k as f64;
+            cells.push(base.map(|v| v * f));
+        }
+        // Row 3: six of the classic page's chromatic patches in a random order.
+        let mut pick: Vec<usize> = (0..18.min(colours.rgb.len())).collect();
+        for i in (1..pick.len()).rev() {
+            let j = (g.uniform() * (i + 1) as f64) as usize % (i + 1);
+            pick.swap(i, j);
+        }
+        for &i in pick.iter().take(6) {
+            cells.push(colours.rgb[i]);
+        }
+        // Row 4: a grey ramp, dark to light (the classic page's runs light to dark).
+        for k in 0..6 {
+            let r = [0.03, 0.07, 0.13, 0.25, 0.45, 0.8][k];
+            cells.push(w.map(|v| v * r));
+        }
+        SecondPage { cells }
+    }
+
+    /// The colour at chart point `q` when it falls on one of this page's patches.
+    fn at(&self, q: [f64; 2], gpos: f64) -> Option<[f64; 3]> {
+        let u = q[0] + SECOND_PAGE_SHIFT;
+        if !(u >= 0.0 && q[1] >= 0.0 && u < 6.0 && q[1] < 4.0) {
+            return None;
+        }
+        let (c, r) = (u.floor(), q[1].floor());
+        let (fu, fv) = (u - c, q[1] - r);
+        (fu >= gpos && fu <= 1.0 - gpos && fv >= gpos && fv <= 1.0 - gpos)
+            .then(|| self.cells[r as usize * 6 + c as usize])
+    }
+}
+
+/// Renders `frame` (linear, clipped at `white_level`) the way a camera writes a JPEG — sRGB
+/// encoding, an S-shaped contrast curve, a saturation gain, 8-bit quantisation and JPEG
+/// compression — and decodes it back with the plain sRGB transfer function.
+fn apply_look(frame: &mut Frame, look: CameraLook, white_level: f64) -> Result<(), ChartError> {
+    use crate::colorimetry::output::srgb_oetf;
+    let c = look.contrast;
+    let curve = |x: f64| -> f64 {
+        let e = srgb_oetf((x / white_level).clamp(0.0, 1.0));
+        if c > 0.0 {
+            let s = |t: f64| (c * (t - 0.5)).tanh();
+            0.5 + 0.5 * s(e) / s(1.0)
+        } else {
+            e
+        }
+    };
+    let mut bytes = Vec::with_capacity(frame.pixels() * 3);
+    for px in frame.data.chunks_exact(3) {
+        let e = [0, 1, 2].map(|k| curve(px[k] as f64));
+        let m = (e[0] + e[1] + e[2]) / 3.0;
+        for v in e {
+            let v = (m + look.saturation * (v - m)).clamp(0.0, 1.0);
+            bytes.push((v * 255.0).round() as u8);
+        }
+    }
+    let (w, h) = (frame.width as u32, frame.height as u32);
+    let bytes = if look.quality > 0 {
+        let mut jpeg = Vec::new();
+        image::codecs::jpeg::JpegEncoder::new_with_quality(&mut jpeg, look.quality)
+            .encode(&bytes, w, h, image::ExtendedColorType::Rgb8)
+            .map_err(|e| ChartError::Invalid(format!("JPEG encoding: {e}")))?;
+        image::load_from_memory_with_format(&jpeg, image::ImageFormat::Jpeg)
+            .map_err(|e| ChartError::Invalid(format!("JPEG decoding: {e}")))?
+            .to_rgb8()
+            .into_raw()
+    } else {
+        bytes
+    };
+    let lut: Vec<f32> = (0..256)
+        .map(|v| crate::io::display::srgb_eotf(v as f64 / 255.0) as f32)
+        .collect();
+    for (d, b) in frame.data.iter_mut().zip(bytes) {
+        *d = lut[b as usize];
+    }
+    Ok(())
+}
+
+/// The synthetic families `chart rate` and the tests measure, beyond the detection envelope's
+/// plain scenes: the difficulties of real photographs, and charts that are not the one asked
+/// for (every one of which must be refused).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Family {
+    /// The envelope's scenes (linear camera RGB).
+    Envelope,
+    /// The envelope's scenes through a camera JPEG rendering ([`CameraLook`]).
+    Jpeg,
+    /// The patch grid filling the frame (1–4 % from its edges), no surround; a camera JPEG
+    /// rendering half of the time.
+    Fill,
+    /// Small charts (3–8 % of the frame) with a corner hidden.
+    Small,
+    /// A ColorChecker Passport with its second page open beside the classic page.
+    Passport,
+    /// Negative: a SpyderCHECKR-24-like chart (greys in two columns, the colours in another
+    /// order).
+    Spyder,
+    /// Negative: a grid of random patch colours.
+    Random,
+    /// Negative: the classic page's greys in place but its colours in another order (another
+    /// chart made of the same materials).
+    Shuffled,
+}
+
+impl Family {
+    pub const ALL: [Family; 8] = [
+        Family::Envelope,
+        Family::Jpeg,
+        Family::Fill,
+        Family::Small,
+        Family::Passport,
+        Family::Spyder,
+        Family::Random,
+        Family::Shuffled,
+    ];
+
+    pub fn name(self) -> &'static str {
+        match self {
+            Family::Envelope => "envelope",
+            Family::Jpeg => "jpeg",
+            Family::Fill => "fill",
+            Family::Small => "small",
+            Family::Passport => "passport",
+            Family::Spyder => "spyder",
+            Family::Random => "random",
+            Family::Shuffled => "shuffled",
+        }
+    }
+
+    pub fn parse(s: &str) -> Option<Family> {
+        Family::ALL
+            .into_iter()
+            .find(|f| f.name().eq_ignore_ascii_case(s.trim()))
+    }
+
+    /// True for the charts that are not the one asked for: any detection is wrong.
+    pub fn negative(self) -> bool {
+        matches!(self, Family::Spyder | Family::Random | Family::Shuffled)
+    }
+
+    /// The colours and options of scene `seed` of this family (CC24 layouts for the negatives;
+    /// the truth of a negative scene names the cells of the impostor, not a CC24).
+    pub fn scene(
+        self,
+        colours: &ChartColours,
+        width: usize,
+        height: usize,
+        seed: u64,
+    ) -> (ChartColours, SceneOptions) {
+        let mut o = SceneOptions::envelope(colours, width, height, seed);
+        let mut g = Gaussian::new(seed ^ 0xfa31_17e5_u64.wrapping_mul(self as u64 + 1));
+        let look = |g: &mut Gaussian| CameraLook {
+            contrast: 0.5 + 2.5 * g.uniform(),
+            saturation: 1.0 + 0.5 * g.uniform(),
+            quality: 70 + (25.0 * g.uniform()) as u8,
+        };
+        let mut c = colours.clone();
+        match self {
+            Family::Envelope => {}
+            Family::Jpeg => o.look = Some(look(&mut g)),
+            Family::Fill => {
+                o.corners = Some(fill_corners(colours.chart, width, height, &mut g));
+                if g.uniform() < 0.5 {
+                    o.look = Some(look(&mut g));
+                }
+            }
+            Family::Small => {
+                o.min_area = 0.03;
+                o.max_area = 0.08;
+                o.occlusion = true;
+            }
+            Family::Passport => {
+                o.second_page = true;
+                o.max_area = 0.25;
+                if g.uniform() < 0.5 {
+                    o.look = Some(look(&mut g));
+                }
+            }
+            Family::Spyder | Family::Random | Family::Shuffled => {
+                c = impostor(colours, self, &mut g);
+                if g.uniform() < 0.5 {
+                    o.look = Some(look(&mut g));
+                }
+            }
+        }
+        (c, o)
+    }
+}
+
+/// Grid corners (first patch first, clockwise) that fill a `width × height` frame to within
+/// 1–4 % of its edges, upright or upside down, each corner moved by up to 2 % (perspective).
+fn fill_corners(kind: ChartKind, width: usize, height: usize, g: &mut Gaussian) -> [[f64; 2]; 4] {
+    let (w, h) = (width as f64, height as f64);
+    let aspect = kind.columns() as f64 / kind.rows() as f64;
+    let m = (0.01 + 0.03 * g.uniform()) * w.min(h);
+    let (mut gw, mut gh) = (w - 2.0 * m, h - 2.0 * m);
+    if gw / gh > aspect {
+        gw = gh * aspect;
+    } else {
+        gh = gw / aspect;
+    }
+    let (x0, y0) = ((w - gw) / 2.0, (h - gh) / 2.0);
+    let mut q = [[x0, y0], [x0 + gw, y0], [x0 + gw, y0 + gh], [x0, y0 + gh]];
+    for p in q.iter_mut() {
+        let j = 0.02 * w.min(h);
+        p[0] = (p[0] + j * (2.0 * g.uniform() - 1.0)).clamp(1.0, w - 1.0);
+        p[1] = (p[1] + j * (2.0 * g.uniform() - 1.0)).clamp(1.0, h - 1.0);
+    }
+    if g.uniform() < 0.5 {
+        q.rotate_left(2);
+    }
+    q
+}
+
+/// The colours of a chart that is not a CC24 (see [`Family`]), in a CC24 layout.
+fn impostor(colours: &ChartColours, family: Family, g: &mut Gaussian) -> ChartColours {
+    let kind = colours.chart;
+    let n = kind.cells();
+    let w = colours.white_rgb;
+    let mut c = colours.clone();
+    let chromatic: Vec<usize> = (0..n.min(18)).collect();
+    let shuffle = |v: &mut Vec<usize>, g: &mut Gaussian| {
+        for i in (1..v.len()).rev() {
+            let j = (g.uniform() * (i + 1) as f64) as usize % (i + 1);
+            v.swap(i, j);
+        }
+    };
+    match family {
+        Family::Spyder => {
+            // Columns 5 and 6: an eight-step grey ramp, white at the top of column 5;
+            // columns 1–4: sixteen of the classic colours in another order.
+            let ramp = [0.9, 0.7, 0.55, 0.42, 0.3, 0.2, 0.1, 0.03];
+            let mut pick = chromatic.clone();
+            shuffle(&mut pick, g);
+            let mut k = 0;
+            for r in 0..kind.rows() {
+                for col in 0..kind.columns() {
+                    let i = r * kind.columns() + col;
+                    c.rgb[i] = if col >= kind.columns() - 2 {
+                        let step = (col - (kind.columns() - 2)) * kind.rows() + r;
+                        w.map(|v| v * ramp[step.min(7)])
+                    } else {
+                        k += 1;
+                        colours.rgb[pick[(k - 1) % pick.len()]]
+                    };
+                }
+            }
+        }
+        Family::Random => {
+            for v in c.rgb.iter_mut() {
+                let base = 0.03 + 0.85 * g.uniform();
+                *v = [0, 1, 2].map(|k| w[k] * (base * (0.3 + 1.4 * g.uniform())).min(0.95));
+            }
+        }
+        Family::Shuffled => {
+            // A derangement of the chromatic cells: none keeps its colour.
+            let mut pick = chromatic.clone();
+            loop {
+                shuffle(&mut pick, g);
+                if pick.iter().enumerate().all(|(i, &p)| i != p) {
+                    break;
+                }
+            }
+            for (i, &p) in pick.iter().enumerate() {
+                c.rgb[i] = colours.rgb[p];
+            }
+        }
+        _ => {}
+    }
+    c
 }
 
 /// Gaussian blur of every channel (imageproc's separable filter).

@@ -6,10 +6,11 @@ use super::common::UsageError;
 use super::values;
 use anyhow::{anyhow, Context, Result};
 use nsrm::chart::detect::{detect, Candidate, DetectOptions, Detection};
-use nsrm::chart::extract::{extract, verify, ExtractOptions, Extraction};
+use nsrm::chart::extract::{extract, verify, ExtractOptions, Extraction, Quantisation};
 use nsrm::chart::flat::{self, Flat};
 use nsrm::chart::reference::Reference;
 use nsrm::chart::{homography_from_corners, overlay, parse_corners, ChartKind};
+use nsrm::io::display::{read_chart_frame, Encoding, Transfer};
 use nsrm::output::{Session, Unit};
 use nsrm::training::{CaptureProvenance, TrainingSet};
 use nsrm::Frame;
@@ -47,15 +48,41 @@ pub struct CaptureOptions {
     /// (a smooth surface fitted to the chart's neutral patches).
     #[arg(long, value_name = "FRAME|neutrals")]
     pub flat: Option<String>,
+    /// How the frame's values are encoded: auto (sRGB for JPEG, PNG and 8-bit TIFF; linear for
+    /// EXR, 16-bit and float TIFF, raw), linear, or srgb (decoded with the sRGB transfer
+    /// function). Display-referred frames still carry the camera's tone curve: a model fitted
+    /// from one is marked so and warned about.
+    #[arg(long, value_enum, ignore_case = true, default_value = "auto")]
+    pub encoding: EncodingArg,
     /// Most pixels the frame (and the flat frame) may have, as in `apply`.
     #[arg(long, value_name = "N", default_value_t = nsrm::io::DEFAULT_MAX_PIXELS,
           value_parser = clap::value_parser!(u64).range(1..))]
     pub max_pixels: u64,
 }
 
+/// `--encoding`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub enum EncodingArg {
+    Auto,
+    Linear,
+    Srgb,
+}
+
+impl From<EncodingArg> for Encoding {
+    fn from(e: EncodingArg) -> Encoding {
+        match e {
+            EncodingArg::Auto => Encoding::Auto,
+            EncodingArg::Linear => Encoding::Linear,
+            EncodingArg::Srgb => Encoding::Srgb,
+        }
+    }
+}
+
 /// A read chart.
 pub struct Capture {
     pub frame: Frame,
+    /// How the frame's values were decoded.
+    pub transfer: Transfer,
     pub frame_path: PathBuf,
     pub sha256: String,
     pub reference: Reference,
@@ -121,7 +148,7 @@ impl CaptureOptions {
         let reference = self.reference()?;
         let kind = reference.chart;
         let corners = self.corners.as_deref().map(parse_corners).transpose()?;
-        let opts = ExtractOptions {
+        let mut opts = ExtractOptions {
             white_level: self.white_level,
             ..Default::default()
         };
@@ -129,13 +156,19 @@ impl CaptureOptions {
         let limits = nsrm::io::Limits {
             max_pixels: self.max_pixels,
         };
-        let frame = nsrm::io::read_frame(
+        let read = read_chart_frame(
             path,
             &nsrm::io::ReadOptions {
                 layer: self.layer.clone(),
                 limits,
             },
+            self.encoding.into(),
         )?;
+        let (frame, transfer) = (read.frame, read.transfer);
+        opts.quantisation = read.max_code.map(|max_code| Quantisation {
+            max_code,
+            srgb: transfer == Transfer::SrgbDecoded,
+        });
         let sha256 = sha256_file(path)?;
         let (h, detection) = match corners {
             Some(c) => (
@@ -199,6 +232,7 @@ impl CaptureOptions {
         }
         Ok(Capture {
             frame,
+            transfer,
             frame_path: path.to_path_buf(),
             sha256,
             reference,
@@ -268,6 +302,7 @@ impl Capture {
                 .map_or("none".to_string(), |f| f.method.clone()),
             light_nonuniformity: self.flat.as_ref().map_or(1.0, |f| f.nonuniformity),
             reference_match_de00: self.score,
+            encoding: self.transfer.describe().into(),
         }
     }
 
@@ -288,11 +323,18 @@ impl Capture {
             .filter(|p| p.usable())
             .count();
         format!(
-            "{} chart {} in {} ({}); {used} of {} patches usable; reference {} matches (median ΔE00 {:.2} after a 3×3 map), X,Y,Z relative to its white {}; light non-uniformity {}",
+            "{} chart {} in {} ({}; {}); {used} of {} patches usable; reference {} matches (median ΔE00 {:.2}), X,Y,Z relative to its white {}; light non-uniformity {}",
             self.reference.chart.name(),
-            if self.detection.is_some() { "found" } else { "read at --corners" },
+            match &self.detection {
+                Some(d) => format!(
+                    "found (lattice of {} patches, score {:.2} vs {:.2} for the next placement)",
+                    d.lattice, d.score, d.runner_up
+                ),
+                None => "read at --corners".into(),
+            },
             self.frame_path.display(),
             self.sha256.get(..12).unwrap_or(""),
+            self.transfer.describe(),
             self.extraction.patches.len(),
             self.reference.name,
             self.score,
@@ -374,7 +416,18 @@ pub fn for_model(capture: Option<&Path>, o: &CaptureOptions) -> Result<Option<Ca
         )
         .into()),
         None => Ok(None),
-        Some(p) => Ok(Some(o.read(p, None)?)),
+        Some(p) => {
+            let cap = o.read(p, None)?;
+            eprintln!("{}", cap.summary());
+            if cap.transfer.display_referred() {
+                eprintln!(
+                    "warning: {} is display-referred ({}): its values carry the camera's tone curve and saturation, so a model fitted from them maps display values, not light; use a raw, linear EXR or 16-bit linear TIFF capture for a calibration",
+                    p.display(),
+                    cap.transfer.describe()
+                );
+            }
+            Ok(Some(cap))
+        }
     }
 }
 

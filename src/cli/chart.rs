@@ -8,7 +8,7 @@ use anyhow::{Context, Result};
 use nsrm::chart::detect::{detect, DetectOptions};
 use nsrm::chart::extract::{extract, ExtractOptions};
 use nsrm::chart::reference::Reference;
-use nsrm::chart::scene::{render, ChartColours, SceneOptions};
+use nsrm::chart::scene::{render, ChartColours, Family};
 use nsrm::chart::ChartKind;
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
@@ -21,11 +21,34 @@ pub enum Command {
     Extract(ExtractArgs),
     /// Detection rate (and time) over seeded synthetic scenes inside the detection envelope.
     Rate(RateArgs),
+    /// Time detection + extraction on frames (the file read is not timed): one JSON line per
+    /// frame with the median of --repeat runs and what was found.
+    Time(TimeArgs),
+}
+
+#[derive(Debug, clap::Args)]
+pub struct TimeArgs {
+    /// The frames.
+    #[arg(value_name = "FRAME", required = true)]
+    frames: Vec<PathBuf>,
+    /// cc24 or sg.
+    #[arg(long, value_enum, ignore_case = true)]
+    chart: values::Chart,
+    /// How the frames' values are encoded (as in `chart extract`).
+    #[arg(long, value_enum, ignore_case = true, default_value = "auto")]
+    encoding: super::capture::EncodingArg,
+    /// Runs per frame.
+    #[arg(long, default_value_t = 5, value_parser = clap::value_parser!(u32).range(1..=1000))]
+    repeat: u32,
+    #[arg(long, default_value_t = nsrm::io::DEFAULT_MAX_PIXELS,
+          value_parser = clap::value_parser!(u64).range(1..))]
+    max_pixels: u64,
 }
 
 #[derive(Debug, clap::Args)]
 pub struct ExtractArgs {
-    /// The frame: a linear camera-raw EXR or TIFF.
+    /// The frame: a linear camera-raw EXR or TIFF, or a display-referred JPEG, PNG or 8-bit
+    /// TIFF (see --encoding).
     #[arg(value_name = "FRAME")]
     frame: PathBuf,
     #[command(flatten)]
@@ -102,13 +125,96 @@ pub struct RateArgs {
     /// Hide a corner of the chart behind an object.
     #[arg(long)]
     occlusion: bool,
+    /// The family of scenes: envelope (plain linear scenes), jpeg (through a camera's tone
+    /// curve, saturation and JPEG), fill (the chart filling the frame), small (small, a corner
+    /// covered), passport (the Passport's second page beside the chart); negatives, which must
+    /// all be refused (cc24 only): spyder (a SpyderCHECKR-24-like chart), random (random patch
+    /// grids), shuffled (the classic colours in another order).
+    #[arg(long, default_value = "envelope", value_parser = parse_family)]
+    family: Family,
+}
+
+pub(crate) fn parse_family(s: &str) -> std::result::Result<Family, String> {
+    Family::parse(s).ok_or_else(|| {
+        let names: Vec<&str> = Family::ALL.iter().map(|f| f.name()).collect();
+        format!("unknown family `{s}` (known: {})", names.join(", "))
+    })
 }
 
 pub fn run(c: Command) -> Result<ExitCode> {
     match c {
         Command::Extract(a) => run_extract(a),
         Command::Rate(a) => run_rate(a),
+        Command::Time(a) => run_time(a),
     }
+}
+
+fn run_time(a: TimeArgs) -> Result<ExitCode> {
+    let kind = ChartKind::from(a.chart);
+    let reference = Reference::load(kind.default_reference(), kind, None)?;
+    let opts = nsrm::io::ReadOptions {
+        limits: nsrm::io::Limits {
+            max_pixels: a.max_pixels,
+        },
+        ..Default::default()
+    };
+    let mut failed = 0;
+    for path in &a.frames {
+        let read = match nsrm::io::display::read_chart_frame(path, &opts, a.encoding.into()) {
+            Ok(r) => r,
+            Err(e) => {
+                eprintln!("error: {e}");
+                failed += 1;
+                continue;
+            }
+        };
+        let ex_opts = ExtractOptions {
+            quantisation: read
+                .max_code
+                .map(|max_code| nsrm::chart::extract::Quantisation {
+                    max_code,
+                    srgb: read.transfer.display_referred(),
+                }),
+            ..Default::default()
+        };
+        let mut times = Vec::new();
+        let mut outcome = String::new();
+        for _ in 0..a.repeat {
+            let t0 = Instant::now();
+            let r = detect(&read.frame, &reference, &DetectOptions::default())
+                .map_err(|f| f.error)
+                .and_then(|d| {
+                    extract(&read.frame, &reference, &d.homography, &ex_opts)
+                        .and_then(|ex| nsrm::chart::extract::verify(&ex, &reference).map(|_| ex))
+                });
+            times.push(t0.elapsed().as_secs_f64());
+            outcome = match r {
+                Ok(ex) => format!(
+                    "found: first patch at ({:.0}, {:.0})",
+                    ex.patches[0].centre[0], ex.patches[0].centre[1]
+                ),
+                Err(e) => format!("refused: {e}"),
+            };
+        }
+        times.sort_by(f64::total_cmp);
+        println!(
+            "{}",
+            serde_json::json!({
+                "frame": path.display().to_string(),
+                "width": read.frame.width,
+                "height": read.frame.height,
+                "encoding": read.transfer.describe(),
+                "median_s": times[times.len() / 2],
+                "runs": times.len(),
+                "outcome": outcome,
+            })
+        );
+    }
+    Ok(if failed == 0 {
+        ExitCode::SUCCESS
+    } else {
+        ExitCode::from(1)
+    })
 }
 
 fn run_extract(a: ExtractArgs) -> Result<ExitCode> {
@@ -168,6 +274,13 @@ fn run_rate(a: RateArgs) -> Result<ExitCode> {
         .into());
     }
     check_rate_ranges(&a)?;
+    if a.family.negative() && kind != ChartKind::Cc24 {
+        return Err(UsageError(format!(
+            "--family {}: the negative families are cc24 layouts (use --chart cc24)",
+            a.family.name()
+        ))
+        .into());
+    }
     let colours =
         ChartColours::simulate(kind, &a.camera, &a.illuminant, a.reflectances.as_deref())?;
     let reference = Reference::load(kind.default_reference(), kind, None)?;
@@ -176,7 +289,7 @@ fn run_rate(a: RateArgs) -> Result<ExitCode> {
     let mut t_detect = Vec::new();
     for s in 0..a.scenes {
         let seed = a.seed + s;
-        let mut opts = SceneOptions::envelope(&colours, a.width, a.height, seed);
+        let (scene_colours, mut opts) = a.family.scene(&colours, a.width, a.height, seed);
         opts.min_area = a.min_area.unwrap_or(opts.min_area);
         opts.max_area = a.max_area.unwrap_or(opts.max_area).max(opts.min_area);
         opts.max_tilt_deg = a.max_tilt.unwrap_or(opts.max_tilt_deg);
@@ -193,8 +306,8 @@ fn run_rate(a: RateArgs) -> Result<ExitCode> {
             let (lo, hi) = (a.min_blur.unwrap_or(0.0), a.max_blur.unwrap_or(1.2));
             opts.blur = lo + (hi - lo).max(0.0) * u;
         }
-        opts.occlusion = a.occlusion;
-        let (frame, _, truth) = render(&colours, &opts)?;
+        opts.occlusion |= a.occlusion;
+        let (frame, _, truth) = render(&scene_colours, &opts)?;
         let t0 = Instant::now();
         let found = detect(&frame, &reference, &DetectOptions::default());
         let result = found.map(|d| {
@@ -207,6 +320,28 @@ fn run_rate(a: RateArgs) -> Result<ExitCode> {
             (d, ex)
         });
         t_detect.push(t0.elapsed().as_secs_f64());
+        if a.family.negative() {
+            match result {
+                Ok((d, _)) => {
+                    wrong += 1;
+                    eprintln!(
+                        "seed {seed}: WRONG: a {} chart reported in a {} scene (score {:.2}, runner-up {:.2}, lattice {})",
+                        kind.name(),
+                        a.family.name(),
+                        d.score,
+                        d.runner_up,
+                        d.lattice
+                    );
+                }
+                Err(f) => {
+                    refused += 1;
+                    if a.verbose {
+                        eprintln!("seed {seed}: refused: {}", f.error);
+                    }
+                }
+            }
+            continue;
+        }
         match result {
             Ok((d, Ok(ex))) => {
                 // Every label in the right cell: each sampled centre within a quarter pitch of
@@ -265,8 +400,9 @@ fn run_rate(a: RateArgs) -> Result<ExitCode> {
     t_detect.sort_by(f64::total_cmp);
     let n = a.scenes as f64;
     println!(
-        "{} chart, {} scenes of {}×{} (seeds {}..{}): detected correctly {ok} ({:.1} %), refused {refused}, wrong {wrong}; detection + extraction median {:.0} ms, max {:.0} ms",
+        "{} chart, family {}, {} scenes of {}×{} (seeds {}..{}): detected correctly {ok} ({:.1} %), refused {refused}, wrong {wrong}; detection + extraction median {:.0} ms, max {:.0} ms",
         kind.name(),
+        a.family.name(),
         a.scenes,
         a.width,
         a.height,

@@ -38,6 +38,11 @@ pub struct Args {
     /// --seed too; the options below are then ignored).
     #[arg(long)]
     envelope: bool,
+    /// A scene of one of `chart rate`'s families (implies --envelope's draws): jpeg, fill, small,
+    /// passport, or the negatives spyder, random, shuffled (cc24). A jpeg-look scene is written
+    /// as the values nsrm decodes from the camera JPEG (sRGB decoded, tone curve kept).
+    #[arg(long, value_parser = super::chart::parse_family, conflicts_with = "envelope")]
+    family: Option<nsrm::chart::scene::Family>,
     /// Seed of the random pose, clutter and noise (and, with --envelope, of everything).
     #[arg(long, default_value_t = 1, value_name = "N")]
     seed: u64,
@@ -114,13 +119,25 @@ pub fn run(a: Args) -> Result<ExitCode> {
     let corners = a.corners.as_deref().map(parse_corners).transpose()?;
     let colours =
         ChartColours::simulate(kind, &a.camera, &a.illuminant, a.reflectances.as_deref())?;
-    let opts = if a.envelope {
-        SceneOptions {
+    let (colours, opts) = if let Some(f) = a.family {
+        if f.negative() && kind != ChartKind::Cc24 {
+            return Err(UsageError(format!(
+                "--family {}: the negative families are cc24 layouts",
+                f.name()
+            ))
+            .into());
+        }
+        let (c, mut o) = f.scene(&colours, a.width, a.height, a.seed);
+        o.corners = corners.or(o.corners);
+        (c, o)
+    } else if a.envelope {
+        let o = SceneOptions {
             corners,
             ..SceneOptions::envelope(&colours, a.width, a.height, a.seed)
-        }
+        };
+        (colours, o)
     } else {
-        SceneOptions {
+        let o = SceneOptions {
             width: a.width,
             height: a.height,
             corners,
@@ -139,16 +156,22 @@ pub fn run(a: Args) -> Result<ExitCode> {
             max_tilt_deg: a.max_tilt,
             min_tilt_deg: a.min_tilt,
             ..Default::default()
-        }
+        };
+        (colours, o)
     };
     let (frame, flat, truth) = render(&colours, &opts)?;
     let json = serde_json::to_string_pretty(&truth)?;
     let note = format!(
-        "nsrm scene: {} chart, seed {}, camera {}, illuminant {}; linear camera RGB",
+        "nsrm scene: {} chart, seed {}, camera {}, illuminant {}; {}",
         kind.name(),
         truth.seed,
         truth.camera,
-        truth.illuminant
+        truth.illuminant,
+        if opts.look.is_some() {
+            "camera JPEG rendering, sRGB decoded"
+        } else {
+            "linear camera RGB"
+        }
     );
     let mut unit = session.unit();
     nsrm::io::chart::write_camera_frame(&frame, &a.output, &note, &mut unit)

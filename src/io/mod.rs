@@ -20,6 +20,7 @@
 
 pub mod batch;
 pub mod chart;
+pub mod display;
 mod openexr;
 pub use openexr::{DEFAULT_ZIP_LEVEL, MAX_ZIP_LEVEL};
 pub mod preview;

@@ -309,3 +309,69 @@ fn bad_scenes_fail_clearly() {
     let e = verify(&ex, &reference).unwrap_err();
     assert!(e.to_string().contains("do not match"), "{e}");
 }
+
+/// Scenes of one family (`chart rate --family`): (found correctly, refused); panics on a wrong
+/// answer — a label off its true cell, or any chart reported in a negative scene.
+fn family_outcomes(family: nsrm::chart::scene::Family, seeds: std::ops::Range<u64>) -> (u32, u32) {
+    let colours = cc24();
+    let reference = Reference::load("cc24-after2014", ChartKind::Cc24, None).unwrap();
+    let (mut ok, mut refused) = (0, 0);
+    for seed in seeds {
+        let (c, opts) = family.scene(&colours, 720, 480, seed);
+        let (frame, _, truth) = render(&c, &opts).unwrap();
+        let found = detect(&frame, &reference, &DetectOptions::default());
+        let Ok(d) = found else {
+            refused += 1;
+            continue;
+        };
+        assert!(
+            !family.negative(),
+            "{} seed {seed}: a CC24 reported (score {:.2} vs {:.2})",
+            family.name(),
+            d.score,
+            d.runner_up
+        );
+        let Ok(ex) = extract(
+            &frame,
+            &reference,
+            &d.homography,
+            &ExtractOptions::default(),
+        ) else {
+            refused += 1;
+            continue;
+        };
+        let c0 = truth.homography.apply([3.0, 2.0]);
+        let c1 = truth.homography.apply([4.0, 2.0]);
+        let pitch = (c0[0] - c1[0]).hypot(c0[1] - c1[1]);
+        for (p, t) in ex.patches.iter().zip(&truth.patches) {
+            let off = (p.centre[0] - t.centre[0]).hypot(p.centre[1] - t.centre[1]);
+            assert!(
+                off < 0.25 * pitch,
+                "{} seed {seed}: {} is {off:.1} px off",
+                family.name(),
+                p.label
+            );
+        }
+        ok += 1;
+    }
+    (ok, refused)
+}
+
+#[test]
+fn real_photo_families_are_found_or_refused_never_wrong() {
+    use nsrm::chart::scene::Family;
+    // A handful per family here; `nsrm chart rate --family F` measures the rates (README).
+    for f in [Family::Jpeg, Family::Fill, Family::Small, Family::Passport] {
+        let (ok, refused) = family_outcomes(f, 1..5);
+        assert!(ok >= 3, "{}: {ok} found, {refused} refused", f.name());
+    }
+}
+
+#[test]
+fn other_charts_and_random_grids_are_refused() {
+    use nsrm::chart::scene::Family;
+    for f in [Family::Spyder, Family::Random, Family::Shuffled] {
+        let (ok, _) = family_outcomes(f, 1..5);
+        assert_eq!(ok, 0, "{}", f.name());
+    }
+}

@@ -5,6 +5,8 @@
 mod apply;
 #[cfg(feature = "chart")]
 mod chart;
+#[cfg(feature = "cli")]
+mod chart_real;
 mod ciede2000_sharma;
 #[cfg(feature = "cli")]
 mod cli_chart;

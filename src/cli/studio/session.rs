@@ -478,6 +478,7 @@ impl FrameState {
             layer: s.layer.clone().filter(|r| !r.trim().is_empty()),
             white_level: s.white_level,
             flat,
+            encoding: capture::EncodingArg::Auto,
             max_pixels: self.max_pixels,
         })
     }

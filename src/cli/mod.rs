@@ -14,8 +14,12 @@ mod export;
 mod export_shader;
 mod fit;
 mod fit_args;
+mod outputs;
 mod render_chart;
 mod render_scene;
+mod runtime_dir;
+#[cfg(feature = "studio")]
+mod studio;
 mod terms;
 mod values;
 
@@ -60,10 +64,29 @@ enum Command {
     /// Render a synthetic photo of a CC24 or SG chart (pose, clutter, uneven light, blur, noise)
     /// with its ground truth.
     RenderScene(render_scene::Args),
+    /// A local calibration studio in the browser: open a frame, fix the chart reading, fit,
+    /// compare and export (serves on 127.0.0.1 with a per-run token).
+    #[cfg(feature = "studio")]
+    Studio(studio::Args),
 }
 
 /// Parses the command line, runs the subcommand, and maps errors to exit codes.
 pub fn main() -> ExitCode {
+    // A decoder's panic is contained per file by the library (reported as that file's error);
+    // this hook keeps its message to one line. An uncontained panic still exits 101.
+    std::panic::set_hook(Box::new(|info| {
+        let what = info
+            .payload()
+            .downcast_ref::<&str>()
+            .map(|s| s.to_string())
+            .or_else(|| info.payload().downcast_ref::<String>().cloned())
+            .unwrap_or_default();
+        let at = info
+            .location()
+            .map(|l| format!(" at {}:{}", l.file(), l.line()))
+            .unwrap_or_default();
+        eprintln!("nsrm: internal error{at}: {what}");
+    }));
     let cli = match Cli::try_parse() {
         Ok(c) => c,
         Err(e) => {
@@ -72,6 +95,10 @@ pub fn main() -> ExitCode {
             return ExitCode::from(code);
         }
     };
+    // Before any thread starts: Mesa's loader complains on every GPU run without it.
+    if matches!(cli.command, Command::Apply(_) | Command::Bench(_)) {
+        runtime_dir::ensure_runtime_dir();
+    }
     let result = match cli.command {
         Command::Apply(a) => apply::run(a),
         Command::Bench(a) => bench::run(a),
@@ -83,23 +110,27 @@ pub fn main() -> ExitCode {
         Command::Terms(a) => terms::run(a),
         Command::RenderChart(a) => render_chart::run(a),
         Command::RenderScene(a) => render_scene::run(a),
+        #[cfg(feature = "studio")]
+        Command::Studio(a) => studio::run(a),
     };
     match result {
         Ok(code) => code,
         Err(e) => {
             // The library names no flags; the binary says which one is at fault or the way out.
             let (msg, hint) = common::explain(&e);
-            eprintln!("nsrm: error: {msg}");
+            // The style of clap's own errors (`error: …`, then an indented hint, as clap gives its `tip:`), so every failure
+            // of the command reads alike.
+            eprintln!("error: {msg}");
             if let Some(hint) = hint {
-                eprintln!("nsrm: hint: {hint}");
+                eprintln!("\n  hint: {hint}");
             }
             if e.chain().any(|c| {
                 matches!(
-                    c.downcast_ref::<nsrm::atomic::WriteError>(),
-                    Some(nsrm::atomic::WriteError::Exists(_))
+                    c.downcast_ref::<nsrm::output::WriteError>(),
+                    Some(nsrm::output::WriteError::Exists(_))
                 )
             }) {
-                eprintln!("nsrm: hint: pass --overwrite to replace it");
+                eprintln!("\n  hint: pass --overwrite to replace it");
             }
             // A usage error of the binary's own, or of the library (which knows which of its
             // errors are the caller's mistake), anywhere in the context chain.
@@ -112,5 +143,81 @@ pub fn main() -> ExitCode {
                 ExitCode::from(1)
             }
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use clap::CommandFactory;
+
+    /// Every subcommand, with its path (`nsrm chart rate`).
+    fn commands(c: &clap::Command, path: String, out: &mut Vec<(String, clap::Command)>) {
+        out.push((path.clone(), c.clone()));
+        for s in c.get_subcommands() {
+            commands(s, format!("{path} {}", s.get_name()), out);
+        }
+    }
+
+    #[test]
+    fn every_flag_has_help_text() {
+        let mut all = Vec::new();
+        commands(&Cli::command(), "nsrm".into(), &mut all);
+        let mut missing = Vec::new();
+        for (path, c) in &all {
+            for a in c.get_arguments() {
+                let id = a.get_id().as_str();
+                if matches!(id, "help" | "version") || a.is_hide_set() {
+                    continue;
+                }
+                if a.get_help().is_none() && a.get_long_help().is_none() {
+                    missing.push(format!("{path} {id}"));
+                }
+            }
+        }
+        assert!(missing.is_empty(), "flags without help text: {missing:?}");
+    }
+
+    /// One vocabulary: `--model` is a model file wherever it appears (the kind is `--kind`), and
+    /// `-o` is `--output` everywhere.
+    #[test]
+    fn one_meaning_per_flag() {
+        let mut all = Vec::new();
+        commands(&Cli::command(), "nsrm".into(), &mut all);
+        for (path, c) in &all {
+            for a in c.get_arguments() {
+                if a.get_long() == Some("model") {
+                    let v = a.get_value_names().map(|v| v.join(" ")).unwrap_or_default();
+                    assert_eq!(v, "FILE", "{path} --model");
+                }
+                if a.get_short() == Some('o') {
+                    assert_eq!(a.get_long(), Some("output"), "{path} -o");
+                }
+            }
+        }
+        // The old spellings still parse (hidden aliases).
+        for old in [
+            &["nsrm", "fit", "--model", "prm", "-o", "m.json"][..],
+            &["nsrm", "terms", "--model", "rprm"],
+            &["nsrm", "eval", "--models", "lrm"],
+            &["nsrm", "bench", "--models", "lrm"],
+            &["nsrm", "chart", "rate", "--chart", "cc24", "--stops", "3"],
+            &[
+                "nsrm",
+                "apply",
+                "--model",
+                "m.json",
+                "--output-dir",
+                "d",
+                "x.exr",
+            ],
+        ] {
+            assert!(Cli::try_parse_from(old).is_ok(), "{old:?}");
+        }
+        let new = Cli::try_parse_from(["nsrm", "fit", "--kind", "prm", "-o", "m.json"]).unwrap();
+        let Command::Fit(f) = new.command else {
+            panic!()
+        };
+        assert_eq!(f.kind(), nsrm::model::Kind::Prm);
     }
 }

@@ -1,8 +1,8 @@
 //! TIFF in (16-bit unsigned, 16/32/64-bit float; RGB or RGBA; linear) and out (32-bit float).
 
 use super::{Container, Decoded, FileFormat, IoError};
-use crate::atomic::{check_clobber, WriteError};
 use crate::frame::{Frame, Layout};
+use crate::output::{Unit, WriteError};
 use std::io::BufReader;
 use std::path::Path;
 use tiff::decoder::{Decoder, DecodingResult, Limits};
@@ -52,6 +52,102 @@ impl Sample {
             Sample::F64 => DecodingResult::F64(cap(path, n)?),
         })
     }
+}
+
+/// Decoded samples as f32 (16-bit unsigned scaled to `[0, 1]`), in a buffer with room for
+/// `cap` of them.
+fn to_f32(path: &Path, buf: DecodingResult, cap: usize) -> Result<Vec<f32>, IoError> {
+    let mut raw: Vec<f32> = super::try_with_capacity(path, cap)?;
+    match buf {
+        DecodingResult::U16(v) => raw.extend(v.into_iter().map(|x| x as f32 / 65535.0)),
+        DecodingResult::F32(v) => raw = v,
+        DecodingResult::F16(v) => raw.extend(v.into_iter().map(|x| x.to_f32())),
+        DecodingResult::F64(v) => raw.extend(v.into_iter().map(|x| x as f32)),
+        _ => {
+            return Err(unsupported(
+                path,
+                "a sample type other than the one declared",
+            ))
+        }
+    }
+    Ok(raw)
+}
+
+/// The image assembled chunk (strip or tile) by chunk: `channels` interleaved samples per pixel
+/// (R, G, B and alpha when there is one), from planes (`planar`: one sample per chunk, planes
+/// in sample order) or from chunky chunks that may carry extra samples after them. Edge tiles
+/// hold only their data part.
+fn by_chunks<R: std::io::Read + std::io::Seek>(
+    dec: &mut Decoder<R>,
+    path: &Path,
+    (w, h): (u32, u32),
+    sample: Sample,
+    channels: usize,
+    planar: bool,
+) -> Result<Vec<f32>, IoError> {
+    let tiff_err = |err| IoError::Tiff {
+        path: path.to_path_buf(),
+        err,
+    };
+    let corrupt = |why: String| IoError::Corrupt {
+        path: path.to_path_buf(),
+        why,
+    };
+    let (width, height) = (w as usize, h as usize);
+    let n = width
+        .checked_mul(height)
+        .and_then(|n| n.checked_mul(channels))
+        .ok_or_else(|| unsupported(path, "too many samples"))?;
+    let mut out = super::try_filled(path, n, 0.0f32)?;
+    let (cw, ch) = dec.chunk_dimensions();
+    let (cw, ch) = (cw.max(1) as usize, ch.max(1) as usize);
+    let across = width.div_ceil(cw);
+    let per_plane = across * height.div_ceil(ch);
+    let planes = if planar { channels } else { 1 };
+    for plane in 0..planes {
+        for k in 0..per_plane {
+            let index = u32::try_from(plane * per_plane + k)
+                .map_err(|_| unsupported(path, "too many chunks"))?;
+            let (x0, y0) = ((k % across) * cw, (k / across) * ch);
+            let (dw, dh) = (cw.min(width - x0), ch.min(height - y0));
+            // The crate's own idea of the chunk's data size: for planes after the first it
+            // counts edge tiles as whole (tiff 0.11 `get_padding` takes the plane's tiles for
+            // further rows), which is harmless here since a tile is stored whole; only the
+            // image's part of it is used.
+            let (cdw, cdh) = dec.chunk_data_dimensions(index);
+            let (cdw, cdh) = (cdw as usize, cdh as usize);
+            let need = if planar { 1 } else { channels };
+            let buf = dec.read_chunk(index).map_err(tiff_err)?;
+            let data = to_f32(path, buf, cdw * cdh * need)?;
+            let texels = cdw * cdh;
+            let spc = data.len().checked_div(texels).unwrap_or(0);
+            let fits = cdw >= dw && cdh >= dh && data.len() == texels * spc;
+            if !fits || spc < need || (planar && spc != 1) {
+                return Err(corrupt(format!(
+                    "chunk {index} holds {} {} samples for its {dw}×{dh} pixels of {need}",
+                    data.len(),
+                    match sample {
+                        Sample::U16 => "16-bit",
+                        Sample::F16 => "half",
+                        Sample::F32 => "float",
+                        Sample::F64 => "double",
+                    }
+                )));
+            }
+            for (row, src) in data.chunks_exact(cdw * spc).take(dh).enumerate() {
+                let base = ((y0 + row) * width + x0) * channels;
+                for (i, px) in src.chunks_exact(spc).take(dw).enumerate() {
+                    let dst = base + i * channels;
+                    if planar {
+                        out[dst + plane] = px[0];
+                    } else {
+                        out[dst..dst + channels].copy_from_slice(&px[..channels]);
+                    }
+                }
+            }
+        }
+    }
+    Ok(out)
 }
 
 /// The sample type of the image, from BitsPerSample and SampleFormat, or why it is refused.
@@ -263,42 +359,33 @@ pub(super) fn read(path: &Path, limits: &super::Limits) -> Result<Decoded, IoErr
         (compression == 1).then_some(file_len),
     )?;
     check_chunks(&mut dec, path, (w, h), samples, file_len)?;
-    let total = n
-        .checked_mul(samples as usize)
-        .ok_or_else(|| unsupported(path, "too many samples"))?;
-    let mut buf = sample.buffer(path, total)?;
-    let layout = dec.read_image_to_buffer(&mut buf).map_err(tiff_err)?;
-    let mut raw: Vec<f32> = super::try_with_capacity(path, total)?;
-    match buf {
-        DecodingResult::U16(v) => raw.extend(v.into_iter().map(|x| x as f32 / 65535.0)),
-        DecodingResult::F32(v) => raw = v,
-        DecodingResult::F16(v) => raw.extend(v.into_iter().map(|x| x.to_f32())),
-        DecodingResult::F64(v) => raw.extend(v.into_iter().map(|x| x as f32)),
-        _ => return Err(unsupported(path, format!("{bits} bits per sample"))),
-    };
-    let stride = samples as usize;
-    let interleaved = if layout.planes > 1 {
-        if raw.len() < n * stride || layout.planes != stride {
-            return Err(unsupported(
-                path,
-                "planar samples that do not fit in memory in one piece",
-            ));
-        }
-        let mut out = super::try_filled(path, n * stride, 0.0f32)?;
-        for c in 0..stride {
-            for (i, v) in raw[c * n..(c + 1) * n].iter().enumerate() {
-                out[i * stride + c] = *v;
-            }
-        }
-        out
+    let planar = dec
+        .find_tag_unsigned::<u16>(tiff::tags::Tag::PlanarConfiguration)
+        .map_err(tiff_err)?
+        .unwrap_or(1)
+        == 2;
+    // The whole-image read of the tiff crate serves the common layout (chunky, no extra samples);
+    // planar files and extra samples are assembled here chunk by chunk (the crate's whole-image
+    // path asserts on planar tiles with partial edge tiles, and drops extra samples).
+    let (interleaved, stride) = if planar || samples != channels as u64 {
+        (
+            by_chunks(&mut dec, path, (w, h), sample, channels, planar)?,
+            channels,
+        )
     } else {
-        if raw.len() < n * stride {
+        let total = n
+            .checked_mul(channels)
+            .ok_or_else(|| unsupported(path, "too many samples"))?;
+        let mut buf = sample.buffer(path, total)?;
+        dec.read_image_to_buffer(&mut buf).map_err(tiff_err)?;
+        let raw = to_f32(path, buf, total)?;
+        if raw.len() < total {
             return Err(IoError::Corrupt {
                 path: path.to_path_buf(),
-                why: format!("holds {} samples for {w}×{h}×{stride}", raw.len()),
+                why: format!("holds {} samples for {w}×{h}×{channels}", raw.len()),
             });
         }
-        raw
+        (raw, channels)
     };
     let mut rgb = super::try_with_capacity(path, n * 3)?;
     let alpha = if channels == 4 {
@@ -329,14 +416,14 @@ pub(super) fn read(path: &Path, limits: &super::Limits) -> Result<Decoded, IoErr
     })
 }
 
-/// Writes a 32-bit float RGB or RGBA TIFF (deflate), atomically.
+/// Writes a 32-bit float RGB or RGBA TIFF (deflate), staged in `unit`.
 pub(super) fn write(
     rgb: &Frame,
     alpha: Option<&[f32]>,
     dest: &Path,
-    overwrite: bool,
+    unit: &mut Unit,
 ) -> Result<(), IoError> {
-    check_clobber(dest, overwrite)?;
+    unit.check_clobber(dest)?;
     let encode_err = |why: String| IoError::Encode {
         path: dest.to_path_buf(),
         why,
@@ -365,7 +452,7 @@ pub(super) fn write(
             .flat_map(|p| [p[0], p[1], p[2]])
             .collect(),
     };
-    crate::atomic::write_with(dest, overwrite, |out| {
+    unit.write_with(dest, |out| {
         let mut enc = TiffEncoder::new(out)
             .map_err(tiff_err)?
             .with_compression(Compression::Deflate(DeflateLevel::Balanced));

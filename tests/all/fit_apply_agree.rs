@@ -128,7 +128,8 @@ fn agree_on(name: &str, d: &TrainingSet) -> Vec<String> {
     write_csv(d, &dir.join("t.csv"));
     let data: Vec<f32> = d.rgb.iter().flat_map(|c| c.map(|v| v as f32)).collect();
     let frame = Frame::from_data(d.len(), 1, Layout::Rgb, data).unwrap();
-    write_tiff(&frame, &dir.join("patches.tif"), false).unwrap();
+    let tif = dir.join("patches.tif");
+    common::committed(false, |u| write_tiff(&frame, &tif, u)).unwrap();
     let w = d.white_xyz;
     let white = format!("{:?},{:?},{:?}", w[0], w[1], w[2]);
     let mut lines = Vec::new();

@@ -23,7 +23,7 @@ use nsrm::{Frame, Layout};
 #[allow(dead_code)]
 mod embed;
 
-const SKIP: &str = "SKIP: no GPU adapter (install mesa-vulkan-drivers libvulkan1)";
+const SKIP: &str = "no GPU adapter (install mesa-vulkan-drivers libvulkan1)";
 const REL_TOL: f64 = 1e-5;
 
 /// The engine, or `None` (after one loud line) when there is no adapter; with `CI=true` a
@@ -37,10 +37,7 @@ fn engine(tile_pixels: Option<usize>) -> Option<Engine> {
         // Debug builds (the tests) fill every output tile with the sentinel NaN first.
         Ok(e) => Some(e),
         Err(e @ GpuError::NoAdapter { .. }) => {
-            if std::env::var("CI").is_ok_and(|v| v == "true") {
-                panic!("CI=true and {e}");
-            }
-            eprintln!("{SKIP}");
+            crate::common::skip(&format!("{SKIP}: {e}"));
             None
         }
         Err(e) => panic!("cannot open the GPU engine: {e}"),
@@ -390,8 +387,30 @@ fn open_follows_the_device_choice() {
         .unwrap()
         .is_none());
     let Some(e) = engine(None) else { return };
-    let auto = gpu::open(DeviceChoice::Auto, &GpuOptions::default()).unwrap();
-    assert_eq!(auto.map(|a| a.adapter_name()), Some(e.adapter_name()));
+    // `Auto` takes a hardware adapter, never a software rasteriser (lavapipe) unless named, and
+    // says why it chose the CPU.
+    let software = e.context().adapter.get_info().device_type == wgpu::DeviceType::Cpu;
+    match gpu::open_device(DeviceChoice::Auto, &GpuOptions::default()).unwrap() {
+        gpu::Opened::Gpu(a) => {
+            assert!(
+                !software,
+                "auto took the software adapter {}",
+                a.adapter_name()
+            );
+            assert_eq!(a.adapter_name(), e.adapter_name());
+        }
+        gpu::Opened::Cpu(why) => {
+            assert!(
+                software,
+                "auto left the hardware adapter {}",
+                e.adapter_name()
+            );
+            assert!(
+                matches!(&why, gpu::CpuReason::SoftwareOnly { adapter } if *adapter == e.adapter_name()),
+                "{why}"
+            );
+        }
+    }
     assert!(gpu::open(DeviceChoice::Gpu, &GpuOptions::default())
         .unwrap()
         .is_some());
@@ -402,13 +421,13 @@ fn open_follows_the_device_choice() {
         adapter: Some(part),
         tile_pixels: None,
     };
-    assert_eq!(
-        gpu::open(DeviceChoice::Gpu, &opts)
-            .unwrap()
-            .unwrap()
-            .adapter_name(),
-        name
-    );
+    for choice in [DeviceChoice::Gpu, DeviceChoice::Auto] {
+        // Named, even a software adapter is taken by `Auto`.
+        assert_eq!(
+            gpu::open(choice, &opts).unwrap().unwrap().adapter_name(),
+            name
+        );
+    }
     let opts = GpuOptions {
         adapter: Some("no-such-adapter-xyz".into()),
         tile_pixels: None,

@@ -30,7 +30,7 @@ fn dev_zero_as_any_text_input_fails_fast() {
         let err = stderr(&o);
         assert!(err.contains("/dev/zero"), "{args:?}: {err}");
         assert!(
-            err.contains("not a regular file (it is a character device)"),
+            err.contains("not a regular file or pipe (it is a character device)"),
             "{args:?}: {err}"
         );
         // Not a timing assertion: reading /dev/zero to the end would never return at all.
@@ -38,17 +38,24 @@ fn dev_zero_as_any_text_input_fails_fast() {
     }
     #[cfg(unix)]
     {
-        // A FIFO nobody writes to would block an open(); it is refused by what it is.
+        // A FIFO is a pipe like `--model <(cat m.json)`: read, with the same cap (issue 19
+        // family 8; tests/all/harden_commands.rs has the cap and the devices).
         std::process::Command::new("mkfifo")
             .arg(d.join("fifo.json"))
             .status()
             .unwrap();
-        let o = nsrm_in(d, &["apply", "--model", "fifo.json", "a.exr"]);
-        assert!(
-            stderr(&o).contains("not a regular file (it is a FIFO)"),
-            "{}",
-            stderr(&o)
+        model(d);
+        let feeder = {
+            let (src, dst) = (d.join("m.json"), d.join("fifo.json"));
+            std::thread::spawn(move || std::fs::write(dst, std::fs::read(src).unwrap()))
+        };
+        let o = nsrm_in(
+            d,
+            &["apply", "--model", "fifo.json", "--device", "cpu", "a.exr"],
         );
+        feeder.join().unwrap().unwrap();
+        assert_ok(&o);
+        assert!(d.join("a_xyz.exr").is_file());
     }
 }
 
@@ -80,10 +87,11 @@ fn many_measured_rows_load_with_a_duplicate_check() {
     for i in 0..n {
         text.push_str(&format!("p{i},0.{i},0.2,0.3,10,20,30\n"));
     }
-    let ts = TrainingSet::parse_measured(&text, "big.csv", None).unwrap();
+    let white = Some(nsrm::colorimetry::D65_WHITE_XYZ);
+    let ts = TrainingSet::parse_measured(&text, "big.csv", white).unwrap();
     assert_eq!(ts.len(), n);
     text.push_str("p7,0.1,0.2,0.3,10,20,30\n");
-    let e = TrainingSet::parse_measured(&text, "big.csv", None).unwrap_err();
+    let e = TrainingSet::parse_measured(&text, "big.csv", white).unwrap_err();
     assert!(e.to_string().contains("p7"), "{e}");
     // Selecting many labels is linear too.
     let spec: Vec<String> = (0..n).step_by(2).map(|i| format!("p{i}")).collect();
@@ -104,7 +112,7 @@ fn model_json_with_a_bom_is_accepted() {
     // And so are measured CSVs and spectral tables.
     std::fs::write(
         d.join("t.csv"),
-        "\u{feff}label,R,G,B,X,Y,Z\na,1,1,1,1,1,1\n",
+        "\u{feff}# white: D65\nlabel,R,G,B,X,Y,Z\na,1,1,1,1,1,1\n",
     )
     .unwrap();
     TrainingSet::read_measured(&d.join("t.csv"), None).unwrap();
@@ -157,7 +165,7 @@ fn messages_name_the_right_thing_once() {
     std::fs::create_dir(d.join("dir.json")).unwrap();
     let o = nsrm_in(d, &["apply", "--model", "dir.json", "a.exr"]);
     assert!(
-        stderr(&o).contains("not a regular file (it is a directory)"),
+        stderr(&o).contains("not a regular file or pipe (it is a directory)"),
         "{}",
         stderr(&o)
     );

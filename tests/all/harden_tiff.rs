@@ -248,3 +248,133 @@ fn a_bad_tiff_fails_alone_in_a_batch() {
     assert_eq!(names(&d.join("out")), ["a_good_xyz.exr", "d_good_xyz.exr"]);
     assert!(!Path::new(&d.join("out/b_huge_xyz.exr")).exists());
 }
+
+/// Writes the TIFF layouts of issue 19 families 4 and 5 with tifffile (a writer nobody here
+/// wrote), each beside the samples nsrm must read from it (`NAME.bin`: little-endian f32, RGB or
+/// RGBA interleaved, 16-bit values divided by 65535).
+const PY_LAYOUTS: &str = r#"
+import sys, numpy as np, tifffile
+d = sys.argv[1]
+rng = np.random.default_rng(19)
+def save(name, arr, want, **kw):
+    if kw.get("planarconfig") == "separate":
+        arr = np.moveaxis(arr, 2, 0)  # samples first
+    tifffile.imwrite(f"{d}/{name}.tif", arr, photometric="rgb", **kw)
+    np.ascontiguousarray(want, dtype="<f4").tofile(f"{d}/{name}.bin")
+a = rng.random((18, 20, 3)).astype("float32")
+# Planar-separate, tiled, 20x18 with 16x16 tiles: partial edge tiles (the tiff crate asserted).
+save("planar_tiled", a, a, planarconfig="separate", tile=(16, 16))
+save("planar_tiled_even", np.tile(a, (2, 2, 1))[:32, :32], np.tile(a, (2, 2, 1))[:32, :32], planarconfig="separate", tile=(16, 16))
+save("planar_strips", a, a, planarconfig="separate", rowsperstrip=5)
+save("chunky_tiled", a, a, tile=(16, 16))
+# RGB + an unspecified extra sample: RGB read, the extra sample ignored.
+b = rng.random((18, 20, 4)).astype("float32")
+save("rgb_extra", b, b[..., :3], extrasamples=[0])
+# RGB + alpha + an unspecified sample, chunky and planar: RGBA read.
+c = rng.random((18, 20, 5)).astype("float32")
+save("rgba_extra", c, c[..., :4], extrasamples=[2, 0])
+save("rgba_extra_planar", c, c[..., :4], extrasamples=[2, 0], planarconfig="separate", tile=(16, 16))
+u = (rng.random((18, 20, 4)) * 65535).astype("uint16")
+save("rgb16_extra", u, u[..., :3].astype("float32") / np.float32(65535), extrasamples=[0])
+save("rgb16_planar_tiled", u[..., :3], u[..., :3].astype("float32") / np.float32(65535), planarconfig="separate", tile=(16, 16))
+"#;
+
+/// Families 4 and 5: a planar-separate tiled float TIFF with partial edge tiles (which made the
+/// tiff crate panic, exit 101, ending a whole `apply --continue-on-error` batch) and RGB +
+/// extra-sample TIFFs (called "corrupt" with a wrong sample count) are read, sample for sample,
+/// and converted in a batch.
+#[test]
+fn tifffile_layouts_are_read_sample_for_sample() {
+    let present = std::process::Command::new("python3")
+        .args(["-c", "import tifffile, numpy"])
+        .output()
+        .is_ok_and(|o| o.status.success());
+    if !present {
+        assert!(
+            std::env::var("CI").as_deref() != Ok("true"),
+            "python3 with tifffile and numpy is required under CI (.ci/install.d/40-tifffile.sh)"
+        );
+        println!("SKIP: python3 with tifffile and numpy not found (.ci/install.d/40-tifffile.sh)");
+        return;
+    }
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    std::fs::create_dir(d.join("in")).unwrap();
+    let py = std::process::Command::new("python3")
+        .args(["-c", PY_LAYOUTS])
+        .arg(d.join("in"))
+        .output()
+        .unwrap();
+    assert!(
+        py.status.success(),
+        "{}",
+        String::from_utf8_lossy(&py.stderr)
+    );
+    let names = [
+        ("planar_tiled", 3),
+        ("planar_tiled_even", 3),
+        ("planar_strips", 3),
+        ("chunky_tiled", 3),
+        ("rgb_extra", 3),
+        ("rgba_extra", 4),
+        ("rgba_extra_planar", 4),
+        ("rgb16_extra", 3),
+        ("rgb16_planar_tiled", 3),
+    ];
+    for (name, channels) in names {
+        let path = d.join(format!("in/{name}.tif"));
+        let want: Vec<f32> = std::fs::read(d.join(format!("in/{name}.bin")))
+            .unwrap()
+            .chunks_exact(4)
+            .map(|b| f32::from_le_bytes(b.try_into().unwrap()))
+            .collect();
+        std::fs::remove_file(d.join(format!("in/{name}.bin"))).unwrap();
+        let f = nsrm::io::read_frame(&path, &ReadOptions::default())
+            .unwrap_or_else(|e| panic!("{name}: {e}"));
+        assert_eq!(f.layout.channels(), channels, "{name}");
+        assert_eq!(f.data.len(), want.len(), "{name}");
+        let bad: Vec<(usize, usize, usize)> = f
+            .data
+            .iter()
+            .zip(&want)
+            .enumerate()
+            .filter(|(_, (a, b))| a != b)
+            .map(|(i, _)| {
+                (
+                    (i / channels) % f.width,
+                    i / channels / f.width,
+                    i % channels,
+                )
+            })
+            .collect();
+        assert!(
+            bad.is_empty(),
+            "{name}: {} samples differ, (x, y, channel) {:?}",
+            bad.len(),
+            &bad[..bad.len().min(12)]
+        );
+    }
+    // In a batch, with --continue-on-error: every file converted, nothing fails.
+    model(d);
+    let o = nsrm_in(
+        d,
+        &[
+            "apply",
+            "--model",
+            "m.json",
+            "--device",
+            "cpu",
+            "--continue-on-error",
+            "-o",
+            "out",
+            "in",
+        ],
+    );
+    no_crash(&o, "batch");
+    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+    assert!(
+        stderr(&o).contains(&format!("{} converted", names.len())),
+        "{}",
+        stderr(&o)
+    );
+}

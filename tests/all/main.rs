@@ -21,6 +21,8 @@ mod export_ocio;
 mod exr_fast;
 mod fast;
 #[cfg(feature = "cli")]
+mod first_hour;
+#[cfg(feature = "cli")]
 mod fit_apply_agree;
 mod fit_hostile;
 mod fit_variants;
@@ -28,6 +30,8 @@ mod fit_variants;
 mod gpu;
 #[cfg(feature = "cli")]
 mod gpu_export;
+#[cfg(feature = "cli")]
+mod harden_commands;
 #[cfg(feature = "io")]
 mod harden_fuzz;
 #[cfg(feature = "cli")]
@@ -49,3 +53,9 @@ mod paper_table1;
 mod parsers_fuzz;
 #[cfg(feature = "gpu")]
 mod pixel_policy;
+#[cfg(feature = "cli")]
+mod readme;
+#[cfg(feature = "studio")]
+mod studio;
+#[cfg(feature = "cli")]
+mod white;

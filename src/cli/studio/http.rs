@@ -1,0 +1,637 @@
+//! The HTTP side: the security gate (token, Host, Origin), routing, bounded uploads (raw body or
+//! multipart field `file`, streamed to disk) and replies. No handler can end the server: errors
+//! become JSON `{"error": …}` replies and a panic becomes a 500.
+
+use super::json;
+use super::session::Studio;
+use anyhow::{anyhow, bail, Context, Result};
+use std::io::{Read, Write};
+use std::path::Path;
+use tiny_http::{Header, Request, Response};
+
+const INDEX_HTML: &str = include_str!("web/index.html");
+const APP_JS: &str = include_str!("web/app.js");
+const STYLE_CSS: &str = include_str!("web/style.css");
+
+/// Largest JSON request body (settings, fit options).
+const MAX_JSON: u64 = 1 << 20;
+
+/// What a handler answers.
+pub struct Reply {
+    pub status: u16,
+    pub content_type: &'static str,
+    pub body: Vec<u8>,
+    /// A download: `Content-Disposition: attachment; filename=…`.
+    pub filename: Option<String>,
+    pub extra: Vec<(&'static str, String)>,
+}
+
+impl Reply {
+    pub fn new(status: u16, content_type: &'static str, body: Vec<u8>) -> Reply {
+        Reply {
+            status,
+            content_type,
+            body,
+            filename: None,
+            extra: Vec::new(),
+        }
+    }
+
+    pub fn download(content_type: &'static str, body: Vec<u8>, filename: String) -> Reply {
+        Reply {
+            filename: Some(filename),
+            ..Reply::new(200, content_type, body)
+        }
+    }
+
+    fn text(status: u16, msg: &str) -> Reply {
+        Reply::new(status, "text/plain; charset=utf-8", msg.as_bytes().to_vec())
+    }
+}
+
+/// An error that is the client's fault (400), with its message for the page.
+#[derive(Debug, thiserror::Error)]
+#[error("{0}")]
+pub struct BadRequest(pub String);
+
+/// A parsed request target.
+pub struct Target {
+    pub path: String,
+    pub query: Vec<(String, String)>,
+}
+
+impl Target {
+    pub fn param(&self, k: &str) -> Option<&str> {
+        self.query
+            .iter()
+            .find(|(n, _)| n == k)
+            .map(|(_, v)| v.as_str())
+    }
+}
+
+fn parse_target(url: &str) -> Target {
+    let (path, q) = url.split_once('?').unwrap_or((url, ""));
+    let query = q
+        .split('&')
+        .filter(|s| !s.is_empty())
+        .map(|kv| {
+            let (k, v) = kv.split_once('=').unwrap_or((kv, ""));
+            (percent_decode(k), percent_decode(v))
+        })
+        .collect();
+    Target {
+        path: percent_decode(path),
+        query,
+    }
+}
+
+/// `%XX` and `+` decoding (invalid escapes kept as they are; invalid UTF-8 replaced).
+pub fn percent_decode(s: &str) -> String {
+    let b = s.as_bytes();
+    let mut out = Vec::with_capacity(b.len());
+    let mut i = 0;
+    while i < b.len() {
+        match b[i] {
+            b'+' => out.push(b' '),
+            b'%' if i + 2 < b.len()
+                && b[i + 1].is_ascii_hexdigit()
+                && b[i + 2].is_ascii_hexdigit() =>
+            {
+                let hex = |c: u8| (c as char).to_digit(16).unwrap_or(0) as u8;
+                out.push(hex(b[i + 1]) * 16 + hex(b[i + 2]));
+                i += 2;
+            }
+            c => out.push(c),
+        }
+        i += 1;
+    }
+    String::from_utf8_lossy(&out).into_owned()
+}
+
+fn header<'a>(req: &'a Request, name: &'static str) -> Option<&'a str> {
+    req.headers()
+        .iter()
+        .find(|h| h.field.equiv(name))
+        .map(|h| h.value.as_str())
+}
+
+/// Equal in constant time (for the token).
+fn same(a: &[u8], b: &[u8]) -> bool {
+    a.len() == b.len() && a.iter().zip(b).fold(0u8, |acc, (x, y)| acc | (x ^ y)) == 0
+}
+
+/// Whether `host` (a `Host` header: `name[:port]`) is this server on loopback.
+fn local_host(host: &str, port: u16) -> bool {
+    let (name, p) = match host.rsplit_once(':') {
+        Some((n, p)) if !n.ends_with(':') && !p.contains(']') => (n, Some(p)),
+        _ => (host, None),
+    };
+    let name_ok = matches!(
+        name.to_ascii_lowercase().as_str(),
+        "127.0.0.1" | "localhost" | "[::1]"
+    );
+    name_ok && p.is_none_or(|p| p.parse::<u16>().ok() == Some(port))
+}
+
+/// The gate every request passes: `Err(reason)` means 403.
+fn check(studio: &Studio, req: &Request, target: &Target) -> std::result::Result<(), String> {
+    let host = header(req, "Host").ok_or("no Host header")?;
+    if !local_host(host, studio.port) {
+        return Err(format!("Host `{host}` is not this machine's loopback"));
+    }
+    if let Some(origin) = header(req, "Origin") {
+        let rest = origin.strip_prefix("http://").unwrap_or("");
+        if rest.is_empty() || !local_host(rest, studio.port) {
+            return Err(format!("cross-origin request from `{origin}`"));
+        }
+    }
+    if header(req, "Sec-Fetch-Site").is_some_and(|s| s.eq_ignore_ascii_case("cross-site")) {
+        return Err("cross-site request".into());
+    }
+    let token = header(req, "X-Nsrm-Token").or_else(|| target.param("token"));
+    match token {
+        Some(t) if same(t.as_bytes(), studio.token.as_bytes()) => Ok(()),
+        Some(_) => Err("wrong token".into()),
+        None => Err("no token: open the URL that `nsrm studio` printed".into()),
+    }
+}
+
+/// Answers one request (never panics out: a panic in a handler becomes a 500).
+pub fn serve(studio: &Studio, mut req: Request) {
+    let target = parse_target(req.url());
+    let reply = match check(studio, &req, &target) {
+        Err(why) => Reply::text(403, &format!("403 forbidden: {why}\n")),
+        Ok(()) => {
+            let r = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
+                route(studio, &mut req, &target)
+            }));
+            match r {
+                Ok(Ok(reply)) => reply,
+                Ok(Err(e)) => {
+                    let status = if e.chain().any(|c| c.downcast_ref::<NotFound>().is_some()) {
+                        404
+                    } else if e.chain().any(|c| c.downcast_ref::<TooLarge>().is_some()) {
+                        413
+                    } else {
+                        400
+                    };
+                    let msg = super::super::common::explain_line(e);
+                    json(status, &serde_json::json!({ "error": msg }))
+                }
+                Err(_) => json(
+                    500,
+                    &serde_json::json!({ "error": "internal error (a bug in nsrm studio): the server is still running; please report it" }),
+                ),
+            }
+        }
+    };
+    respond(req, reply);
+}
+
+fn respond(req: Request, reply: Reply) {
+    let mut resp = Response::from_data(reply.body).with_status_code(reply.status);
+    let mut headers = vec![
+        ("Content-Type", reply.content_type.to_string()),
+        ("Cache-Control", "no-store".to_string()),
+        ("X-Content-Type-Options", "nosniff".to_string()),
+        ("Referrer-Policy", "no-referrer".to_string()),
+        (
+            "Content-Security-Policy",
+            "default-src 'self'; img-src 'self' blob: data:; style-src 'self'; script-src 'self'; connect-src 'self'; frame-ancestors 'none'".to_string(),
+        ),
+    ];
+    if let Some(f) = &reply.filename {
+        headers.push((
+            "Content-Disposition",
+            format!(
+                "attachment; filename=\"{}\"",
+                f.replace(['"', '\\', '\r', '\n'], "_")
+            ),
+        ));
+    }
+    headers.extend(reply.extra);
+    for (k, v) in headers {
+        if let Ok(h) = Header::from_bytes(k.as_bytes(), v.as_bytes()) {
+            resp.add_header(h);
+        }
+    }
+    // The client may have gone away; nothing to do then.
+    let _ = req.respond(resp);
+}
+
+/// A 404.
+#[derive(Debug, thiserror::Error)]
+#[error("{0}")]
+pub struct NotFound(pub String);
+
+/// A 413.
+#[derive(Debug, thiserror::Error)]
+#[error("{0}")]
+pub struct TooLarge(pub String);
+
+fn route(studio: &Studio, req: &mut Request, t: &Target) -> Result<Reply> {
+    let method = req.method().as_str().to_ascii_uppercase();
+    let parts: Vec<&str> = t.path.trim_matches('/').split('/').collect();
+    match (method.as_str(), parts.as_slice()) {
+        ("GET", [""]) | ("GET", ["index.html"]) => Ok(Reply::new(
+            200,
+            "text/html; charset=utf-8",
+            INDEX_HTML.replace("{{TOKEN}}", &studio.token).into_bytes(),
+        )),
+        ("GET", ["app.js"]) => Ok(Reply::new(
+            200,
+            "text/javascript; charset=utf-8",
+            APP_JS.as_bytes().to_vec(),
+        )),
+        ("GET", ["style.css"]) => Ok(Reply::new(
+            200,
+            "text/css; charset=utf-8",
+            STYLE_CSS.as_bytes().to_vec(),
+        )),
+        ("GET", ["api", "info"]) => Ok(json(200, &studio.info())),
+        ("POST", ["api", "frames"]) => {
+            let name = t.param("name").map(str::to_string);
+            let (dir, id) = studio.new_upload_dir()?;
+            let saved = receive_upload(studio, req, &dir, name)?;
+            Ok(json(200, &studio.open(id, saved, true)?))
+        }
+        ("POST", ["api", "files", n, "open"]) => {
+            let i: usize = n
+                .parse()
+                .map_err(|_| BadRequest(format!("file index `{n}` is not a number")))?;
+            let path =
+                studio.files.get(i).cloned().ok_or_else(|| {
+                    NotFound(format!("no file {i}: {} listed", studio.files.len()))
+                })?;
+            let id = studio.new_id();
+            Ok(json(200, &studio.open(id, path, false)?))
+        }
+        ("GET", ["api", "frames", id]) => Ok(json(200, &studio.frame(id)?.lock_state().state())),
+        ("POST", ["api", "frames", id, "reading"]) => {
+            let body = read_json(req)?;
+            let f = studio.frame(id)?;
+            let mut s = f.lock_state();
+            s.set_reading(studio, body)?;
+            Ok(json(200, &s.state()))
+        }
+        ("GET", ["api", "frames", id, "preview.png"]) => {
+            let f = studio.frame(id)?;
+            let png = f.lock_state().preview_png.clone();
+            Ok(Reply::new(200, "image/png", png))
+        }
+        ("GET", ["api", "frames", id, "overlay.png"]) => {
+            let f = studio.frame(id)?;
+            let png = f.lock_state().overlay_png()?;
+            Ok(Reply::new(200, "image/png", png))
+        }
+        ("POST", ["api", "frames", id, "fit"]) => {
+            let body = read_json(req)?;
+            let f = studio.frame(id)?;
+            let mut s = f.lock_state();
+            Ok(json(200, &s.fit(body)?))
+        }
+        ("POST", ["api", "frames", id, "compare"]) => {
+            let body = read_json(req)?;
+            let f = studio.frame(id)?;
+            let s = f.lock_state();
+            Ok(json(200, &s.compare(body)?))
+        }
+        ("GET", ["api", "frames", id, "corrected.png"]) => {
+            let f = studio.frame(id)?;
+            let s = f.lock_state();
+            let (png, device) = s.corrected_png(t.param("space").unwrap_or("linear-srgb"))?;
+            let mut r = Reply::new(200, "image/png", png);
+            r.extra.push(("X-Nsrm-Device", device));
+            Ok(r)
+        }
+        ("GET", ["api", "frames", id, "export"]) => {
+            let f = studio.frame(id)?;
+            let s = f.lock_state();
+            let (bytes, name) = s.export(studio, t)?;
+            Ok(Reply::download("application/octet-stream", bytes, name))
+        }
+        ("GET", ["api", "frames", id, "model.json"]) => {
+            let f = studio.frame(id)?;
+            let text = f.lock_state().model_json()?;
+            Ok(Reply::download(
+                "application/json",
+                text.into_bytes(),
+                "model.json".into(),
+            ))
+        }
+        ("GET", ["api", "frames", id, "patches.csv"]) => {
+            let f = studio.frame(id)?;
+            let text = f.lock_state().patches_csv()?;
+            Ok(Reply::download(
+                "text/csv",
+                text.into_bytes(),
+                "patches.csv".into(),
+            ))
+        }
+        ("GET", ["api", "frames", id, "command"]) => {
+            let f = studio.frame(id)?;
+            let text = f.lock_state().command(t);
+            Ok(Reply::new(
+                200,
+                "text/plain; charset=utf-8",
+                text.into_bytes(),
+            ))
+        }
+        ("GET", ["api", "frames", id, "shader"]) => {
+            let f = studio.frame(id)?;
+            let v = f
+                .lock_state()
+                .wgsl(t.param("space").unwrap_or("linear-srgb"))?;
+            Ok(json(200, &v))
+        }
+        ("GET", ["api", "frames", id, "pixels.f32"]) => {
+            let f = studio.frame(id)?;
+            let (bytes, w, h) = f.lock_state().preview_pixels();
+            let mut r = Reply::new(200, "application/octet-stream", bytes);
+            r.extra.push(("X-Nsrm-Width", w.to_string()));
+            r.extra.push(("X-Nsrm-Height", h.to_string()));
+            Ok(r)
+        }
+        ("DELETE", ["api", "frames", id]) => {
+            studio.close(id)?;
+            Ok(json(200, &serde_json::json!({ "closed": id })))
+        }
+        (_, ["api", ..]) => Err(NotFound(format!("no endpoint {method} {}", t.path)).into()),
+        _ => Err(NotFound(format!("no page {}", t.path)).into()),
+    }
+}
+
+/// A JSON body (at most [`MAX_JSON`] bytes; an empty body is `{}`).
+fn read_json(req: &mut Request) -> Result<serde_json::Value> {
+    if req.body_length().is_some_and(|n| n as u64 > MAX_JSON) {
+        return Err(TooLarge(format!("a JSON body over {MAX_JSON} bytes")).into());
+    }
+    let mut buf = Vec::new();
+    req.as_reader()
+        .take(MAX_JSON + 1)
+        .read_to_end(&mut buf)
+        .context("reading the request body")?;
+    if buf.len() as u64 > MAX_JSON {
+        return Err(TooLarge(format!("a JSON body over {MAX_JSON} bytes")).into());
+    }
+    if buf.iter().all(u8::is_ascii_whitespace) {
+        return Ok(serde_json::json!({}));
+    }
+    serde_json::from_slice(&buf)
+        .map_err(|e| BadRequest(format!("the request body is not JSON: {e}")).into())
+}
+
+/// A file name safe to create in our directory: the last component, odd characters replaced.
+pub fn safe_name(name: &str) -> String {
+    let last = name.rsplit(['/', '\\']).next().unwrap_or("");
+    let s: String = last
+        .chars()
+        .map(|c| {
+            if c.is_ascii_alphanumeric() || matches!(c, '.' | '-' | '_') {
+                c
+            } else {
+                '_'
+            }
+        })
+        .take(100)
+        .collect();
+    let s = s.trim_start_matches('.').to_string();
+    if s.is_empty() {
+        "upload".into()
+    } else {
+        s
+    }
+}
+
+/// Streams the upload (the raw body, or the multipart field `file`) into `dir`, at most the
+/// studio's byte limit. Returns the file's path.
+fn receive_upload(
+    studio: &Studio,
+    req: &mut Request,
+    dir: &Path,
+    name: Option<String>,
+) -> Result<std::path::PathBuf> {
+    let limit = studio.max_upload_bytes();
+    if req
+        .body_length()
+        .is_some_and(|n| n as u64 > limit + 64 * 1024)
+    {
+        return Err(TooLarge(format!(
+            "the upload ({} bytes) is over the limit of {limit} bytes (the frame limit of {} pixels)",
+            req.body_length().unwrap_or(0),
+            studio.max_pixels
+        ))
+        .into());
+    }
+    let ctype = header(req, "Content-Type").unwrap_or("").to_string();
+    let boundary = ctype
+        .to_ascii_lowercase()
+        .starts_with("multipart/form-data")
+        .then(|| {
+            ctype.split(';').find_map(|p| {
+                p.trim()
+                    .strip_prefix("boundary=")
+                    .map(|b| b.trim_matches('"').to_string())
+            })
+        });
+    let reader = req.as_reader();
+    let (name, path) = match boundary {
+        Some(None) => bail!(BadRequest("a multipart body without a boundary".into())),
+        Some(Some(b)) => {
+            if b.is_empty() || b.len() > 200 {
+                bail!(BadRequest("a multipart boundary of a bad length".into()));
+            }
+            multipart_file(reader, &b, dir, limit)?
+        }
+        None => {
+            let name = safe_name(name.as_deref().unwrap_or("upload"));
+            let path = dir.join(&name);
+            copy_bounded(reader, &path, limit, None)?;
+            (name, path)
+        }
+    };
+    let _ = name;
+    if std::fs::metadata(&path).map(|m| m.len()).unwrap_or(0) == 0 {
+        bail!(BadRequest("the upload is empty".into()));
+    }
+    Ok(path)
+}
+
+/// Copies `r` into a new file at `path`, at most `limit` bytes (else [`TooLarge`]), stopping at
+/// `delimiter` if given (which must then be found).
+fn copy_bounded(r: &mut dyn Read, path: &Path, limit: u64, delimiter: Option<&[u8]>) -> Result<()> {
+    let mut f = std::fs::OpenOptions::new()
+        .write(true)
+        .create_new(true)
+        .open(path)
+        .with_context(|| format!("creating {}", path.display()))?;
+    let mut written = 0u64;
+    let mut buf = vec![0u8; 1 << 16];
+    let mut pending: Vec<u8> = Vec::new();
+    loop {
+        let n = r.read(&mut buf).context("reading the upload")?;
+        if n == 0 {
+            if delimiter.is_some() {
+                bail!(BadRequest(
+                    "a multipart body that ends inside its file".into()
+                ));
+            }
+            f.write_all(&pending)?;
+            break;
+        }
+        pending.extend_from_slice(&buf[..n]);
+        if let Some(d) = delimiter {
+            if let Some(at) = find(&pending, d) {
+                written += at as u64;
+                if written > limit {
+                    bail!(TooLarge(format!(
+                        "the upload is over the limit of {limit} bytes"
+                    )));
+                }
+                f.write_all(&pending[..at])?;
+                // Drain the rest of the body (the closing boundary), bounded.
+                let _ = std::io::copy(&mut r.take(1 << 20), &mut std::io::sink());
+                return Ok(());
+            }
+            // Keep the tail that could start a delimiter.
+            let keep = d.len().saturating_sub(1).min(pending.len());
+            let flush = pending.len() - keep;
+            written += flush as u64;
+            if written > limit {
+                bail!(TooLarge(format!(
+                    "the upload is over the limit of {limit} bytes"
+                )));
+            }
+            f.write_all(&pending[..flush])?;
+            pending.drain(..flush);
+        } else {
+            written += pending.len() as u64;
+            if written > limit {
+                bail!(TooLarge(format!(
+                    "the upload is over the limit of {limit} bytes"
+                )));
+            }
+            f.write_all(&pending)?;
+            pending.clear();
+        }
+    }
+    Ok(())
+}
+
+fn find(hay: &[u8], needle: &[u8]) -> Option<usize> {
+    if needle.is_empty() || hay.len() < needle.len() {
+        return None;
+    }
+    hay.windows(needle.len()).position(|w| w == needle)
+}
+
+/// Reads a `multipart/form-data` body up to its field `file` and streams that field's content to
+/// `dir/<its file name>`.
+fn multipart_file(
+    r: &mut dyn Read,
+    boundary: &str,
+    dir: &Path,
+    limit: u64,
+) -> Result<(String, std::path::PathBuf)> {
+    let dash = format!("--{boundary}");
+    let delim = format!("\r\n--{boundary}");
+    // Parts before `file` (small form fields) are skipped; their bytes are bounded.
+    let mut head: Vec<u8> = Vec::new();
+    let mut byte = [0u8; 1];
+    let mut seen = 0usize;
+    loop {
+        // Read up to the end of this part's headers.
+        while !head.ends_with(b"\r\n\r\n") {
+            if r.read(&mut byte).context("reading the upload")? == 0 {
+                bail!(BadRequest("a multipart body without a field `file`".into()));
+            }
+            head.push(byte[0]);
+            seen += 1;
+            if seen > 1 << 20 {
+                bail!(BadRequest(
+                    "a multipart body whose first MiB holds no field `file`".into()
+                ));
+            }
+        }
+        let text = String::from_utf8_lossy(&head).into_owned();
+        let disp = text
+            .lines()
+            .find(|l| l.to_ascii_lowercase().starts_with("content-disposition:"))
+            .unwrap_or("")
+            .to_string();
+        let field = |key: &str| -> Option<String> {
+            disp.split(';').find_map(|p| {
+                let p = p.trim();
+                p.strip_prefix(&format!("{key}="))
+                    .map(|v| v.trim_matches('"').to_string())
+            })
+        };
+        if !text.contains(&dash) {
+            bail!(BadRequest("a malformed multipart body".into()));
+        }
+        if field("name").as_deref() == Some("file") {
+            let name = safe_name(&field("filename").unwrap_or_else(|| "upload".into()));
+            let path = dir.join(&name);
+            copy_bounded(r, &path, limit, Some(delim.as_bytes()))?;
+            return Ok((name, path));
+        }
+        // Skip this part: read to the next delimiter, bounded.
+        let mut skipped = Vec::new();
+        loop {
+            if r.read(&mut byte).context("reading the upload")? == 0 {
+                return Err(anyhow!(BadRequest(
+                    "a multipart body without a field `file`".into()
+                )));
+            }
+            skipped.push(byte[0]);
+            seen += 1;
+            if seen > 1 << 20 {
+                bail!(BadRequest(
+                    "a multipart body whose first MiB holds no field `file`".into()
+                ));
+            }
+            if skipped.ends_with(delim.as_bytes()) {
+                break;
+            }
+        }
+        head = dash.as_bytes().to_vec();
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn hosts() {
+        assert!(local_host("127.0.0.1:8080", 8080));
+        assert!(local_host("localhost:8080", 8080));
+        assert!(local_host("[::1]:8080", 8080));
+        assert!(!local_host("127.0.0.1:8081", 8080));
+        assert!(!local_host("evil.example:8080", 8080));
+        assert!(!local_host("127.0.0.1.evil.example:8080", 8080));
+        assert!(!local_host("", 8080));
+    }
+
+    #[test]
+    fn names() {
+        assert_eq!(safe_name("../../etc/passwd"), "passwd");
+        assert_eq!(safe_name("..\\x.exr"), "x.exr");
+        assert_eq!(safe_name(".."), "upload");
+        assert_eq!(safe_name("a b.exr"), "a_b.exr");
+        assert_eq!(percent_decode("a%20b+c%zz%4"), "a b c%zz%4");
+    }
+
+    #[test]
+    fn multipart() {
+        let dir = std::env::temp_dir().join(format!("nsrm-studio-mp-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let body = b"--XyZ\r\nContent-Disposition: form-data; name=\"note\"\r\n\r\nhello\r\n--XyZ\r\nContent-Disposition: form-data; name=\"file\"; filename=\"../s.exr\"\r\nContent-Type: application/octet-stream\r\n\r\nDATA\r\n--XyZ\r\nbytes\r\n--XyZ--\r\n";
+        let (name, path) = multipart_file(&mut &body[..], "XyZ", &dir, 100).unwrap();
+        assert_eq!(name, "s.exr");
+        assert_eq!(std::fs::read(&path).unwrap(), b"DATA");
+        let e = multipart_file(&mut &b"--XyZ\r\n\r\n"[..], "XyZ", &dir, 100);
+        assert!(e.is_err());
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+}

@@ -1,0 +1,656 @@
+//! `nsrm studio`: the security gate (token, Host, Origin: 403), the API against the CLI (the
+//! same reading, model file, statistics and exported bytes), hostile uploads (a clear message,
+//! the server still up), nothing written outside the per-run temporary directory, and the
+//! browser test (tests/browser/studio.test.mjs in headless Chromium).
+
+use crate::common::{nsrm, tempdir};
+use serde_json::Value;
+use std::io::{BufRead, BufReader, Read, Write};
+use std::net::TcpStream;
+use std::path::{Path, PathBuf};
+use std::process::{Child, Command, Stdio};
+use std::time::{Duration, Instant};
+
+/// A running `nsrm studio --no-browser`, stopped (SIGTERM, then kill) when dropped.
+pub struct Server {
+    child: Child,
+    pub port: u16,
+    pub token: String,
+    pub tmp: PathBuf,
+}
+
+impl Server {
+    /// Starts the studio in `cwd` with `args` and waits (bounded) for its URL.
+    pub fn start(cwd: &Path, args: &[&str]) -> Server {
+        let mut child = nsrm()
+            .current_dir(cwd)
+            .arg("studio")
+            .arg("--no-browser")
+            .args(args)
+            .stdout(Stdio::piped())
+            .stderr(Stdio::inherit())
+            .spawn()
+            .expect("starting nsrm studio");
+        let stdout = child.stdout.take().unwrap();
+        let (tx, rx) = std::sync::mpsc::channel();
+        std::thread::spawn(move || {
+            for line in BufReader::new(stdout).lines() {
+                let Ok(line) = line else { break };
+                if tx.send(line).is_err() {
+                    break;
+                }
+            }
+        });
+        let first = rx.recv_timeout(Duration::from_secs(30));
+        let second = rx.recv_timeout(Duration::from_secs(5));
+        let (Ok(first), Ok(second)) = (first, second) else {
+            let _ = child.kill();
+            let _ = child.wait();
+            panic!("nsrm studio printed no URL within 30 s");
+        };
+        let url = first
+            .strip_prefix("nsrm studio: ")
+            .expect("the URL line")
+            .to_string();
+        let rest = url
+            .strip_prefix("http://127.0.0.1:")
+            .expect("served on 127.0.0.1");
+        let (port, token) = rest.split_once("/?token=").expect("a token in the URL");
+        let tmp = second
+            .split("temporary files in ")
+            .nth(1)
+            .and_then(|s| s.split(';').next())
+            .expect("the temporary directory")
+            .to_string();
+        Server {
+            child,
+            port: port.parse().unwrap(),
+            token: token.to_string(),
+            tmp: PathBuf::from(tmp),
+        }
+    }
+
+    /// One request; `headers` replace the defaults (Host of 127.0.0.1, the token header).
+    pub fn raw(
+        &self,
+        method: &str,
+        path: &str,
+        headers: &[(&str, &str)],
+        body: &[u8],
+    ) -> (u16, Vec<(String, String)>, Vec<u8>) {
+        let mut s = TcpStream::connect(("127.0.0.1", self.port)).expect("connecting");
+        s.set_read_timeout(Some(Duration::from_secs(300))).unwrap();
+        // HTTP/1.0: the whole body, never chunked, then the connection closes.
+        let mut req = format!("{method} {path} HTTP/1.0\r\nConnection: close\r\n");
+        for (k, v) in headers {
+            req.push_str(&format!("{k}: {v}\r\n"));
+        }
+        req.push_str(&format!("Content-Length: {}\r\n\r\n", body.len()));
+        s.write_all(req.as_bytes()).unwrap();
+        // The server may answer (and close) before reading a refused body.
+        let _ = s.write_all(body);
+        let mut buf = Vec::new();
+        let _ = s.read_to_end(&mut buf);
+        let at = buf
+            .windows(4)
+            .position(|w| w == b"\r\n\r\n")
+            .unwrap_or_else(|| panic!("no HTTP header in {:?}", String::from_utf8_lossy(&buf)));
+        let head = String::from_utf8_lossy(&buf[..at]).into_owned();
+        let mut lines = head.lines();
+        let status: u16 = lines
+            .next()
+            .and_then(|l| l.split_whitespace().nth(1))
+            .and_then(|c| c.parse().ok())
+            .expect("a status line");
+        let hs = lines
+            .filter_map(|l| l.split_once(':'))
+            .map(|(k, v)| (k.trim().to_ascii_lowercase(), v.trim().to_string()))
+            .collect();
+        (status, hs, buf[at + 4..].to_vec())
+    }
+
+    /// A request as the page makes it (Host 127.0.0.1:PORT, the token header).
+    pub fn call(&self, method: &str, path: &str, body: &[u8]) -> (u16, Vec<u8>) {
+        let host = format!("127.0.0.1:{}", self.port);
+        let (st, _, b) = self.raw(
+            method,
+            path,
+            &[("Host", &host), ("X-Nsrm-Token", &self.token)],
+            body,
+        );
+        (st, b)
+    }
+
+    /// A JSON request that must succeed.
+    pub fn json(&self, method: &str, path: &str, body: &str) -> Value {
+        let (st, b) = self.call(method, path, body.as_bytes());
+        let text = String::from_utf8_lossy(&b);
+        assert_eq!(st, 200, "{method} {path}: {text}");
+        serde_json::from_slice(&b).unwrap_or_else(|e| panic!("{method} {path}: {e}: {text}"))
+    }
+
+    /// SIGTERM, and the exit status within 10 s.
+    pub fn stop(&mut self) -> Option<std::process::ExitStatus> {
+        let _ = Command::new("kill")
+            .args(["-TERM", &self.child.id().to_string()])
+            .status();
+        let t0 = Instant::now();
+        while t0.elapsed() < Duration::from_secs(10) {
+            if let Ok(Some(st)) = self.child.try_wait() {
+                return Some(st);
+            }
+            std::thread::sleep(Duration::from_millis(50));
+        }
+        let _ = self.child.kill();
+        let _ = self.child.wait();
+        None
+    }
+}
+
+impl Drop for Server {
+    fn drop(&mut self) {
+        if let Ok(None) = self.child.try_wait() {
+            self.stop();
+        }
+    }
+}
+
+fn s(p: &Path) -> &str {
+    p.to_str().unwrap()
+}
+
+/// A synthetic CC24 scene (`render-scene`) in `dir`.
+pub fn scene(dir: &Path, name: &str) -> PathBuf {
+    let f = dir.join(name);
+    let out = nsrm()
+        .args([
+            "render-scene",
+            "--chart",
+            "cc24",
+            "--width",
+            "800",
+            "--height",
+            "560",
+            "--seed",
+            "5",
+            "--min-area",
+            "0.2",
+            "-o",
+            s(&f),
+        ])
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    f
+}
+
+fn cli(dir: &Path, args: &[&str]) -> Vec<u8> {
+    let out = nsrm().current_dir(dir).args(args).output().unwrap();
+    assert!(
+        out.status.success(),
+        "nsrm {args:?}: {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    out.stdout
+}
+
+#[test]
+fn requests_without_the_token_or_from_another_host_or_origin_are_refused() {
+    let d = tempdir("studio-gate");
+    let srv = Server::start(&d, &[]);
+    let host = format!("127.0.0.1:{}", srv.port);
+    let ok_q = format!("/api/info?token={}", srv.token);
+    let with = |h: &[(&str, &str)], path: &str| srv.raw("GET", path, h, b"").0;
+    // The page and the API with the token (query or header) and a local Host.
+    assert_eq!(with(&[("Host", &host)], &ok_q), 200);
+    assert_eq!(
+        with(&[("Host", &format!("localhost:{}", srv.port))], &ok_q),
+        200
+    );
+    assert_eq!(
+        with(&[("Host", &host)], &format!("/?token={}", srv.token)),
+        200
+    );
+    // No token, a wrong one, one of another length.
+    assert_eq!(with(&[("Host", &host)], "/api/info"), 403);
+    assert_eq!(with(&[("Host", &host)], "/"), 403);
+    let wrong: String = srv
+        .token
+        .chars()
+        .map(|c| if c == '0' { '1' } else { '0' })
+        .collect();
+    assert_eq!(
+        with(&[("Host", &host)], &format!("/api/info?token={wrong}")),
+        403
+    );
+    assert_eq!(
+        with(&[("Host", &host), ("X-Nsrm-Token", "x")], "/api/info"),
+        403
+    );
+    // DNS rebinding: a foreign Host, even with the token; another port; no Host.
+    assert_eq!(with(&[("Host", "evil.example")], &ok_q), 403);
+    assert_eq!(
+        with(&[("Host", &format!("evil.example:{}", srv.port))], &ok_q),
+        403
+    );
+    assert_eq!(
+        with(&[("Host", &format!("127.0.0.1:{}", srv.port ^ 1))], &ok_q),
+        403
+    );
+    assert_eq!(with(&[], &ok_q), 403);
+    // Cross-site requests: a foreign Origin or Sec-Fetch-Site: cross-site.
+    assert_eq!(
+        with(&[("Host", &host), ("Origin", "http://evil.example")], &ok_q),
+        403
+    );
+    assert_eq!(with(&[("Host", &host), ("Origin", "null")], &ok_q), 403);
+    assert_eq!(
+        with(
+            &[("Host", &host), ("Origin", &format!("https://{host}"))],
+            &ok_q
+        ),
+        403
+    );
+    assert_eq!(
+        with(&[("Host", &host), ("Sec-Fetch-Site", "cross-site")], &ok_q),
+        403
+    );
+    assert_eq!(
+        with(
+            &[("Host", &host), ("Origin", &format!("http://{host}"))],
+            &ok_q
+        ),
+        200
+    );
+    // A state-changing request without the token does nothing.
+    let (st, _, _) = srv.raw("POST", "/api/frames?name=x.exr", &[("Host", &host)], b"abc");
+    assert_eq!(st, 403);
+    // Two runs have different tokens.
+    let srv2 = Server::start(&d, &[]);
+    assert_ne!(srv.token, srv2.token);
+    assert!(srv.token.len() >= 32);
+}
+
+/// The page's reading, fit, comparison and export equal the CLI's; the command line it shows
+/// reproduces the model file and the export byte for byte.
+#[test]
+fn the_api_gives_the_cli_numbers_and_bytes() {
+    let d = tempdir("studio-api");
+    let frame = scene(&d, "scene.exr");
+    let work = d.join("work");
+    std::fs::create_dir_all(&work).unwrap();
+    let srv = Server::start(&work, &[s(&frame)]);
+
+    // The listed frame, read as `chart extract --json` reads it.
+    let st = srv.json("POST", "/api/files/0/open", "");
+    let id = st["id"].as_str().unwrap().to_string();
+    assert!(st["error"].is_null(), "{}", st["error"]);
+    cli(
+        &d,
+        &[
+            "chart",
+            "extract",
+            "scene.exr",
+            "--chart",
+            "cc24",
+            "-o",
+            "p.csv",
+            "--json",
+            "r.json",
+        ],
+    );
+    let cli_reading: Value =
+        serde_json::from_str(&std::fs::read_to_string(d.join("r.json")).unwrap()).unwrap();
+    let reading = &st["reading"];
+    assert_eq!(reading["patches"], cli_reading["patches"]);
+    assert_eq!(reading["corners"], cli_reading["corners"]);
+    assert_eq!(reading["provenance"], cli_reading["provenance"]);
+
+    // Moved corners: a new reading, equal to `--corners`.
+    let mut corners: Vec<[f64; 2]> = serde_json::from_value(reading["corners"].clone()).unwrap();
+    corners[2][0] += 3.0;
+    corners[2][1] -= 2.0;
+    let body = serde_json::json!({"chart": "cc24", "corners": corners}).to_string();
+    let st2 = srv.json("POST", &format!("/api/frames/{id}/reading"), &body);
+    assert_ne!(st2["reading"]["patches"], reading["patches"]);
+    let spec = corners
+        .iter()
+        .map(|p| format!("{},{}", p[0], p[1]))
+        .collect::<Vec<_>>()
+        .join(" ");
+    cli(
+        &d,
+        &[
+            "chart",
+            "extract",
+            "scene.exr",
+            "--chart",
+            "cc24",
+            "--corners",
+            &spec,
+            "-o",
+            "p2.csv",
+            "--json",
+            "r2.json",
+        ],
+    );
+    let cli2: Value =
+        serde_json::from_str(&std::fs::read_to_string(d.join("r2.json")).unwrap()).unwrap();
+    assert_eq!(st2["reading"]["patches"], cli2["patches"]);
+
+    // Exclude a patch by hand, fit, export; then run the page's command lines in a fresh
+    // directory holding the frame: the same model file and CLF, byte for byte.
+    let label = st2["reading"]["patches"][5]["label"].as_str().unwrap();
+    let body =
+        serde_json::json!({"chart": "cc24", "corners": corners, "exclude": [label]}).to_string();
+    let st3 = srv.json("POST", &format!("/api/frames/{id}/reading"), &body);
+    assert!(st3["patches_spec"].as_str().unwrap().len() > 10);
+    let fit = srv.json(
+        "POST",
+        &format!("/api/frames/{id}/fit"),
+        r#"{"kind": "nsrm", "order": 3, "objective": "de00", "preserve_white": false}"#,
+    );
+    let n = fit["n_patches"].as_u64().unwrap();
+    assert_eq!(fit["patches"].as_array().unwrap().len() as u64, n);
+    assert!(fit["patches"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .all(|p| p["label"] != label));
+    let (code, model_bytes) = srv.call("GET", &format!("/api/frames/{id}/model.json"), b"");
+    assert_eq!(code, 200);
+    let (code, clf) = srv.call(
+        "GET",
+        &format!("/api/frames/{id}/export?format=clf&space=acescg"),
+        b"",
+    );
+    assert_eq!(code, 200, "{}", String::from_utf8_lossy(&clf));
+    let (code, command) = srv.call(
+        "GET",
+        &format!("/api/frames/{id}/command?format=clf&space=acescg"),
+        b"",
+    );
+    assert_eq!(code, 200);
+    let command = String::from_utf8(command).unwrap();
+    assert!(command.contains("--patches"), "{command}");
+    assert!(command.contains("--objective de00"), "{command}");
+    let rerun = d.join("rerun");
+    std::fs::create_dir_all(&rerun).unwrap();
+    let nsrm_bin = env!("CARGO_BIN_EXE_nsrm");
+    for line in command.lines() {
+        let line = line.replacen("nsrm ", &format!("'{nsrm_bin}' "), 1);
+        let out = Command::new("sh")
+            .arg("-c")
+            .arg(&line)
+            .current_dir(&rerun)
+            .output()
+            .unwrap();
+        assert!(
+            out.status.success(),
+            "{line}: {}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+    }
+    assert_eq!(
+        std::fs::read(rerun.join("model.json")).unwrap(),
+        model_bytes
+    );
+    assert_eq!(std::fs::read(rerun.join("model.clf")).unwrap(), clf);
+    assert_eq!(
+        srv.call("GET", &format!("/api/frames/{id}/patches.csv"), b"")
+            .1,
+        std::fs::read(rerun.join("patches.csv")).unwrap()
+    );
+
+    // Every model side by side: the numbers `eval --capture … --json` prints, running the
+    // command lines the page shows (one per kind, the orders that could be fitted).
+    let cmp = srv.json(
+        "POST",
+        &format!("/api/frames/{id}/compare"),
+        r#"{"objective": "ls"}"#,
+    );
+    for (key, extra) in [("leave_one_out", ""), ("in_sample", " --in-sample")] {
+        let ours: Vec<&Value> = cmp[key]
+            .as_array()
+            .unwrap()
+            .iter()
+            .filter(|r| r["error"].is_null())
+            .collect();
+        let mut theirs: Vec<Value> = Vec::new();
+        for line in cmp["command"].as_str().unwrap().lines() {
+            let line = line.replacen("nsrm ", &format!("'{nsrm_bin}' "), 1);
+            let out = Command::new("sh")
+                .arg("-c")
+                .arg(format!("{line}{extra}"))
+                .current_dir(&rerun)
+                .output()
+                .unwrap();
+            assert!(
+                out.status.success(),
+                "{line}: {}",
+                String::from_utf8_lossy(&out.stderr)
+            );
+            let v: Value = serde_json::from_slice(&out.stdout).unwrap();
+            theirs.extend(v["results"].as_array().unwrap().iter().cloned());
+        }
+        assert!(ours.len() >= 10, "{key}: {}", ours.len());
+        assert_eq!(ours.len(), theirs.len(), "{key}");
+        for (a, b) in ours.iter().zip(&theirs) {
+            for k in [
+                "model",
+                "order",
+                "mean",
+                "median",
+                "p95",
+                "max",
+                "per_patch",
+            ] {
+                assert_eq!(a[k], b[k], "{key} {k} of {} {}", a["model"], a["order"]);
+            }
+        }
+    }
+    assert!(cmp["best"]["mean"].as_f64().unwrap() > 0.0);
+
+    // Previews: PNGs; the corrected one needs the fit and says where it ran.
+    for path in ["preview.png", "overlay.png", "corrected.png?space=acescg"] {
+        let (code, hs, body) = srv.raw(
+            "GET",
+            &format!("/api/frames/{id}/{path}"),
+            &[
+                ("Host", &format!("127.0.0.1:{}", srv.port)),
+                ("X-Nsrm-Token", &srv.token),
+            ],
+            b"",
+        );
+        assert_eq!(code, 200, "{path}");
+        assert!(body.starts_with(b"\x89PNG"), "{path}");
+        if path.starts_with("corrected") {
+            assert!(hs.iter().any(|(k, v)| k == "x-nsrm-device" && v == "cpu"));
+        }
+    }
+    let sh = srv.json("GET", &format!("/api/frames/{id}/shader?space=acescg"), "");
+    assert!(sh["wgsl"].as_str().unwrap().contains("@compute"));
+
+    // Nothing was written in the working directory.
+    assert_eq!(std::fs::read_dir(&work).unwrap().count(), 0);
+}
+
+#[test]
+fn uploads_hostile_input_and_cleanup() {
+    let d = tempdir("studio-upload");
+    let frame = scene(&d, "up.exr");
+    let bytes = std::fs::read(&frame).unwrap();
+    let work = d.join("work");
+    std::fs::create_dir_all(&work).unwrap();
+    let mut srv = Server::start(&work, &["--max-pixels", "600000"]);
+    let tmp = srv.tmp.clone();
+    assert!(tmp.is_dir());
+
+    // The file's bytes as the body, under a hostile name: kept inside the temporary directory.
+    let (code, b) = srv.call("POST", "/api/frames?name=..%2F..%2Fup.exr", &bytes);
+    assert_eq!(code, 200, "{}", String::from_utf8_lossy(&b));
+    let st: Value = serde_json::from_slice(&b).unwrap();
+    assert_eq!(st["name"], "up.exr");
+    let read_at = st["reading"]["frame"].as_str().unwrap();
+    assert!(Path::new(read_at).starts_with(&tmp), "{read_at}");
+    // Multipart field `file`.
+    let mut mp = b"--B0undary\r\nContent-Disposition: form-data; name=\"note\"\r\n\r\nx\r\n--B0undary\r\nContent-Disposition: form-data; name=\"file\"; filename=\"m.exr\"\r\nContent-Type: image/x-exr\r\n\r\n".to_vec();
+    mp.extend_from_slice(&bytes);
+    mp.extend_from_slice(b"\r\n--B0undary--\r\n");
+    let host = format!("127.0.0.1:{}", srv.port);
+    let (code, _, b) = srv.raw(
+        "POST",
+        "/api/frames",
+        &[
+            ("Host", &host),
+            ("X-Nsrm-Token", &srv.token),
+            ("Content-Type", "multipart/form-data; boundary=B0undary"),
+        ],
+        &mp,
+    );
+    assert_eq!(code, 200, "{}", String::from_utf8_lossy(&b));
+    let st2: Value = serde_json::from_slice(&b).unwrap();
+    assert_eq!(st2["reading"]["patches"], st["reading"]["patches"]);
+
+    // Hostile uploads: a clear message, and the server keeps serving.
+    let mut truncated = bytes.clone();
+    truncated.truncate(bytes.len() / 2);
+    let mut flipped = bytes.clone();
+    for i in (400..flipped.len()).step_by(97) {
+        flipped[i] ^= 0x5a;
+    }
+    let cases: Vec<(&str, Vec<u8>)> = vec![
+        ("garbage.exr", b"not an image at all".to_vec()),
+        ("empty.exr", Vec::new()),
+        ("half.exr", truncated),
+        ("flipped.exr", flipped),
+        ("zeros.tif", vec![0u8; 5000]),
+    ];
+    for (name, body) in cases {
+        let (code, b) = srv.call("POST", &format!("/api/frames?name={name}"), &body);
+        let text = String::from_utf8_lossy(&b);
+        if code == 200 {
+            // A damaged frame may still decode (to other pixels); then it is just read.
+            continue;
+        }
+        assert!((400..500).contains(&code), "{name}: {code} {text}");
+        let v: Value = serde_json::from_str(&text).unwrap_or_else(|_| panic!("{name}: {text}"));
+        assert!(v["error"].as_str().unwrap().len() > 10, "{name}: {text}");
+        assert_eq!(srv.call("GET", "/api/info", b"").0, 200, "after {name}");
+    }
+    // Over the size bound of the frame limit (600000 pixels × 16 bytes + 1 MiB).
+    let big = vec![0u8; 600_000 * 16 + (1 << 20) + 70_000];
+    let (code, b) = srv.call("POST", "/api/frames?name=big.exr", &big);
+    assert_eq!(code, 413, "{}", String::from_utf8_lossy(&b));
+    // Bad JSON, unknown fields, out-of-range values, unknown endpoints and frames.
+    let id = st["id"].as_str().unwrap();
+    for (path, body, want) in [
+        (format!("/api/frames/{id}/fit"), "{", 400),
+        (format!("/api/frames/{id}/fit"), r#"{"kind": "xyz"}"#, 400),
+        (format!("/api/frames/{id}/fit"), r#"{"order": 9}"#, 400),
+        (format!("/api/frames/{id}/fit"), r#"{"colour": 1}"#, 400),
+        (
+            format!("/api/frames/{id}/reading"),
+            r#"{"flat": "/etc/passwd"}"#,
+            400,
+        ),
+        ("/api/frames/f999/fit".to_string(), "{}", 404),
+        ("/api/nothing".to_string(), "{}", 404),
+    ] {
+        let (code, b) = srv.call("POST", &path, body.as_bytes());
+        assert_eq!(code, want, "{path} {body}: {}", String::from_utf8_lossy(&b));
+    }
+    // Corners that make no chart: the reading fails with the reason, shown in the page.
+    let st = srv.json(
+        "POST",
+        &format!("/api/frames/{id}/reading"),
+        r#"{"chart": "cc24", "corners": [[0,0],[0,0],[0,0],[0,0]]}"#,
+    );
+    assert!(st["reading"].is_null());
+    assert!(
+        st["error"].as_str().unwrap().contains("convex"),
+        "{}",
+        st["error"]
+    );
+    let (code, _) = srv.call("GET", &format!("/api/frames/{id}/export?format=clf"), b"");
+    assert_eq!(code, 400, "an export before a fit");
+    assert_eq!(srv.call("GET", "/api/info", b"").0, 200);
+
+    // Closing a frame removes its upload; it is then gone from the API.
+    let id2 = st2["id"].as_str().unwrap();
+    assert_eq!(
+        srv.json("GET", &format!("/api/frames/{id2}"), "")["id"],
+        id2
+    );
+    let upload_dir = tmp.join(id2);
+    assert!(upload_dir.join("m.exr").is_file());
+    srv.json("DELETE", &format!("/api/frames/{id2}"), "");
+    assert!(!upload_dir.exists());
+    assert_eq!(srv.call("GET", &format!("/api/frames/{id2}"), b"").0, 404);
+
+    // SIGTERM: the temporary directory goes, nothing was written in the working directory.
+    let status = srv.stop().expect("stopped within 10 s");
+    assert!(!status.success());
+    assert!(!tmp.exists(), "{} left behind", tmp.display());
+    assert_eq!(std::fs::read_dir(&work).unwrap().count(), 0);
+}
+
+/// The page in headless Chromium (tests/browser/studio.test.mjs, puppeteer-core): load, drop a
+/// `render-scene` frame, see the overlay, drag a corner, fit, download a CLF equal to `nsrm
+/// export`'s, no console errors; screenshots in target/studio-browser/.
+#[test]
+fn the_page_in_a_real_browser() {
+    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+    let dir = root.join("tests/browser");
+    let chromium = std::env::var("NSRM_CHROMIUM").unwrap_or_else(|_| "/usr/bin/chromium".into());
+    let missing = if Command::new("node").arg("--version").output().is_err() {
+        Some("node is not installed")
+    } else if !Path::new(&chromium).exists() {
+        Some("chromium is not installed (apt-get install chromium)")
+    } else if !dir.join("node_modules/puppeteer-core").exists() {
+        Some("tests/browser/node_modules is absent (npm ci in tests/browser)")
+    } else {
+        None
+    };
+    if let Some(why) = missing {
+        if std::env::var("CI").as_deref() == Ok("true") {
+            panic!("{why} (required under CI=true; .ci/install.d/60-browser.sh installs it)");
+        }
+        println!("SKIP: {why}");
+        return;
+    }
+    let out_dir = root.join("target/studio-browser");
+    let _ = std::fs::remove_dir_all(&out_dir);
+    std::fs::create_dir_all(&out_dir).unwrap();
+    let work = tempdir("studio-browser");
+    let out = Command::new("node")
+        .arg("studio.test.mjs")
+        .current_dir(&dir)
+        .env("NSRM_BIN", env!("CARGO_BIN_EXE_nsrm"))
+        .env("NSRM_CHROMIUM", &chromium)
+        .env("STUDIO_OUT", &out_dir)
+        .env("STUDIO_WORK", &work)
+        // Chromium's (and GLib's) per-user files in the work directory, never the caller's home
+        // or the repository.
+        .env("HOME", &work)
+        .env("XDG_CONFIG_HOME", work.join("config"))
+        .env("XDG_CACHE_HOME", work.join("cache"))
+        .env("XDG_RUNTIME_DIR", &work)
+        .output()
+        .expect("running node");
+    let text = format!(
+        "{}\n{}",
+        String::from_utf8_lossy(&out.stdout),
+        String::from_utf8_lossy(&out.stderr)
+    );
+    println!("{text}");
+    assert!(out.status.success(), "the browser test failed:\n{text}");
+    assert!(
+        !root.join("dconf").exists(),
+        "the browser left a dconf directory in the repository"
+    );
+}

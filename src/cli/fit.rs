@@ -48,6 +48,27 @@ pub struct Args {
     fit: FitVariantArgs,
 }
 
+/// How far evaluating the model in f32 (`apply`'s CPU and GPU paths) can move the in-sample ΔE00:
+/// the bound every back end keeps, what this CPU's fast path does, and whether the ridge λ was
+/// raised to keep it small.
+fn f32_summary(
+    model: &nsrm::model::Model,
+    report: &nsrm::model::fit::FitReport,
+    data: &nsrm::TrainingSet,
+) -> String {
+    let measured = nsrm::model::fit::f32_error_measured(model, &data.rgb, &data.xyz);
+    let bound = report.f32_error_bound.unwrap_or(f64::NAN);
+    let raised = match report.ridge_requested {
+        Some(r) => format!(
+            "; ridge λ raised from {r} to {} to keep it within {}",
+            report.ridge_lambda,
+            nsrm::model::fit::F32_TOLERANCE_DE00
+        ),
+        None => String::new(),
+    };
+    format!("f32 evaluation (apply on CPU or GPU) moves a patch's ΔE00 by at most {bound:.1e} (bound), {measured:.1e} measured on this CPU{raised}")
+}
+
 impl Args {
     /// The model kind asked for.
     #[cfg(test)]
@@ -157,6 +178,7 @@ pub fn run(a: Args) -> Result<ExitCode> {
             _ => String::new(),
         }
     );
+    eprintln!("{}", f32_summary(model, report, &data));
     if let Some(w) = few_patches_warning(model.len_terms(), data.len()) {
         eprintln!("{w}");
     }

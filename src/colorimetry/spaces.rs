@@ -170,28 +170,58 @@ pub fn mul(a: &Mat3, b: &Mat3) -> Mat3 {
     m
 }
 
-/// The inverse of a 3×3 matrix (cofactors; the matrices here are well conditioned).
-pub fn invert(m: &Mat3) -> Mat3 {
-    let c =
-        |r0: usize, r1: usize, c0: usize, c1: usize| m[r0][c0] * m[r1][c1] - m[r0][c1] * m[r1][c0];
-    let cof = [
-        [c(1, 2, 1, 2), -c(1, 2, 0, 2), c(1, 2, 0, 1)],
-        [-c(0, 2, 1, 2), c(0, 2, 0, 2), -c(0, 2, 0, 1)],
-        [c(0, 1, 1, 2), -c(0, 1, 0, 2), c(0, 1, 0, 1)],
-    ];
-    let det = m[0][0] * cof[0][0] + m[0][1] * cof[0][1] + m[0][2] * cof[0][2];
-    let mut inv = [[0.0; 3]; 3];
-    for (i, row) in inv.iter_mut().enumerate() {
-        for (j, v) in row.iter_mut().enumerate() {
-            *v = cof[j][i] / det;
-        }
+/// The inverse of a 3×3 matrix (nalgebra's), or `None` when it is singular or too close to
+/// singular to be worth inverting: a non-finite entry, or `|det|` at most `1e-12` of the product
+/// of its row norms (Hadamard's bound on `|det|`, so the test does not depend on the scale).
+pub fn try_invert(m: &Mat3) -> Option<Mat3> {
+    let a = nalgebra::Matrix3::from_fn(|i, j| m[i][j]);
+    let hadamard: f64 = m
+        .iter()
+        .map(|r| r.iter().map(|v| v * v).sum::<f64>().sqrt())
+        .product();
+    let det = a.determinant();
+    if !(hadamard.is_finite() && det.is_finite() && det.abs() > 1e-12 * hadamard) {
+        return None;
     }
-    inv
+    let inv = a.try_inverse()?;
+    let out: Mat3 = [0, 1, 2].map(|i| [0, 1, 2].map(|j| inv[(i, j)]));
+    out.iter().flatten().all(|v| v.is_finite()).then_some(out)
+}
+
+/// [`try_invert`] for the matrices that are invertible by construction (primaries, Bradford, the
+/// output matrices of a checked white): should one be singular after all, every entry is NaN
+/// (never a silently huge inverse), which the callers' finiteness checks refuse.
+pub fn invert(m: &Mat3) -> Mat3 {
+    try_invert(m).unwrap_or([[f64::NAN; 3]; 3])
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn inverse_round_trips_and_singular_matrices_are_refused() {
+        let m = [
+            [0.8951, 0.2664, -0.1614],
+            [-0.7502, 1.7135, 0.0367],
+            [0.0389, -0.0685, 1.0296],
+        ];
+        let p = mul(&m, &try_invert(&m).unwrap());
+        for (i, row) in p.iter().enumerate() {
+            for (j, v) in row.iter().enumerate() {
+                assert!((v - if i == j { 1.0 } else { 0.0 }).abs() < 1e-14, "{p:?}");
+            }
+        }
+        // Scale does not matter, singularity does.
+        assert!(try_invert(&m.map(|r| r.map(|v| v * 1e-30))).is_some());
+        let singular = [[1.0, 2.0, 3.0], [2.0, 4.0, 6.0], [0.0, 1.0, 1.0]];
+        assert!(try_invert(&singular).is_none());
+        let nearly = [[1.0, 2.0, 3.0], [2.0, 4.0, 6.0 + 1e-14], [0.0, 1.0, 1.0]];
+        assert!(try_invert(&nearly).is_none());
+        assert!(try_invert(&[[f64::NAN, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]]).is_none());
+        assert!(invert(&singular).iter().flatten().all(|v| v.is_nan()));
+        assert!(try_invert(&[[0.0; 3]; 3]).is_none());
+    }
 
     #[test]
     fn srgb_matrix_matches_iec_61966() {

@@ -208,6 +208,14 @@ pub struct FitReport {
     pub de00_end: Option<f64>,
     /// Levenberg–Marquardt iterations (Jacobian evaluations), 0 for least squares.
     pub iterations: usize,
+    /// A bound on the ΔE00 that evaluating the model in f32 (the fast CPU kernels, the shaders)
+    /// can add to any training patch ([`f32_error_bound`]; absent in older files).
+    #[serde(skip_serializing_if = "Option::is_none", default)]
+    pub f32_error_bound: Option<f64>,
+    /// The λ the options asked for (0: none), when the fit raised it to `ridge_lambda` so that the
+    /// f32 evaluation error stays within [`F32_TOLERANCE_DE00`]; absent when it did not.
+    #[serde(skip_serializing_if = "Option::is_none", default)]
+    pub ridge_requested: Option<f64>,
 }
 
 /// A fitted model with its input gains and report.
@@ -501,181 +509,417 @@ pub fn lambda_grid() -> impl Iterator<Item = f64> {
 }
 
 /// Fits `kind` at `order` with `opts` (see the [module docs](self)).
+///
+/// The steps: [`Problem::new`] checks the order and the patch count, takes the input gains and
+/// builds the design and the white constraint; [`Problem::solve`] picks λ and solves the
+/// (regularised) least squares; [`Problem::finish`] refines under the ΔE00 objective and builds
+/// the model; [`Problem::guard_f32`] then bounds the error of evaluating that model in f32 (the
+/// fast CPU kernels, the shaders) and, when the bound exceeds [`F32_TOLERANCE_DE00`], raises λ
+/// until it does not (see [`f32_error_bound`]).
 pub fn fit_with(
     kind: Kind,
     order: u8,
     data: &TrainingSet,
     opts: &FitOptions,
 ) -> Result<Fit, ModelError> {
-    if !(1..=MAX_ORDER).contains(&order) {
-        return Err(ModelError::Order(order));
-    }
-    let order = kind.effective_order(order);
-    let terms = terms(kind, order);
-    let l = terms.len();
-    let n = data.len();
-    if n < l {
-        return Err(ModelError::TooFewPatches {
+    let problem = Problem::new(kind, order, data, opts)?;
+    let (lambda, z) = problem.solve(opts.ridge)?;
+    let first = problem.finish(lambda, z)?;
+    let (solved, requested) = problem.guard_f32(first)?;
+    Ok(problem.report(solved, requested))
+}
+
+/// The ΔE00 the f32 evaluation of a fitted model (fast CPU kernels, shaders) may add to any
+/// training patch, at most: [`fit_with`] raises the ridge λ until [`f32_error_bound`] is below it,
+/// so that `apply` reproduces the in-sample ΔE00 the fit reports to within 0.01.
+pub const F32_TOLERANCE_DE00: f64 = 0.01;
+
+/// The ridge λ [`fit_with`] tries, in order, when a fit's f32 evaluation error is too large: 10^-16
+/// … 10^2 in quarter decades (above the λ the options asked for).
+pub fn f32_guard_grid() -> impl Iterator<Item = f64> {
+    (0..=72).map(|i| 10f64.powf(-16.0 + 0.25 * i as f64))
+}
+
+/// A fit in progress: the checked inputs, the design and the reduced problem.
+struct Problem<'a> {
+    kind: Kind,
+    order: u8,
+    terms: Vec<Term>,
+    data: &'a TrainingSet,
+    opts: &'a FitOptions,
+    gains: [f64; 3],
+    d: Design,
+    reduced: Reduced,
+    condition_number: Option<f64>,
+    /// The design's SVD with its vectors when the fit is plain least squares (no constraint, no
+    /// ridge asked for): the one SVD the paper's fit needs, reused by [`Problem::solve`].
+    plain: Option<SVD<f64, nalgebra::Dyn, nalgebra::Dyn>>,
+}
+
+/// A solved fit: the model (report not yet attached), the λ it was solved at, and the ΔE00
+/// objective's start, end and iterations.
+struct Solved {
+    model: Model,
+    lambda: f64,
+    de00: Option<(f64, f64)>,
+    iterations: usize,
+    f32_bound: f64,
+}
+
+impl<'a> Problem<'a> {
+    /// Step 1: checks the order and the patch count, takes the input gains (white-balanced NSRM),
+    /// builds and checks the design and the white constraint, and the design's condition number.
+    fn new(
+        kind: Kind,
+        order: u8,
+        data: &'a TrainingSet,
+        opts: &'a FitOptions,
+    ) -> Result<Problem<'a>, ModelError> {
+        if !(1..=MAX_ORDER).contains(&order) {
+            return Err(ModelError::Order(order));
+        }
+        let order = kind.effective_order(order);
+        let terms = terms(kind, order);
+        let (l, n) = (terms.len(), data.len());
+        if n < l {
+            return Err(ModelError::TooFewPatches {
+                kind,
+                order,
+                terms: l,
+                patches: n,
+            });
+        }
+        let gains = input_gains(kind, data, opts)?;
+        let rgb: Vec<[f64; 3]> = data.rgb.iter().map(|c| gain(*c, gains)).collect();
+        let d = design(kind, &terms, &data.labels, &rgb, &data.xyz)?;
+        let constraint = white_constraint(kind, &terms, data, opts, gains)?;
+        let plain = constraint.is_none() && opts.ridge == Ridge::None;
+        let a_svd = svd(d.a.clone(), plain)?;
+        let sv = &a_svd.singular_values;
+        let (smax, smin) = (sv.max(), sv.min());
+        let reduced = Reduced::new(kind, &terms, &d, constraint);
+        Ok(Problem {
             kind,
             order,
-            terms: l,
-            patches: n,
-        });
+            terms,
+            data,
+            opts,
+            gains,
+            d,
+            reduced,
+            condition_number: (smin > 0.0).then(|| smax / smin),
+            plain: plain.then_some(a_svd),
+        })
     }
-    let white_rgb = || data.white_rgb.ok_or(ModelError::NoWhite);
-    let gains = match opts.normalise {
-        Normalise::Raw => [1.0; 3],
-        Normalise::WhiteBalanced => {
-            if kind != Kind::Nsrm {
-                return Err(ModelError::Invalid(format!(
-                    "white-balanced normalisation is defined for NSRM only, not {kind}"
-                )));
-            }
-            let w = match &opts.white {
-                White::Patch(label) => patch_rgb(data, label)?,
-                White::Perfect => white_rgb()?,
-            };
-            if w.iter().any(|v| !(v.is_finite() && *v > 0.0)) {
-                return Err(ModelError::Invalid(format!(
-                    "the white's camera response {w:?} is not positive: it cannot be balanced"
-                )));
-            }
-            [1.0 / w[0], 1.0 / w[1], 1.0 / w[2]]
+
+    /// Step 2: the ridge λ (fixed, or chosen by GCV or leave-one-out) and the reduced unknowns
+    /// solved at it.
+    fn solve(&self, ridge: Ridge) -> Result<(f64, DMatrix<f64>), ModelError> {
+        let n = self.data.len() as f64;
+        let r = &self.reduced;
+        match ridge {
+            Ridge::None => match &self.plain {
+                Some(a_svd) => {
+                    let (rows, cols) = self.d.a.shape();
+                    let eps = cutoff(a_svd, rows, cols);
+                    let z = a_svd
+                        .solve(&self.d.b, eps)
+                        .map_err(|_| ModelError::Degenerate)?;
+                    Ok((0.0, z))
+                }
+                None => Ok((0.0, r.solve(0.0)?.0)),
+            },
+            Ridge::Lambda(lam) => Ok((lam, r.solve(lam)?.0)),
+            Ridge::Auto => best_on_grid(|lam| {
+                let (z, rss, tr) = r.solve(lam)?;
+                let dof = n - tr;
+                Ok((dof > 0.0).then(|| (n * rss / (dof * dof), z)))
+            }),
+            Ridge::AutoLoo => best_on_grid(|lam| {
+                let (z, press) = r.press(lam)?;
+                Ok(press.map(|p| (p, z)))
+            }),
         }
+    }
+
+    /// Step 3: refines `z` under the ΔE00 objective (if asked), builds the model, and bounds its
+    /// f32 evaluation error on the training patches.
+    fn finish(&self, lambda: f64, z: DMatrix<f64>) -> Result<Solved, ModelError> {
+        let (z, de00, iterations) = match self.opts.objective {
+            Objective::LeastSquares => (z, None, 0),
+            Objective::De00 { power } => {
+                let r = refine::refine(
+                    &self.reduced,
+                    &self.d,
+                    &z,
+                    lambda,
+                    power,
+                    &self.data.xyz,
+                    self.data.white_xyz,
+                )?;
+                (r.z, Some((r.start, r.end)), r.iterations)
+            }
+        };
+        let x = self.reduced.full(&z);
+        let l = self.terms.len();
+        let mut matrix = vec![0.0; 3 * l];
+        for i in 0..3 {
+            for j in 0..l {
+                matrix[i * l + j] = x[(j, i)];
+            }
+        }
+        if matrix.iter().any(|v| !super::finite_in_f32(*v)) {
+            return Err(ModelError::Degenerate);
+        }
+        let model = Model {
+            kind: self.kind,
+            order: self.order,
+            terms: self.terms.clone(),
+            matrix,
+            white_xyz: self.data.white_xyz,
+            provenance: self.data.provenance.clone(),
+            patches: self.data.labels.clone(),
+            fit_report: None,
+            input_gains: super::UNIT_GAINS,
+        }
+        .with_input_gains(self.gains)?;
+        let f32_bound = f32_error_bound(&model, &self.data.rgb, &self.data.xyz);
+        Ok(Solved {
+            model,
+            lambda,
+            de00,
+            iterations,
+            f32_bound,
+        })
+    }
+
+    /// Step 4: keeps `first` if its f32 evaluation error bound is within [`F32_TOLERANCE_DE00`];
+    /// otherwise refits at the smallest λ of [`f32_guard_grid`] above `first`'s whose bound is
+    /// (bisection: the bound falls as λ grows), returning it with the λ first asked for. A fit
+    /// that no λ of the grid makes safe is refused with [`ModelError::F32Unstable`].
+    fn guard_f32(&self, first: Solved) -> Result<(Solved, Option<f64>), ModelError> {
+        if first.f32_bound <= F32_TOLERANCE_DE00 {
+            return Ok((first, None));
+        }
+        let grid: Vec<f64> = f32_guard_grid().filter(|g| *g > first.lambda).collect();
+        let at = |lam: f64| {
+            self.reduced
+                .solve(lam)
+                .and_then(|(z, ..)| self.finish(lam, z))
+        };
+        let mut best: Option<Solved> = None;
+        let (mut lo, mut hi) = (0, grid.len());
+        while lo < hi {
+            let mid = (lo + hi) / 2;
+            let s = at(grid[mid])?;
+            if s.f32_bound <= F32_TOLERANCE_DE00 {
+                hi = mid;
+                best = Some(s);
+            } else {
+                lo = mid + 1;
+            }
+        }
+        match best {
+            Some(s) => Ok((s, Some(first.lambda))),
+            None => Err(ModelError::F32Unstable {
+                kind: self.kind,
+                order: self.order,
+                bound: first.f32_bound,
+                tolerance: F32_TOLERANCE_DE00,
+            }),
+        }
+    }
+
+    /// Step 5: the report, attached to the model.
+    fn report(&self, s: Solved, requested: Option<f64>) -> Fit {
+        let opts = self.opts;
+        let coefficient_norm = s.model.matrix.iter().map(|v| v * v).sum::<f64>().sqrt();
+        let report = FitReport {
+            objective: opts.objective.name(),
+            preserve_white: match (opts.preserve_white, &opts.white) {
+                (false, _) => "none".into(),
+                (true, White::Perfect) => "perfect-white".into(),
+                (true, White::Patch(l)) => format!("patch:{l}"),
+            },
+            normalise: opts.normalise.name().into(),
+            ridge_lambda: s.lambda,
+            ridge_auto: matches!(opts.ridge, Ridge::Auto | Ridge::AutoLoo),
+            ridge_criterion: match opts.ridge {
+                Ridge::Auto => Some("gcv".into()),
+                Ridge::AutoLoo => Some("loo".into()),
+                _ => None,
+            },
+            coefficient_norm,
+            condition_number: self.condition_number,
+            input_gains: self.gains,
+            de00_start: s.de00.map(|d| d.0),
+            de00_end: s.de00.map(|d| d.1),
+            iterations: s.iterations,
+            f32_error_bound: Some(s.f32_bound),
+            ridge_requested: requested,
+        };
+        let mut model = s.model;
+        model.fit_report = Some(report.clone());
+        Fit { model, report }
+    }
+}
+
+/// The λ of [`lambda_grid`] with the smallest criterion (`None`: not defined at that λ).
+fn best_on_grid(
+    mut criterion: impl FnMut(f64) -> Result<Option<(f64, DMatrix<f64>)>, ModelError>,
+) -> Result<(f64, DMatrix<f64>), ModelError> {
+    let mut best: Option<(f64, f64, DMatrix<f64>)> = None;
+    for lam in lambda_grid() {
+        if let Some((c, z)) = criterion(lam)? {
+            if best.as_ref().is_none_or(|b| c < b.1) {
+                best = Some((lam, c, z));
+            }
+        }
+    }
+    best.map(|(lam, _, z)| (lam, z))
+        .ok_or(ModelError::Degenerate)
+}
+
+fn gain(c: [f64; 3], g: [f64; 3]) -> [f64; 3] {
+    [c[0] * g[0], c[1] * g[1], c[2] * g[2]]
+}
+
+/// The input gains of a fit: 1 unless NSRM is white-balanced, then the reciprocal of the
+/// white's camera response (the perfect white's, or a named patch's).
+fn input_gains(kind: Kind, data: &TrainingSet, opts: &FitOptions) -> Result<[f64; 3], ModelError> {
+    if opts.normalise == Normalise::Raw {
+        return Ok(super::UNIT_GAINS);
+    }
+    if kind != Kind::Nsrm {
+        return Err(ModelError::Invalid(format!(
+            "white-balanced normalisation is defined for NSRM only, not {kind}"
+        )));
+    }
+    let w = match &opts.white {
+        White::Patch(label) => patch_rgb(data, label)?,
+        White::Perfect => data.white_rgb.ok_or(ModelError::NoWhite)?,
     };
-    let rgb: Vec<[f64; 3]> = data
-        .rgb
+    if w.iter().any(|v| !(v.is_finite() && *v > 0.0)) {
+        return Err(ModelError::Invalid(format!(
+            "the white's camera response {w:?} is not positive: it cannot be balanced"
+        )));
+    }
+    Ok([1.0 / w[0], 1.0 / w[1], 1.0 / w[2]])
+}
+
+/// The white constraint of `--preserve-white` (`None` without it): the white's terms (its camera
+/// RGB times the gains) must map exactly to its XYZ (scaled like the targets).
+fn white_constraint(
+    kind: Kind,
+    terms: &[Term],
+    data: &TrainingSet,
+    opts: &FitOptions,
+    gains: [f64; 3],
+) -> Result<Option<Constraint>, ModelError> {
+    if !opts.preserve_white {
+        return Ok(None);
+    }
+    let (w_rgb, w_xyz, label) = match &opts.white {
+        White::Patch(label) => {
+            let i = patch_index(data, label)?;
+            (data.rgb[i], data.xyz[i], label.clone())
+        }
+        White::Perfect => (
+            data.white_rgb.ok_or(ModelError::NoWhite)?,
+            data.white_xyz,
+            "perfect white".to_string(),
+        ),
+    };
+    let wd = design(kind, terms, &[label], &[gain(w_rgb, gains)], &[w_xyz])?;
+    let c: Vec<f64> = wd.a.row(0).iter().copied().collect();
+    Constraint::new(&c, [wd.b[(0, 0)], wd.b[(0, 1)], wd.b[(0, 2)]]).map(Some)
+}
+
+/// Unit roundoff of f32 (`2^-24`).
+const F32_UNIT: f64 = 1.0 / 16_777_216.0;
+
+/// The λ of [`f32_error_bound`]'s probabilistic bound (exceeded with probability `2·e^(-λ²/2)`).
+const F32_CONFIDENCE: f64 = 6.0;
+
+/// A bound on how much evaluating `model` in f32 (as the fast CPU kernels and the shaders do,
+/// from camera RGB rounded to f32) can change the ΔE00 of any of the patches `rgb` against its
+/// reference `xyz`, to first order: the largest over the patches.
+///
+/// Error analysis of `y_k = s·Σ_j m_kj·t_j` in the standard model of rounding: the product
+/// `x_j = m_kj·t_j` of a term of degree `d_j` passes through at most `n_j = 6 + 5·d_j + L`
+/// roundings of relative size `≤ u = 2^-24` (the input's rounding to f32, the roots — the CPU's
+/// cube root is within 2.2 u, the shaders' refined `pow` about as close — the products, NSRM's
+/// division by `s`, the coefficient's rounding, and a sum of L products). Taken as independent
+/// (Higham & Mary's probabilistic analysis, Hoeffding's inequality), the error of `y_k` exceeds
+/// `e_k = 6·s·u·√(Σ_j n_j·x_j²)` with a probability below `2·e^-18 ≈ 3e-8`; the worst case
+/// `s·u·Σ_j n_j·|x_j|` is reached only if every rounding goes the same way, and is far too
+/// pessimistic to judge a model by. The ΔE00 moves by at most `‖J·δy‖ ≤ ‖|J|·e‖`, `J` the
+/// Jacobian of the CIEDE2000 difference vector (whose norm is ΔE00) with respect to XYZ. Patches
+/// NSRM maps to 0 (`s ≤ 0`) add nothing. `tests/all/fit_apply_agree.rs` holds the CPU and GPU
+/// paths to what this promises.
+pub fn f32_error_bound(model: &Model, rgb: &[[f64; 3]], xyz: &[[f64; 3]]) -> f64 {
+    let white = model.white_xyz();
+    let l = model.len_terms();
+    let weight: Vec<f64> = model
+        .terms()
         .iter()
-        .map(|c| [c[0] * gains[0], c[1] * gains[1], c[2] * gains[2]])
+        .map(|t| (6 + 5 * t.degree() as usize + l) as f64)
         .collect();
-    let d = design(kind, &terms, &data.labels, &rgb, &data.xyz)?;
-
-    let constraint = match opts.preserve_white {
-        false => None,
-        true => {
-            let (w_rgb, w_xyz, label) = match &opts.white {
-                White::Patch(label) => {
-                    let i = patch_index(data, label)?;
-                    (data.rgb[i], data.xyz[i], label.clone())
-                }
-                White::Perfect => (white_rgb()?, data.white_xyz, "perfect white".to_string()),
-            };
-            let w_rgb = [
-                w_rgb[0] * gains[0],
-                w_rgb[1] * gains[1],
-                w_rgb[2] * gains[2],
-            ];
-            let wd = design(kind, &terms, &[label], &[w_rgb], &[w_xyz])?;
-            let c: Vec<f64> = wd.a.row(0).iter().copied().collect();
-            Some(Constraint::new(
-                &c,
-                [wd.b[(0, 0)], wd.b[(0, 1)], wd.b[(0, 2)]],
-            )?)
-        }
-    };
-
-    // Plain least squares takes the one SVD the paper's fit needs; the others reuse its design.
-    let plain = constraint.is_none() && opts.ridge == Ridge::None;
-    let a_svd = svd(d.a.clone(), plain)?;
-    let smax = a_svd.singular_values.max();
-    let smin = a_svd.singular_values.min();
-    let condition_number = (smin > 0.0).then(|| smax / smin);
-
-    let reduced = Reduced::new(kind, &terms, &d, constraint);
-    let (lambda, z) = if plain {
-        let eps = cutoff(&a_svd, n, l);
-        let z = a_svd.solve(&d.b, eps).map_err(|_| ModelError::Degenerate)?;
-        (0.0, z)
-    } else {
-        match opts.ridge {
-            Ridge::None => (0.0, reduced.solve(0.0)?.0),
-            Ridge::Lambda(lam) => (lam, reduced.solve(lam)?.0),
-            Ridge::Auto => {
-                let mut best: Option<(f64, f64, DMatrix<f64>)> = None;
-                for lam in lambda_grid() {
-                    let (z, rss, tr) = reduced.solve(lam)?;
-                    let dof = n as f64 - tr;
-                    if dof <= 0.0 {
-                        continue;
-                    }
-                    let gcv = n as f64 * rss / (dof * dof);
-                    if best.as_ref().is_none_or(|b| gcv < b.1) {
-                        best = Some((lam, gcv, z));
-                    }
-                }
-                let (lam, _, z) = best.ok_or(ModelError::Degenerate)?;
-                (lam, z)
+    let mut p = vec![0.0; l];
+    let mut worst = 0.0f64;
+    for (c, x) in rgb.iter().zip(xyz) {
+        let Some(s) = model.features_of(*c, &mut p) else {
+            continue;
+        };
+        let mut y = [0.0; 3];
+        let mut e = [0.0; 3];
+        for k in 0..3 {
+            for (j, m) in model.row(k).iter().enumerate() {
+                y[k] += s * m * p[j];
+                e[k] += weight[j] * (m * p[j]).powi(2);
             }
-            Ridge::AutoLoo => {
-                let mut best: Option<(f64, f64, DMatrix<f64>)> = None;
-                for lam in lambda_grid() {
-                    let (z, press) = reduced.press(lam)?;
-                    let Some(press) = press else { continue };
-                    if best.as_ref().is_none_or(|b| press < b.1) {
-                        best = Some((lam, press, z));
-                    }
-                }
-                let (lam, _, z) = best.ok_or(ModelError::Degenerate)?;
-                (lam, z)
-            }
+            e[k] = F32_CONFIDENCE * F32_UNIT * s.abs() * e[k].sqrt();
         }
-    };
+        let lab = crate::colorimetry::xyz_to_lab(*x, white);
+        let jac = crate::colorimetry::delta_e00_vector_xyz_jacobian(y, lab, white);
+        let moved: f64 = jac
+            .iter()
+            .map(|v| {
+                let r: f64 = (0..3).map(|k| v.d[k].abs() * e[k]).sum();
+                r * r
+            })
+            .sum::<f64>()
+            .sqrt();
+        // A non-finite bound (a patch at the edge of Lab's domain) counts as too large.
+        worst = if moved.is_finite() {
+            worst.max(moved)
+        } else {
+            f64::INFINITY
+        };
+    }
+    worst
+}
 
-    let (z, de00_start, de00_end, iterations) = match opts.objective {
-        Objective::LeastSquares => (z, None, None, 0),
-        Objective::De00 { power } => {
-            let r = refine::refine(&reduced, &d, &z, lambda, power, &data.xyz, data.white_xyz)?;
-            (r.z, Some(r.start), Some(r.end), r.iterations)
-        }
+/// How much the fast CPU path (f32, this machine's kernels) moves the ΔE00 of the patches `rgb`
+/// against their references `xyz`, measured: the largest `|ΔE00(f32) − ΔE00(f64)|`, the camera RGB
+/// rounded to f32 as a frame holds it. [`f32_error_bound`] bounds it on every back end.
+pub fn f32_error_measured(model: &Model, rgb: &[[f64; 3]], xyz: &[[f64; 3]]) -> f64 {
+    use crate::frame::{Frame, Layout};
+    let data: Vec<f32> = rgb.iter().flat_map(|c| c.map(|v| v as f32)).collect();
+    let Some(mut frame) = Frame::from_data(rgb.len(), 1, Layout::Rgb, data) else {
+        return f64::NAN;
     };
-    let x = if plain { z } else { reduced.full(&z) };
-    let mut matrix = vec![0.0; 3 * l];
-    for i in 0..3 {
-        for j in 0..l {
-            matrix[i * l + j] = x[(j, i)];
-        }
-    }
-    if matrix.iter().any(|v| !super::finite_in_f32(*v)) {
-        return Err(ModelError::Degenerate);
-    }
-    let coefficient_norm = matrix.iter().map(|v| v * v).sum::<f64>().sqrt();
-    let model = Model {
-        kind,
-        order,
-        terms,
-        matrix,
-        white_xyz: data.white_xyz,
-        provenance: data.provenance.clone(),
-        patches: data.labels.clone(),
-        fit_report: None,
-        input_gains: super::UNIT_GAINS,
-    };
-    let model = model.with_input_gains(gains)?;
-    let report = FitReport {
-        objective: opts.objective.name(),
-        preserve_white: match (opts.preserve_white, &opts.white) {
-            (false, _) => "none".into(),
-            (true, White::Perfect) => "perfect-white".into(),
-            (true, White::Patch(l)) => format!("patch:{l}"),
-        },
-        normalise: opts.normalise.name().into(),
-        ridge_lambda: lambda,
-        ridge_auto: matches!(opts.ridge, Ridge::Auto | Ridge::AutoLoo),
-        ridge_criterion: match opts.ridge {
-            Ridge::Auto => Some("gcv".into()),
-            Ridge::AutoLoo => Some("loo".into()),
-            _ => None,
-        },
-        coefficient_norm,
-        condition_number,
-        input_gains: gains,
-        de00_start,
-        de00_end,
-        iterations,
-    };
-    let mut model = model;
-    model.fit_report = Some(report.clone());
-    Ok(Fit { model, report })
+    super::fast::FastModel::new(model).apply(&mut frame, super::fast::Threads::Single);
+    let white = model.white_xyz();
+    let de = crate::colorimetry::delta_e00_xyz;
+    rgb.iter()
+        .zip(xyz)
+        .zip(frame.data.chunks_exact(3))
+        .map(|((c, x), y)| {
+            let fast = [y[0] as f64, y[1] as f64, y[2] as f64];
+            (de(fast, *x, white) - de(model.apply_f64(*c), *x, white)).abs()
+        })
+        .fold(0.0, f64::max)
 }
 
 fn patch_index(data: &TrainingSet, label: &str) -> Result<usize, ModelError> {
@@ -729,6 +973,47 @@ mod tests {
                 assert!(worst < 1e-6, "{kind} {order} λ {lam}: {worst:e}");
             }
         }
+    }
+
+    #[test]
+    fn f32_guard_raises_lambda_only_where_f32_cannot_evaluate_the_fit() {
+        // RPRM 4 on the Nikon's rawtoaces-190: unregularised, its coefficients (about 1e7) cancel
+        // in f32; the guard raises λ until the bound is within the tolerance, and says so.
+        let data = crate::spectral::simulate_named(
+            "nikon-d5100",
+            "D65",
+            "rawtoaces-190",
+            &crate::spectral::Grid::default(),
+        )
+        .unwrap();
+        let f = fit_with(Kind::Rprm, 4, &data, &FitOptions::default()).unwrap();
+        let r = &f.report;
+        assert_eq!(r.ridge_requested, Some(0.0), "{r:?}");
+        assert!(r.ridge_lambda > 0.0 && f32_guard_grid().any(|l| l == r.ridge_lambda));
+        let bound = r.f32_error_bound.unwrap();
+        assert!(bound <= F32_TOLERANCE_DE00, "{bound}");
+        assert_eq!(bound, f32_error_bound(&f.model, &data.rgb, &data.xyz));
+        // The unregularised fit's bound is far above it, and the CPU's f32 error is real there.
+        let t = terms(Kind::Rprm, 4);
+        let d = design(Kind::Rprm, &t, &data.labels, &data.rgb, &data.xyz).unwrap();
+        let z = lstsq(d.a, &d.b).unwrap();
+        let l = t.len();
+        let matrix: Vec<f64> = (0..3 * l).map(|i| z[(i % l, i / l)]).collect();
+        let raw = Model::from_matrix(Kind::Rprm, 4, matrix)
+            .unwrap()
+            .with_white_xyz(data.white_xyz)
+            .unwrap();
+        let raw_bound = f32_error_bound(&raw, &data.rgb, &data.xyz);
+        let raw_measured = f32_error_measured(&raw, &data.rgb, &data.xyz);
+        assert!(raw_bound > 10.0 * F32_TOLERANCE_DE00, "{raw_bound}");
+        assert!(raw_measured > F32_TOLERANCE_DE00, "{raw_measured}");
+        assert!(raw_measured <= raw_bound, "{raw_measured} > {raw_bound}");
+        // What the guard kept is within its bound on this CPU too.
+        assert!(f32_error_measured(&f.model, &data.rgb, &data.xyz) <= bound);
+        // NSRM 3 here is well conditioned: left alone.
+        let n = fit_with(Kind::Nsrm, 3, &data, &FitOptions::default()).unwrap();
+        assert_eq!(n.report.ridge_requested, None);
+        assert_eq!(n.report.ridge_lambda, 0.0);
     }
 
     #[test]

@@ -43,6 +43,15 @@ pub enum ModelError {
     NonPositiveSignal { label: String, sum: f64 },
     #[error("the fit produced a non-finite matrix (the training data is degenerate)")]
     Degenerate,
+    /// No ridge λ makes the model's f32 evaluation (fast CPU path, shaders) reproduce its f64
+    /// in-sample ΔE00: the terms are too nearly collinear on this data.
+    #[error("{kind} order {order}: evaluating the fitted model in f32 (as apply does) could change a training patch's ΔE00 by up to {bound:.3}, more than {tolerance}, and no ridge λ up to 100 brings it within: the terms are too nearly collinear on this data (choose a lower order)")]
+    F32Unstable {
+        kind: Kind,
+        order: u8,
+        bound: f64,
+        tolerance: f64,
+    },
     #[error("training patch `{label}`: {what} = {value:.3e} is outside the range a fit accepts (0, or 1e-100 ≤ |v| ≤ 1e100): check the data's scale")]
     OutOfRange {
         label: String,

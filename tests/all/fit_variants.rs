@@ -80,12 +80,24 @@ fn de00_is_never_worse_than_its_start_and_deterministic() {
                 let Objective::De00 { power } = opts.objective else {
                     unreachable!()
                 };
+                let f = fit_with(kind, order, &data, &opts).unwrap();
+                let r = &f.report;
                 let start = FitOptions {
                     objective: Objective::LeastSquares,
                     ..opts.clone()
                 };
                 let s = fit_with(kind, order, &data, &start).unwrap();
-                let f = fit_with(kind, order, &data, &opts).unwrap();
+                if r.ridge_requested.is_some() || s.report.ridge_requested.is_some() {
+                    // The f32 guard raised λ for one of the two (the least-squares start of the
+                    // refinement is then not the least-squares fit): the refinement is still
+                    // never worse than its own start.
+                    assert!(
+                        r.de00_end.unwrap() <= r.de00_start.unwrap(),
+                        "{kind}{order}"
+                    );
+                    assert!(r.f32_error_bound.unwrap() <= nsrm::model::fit::F32_TOLERANCE_DE00);
+                    continue;
+                }
                 let obj = |f: &Fit| {
                     in_sample(f, &data)
                         .iter()
@@ -93,7 +105,6 @@ fn de00_is_never_worse_than_its_start_and_deterministic() {
                         .sum::<f64>()
                 };
                 let (s0, s1) = (obj(&s), obj(&f));
-                let r = &f.report;
                 assert!(
                     (r.de00_start.unwrap() - s0).abs() <= 1e-9 * s0,
                     "{kind}{order} {opts:?}"
@@ -178,14 +189,15 @@ fn ridge_shrinks_coefficients_and_auto_picks_from_the_grid() {
     let r1 = norm(Ridge::Lambda(1e-6));
     let r2 = norm(Ridge::Lambda(1e-3));
     assert!(ls.coefficient_norm > r1.coefficient_norm && r1.coefficient_norm > r2.coefficient_norm);
-    assert!(ls.coefficient_norm > 5000.0, "{}", ls.coefficient_norm);
+    // Unregularised, RPRM 3's coefficients here are too large to evaluate in f32 as apply does:
+    // the fit raised λ just enough (F32_TOLERANCE_DE00), far below 1e-6, and says so.
+    assert_eq!(ls.ridge_requested, Some(0.0), "{ls:?}");
+    assert!(ls.ridge_lambda > 0.0 && ls.ridge_lambda < 1e-6, "{ls:?}");
+    assert!(ls.f32_error_bound.unwrap() <= nsrm::model::fit::F32_TOLERANCE_DE00);
     let auto = norm(Ridge::Auto);
     assert!(auto.ridge_auto && auto.ridge_lambda > 0.0);
     assert!(nsrm::model::fit::lambda_grid().any(|l| l == auto.ridge_lambda));
-    assert!(
-        auto.coefficient_norm < ls.coefficient_norm / 10.0,
-        "{auto:?}"
-    );
+    assert!(auto.coefficient_norm < r1.coefficient_norm, "{auto:?}");
     // The condition number is that of the design, whatever the regularisation.
     assert_eq!(ls.condition_number, auto.condition_number);
     assert!(ls.condition_number.unwrap() > 1e4);
@@ -195,7 +207,7 @@ fn ridge_shrinks_coefficients_and_auto_picks_from_the_grid() {
     assert!(loo.ridge_auto && loo.ridge_lambda > 0.0);
     assert_eq!(loo.ridge_criterion.as_deref(), Some("loo"));
     assert!(nsrm::model::fit::lambda_grid().any(|l| l == loo.ridge_lambda));
-    assert!(loo.coefficient_norm < ls.coefficient_norm / 10.0, "{loo:?}");
+    assert!(loo.coefficient_norm < r1.coefficient_norm, "{loo:?}");
     eprintln!(
         "RPRM3 rawtoaces-190 D65: λ GCV {:e} (norm {:.1}), λ LOO {:e} (norm {:.1})",
         auto.ridge_lambda, auto.coefficient_norm, loo.ridge_lambda, loo.coefficient_norm

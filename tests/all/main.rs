@@ -26,6 +26,8 @@ mod farm;
 mod fast;
 #[cfg(feature = "cli")]
 mod first_hour;
+#[cfg(feature = "cli")]
+mod fit_apply_agree;
 mod fit_hostile;
 mod fit_variants;
 #[cfg(all(feature = "gpu", feature = "io"))]

@@ -76,7 +76,7 @@ fn commands() -> BTreeMap<String, BTreeSet<String>> {
             let code = l.split(" #").next().unwrap_or("");
             let words: Vec<&str> = code.split_whitespace().collect();
             let mut sub = words[1].to_string();
-            if matches!(sub.as_str(), "chart") {
+            if matches!(sub.as_str(), "chart" | "farm") && words.len() > 2 {
                 sub = format!("{sub} {}", words[2]);
             }
             let flags = out.entry(sub).or_default();

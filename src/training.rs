@@ -90,6 +90,10 @@ pub struct CaptureProvenance {
     pub light_nonuniformity: f64,
     /// Median ΔE00 of the patches against the reference after the best 3×3 linear map.
     pub reference_match_de00: f64,
+    /// The camera (`make model`) of a camera raw frame, as the file records it; absent for
+    /// EXR / TIFF frames and in files written before it existed.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub camera: Option<String>,
 }
 
 /// Patches with camera RGB and reference XYZ, and the reference white (for Lab).

@@ -49,11 +49,18 @@ pub struct CaptureOptions {
     #[arg(long, value_name = "N", default_value_t = nsrm::io::DEFAULT_MAX_PIXELS,
           value_parser = clap::value_parser!(u64).range(1..))]
     pub max_pixels: u64,
+    /// How a camera raw frame (and flat frame) is demosaiced: half (one pixel per 2×2 CFA block,
+    /// no interpolation: the chart reading of profiling tools), bilinear (LibRaw's), or mhc
+    /// (Malvar-He-Cutler).
+    #[arg(long, value_enum, ignore_case = true, default_value_t = values::Demosaic::Half)]
+    pub demosaic: values::Demosaic,
 }
 
 /// A read chart.
 pub struct Capture {
     pub frame: Frame,
+    /// `make model` of a camera raw frame.
+    pub camera: Option<String>,
     pub frame_path: PathBuf,
     pub sha256: String,
     pub reference: Reference,
@@ -112,11 +119,12 @@ impl CaptureOptions {
         let limits = nsrm::io::Limits {
             max_pixels: self.max_pixels,
         };
-        let frame = nsrm::io::read_frame(
+        let (frame, camera) = nsrm::io::read_frame_and_camera(
             path,
             &nsrm::io::ReadOptions {
                 layer: self.layer.clone(),
                 limits,
+                demosaic: self.demosaic.into(),
             },
         )?;
         let sha256 = sha256_file(path)?;
@@ -154,6 +162,7 @@ impl CaptureOptions {
                     Path::new(f),
                     &nsrm::io::ReadOptions {
                         limits,
+                        demosaic: self.demosaic.into(),
                         ..Default::default()
                     },
                 )
@@ -179,6 +188,7 @@ impl CaptureOptions {
             );
         }
         Ok(Capture {
+            camera: camera.map(|c| c.camera()),
             frame,
             frame_path: path.to_path_buf(),
             sha256,
@@ -249,6 +259,7 @@ impl Capture {
                 .map_or("none".to_string(), |f| f.method.clone()),
             light_nonuniformity: self.flat.as_ref().map_or(1.0, |f| f.nonuniformity),
             reference_match_de00: self.score,
+            camera: self.camera.clone(),
         }
     }
 

@@ -62,8 +62,24 @@ enum Command {
     RenderScene(render_scene::Args),
 }
 
+/// A panic inside the camera-raw decoder (rawler) on a damaged file is caught by the library
+/// and reported as that file's error; the default hook would also print it as if nsrm had
+/// crashed. Every other panic is printed as before.
+fn quiet_contained_panics() {
+    let default = std::panic::take_hook();
+    std::panic::set_hook(Box::new(move |info| {
+        let in_decoder = info
+            .location()
+            .is_some_and(|l| l.file().contains("rawler-") || l.file().contains("/rawler/"));
+        if !in_decoder {
+            default(info);
+        }
+    }));
+}
+
 /// Parses the command line, runs the subcommand, and maps errors to exit codes.
 pub fn main() -> ExitCode {
+    quiet_contained_panics();
     let cli = match Cli::try_parse() {
         Ok(c) => c,
         Err(e) => {

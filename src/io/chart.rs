@@ -326,6 +326,7 @@ pub fn write(
                 space: None,
                 text: &[("comments", &describe), ("nsrmChartLayout", &layout_name)],
                 overwrite,
+                camera: None,
             },
         )?;
     }
@@ -358,6 +359,7 @@ pub fn write_camera_frame(
                 space: None,
                 text: &[("comments", comments)],
                 overwrite,
+                camera: None,
             },
         )
     }

@@ -673,7 +673,9 @@ fn camera_attributes(attributes: &mut LayerAttributes, c: &super::raw::CameraInf
     attributes.aperture = c.aperture;
     if let Some([r, g, b]) = c.as_shot_neutral {
         if let Some(k) = Text::new_or_none("nsrmAsShotNeutral") {
-            attributes.other.insert(k, AttributeValue::FloatVec3((r, g, b)));
+            attributes
+                .other
+                .insert(k, AttributeValue::FloatVec3((r, g, b)));
         }
     }
 }

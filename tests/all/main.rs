@@ -45,7 +45,7 @@ mod io;
 mod model_properties;
 mod paper_table1;
 mod parsers_fuzz;
-#[cfg(feature = "cli")]
-mod raw;
 #[cfg(feature = "gpu")]
 mod pixel_policy;
+#[cfg(feature = "cli")]
+mod raw;

@@ -89,8 +89,18 @@ fn half_gives_the_exact_block_means_of_the_mosaic_written() {
         write_dng(
             &p,
             &[
-                "--width", w, "--height", h, "--pattern", pattern, "--black", black, "--white",
-                white, "--seed", &seed,
+                "--width",
+                w,
+                "--height",
+                h,
+                "--pattern",
+                pattern,
+                "--black",
+                black,
+                "--white",
+                white,
+                "--seed",
+                &seed,
             ],
         );
         let want = f32s(&PathBuf::from(format!("{}.half.f32", p.display())));
@@ -119,8 +129,19 @@ fn bilinear_matches_libraw_linear_in_the_interior() {
         write_dng(
             &p,
             &[
-                "--width", "80", "--height", "60", "--pattern", pattern, "--black",
-                "256,260,250,262", "--white", "16383", "--seed", &seed, "--smooth",
+                "--width",
+                "80",
+                "--height",
+                "60",
+                "--pattern",
+                pattern,
+                "--black",
+                "256,260,250,262",
+                "--white",
+                "16383",
+                "--seed",
+                &seed,
+                "--smooth",
             ],
         );
         let lin = dir.join(format!("b{i}.lin.f32"));
@@ -180,7 +201,11 @@ fn extract(dir: &Path, frame: &Path, extra: &[&str]) -> Vec<(String, [f64; 3])> 
     args.extend_from_slice(extra);
     let o = nsrm_in(dir, &args);
     no_crash(&o, "chart extract");
-    assert!(o.status.success(), "chart extract {frame:?}: {}", stderr(&o));
+    assert!(
+        o.status.success(),
+        "chart extract {frame:?}: {}",
+        stderr(&o)
+    );
     std::fs::read_to_string(&csv)
         .unwrap()
         .lines()
@@ -219,7 +244,11 @@ fn colorchart_dng_half_matches_libraw_half_size() {
     let tiff = dir.join("chart.dng.tiff");
     let libraw = extract(&dir, &tiff, &[]);
     let ours = extract(&dir, &copy, &["--demosaic", "half"]);
-    assert!(libraw.len() >= 20, "LibRaw's reading: {} patches", libraw.len());
+    assert!(
+        libraw.len() >= 20,
+        "LibRaw's reading: {} patches",
+        libraw.len()
+    );
     // One global scale (LibRaw's 16-bit scale), the median of the ratios.
     let mut pairs = Vec::new();
     for (l, a) in &ours {
@@ -238,7 +267,12 @@ fn colorchart_dng_half_matches_libraw_half_size() {
     for (l, a, b) in &pairs {
         for c in 0..3 {
             let e = (a[c] * s - b[c]).abs() / b[c];
-            assert!(e <= 0.005, "{l} channel {c}: nsrm {} vs LibRaw {} (×{s})", a[c], b[c]);
+            assert!(
+                e <= 0.005,
+                "{l} channel {c}: nsrm {} vs LibRaw {} (×{s})",
+                a[c],
+                b[c]
+            );
             worst = worst.max(e);
         }
     }
@@ -267,23 +301,45 @@ fn apply_on_a_raw_file_writes_exr_with_the_camera_in_its_header() {
     let o = nsrm_in(
         &dir,
         &[
-            "apply", "--model", "m.json", "--device", "cpu", "--output-space", "aces2065-1",
-            "-o", "out", "shot.dng",
+            "apply",
+            "--model",
+            "m.json",
+            "--device",
+            "cpu",
+            "--output-space",
+            "aces2065-1",
+            "-o",
+            "out",
+            "shot.dng",
         ],
     );
     no_crash(&o, "apply");
     assert!(o.status.success(), "{}", stderr(&o));
-    assert_eq!(common::bytes(&dir.join("shot.dng")), before, "input untouched");
-    let exr = dir.join("out/shot.exr");
+    assert_eq!(
+        common::bytes(&dir.join("shot.dng")),
+        before,
+        "input untouched"
+    );
+    let names = common::names(&dir.join("out"));
+    assert_eq!(names.len(), 1, "{names:?}");
+    let exr = dir.join("out").join(&names[0]);
     let meta = exr::meta::MetaData::read_from_file(&exr, false).unwrap();
     let h = &meta.headers[0];
     assert_eq!(h.layer_size.0, 40, "mhc keeps full resolution");
-    let text = |k: &str| match h.own_attributes.other.get(&exr::meta::attribute::Text::from(k)) {
+    let text = |k: &str| match h
+        .own_attributes
+        .other
+        .get(&exr::meta::attribute::Text::from(k))
+    {
         Some(exr::meta::attribute::AttributeValue::Text(t)) => t.to_string(),
         v => panic!("{k}: {v:?}"),
     };
     assert_eq!(text("cameraMake"), "Acme");
-    assert!(text("cameraModel").contains("Synth 9"), "{}", text("cameraModel"));
+    assert!(
+        text("cameraModel").contains("Synth 9"),
+        "{}",
+        text("cameraModel")
+    );
     assert_eq!(h.own_attributes.iso_speed, Some(400.0));
     assert!((h.own_attributes.exposure.unwrap() - 1.0 / 125.0).abs() < 1e-7);
     match h
@@ -292,7 +348,9 @@ fn apply_on_a_raw_file_writes_exr_with_the_camera_in_its_header() {
         .get(&exr::meta::attribute::Text::from("nsrmAsShotNeutral"))
     {
         Some(exr::meta::attribute::AttributeValue::FloatVec3((r, g, b))) => {
-            assert!((r - 0.5).abs() < 1e-6 && (g - 1.0).abs() < 1e-6 && (b - 2.0 / 3.0).abs() < 1e-6)
+            assert!(
+                (r - 0.5).abs() < 1e-6 && (g - 1.0).abs() < 1e-6 && (b - 2.0 / 3.0).abs() < 1e-6
+            )
         }
         v => panic!("nsrmAsShotNeutral: {v:?}"),
     }
@@ -311,12 +369,19 @@ fn bad_raw_files_are_refused_and_the_batch_goes_on() {
     common::model(&dir);
     std::fs::create_dir_all(dir.join("in")).unwrap();
     let good = dir.join("in/a_good.dng");
-    write_dng(&good, &["--width", "32", "--height", "24", "--white", "4095"]);
+    write_dng(
+        &good,
+        &["--width", "32", "--height", "24", "--white", "4095"],
+    );
     let bytes = common::bytes(&good);
     // Truncated: the header and half the pixels.
     std::fs::write(dir.join("in/b_truncated.dng"), &bytes[..bytes.len() / 2]).unwrap();
     // Huge dimensions: ImageWidth / ImageLength set to 2^30 × 2^30 in every IFD entry.
-    std::fs::write(dir.join("in/c_huge.dng"), with_dims(&bytes, 1 << 30, 1 << 30)).unwrap();
+    std::fs::write(
+        dir.join("in/c_huge.dng"),
+        with_dims(&bytes, 1 << 30, 1 << 30),
+    )
+    .unwrap();
     // Corrupt tags: every entry's type scrambled in the first IFD.
     std::fs::write(dir.join("in/d_corrupt_tags.dng"), scramble_types(&bytes)).unwrap();
     // A JPEG renamed .dng.
@@ -328,7 +393,13 @@ fn bad_raw_files_are_refused_and_the_batch_goes_on() {
         let o = nsrm_in(
             &dir,
             &[
-                "apply", "--model", "m.json", "--device", "cpu", "-o", "single",
+                "apply",
+                "--model",
+                "m.json",
+                "--device",
+                "cpu",
+                "-o",
+                "single",
                 &format!("in/{bad}.dng"),
             ],
         );
@@ -344,19 +415,37 @@ fn bad_raw_files_are_refused_and_the_batch_goes_on() {
     let o = nsrm_in(
         &dir,
         &[
-            "apply", "--model", "m.json", "--device", "cpu", "--continue-on-error", "-o", "out",
+            "apply",
+            "--model",
+            "m.json",
+            "--device",
+            "cpu",
+            "--continue-on-error",
+            "-o",
+            "out",
             "in",
         ],
     );
     no_crash(&o, "batch");
     assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
-    assert_eq!(common::names(&dir.join("out")), vec!["a_good.exr".to_string()]);
+    assert_eq!(
+        common::names(&dir.join("out")),
+        vec!["a_good.exr".to_string()]
+    );
     // --max-pixels is checked before decoding.
     let o = nsrm_in(
         &dir,
         &[
-            "apply", "--model", "m.json", "--device", "cpu", "--max-pixels", "100", "-o",
-            "small", "in/a_good.dng",
+            "apply",
+            "--model",
+            "m.json",
+            "--device",
+            "cpu",
+            "--max-pixels",
+            "100",
+            "-o",
+            "small",
+            "in/a_good.dng",
         ],
     );
     assert!(!o.status.success());
@@ -368,7 +457,10 @@ fn bad_raw_files_are_refused_and_the_batch_goes_on() {
             ..Default::default()
         },
     );
-    assert!(matches!(r, Err(nsrm::io::IoError::OverLimit { .. })), "{r:?}");
+    assert!(
+        matches!(r, Err(nsrm::io::IoError::OverLimit { .. })),
+        "{r:?}"
+    );
 }
 
 /// The TIFF header's byte order and the first IFD's entries (tag, type, count, value offset).

@@ -217,7 +217,12 @@ fn develop(path: &Path, image: &rawler::RawImage, demosaic: Demosaic) -> Result<
                 return rawler_develop(path, image);
             }
         }
-        P::Cfa(_) => return Err(corrupt(path, "a CFA image with more than one sample per pixel")),
+        P::Cfa(_) => {
+            return Err(corrupt(
+                path,
+                "a CFA image with more than one sample per pixel",
+            ))
+        }
         _ => None,
     };
     let Some(cfa) = bayer else {

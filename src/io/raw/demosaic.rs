@@ -36,23 +36,25 @@ impl Mosaic<'_> {
             return Err(corrupt(path, "the image is smaller than one 2×2 block"));
         }
         let mut data = crate::io::try_zeroed::<f32>(path, ow * oh * 3)?;
-        data.par_chunks_mut(ow * 3).enumerate().for_each(|(by, row)| {
-            for (bx, px) in row.chunks_exact_mut(3).enumerate() {
-                let mut sum = [0f32; 3];
-                let mut n = [0u8; 3];
-                for dy in 0..2 {
-                    for dx in 0..2 {
-                        let (y, x) = (by * 2 + dy, bx * 2 + dx);
-                        let c = self.colour(y, x);
-                        sum[c] += self.plane[y * self.w + x];
-                        n[c] += 1;
+        data.par_chunks_mut(ow * 3)
+            .enumerate()
+            .for_each(|(by, row)| {
+                for (bx, px) in row.chunks_exact_mut(3).enumerate() {
+                    let mut sum = [0f32; 3];
+                    let mut n = [0u8; 3];
+                    for dy in 0..2 {
+                        for dx in 0..2 {
+                            let (y, x) = (by * 2 + dy, bx * 2 + dx);
+                            let c = self.colour(y, x);
+                            sum[c] += self.plane[y * self.w + x];
+                            n[c] += 1;
+                        }
+                    }
+                    for c in 0..3 {
+                        px[c] = sum[c] / f32::from(n[c].max(1));
                     }
                 }
-                for c in 0..3 {
-                    px[c] = sum[c] / f32::from(n[c].max(1));
-                }
-            }
-        });
+            });
         Ok(Self::frame(ow, oh, data))
     }
 
@@ -166,7 +168,8 @@ impl Mosaic<'_> {
                 let v = match own {
                     1 => {
                         // Green pixel: the colour along its row and the one along its column.
-                        let along_row = (5.0 * c + 4.0 * horiz1 - diag - horiz2 + 0.5 * vert2) / 8.0;
+                        let along_row =
+                            (5.0 * c + 4.0 * horiz1 - diag - horiz2 + 0.5 * vert2) / 8.0;
                         let along_col = (5.0 * c + 4.0 * vert1 - diag - vert2 + 0.5 * horiz2) / 8.0;
                         if row_has_red {
                             [along_row, c, along_col]
@@ -197,7 +200,11 @@ impl Mosaic<'_> {
 mod tests {
     use super::*;
 
-    fn mosaic_of(w: usize, h: usize, f: impl Fn(usize, usize, usize) -> f32) -> (Vec<f32>, [u8; 4]) {
+    fn mosaic_of(
+        w: usize,
+        h: usize,
+        f: impl Fn(usize, usize, usize) -> f32,
+    ) -> (Vec<f32>, [u8; 4]) {
         let pattern = [0u8, 1, 1, 2]; // RGGB
         let mut p = vec![0.0; w * h];
         for y in 0..h {
@@ -232,8 +239,9 @@ mod tests {
     #[test]
     fn mhc_is_exact_on_linear_ramps_and_bilinear_is_not_on_quadratics() {
         // A linear ramp in each channel is reproduced exactly by both interpolations.
-        let (plane, pattern) =
-            mosaic_of(16, 16, |y, x, c| 0.01 * (c as f32 + 1.0) * (x as f32 + 2.0 * y as f32));
+        let (plane, pattern) = mosaic_of(16, 16, |y, x, c| {
+            0.01 * (c as f32 + 1.0) * (x as f32 + 2.0 * y as f32)
+        });
         let m = Mosaic {
             plane: &plane,
             w: 16,

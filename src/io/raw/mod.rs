@@ -73,7 +73,10 @@ impl Demosaic {
 
     /// The name [`parse`](Self::parse) takes.
     pub fn name(self) -> &'static str {
-        Self::ALL.iter().find(|(d, _)| *d == self).map_or("?", |(_, n)| n)
+        Self::ALL
+            .iter()
+            .find(|(d, _)| *d == self)
+            .map_or("?", |(_, n)| n)
     }
 }
 

@@ -33,6 +33,7 @@ fn main() -> Result<()> {
         bail!("unknown compression `{compression}`");
     };
     std::fs::create_dir_all(&dir).with_context(|| format!("creating {}", dir.display()))?;
+    let session = nsrm::output::Session::new(true);
     for i in 0..count {
         let frame = plate(w, h, 1001 + u64::from(i));
         let path = dir.join(format!("plate.{}.exr", 1001 + i));
@@ -41,10 +42,12 @@ fn main() -> Result<()> {
             half: false,
             compression,
             space: OutputSpace::Acescg,
-            overwrite: true,
             zip_level: DEFAULT_ZIP_LEVEL,
         };
-        write_exr(&frame, &path, &opts).with_context(|| format!("writing {}", path.display()))?;
+        let mut unit = session.unit();
+        write_exr(&frame, &path, &opts, &mut unit)
+            .with_context(|| format!("writing {}", path.display()))?;
+        unit.commit()?;
         println!("{}", path.display());
     }
     Ok(())

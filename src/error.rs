@@ -14,6 +14,7 @@
 //! asks any error, as [`is_usage`] does).
 
 use crate::model::ModelError;
+use crate::output::WriteError;
 use crate::spectral::SpectralError;
 use crate::training::TrainingError;
 
@@ -67,11 +68,15 @@ impl SpectralError {
 }
 
 impl TrainingError {
-    /// True for a malformed patch selection or white point.
+    /// True for a malformed patch selection or white point, a white that is missing or that
+    /// contradicts the file's.
     pub fn is_usage(&self) -> bool {
         matches!(
             self,
-            TrainingError::PatchSpec { .. } | TrainingError::White { .. }
+            TrainingError::PatchSpec { .. }
+                | TrainingError::White { .. }
+                | TrainingError::NeedsWhite { .. }
+                | TrainingError::WhiteConflict { .. }
         )
     }
 }
@@ -104,6 +109,11 @@ impl crate::io::IoError {
             self,
             IoError::NoMatch { .. }
                 | IoError::Shard { .. }
+                | IoError::Write(
+                    WriteError::OutputIsInput { .. }
+                        | WriteError::SameOutput { .. }
+                        | WriteError::NoFileName(_)
+                )
                 | IoError::Param {
                     concern: Concern::Value(_),
                     ..
@@ -137,7 +147,11 @@ impl crate::io::batch::PlanError {
 impl crate::export::ExportError {
     /// True for export options out of range.
     pub fn is_usage(&self) -> bool {
-        matches!(self, crate::export::ExportError::Usage(_))
+        match self {
+            crate::export::ExportError::Usage(_) => true,
+            crate::export::ExportError::Write(w) => w.is_usage(),
+            _ => false,
+        }
     }
 }
 
@@ -207,6 +221,7 @@ pub fn is_usage(err: &(dyn std::error::Error + 'static)) -> bool {
         SpectralError,
         TrainingError,
         ModelError,
+        WriteError,
         #[cfg(feature = "io")]
         crate::io::IoError,
         #[cfg(feature = "io")]

@@ -44,7 +44,6 @@
 #![forbid(unsafe_code)]
 #![cfg_attr(docsrs, feature(doc_auto_cfg))]
 
-pub mod atomic;
 #[cfg(feature = "chart")]
 pub mod chart;
 pub mod colorimetry;
@@ -60,6 +59,7 @@ pub mod gpu;
 pub mod io;
 pub mod limits;
 pub mod model;
+pub mod output;
 pub mod spectral;
 pub mod training;
 

@@ -1,9 +1,10 @@
 //! Bounds on what a file may make this crate do before anything is allocated.
 //!
 //! * **Text inputs** (model JSON, camera / illuminant / reflectance CSVs, measured training CSVs,
-//!   chart layouts) are read by [`read_text`]: regular files only (a FIFO, a device such as
-//!   `/dev/zero`, a socket or a directory is refused by name, before it is opened), at most
-//!   [`MAX_TEXT_BYTES`] (64 MiB), valid UTF-8, a leading UTF-8 byte-order mark dropped.
+//!   chart layouts) are read by [`read_text`]: regular files, FIFOs and pipes (a shell's
+//!   `<(cat m.json)`); a device such as `/dev/zero`, a socket or a directory is refused by
+//!   name, before it is opened; at most [`MAX_TEXT_BYTES`] (64 MiB) whatever the file claims,
+//!   valid UTF-8, a leading UTF-8 byte-order mark dropped.
 //! * **Frames** are bounded by `io::Limits` (pixels per frame, `--max-pixels`).
 
 use std::io::{Error, ErrorKind, Read};
@@ -62,16 +63,38 @@ pub fn check_regular(path: &Path) -> std::io::Result<std::fs::Metadata> {
     Ok(meta)
 }
 
-/// Reads a text input: a regular file of at most `cap` bytes, UTF-8, with a leading byte-order
-/// mark removed. The errors are plain [`std::io::Error`]s whose message says what is wrong
-/// (`not a regular file (it is a character device)`, `larger than the 64 MiB limit for text
-/// inputs`, …); callers add the path.
+/// Whether a text input may be read from `meta`'s file: a regular file, or a FIFO / pipe
+/// (streamed, with the same size cap); never a device, socket or directory.
+fn readable_text(meta: &std::fs::Metadata) -> bool {
+    #[cfg(unix)]
+    {
+        use std::os::unix::fs::FileTypeExt;
+        if meta.file_type().is_fifo() {
+            return true;
+        }
+    }
+    meta.is_file()
+}
+
+/// Reads a text input: a regular file or a FIFO / pipe, of at most `cap` bytes, UTF-8, with a
+/// leading byte-order mark removed. The errors are plain [`std::io::Error`]s whose message says
+/// what is wrong (`not a regular file or pipe (it is a character device)`, `larger than the 64
+/// MiB limit for text inputs`, …); callers add the path.
 pub fn read_text_capped(path: &Path, cap: u64) -> std::io::Result<String> {
-    check_regular(path)?;
+    let not_text = |meta: &std::fs::Metadata| {
+        Error::new(
+            ErrorKind::InvalidInput,
+            format!("not a regular file or pipe (it is {})", file_kind(meta)),
+        )
+    };
+    let meta = std::fs::metadata(path)?;
+    if !readable_text(&meta) {
+        return Err(not_text(&meta));
+    }
     let file = std::fs::File::open(path)?;
     let meta = file.metadata()?;
-    if !meta.is_file() {
-        return Err(not_regular(&meta));
+    if !readable_text(&meta) {
+        return Err(not_text(&meta));
     }
     let too_big = || {
         Error::new(
@@ -85,7 +108,7 @@ pub fn read_text_capped(path: &Path, cap: u64) -> std::io::Result<String> {
     // The size can change after the check: read at most cap + 1 bytes whatever it says.
     let mut bytes = Vec::new();
     bytes
-        .try_reserve_exact(meta.len() as usize)
+        .try_reserve_exact(meta.len().min(cap) as usize)
         .map_err(|_| Error::new(ErrorKind::OutOfMemory, "not enough memory to read it"))?;
     file.take(cap + 1).read_to_end(&mut bytes)?;
     if bytes.len() as u64 > cap {
@@ -146,11 +169,7 @@ mod tests {
             "{e}"
         );
         let e = read_text(dir.path()).unwrap_err();
-        assert!(
-            e.to_string()
-                .contains("not a regular file (it is a directory)"),
-            "{e}"
-        );
+        assert!(e.to_string().contains("(it is a directory)"), "{e}");
         std::fs::write(&f, [0x66, 0xff, 0x00]).unwrap();
         assert!(read_text(&f).unwrap_err().to_string().contains("not UTF-8"));
         assert_eq!(human_bytes(MAX_TEXT_BYTES), "64 MiB");

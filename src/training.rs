@@ -19,10 +19,22 @@ pub enum TrainingError {
         "{source_name}: header must be `label,R,G,B,X,Y,Z` or `label,R,G,B,L,a,b`, found `{found}`"
     )]
     Header { source_name: String, found: String },
+    /// The file names no white (no `# white:` line) and none was given: X,Y,Z relative to an
+    /// unknown white cannot be compared in Lab, nor adapted to an output space.
     #[error(
-        "{source_name}: Lab training data needs a reference white (X,Y,Z or an illuminant name)"
+        "{source_name}: the file does not say which white its values are relative to (no `# white:` line); give the white (X,Y,Z, x,y, D50 or an illuminant name)"
     )]
     NeedsWhite { source_name: String },
+    /// The file's `# white:` line and the white given by the caller disagree.
+    #[error(
+        "{source_name}: the file says its white is {} but {} was given; drop one or make them agree",
+        fmt_white(*file), fmt_white(*given)
+    )]
+    WhiteConflict {
+        source_name: String,
+        file: [f64; 3],
+        given: [f64; 3],
+    },
     /// A malformed CSV: a ragged row, a cell that is not a finite number.
     #[error(transparent)]
     Csv(#[from] crate::csv_table::CsvError),
@@ -42,6 +54,12 @@ pub enum TrainingError {
     PatchSpec { spec: String, why: String },
     #[error("invalid white `{spec}`: {why}")]
     White { spec: String, why: String },
+    /// A white named by an illuminant file that cannot be read or used.
+    #[error("white `{spec}`: {err}")]
+    WhiteIlluminant {
+        spec: String,
+        err: crate::spectral::SpectralError,
+    },
 }
 
 /// Where a training set came from; written into model files.
@@ -145,11 +163,11 @@ impl TrainingSet {
         Ok(out)
     }
 
-    /// Reads measured patches: a CSV with header `label,R,G,B,X,Y,Z`, or `label,R,G,B,L,a,b` with a
-    /// reference white (`white`, XYZ) that the Lab values are relative to.
-    ///
-    /// For XYZ data the reference white for ΔE00 is `white` when given, else D65 scaled to the
-    /// data (`Y = 100`).
+    /// Reads measured patches: a CSV with header `label,R,G,B,X,Y,Z` or `label,R,G,B,L,a,b`, the
+    /// values relative to a white that the file names on a comment line before the header,
+    /// `# white: X,Y,Z` (any form [`parse_white`] reads; `chart extract` writes it), or that the
+    /// caller gives (`white`, XYZ). One of the two is needed — there is no silent default — and
+    /// when both are there they must agree (to 1e-6 of Y).
     pub fn read_measured(
         path: &Path,
         white: Option<[f64; 3]>,
@@ -169,6 +187,19 @@ impl TrainingSet {
         white: Option<[f64; 3]>,
     ) -> Result<TrainingSet, TrainingError> {
         let src = || source_name.to_string();
+        let file_white = white_in_header(text, source_name)?;
+        let white_xyz = match (file_white, white) {
+            (Some(f), Some(g)) if !same_white(f, g) => {
+                return Err(TrainingError::WhiteConflict {
+                    source_name: src(),
+                    file: f,
+                    given: g,
+                })
+            }
+            (Some(f), _) => f,
+            (None, Some(g)) => g,
+            (None, None) => return Err(TrainingError::NeedsWhite { source_name: src() }),
+        };
         let mut table = crate::csv_table::Table::new(text, source_name)?
             .ok_or_else(|| TrainingError::Empty { source_name: src() })?;
         let cols = &table.header;
@@ -198,10 +229,6 @@ impl TrainingSet {
                 found: table.header_text(),
             });
         };
-        if lab && white.is_none() {
-            return Err(TrainingError::NeedsWhite { source_name: src() });
-        }
-        let white_xyz = white.unwrap_or(crate::colorimetry::D65_WHITE_XYZ);
         // Room for every row up front (a row is at least 14 bytes, so a text of blank lines
         // reserves no more than a text of rows would need): no regrowth while 10⁶ rows load.
         let rows = (text.bytes().filter(|&b| b == b'\n').count() + 1).min(text.len() / 14 + 1);
@@ -276,24 +303,117 @@ impl TrainingSet {
     }
 }
 
-/// Parses `X,Y,Z` (three finite numbers, Y > 0).
+/// `X,Y,Z` as the patch CSV's `# white:` line and messages write it (shortest round-trip
+/// decimals, so reading it back gives the same numbers).
+pub fn fmt_white(w: [f64; 3]) -> String {
+    format!("{},{},{}", w[0], w[1], w[2])
+}
+
+/// The comment line that names a patch CSV's white, e.g. `# white: 96.42,100,82.49\n`.
+pub fn white_line(w: [f64; 3]) -> String {
+    format!("# white: {}\n", fmt_white(w))
+}
+
+/// Two whites that are the same to 1e-6 of their Y.
+fn same_white(a: [f64; 3], b: [f64; 3]) -> bool {
+    let tol = 1e-6 * a[1].abs().max(b[1].abs());
+    a.iter().zip(&b).all(|(x, y)| (x - y).abs() <= tol)
+}
+
+/// The white named by a `# white: …` comment line before a CSV's header (`None` without one).
+/// Two such lines, or one that does not parse, are errors.
+pub fn white_in_header(text: &str, source_name: &str) -> Result<Option<[f64; 3]>, TrainingError> {
+    let text = text.strip_prefix('\u{feff}').unwrap_or(text);
+    let mut found: Option<[f64; 3]> = None;
+    for line in text.lines() {
+        let t = line.trim();
+        if t.is_empty() {
+            continue;
+        }
+        let Some(comment) = t.strip_prefix('#') else {
+            break; // the header: the white line comes before it
+        };
+        let comment = comment.trim_start();
+        let Some(rest) = comment
+            .get(..6)
+            .filter(|k| k.eq_ignore_ascii_case("white:"))
+            .map(|_| &comment[6..])
+        else {
+            continue;
+        };
+        let w = parse_white(rest.trim()).map_err(|e| TrainingError::White {
+            spec: rest.trim().to_string(),
+            why: format!("{source_name}: `# white:` line: {e}"),
+        })?;
+        if found.is_some() {
+            return Err(TrainingError::White {
+                spec: rest.trim().to_string(),
+                why: format!("{source_name}: a second `# white:` line"),
+            });
+        }
+        found = Some(w);
+    }
+    Ok(found)
+}
+
+/// The D50 white of chart makers' tables and ICC profiles (CIE 1931 2°, x 0.345703,
+/// y 0.358539), `Y = 100`.
+pub fn d50_white() -> [f64; 3] {
+    crate::colorimetry::xyy_to_xyz(0.345703, 0.358539, 100.0)
+}
+
+/// Parses a white point, the one syntax every white of the crate takes:
+/// * `X,Y,Z` — three finite numbers, Y > 0 (e.g. `96.42,100,82.49`);
+/// * `x,y` — a chromaticity (0 < x, 0 < y, x + y < 1), at `Y = 100`;
+/// * `D50` — [`d50_white`];
+/// * a built-in illuminant name (`D65`, `FL7`, `TL865`, …) or an illuminant CSV file: the
+///   perfect white under it on the default grid, `Y = 100`.
 pub fn parse_white(spec: &str) -> Result<[f64; 3], TrainingError> {
-    let err = |why: &str| TrainingError::White {
+    let spec_t = spec.trim();
+    let err = |why: String| TrainingError::White {
         spec: spec.to_string(),
-        why: why.to_string(),
+        why,
     };
-    let v: Vec<f64> = spec
-        .split(',')
-        .map(|s| s.trim().parse::<f64>())
-        .collect::<Result<_, _>>()
-        .map_err(|_| err("expected three numbers X,Y,Z"))?;
-    if v.len() != 3 {
-        return Err(err("expected three numbers X,Y,Z"));
+    if spec_t.contains(',') {
+        let v: Vec<f64> = spec_t
+            .split(',')
+            .map(|s| s.trim().parse::<f64>())
+            .collect::<Result<_, _>>()
+            .map_err(|_| err("expected X,Y,Z or x,y (numbers)".into()))?;
+        if v.iter().any(|x| !x.is_finite()) {
+            return Err(err("values must be finite".into()));
+        }
+        return match v[..] {
+            [x, y, z] if y > 0.0 => Ok([x, y, z]),
+            [_, _, _] => Err(err("Y must be positive".into())),
+            [x, y] if x > 0.0 && y > 0.0 && x + y < 1.0 => {
+                Ok(crate::colorimetry::xyy_to_xyz(x, y, 100.0))
+            }
+            [_, _] => Err(err(
+                "a chromaticity x,y needs 0 < x, 0 < y, x + y < 1".into()
+            )),
+            _ => Err(err("expected X,Y,Z or x,y (numbers)".into())),
+        };
     }
-    if v.iter().any(|x| !x.is_finite()) || v[1] <= 0.0 {
-        return Err(err("values must be finite and Y positive"));
+    if spec_t.eq_ignore_ascii_case("d50") {
+        return Ok(d50_white());
     }
-    Ok([v[0], v[1], v[2]])
+    if spec_t.is_empty() {
+        return Err(err(
+            "expected X,Y,Z, x,y, D50 or an illuminant name or file".into(),
+        ));
+    }
+    let file_err = |e: crate::spectral::SpectralError| TrainingError::WhiteIlluminant {
+        spec: spec.to_string(),
+        err: e,
+    };
+    let ill = crate::spectral::Illuminant::from_name_or_path(spec_t).map_err(|e| match e {
+        e @ crate::spectral::SpectralError::UnknownName { .. } => {
+            err(format!("{e} (or give X,Y,Z, x,y or D50)"))
+        }
+        e => file_err(e),
+    })?;
+    crate::spectral::white_xyz(&ill, &crate::spectral::Grid::default()).map_err(file_err)
 }
 
 /// Splits a chart label such as `B12` into its column letters and row number.
@@ -435,9 +555,14 @@ mod tests {
     #[test]
     fn measured_xyz_and_lab() {
         let t = "label,R,G,B,X,Y,Z\np1,0.1,0.2,0.3,10,20,30\np2,0.3,0.2,0.1,30,20,10\n";
-        let ts = TrainingSet::parse_measured(t, "m.csv", None).unwrap();
+        // No white named, none given: refused, not assumed.
+        let e = TrainingSet::parse_measured(t, "m.csv", None).unwrap_err();
+        assert!(matches!(e, TrainingError::NeedsWhite { .. }), "{e}");
+        let d65 = crate::colorimetry::D65_WHITE_XYZ;
+        let ts = TrainingSet::parse_measured(t, "m.csv", Some(d65)).unwrap();
         assert_eq!(ts.len(), 2);
         assert_eq!(ts.xyz[1], [30.0, 20.0, 10.0]);
+        assert_eq!(ts.white_xyz, d65);
         let t = "label,R,G,B,L,a,b\np1,0.1,0.2,0.3,100,0,0\n";
         assert!(TrainingSet::parse_measured(t, "m.csv", None)
             .unwrap_err()
@@ -449,7 +574,7 @@ mod tests {
             assert!((ts.xyz[0][k] - w[k]).abs() < 1e-9);
         }
         let bad = "label,R,G,B,X,Y,Z\np1,0.1,x,0.3,10,20,30\n";
-        let e = TrainingSet::parse_measured(bad, "m.csv", None)
+        let e = TrainingSet::parse_measured(bad, "m.csv", Some(d65))
             .unwrap_err()
             .to_string();
         assert!(e.contains("line 2") && e.contains("`G`"), "{e}");
@@ -462,7 +587,59 @@ mod tests {
     #[test]
     fn white_parse() {
         assert_eq!(parse_white("95,100,108").unwrap(), [95.0, 100.0, 108.0]);
-        assert!(parse_white("95,100").is_err());
         assert!(parse_white("95,0,108").is_err());
+        assert!(parse_white("95,100").is_err()); // not a chromaticity
+        assert!(parse_white("1,2,3,4").is_err());
+        assert!(parse_white("nan,100,1").is_err());
+        // x,y at Y = 100.
+        let w = parse_white("0.3127, 0.329").unwrap();
+        assert!(
+            (w[1] - 100.0).abs() < 1e-12 && (w[0] - 95.0456).abs() < 1e-3,
+            "{w:?}"
+        );
+        // D50 in any case, and the same white as its chromaticity.
+        let d50 = parse_white("d50").unwrap();
+        assert_eq!(d50, parse_white("0.345703,0.358539").unwrap());
+        assert!(
+            (d50[0] - 96.42).abs() < 0.01 && (d50[2] - 82.49).abs() < 0.01,
+            "{d50:?}"
+        );
+        // Every built-in illuminant, by name.
+        for name in ["D65", "FL3.15", "FL7", "TL865", "LED-B5", "LED-YAG", "d65"] {
+            let w = parse_white(name).unwrap();
+            assert!((w[1] - 100.0).abs() < 1e-9, "{name}: {w:?}");
+        }
+        let e = parse_white("D55").unwrap_err().to_string();
+        assert!(e.contains("D55") && e.contains("X,Y,Z"), "{e}");
+    }
+
+    #[test]
+    fn the_white_line_is_read_back_exactly() {
+        let w = d50_white();
+        let t = format!(
+            "# patches read by nsrm\n{}label,R,G,B,X,Y,Z\np1,0.1,0.2,0.3,10,20,30\n",
+            white_line(w)
+        );
+        let ts = TrainingSet::parse_measured(&t, "m.csv", None).unwrap();
+        assert_eq!(ts.white_xyz, w);
+        // The same white given again is fine; another one is a conflict.
+        assert!(TrainingSet::parse_measured(&t, "m.csv", Some(w)).is_ok());
+        let d65 = crate::colorimetry::D65_WHITE_XYZ;
+        let e = TrainingSet::parse_measured(&t, "m.csv", Some(d65)).unwrap_err();
+        assert!(matches!(e, TrainingError::WhiteConflict { .. }), "{e}");
+        // Any white form on the line; a name is read as --white reads it.
+        let t = "#white: D65\nlabel,R,G,B,L,a,b\np1,0.1,0.2,0.3,100,0,0\n";
+        let ts = TrainingSet::parse_measured(t, "m.csv", None).unwrap();
+        assert_eq!(ts.white_xyz, parse_white("D65").unwrap());
+        // A white line after the header is a plain comment; two before it, or a bad one, are errors.
+        let t = "label,R,G,B,X,Y,Z\n# white: D50\np1,0.1,0.2,0.3,10,20,30\n";
+        assert!(TrainingSet::parse_measured(t, "m.csv", None).is_err());
+        let t = "# white: D50\n# white: D65\nlabel,R,G,B,X,Y,Z\np1,0.1,0.2,0.3,10,20,30\n";
+        assert!(TrainingSet::parse_measured(t, "m.csv", None).is_err());
+        let t = "# white: 1,0,1\nlabel,R,G,B,X,Y,Z\np1,0.1,0.2,0.3,10,20,30\n";
+        let e = TrainingSet::parse_measured(t, "m.csv", None)
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("m.csv") && e.contains("white"), "{e}");
     }
 }

@@ -154,9 +154,15 @@ impl Extraction {
         }
     }
 
-    /// The CSV that `--training` reads: unflagged patches only.
-    pub fn to_csv(&self) -> String {
-        let mut s = String::from("label,R,G,B,X,Y,Z\n");
+    /// The CSV that `--training` reads: unflagged patches only, after two comment lines: what
+    /// the file is, and `# white: X,Y,Z` — the reference's white, which its X,Y,Z are relative
+    /// to (read back by [`crate::training::TrainingSet::read_measured`], exactly).
+    pub fn to_csv(&self, reference: &Reference) -> String {
+        let mut s = format!(
+            "# nsrm chart patches: linear camera R,G,B and reference X,Y,Z ({}; perfect white Y = 100)\n{}label,R,G,B,X,Y,Z\n",
+            reference.name.replace(|c: char| c.is_control(), "?"),
+            crate::training::white_line(reference.white)
+        );
         for p in self.patches.iter().filter(|p| p.usable()) {
             s.push_str(&format!(
                 "{},{},{},{},{},{},{}\n",

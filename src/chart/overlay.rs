@@ -2,8 +2,9 @@
 //! linear sRGB, white-balanced on the chart's neutrals when there is a reading, exposed so the
 //! brightest usable patch sits at 90 %), each sampled area outlined and labelled — green when
 //! used, red with its flags when not — the candidate regions of a failed detection (yellow:
-//! rejected, cyan: linked into a grid), and after a fit a swatch panel: reference (top half) vs
-//! corrected (bottom half) per patch, with its ΔE00.
+//! rejected, cyan: linked into a grid), and after a fit a swatch panel: reference (upper half of
+//! each swatch) vs corrected (lower half) per patch, with its ΔE00. Labels are 15–28 px, on an
+//! opaque dark box so they read on any patch.
 
 use super::detect::Candidate;
 use super::extract::Extraction;
@@ -13,7 +14,7 @@ use crate::frame::Frame;
 use ab_glyph::{FontRef, PxScale};
 use image::{Rgb, RgbImage};
 use imageproc::drawing::{
-    draw_filled_rect_mut, draw_hollow_circle_mut, draw_line_segment_mut, draw_text_mut,
+    draw_filled_rect_mut, draw_hollow_circle_mut, draw_line_segment_mut, draw_text_mut, text_size,
 };
 use imageproc::rect::Rect;
 
@@ -33,6 +34,21 @@ pub struct Swatch {
 
 fn font() -> FontRef<'static> {
     FontRef::try_from_slice(FONT).expect("the embedded font parses (tested)")
+}
+
+/// Smallest and largest label size on the picture, in pixels.
+pub const LABEL_PX: (f32, f32) = (15.0, 28.0);
+
+/// Text in `colour` on an opaque dark box (a 2-pixel margin), readable on any part of the
+/// picture; `(x, y)` is the box's top-left corner.
+fn label(img: &mut RgbImage, colour: Rgb<u8>, x: i32, y: i32, px: f32, font: &FontRef, text: &str) {
+    let (tw, th) = text_size(PxScale::from(px), font, text);
+    draw_filled_rect_mut(
+        img,
+        Rect::at(x, y).of_size(tw + 4, (th + 4).max(px.ceil() as u32 + 4)),
+        Rgb([0, 0, 0]),
+    );
+    draw_text_mut(img, colour, x + 2, y + 2, PxScale::from(px), font, text);
 }
 
 /// Draws the overlay. `swatches`: (patches, reference white) after a fit.
@@ -123,12 +139,12 @@ pub fn render(
         );
     }
     if let Some(ex) = reading {
-        let text_px = (0.18
+        let text_px = (0.3
             * ((ex.patches[0].outline[1][0] - ex.patches[0].outline[0][0])
                 .hypot(ex.patches[0].outline[1][1] - ex.patches[0].outline[0][1]))
                 as f32
             * sc)
-            .clamp(9.0, 22.0);
+            .clamp(LABEL_PX.0, LABEL_PX.1);
         for p in &ex.patches {
             let colour = if p.usable() {
                 Rgb([0, 255, 0])
@@ -151,12 +167,13 @@ pub fn render(
                 let f: Vec<&str> = p.flags.iter().map(|f| f.name()).collect();
                 format!("{short} {}", f.join(","))
             };
-            draw_text_mut(
+            let (tw, _) = text_size(PxScale::from(text_px), &font, &text);
+            label(
                 &mut img,
                 colour,
-                (p.centre[0] as f32 * sc) as i32 - (text_px as i32),
-                (p.centre[1] as f32 * sc) as i32 - (text_px as i32) / 2,
-                PxScale::from(text_px),
+                (p.centre[0] as f32 * sc) as i32 - tw as i32 / 2 - 2,
+                (p.centre[1] as f32 * sc) as i32 - (text_px as i32) / 2 - 2,
+                text_px,
                 &font,
                 &text,
             );
@@ -168,6 +185,10 @@ pub fn render(
     }
 }
 
+/// The caption of the swatch panel: each swatch is split in two halves.
+pub const SWATCH_CAPTION: &str =
+    "each swatch: upper half reference, lower half corrected by the model; label and its ΔE00";
+
 /// The panel of swatches below the picture.
 fn append_swatches(img: RgbImage, sw: &[Swatch], white: [f64; 3], font: &FontRef) -> RgbImage {
     let m = crate::colorimetry::output_matrix(white, OutputSpace::LinearSrgb);
@@ -176,21 +197,21 @@ fn append_swatches(img: RgbImage, sw: &[Swatch], white: [f64; 3], font: &FontRef
     let cols = (img.width() / cell).clamp(6, 24);
     let rows = (sw.len() as u32).div_ceil(cols);
     let panel_w = img.width().max(cols * cell);
-    let mut out = RgbImage::from_pixel(panel_w, img.height() + rows * cell + 24, Rgb([40, 40, 40]));
+    let mut out = RgbImage::from_pixel(panel_w, img.height() + rows * cell + 30, Rgb([40, 40, 40]));
     image::imageops::overlay(&mut out, &img, 0, 0);
     let y0 = img.height() as i32 + 4;
     draw_text_mut(
         &mut out,
-        Rgb([230, 230, 230]),
+        Rgb([240, 240, 240]),
         4,
         y0,
-        PxScale::from(14.0),
+        PxScale::from(16.0),
         font,
-        "top: reference   bottom: corrected   (ΔE00)",
+        SWATCH_CAPTION,
     );
     for (i, s) in sw.iter().enumerate() {
         let (cx, cy) = ((i as u32 % cols) * cell, (i as u32 / cols) * cell);
-        let (x, y) = (cx as i32, y0 + 20 + cy as i32);
+        let (x, y) = (cx as i32, y0 + 26 + cy as i32);
         draw_filled_rect_mut(
             &mut out,
             Rect::at(x + 2, y + 2).of_size(cell - 4, cell / 2 - 2),
@@ -203,18 +224,12 @@ fn append_swatches(img: RgbImage, sw: &[Swatch], white: [f64; 3], font: &FontRef
         );
         let short = s.label.split(' ').next().unwrap_or(&s.label);
         let txt = format!("{short} {:.1}", s.delta_e);
-        let lum = s.reference_xyz[1] / white[1];
-        let colour = if lum > 0.4 {
-            Rgb([0, 0, 0])
-        } else {
-            Rgb([255, 255, 255])
-        };
-        draw_text_mut(
+        label(
             &mut out,
-            colour,
-            x + 4,
-            y + 4,
-            PxScale::from(12.0),
+            Rgb([255, 255, 255]),
+            x + 2,
+            y + 2,
+            13.0,
             font,
             &txt,
         );

@@ -39,7 +39,7 @@ pub const BUILTIN: &[(&str, ChartKind, &str)] = &[
 
 /// XYZ of the D50 white, `Y = 100`.
 pub fn d50_white() -> [f64; 3] {
-    xyy_to_xyz(D50_XY[0], D50_XY[1], 100.0)
+    crate::training::d50_white()
 }
 
 /// Reference colours of every patch of a chart.
@@ -296,6 +296,37 @@ fn split_cgats(line: &str) -> Vec<String> {
     out
 }
 
+/// The least lightness range (L*, the lightest patch less the darkest) and the least chroma
+/// (C*ab of the most colourful patch) a chart reference must have: every real chart has a white
+/// and a black patch and saturated colours; a constant or all-zero table would "match" any
+/// frame and place the labels at random.
+const MIN_LIGHTNESS_RANGE: f64 = 20.0;
+const MIN_CHROMA: f64 = 10.0;
+
+/// Refuses a reference whose patches cannot be told apart (all zero, constant, grey only).
+fn check_not_degenerate(xyz: &[[f64; 3]], white: [f64; 3]) -> Result<(), String> {
+    if xyz.iter().flatten().any(|v| !v.is_finite()) {
+        return Err("a patch has a value that is not a finite number".into());
+    }
+    let lab: Vec<[f64; 3]> = xyz
+        .iter()
+        .map(|v| crate::colorimetry::xyz_to_lab(*v, white))
+        .collect();
+    let (lo, hi) = lab.iter().fold((f64::MAX, f64::MIN), |(lo, hi), l| {
+        (lo.min(l[0]), hi.max(l[0]))
+    });
+    let chroma = lab.iter().map(|l| l[1].hypot(l[2])).fold(0.0, f64::max);
+    if hi - lo < MIN_LIGHTNESS_RANGE || chroma < MIN_CHROMA {
+        return Err(format!(
+            "its patches are nearly alike (lightness L* {lo:.1}..{hi:.1}, largest chroma \
+             {chroma:.1}); a chart reference needs light and dark patches (L* range ≥ \
+             {MIN_LIGHTNESS_RANGE}) and colours (chroma ≥ {MIN_CHROMA}), or its labels cannot \
+             be placed"
+        ));
+    }
+    Ok(())
+}
+
 fn from_rows(
     src: &str,
     chart: ChartKind,
@@ -372,6 +403,7 @@ fn from_rows(
             "a patch has Y outside 0..150 (perfect white = 100)".into()
         ));
     }
+    check_not_degenerate(&xyz, white).map_err(err)?;
     Ok(Reference {
         name: src.to_string(),
         chart,

@@ -191,15 +191,29 @@ impl SceneOptions {
         }
         let pos = |v: f64| v.is_finite() && v > 0.0;
         let nonneg = |v: f64| v.is_finite() && v >= 0.0;
-        if !(pos(self.exposure) && pos(self.white_level)) {
-            return bad("exposure and white level must be positive");
+        // The bounds of a rendered chart: every pixel stays a finite 32-bit float.
+        let (lo, hi) = crate::io::chart::EXPOSURE_RANGE;
+        let max_noise = crate::io::chart::MAX_NOISE;
+        let within = |v: f64| pos(v) && (lo..=hi).contains(&v);
+        if !(within(self.exposure) && within(self.white_level)) {
+            return Err(ChartError::Options(format!(
+                "exposure {} and white level {} must be within {lo:e}..{hi:e} (so that the pixels \
+                 stay finite, non-zero 32-bit floats)",
+                self.exposure, self.white_level
+            )));
         }
         if !(nonneg(self.noise)
             && nonneg(self.shot_noise)
+            && self.noise <= max_noise
+            && self.shot_noise <= max_noise
             && nonneg(self.blur)
             && self.blur <= 20.0)
         {
-            return bad("noise, shot noise and blur (≤ 20 px) must be zero or positive");
+            return Err(ChartError::Options(format!(
+                "noise {} and shot noise {} must be within 0..{max_noise:e} and blur {} within \
+                 0..20 px",
+                self.noise, self.shot_noise, self.blur
+            )));
         }
         if !(nonneg(self.vignetting)
             && self.vignetting < 1.0

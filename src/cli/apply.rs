@@ -15,6 +15,7 @@ use nsrm::io::{
     self as fio, preview, Decoded, ExrCompression, FileFormat, Limits, ReadOptions, WriteOptions,
 };
 use nsrm::model::fast::{FastModel, Threads};
+use nsrm::output::Session;
 use nsrm::Model;
 use std::io::IsTerminal;
 use std::path::{Path, PathBuf};
@@ -29,20 +30,14 @@ pub struct Args {
     /// Model file written by `nsrm fit`.
     #[arg(long, value_name = "FILE")]
     model: PathBuf,
-    /// Where to correct: `gpu`, `cpu`, or `auto` (the GPU when an adapter exists, else the CPU).
-    #[arg(long, value_enum, ignore_case = true, default_value_t = values::Device::Auto)]
-    device: values::Device,
+    #[command(flatten)]
+    device: values::DeviceArg,
     /// GPU adapter: a substring of its name (case-insensitive); default `NSRM_ADAPTER`, else the
     /// system's choice.
     #[arg(long, value_name = "NAME")]
     adapter: Option<String>,
     /// Output directory (created if missing); default: beside each input.
-    #[arg(
-        short = 'o',
-        long = "output-dir",
-        visible_alias = "output",
-        value_name = "DIR"
-    )]
+    #[arg(short = 'o', long = "output", alias = "output-dir", value_name = "DIR")]
     output_dir: Option<PathBuf>,
     /// Appended to each output's name (before a trailing frame number: plate.0101.exr →
     /// plate_xyz.0101.exr). Default: `_` and the output space (`_xyz`, `_acescg`, …).
@@ -138,15 +133,27 @@ impl Corrector {
             adapter: adapter.map(str::to_string),
             tile_pixels: None,
         };
-        let engine = nsrm::gpu::open(device, &opts)
+        let opened = nsrm::gpu::open_device(device, &opts)
             .with_context(|| format!("--device {}", device.name()))?;
-        Ok(match engine {
-            Some(e) => Corrector::Gpu(Box::new(e)),
-            None => {
+        Ok(match opened {
+            nsrm::gpu::Opened::Gpu(e) => {
                 if device == DeviceChoice::Auto {
                     eprintln!(
-                        "nsrm apply: no GPU adapter found; correcting on the CPU \
-                         (for the GPU install a Vulkan driver, e.g. mesa-vulkan-drivers libvulkan1)"
+                        "nsrm apply: --device auto: correcting on the GPU {}",
+                        e.adapter_name()
+                    );
+                }
+                Corrector::Gpu(e)
+            }
+            nsrm::gpu::Opened::Cpu(why) => {
+                if device == DeviceChoice::Auto {
+                    eprintln!(
+                        "nsrm apply: --device auto: correcting on the CPU: {why}{}",
+                        if matches!(why, nsrm::gpu::CpuReason::SoftwareOnly { .. }) {
+                            " (--device gpu uses it anyway)"
+                        } else {
+                            ""
+                        }
                     );
                 }
                 Corrector::Cpu(Box::new(FastModel::new(model)))
@@ -182,16 +189,11 @@ struct Timing {
     frames: usize,
 }
 
-/// The signals that stop a batch cleanly, with their exit statuses (128 + number).
-const STOP_SIGNALS: [(i32, &str); 3] = [
-    (signal_hook::consts::SIGINT, "SIGINT"),
-    (signal_hook::consts::SIGTERM, "SIGTERM"),
-    (signal_hook::consts::SIGHUP, "SIGHUP"),
-];
+use super::outputs::STOP_SIGNALS;
 
 /// Set by SIGINT, SIGTERM or SIGHUP (to the signal's number): no new file is started, frames
 /// being decoded or corrected are dropped, a frame being written is aborted at its next buffer
-/// flush (its temporary removed, nothing committed: [`nsrm::atomic::abort_flag`]), this run's
+/// write (its temporary removed, nothing committed: [`nsrm::output::AbortHandle::flag`]), this run's
 /// temporaries are removed, the summary is printed and the exit status is 128 + the signal.
 /// Outputs committed before the signal stay. A second signal ends the process at once.
 #[derive(Clone)]
@@ -200,7 +202,7 @@ struct Interrupt {
 }
 
 impl Interrupt {
-    fn install() -> Result<Interrupt> {
+    fn install(session: &Session) -> Result<Interrupt> {
         let signal = Arc::new(AtomicUsize::new(0));
         let again = Arc::new(AtomicBool::new(false));
         for (sig, name) in STOP_SIGNALS {
@@ -210,7 +212,7 @@ impl Interrupt {
                 .and_then(|_| {
                     signal_hook::flag::register_usize(sig, Arc::clone(&signal), sig as usize)
                 })
-                .and_then(|_| signal_hook::flag::register(sig, nsrm::atomic::abort_flag()))
+                .and_then(|_| signal_hook::flag::register(sig, session.abort_handle().flag()))
                 .with_context(|| format!("installing the {name} handler"))?;
         }
         Ok(Interrupt { signal })
@@ -248,7 +250,7 @@ fn parse_request(a: &Args) -> Result<Request> {
     if a.half && format != FileFormat::Exr {
         return Err(UsageError("--half applies to EXR output only".into()).into());
     }
-    let device = DeviceChoice::from(a.device);
+    let device = DeviceChoice::from(a.device.device);
     if a.jobs == Some(0) {
         return Err(UsageError("--jobs must be at least 1".into()).into());
     }
@@ -333,8 +335,22 @@ pub fn run(a: Args) -> Result<ExitCode> {
         return Ok(ExitCode::SUCCESS);
     }
 
+    // The run's outputs: the plan compared them with the frames; the session adds the model.
+    let mut session = Session::new(a.overwrite);
+    session.input(&a.model)?;
+    for j in plan
+        .jobs
+        .iter()
+        .filter(|j| matches!(j.action, Action::Convert))
+    {
+        session.output(&j.output)?;
+        if let Some(p) = &j.preview {
+            session.output(p)?;
+        }
+    }
+
     // Run.
-    let interrupt = Interrupt::install()?;
+    let interrupt = Interrupt::install(&session)?;
     let mut outcomes: Vec<Option<Outcome>> = plan
         .jobs
         .iter()
@@ -372,13 +388,13 @@ pub fn run(a: Args) -> Result<ExitCode> {
                 half: a.half,
                 compression: req.compression,
                 space: req.space,
-                overwrite: a.overwrite,
                 zip_level: a.zip_level,
             },
             to_srgb: nsrm::colorimetry::to_linear_srgb(model.white_xyz(), req.space),
             workers: workers.min(todo.len()).max(1),
             continue_on_error: a.continue_on_error,
             interrupt: interrupt.clone(),
+            session: &session,
         };
         let pb = progress_bar(todo.len());
         let done = run_pipeline(
@@ -396,7 +412,7 @@ pub fn run(a: Args) -> Result<ExitCode> {
         }
     }
     let wall = start.elapsed();
-    let removed = nsrm::atomic::remove_temporaries();
+    let removed = session.remove_temporaries();
 
     // Report.
     let count = |f: fn(&Outcome) -> bool| outcomes.iter().flatten().filter(|o| f(o)).count();
@@ -496,7 +512,8 @@ fn report_stale(plan: &BatchPlan, remove: bool) {
     }
 }
 
-struct Settings {
+struct Settings<'s> {
+    session: &'s Session,
     read: ReadOptions,
     write: WriteOptions,
     to_srgb: Mat3,
@@ -527,7 +544,7 @@ fn run_pipeline(
     todo: &[usize],
     corrector: &mut Corrector,
     model: &Model,
-    s: &Settings,
+    s: &Settings<'_>,
     pb: &ProgressBar,
     timing: &mut Timing,
 ) -> Vec<(usize, Outcome)> {
@@ -620,7 +637,7 @@ fn run_pipeline(
                         pb.inc(1);
                     }
                     // Stopped by a signal while writing: not a failure of the file.
-                    Err(_) if interrupt.stopped() || nsrm::atomic::writes_aborted() => {
+                    Err(_) if interrupt.stopped() || s.session.is_aborted() => {
                         lock(results).push((i, Outcome::Aborted));
                     }
                     Err(e) => fail(i, super::common::explain_line(e.into())),
@@ -710,18 +727,23 @@ fn lock<T>(m: &Mutex<T>) -> std::sync::MutexGuard<'_, T> {
 }
 
 /// Writes the output and its preview together: both are staged (encoded into temporaries),
-/// then committed with [`nsrm::atomic::commit_all`], so both appear or neither.
-fn encode(job: &Job, d: Decoded, s: &Settings, pool: &fio::FramePool) -> Result<(), fio::IoError> {
+/// then committed as one unit of the run's session, so both appear or neither.
+fn encode(
+    job: &Job,
+    d: Decoded,
+    s: &Settings<'_>,
+    pool: &fio::FramePool,
+) -> Result<(), fio::IoError> {
     let png = match &job.preview {
         Some(_) => Some(preview::encode_png(&d.frame, &s.to_srgb)?),
         None => None,
     };
-    let ((), mut staged) =
-        nsrm::atomic::collect_staged(|| d.write_recycling(&job.output, &s.write, pool))?;
+    let mut unit = s.session.unit();
+    d.write_recycling(&job.output, &s.write, &mut unit, pool)?;
     if let (Some(path), Some(png)) = (&job.preview, png) {
-        staged.push(nsrm::atomic::stage_bytes(path, &png, s.write.overwrite)?);
+        unit.write_bytes(path, &png)?;
     }
-    nsrm::atomic::commit_all(staged)?;
+    unit.commit()?;
     Ok(())
 }
 

@@ -7,15 +7,16 @@
 //!   way (`copy_from_slice` over the same 64 Ki-pixel chunks, one thread for `cpu-1`, the pool for
 //!   `cpu-all`). Kernel and memcpy repetitions alternate, so both see the same machine state; the
 //!   ratio is median / median.
-//! * GPU: [`Engine::timed_apply`] — kernel time from timestamp queries (when the adapter has
+//! * GPU: [`nsrm::gpu::Engine::timed_apply`] — kernel time from timestamp queries (when the adapter has
 //!   them) and end-to-end time including upload and read-back. Its reference is the device's own
-//!   buffer-to-buffer copy of the frame's bytes ([`Engine::copy_bandwidth`]).
+//!   buffer-to-buffer copy of the frame's bytes ([`nsrm::gpu::Engine::copy_bandwidth`]).
 
 use super::bench_aids::{memcpy_chunked, synthetic_camera_rgb};
 use super::common::{parse_models, UsageError};
+use super::values;
 use anyhow::{Context, Result};
 use clap::ValueEnum;
-use nsrm::gpu::{Engine, GpuOptions};
+use nsrm::gpu::{DeviceChoice, GpuOptions, Opened};
 use nsrm::model::fast::{FastModel, Threads};
 use nsrm::model::{fit, Kind, Model};
 use nsrm::spectral::{simulate_named, Grid};
@@ -31,17 +32,23 @@ pub struct Args {
     /// larger than the caches and keeps the whole run (lavapipe included) under a minute.
     #[arg(long, default_value = "4096x2048", value_name = "WxH")]
     size: String,
-    /// Pixel layout: packed RGB or RGBA f32.
-    #[arg(long, value_enum, default_value_t = LayoutArg::Rgb)]
-    layout: LayoutArg,
-    /// Models to time, comma-separated.
-    #[arg(long, default_value = "lrm,prm,rprm,nsrm", value_name = "LIST")]
-    models: String,
+    #[command(flatten)]
+    layout: values::LayoutArg,
+    /// Model kinds to time, comma-separated (`--models` is the old spelling).
+    #[arg(
+        long,
+        alias = "models",
+        default_value = "lrm,prm,rprm,nsrm",
+        value_name = "LIST"
+    )]
+    kinds: String,
     /// Order of PRM, RPRM and NSRM (LRM is always linear).
     #[arg(long, default_value_t = 3)]
     order: u8,
-    /// Where to run: `cpu` (one thread and all threads), `gpu`, or `all`.
-    #[arg(long, value_enum, default_value_t = DeviceArg::All)]
+    /// Where to run: `cpu` (one thread and all threads), `gpu` (the GPU only, any adapter),
+    /// `auto` (the CPU, and the GPU that `apply --device auto` would choose: a hardware one) or
+    /// `all` (the CPU and any GPU adapter, software ones included).
+    #[arg(long, value_enum, ignore_case = true, default_value_t = DeviceArg::Auto)]
     device: DeviceArg,
     /// Timed repetitions per CPU measurement, after one warm-up; the median is reported.
     #[arg(long, default_value_t = 7, value_name = "N")]
@@ -55,16 +62,12 @@ pub struct Args {
     json: bool,
 }
 
-#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
-enum LayoutArg {
-    Rgb,
-    Rgba,
-}
-
+/// `apply --device`'s values, plus `all`.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
 enum DeviceArg {
-    Cpu,
+    Auto,
     Gpu,
+    Cpu,
     All,
 }
 
@@ -132,13 +135,14 @@ struct Plan {
     reps: usize,
     gpu_reps: usize,
     cpu: bool,
-    gpu: bool,
+    /// The GPU to time, by `apply --device`'s policy; `None`: no GPU.
+    gpu: Option<DeviceChoice>,
 }
 
 /// The flags as a [`Plan`] (usage errors for sizes, orders and repetition counts out of range).
 fn plan(a: &Args) -> Result<Plan> {
     let (width, height) = parse_size(&a.size)?;
-    let kinds = parse_models(&a.models)?;
+    let kinds = parse_models(&a.kinds)?;
     if !(1..=4).contains(&a.order) {
         return Err(UsageError(format!("--order {} is out of range (1..4)", a.order)).into());
     }
@@ -146,17 +150,15 @@ fn plan(a: &Args) -> Result<Plan> {
         return Err(UsageError("--reps and --gpu-reps must be at least 1".into()).into());
     }
     let (cpu, gpu) = match a.device {
-        DeviceArg::Cpu => (true, false),
-        DeviceArg::Gpu => (false, true),
-        DeviceArg::All => (true, true),
+        DeviceArg::Cpu => (true, None),
+        DeviceArg::Gpu => (false, Some(DeviceChoice::Gpu)),
+        DeviceArg::Auto => (true, Some(DeviceChoice::Auto)),
+        DeviceArg::All => (true, Some(DeviceChoice::Gpu)),
     };
     Ok(Plan {
         width,
         height,
-        layout: match a.layout {
-            LayoutArg::Rgb => Layout::Rgb,
-            LayoutArg::Rgba => Layout::Rgba,
-        },
+        layout: Layout::from(a.layout.layout),
         kinds,
         order: a.order,
         reps: a.reps,
@@ -247,10 +249,11 @@ fn measure(plan: &Plan) -> Result<Report> {
     let mut gpu_error = None;
     let mut gpu_copy = None;
     let mut gpu_timestamps = false;
-    if plan.gpu {
-        match Engine::new(&GpuOptions::default()) {
+    if let Some(choice) = plan.gpu {
+        match nsrm::gpu::open_device(choice, &GpuOptions::default()) {
             Err(e) => gpu_error = Some(e.to_string()),
-            Ok(mut engine) => {
+            Ok(Opened::Cpu(why)) => gpu_error = Some(format!("not timed (--device auto): {why}")),
+            Ok(Opened::Gpu(mut engine)) => {
                 let name = engine.adapter_name();
                 gpu_timestamps = engine.has_timestamps();
                 let copy = engine
@@ -368,9 +371,10 @@ fn table(plan: &Plan, r: &Report) -> String {
             ));
         }
     }
-    if plan.gpu {
+    if plan.gpu.is_some() {
         say(String::new());
         match (&r.adapter, &r.gpu_error) {
+            (None, Some(e)) if e.starts_with("not timed") => say(format!("GPU: {e}")),
             (None, Some(e)) => say(format!("GPU: unavailable ({e})")),
             (Some(name), _) => {
                 say(format!(
@@ -546,7 +550,7 @@ mod tests {
             "nsrm,rprm",
         ]))
         .unwrap();
-        assert_eq!((p.width, p.height, p.cpu, p.gpu), (64, 32, true, false));
+        assert_eq!((p.width, p.height, p.cpu, p.gpu), (64, 32, true, None));
         assert_eq!(p.kinds, [Kind::Nsrm, Kind::Rprm]);
         assert_eq!(p.gpu_reps, 3);
         for bad in [&["--size", "0x3"][..], &["--order", "5"], &["--reps", "0"]] {
@@ -562,7 +566,7 @@ mod tests {
             "97x13",
             "--device",
             "cpu",
-            "--models",
+            "--kinds",
             "lrm,rprm,nsrm",
             "--reps",
             "1",

@@ -8,8 +8,9 @@ use anyhow::{anyhow, Context, Result};
 use nsrm::chart::detect::{detect, Candidate, DetectOptions, Detection};
 use nsrm::chart::extract::{extract, verify, ExtractOptions, Extraction};
 use nsrm::chart::flat::{self, Flat};
-use nsrm::chart::reference::{d50_white, Reference};
+use nsrm::chart::reference::Reference;
 use nsrm::chart::{homography_from_corners, overlay, parse_corners, ChartKind};
+use nsrm::output::{Session, Unit};
 use nsrm::training::{CaptureProvenance, TrainingSet};
 use nsrm::Frame;
 use sha2::{Digest, Sha256};
@@ -26,10 +27,11 @@ pub struct CaptureOptions {
     /// (.cie/.txt: SAMPLE_ID + XYZ_X/Y/Z or LAB_L/A/B).
     #[arg(long, value_name = "NAME|FILE")]
     pub reference: Option<String>,
-    /// White of a reference file's values: `X,Y,Z` or D50 (needed for a Lab file; XYZ files
-    /// default to D50). Not `--white`: that names the white of a `--training` file, and a Lab
+    /// White of a reference file's values, in the forms `--white` takes: `X,Y,Z`, `x,y`, D50 or
+    /// an illuminant name (needed for a Lab file; XYZ files default to D50, as chart makers'
+    /// tables are). Not `--white`: that names the white of a `--training` file, and a Lab
     /// reference's white is given here even when both are used. Built-in references ignore it.
-    #[arg(long, value_name = "X,Y,Z|D50")]
+    #[arg(long, value_name = "X,Y,Z|x,y|D50|ILLUMINANT")]
     pub reference_white: Option<String>,
     /// The four outer corners of the patch grid in pixels, first patch's corner first, then
     /// clockwise: "X,Y X,Y X,Y X,Y". Without it the chart is found automatically.
@@ -93,11 +95,12 @@ impl CaptureOptions {
     /// Loads the reference (cheap; done before reading frames).
     pub fn reference(&self) -> Result<Reference> {
         let kind = self.kind()?;
-        let white = match self.reference_white.as_deref() {
-            None => None,
-            Some(s) if s.eq_ignore_ascii_case("d50") => Some(d50_white()),
-            Some(s) => Some(nsrm::training::parse_white(s).context("--reference-white")?),
-        };
+        let white = self
+            .reference_white
+            .as_deref()
+            .map(nsrm::training::parse_white)
+            .transpose()
+            .context("--reference-white")?;
         let spec = self
             .reference
             .clone()
@@ -105,9 +108,23 @@ impl CaptureOptions {
         Reference::load(&spec, kind, white).context("--reference")
     }
 
+    /// The files these options read (a reference file, a flat frame), for the run's session.
+    pub fn input_files(&self) -> Vec<&Path> {
+        let mut v = Vec::new();
+        if let Some(r) = self.reference.as_deref().and_then(super::outputs::file_arg) {
+            v.push(r);
+        }
+        if let Some(f) = self.flat.as_deref() {
+            if !f.eq_ignore_ascii_case("neutrals") {
+                v.push(Path::new(f));
+            }
+        }
+        v
+    }
+
     /// Reads the chart in `path`. On failure with `failure_overlay`, the frame and the rejected
-    /// detection candidates are drawn there.
-    pub fn read(&self, path: &Path, failure_overlay: Option<(&Path, bool)>) -> Result<Capture> {
+    /// detection candidates are drawn there (committed on its own in `session`).
+    pub fn read(&self, path: &Path, failure_overlay: Option<(&Path, &Session)>) -> Result<Capture> {
         let reference = self.reference()?;
         let kind = reference.chart;
         let corners = self.corners.as_deref().map(parse_corners).transpose()?;
@@ -136,8 +153,10 @@ impl CaptureOptions {
             None => match detect(&frame, &reference, &DetectOptions::default()) {
                 Ok(d) => (d.homography, Some(d)),
                 Err(f) => {
-                    if let Some((p, overwrite)) = failure_overlay {
-                        write_overlay(&frame, None, &f.candidates, None, p, overwrite)?;
+                    if let Some((p, session)) = failure_overlay {
+                        let mut unit = session.unit();
+                        write_overlay(&frame, None, &f.candidates, None, p, &mut unit)?;
+                        unit.commit()?;
                         eprintln!(
                             "overlay with the {} rejected candidate regions written to {}",
                             f.candidates.len(),
@@ -270,6 +289,50 @@ impl Capture {
         t
     }
 
+    /// The line every command that reads a chart prints: where the chart was found, how well it
+    /// matches its reference, the white its X,Y,Z are relative to and the light's non-uniformity.
+    pub fn summary(&self) -> String {
+        let used = self
+            .extraction
+            .patches
+            .iter()
+            .filter(|p| p.usable())
+            .count();
+        format!(
+            "{} chart {} in {} ({}); {used} of {} patches usable; reference {} matches (median ΔE00 {:.2} after a 3×3 map), X,Y,Z relative to its white {}; light non-uniformity {}",
+            self.reference.chart.name(),
+            if self.detection.is_some() { "found" } else { "read at --corners" },
+            self.frame_path.display(),
+            self.sha256.get(..12).unwrap_or(""),
+            self.extraction.patches.len(),
+            self.reference.name,
+            self.score,
+            nsrm::training::fmt_white(self.reference.white.map(|v| (v * 1e4).round() / 1e4)),
+            match &self.flat {
+                Some(f) => format!("{:.3} (max/min, compensated: {})", f.nonuniformity, f.method),
+                None => "not measured (no --flat)".into(),
+            }
+        )
+    }
+
+    /// A warning when the detected lattice holds more patches than the chart asked for: the
+    /// frame probably shows the other chart (a CC24 read inside an SG's patches).
+    pub fn other_chart_warning(&self) -> Option<String> {
+        let d = self.detection.as_ref()?;
+        let n = self.reference.chart.columns() * self.reference.chart.rows();
+        (d.lattice > n + n / 4).then(|| {
+            let other = match self.reference.chart {
+                ChartKind::Cc24 => "sg",
+                ChartKind::Sg => "cc24",
+            };
+            format!(
+                "warning: the detected patch lattice has {} patches, more than a {}'s {n}: the frame may hold another chart (an SG?); if so, pass --chart {other}",
+                d.lattice,
+                self.reference.chart.name()
+            )
+        })
+    }
+
     /// The full report (`--json`).
     pub fn report(&self) -> serde_json::Value {
         serde_json::json!({
@@ -297,18 +360,18 @@ impl Capture {
     }
 }
 
-/// Writes an overlay PNG (atomically).
+/// Stages an overlay PNG in `unit`.
 pub fn write_overlay(
     frame: &Frame,
     reading: Option<&Extraction>,
     candidates: &[Candidate],
     swatches: Option<(&[overlay::Swatch], [f64; 3])>,
     dest: &Path,
-    overwrite: bool,
+    unit: &mut Unit,
 ) -> Result<()> {
     let img = overlay::render(frame, reading, candidates, swatches);
     let png = overlay::encode(&img)?;
-    nsrm::atomic::write_atomic(dest, &png, overwrite)
+    unit.write_bytes(dest, &png)
         .with_context(|| format!("writing the overlay {}", dest.display()))?;
     Ok(())
 }

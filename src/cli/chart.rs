@@ -10,7 +10,7 @@ use nsrm::chart::extract::{extract, ExtractOptions};
 use nsrm::chart::reference::Reference;
 use nsrm::chart::scene::{render, ChartColours, SceneOptions};
 use nsrm::chart::ChartKind;
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 use std::time::Instant;
 
@@ -47,25 +47,29 @@ pub struct ExtractArgs {
 
 #[derive(Debug, clap::Args)]
 pub struct RateArgs {
-    /// cc24 or sg.
+    /// The chart: cc24 or sg.
     #[arg(long, value_enum, ignore_case = true)]
     chart: values::Chart,
     /// Spectra of the chart (SG: e.g. ../shared/data/colorchecker_sg_140.csv).
     #[arg(long, value_name = "FILE")]
     reflectances: Option<String>,
+    /// Camera sensitivities: a built-in name (nikon-d5100) or a CSV file (wavelength, R, G, B).
     #[arg(long, default_value = "nikon-d5100", value_name = "NAME|FILE")]
     camera: String,
+    /// Illuminant the chart is lit by: a built-in name or a CSV file.
     #[arg(long, default_value = "D65", value_name = "NAME|FILE")]
     illuminant: String,
     /// Number of scenes.
-    #[arg(long, default_value_t = 200)]
+    #[arg(long, default_value_t = 200, value_name = "N")]
     scenes: u64,
     /// First seed.
-    #[arg(long, default_value_t = 1)]
+    #[arg(long, default_value_t = 1, value_name = "N")]
     seed: u64,
-    #[arg(long, default_value_t = 1200)]
+    /// Frame width in pixels.
+    #[arg(long, default_value_t = 1200, value_name = "PX")]
     width: usize,
-    #[arg(long, default_value_t = 800)]
+    /// Frame height in pixels.
+    #[arg(long, default_value_t = 800, value_name = "PX")]
     height: usize,
     /// Print each failure.
     #[arg(long)]
@@ -82,9 +86,10 @@ pub struct RateArgs {
     /// Smallest tilt in degrees (default 0): the tilt is drawn from MIN..MAX.
     #[arg(long, value_name = "DEG")]
     min_tilt: Option<f64>,
-    /// Exposure below clipping of the brightest patch, in stops: drawn from 0..S (envelope 4).
-    #[arg(long, value_name = "S")]
-    stops: Option<f64>,
+    /// Largest exposure below clipping of the brightest patch, in stops: drawn from 0..S
+    /// (envelope 4; `--stops` is the old spelling).
+    #[arg(long, alias = "stops", value_name = "S")]
+    max_stops: Option<f64>,
     /// Smallest exposure below clipping in stops (default 0): drawn from MIN..S.
     #[arg(long, value_name = "S")]
     min_stops: Option<f64>,
@@ -108,43 +113,42 @@ pub fn run(c: Command) -> Result<ExitCode> {
 
 fn run_extract(a: ExtractArgs) -> Result<ExitCode> {
     a.capture.kind()?;
-    for p in std::iter::once(&a.output).chain(&a.json).chain(&a.overlay) {
-        nsrm::atomic::check_clobber(p, a.overwrite)?;
-    }
     if let Some(o) = &a.overlay {
         if !o.extension().is_some_and(|e| e.eq_ignore_ascii_case("png")) {
             return Err(UsageError(format!("--overlay {}: must be a .png", o.display())).into());
         }
     }
+    let mut inputs = vec![a.frame.as_path()];
+    inputs.extend(a.capture.input_files());
+    let outputs: Vec<&Path> = std::iter::once(&a.output)
+        .chain(&a.json)
+        .chain(&a.overlay)
+        .map(PathBuf::as_path)
+        .collect();
+    let session = super::outputs::open(a.overwrite, &inputs, &outputs)?;
     let cap = a
         .capture
-        .read(&a.frame, a.overlay.as_deref().map(|p| (p, a.overwrite)))?;
-    // Everything is computed; now write.
-    nsrm::atomic::write_atomic(&a.output, cap.extraction.to_csv().as_bytes(), a.overwrite)
+        .read(&a.frame, a.overlay.as_deref().map(|p| (p, &session)))?;
+    // Everything is computed; now write, all together.
+    let mut unit = session.unit();
+    unit.write_bytes(&a.output, cap.extraction.to_csv(&cap.reference).as_bytes())
         .with_context(|| format!("writing {}", a.output.display()))?;
     if let Some(j) = &a.json {
         let text = serde_json::to_string_pretty(&cap.report())?;
-        nsrm::atomic::write_atomic(j, text.as_bytes(), a.overwrite)
+        unit.write_bytes(j, text.as_bytes())
             .with_context(|| format!("writing {}", j.display()))?;
     }
     if let Some(o) = &a.overlay {
-        write_overlay(&cap.frame, Some(&cap.extraction), &[], None, o, a.overwrite)?;
+        write_overlay(&cap.frame, Some(&cap.extraction), &[], None, o, &mut unit)?;
     }
-    let used = cap.extraction.patches.iter().filter(|p| p.usable()).count();
+    unit.commit()?;
+    if let Some(w) = cap.other_chart_warning() {
+        eprintln!("{w}");
+    }
     eprintln!(
-        "{} chart {} in {} ({}); {used} of {} patches written to {}; reference {} matches (median ΔE00 {:.2} after a 3×3 map){}",
-        cap.reference.chart.name(),
-        if cap.detection.is_some() { "found" } else { "read at --corners" },
-        a.frame.display(),
-        cap.sha256.get(..12).unwrap_or(""),
-        cap.extraction.patches.len(),
-        a.output.display(),
-        cap.reference.name,
-        cap.score,
-        cap.flat
-            .as_ref()
-            .map(|f| format!("; light non-uniformity {:.3} (max/min, {})", f.nonuniformity, f.method))
-            .unwrap_or_default()
+        "{}; written to {} (its `# white:` line names that white)",
+        cap.summary(),
+        a.output.display()
     );
     Ok(ExitCode::SUCCESS)
 }
@@ -154,6 +158,16 @@ fn run_rate(a: RateArgs) -> Result<ExitCode> {
     if a.scenes == 0 || a.scenes > 100_000 {
         return Err(UsageError("--scenes must be 1..100000".into()).into());
     }
+    if a.seed.checked_add(a.scenes - 1).is_none() {
+        return Err(UsageError(format!(
+            "--seed {} + --scenes {}: the last seed would pass {} (the largest seed)",
+            a.seed,
+            a.scenes,
+            u64::MAX
+        ))
+        .into());
+    }
+    check_rate_ranges(&a)?;
     let colours =
         ChartColours::simulate(kind, &a.camera, &a.illuminant, a.reflectances.as_deref())?;
     let reference = Reference::load(kind.default_reference(), kind, None)?;
@@ -167,11 +181,11 @@ fn run_rate(a: RateArgs) -> Result<ExitCode> {
         opts.max_area = a.max_area.unwrap_or(opts.max_area).max(opts.min_area);
         opts.max_tilt_deg = a.max_tilt.unwrap_or(opts.max_tilt_deg);
         opts.min_tilt_deg = a.min_tilt.unwrap_or(0.0).min(opts.max_tilt_deg);
-        if a.stops.is_some() || a.min_stops.is_some() {
+        if a.max_stops.is_some() || a.min_stops.is_some() {
             // Same draw as the envelope's (u uniform in 0..1, 4·u stops below clipping),
             // rescaled to MIN..S stops.
             let u = -(opts.exposure / clip_exposure).log2() / 4.0;
-            let (lo, hi) = (a.min_stops.unwrap_or(0.0), a.stops.unwrap_or(4.0));
+            let (lo, hi) = (a.min_stops.unwrap_or(0.0), a.max_stops.unwrap_or(4.0));
             opts.exposure = clip_exposure * 2f64.powf(-(lo + (hi - lo).max(0.0) * u));
         }
         if a.max_blur.is_some() || a.min_blur.is_some() {
@@ -267,6 +281,74 @@ fn run_rate(a: RateArgs) -> Result<ExitCode> {
     } else {
         ExitCode::from(1)
     })
+}
+
+/// The scene ranges of `chart rate`: each a finite number ≥ 0 (areas in (0, 0.9], tilts up to
+/// 60°, blur up to 20 px), and each MIN at most its MAX — never clamped silently.
+fn check_rate_ranges(a: &RateArgs) -> Result<()> {
+    let limits: [(&str, Option<f64>, f64); 8] = [
+        ("--min-area", a.min_area, 0.9),
+        ("--max-area", a.max_area, 0.9),
+        ("--min-tilt", a.min_tilt, 60.0),
+        ("--max-tilt", a.max_tilt, 60.0),
+        ("--min-stops", a.min_stops, 100.0),
+        ("--max-stops", a.max_stops, 100.0),
+        ("--min-blur", a.min_blur, 20.0),
+        ("--max-blur", a.max_blur, 20.0),
+    ];
+    for (flag, v, hi) in limits {
+        if let Some(v) = v {
+            if !(v.is_finite() && (0.0..=hi).contains(&v)) {
+                return Err(UsageError(format!("{flag} {v}: must be a number in 0..{hi}")).into());
+            }
+        }
+    }
+    if a.min_area == Some(0.0) {
+        return Err(UsageError("--min-area 0: a chart needs some area".into()).into());
+    }
+    // The defaults are the envelope's (SceneOptions::envelope).
+    let pairs = [
+        (
+            "--min-area",
+            a.min_area,
+            "--max-area",
+            a.max_area,
+            0.05,
+            0.4,
+        ),
+        (
+            "--min-tilt",
+            a.min_tilt,
+            "--max-tilt",
+            a.max_tilt,
+            0.0,
+            30.0,
+        ),
+        (
+            "--min-stops",
+            a.min_stops,
+            "--max-stops",
+            a.max_stops,
+            0.0,
+            4.0,
+        ),
+        ("--min-blur", a.min_blur, "--max-blur", a.max_blur, 0.0, 1.2),
+    ];
+    for (lo_flag, lo, hi_flag, hi, lo_default, hi_default) in pairs {
+        let (l, h) = (lo.unwrap_or(lo_default), hi.unwrap_or(hi_default));
+        if l > h {
+            return Err(UsageError(format!(
+                "{lo_flag} {l} is above {hi_flag} {h}{}",
+                if hi.is_none() || lo.is_none() {
+                    " (its default)"
+                } else {
+                    ""
+                }
+            ))
+            .into());
+        }
+    }
+    Ok(())
 }
 
 /// The patch pitch in frame pixels near the chart's centre.

@@ -30,23 +30,54 @@ pub struct TrainingArgs {
     /// Wavelength grid for the Riemann sums, START:END:STEP in nm.
     #[arg(long, default_value = "400:700:10", value_name = "START:END:STEP")]
     pub grid: String,
-    /// Measured patches instead of spectra: a CSV `label,R,G,B,X,Y,Z` or `label,R,G,B,L,a,b`.
+    /// Measured patches instead of spectra: a CSV `label,R,G,B,X,Y,Z` or `label,R,G,B,L,a,b`,
+    /// with a `# white: X,Y,Z` line before the header naming the white the values are relative
+    /// to (`chart extract` writes it), or else `--white`.
     #[arg(long, value_name = "FILE", conflicts_with_all = ["camera", "reflectances", "grid"])]
     pub training: Option<PathBuf>,
-    /// Reference white of measured data: `X,Y,Z` or an illuminant name/file (its perfect white,
-    /// Y = 100). Needed for Lab data; XYZ data defaults to D65.
-    #[arg(long, value_name = "X,Y,Z|ILLUMINANT", requires = "training")]
+    #[command(flatten)]
+    pub white: WhiteArg,
+}
+
+/// `--white`: the white a `--training` file's values are relative to.
+#[derive(Debug, Clone, ClapArgs)]
+pub struct WhiteArg {
+    /// The white of a `--training` file's X,Y,Z or L,a,b, when the file has no `# white:` line
+    /// (if it has one, they must agree): `X,Y,Z`, a chromaticity `x,y` (at Y = 100), `D50`, or
+    /// an illuminant name or file (its perfect white, Y = 100). There is no default.
+    #[arg(long, value_name = "X,Y,Z|x,y|D50|ILLUMINANT", requires = "training")]
     pub white: Option<String>,
 }
 
+impl WhiteArg {
+    /// The parsed white, if given.
+    pub fn get(&self) -> Result<Option<[f64; 3]>> {
+        Ok(self
+            .white
+            .as_deref()
+            .map(parse_white)
+            .transpose()
+            .context("--white")?)
+    }
+}
+
 impl TrainingArgs {
+    /// The files these options read (for `illuminant`), for the run's output session: the
+    /// measured CSV, or the spectra given as files (built-in names are no files).
+    pub fn input_files<'a>(&'a self, illuminant: &'a str) -> Vec<&'a std::path::Path> {
+        match &self.training {
+            Some(p) => vec![p.as_path()],
+            None => [self.camera.as_str(), self.reflectances.as_str(), illuminant]
+                .into_iter()
+                .filter_map(super::outputs::file_arg)
+                .collect(),
+        }
+    }
+
     /// Builds the training set for `illuminant` (ignored with `--training`).
     pub fn load(&self, illuminant: &str) -> Result<TrainingSet> {
         let data = match &self.training {
-            Some(path) => {
-                let white = self.white.as_deref().map(white_point).transpose()?;
-                read_measured(path, white)?
-            }
+            Some(path) => read_measured(path, self.white.get()?)?,
             None => {
                 let grid = Grid::parse(&self.grid)?;
                 let camera = Camera::from_name_or_path(&self.camera).context("--camera")?;
@@ -61,23 +92,16 @@ impl TrainingArgs {
     }
 }
 
-/// `--training FILE`: the measured patches; Lab data without a white asks for `--white`.
+/// `--training FILE`: the measured patches; a file that names no white asks for `--white`.
 pub fn read_measured(path: &std::path::Path, white: Option<[f64; 3]>) -> Result<TrainingSet> {
+    use nsrm::training::TrainingError as E;
     TrainingSet::read_measured(path, white).map_err(|e| match e {
-        e @ nsrm::training::TrainingError::NeedsWhite { .. } => {
-            anyhow::Error::new(e).context("--training needs --white X,Y,Z or an illuminant name")
-        }
+        e @ E::NeedsWhite { .. } => anyhow::Error::new(e).context(
+            "--training needs --white X,Y,Z|x,y|D50|ILLUMINANT (the file has no `# white:` line)",
+        ),
+        e @ E::WhiteConflict { .. } => anyhow::Error::new(e).context("--white"),
         e => e.into(),
     })
-}
-
-/// `X,Y,Z`, or the perfect white (Y = 100) of a named illuminant on the default grid.
-fn white_point(spec: &str) -> Result<[f64; 3]> {
-    if spec.contains(',') {
-        return Ok(parse_white(spec)?);
-    }
-    let ill = Illuminant::from_name_or_path(spec)?;
-    Ok(nsrm::spectral::white_xyz(&ill, &Grid::default())?)
 }
 
 /// Parses `lrm,prm,rprm,nsrm`.
@@ -90,7 +114,7 @@ pub fn parse_models(spec: &str) -> Result<Vec<Kind>> {
         }
     }
     if v.is_empty() {
-        return Err(UsageError("--models names no model".into()).into());
+        return Err(UsageError("--kinds names no model kind".into()).into());
     }
     Ok(v)
 }

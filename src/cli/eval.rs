@@ -8,7 +8,7 @@ use nsrm::model::fit::{FitOptions, Normalise, Ridge, White};
 use nsrm::model::Kind;
 use nsrm::spectral::display_name;
 use serde::Serialize;
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 
 #[derive(Debug, clap::Args)]
@@ -23,9 +23,14 @@ pub struct Args {
         conflicts_with = "training"
     )]
     illuminants: Vec<String>,
-    /// Models to evaluate, comma-separated.
-    #[arg(long, default_value = "lrm,prm,rprm,nsrm", value_name = "LIST")]
-    models: String,
+    /// Model kinds to evaluate, comma-separated (`--models` is the old spelling).
+    #[arg(
+        long,
+        alias = "models",
+        default_value = "lrm,prm,rprm,nsrm",
+        value_name = "LIST"
+    )]
+    kinds: String,
     /// Polynomial order, 1..4 (LRM is always linear).
     #[arg(long, default_value_t = 3, conflicts_with = "orders")]
     order: u8,
@@ -54,7 +59,9 @@ pub struct Args {
     fit: FitVariantArgs,
     /// Compare the fit variants: every model × {ls, de00, de00+preserve-white, ridge-auto, and
     /// for NSRM white-balanced}, with mean / median / p95 / max ΔE00 (one table; `--json` too).
-    #[arg(long, conflicts_with_all = ["objective", "preserve_white", "white_patch", "ridge", "normalise"])]
+    /// Measured data and captures have no perfect white: name a neutral patch with
+    /// `--white-patch` for the variants that use a white.
+    #[arg(long, conflicts_with_all = ["objective", "preserve_white", "ridge", "normalise"])]
     variants: bool,
 }
 
@@ -93,7 +100,7 @@ fn describe(name: &str, opts: &FitOptions, r: EvalResult) -> VariantResult {
 }
 
 pub fn run(a: Args) -> Result<ExitCode> {
-    let kinds = parse_models(&a.models)?;
+    let kinds = parse_models(&a.kinds)?;
     let orders = match &a.orders {
         Some(s) => parse_orders(s, "--orders")?,
         None => parse_orders(&a.order.to_string(), "--order")?,
@@ -101,12 +108,28 @@ pub fn run(a: Args) -> Result<ExitCode> {
     if let Some(p) = &a.plot {
         plot::Format::from_path(p)?;
     }
+    let mut inputs: Vec<&Path> = Vec::new();
+    inputs.extend(a.capture.as_deref());
+    inputs.extend(a.chart.input_files());
+    for ill in &a.illuminants {
+        inputs.extend(a.training.input_files(ill));
+    }
+    inputs.extend(a.training.input_files("D65"));
+    let outputs: Vec<&Path> = a.plot.iter().map(PathBuf::as_path).collect();
+    let session = super::outputs::open(a.overwrite, &inputs, &outputs)?;
     let captured = super::capture::for_model(a.capture.as_deref(), &a.chart)?;
+    if let Some(c) = &captured {
+        if let Some(w) = c.other_chart_warning() {
+            eprintln!("{w}");
+        }
+        eprintln!("{}", c.summary());
+    }
     let illuminants: Vec<String> = if captured.is_some() {
         vec!["capture".to_string()]
     } else if a.training.training.is_some() {
         vec![a
             .training
+            .white
             .white
             .clone()
             .unwrap_or_else(|| "measured".to_string())]
@@ -120,7 +143,12 @@ pub fn run(a: Args) -> Result<ExitCode> {
     } else {
         Protocol::LeaveOneOut
     };
-    let custom = a.fit.options()?;
+    // With --variants, --white-patch names the white of the variants that use one.
+    let custom = if a.variants {
+        FitOptions::default()
+    } else {
+        a.fit.options()?
+    };
     let custom_name = if a.fit.is_default() { "ls" } else { "custom" };
     let mut results: Vec<VariantResult> = Vec::new();
     let mut n_patches = 0;
@@ -146,7 +174,13 @@ pub fn run(a: Args) -> Result<ExitCode> {
                 let list: Vec<(String, FitOptions)> = if a.variants {
                     variants(kind)
                         .into_iter()
-                        .map(|v| (v.name.to_string(), v.opts))
+                        .map(|v| {
+                            let mut opts = v.opts;
+                            if let Some(l) = &a.fit.white_patch {
+                                opts.white = White::Patch(l.clone());
+                            }
+                            (v.name.to_string(), opts)
+                        })
                         .collect()
                 } else {
                     let mut o = custom.clone();
@@ -159,7 +193,14 @@ pub fn run(a: Args) -> Result<ExitCode> {
                 for (name, opts) in list {
                     let r = evaluate_with(kind, order, &data, protocol, &ill_name, &opts)
                         .with_context(|| {
-                            format!("evaluating {kind} order {eff} ({name}) under {ill_name}")
+                            let source = match (&a.capture, &a.training.training) {
+                                (Some(f), _) => format!(" on the chart read from {}", f.display()),
+                                (None, Some(t)) => format!(" on the patches of {}", t.display()),
+                                (None, None) => String::new(),
+                            };
+                            format!(
+                                "evaluating {kind} order {eff} ({name}) under {ill_name}{source}"
+                            )
                         })?;
                     results.push(describe(&name, &opts, r));
                 }
@@ -190,13 +231,51 @@ pub fn run(a: Args) -> Result<ExitCode> {
             .filter(|r| r.variant == "ls" || r.variant == "custom")
             .map(|r| r.result.clone())
             .collect();
-        plot::histograms(&plain, p, a.overwrite)
+        let title = format!("ΔE00 per patch: {}", plot_title(&a, protocol));
+        let mut unit = session.unit();
+        plot::histograms(&plain, Some(&title), p, &mut unit)
             .with_context(|| format!("writing the plot {}", p.display()))?;
+        unit.commit()?;
         if !a.json {
             println!("\nplot written to {}", p.display());
         }
     }
     Ok(ExitCode::SUCCESS)
+}
+
+/// Data set, camera and method in a few words (the plot's title).
+fn plot_title(a: &Args, protocol: Protocol) -> String {
+    let name = |p: &std::path::Path| {
+        p.file_name()
+            .map(|n| n.to_string_lossy().into_owned())
+            .unwrap_or_else(|| p.display().to_string())
+    };
+    let source = match (&a.capture, &a.training.training) {
+        (Some(p), _) => format!("chart in {}", name(p)),
+        (_, Some(p)) => format!("measured {}", name(p)),
+        _ => format!(
+            "{} under the camera {}",
+            name(std::path::Path::new(&a.training.reflectances)),
+            name(std::path::Path::new(&a.training.camera))
+        ),
+    };
+    let patches = if a.training.patches == "all" {
+        String::new()
+    } else {
+        format!(" (patches {})", a.training.patches)
+    };
+    format!(
+        "{source}{patches}; {}, {}",
+        proto_name(protocol),
+        a.fit.method_name()
+    )
+}
+
+fn proto_name(protocol: Protocol) -> &'static str {
+    match protocol {
+        Protocol::LeaveOneOut => "leave-one-out",
+        Protocol::InSample => "in-sample",
+    }
 }
 
 fn header(a: &Args, protocol: Protocol, n: usize) {
@@ -208,10 +287,7 @@ fn header(a: &Args, protocol: Protocol, n: usize) {
             a.training.camera, a.training.reflectances, a.training.grid
         ),
     };
-    let proto = match protocol {
-        Protocol::LeaveOneOut => "leave-one-out",
-        Protocol::InSample => "in-sample",
-    };
+    let proto = proto_name(protocol);
     println!(
         "CIEDE2000, {proto}, {n} patches ({}); {source}",
         a.training.patches

@@ -51,9 +51,8 @@ pub struct Args {
     /// file's provenance (camera, illuminant, reflectances, grid, patches).
     #[arg(long, value_name = "FILE")]
     training: Option<PathBuf>,
-    /// Reference white of a measured --training file (as for `nsrm fit --white`).
-    #[arg(long, value_name = "X,Y,Z", requires = "training")]
-    white: Option<String>,
+    #[command(flatten)]
+    white: super::common::WhiteArg,
     /// Where to write the file (for ocio: the config).
     #[arg(short, long, value_name = "FILE")]
     output: PathBuf,
@@ -61,6 +60,9 @@ pub struct Args {
     #[arg(long)]
     overwrite: bool,
 }
+
+/// Max ΔE00 of an export above which it is flagged as poor (a visible departure from the model).
+const POOR_EXPORT_DE00: f64 = 5.0;
 
 fn parse_stops(s: &str) -> Result<[f64; 2]> {
     let bad = || UsageError(format!("--stops `{s}`: expected LO:HI, e.g. -6:4"));
@@ -73,12 +75,7 @@ fn parse_stops(s: &str) -> Result<[f64; 2]> {
 /// The training patches: `--training`, or re-simulated from the model's provenance.
 fn training_set(a: &Args, model: &Model) -> Result<TrainingSet> {
     if let Some(path) = &a.training {
-        let white = a
-            .white
-            .as_deref()
-            .map(nsrm::training::parse_white)
-            .transpose()?;
-        return super::common::read_measured(path, white);
+        return super::common::read_measured(path, a.white.get()?);
     }
     let p = model.provenance();
     let (Some(camera), Some(ill), Some(refl)) = (&p.camera, &p.illuminant, &p.reflectances) else {
@@ -124,18 +121,17 @@ pub fn run(a: Args) -> Result<ExitCode> {
             );
         }
     }
-    nsrm::atomic::check_clobber(&a.output, a.overwrite)?;
+    let companion = nsrm::export::companion_path(format, &a.output)?;
+    let mut inputs = vec![a.model.as_path()];
+    inputs.extend(a.training.as_deref());
+    let mut outputs = vec![a.output.as_path()];
+    outputs.extend(companion.as_deref());
+    let session = super::outputs::open(a.overwrite, &inputs, &outputs)?;
     let model = Model::load(&a.model)?;
     let data = training_set(&a, &model)?;
+    let mut unit = session.unit();
     let written = match export_to(
-        &model,
-        format,
-        space,
-        options,
-        &data.rgb,
-        a.max_de00,
-        &a.output,
-        a.overwrite,
+        &model, format, space, options, &data.rgb, a.max_de00, &a.output, &mut unit,
     ) {
         Ok(w) => w,
         Err(e @ ExportError::TooInaccurate { limit, .. }) => {
@@ -146,6 +142,7 @@ pub fn run(a: Args) -> Result<ExitCode> {
                 .with_context(|| format!("exporting {} as {}", a.model.display(), format.name()))
         }
     };
+    unit.commit()?;
     let what = if written.exact {
         "exact Matrix".to_string()
     } else {
@@ -166,5 +163,11 @@ pub fn run(a: Args) -> Result<ExitCode> {
             .join(", ")
     );
     println!("approximation error: {}", written.report.summary());
+    let worst = written.report.max();
+    if worst > POOR_EXPORT_DE00 {
+        eprintln!(
+            "warning: the export's max ΔE00 is {worst:.1} (over {POOR_EXPORT_DE00}): it departs visibly from the model somewhere in its range; check the report above, narrow --stops or enlarge --lut-size, or set --max-de00 to refuse such exports"
+        );
+    }
     Ok(ExitCode::SUCCESS)
 }

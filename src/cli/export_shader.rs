@@ -6,6 +6,7 @@ use anyhow::{Context, Result};
 use nsrm::colorimetry::spaces::OutputSpace;
 use nsrm::gpu::export::export;
 use nsrm::{Layout, Model};
+
 use std::path::PathBuf;
 use std::process::ExitCode;
 
@@ -18,15 +19,12 @@ pub struct Args {
     /// (DaVinci Resolve DCTL `transform` function; --layout does not apply).
     #[arg(long, value_enum, ignore_case = true)]
     lang: values::Lang,
-    /// Fold an output space into the matrix exactly as `nsrm apply --output-space` does
-    /// (training white at Y = 1): xyz, linear-srgb, acescg or aces2065-1. Default: xyz for dctl;
-    /// for the compute shaders, the model's own XYZ (white at Y = 100) unless given.
-    #[arg(long, value_enum, ignore_case = true)]
-    output_space: Option<values::Space>,
-    /// Pixel layout of the buffer the shader corrects in place: packed f32 `rgb` or `rgba`
-    /// (alpha untouched).
-    #[arg(long, value_enum, ignore_case = true, default_value_t = values::Layout::Rgba)]
-    layout: values::Layout,
+    /// The output space folded into the matrix exactly as `nsrm apply --output-space` does, for
+    /// every language alike (training white at Y = 1): xyz, linear-srgb, acescg or aces2065-1.
+    #[arg(long, value_enum, ignore_case = true, default_value_t = values::Space::Xyz)]
+    output_space: values::Space,
+    #[command(flatten)]
+    layout: values::LayoutArg,
     /// Where to write the shader.
     #[arg(short, long, value_name = "FILE")]
     output: PathBuf,
@@ -35,15 +33,24 @@ pub struct Args {
     overwrite: bool,
 }
 
-/// The space named by `--output-space`, if any.
-fn output_space(a: &Args) -> Option<OutputSpace> {
-    a.output_space.map(OutputSpace::from)
+/// The space named by `--output-space`.
+fn output_space(a: &Args) -> OutputSpace {
+    OutputSpace::from(a.output_space)
+}
+
+/// What the output line says about the values written.
+fn scale_note(space: OutputSpace) -> String {
+    format!(
+        "scene-linear {}, training white at Y = 1, as `nsrm apply --output-space {}` writes",
+        space.name(),
+        space.name()
+    )
 }
 
 /// `--lang dctl`: the exact model as a Resolve DCTL.
 fn run_dctl(a: &Args) -> Result<ExitCode> {
-    let space = output_space(a).unwrap_or(OutputSpace::Xyz);
-    nsrm::atomic::check_clobber(&a.output, a.overwrite)?;
+    let space = output_space(a);
+    let session = super::outputs::open(a.overwrite, &[&a.model], &[&a.output])?;
     let model = Model::load(&a.model)?;
     let folded = nsrm::colorimetry::output_model(&model, space)?;
     let header = vec![
@@ -58,13 +65,13 @@ fn run_dctl(a: &Args) -> Result<ExitCode> {
     ];
     let text = nsrm::export::dctl::generate(&folded, &header)
         .with_context(|| format!("exporting {} as DCTL", a.model.display()))?;
-    nsrm::atomic::write_atomic(&a.output, text.as_bytes(), a.overwrite)?;
+    session.write_bytes(&a.output, text.as_bytes())?;
     eprintln!(
-        "{} order {} ({} terms) → {} as DCTL: {} bytes written to {}",
+        "{} order {} ({} terms) as DCTL ({}): {} bytes written to {}",
         model.kind(),
         model.order(),
         model.len_terms(),
-        space.name(),
+        scale_note(space),
         text.len(),
         a.output.display()
     );
@@ -75,14 +82,11 @@ pub fn run(a: Args) -> Result<ExitCode> {
     let Some(lang) = a.lang.shader() else {
         return run_dctl(&a);
     };
-    let layout = Layout::from(a.layout);
+    let layout = Layout::from(a.layout.layout);
     let space = output_space(&a);
-    nsrm::atomic::check_clobber(&a.output, a.overwrite)?;
+    let session = super::outputs::open(a.overwrite, &[&a.model], &[&a.output])?;
     let model = Model::load(&a.model)?;
-    let model = match space {
-        Some(space) => nsrm::colorimetry::output_model(&model, space)?,
-        None => model,
-    };
+    let model = nsrm::colorimetry::output_model(&model, space)?;
     let bytes = export(&model, layout, lang).with_context(|| {
         format!(
             "exporting {} order {} as {}",
@@ -91,15 +95,16 @@ pub fn run(a: Args) -> Result<ExitCode> {
             lang.name()
         )
     })?;
-    nsrm::atomic::write_atomic(&a.output, &bytes, a.overwrite)?;
+    session.write_bytes(&a.output, &bytes)?;
     eprintln!(
-        "{} order {} ({} terms, {} pixels) as {}: {} bytes written to {} \
+        "{} order {} ({} terms, {} pixels) as {} ({}): {} bytes written to {} \
          (entry point `main`, workgroup 256, pixels at group 0 binding 1)",
         model.kind(),
         model.order(),
         model.len_terms(),
         layout.name(),
         lang.name(),
+        scale_note(space),
         bytes.len(),
         a.output.display()
     );

@@ -8,7 +8,7 @@ use nsrm::colorimetry::delta_e00_xyz;
 use nsrm::model::fit::{fit_with, Normalise};
 use nsrm::model::Kind;
 use rayon::prelude::*;
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 
 #[derive(Debug, clap::Args)]
@@ -23,9 +23,8 @@ pub struct Args {
         conflicts_with = "training"
     )]
     illuminant: String,
-    /// Model kind: lrm, prm, rprm or nsrm.
-    #[arg(long, value_enum, ignore_case = true, default_value_t = values::ModelKind::Nsrm)]
-    model: values::ModelKind,
+    #[command(flatten)]
+    kind: values::KindArg,
     /// Polynomial order, 1..4 (LRM is always linear).
     #[arg(long, default_value_t = 3)]
     order: u8,
@@ -49,8 +48,16 @@ pub struct Args {
     fit: FitVariantArgs,
 }
 
+impl Args {
+    /// The model kind asked for.
+    #[cfg(test)]
+    pub fn kind(&self) -> Kind {
+        Kind::from(self.kind.kind)
+    }
+}
+
 pub fn run(a: Args) -> Result<ExitCode> {
-    let kind = Kind::from(a.model);
+    let kind = Kind::from(a.kind.kind);
     if !(1..=4).contains(&a.order) {
         return Err(UsageError(format!("--order {} is out of range (1..4)", a.order)).into());
     }
@@ -61,20 +68,42 @@ pub fn run(a: Args) -> Result<ExitCode> {
         ))
         .into());
     }
-    nsrm::atomic::check_clobber(&a.output, a.overwrite)?;
-    if let Some(o) = &a.overlay {
-        nsrm::atomic::check_clobber(o, a.overwrite)?;
-    }
+    let mut inputs: Vec<&Path> = Vec::new();
+    inputs.extend(a.capture.as_deref());
+    inputs.extend(a.chart.input_files());
+    inputs.extend(a.training.input_files(&a.illuminant));
+    let outputs: Vec<&Path> = std::iter::once(&a.output)
+        .chain(&a.overlay)
+        .map(PathBuf::as_path)
+        .collect();
+    let session = super::outputs::open(a.overwrite, &inputs, &outputs)?;
     let captured = super::capture::for_model(a.capture.as_deref(), &a.chart)?;
+    if let Some(c) = &captured {
+        if let Some(w) = c.other_chart_warning() {
+            eprintln!("{w}");
+        }
+        eprintln!("{}", c.summary());
+    }
     let data = match &captured {
         Some(c) => c.training_set().select(&a.training.patches)?,
         None => a.training.load(&a.illuminant)?,
     };
-    let fitted = fit_with(kind, a.order, &data, &opts)
-        .with_context(|| format!("fitting {kind} order {} on {} patches", a.order, data.len()))?;
+    let source = match (&a.capture, &a.training.training) {
+        (Some(f), _) => format!(" read from {}", f.display()),
+        (None, Some(t)) => format!(" of {}", t.display()),
+        (None, None) => " simulated from spectra".to_string(),
+    };
+    let fitted = fit_with(kind, a.order, &data, &opts).with_context(|| {
+        format!(
+            "fitting {kind} order {} on {} patches{source}",
+            a.order,
+            data.len()
+        )
+    })?;
     let model = &fitted.model;
     let report = &fitted.report;
-    nsrm::atomic::write_atomic(&a.output, model.to_json().as_bytes(), a.overwrite)?;
+    let mut unit = session.unit();
+    unit.write_bytes(&a.output, model.to_json().as_bytes())?;
     if let (Some(c), Some(o)) = (&captured, &a.overlay) {
         let sw = super::capture::swatches(c, model);
         super::capture::write_overlay(
@@ -83,9 +112,10 @@ pub fn run(a: Args) -> Result<ExitCode> {
             &[],
             Some((&sw, c.reference.white)),
             o,
-            a.overwrite,
+            &mut unit,
         )?;
     }
+    unit.commit()?;
     // In parallel: a measured set can hold 10^6 patches.
     let de: Vec<f64> = data
         .rgb
@@ -127,5 +157,19 @@ pub fn run(a: Args) -> Result<ExitCode> {
             _ => String::new(),
         }
     );
+    if let Some(w) = few_patches_warning(model.len_terms(), data.len()) {
+        eprintln!("{w}");
+    }
     Ok(ExitCode::SUCCESS)
+}
+
+/// A warning when the fit has fewer than 1.5 patches per term: it can follow the patches'
+/// noise, and its in-sample error says nothing about other colours (PRM 3, 19 terms, on 23 CC24
+/// patches: leave-one-out max ΔE00 about 21).
+pub fn few_patches_warning(terms: usize, patches: usize) -> Option<String> {
+    (2 * patches < 3 * terms).then(|| {
+        format!(
+            "warning: {terms} terms fitted on {patches} patches (fewer than 1.5 per term): the fit can follow the patches' noise and go wild between them; check it with `nsrm eval` (leave-one-out), use a lower --order or more patches, or regularise with --ridge auto"
+        )
+    })
 }

@@ -59,6 +59,25 @@ impl FitVariantArgs {
         })
     }
 
+    /// The fit in a few words: `least squares` (the paper's), or the objective and options.
+    pub fn method_name(&self) -> String {
+        let mut parts = vec![if self.objective == "ls" {
+            "least squares".to_string()
+        } else {
+            format!("objective {}", self.objective)
+        }];
+        if self.preserve_white {
+            parts.push("white preserved".into());
+        }
+        if let Some(r) = &self.ridge {
+            parts.push(format!("ridge {r}"));
+        }
+        if self.normalise != values::Normalise::Raw {
+            parts.push("white-balanced input".into());
+        }
+        parts.join(", ")
+    }
+
     /// Whether any flag differs from the paper's fit.
     pub fn is_default(&self) -> bool {
         self.objective == "ls"

@@ -14,8 +14,10 @@ mod export;
 mod export_shader;
 mod fit;
 mod fit_args;
+mod outputs;
 mod render_chart;
 mod render_scene;
+mod runtime_dir;
 mod terms;
 mod values;
 
@@ -88,6 +90,10 @@ pub fn main() -> ExitCode {
             return ExitCode::from(code);
         }
     };
+    // Before any thread starts: Mesa's loader complains on every GPU run without it.
+    if matches!(cli.command, Command::Apply(_) | Command::Bench(_)) {
+        runtime_dir::ensure_runtime_dir();
+    }
     let result = match cli.command {
         Command::Apply(a) => apply::run(a),
         Command::Bench(a) => bench::run(a),
@@ -105,17 +111,19 @@ pub fn main() -> ExitCode {
         Err(e) => {
             // The library names no flags; the binary says which one is at fault or the way out.
             let (msg, hint) = common::explain(&e);
-            eprintln!("nsrm: error: {msg}");
+            // The style of clap's own errors (`error: …`, then an indented hint, as clap gives its `tip:`), so every failure
+            // of the command reads alike.
+            eprintln!("error: {msg}");
             if let Some(hint) = hint {
-                eprintln!("nsrm: hint: {hint}");
+                eprintln!("\n  hint: {hint}");
             }
             if e.chain().any(|c| {
                 matches!(
-                    c.downcast_ref::<nsrm::atomic::WriteError>(),
-                    Some(nsrm::atomic::WriteError::Exists(_))
+                    c.downcast_ref::<nsrm::output::WriteError>(),
+                    Some(nsrm::output::WriteError::Exists(_))
                 )
             }) {
-                eprintln!("nsrm: hint: pass --overwrite to replace it");
+                eprintln!("\n  hint: pass --overwrite to replace it");
             }
             // A usage error of the binary's own, or of the library (which knows which of its
             // errors are the caller's mistake), anywhere in the context chain.
@@ -128,5 +136,81 @@ pub fn main() -> ExitCode {
                 ExitCode::from(1)
             }
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use clap::CommandFactory;
+
+    /// Every subcommand, with its path (`nsrm chart rate`).
+    fn commands(c: &clap::Command, path: String, out: &mut Vec<(String, clap::Command)>) {
+        out.push((path.clone(), c.clone()));
+        for s in c.get_subcommands() {
+            commands(s, format!("{path} {}", s.get_name()), out);
+        }
+    }
+
+    #[test]
+    fn every_flag_has_help_text() {
+        let mut all = Vec::new();
+        commands(&Cli::command(), "nsrm".into(), &mut all);
+        let mut missing = Vec::new();
+        for (path, c) in &all {
+            for a in c.get_arguments() {
+                let id = a.get_id().as_str();
+                if matches!(id, "help" | "version") || a.is_hide_set() {
+                    continue;
+                }
+                if a.get_help().is_none() && a.get_long_help().is_none() {
+                    missing.push(format!("{path} {id}"));
+                }
+            }
+        }
+        assert!(missing.is_empty(), "flags without help text: {missing:?}");
+    }
+
+    /// One vocabulary: `--model` is a model file wherever it appears (the kind is `--kind`), and
+    /// `-o` is `--output` everywhere.
+    #[test]
+    fn one_meaning_per_flag() {
+        let mut all = Vec::new();
+        commands(&Cli::command(), "nsrm".into(), &mut all);
+        for (path, c) in &all {
+            for a in c.get_arguments() {
+                if a.get_long() == Some("model") {
+                    let v = a.get_value_names().map(|v| v.join(" ")).unwrap_or_default();
+                    assert_eq!(v, "FILE", "{path} --model");
+                }
+                if a.get_short() == Some('o') {
+                    assert_eq!(a.get_long(), Some("output"), "{path} -o");
+                }
+            }
+        }
+        // The old spellings still parse (hidden aliases).
+        for old in [
+            &["nsrm", "fit", "--model", "prm", "-o", "m.json"][..],
+            &["nsrm", "terms", "--model", "rprm"],
+            &["nsrm", "eval", "--models", "lrm"],
+            &["nsrm", "bench", "--models", "lrm"],
+            &["nsrm", "chart", "rate", "--chart", "cc24", "--stops", "3"],
+            &[
+                "nsrm",
+                "apply",
+                "--model",
+                "m.json",
+                "--output-dir",
+                "d",
+                "x.exr",
+            ],
+        ] {
+            assert!(Cli::try_parse_from(old).is_ok(), "{old:?}");
+        }
+        let new = Cli::try_parse_from(["nsrm", "fit", "--kind", "prm", "-o", "m.json"]).unwrap();
+        let Command::Fit(f) = new.command else {
+            panic!()
+        };
+        assert_eq!(f.kind(), nsrm::model::Kind::Prm);
     }
 }

@@ -58,11 +58,17 @@ pub fn run(a: Args) -> Result<ExitCode> {
     };
     // Refuse bad options before the (slower) simulation.
     opts.validate()?;
-    nsrm::atomic::check_clobber(&a.output, a.overwrite)?;
-    nsrm::atomic::check_clobber(&chart::layout_path(&a.output), a.overwrite)?;
+    let layout_file = chart::layout_path(&a.output);
+    let session = super::outputs::open(
+        a.overwrite,
+        &a.training.input_files(&a.illuminant),
+        &[&a.output, &layout_file],
+    )?;
     let data = a.training.load(&a.illuminant)?;
     let (frame, layout) = chart::render(&data, &opts).context("rendering the chart")?;
-    chart::write(&frame, &layout, &a.output, a.overwrite)?;
+    let mut unit = session.unit();
+    chart::write(&frame, &layout, &a.output, &mut unit)?;
+    unit.commit()?;
     eprintln!(
         "{} patches ({} columns, {} px) rendered to {} ({}×{}); layout in {}",
         layout.patches.len(),

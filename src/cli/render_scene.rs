@@ -6,7 +6,7 @@ use super::values;
 use anyhow::{Context, Result};
 use nsrm::chart::scene::{render, truth_path, ChartColours, SceneOptions};
 use nsrm::chart::{parse_corners, ChartKind};
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 
 #[derive(Debug, clap::Args)]
@@ -18,23 +18,28 @@ pub struct Args {
     /// ../shared/data/colorchecker_sg_140.csv); default for cc24: the built-in cc24.
     #[arg(long, value_name = "FILE")]
     reflectances: Option<String>,
+    /// Camera sensitivities: a built-in name (nikon-d5100) or a CSV file (wavelength, R, G, B).
     #[arg(long, default_value = "nikon-d5100", value_name = "NAME|FILE")]
     camera: String,
+    /// Illuminant the chart is lit by: a built-in name or a CSV file.
     #[arg(long, default_value = "D65", value_name = "NAME|FILE")]
     illuminant: String,
-    #[arg(long, default_value_t = 1200)]
+    /// Frame width in pixels.
+    #[arg(long, default_value_t = 1200, value_name = "PX")]
     width: usize,
-    #[arg(long, default_value_t = 800)]
+    /// Frame height in pixels.
+    #[arg(long, default_value_t = 800, value_name = "PX")]
     height: usize,
     /// Place the patch grid at these corners ("X,Y X,Y X,Y X,Y", first patch first, clockwise);
     /// default: a random pose from --seed.
-    #[arg(long, allow_hyphen_values = true)]
+    #[arg(long, allow_hyphen_values = true, value_name = "\"X,Y X,Y X,Y X,Y\"")]
     corners: Option<String>,
     /// A random scene inside the detection envelope (exposure, light, blur and noise drawn from
     /// --seed too; the options below are then ignored).
     #[arg(long)]
     envelope: bool,
-    #[arg(long, default_value_t = 1)]
+    /// Seed of the random pose, clutter and noise (and, with --envelope, of everything).
+    #[arg(long, default_value_t = 1, value_name = "N")]
     seed: u64,
     /// Multiplies camera RGB (the evenly lit perfect white has G = exposure).
     #[arg(long, default_value_t = 0.8)]
@@ -57,25 +62,31 @@ pub struct Args {
     /// Linear light gradient across the frame (0..1).
     #[arg(long, default_value_t = 0.0)]
     gradient: f64,
-    /// Background shapes.
-    #[arg(long, default_value_t = 20)]
+    /// Background shapes (the envelope's 25).
+    #[arg(long, default_value_t = 25, value_name = "N")]
     clutter: usize,
     /// Hide a corner of the chart behind an object.
     #[arg(long)]
     occlusion: bool,
-    /// Random pose: chart area fraction range and largest tilt.
-    #[arg(long, default_value_t = 0.1)]
+    /// Random pose: smallest chart area, a fraction of the frame (the envelope's 0.05).
+    #[arg(long, default_value_t = 0.05, value_name = "F")]
     min_area: f64,
-    #[arg(long, default_value_t = 0.4)]
+    /// Random pose: largest chart area, a fraction of the frame (the envelope's 0.4).
+    #[arg(long, default_value_t = 0.4, value_name = "F")]
     max_area: f64,
-    #[arg(long, default_value_t = 30.0)]
+    /// Random pose: largest tilt in degrees (the envelope's 30).
+    #[arg(long, default_value_t = 30.0, value_name = "DEG")]
     max_tilt: f64,
+    /// Random pose: smallest tilt in degrees; the tilt is drawn from MIN..MAX.
+    #[arg(long, default_value_t = 0.0, value_name = "DEG")]
+    min_tilt: f64,
     /// Also write a flat frame (a grey card under the same light) here.
     #[arg(long, value_name = "FILE")]
     flat_output: Option<PathBuf>,
     /// The frame: .exr or .tif/.tiff. The truth goes to NAME.scene.json beside it.
     #[arg(short, long, value_name = "FILE")]
     output: PathBuf,
+    /// Replace existing output files.
     #[arg(long)]
     overwrite: bool,
 }
@@ -86,10 +97,20 @@ pub fn run(a: Args) -> Result<ExitCode> {
         if nsrm::io::FileFormat::from_extension(p).is_none() {
             return Err(UsageError(format!("{}: must be .exr, .tif or .tiff", p.display())).into());
         }
-        nsrm::atomic::check_clobber(p, a.overwrite)?;
     }
     let tpath = truth_path(&a.output);
-    nsrm::atomic::check_clobber(&tpath, a.overwrite)?;
+    let inputs: Vec<&Path> = [
+        Some(a.camera.as_str()),
+        Some(a.illuminant.as_str()),
+        a.reflectances.as_deref(),
+    ]
+    .into_iter()
+    .flatten()
+    .filter_map(super::outputs::file_arg)
+    .collect();
+    let mut outputs = vec![a.output.as_path(), tpath.as_path()];
+    outputs.extend(a.flat_output.as_deref());
+    let session = super::outputs::open(a.overwrite, &inputs, &outputs)?;
     let corners = a.corners.as_deref().map(parse_corners).transpose()?;
     let colours =
         ChartColours::simulate(kind, &a.camera, &a.illuminant, a.reflectances.as_deref())?;
@@ -116,6 +137,7 @@ pub fn run(a: Args) -> Result<ExitCode> {
             min_area: a.min_area,
             max_area: a.max_area,
             max_tilt_deg: a.max_tilt,
+            min_tilt_deg: a.min_tilt,
             ..Default::default()
         }
     };
@@ -128,13 +150,15 @@ pub fn run(a: Args) -> Result<ExitCode> {
         truth.camera,
         truth.illuminant
     );
-    nsrm::io::chart::write_camera_frame(&frame, &a.output, &note, a.overwrite)
+    let mut unit = session.unit();
+    nsrm::io::chart::write_camera_frame(&frame, &a.output, &note, &mut unit)
         .with_context(|| format!("writing {}", a.output.display()))?;
     if let Some(f) = &a.flat_output {
-        nsrm::io::chart::write_camera_frame(&flat, f, "nsrm scene: flat frame", a.overwrite)
+        nsrm::io::chart::write_camera_frame(&flat, f, "nsrm scene: flat frame", &mut unit)
             .with_context(|| format!("writing {}", f.display()))?;
     }
-    nsrm::atomic::write_atomic(&tpath, json.as_bytes(), a.overwrite)?;
+    unit.write_bytes(&tpath, json.as_bytes())?;
+    unit.commit()?;
     eprintln!(
         "{} chart rendered to {} ({}×{}; area {:.1} %, rotation {:.0}°, tilt {:.0}°, exposure {:.3}); truth in {}",
         kind.name(),

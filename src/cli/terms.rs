@@ -8,16 +8,15 @@ use std::process::ExitCode;
 
 #[derive(Debug, clap::Args)]
 pub struct Args {
-    /// Model kind: lrm, prm, rprm or nsrm.
-    #[arg(long, value_enum, ignore_case = true, default_value_t = values::ModelKind::Nsrm)]
-    model: values::ModelKind,
+    #[command(flatten)]
+    kind: values::KindArg,
     /// Order, 1..4.
     #[arg(long, default_value_t = 3)]
     order: u8,
 }
 
 pub fn run(a: Args) -> Result<ExitCode> {
-    let kind = Kind::from(a.model);
+    let kind = Kind::from(a.kind.kind);
     if !(1..=4).contains(&a.order) {
         return Err(UsageError(format!("--order {} is out of range (1..4)", a.order)).into());
     }

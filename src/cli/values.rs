@@ -45,7 +45,7 @@ value_enum!(
 );
 
 value_enum!(
-    /// `--model` (one kind).
+    /// `--kind` (one model kind).
     ModelKind => nsrm::model::Kind,
     |s| nsrm::model::Kind::parse(s).ok(),
     { Lrm = "lrm", Prm = "prm", Rprm = "rprm", Nsrm = "nsrm" }
@@ -80,7 +80,7 @@ value_enum!(
 );
 
 value_enum!(
-    /// `apply --device`.
+    /// `--device` (apply, bench).
     Device => nsrm::gpu::DeviceChoice,
     nsrm::gpu::DeviceChoice::parse,
     { Auto = "auto", Gpu = "gpu", Cpu = "cpu" }
@@ -129,11 +129,40 @@ impl Lang {
 }
 
 value_enum!(
-    /// `export-shader --layout`.
+    /// `--layout` (export-shader, bench).
     Layout => nsrm::Layout,
     nsrm::Layout::parse,
     { Rgb = "rgb", Rgba = "rgba" }
 );
+
+/// `--kind`, defined once for `fit` and `terms` (`--model` names a model file everywhere; it is
+/// kept as a hidden alias here, the old spelling).
+#[derive(Debug, Clone, clap::Args)]
+pub struct KindArg {
+    /// Model kind: lrm, prm, rprm or nsrm.
+    #[arg(long, alias = "model", value_enum, ignore_case = true, default_value_t = ModelKind::Nsrm)]
+    pub kind: ModelKind,
+}
+
+/// `--device`, defined once for `apply` and `bench`.
+#[derive(Debug, Clone, clap::Args)]
+pub struct DeviceArg {
+    /// Where to run: `auto` (a hardware GPU if there is one, else the CPU path; a software
+    /// rasteriser such as Mesa's lavapipe is slower than the CPU path and is used only by `gpu`
+    /// or when named by --adapter / NSRM_ADAPTER; the choice and its reason are printed), `gpu`
+    /// (any GPU adapter, or an error) or `cpu`.
+    #[arg(long, value_enum, ignore_case = true, default_value_t = Device::Auto)]
+    pub device: Device,
+}
+
+/// `--layout`, defined once for every command that takes it (one default: `rgb`, the layout of
+/// the frames `apply` reads and writes).
+#[derive(Debug, Clone, clap::Args)]
+pub struct LayoutArg {
+    /// Pixel layout of the buffer: packed f32 `rgb`, or `rgba` (alpha untouched).
+    #[arg(long, value_enum, ignore_case = true, default_value_t = Layout::Rgb)]
+    pub layout: Layout,
+}
 
 value_enum!(
     /// `--chart`.

@@ -18,7 +18,7 @@ pub enum PlotError {
     #[error("nothing to plot")]
     Empty,
     #[error(transparent)]
-    Write(#[from] crate::atomic::WriteError),
+    Write(#[from] crate::output::WriteError),
     #[error("encoding the PNG: {0}")]
     Png(String),
     /// The embedded font did not parse, or plotters failed to draw.
@@ -48,7 +48,9 @@ impl Format {
     }
 }
 
-const PALETTE: [RGBColor; 8] = [
+/// One colour per series, all distinct: `--orders 1-4` draws 13 (LRM and three kinds × four
+/// orders). Tableau's ten, then six more of tab20's and darker tones, so no two series share one.
+const PALETTE: [RGBColor; 16] = [
     RGBColor(31, 119, 180),
     RGBColor(255, 127, 14),
     RGBColor(44, 160, 44),
@@ -57,6 +59,14 @@ const PALETTE: [RGBColor; 8] = [
     RGBColor(140, 86, 75),
     RGBColor(227, 119, 194),
     RGBColor(127, 127, 127),
+    RGBColor(188, 189, 34),
+    RGBColor(23, 190, 207),
+    RGBColor(11, 61, 145),
+    RGBColor(174, 199, 232),
+    RGBColor(255, 187, 120),
+    RGBColor(152, 223, 138),
+    RGBColor(255, 152, 150),
+    RGBColor(0, 0, 0),
 ];
 const GRID: RGBColor = RGBColor(220, 220, 220);
 
@@ -64,7 +74,13 @@ const GRID: RGBColor = RGBColor(220, 220, 220);
 const PANEL_W: u32 = 470;
 const PANEL_H: u32 = 410;
 const LEGEND_ROW: u32 = 20;
+/// Legend entries per row at most, each [`LEGEND_ENTRY`] pixels wide after a [`LEGEND_LEFT`]
+/// margin; fewer when the figure is narrower (one panel), so no label is clipped.
 const LEGEND_COLS: usize = 4;
+const LEGEND_ENTRY: u32 = 110;
+const LEGEND_LEFT: u32 = 52;
+/// The band of the figure's title, when it has one.
+const TITLE_H: u32 = 30;
 
 /// The family the embedded font is registered under. plotters writes it verbatim as the SVG
 /// `font-family`, so viewers without DejaVu fall back to their sans-serif face.
@@ -114,10 +130,12 @@ struct Figure {
     /// The y axis' top (a multiple of `ystep`).
     ytop: f64,
     ystep: f64,
+    /// Above the panels: what was evaluated (data set, camera, protocol).
+    title: Option<String>,
 }
 
 impl Figure {
-    fn new(results: &[EvalResult]) -> Result<Figure, PlotError> {
+    fn new(results: &[EvalResult], title: Option<&str>) -> Result<Figure, PlotError> {
         if results.is_empty() {
             return Err(PlotError::Empty);
         }
@@ -172,22 +190,48 @@ impl Figure {
             nbins,
             ytop,
             ystep,
+            title: title.map(|t| t.replace(|c: char| c.is_control(), " ")),
         })
+    }
+
+    /// Legend entries per row: as many as fit the figure's width (at least one).
+    fn legend_cols(&self) -> usize {
+        let w = self.panels.len() as u32 * PANEL_W;
+        (((w.saturating_sub(LEGEND_LEFT)) / LEGEND_ENTRY) as usize).clamp(1, LEGEND_COLS)
+    }
+
+    fn title_h(&self) -> u32 {
+        if self.title.is_some() {
+            TITLE_H
+        } else {
+            0
+        }
     }
 
     /// The whole figure's size in pixels.
     fn size(&self) -> (u32, u32) {
-        let rows = self.models.len().div_ceil(LEGEND_COLS) as u32;
+        let rows = self.models.len().div_ceil(self.legend_cols()) as u32;
         (
             self.panels.len() as u32 * PANEL_W,
-            PANEL_H + 16 + rows * LEGEND_ROW,
+            self.title_h() + PANEL_H + 16 + rows * LEGEND_ROW,
         )
     }
 
     fn draw<DB: DrawingBackend>(&self, root: &DrawingArea<DB, Shift>) -> Result<(), PlotError> {
         register_font()?;
         root.fill(&WHITE).map_err(draw_err)?;
-        let (top, legend) = root.split_vertically(PANEL_H);
+        let (head, body) = root.split_vertically(self.title_h());
+        if let Some(t) = &self.title {
+            let (w, _) = head.dim_in_pixel();
+            let style = font(17.0).pos(Pos::new(HPos::Center, VPos::Center));
+            head.draw(&Text::new(
+                t.as_str(),
+                (w as i32 / 2, TITLE_H as i32 / 2 + 2),
+                style,
+            ))
+            .map_err(draw_err)?;
+        }
+        let (top, legend) = body.split_vertically(PANEL_H);
         let areas = top.split_evenly((1, self.panels.len()));
         let xmax = self.nbins as f64 * self.bin;
         let every = self.nbins.div_ceil(10).max(1);
@@ -235,9 +279,10 @@ impl Figure {
             chart.draw_series(rects).map_err(draw_err)?;
         }
         let label = font(15.0).pos(Pos::new(HPos::Left, VPos::Center));
+        let cols = self.legend_cols();
         for (i, m) in self.models.iter().enumerate() {
-            let x = 52 + (i % LEGEND_COLS) as i32 * 130;
-            let y = 10 + (i / LEGEND_COLS) as i32 * LEGEND_ROW as i32;
+            let x = LEGEND_LEFT as i32 + (i % cols) as i32 * LEGEND_ENTRY as i32;
+            let y = 10 + (i / cols) as i32 * LEGEND_ROW as i32;
             let color = PALETTE[i % PALETTE.len()];
             legend
                 .draw(&Rectangle::new([(x, y), (x + 14, y + 12)], color.filled()))
@@ -266,9 +311,9 @@ fn nice_step(max: f64) -> f64 {
     10.0 * p
 }
 
-/// The figure of `results` as an SVG document.
-pub fn to_svg(results: &[EvalResult]) -> Result<String, PlotError> {
-    let fig = Figure::new(results)?;
+/// The figure of `results` as an SVG document, with `title` above the panels.
+pub fn to_svg(results: &[EvalResult], title: Option<&str>) -> Result<String, PlotError> {
+    let fig = Figure::new(results, title)?;
     let mut out = String::new();
     {
         let root = SVGBackend::with_string(&mut out, fig.size()).into_drawing_area();
@@ -277,9 +322,9 @@ pub fn to_svg(results: &[EvalResult]) -> Result<String, PlotError> {
     Ok(out)
 }
 
-/// The figure of `results` as an RGB image.
-pub fn to_image(results: &[EvalResult]) -> Result<image::RgbImage, PlotError> {
-    let fig = Figure::new(results)?;
+/// The figure of `results` as an RGB image, with `title` above the panels.
+pub fn to_image(results: &[EvalResult], title: Option<&str>) -> Result<image::RgbImage, PlotError> {
+    let fig = Figure::new(results, title)?;
     let (w, h) = fig.size();
     let mut buf = vec![255u8; w as usize * h as usize * 3];
     {
@@ -290,20 +335,26 @@ pub fn to_image(results: &[EvalResult]) -> Result<image::RgbImage, PlotError> {
         .ok_or_else(|| PlotError::Draw("the bitmap has the wrong size".into()))
 }
 
-/// Draws the histograms of `results` into `path` (.svg or .png, written atomically).
-pub fn histograms(results: &[EvalResult], path: &Path, overwrite: bool) -> Result<(), PlotError> {
+/// Draws the histograms of `results` into `path` (.svg or .png), staged in `unit`.
+pub fn histograms(
+    results: &[EvalResult],
+    title: Option<&str>,
+    path: &Path,
+    unit: &mut crate::output::Unit,
+) -> Result<(), PlotError> {
+    unit.check_clobber(path)?;
     let format = Format::from_path(path)?;
     let bytes = match format {
-        Format::Svg => to_svg(results)?.into_bytes(),
+        Format::Svg => to_svg(results, title)?.into_bytes(),
         Format::Png => {
-            let img = to_image(results)?;
+            let img = to_image(results, title)?;
             let mut buf = std::io::Cursor::new(Vec::new());
             img.write_to(&mut buf, image::ImageFormat::Png)
                 .map_err(|e| PlotError::Png(e.to_string()))?;
             buf.into_inner()
         }
     };
-    crate::atomic::write_atomic(path, &bytes, overwrite)?;
+    unit.write_bytes(path, &bytes)?;
     Ok(())
 }
 
@@ -340,7 +391,7 @@ mod tests {
 
     #[test]
     fn figure_has_a_panel_per_illuminant_and_shared_bins() {
-        let fig = Figure::new(&sample()).unwrap();
+        let fig = Figure::new(&sample(), None).unwrap();
         assert_eq!(fig.models, ["NSRM3", "LRM"]);
         assert_eq!((fig.bin, fig.nbins), (0.5, 8));
         let ills: Vec<&str> = fig.panels.iter().map(|(i, _)| i.as_str()).collect();
@@ -357,8 +408,8 @@ mod tests {
         assert_eq!(nonempty, [3, 4, 1]);
         assert_eq!((fig.ystep, fig.ytop), (1.0, 2.0));
         assert_eq!(fig.size(), (2 * PANEL_W, PANEL_H + 16 + LEGEND_ROW));
-        assert!(matches!(Figure::new(&[]), Err(PlotError::Empty)));
-        assert!(matches!(to_svg(&[]), Err(PlotError::Empty)));
+        assert!(matches!(Figure::new(&[], None), Err(PlotError::Empty)));
+        assert!(matches!(to_svg(&[], None), Err(PlotError::Empty)));
         assert!(Format::from_path(Path::new("a.jpg")).is_err());
         assert_eq!(Format::from_path(Path::new("a.SVG")).unwrap(), Format::Svg);
     }
@@ -367,7 +418,13 @@ mod tests {
     fn png_decodes_at_the_figure_size_and_is_not_blank() {
         let d = tempfile::tempdir().unwrap();
         let p = d.path().join("fig.png");
-        histograms(&sample(), &p, false).unwrap();
+        let write = |results: &[EvalResult], overwrite: bool| {
+            let session = crate::output::Session::new(overwrite);
+            let mut unit = session.unit();
+            histograms(results, None, &p, &mut unit)?;
+            Ok::<(), PlotError>(unit.commit()?)
+        };
+        write(&sample(), false).unwrap();
         let img = image::open(&p).unwrap().to_rgb8();
         assert_eq!(img.dimensions(), (2 * PANEL_W, PANEL_H + 16 + LEGEND_ROW));
         // Bars in both models' colours, dark text and axes, and mostly white background.
@@ -382,17 +439,52 @@ mod tests {
         // Refused without --overwrite, and the file is left as it was.
         let before = std::fs::read(&p).unwrap();
         assert!(matches!(
-            histograms(&sample()[..1], &p, false),
+            write(&sample()[..1], false),
             Err(PlotError::Write(_))
         ));
         assert_eq!(std::fs::read(&p).unwrap(), before);
-        histograms(&sample()[..1], &p, true).unwrap();
+        write(&sample()[..1], true).unwrap();
         assert_ne!(std::fs::read(&p).unwrap(), before);
+    }
+
+    /// 13 series (`--orders 1-4`), 13 colours; one panel's legend fits its width.
+    #[test]
+    fn thirteen_series_get_thirteen_colours_and_a_narrow_legend_fits() {
+        let mut rs = vec![result("D65", "lrm", &[0.5, 1.5])];
+        for kind in ["prm", "rprm", "nsrm"] {
+            for order in 1..=4 {
+                let mut r = result("D65", kind, &[0.5, 1.5]);
+                r.order = order;
+                rs.push(r);
+            }
+        }
+        let fig = Figure::new(&rs, None).unwrap();
+        assert_eq!(fig.models.len(), 13);
+        let colours: std::collections::HashSet<_> =
+            (0..13).map(|i| PALETTE[i % PALETTE.len()]).collect();
+        assert_eq!(colours.len(), 13);
+        // One panel: every legend entry ends inside the figure (the longest label, NSRM4, is
+        // about 60 px at this size).
+        let cols = fig.legend_cols();
+        assert!(cols >= 1);
+        let (w, h) = fig.size();
+        assert!(
+            LEGEND_LEFT + cols as u32 * LEGEND_ENTRY <= w,
+            "{cols} columns in {w} px"
+        );
+        assert_eq!(h, PANEL_H + 16 + 13u32.div_ceil(cols as u32) * LEGEND_ROW);
+        let svg = to_svg(&rs, None).unwrap();
+        for label in ["NSRM4", "RPRM1", "PRM2", "LRM"] {
+            assert!(
+                svg.contains(&format!(">{label}<")) || svg.contains(label),
+                "{label}"
+            );
+        }
     }
 
     #[test]
     fn svg_names_the_panels_and_models_in_the_embedded_font() {
-        let svg = to_svg(&sample()).unwrap();
+        let svg = to_svg(&sample(), Some("rawtoaces-190, nikon-d5100, leave-one-out")).unwrap();
         assert!(svg.starts_with("<svg"), "{}", &svg[..svg.len().min(80)]);
         // The text of every `<text>` element.
         let texts: Vec<&str> = svg
@@ -400,7 +492,15 @@ mod tests {
             .filter_map(|s| s.rsplit_once('>').map(|(_, t)| t.trim()))
             .collect();
         for t in [
-            "D65", "TL865", "NSRM3", "LRM", "patches", "ΔE00", "0.5", "2",
+            "D65",
+            "TL865",
+            "NSRM3",
+            "LRM",
+            "patches",
+            "ΔE00",
+            "0.5",
+            "2",
+            "rawtoaces-190, nikon-d5100, leave-one-out",
         ] {
             assert!(texts.contains(&t), "{t} not in {texts:?}");
         }

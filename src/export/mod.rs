@@ -63,7 +63,7 @@ pub enum ExportError {
         where_: String,
     },
     #[error(transparent)]
-    Write(#[from] crate::atomic::WriteError),
+    Write(#[from] crate::output::WriteError),
 }
 
 /// File formats `nsrm export` writes.
@@ -297,6 +297,37 @@ fn fold(model: &Model, space: OutputSpace) -> Result<Model, ExportError> {
     crate::colorimetry::output_model(model, space).map_err(|e| ExportError::Model(e.to_string()))
 }
 
+/// Refuses a sampled LUT with an entry that is not a finite 32-bit float: the model's output
+/// overflows (or is undefined) somewhere in the exported range, and a file with `inf` or `nan`
+/// entries is not one other tools can read.
+fn check_finite(lut: &Lut3d, options: LutOptions) -> Result<(), ExportError> {
+    let bad = lut
+        .values
+        .iter()
+        .filter(|v| !v.iter().all(|x| x.is_finite()))
+        .count();
+    if bad == 0 {
+        return Ok(());
+    }
+    let n = lut.size;
+    let first = lut
+        .values
+        .iter()
+        .position(|v| !v.iter().all(|x| x.is_finite()))
+        .unwrap_or(0);
+    Err(ExportError::Model(format!(
+        "{bad} of the {} entries of the {n}³ LUT are not finite 32-bit floats (the first at \
+         lattice point r {}, g {}, b {}): the model's output overflows over the exposure range \
+         {}..{} stops; a file with them would not be a LUT",
+        lut.values.len(),
+        first / (n * n),
+        (first / n) % n,
+        first % n,
+        options.stops[0],
+        options.stops[1],
+    )))
+}
+
 impl LutExport {
     /// The CLF chain: a Matrix for LRM, else clamp + log shaper + LUT3D (tetrahedral).
     pub fn clf(
@@ -326,6 +357,7 @@ impl LutExport {
                 let out = folded.apply_f64(y.map(|v| curve.inverse(v)));
                 spaces::apply(&l_inv, out).map(|v| curve.forward(v))
             });
+            check_finite(&lut, options)?;
             (
                 vec![
                     Node::Clamp { lo: 0.0, hi },
@@ -372,6 +404,7 @@ impl LutExport {
                 shaper.inverse(2, y[2]),
             ])
         });
+        check_finite(&lut, options)?;
         Ok(LutExport {
             folded,
             model: model.clone(),
@@ -449,6 +482,31 @@ impl LutExport {
     }
 }
 
+/// The file an export writes beside `out`: for OCIO the config's CLF, `<stem>.clf`; none for the
+/// other formats. A caller declares it as an output of its session with `out`.
+pub fn companion_path(
+    format: Format,
+    out: &std::path::Path,
+) -> Result<Option<std::path::PathBuf>, ExportError> {
+    match format {
+        Format::Ocio => {
+            let stem = out
+                .file_stem()
+                .map(|s| s.to_string_lossy().into_owned())
+                .unwrap_or_else(|| "config".into());
+            let p = out.with_file_name(format!("{stem}.clf"));
+            if p == out {
+                return Err(ExportError::Usage(format!(
+                    "{}: the OCIO config cannot be named .clf (the CLF is written beside it)",
+                    out.display()
+                )));
+            }
+            Ok(Some(p))
+        }
+        _ => Ok(None),
+    }
+}
+
 /// What [`export_to`] wrote.
 #[derive(Debug, Clone)]
 pub struct Written {
@@ -465,8 +523,8 @@ pub struct Written {
 /// config and the CLF is written beside it as `<stem>.clf`).
 ///
 /// Every output is checked for clobbering and the error against `max_de00` before anything is
-/// written; files are written atomically ([`crate::atomic`]), so a refused or failed export
-/// leaves no file behind.
+/// written; the files are staged in `unit` ([`crate::output`]), whose owner commits them
+/// together, so a refused or failed export leaves no file behind.
 #[allow(clippy::too_many_arguments)]
 pub fn export_to(
     model: &Model,
@@ -476,7 +534,7 @@ pub fn export_to(
     training_rgb: &[[f64; 3]],
     max_de00: Option<f64>,
     out: &std::path::Path,
-    overwrite: bool,
+    unit: &mut crate::output::Unit,
 ) -> Result<Written, ExportError> {
     if let Some(x) = max_de00 {
         if !(x.is_finite() && x >= 0.0) {
@@ -485,26 +543,10 @@ pub fn export_to(
             )));
         }
     }
-    let clf_path = match format {
-        Format::Ocio => {
-            let stem = out
-                .file_stem()
-                .map(|s| s.to_string_lossy().into_owned())
-                .unwrap_or_else(|| "config".into());
-            let p = out.with_file_name(format!("{stem}.clf"));
-            if p == out {
-                return Err(ExportError::Usage(format!(
-                    "{}: the OCIO config cannot be named .clf (the CLF is written beside it)",
-                    out.display()
-                )));
-            }
-            Some(p)
-        }
-        _ => None,
-    };
-    crate::atomic::check_clobber(out, overwrite)?;
+    let clf_path = companion_path(format, out)?;
+    unit.check_clobber(out)?;
     if let Some(p) = &clf_path {
-        crate::atomic::check_clobber(p, overwrite)?;
+        unit.check_clobber(p)?;
     }
     let e = match format {
         Format::Cube => LutExport::cube(model, space, options)?,
@@ -528,15 +570,11 @@ pub fn export_to(
     let mut files = Vec::new();
     match format {
         Format::Clf => {
-            crate::atomic::write_atomic(out, clf::write(&e, Some(&report)).as_bytes(), overwrite)?;
+            unit.write_bytes(out, clf::write(&e, Some(&report)).as_bytes())?;
             files.push(out.to_path_buf());
         }
         Format::Cube => {
-            crate::atomic::write_atomic(
-                out,
-                cube::write(&e, Some(&report))?.as_bytes(),
-                overwrite,
-            )?;
+            unit.write_bytes(out, cube::write(&e, Some(&report))?.as_bytes())?;
             files.push(out.to_path_buf());
         }
         Format::Ocio => {
@@ -545,19 +583,8 @@ pub fn export_to(
                 .file_name()
                 .map(|s| s.to_string_lossy().into_owned())
                 .unwrap_or_default();
-            crate::atomic::write_atomic(
-                &clf_path,
-                clf::write(&e, Some(&report)).as_bytes(),
-                overwrite,
-            )?;
-            if let Err(err) =
-                crate::atomic::write_atomic(out, ocio::write(&e, &clf_name).as_bytes(), overwrite)
-            {
-                if !overwrite {
-                    let _ = std::fs::remove_file(&clf_path);
-                }
-                return Err(err.into());
-            }
+            unit.write_bytes(&clf_path, clf::write(&e, Some(&report)).as_bytes())?;
+            unit.write_bytes(out, ocio::write(&e, &clf_name).as_bytes())?;
             files.push(clf_path);
             files.push(out.to_path_buf());
         }

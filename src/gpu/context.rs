@@ -31,6 +31,18 @@ impl GpuContext {
     /// # Ok::<(), nsrm::gpu::GpuError>(())
     /// ```
     pub fn new(opts: &GpuOptions) -> Result<GpuContext, GpuError> {
+        GpuContext::open(opts, true)
+    }
+
+    /// Like [`GpuContext::new`], but without an adapter named (by `opts` or `NSRM_ADAPTER`)
+    /// only a hardware adapter is taken: when the default one is a software rasteriser (device
+    /// type `Cpu`, e.g. lavapipe) another adapter that is not is looked for, else
+    /// [`GpuError::SoftwareOnly`].
+    pub fn new_hardware(opts: &GpuOptions) -> Result<GpuContext, GpuError> {
+        GpuContext::open(opts, false)
+    }
+
+    fn open(opts: &GpuOptions, software_ok: bool) -> Result<GpuContext, GpuError> {
         let backends = backends();
         let mut desc = wgpu::InstanceDescriptor::new_without_display_handle();
         desc.backends = backends;
@@ -75,6 +87,16 @@ impl GpuContext {
             )
             .map_err(|e| GpuError::NoAdapter {
                 detail: e.to_string(),
+            })
+            .and_then(|default| {
+                if software_ok || default.get_info().device_type != wgpu::DeviceType::Cpu {
+                    return Ok(default);
+                }
+                let software = describe(&default.get_info());
+                pollster::block_on(instance.enumerate_adapters(backends))
+                    .into_iter()
+                    .find(|a| a.get_info().device_type != wgpu::DeviceType::Cpu)
+                    .ok_or(GpuError::SoftwareOnly { adapter: software })
             })?,
         };
         let wanted_features =

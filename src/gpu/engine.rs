@@ -98,7 +98,17 @@ impl Engine {
     /// Opens an adapter and device (see [`GpuContext::new`]); [`GpuError::NoAdapter`] names
     /// the driver to install when there is none.
     pub fn new(opts: &GpuOptions) -> Result<Engine, GpuError> {
-        let ctx = GpuContext::new(opts)?;
+        Engine::on(GpuContext::new(opts)?, opts)
+    }
+
+    /// Like [`Engine::new`], but a software adapter (device type `Cpu`, e.g. Mesa's lavapipe)
+    /// is refused with [`GpuError::SoftwareOnly`] unless `opts` or `NSRM_ADAPTER` names it:
+    /// the policy of [`DeviceChoice::Auto`](super::DeviceChoice::Auto).
+    pub fn new_hardware(opts: &GpuOptions) -> Result<Engine, GpuError> {
+        Engine::on(GpuContext::new_hardware(opts)?, opts)
+    }
+
+    fn on(ctx: GpuContext, opts: &GpuOptions) -> Result<Engine, GpuError> {
         let limits = ctx.device.limits();
         // One RGBA tile must fit in a storage binding and a buffer.
         let max_tile = (limits

@@ -56,6 +56,10 @@ pub enum GpuError {
         wanted: String,
         available: Vec<String>,
     },
+    /// Only a software rasteriser (device type `Cpu`, e.g. Mesa's lavapipe) is there, and the
+    /// caller asked for hardware (the `Auto` policy).
+    #[error("only a software adapter is present ({adapter}); the CPU path is faster than it")]
+    SoftwareOnly { adapter: String },
     #[error("cannot open the GPU device: {0}")]
     RequestDevice(#[from] wgpu::RequestDeviceError),
     /// naga rejected a shader (a bug in the generated source, or an unsupported target).
@@ -86,7 +90,7 @@ pub enum GpuError {
     #[error("cannot encode the image: {0}")]
     Image(#[from] image::ImageError),
     #[error(transparent)]
-    Write(#[from] crate::atomic::WriteError),
+    Write(#[from] crate::output::WriteError),
 }
 
 /// Options for [`Engine::new`] / [`open`].
@@ -103,9 +107,11 @@ pub struct GpuOptions {
 /// Where to apply a model.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
 pub enum DeviceChoice {
-    /// The GPU if an adapter exists, else the CPU.
+    /// A hardware GPU if there is one, else the CPU: a software rasteriser (device type `Cpu`,
+    /// such as Mesa's lavapipe) is slower than the CPU path, so it is used only when named
+    /// (`GpuOptions::adapter` or `NSRM_ADAPTER`).
     Auto,
-    /// The GPU, or an error.
+    /// The GPU (any adapter, software ones included), or an error.
     Gpu,
     /// The CPU.
     Cpu,
@@ -138,11 +144,68 @@ impl DeviceChoice {
     }
 }
 
-/// Opens the engine the choice asks for.
+/// Why [`open_device`] chose the CPU path.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub enum CpuReason {
+    /// The caller asked for the CPU.
+    Asked,
+    /// `Auto` found no adapter.
+    NoAdapter { detail: String },
+    /// `Auto` found only a software rasteriser (the CPU path is faster).
+    SoftwareOnly { adapter: String },
+}
+
+impl std::fmt::Display for CpuReason {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            CpuReason::Asked => write!(f, "the CPU was asked for"),
+            CpuReason::NoAdapter { .. } => write!(
+                f,
+                "no GPU adapter found (for the GPU install a Vulkan driver, e.g. mesa-vulkan-drivers libvulkan1)"
+            ),
+            CpuReason::SoftwareOnly { adapter } => write!(
+                f,
+                "the only GPU adapter, {adapter}, is a software rasteriser, slower than the CPU path"
+            ),
+        }
+    }
+}
+
+/// What [`open_device`] opened: a GPU engine, or the CPU path and why.
+#[derive(Debug)]
+pub enum Opened {
+    Gpu(Box<Engine>),
+    Cpu(CpuReason),
+}
+
+/// Opens the engine the choice asks for, saying why when it is the CPU.
 ///
-/// * `Auto`: `Ok(Some(engine))` if an adapter exists, `Ok(None)` if there is none (the caller
-///   says once that it runs on the CPU reference path); other failures (an adapter name that
-///   matches nothing, a device that cannot be opened) are errors.
+/// * `Auto`: a hardware adapter's engine; a software one only when named by
+///   [`GpuOptions::adapter`] or `NSRM_ADAPTER`; else the CPU with the reason. Other failures
+///   (a named adapter that does not exist, a device that cannot be opened) are errors.
+/// * `Gpu`: the engine on any adapter (software included), or an error.
+/// * `Cpu`: the CPU.
+pub fn open_device(choice: DeviceChoice, opts: &GpuOptions) -> Result<Opened, GpuError> {
+    let gpu = |e: Engine| Opened::Gpu(Box::new(e));
+    match choice {
+        DeviceChoice::Cpu => Ok(Opened::Cpu(CpuReason::Asked)),
+        DeviceChoice::Gpu => Engine::new(opts).map(gpu),
+        DeviceChoice::Auto => match Engine::new_hardware(opts) {
+            Ok(e) => Ok(gpu(e)),
+            Err(GpuError::NoAdapter { detail }) => Ok(Opened::Cpu(CpuReason::NoAdapter { detail })),
+            Err(GpuError::SoftwareOnly { adapter }) => {
+                Ok(Opened::Cpu(CpuReason::SoftwareOnly { adapter }))
+            }
+            Err(e) => Err(e),
+        },
+    }
+}
+
+/// Opens the engine the choice asks for ([`open_device`] without the reason).
+///
+/// * `Auto`: `Ok(Some(engine))` on a hardware adapter (or a software one that is named),
+///   `Ok(None)` otherwise; other failures (an adapter name that matches nothing, a device that
+///   cannot be opened) are errors.
 /// * `Gpu`: the engine, or an error ([`GpuError::NoAdapter`] names the driver to install).
 /// * `Cpu`: `Ok(None)`.
 ///
@@ -151,15 +214,10 @@ impl DeviceChoice {
 /// assert!(open(DeviceChoice::Cpu, &GpuOptions::default()).unwrap().is_none());
 /// ```
 pub fn open(choice: DeviceChoice, opts: &GpuOptions) -> Result<Option<Engine>, GpuError> {
-    match choice {
-        DeviceChoice::Cpu => Ok(None),
-        DeviceChoice::Gpu => Engine::new(opts).map(Some),
-        DeviceChoice::Auto => match Engine::new(opts) {
-            Ok(e) => Ok(Some(e)),
-            Err(GpuError::NoAdapter { .. }) => Ok(None),
-            Err(e) => Err(e),
-        },
-    }
+    Ok(match open_device(choice, opts)? {
+        Opened::Gpu(e) => Some(*e),
+        Opened::Cpu(_) => None,
+    })
 }
 
 #[cfg(test)]

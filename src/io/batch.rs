@@ -660,7 +660,7 @@ pub fn ensure_writable_dir(dir: &Path) -> Result<(), PlanError> {
             dir.display()
         ))
     })?;
-    let probe = crate::atomic::temp_path_for(&dir.join("nsrm-write-probe"));
+    let probe = crate::output::temp_path_for(&dir.join("nsrm-write-probe"));
     std::fs::File::create_new(&probe).map_err(|e| {
         PlanError::Setup(format!(
             "cannot write in the output directory {}: {e}",
@@ -741,7 +741,7 @@ pub fn plan_batch(inputs: &[PathBuf], o: &PlanOptions) -> Result<BatchPlan, Plan
         .collect();
     let stale_temporaries = dirs
         .iter()
-        .flat_map(|d| crate::atomic::stale_temporaries(d))
+        .flat_map(|d| crate::output::stale_temporaries(d))
         .collect();
     Ok(BatchPlan {
         jobs,

@@ -6,6 +6,7 @@
 use super::IoError;
 use crate::error::{Concern, Param};
 use crate::frame::{Frame, Layout};
+use crate::output::Unit;
 use crate::training::{Provenance, TrainingSet};
 use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
@@ -286,23 +287,21 @@ pub fn render(data: &TrainingSet, opts: &ChartOptions) -> Result<(Frame, ChartLa
 
 /// Writes a rendered chart: the frame at `dest` (camera RGB, so no `colorInteropID`) as a
 /// float EXR, or a 32-bit float TIFF when `dest` ends in `.tif`/`.tiff`, and its layout as JSON
-/// at [`layout_path`]. Both atomically; neither replaces an existing file unless `overwrite`.
+/// at [`layout_path`]. Both are staged in `unit` (committed together by its owner).
 pub fn write(
     frame: &Frame,
     layout: &ChartLayout,
     dest: &Path,
-    overwrite: bool,
+    unit: &mut Unit,
 ) -> Result<(), IoError> {
     let layout_file = layout_path(dest);
-    crate::atomic::check_clobber(dest, overwrite)?;
-    crate::atomic::check_clobber(&layout_file, overwrite)?;
+    unit.check_clobber(dest)?;
+    unit.check_clobber(&layout_file)?;
     let json = serde_json::to_string_pretty(layout)
         .map_err(|e| IoError::Invalid(format!("serialising the chart layout: {e}")))?;
-    // Both files or neither: the layout is staged (written and synced) first, the frame written,
-    // then the layout moved into place; if that fails, the frame just written is removed.
-    let staged = crate::atomic::stage_bytes(&layout_file, json.as_bytes(), overwrite)?;
+    unit.write_bytes(&layout_file, json.as_bytes())?;
     if super::FileFormat::from_extension(dest) == Some(super::FileFormat::Tiff) {
-        super::tif::write(frame, None, dest, overwrite)?;
+        super::tif::write(frame, None, dest, unit)?;
     } else {
         let describe = format!(
             "nsrm chart: {} patches; camera {}; illuminant {}; reflectances {}; linear camera RGB (perfect white G = {})",
@@ -325,29 +324,25 @@ pub fn write(
                 compression: super::ExrCompression::Keep,
                 space: None,
                 text: &[("comments", &describe), ("nsrmChartLayout", &layout_name)],
-                overwrite,
                 camera: None,
             },
+            unit,
         )?;
-    }
-    if let Err(e) = staged.commit() {
-        let _ = std::fs::remove_file(dest);
-        return Err(e.into());
     }
     Ok(())
 }
 
 /// Writes a camera-RGB frame (no colour space attribute) as a float EXR, or a 32-bit float TIFF
-/// when `dest` ends in `.tif`/`.tiff`, with `comments` in the EXR header. Atomic.
+/// when `dest` ends in `.tif`/`.tiff`, with `comments` in the EXR header; staged in `unit`.
 pub fn write_camera_frame(
     frame: &Frame,
     dest: &Path,
     comments: &str,
-    overwrite: bool,
+    unit: &mut Unit,
 ) -> Result<(), IoError> {
-    crate::atomic::check_clobber(dest, overwrite)?;
+    unit.check_clobber(dest)?;
     if super::FileFormat::from_extension(dest) == Some(super::FileFormat::Tiff) {
-        super::tif::write(frame, None, dest, overwrite)
+        super::tif::write(frame, None, dest, unit)
     } else {
         super::openexr::write_new(
             frame,
@@ -358,9 +353,9 @@ pub fn write_camera_frame(
                 compression: super::ExrCompression::Keep,
                 space: None,
                 text: &[("comments", comments)],
-                overwrite,
                 camera: None,
             },
+            unit,
         )
     }
 }

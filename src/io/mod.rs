@@ -13,7 +13,7 @@
 //!   samples) is refused with the file name and the reason.
 //!
 //! Writers never leave a partial file: they write a temporary file beside the destination and
-//! move it into place only when complete ([`crate::atomic`]).
+//! move it into place only when complete ([`crate::output`]).
 //!
 //! [`batch`] expands command-line inputs (files, directories, globs), slices them for `--shard`
 //! and names outputs; [`chart`] renders a synthetic chart frame; [`preview`] writes sRGB PNGs.
@@ -26,9 +26,9 @@ pub use openexr::{DEFAULT_ZIP_LEVEL, MAX_ZIP_LEVEL};
 pub mod preview;
 mod tif;
 
-use crate::atomic::WriteError;
 use crate::colorimetry::spaces::OutputSpace;
 use crate::frame::Frame;
+use crate::output::{Unit, WriteError};
 use std::path::{Path, PathBuf};
 
 /// Errors from reading, writing or listing frames. A cause is part of the message and not also
@@ -384,8 +384,6 @@ pub struct WriteOptions {
     /// attribute `colorInteropID` to [`OutputSpace::interop_id`] and the `chromaticities`
     /// attribute to the space's primaries and white (removed for XYZ).
     pub space: OutputSpace,
-    /// Replace an existing destination.
-    pub overwrite: bool,
     /// EXR only: the deflate level (libdeflate's, 0–12: [`MAX_ZIP_LEVEL`]) of ZIP and ZIPS
     /// outputs written by the chunk-level path; [`DEFAULT_ZIP_LEVEL`] (`--zip-level`) is chosen
     /// for speed.
@@ -519,11 +517,11 @@ impl Decoded {
         })
     }
 
-    /// Writes the (corrected) pixels to `dest` atomically, with the pass-through data of the
+    /// Stages the (corrected) pixels for `dest` in `unit`, with the pass-through data of the
     /// input. Writing a TIFF refuses an EXR input that has channels other than RGB(A), since a
     /// TIFF cannot carry them.
-    pub fn write(self, dest: &Path, opts: &WriteOptions) -> Result<(), IoError> {
-        self.write_returning(dest, opts).0
+    pub fn write(self, dest: &Path, opts: &WriteOptions, unit: &mut Unit) -> Result<(), IoError> {
+        self.write_returning(dest, opts, unit).0
     }
 
     /// [`write`](Self::write), then gives the frame's buffer to `pool` (whether or not the
@@ -532,15 +530,21 @@ impl Decoded {
         self,
         dest: &Path,
         opts: &WriteOptions,
+        unit: &mut Unit,
         pool: &FramePool,
     ) -> Result<(), IoError> {
-        let (r, buffer) = self.write_returning(dest, opts);
+        let (r, buffer) = self.write_returning(dest, opts, unit);
         pool.give(buffer);
         r
     }
 
     /// [`write`](Self::write), and the frame's sample buffer.
-    fn write_returning(self, dest: &Path, opts: &WriteOptions) -> (Result<(), IoError>, Vec<f32>) {
+    fn write_returning(
+        self,
+        dest: &Path,
+        opts: &WriteOptions,
+        unit: &mut Unit,
+    ) -> (Result<(), IoError>, Vec<f32>) {
         let Decoded {
             path,
             frame,
@@ -548,7 +552,7 @@ impl Decoded {
             container,
             ..
         } = self;
-        let r = Decoded::write_parts(&path, &frame, &levels, container, dest, opts);
+        let r = Decoded::write_parts(&path, &frame, &levels, container, dest, opts, unit);
         (r, frame.data)
     }
 
@@ -559,15 +563,17 @@ impl Decoded {
         container: Container,
         dest: &Path,
         opts: &WriteOptions,
+        unit: &mut Unit,
     ) -> Result<(), IoError> {
-        crate::atomic::check_clobber(dest, opts.overwrite)?;
+        unit.check_clobber(dest)?;
         match (opts.format, container) {
-            (FileFormat::Exr, Container::Exr(c)) => c.write(frame, levels, dest, opts),
+            (FileFormat::Exr, Container::Exr(c)) => c.write(frame, levels, dest, opts, unit),
             (FileFormat::Exr, Container::Tiff(c)) => openexr::write_new(
                 frame,
                 c.alpha.as_deref(),
                 dest,
                 &openexr::NewExr::output(opts),
+                unit,
             ),
             (FileFormat::Tiff, Container::Exr(c)) => {
                 let extra = c.extra_channels();
@@ -582,10 +588,10 @@ impl Decoded {
                     });
                 }
                 let alpha = c.alpha_f32();
-                tif::write(frame, alpha.as_deref(), dest, opts.overwrite)
+                tif::write(frame, alpha.as_deref(), dest, unit)
             }
             (FileFormat::Tiff, Container::Tiff(c)) => {
-                tif::write(frame, c.alpha.as_deref(), dest, opts.overwrite)
+                tif::write(frame, c.alpha.as_deref(), dest, unit)
             }
             (FileFormat::Exr, Container::Raw(c)) => openexr::write_new(
                 frame,
@@ -595,26 +601,38 @@ impl Decoded {
                     camera: Some(&c),
                     ..openexr::NewExr::output(opts)
                 },
+                unit,
             ),
-            (FileFormat::Tiff, Container::Raw(_)) => tif::write(frame, None, dest, opts.overwrite),
+            (FileFormat::Tiff, Container::Raw(_)) => tif::write(frame, None, dest, unit),
         }
     }
 }
 
 /// Writes a new EXR holding `frame` (RGB or RGBA, f32 channels, or half with `opts.half`), with
-/// `colorInteropID` and `chromaticities` for `opts.space`. Atomic; refuses to replace `dest`
-/// unless `opts.overwrite`.
-pub fn write_exr(frame: &Frame, dest: &Path, opts: &WriteOptions) -> Result<(), IoError> {
-    crate::atomic::check_clobber(dest, opts.overwrite)?;
+/// `colorInteropID` and `chromaticities` for `opts.space`, staged in `unit` (which refuses to
+/// replace `dest` unless its session overwrites).
+pub fn write_exr(
+    frame: &Frame,
+    dest: &Path,
+    opts: &WriteOptions,
+    unit: &mut Unit,
+) -> Result<(), IoError> {
+    unit.check_clobber(dest)?;
     let (rgb, alpha) = split_alpha(frame);
-    openexr::write_new(&rgb, alpha.as_deref(), dest, &openexr::NewExr::output(opts))
+    openexr::write_new(
+        &rgb,
+        alpha.as_deref(),
+        dest,
+        &openexr::NewExr::output(opts),
+        unit,
+    )
 }
 
-/// Writes a 32-bit float TIFF holding `frame` (RGB or RGBA). Atomic.
-pub fn write_tiff(frame: &Frame, dest: &Path, overwrite: bool) -> Result<(), IoError> {
-    crate::atomic::check_clobber(dest, overwrite)?;
+/// Writes a 32-bit float TIFF holding `frame` (RGB or RGBA), staged in `unit`.
+pub fn write_tiff(frame: &Frame, dest: &Path, unit: &mut Unit) -> Result<(), IoError> {
+    unit.check_clobber(dest)?;
     let (rgb, alpha) = split_alpha(frame);
-    tif::write(&rgb, alpha.as_deref(), dest, overwrite)
+    tif::write(&rgb, alpha.as_deref(), dest, unit)
 }
 
 /// Reads an EXR or TIFF into one frame (RGB, or RGBA when the file has alpha); pass-through

@@ -14,9 +14,9 @@ use crate::error::{Concern, Param};
 pub use chunks::{DEFAULT_ZIP_LEVEL, MAX_ZIP_LEVEL};
 
 use super::{Container, Decoded, ExrCompression, FileFormat, IoError, ReadOptions, WriteOptions};
-use crate::atomic::WriteError;
 use crate::colorimetry::spaces::OutputSpace;
 use crate::frame::{Frame, Layout};
+use crate::output::{Unit, WriteError};
 use ::exr::compression::Compression;
 use ::exr::image::{
     AnyChannel, AnyChannels, AnyImage, Blocks, Encoding, FlatSamples, Image, Layer, Levels,
@@ -184,9 +184,10 @@ impl ExrContainer {
         levels: &[Frame],
         dest: &Path,
         opts: &WriteOptions,
+        unit: &mut Unit,
     ) -> Result<(), IoError> {
         match self {
-            ExrContainer::Image(c) => (*c).write(frame, levels, dest, opts),
+            ExrContainer::Image(c) => (*c).write(frame, levels, dest, opts, unit),
             ExrContainer::Chunked(c) => {
                 if !levels.is_empty() {
                     return Err(IoError::Encode {
@@ -198,7 +199,7 @@ impl ExrContainer {
                     });
                 }
                 let compression = chosen(opts.compression, c.header.compression);
-                crate::atomic::write_with(dest, opts.overwrite, |w| {
+                unit.write_with(dest, |w| {
                     c.write(frame, w, compression, opts.half, opts.zip_level, |h| {
                         set_header_colour(
                             &mut h.shared_attributes,
@@ -455,6 +456,7 @@ impl ImageContainer {
         levels: &[Frame],
         dest: &Path,
         opts: &WriteOptions,
+        unit: &mut Unit,
     ) -> Result<(), IoError> {
         let ImageContainer {
             mut image,
@@ -485,7 +487,7 @@ impl ImageContainer {
             l.encoding.compression = chosen(opts.compression, l.encoding.compression);
         }
         set_colour_attributes(&mut image, layer, Some(opts.space));
-        write_image(&image, dest, opts.overwrite)
+        write_image(&image, dest, unit)
     }
 }
 
@@ -557,7 +559,6 @@ pub(super) struct NewExr<'a> {
     pub space: Option<OutputSpace>,
     /// Extra text attributes (`comments` goes to the standard attribute).
     pub text: &'a [(&'a str, &'a str)],
-    pub overwrite: bool,
     /// The camera of a raw input: make, model, ISO, exposure time and aperture in the standard
     /// attributes, the as-shot neutral (camera RGB) in `nsrmAsShotNeutral`.
     pub camera: Option<&'a super::raw::CameraInfo>,
@@ -571,7 +572,6 @@ impl NewExr<'static> {
             compression: opts.compression,
             space: Some(opts.space),
             text: &[],
-            overwrite: opts.overwrite,
             camera: None,
         }
     }
@@ -584,13 +584,13 @@ pub(super) fn write_new(
     alpha: Option<&[f32]>,
     dest: &Path,
     how: &NewExr<'_>,
+    unit: &mut Unit,
 ) -> Result<(), IoError> {
     let NewExr {
         half,
         compression,
         space,
         text,
-        overwrite,
         camera,
     } = *how;
     let mut list = ::exr::prelude::SmallVec::new();
@@ -641,12 +641,12 @@ pub(super) fn write_new(
         ::exr::prelude::SmallVec::from_vec(vec![layer]),
     );
     set_colour_attributes(&mut image, 0, space);
-    write_image(&image, dest, overwrite)
+    write_image(&image, dest, unit)
 }
 
 /// Writes `image` to a temporary file beside `dest`, then moves it into place.
-fn write_image(image: &AnyImage, dest: &Path, overwrite: bool) -> Result<(), IoError> {
-    crate::atomic::write_with(dest, overwrite, |w| {
+fn write_image(image: &AnyImage, dest: &Path, unit: &mut Unit) -> Result<(), IoError> {
+    unit.write_with(dest, |w| {
         image
             .write()
             .to_buffered(w)

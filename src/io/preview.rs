@@ -2,12 +2,12 @@
 //! sRGB OETF, [`colorimetry::srgb8`]). Not for grading: highlights above the perfect white clip.
 
 use super::IoError;
-use crate::atomic::{check_clobber, write_atomic};
 use crate::colorimetry::{
     self,
     spaces::{apply, Mat3},
 };
 use crate::frame::Frame;
+use crate::output::Unit;
 use image::codecs::png::{CompressionType, FilterType, PngEncoder};
 use image::{ExtendedColorType, ImageEncoder};
 use rayon::prelude::*;
@@ -47,16 +47,16 @@ pub fn encode_png(frame: &Frame, to_linear_srgb: &Mat3) -> Result<Vec<u8>, IoErr
     Ok(png)
 }
 
-/// Writes the preview PNG of `frame` to `dest`, atomically.
+/// Writes the preview PNG of `frame` to `dest`, staged in `unit`.
 pub fn write_png(
     frame: &Frame,
     to_linear_srgb: &Mat3,
     dest: &Path,
-    overwrite: bool,
+    unit: &mut Unit,
 ) -> Result<(), IoError> {
-    check_clobber(dest, overwrite)?;
+    unit.check_clobber(dest)?;
     let png = encode_png(frame, to_linear_srgb)?;
-    write_atomic(dest, &png, overwrite)?;
+    unit.write_bytes(dest, &png)?;
     Ok(())
 }
 

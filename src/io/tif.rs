@@ -1,8 +1,8 @@
 //! TIFF in (16-bit unsigned, 16/32/64-bit float; RGB or RGBA; linear) and out (32-bit float).
 
 use super::{Container, Decoded, FileFormat, IoError};
-use crate::atomic::{check_clobber, WriteError};
 use crate::frame::{Frame, Layout};
+use crate::output::{Unit, WriteError};
 use std::io::BufReader;
 use std::path::Path;
 use tiff::decoder::{Decoder, DecodingResult, Limits};
@@ -329,14 +329,14 @@ pub(super) fn read(path: &Path, limits: &super::Limits) -> Result<Decoded, IoErr
     })
 }
 
-/// Writes a 32-bit float RGB or RGBA TIFF (deflate), atomically.
+/// Writes a 32-bit float RGB or RGBA TIFF (deflate), staged in `unit`.
 pub(super) fn write(
     rgb: &Frame,
     alpha: Option<&[f32]>,
     dest: &Path,
-    overwrite: bool,
+    unit: &mut Unit,
 ) -> Result<(), IoError> {
-    check_clobber(dest, overwrite)?;
+    unit.check_clobber(dest)?;
     let encode_err = |why: String| IoError::Encode {
         path: dest.to_path_buf(),
         why,
@@ -365,7 +365,7 @@ pub(super) fn write(
             .flat_map(|p| [p[0], p[1], p[2]])
             .collect(),
     };
-    crate::atomic::write_with(dest, overwrite, |out| {
+    unit.write_with(dest, |out| {
         let mut enc = TiffEncoder::new(out)
             .map_err(tiff_err)?
             .with_compression(Compression::Deflate(DeflateLevel::Balanced));

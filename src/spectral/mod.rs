@@ -57,6 +57,10 @@ pub enum SpectralError {
     Grid { spec: String, why: String },
     #[error("{what}: the perfect white integrates to {value} (no overlap between the spectra and the grid?)")]
     DegenerateWhite { what: String, value: f64 },
+    /// A name that looks like a file path (a directory part or a file extension), and no such
+    /// file exists.
+    #[error("{path}: no such file (a {what} CSV was expected there)")]
+    MissingFile { what: &'static str, path: String },
     #[error("unknown {what} `{name}` (built-in: {known}); to read a file, give a path to an existing CSV")]
     UnknownName {
         what: &'static str,
@@ -288,6 +292,12 @@ fn table_from_path(
     known: &[(&str, &str)],
 ) -> Result<SpectralTable, SpectralError> {
     let path = Path::new(spec);
+    if !path.exists() && looks_like_a_path(spec) {
+        return Err(SpectralError::MissingFile {
+            what,
+            path: spec.to_string(),
+        });
+    }
     if !path.exists() {
         return Err(SpectralError::UnknownName {
             what,
@@ -296,6 +306,15 @@ fn table_from_path(
         });
     }
     SpectralTable::read(path)
+}
+
+/// A spec that names a file rather than a built-in: it has a directory part or ends in a file
+/// extension that no built-in name has (`.csv`, `.txt`, `.tsv`).
+fn looks_like_a_path(spec: &str) -> bool {
+    let lower = spec.to_ascii_lowercase();
+    spec.contains('/')
+        || spec.contains(std::path::MAIN_SEPARATOR)
+        || [".csv", ".txt", ".tsv"].iter().any(|e| lower.ends_with(e))
 }
 
 /// XYZ of the perfect white (ρ = 1) under `illuminant` on `grid`, scaled to `Y = 100`.
@@ -459,5 +478,12 @@ mod tests {
             .unwrap_err()
             .to_string();
         assert!(e.contains("D65") && e.contains("D66"), "{e}");
+        // A path that does not exist is a missing file, not an unknown name.
+        for p in ["my_patches.csv", "data/sg.CSV", "./x"] {
+            let e = Reflectances::from_name_or_path(p).unwrap_err();
+            assert!(matches!(e, SpectralError::MissingFile { .. }), "{p}: {e}");
+            let e = e.to_string();
+            assert!(e.contains("no such file") && !e.contains("unknown"), "{e}");
+        }
     }
 }

@@ -75,22 +75,17 @@ fn extract_fit_apply_reproduces_the_reference() {
     ]);
     assert!(ok, "{err}");
     let text = std::fs::read_to_string(&csv).unwrap();
+    // A comment line, the white line (D50, the reference's), then the header and the patches.
+    let white = nsrm::training::white_line(nsrm::chart::reference::d50_white());
     assert!(
-        text.starts_with("label,R,G,B,X,Y,Z\n01 dark skin,"),
+        text.starts_with("# nsrm chart patches:")
+            && text.contains(&format!("\n{white}label,R,G,B,X,Y,Z\n01 dark skin,")),
         "{text}"
     );
     assert!(std::fs::metadata(&overlay).unwrap().len() > 1000);
-    // The CSV is training data as it is.
+    // The CSV is training data as it is (its `# white:` line names its white).
     let model = d.join("model.json");
-    let (ok, err) = run(&[
-        "fit",
-        "--training",
-        s(&csv),
-        "--white",
-        "96.42,100,82.51",
-        "-o",
-        s(&model),
-    ]);
+    let (ok, err) = run(&["fit", "--training", s(&csv), "-o", s(&model)]);
     assert!(ok, "{err}");
     // One step from the frame; the provenance names the frame, its hash, the flat.
     let model = d.join("model2.json");

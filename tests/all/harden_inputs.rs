@@ -80,10 +80,11 @@ fn many_measured_rows_load_with_a_duplicate_check() {
     for i in 0..n {
         text.push_str(&format!("p{i},0.{i},0.2,0.3,10,20,30\n"));
     }
-    let ts = TrainingSet::parse_measured(&text, "big.csv", None).unwrap();
+    let white = Some(nsrm::colorimetry::D65_WHITE_XYZ);
+    let ts = TrainingSet::parse_measured(&text, "big.csv", white).unwrap();
     assert_eq!(ts.len(), n);
     text.push_str("p7,0.1,0.2,0.3,10,20,30\n");
-    let e = TrainingSet::parse_measured(&text, "big.csv", None).unwrap_err();
+    let e = TrainingSet::parse_measured(&text, "big.csv", white).unwrap_err();
     assert!(e.to_string().contains("p7"), "{e}");
     // Selecting many labels is linear too.
     let spec: Vec<String> = (0..n).step_by(2).map(|i| format!("p{i}")).collect();
@@ -104,7 +105,7 @@ fn model_json_with_a_bom_is_accepted() {
     // And so are measured CSVs and spectral tables.
     std::fs::write(
         d.join("t.csv"),
-        "\u{feff}label,R,G,B,X,Y,Z\na,1,1,1,1,1,1\n",
+        "\u{feff}# white: D65\nlabel,R,G,B,X,Y,Z\na,1,1,1,1,1,1\n",
     )
     .unwrap();
     TrainingSet::read_measured(&d.join("t.csv"), None).unwrap();

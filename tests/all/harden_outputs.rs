@@ -127,7 +127,9 @@ fn only_regular_files_are_ever_replaced() {
         .is_fifo());
     assert!(d.join("b_xyz.exr").is_dir());
     // The library refuses as well, whoever calls it.
-    let e = nsrm::atomic::write_atomic(&d.join("a_xyz.exr"), b"x", true).unwrap_err();
+    let e = nsrm::output::Session::new(true)
+        .write_bytes(&d.join("a_xyz.exr"), b"x")
+        .unwrap_err();
     assert!(e.to_string().contains("FIFO"), "{e}");
     // An input that is a FIFO is reported by what it is, never opened (which would block).
     let status = std::process::Command::new("mkfifo")

@@ -284,10 +284,12 @@ fn a_frame_being_written_at_sigterm_is_aborted_not_finished() {
         half: false,
         compression: nsrm::io::ExrCompression::None,
         space: nsrm::colorimetry::spaces::OutputSpace::Xyz,
-        overwrite: true,
         zip_level: nsrm::io::DEFAULT_ZIP_LEVEL,
     };
-    nsrm::io::write_exr(&big, &d.join("in/f.0001.exr"), &opts).unwrap();
+    crate::common::committed(true, |u| {
+        nsrm::io::write_exr(&big, &d.join("in/f.0001.exr"), &opts, u)
+    })
+    .unwrap();
     drop(big);
     let child = Command::new(env!("CARGO_BIN_EXE_nsrm"))
         .current_dir(d)

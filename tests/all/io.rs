@@ -73,7 +73,6 @@ fn opts(format: FileFormat, half: bool, space: OutputSpace) -> WriteOptions {
         half,
         compression: nsrm::io::ExrCompression::Keep,
         space,
-        overwrite: false,
         zip_level: nsrm::io::DEFAULT_ZIP_LEVEL,
     }
 }
@@ -139,7 +138,10 @@ fn exr_rgba_half_tiled_with_extras_round_trips() {
         let got_r: Vec<f32> = d.frame.data.chunks(3).map(|p| p[0]).collect();
         assert_eq!(got_r, want_r);
         let dest = dir.path().join(format!("out_{half}.exr"));
-        d.write(&dest, &opts(FileFormat::Exr, half, space)).unwrap();
+        common::committed(false, |u| {
+            d.write(&dest, &opts(FileFormat::Exr, half, space), u)
+        })
+        .unwrap();
 
         let back = read_all(&dest);
         let (l, o) = (&back.layer_data[0], &original.layer_data[0]);
@@ -212,8 +214,10 @@ fn corrected_values_are_written() {
         }
     }
     let dest = dir.path().join("out.exr");
-    d.write(&dest, &opts(FileFormat::Exr, false, OutputSpace::Xyz))
-        .unwrap();
+    common::committed(false, |u| {
+        d.write(&dest, &opts(FileFormat::Exr, false, OutputSpace::Xyz), u)
+    })
+    .unwrap();
     let back = read_frame(&dest, &ReadOptions::default()).unwrap();
     let before = read_frame(&src, &ReadOptions::default()).unwrap();
     for (b, a) in back.data.chunks(4).zip(before.data.chunks(4)) {
@@ -281,8 +285,10 @@ fn layers_by_name_in_one_part() {
         ["Z", "diffuse.B", "diffuse.G", "diffuse.R"]
     );
     let dest = dir.path().join("out.exr");
-    d.write(&dest, &opts(FileFormat::Exr, true, OutputSpace::Xyz))
-        .unwrap();
+    common::committed(false, |u| {
+        d.write(&dest, &opts(FileFormat::Exr, true, OutputSpace::Xyz), u)
+    })
+    .unwrap();
     let back = read_all(&dest);
     for name in ["diffuse.R", "diffuse.G", "diffuse.B", "Z"] {
         assert_eq!(
@@ -364,10 +370,13 @@ fn multi_part_files_keep_every_part() {
         assert_eq!(d.extra_channels(), ["depth/Z"]);
         let dest = dir.path().join("out.exr");
         let _ = std::fs::remove_file(&dest);
-        d.write(
-            &dest,
-            &opts(FileFormat::Exr, false, OutputSpace::LinearSrgb),
-        )
+        common::committed(false, |u| {
+            d.write(
+                &dest,
+                &opts(FileFormat::Exr, false, OutputSpace::LinearSrgb),
+                u,
+            )
+        })
         .unwrap();
         let back = read_all(&dest);
         assert_eq!(back.layer_data.len(), 2);
@@ -415,8 +424,10 @@ fn mip_levels_are_corrected_too() {
         f.data.iter_mut().for_each(|v| *v = -*v);
     }
     let dest = dir.path().join("out.exr");
-    d.write(&dest, &opts(FileFormat::Exr, false, OutputSpace::Xyz))
-        .unwrap();
+    common::committed(false, |u| {
+        d.write(&dest, &opts(FileFormat::Exr, false, OutputSpace::Xyz), u)
+    })
+    .unwrap();
     let back = read_all(&dest);
     let got = channel(&back, 0, "G").levels_as_slice();
     assert_eq!(got.len(), sizes.len());
@@ -538,16 +549,24 @@ fn tiff_in_u16_and_f32_and_out_f32() {
     // TIFF in → EXR out keeps alpha; TIFF in → TIFF out is 32-bit float.
     let dec = Decoded::read(&f32_path, &ReadOptions::default()).unwrap();
     let exr_out = d.join("from_tiff.exr");
-    dec.write(&exr_out, &opts(FileFormat::Exr, false, OutputSpace::Xyz))
-        .unwrap();
+    common::committed(false, |u| {
+        dec.write(&exr_out, &opts(FileFormat::Exr, false, OutputSpace::Xyz), u)
+    })
+    .unwrap();
     assert_eq!(
         read_frame(&exr_out, &ReadOptions::default()).unwrap().data,
         data32
     );
     let dec = Decoded::read(&f32_path, &ReadOptions::default()).unwrap();
     let tif_out = d.join("out.tif");
-    dec.write(&tif_out, &opts(FileFormat::Tiff, false, OutputSpace::Xyz))
-        .unwrap();
+    common::committed(false, |u| {
+        dec.write(
+            &tif_out,
+            &opts(FileFormat::Tiff, false, OutputSpace::Xyz),
+            u,
+        )
+    })
+    .unwrap();
     let mut t = tiff::decoder::Decoder::new(std::fs::File::open(&tif_out).unwrap()).unwrap();
     assert_eq!(t.colortype().unwrap(), tiff::ColorType::RGBA(32));
     match t.read_image().unwrap() {
@@ -563,24 +582,30 @@ fn exr_to_tiff_refuses_channels_tiff_cannot_hold() {
     rich_exr(&src);
     let d = Decoded::read(&src, &ReadOptions::default()).unwrap();
     let dest = dir.path().join("out.tif");
-    let e = d
-        .write(&dest, &opts(FileFormat::Tiff, false, OutputSpace::Xyz))
-        .unwrap_err();
+    let e = common::committed(false, |u| {
+        d.write(&dest, &opts(FileFormat::Tiff, false, OutputSpace::Xyz), u)
+    })
+    .unwrap_err();
     assert!(e.to_string().contains("N.x, Z"), "{e}");
     assert!(!dest.exists());
 
     // Plain RGB EXR → float TIFF.
     let plain = dir.path().join("plain.exr");
     let frame = Frame::from_data(2, 2, Layout::Rgb, floats(12, 0.5)).unwrap();
-    nsrm::io::write_exr(
-        &frame,
-        &plain,
-        &opts(FileFormat::Exr, false, OutputSpace::Xyz),
-    )
+    common::committed(false, |u| {
+        nsrm::io::write_exr(
+            &frame,
+            &plain,
+            &opts(FileFormat::Exr, false, OutputSpace::Xyz),
+            u,
+        )
+    })
     .unwrap();
     let d = Decoded::read(&plain, &ReadOptions::default()).unwrap();
-    d.write(&dest, &opts(FileFormat::Tiff, false, OutputSpace::Xyz))
-        .unwrap();
+    common::committed(false, |u| {
+        d.write(&dest, &opts(FileFormat::Tiff, false, OutputSpace::Xyz), u)
+    })
+    .unwrap();
     assert_eq!(read_frame(&dest, &ReadOptions::default()).unwrap(), frame);
 }
 
@@ -592,23 +617,21 @@ fn writes_are_atomic_and_never_clobber() {
     let o = opts(FileFormat::Exr, false, OutputSpace::Xyz);
     let dest = d.join("a.exr");
     std::fs::write(&dest, b"keep me").unwrap();
-    let e = nsrm::io::write_exr(&frame, &dest, &o).unwrap_err();
+    let e = common::committed(false, |u| nsrm::io::write_exr(&frame, &dest, &o, u)).unwrap_err();
     assert!(e.to_string().contains("already exists"), "{e}");
     assert_eq!(std::fs::read(&dest).unwrap(), b"keep me");
-    nsrm::io::write_exr(
-        &frame,
-        &dest,
-        &WriteOptions {
-            overwrite: true,
-            ..o
-        },
-    )
-    .unwrap();
+    common::committed(true, |u| nsrm::io::write_exr(&frame, &dest, &o, u)).unwrap();
     assert_eq!(read_frame(&dest, &ReadOptions::default()).unwrap(), frame);
     // A destination under a regular file cannot be written; nothing is left behind.
-    let e = nsrm::io::write_exr(&frame, &dest.join("x.exr"), &o).unwrap_err();
+    let e = common::committed(false, |u| {
+        nsrm::io::write_exr(&frame, &dest.join("x.exr"), &o, u)
+    })
+    .unwrap_err();
     assert!(e.to_string().contains("cannot write"), "{e}");
-    let e = nsrm::io::write_tiff(&frame, &d.join("no/such/dir/x.tif"), false).unwrap_err();
+    let e = common::committed(false, |u| {
+        nsrm::io::write_tiff(&frame, &d.join("no/such/dir/x.tif"), u)
+    })
+    .unwrap_err();
     assert!(e.to_string().contains("cannot write"), "{e}");
     let names: Vec<String> = std::fs::read_dir(d)
         .unwrap()
@@ -637,7 +660,7 @@ fn chart_layout_round_trips() {
     let dir = tempfile::tempdir().unwrap();
     for name in ["cc24.exr", "cc24_tiff.tif"] {
         let path = dir.path().join(name);
-        write(&frame, &layout, &path, false).unwrap();
+        common::committed(false, |u| write(&frame, &layout, &path, u)).unwrap();
         let back = ChartLayout::read(&layout_path(&path)).unwrap();
         // serde_json (without its float_roundtrip feature) may be 1 ulp off.
         let close = |a: &[f64], b: &[f64]| {
@@ -666,7 +689,7 @@ fn chart_layout_round_trips() {
                 assert!((m[k] - layout.patches[i].rgb[k]).abs() < 1e-3);
             }
         }
-        assert!(write(&frame, &layout, &path, false).is_err());
+        assert!(common::committed(false, |u| write(&frame, &layout, &path, u)).is_err());
     }
 }
 
@@ -703,7 +726,7 @@ fn compression_is_kept_when_lossless_and_chosen_on_request() {
             compression: want,
             ..opts(FileFormat::Exr, false, OutputSpace::Xyz)
         };
-        d.write(&dest, &o).unwrap();
+        common::committed(false, |u| d.write(&dest, &o, u)).unwrap();
         assert_eq!(read_all(&dest).layer_data[0].encoding.compression, got);
     }
 }

@@ -1,7 +1,6 @@
 //! The integration tests, one binary: each module is one file of tests/all/, gated by the cargo
 //! features it needs. `common` holds what they share.
 
-mod common;
 #[cfg(feature = "cli")]
 mod apply;
 #[cfg(feature = "chart")]
@@ -13,6 +12,7 @@ mod cli_chart;
 mod cli_eval_fit;
 #[cfg(feature = "cli")]
 mod cli_fit_variants;
+mod common;
 #[cfg(feature = "cli")]
 mod export_dctl;
 #[cfg(feature = "cli")]
@@ -20,6 +20,8 @@ mod export_ocio;
 #[cfg(feature = "io")]
 mod exr_fast;
 mod fast;
+#[cfg(feature = "cli")]
+mod first_hour;
 mod fit_hostile;
 mod fit_variants;
 #[cfg(all(feature = "gpu", feature = "io"))]
@@ -49,3 +51,7 @@ mod parsers_fuzz;
 mod pixel_policy;
 #[cfg(feature = "cli")]
 mod raw;
+#[cfg(feature = "cli")]
+mod readme;
+#[cfg(feature = "cli")]
+mod white;

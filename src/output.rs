@@ -1,0 +1,898 @@
+//! The output session: one value per command run that knows the run's inputs and outputs,
+//! checks them against each other before any work, stages every output in a temporary file,
+//! commits outputs that belong together as one unit, and cleans up after a signal. Every writer
+//! of the library takes a [`Unit`] of it; nothing here is process-wide.
+//!
+//! # How a command uses it
+//!
+//! ```
+//! use nsrm::output::Session;
+//! # fn main() -> Result<(), Box<dyn std::error::Error>> {
+//! # let dir = tempfile::tempdir()?;
+//! # let model = dir.path().join("m.json");
+//! # std::fs::write(&model, "{}")?;
+//! let lut = dir.path().join("out/m.cube");
+//! let report = dir.path().join("out/m.json");
+//! // 1. One session per run; `overwrite` is the run's policy for existing outputs.
+//! let mut session = Session::new(false);
+//! // 2. Before any work: every input, then every output. An output is resolved (its parent
+//! //    directories created, `..` and symbolic links followed) and refused, as a usage error, when
+//! //    it is an input (same path, or same device and inode: a hard link), when two outputs are
+//! //    one file, or when it exists (without `overwrite`) or is not a regular file.
+//! session.input(&model)?;
+//! session.output(&lut)?;
+//! session.output(&report)?;
+//! assert!(session.output(&model).is_err()); // would replace an input
+//! // 3. The binary lets its signal handler hold the session's abort handle
+//! //    (`signal_hook::flag::register(SIGTERM, handle.flag())`, or a thread calling
+//! //    `handle.abort()`, which also removes the run's temporaries).
+//! let handle = session.abort_handle();
+//! // 4. The work; then the outputs that belong together are written into one unit (each into a
+//! //    fresh temporary beside its destination) and committed together: all appear or none,
+//! //    and a file that `overwrite` replaced is put back if a later one fails.
+//! let mut unit = session.unit();
+//! unit.write_bytes(&lut, b"LUT_3D_SIZE 2\n")?;
+//! unit.write_bytes(&report, b"{}")?;
+//! unit.commit()?;
+//! assert!(lut.exists() && report.exists() && !handle.is_aborted());
+//! # Ok(()) }
+//! ```
+//!
+//! A batch (`apply`) takes one unit per frame from the same session, from several threads
+//! ([`Session`] is `Sync`; a [`Unit`] is `Send`): each frame's outputs commit together.
+//!
+//! # Guarantees
+//! * Temporary names are unguessable: `.NAME.nsrm-PID-RANDOM.tmp` with 64 random bits, created
+//!   with `O_EXCL`; a name that exists is never touched, another is drawn.
+//! * Only temporaries this session created are ever removed ([`AbortHandle::abort`],
+//!   [`Session::remove_temporaries`], a dropped [`Unit`]).
+//! * Nothing but a regular file is ever replaced, even with `overwrite`.
+//! * After [`AbortHandle::abort`] (a signal), every write in progress fails at its next buffer
+//!   write, no temporary is created and nothing is committed ([`WriteError::Aborted`]); a unit
+//!   being committed finishes or is rolled back first (the commit holds the session's lock).
+
+use std::collections::BTreeSet;
+use std::ffi::OsStr;
+use std::fs::File;
+use std::io::{BufWriter, Seek, SeekFrom, Write};
+use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::{Arc, Mutex, MutexGuard};
+
+/// Errors from declaring or writing an output.
+#[derive(Debug, thiserror::Error)]
+pub enum WriteError {
+    /// The destination exists and the session does not overwrite.
+    #[error("{}: already exists (not replaced)", .0.display())]
+    Exists(PathBuf),
+    /// The destination is a directory, FIFO, device or socket.
+    #[error("{}: not a regular file (it is {what}); only regular files are ever replaced", path.display())]
+    NotRegular {
+        /// The destination.
+        path: PathBuf,
+        /// What it is.
+        what: &'static str,
+    },
+    /// Creating, writing or moving the file failed.
+    #[error("{}: cannot write: {err}", path.display())]
+    Io {
+        /// The destination.
+        path: PathBuf,
+        /// The system's error.
+        err: std::io::Error,
+    },
+    /// The session was aborted (a signal) before the file was committed.
+    #[error("{}: not written: interrupted by a signal (its temporary file was removed)", .0.display())]
+    Aborted(PathBuf),
+    /// An output is one of the run's inputs.
+    #[error("{}: is an input of this run ({}); an input is never written", output.display(), input.display())]
+    OutputIsInput {
+        /// The output as given.
+        output: PathBuf,
+        /// The input as given.
+        input: PathBuf,
+    },
+    /// Two outputs of one run are the same file.
+    #[error("{} and {}: two outputs of this run are the same file", first.display(), second.display())]
+    SameOutput {
+        /// The output declared first.
+        first: PathBuf,
+        /// The output declared second.
+        second: PathBuf,
+    },
+    /// An output path names no file (`.`, `..`, a path ending in `/`).
+    #[error("{}: names no file", .0.display())]
+    NoFileName(PathBuf),
+}
+
+impl WriteError {
+    /// True for outputs that collide with an input or with each other, and for an output path
+    /// that names no file: the request itself is wrong.
+    pub fn is_usage(&self) -> bool {
+        matches!(
+            self,
+            WriteError::OutputIsInput { .. }
+                | WriteError::SameOutput { .. }
+                | WriteError::NoFileName(_)
+        )
+    }
+}
+
+/// What every unit of one session shares: the abort flag and the temporaries in existence.
+#[derive(Debug)]
+struct Shared {
+    abort: Arc<AtomicBool>,
+    temps: Mutex<BTreeSet<PathBuf>>,
+}
+
+impl Shared {
+    fn temps(&self) -> MutexGuard<'_, BTreeSet<PathBuf>> {
+        self.temps.lock().unwrap_or_else(|e| e.into_inner())
+    }
+
+    fn aborted(&self) -> bool {
+        self.abort.load(Ordering::SeqCst)
+    }
+}
+
+/// What a signal handler holds to stop a session: clone it freely, send it anywhere.
+#[derive(Debug, Clone)]
+pub struct AbortHandle {
+    shared: Arc<Shared>,
+}
+
+impl AbortHandle {
+    /// The abort flag, for `signal_hook::flag::register`: once set, writes fail at their next
+    /// buffer write and nothing more is committed (temporaries are then removed by
+    /// [`Session::remove_temporaries`] or when their unit is dropped).
+    pub fn flag(&self) -> Arc<AtomicBool> {
+        Arc::clone(&self.shared.abort)
+    }
+
+    /// Aborts the session and removes every temporary it holds, at once (from a signal-handling
+    /// thread, before the process exits). Waits for a unit being committed to finish or roll
+    /// back. Returns how many temporaries were removed.
+    pub fn abort(&self) -> usize {
+        let mut temps = self.shared.temps();
+        self.shared.abort.store(true, Ordering::SeqCst);
+        remove_all(&mut temps)
+    }
+
+    /// Whether the session was aborted.
+    pub fn is_aborted(&self) -> bool {
+        self.shared.aborted()
+    }
+}
+
+fn remove_all(temps: &mut BTreeSet<PathBuf>) -> usize {
+    let mut n = 0;
+    for p in std::mem::take(temps) {
+        if std::fs::remove_file(&p).is_ok() {
+            n += 1;
+        }
+    }
+    n
+}
+
+/// A path as the session compares it: resolved, and its file's identity when it exists.
+#[derive(Debug)]
+struct Known {
+    given: PathBuf,
+    resolved: PathBuf,
+    id: Option<(u64, u64)>,
+}
+
+impl Known {
+    fn same(&self, other: &Known) -> bool {
+        self.resolved == other.resolved || (self.id.is_some() && self.id == other.id)
+    }
+}
+
+#[cfg(unix)]
+fn file_id(meta: &std::fs::Metadata) -> Option<(u64, u64)> {
+    use std::os::unix::fs::MetadataExt;
+    Some((meta.dev(), meta.ino()))
+}
+
+#[cfg(not(unix))]
+fn file_id(_: &std::fs::Metadata) -> Option<(u64, u64)> {
+    None
+}
+
+/// `path` made absolute without touching the filesystem (for paths that do not exist).
+fn absolute(path: &Path) -> PathBuf {
+    std::path::absolute(path).unwrap_or_else(|_| path.to_path_buf())
+}
+
+/// One command run's outputs (see the [module documentation](self)).
+#[derive(Debug)]
+pub struct Session {
+    overwrite: bool,
+    shared: Arc<Shared>,
+    inputs: Vec<Known>,
+    outputs: Vec<Known>,
+}
+
+impl Session {
+    /// A session that replaces existing outputs (regular files only) when `overwrite` is true.
+    pub fn new(overwrite: bool) -> Session {
+        Session {
+            overwrite,
+            shared: Arc::new(Shared {
+                abort: Arc::new(AtomicBool::new(false)),
+                temps: Mutex::new(BTreeSet::new()),
+            }),
+            inputs: Vec::new(),
+            outputs: Vec::new(),
+        }
+    }
+
+    /// Whether existing outputs are replaced.
+    pub fn overwrite(&self) -> bool {
+        self.overwrite
+    }
+
+    /// The handle a signal handler holds to abort this session.
+    pub fn abort_handle(&self) -> AbortHandle {
+        AbortHandle {
+            shared: Arc::clone(&self.shared),
+        }
+    }
+
+    /// Whether the session was aborted.
+    pub fn is_aborted(&self) -> bool {
+        self.shared.aborted()
+    }
+
+    /// Records an input of the run (a file it reads; one that does not exist is compared by
+    /// path only). Fails if an output already declared is this file.
+    pub fn input(&mut self, path: &Path) -> Result<(), WriteError> {
+        let known = Known {
+            given: path.to_path_buf(),
+            resolved: std::fs::canonicalize(path).unwrap_or_else(|_| absolute(path)),
+            id: std::fs::metadata(path).ok().and_then(|m| file_id(&m)),
+        };
+        if let Some(o) = self.outputs.iter().find(|o| o.same(&known)) {
+            return Err(WriteError::OutputIsInput {
+                output: o.given.clone(),
+                input: known.given,
+            });
+        }
+        self.inputs.push(known);
+        Ok(())
+    }
+
+    /// Records an output of the run, before any work: creates its parent directories, resolves
+    /// it (following `..` and symbolic links) and fails if it is an input, another output, an
+    /// existing file the session may not replace, or not a regular file.
+    pub fn output(&mut self, path: &Path) -> Result<(), WriteError> {
+        let name = match path.file_name() {
+            Some(n) if !path.as_os_str().as_encoded_bytes().ends_with(b"/") => n,
+            _ => return Err(WriteError::NoFileName(path.to_path_buf())),
+        };
+        let parent = match path.parent() {
+            Some(p) if !p.as_os_str().is_empty() => p,
+            _ => Path::new("."),
+        };
+        let io = |err| WriteError::Io {
+            path: path.to_path_buf(),
+            err,
+        };
+        std::fs::create_dir_all(parent).map_err(io)?;
+        let dir = std::fs::canonicalize(parent).map_err(io)?;
+        // A symbolic link at the name is compared as the file it points to.
+        let resolved = std::fs::canonicalize(path).unwrap_or_else(|_| dir.join(name));
+        let known = Known {
+            given: path.to_path_buf(),
+            resolved,
+            id: std::fs::metadata(path).ok().and_then(|m| file_id(&m)),
+        };
+        if let Some(i) = self.inputs.iter().find(|i| i.same(&known)) {
+            return Err(WriteError::OutputIsInput {
+                output: known.given,
+                input: i.given.clone(),
+            });
+        }
+        if let Some(o) = self.outputs.iter().find(|o| o.same(&known)) {
+            return Err(WriteError::SameOutput {
+                first: o.given.clone(),
+                second: known.given,
+            });
+        }
+        self.check_clobber(path)?;
+        self.outputs.push(known);
+        Ok(())
+    }
+
+    /// Fails with [`WriteError::Exists`] if `dest` exists and the session does not overwrite,
+    /// and with [`WriteError::NotRegular`] if it exists and is not a regular file.
+    pub fn check_clobber(&self, dest: &Path) -> Result<(), WriteError> {
+        check_clobber(dest, self.overwrite)
+    }
+
+    /// A new unit: outputs written into it are committed together ([`Unit::commit`]).
+    pub fn unit(&self) -> Unit {
+        Unit {
+            shared: Arc::clone(&self.shared),
+            overwrite: self.overwrite,
+            staged: Vec::new(),
+        }
+    }
+
+    /// Writes one output on its own: a unit holding just `dest`, committed.
+    pub fn write_bytes(&self, dest: &Path, bytes: &[u8]) -> Result<(), WriteError> {
+        let mut unit = self.unit();
+        unit.write_bytes(dest, bytes)?;
+        unit.commit()
+    }
+
+    /// Removes every temporary this session still holds (after an abort); returns how many.
+    pub fn remove_temporaries(&self) -> usize {
+        remove_all(&mut self.shared.temps())
+    }
+
+    /// How many temporaries this session holds now.
+    pub fn temporaries_held(&self) -> usize {
+        self.shared.temps().len()
+    }
+}
+
+/// The part of a temporary's name that marks it as this crate's: `.NAME.nsrm-PID-RANDOM.tmp`.
+const TEMP_MARK: &str = ".nsrm-";
+const TEMP_END: &str = ".tmp";
+
+/// 64 unpredictable bits: from the operating system, else (no entropy source) from std's
+/// randomly keyed hasher over the time.
+fn random_u64() -> u64 {
+    use std::hash::{BuildHasher, Hasher};
+    if let Ok(v) = getrandom::u64() {
+        return v;
+    }
+    let mut h = std::collections::hash_map::RandomState::new().build_hasher();
+    if let Ok(t) = std::time::SystemTime::now().duration_since(std::time::UNIX_EPOCH) {
+        h.write_u128(t.as_nanos());
+    }
+    h.finish()
+}
+
+/// A fresh temporary path beside `dest` (same directory, so the final rename is atomic):
+/// `.NAME.nsrm-PID-RANDOM.tmp`. Nothing is created.
+pub fn temp_path_for(dest: &Path) -> PathBuf {
+    let mut name = std::ffi::OsString::from(".");
+    name.push(dest.file_name().unwrap_or(OsStr::new("out")));
+    name.push(format!(
+        "{TEMP_MARK}{}-{:016x}{TEMP_END}",
+        std::process::id(),
+        random_u64()
+    ));
+    match dest.parent() {
+        Some(p) if !p.as_os_str().is_empty() => p.join(name),
+        _ => PathBuf::from(name),
+    }
+}
+
+/// Whether a file name has the form of this crate's temporaries (`.NAME.nsrm-PID-HEX16.tmp`).
+pub fn is_temp_name(name: &OsStr) -> bool {
+    let b = name.as_encoded_bytes();
+    let Some(rest) = b.strip_suffix(TEMP_END.as_bytes()) else {
+        return false;
+    };
+    let mark = TEMP_MARK.as_bytes();
+    let Some(pos) = rest.windows(mark.len()).rposition(|w| w == mark) else {
+        return false;
+    };
+    let tail = &rest[pos + mark.len()..];
+    let Some(dash) = tail.iter().position(|&c| c == b'-') else {
+        return false;
+    };
+    let (pid, hex) = (&tail[..dash], &tail[dash + 1..]);
+    b[0] == b'.'
+        && pos > 1
+        && !pid.is_empty()
+        && pid.iter().all(u8::is_ascii_digit)
+        && hex.len() == 16
+        && hex.iter().all(u8::is_ascii_hexdigit)
+}
+
+/// The temporaries of this crate's form in `dir` (not recursive), sorted. Left behind by a run
+/// that was killed (SIGKILL, power loss); a running `nsrm` elsewhere may also own some, so they
+/// are reported, never removed.
+pub fn stale_temporaries(dir: &Path) -> Vec<PathBuf> {
+    let mut found: Vec<PathBuf> = std::fs::read_dir(dir)
+        .into_iter()
+        .flatten()
+        .flatten()
+        .filter(|e| e.file_type().map(|t| t.is_file()).unwrap_or(false))
+        .map(|e| e.path())
+        .filter(|p| p.file_name().is_some_and(is_temp_name))
+        .collect();
+    found.sort();
+    found
+}
+
+/// Fails with [`WriteError::Exists`] if `dest` exists and `overwrite` is false, and with
+/// [`WriteError::NotRegular`] if it exists and is not a regular file (whatever `overwrite` says).
+fn check_clobber(dest: &Path, overwrite: bool) -> Result<(), WriteError> {
+    match std::fs::metadata(dest) {
+        Ok(meta) if !meta.is_file() => Err(WriteError::NotRegular {
+            path: dest.to_path_buf(),
+            what: crate::limits::file_kind(&meta),
+        }),
+        Ok(_) if !overwrite => Err(WriteError::Exists(dest.to_path_buf())),
+        Ok(_) => Ok(()),
+        // A dangling symlink: there is something at the name; never replace it silently.
+        Err(_) if !overwrite && std::fs::symlink_metadata(dest).is_ok() => {
+            Err(WriteError::Exists(dest.to_path_buf()))
+        }
+        Err(_) => Ok(()),
+    }
+}
+
+/// The temporary file an encoder writes into: a [`File`] whose writes fail once the session is
+/// aborted, so an interrupted encoder stops at its next buffer write.
+#[derive(Debug)]
+pub struct OutFile {
+    file: File,
+    abort: Arc<AtomicBool>,
+}
+
+impl OutFile {
+    fn check(&self) -> std::io::Result<()> {
+        if self.abort.load(Ordering::Relaxed) {
+            Err(std::io::Error::other("interrupted by a signal"))
+        } else {
+            Ok(())
+        }
+    }
+}
+
+impl Write for OutFile {
+    fn write(&mut self, buf: &[u8]) -> std::io::Result<usize> {
+        self.check()?;
+        self.file.write(buf)
+    }
+
+    fn write_all(&mut self, buf: &[u8]) -> std::io::Result<()> {
+        self.check()?;
+        self.file.write_all(buf)
+    }
+
+    fn flush(&mut self) -> std::io::Result<()> {
+        self.file.flush()
+    }
+}
+
+impl Seek for OutFile {
+    fn seek(&mut self, pos: SeekFrom) -> std::io::Result<u64> {
+        self.file.seek(pos)
+    }
+}
+
+/// A finished temporary waiting for its unit's commit.
+#[derive(Debug)]
+struct Staged {
+    tmp: PathBuf,
+    dest: PathBuf,
+}
+
+/// Outputs that belong together: each written into a temporary, all moved into place by
+/// [`commit`](Self::commit). Dropping a unit without committing removes its temporaries.
+#[derive(Debug)]
+pub struct Unit {
+    shared: Arc<Shared>,
+    overwrite: bool,
+    staged: Vec<Staged>,
+}
+
+impl Unit {
+    /// Fails if `dest` exists and may not be replaced (see [`Session::check_clobber`]).
+    pub fn check_clobber(&self, dest: &Path) -> Result<(), WriteError> {
+        check_clobber(dest, self.overwrite)
+    }
+
+    /// How many files are staged in this unit.
+    pub fn len(&self) -> usize {
+        self.staged.len()
+    }
+
+    /// Whether no file is staged.
+    pub fn is_empty(&self) -> bool {
+        self.staged.is_empty()
+    }
+
+    /// Creates a fresh temporary beside `dest` (never opening an existing file), registered
+    /// with the session; refused once the session is aborted.
+    fn create_temp(&self, dest: &Path) -> Result<(OutFile, PathBuf), WriteError> {
+        let mut last = None;
+        for _ in 0..16 {
+            let tmp = temp_path_for(dest);
+            let mut temps = self.shared.temps();
+            if self.shared.aborted() {
+                return Err(WriteError::Aborted(dest.to_path_buf()));
+            }
+            match File::create_new(&tmp) {
+                Ok(file) => {
+                    temps.insert(tmp.clone());
+                    let f = OutFile {
+                        file,
+                        abort: Arc::clone(&self.shared.abort),
+                    };
+                    return Ok((f, tmp));
+                }
+                // Someone else's file: leave it alone, draw another name.
+                Err(e) if e.kind() == std::io::ErrorKind::AlreadyExists => last = Some(e),
+                Err(err) => {
+                    return Err(WriteError::Io {
+                        path: dest.to_path_buf(),
+                        err,
+                    })
+                }
+            }
+        }
+        Err(WriteError::Io {
+            path: dest.to_path_buf(),
+            err: last.unwrap_or_else(|| std::io::Error::other("no free temporary name")),
+        })
+    }
+
+    fn forget(&self, tmp: &Path) {
+        let _ = std::fs::remove_file(tmp);
+        self.shared.temps().remove(tmp);
+    }
+
+    /// Writes `dest`'s temporary through an encoder: `write` fills a buffered writer on a fresh
+    /// temporary beside `dest`, which is then flushed, synced and staged in this unit. On any
+    /// error the temporary is removed and `dest` is untouched.
+    pub fn write_with<E: From<WriteError>>(
+        &mut self,
+        dest: &Path,
+        write: impl FnOnce(&mut BufWriter<OutFile>) -> Result<(), E>,
+    ) -> Result<(), E> {
+        self.check_clobber(dest)?;
+        let (file, tmp) = self.create_temp(dest)?;
+        let io = |err| WriteError::Io {
+            path: dest.to_path_buf(),
+            err,
+        };
+        let mut w = BufWriter::new(file);
+        let done = write(&mut w).and_then(|()| {
+            w.flush().map_err(io)?;
+            let file = w.into_inner().map_err(|e| io(e.into_error()))?;
+            file.file.sync_all().map_err(io)?;
+            if self.shared.aborted() {
+                return Err(E::from(WriteError::Aborted(dest.to_path_buf())));
+            }
+            Ok(())
+        });
+        match done {
+            Ok(()) => {
+                self.staged.push(Staged {
+                    tmp,
+                    dest: dest.to_path_buf(),
+                });
+                Ok(())
+            }
+            Err(e) => {
+                self.forget(&tmp);
+                Err(e)
+            }
+        }
+    }
+
+    /// Stages `bytes` for `dest` (see [`write_with`](Self::write_with)).
+    pub fn write_bytes(&mut self, dest: &Path, bytes: &[u8]) -> Result<(), WriteError> {
+        self.write_with(dest, |w| {
+            w.write_all(bytes).map_err(|err| WriteError::Io {
+                path: dest.to_path_buf(),
+                err,
+            })
+        })
+    }
+
+    /// Moves every staged file into place, together: every destination is checked first, then
+    /// each is placed; if one fails, the ones already placed are taken back and a file that
+    /// `overwrite` replaced is put back (kept aside as a hard link meanwhile; on a filesystem
+    /// without hard links it is not restored). Without `overwrite` each final step is a hard
+    /// link, which fails if the destination appeared meanwhile. The session's lock is held
+    /// throughout, so an abort waits for the unit to be placed or rolled back.
+    pub fn commit(mut self) -> Result<(), WriteError> {
+        let staged = std::mem::take(&mut self.staged);
+        let shared = Arc::clone(&self.shared);
+        let mut temps = shared.temps();
+        let drop_temps = |temps: &mut BTreeSet<PathBuf>, staged: &[Staged]| {
+            for s in staged {
+                let _ = std::fs::remove_file(&s.tmp);
+                temps.remove(&s.tmp);
+            }
+        };
+        if shared.aborted() {
+            drop_temps(&mut temps, &staged);
+            let first = staged.first().map(|s| s.dest.clone()).unwrap_or_default();
+            return Err(WriteError::Aborted(first));
+        }
+        if let Err(e) = staged
+            .iter()
+            .try_for_each(|s| check_clobber(&s.dest, self.overwrite))
+        {
+            drop_temps(&mut temps, &staged);
+            return Err(e);
+        }
+        // (destination, the file it replaced kept aside)
+        let mut placed: Vec<(PathBuf, Option<PathBuf>)> = Vec::new();
+        for (k, s) in staged.iter().enumerate() {
+            let backup = if self.overwrite && std::fs::symlink_metadata(&s.dest).is_ok() {
+                let b = temp_path_for(&s.dest);
+                std::fs::hard_link(&s.dest, &b).ok().map(|()| {
+                    temps.insert(b.clone());
+                    b
+                })
+            } else {
+                None
+            };
+            if let Err(e) = place(&s.tmp, &s.dest, self.overwrite) {
+                if let Some(b) = &backup {
+                    let _ = std::fs::remove_file(b);
+                    temps.remove(b);
+                }
+                // Take back what this unit placed, newest first.
+                for (p, backup) in placed.iter().rev() {
+                    match backup {
+                        Some(b) => {
+                            let _ = std::fs::rename(b, p);
+                            temps.remove(b);
+                        }
+                        None => {
+                            let _ = std::fs::remove_file(p);
+                        }
+                    }
+                }
+                drop_temps(&mut temps, &staged[k..]);
+                drop_temps(&mut temps, &staged[..k]);
+                return Err(e);
+            }
+            // Placed: the temporary is gone (renamed) or a second link (removed now).
+            let _ = std::fs::remove_file(&s.tmp);
+            temps.remove(&s.tmp);
+            placed.push((s.dest.clone(), backup));
+        }
+        for (_, b) in placed {
+            if let Some(b) = b {
+                let _ = std::fs::remove_file(&b);
+                temps.remove(&b);
+            }
+        }
+        Ok(())
+    }
+}
+
+impl Drop for Unit {
+    fn drop(&mut self) {
+        for s in std::mem::take(&mut self.staged) {
+            self.forget(&s.tmp);
+        }
+    }
+}
+
+/// Moves a finished temporary onto `dest`: a hard link without `overwrite` (fails if `dest`
+/// appeared meanwhile), else a rename after checking `dest` is (still) a regular file or absent.
+fn place(tmp: &Path, dest: &Path, overwrite: bool) -> Result<(), WriteError> {
+    check_clobber(dest, overwrite)?;
+    let result = if overwrite {
+        std::fs::rename(tmp, dest)
+    } else {
+        match std::fs::hard_link(tmp, dest) {
+            Ok(()) => Ok(()),
+            Err(e) if e.kind() == std::io::ErrorKind::AlreadyExists => {
+                return Err(WriteError::Exists(dest.to_path_buf()));
+            }
+            // Filesystems without hard links: check, then rename.
+            Err(_) if std::fs::symlink_metadata(dest).is_err() => std::fs::rename(tmp, dest),
+            Err(e) => Err(e),
+        }
+    };
+    result.map_err(|err| WriteError::Io {
+        path: dest.to_path_buf(),
+        err,
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn leftovers(dir: &Path) -> usize {
+        std::fs::read_dir(dir)
+            .unwrap()
+            .filter(|e| {
+                e.as_ref()
+                    .unwrap()
+                    .file_name()
+                    .to_string_lossy()
+                    .ends_with(".tmp")
+            })
+            .count()
+    }
+
+    #[test]
+    fn refuses_to_clobber_and_leaves_no_temp() {
+        let dir = tempfile::tempdir().unwrap();
+        let dir = dir.path();
+        let f = dir.join("a.json");
+        Session::new(false).write_bytes(&f, b"one").unwrap();
+        let e = Session::new(false).write_bytes(&f, b"two").unwrap_err();
+        assert!(matches!(e, WriteError::Exists(_)));
+        assert_eq!(std::fs::read(&f).unwrap(), b"one");
+        Session::new(true).write_bytes(&f, b"two").unwrap();
+        assert_eq!(std::fs::read(&f).unwrap(), b"two");
+        assert_eq!(leftovers(dir), 0);
+        let e = Session::new(false)
+            .write_bytes(&dir.join("no/such/dir/x"), b"x")
+            .unwrap_err();
+        assert!(e.to_string().contains("cannot write"));
+        // A directory is never replaced, even with overwrite.
+        std::fs::create_dir(dir.join("d")).unwrap();
+        let e = Session::new(true)
+            .write_bytes(&dir.join("d"), b"x")
+            .unwrap_err();
+        assert!(
+            e.to_string()
+                .contains("not a regular file (it is a directory)"),
+            "{e}"
+        );
+    }
+
+    #[test]
+    fn temp_names_are_unique_and_recognised() {
+        let a = temp_path_for(Path::new("out/x.exr"));
+        let b = temp_path_for(Path::new("out/x.exr"));
+        assert_ne!(a, b);
+        assert!(is_temp_name(a.file_name().unwrap()), "{a:?}");
+        assert!(a.to_string_lossy().starts_with("out/.x.exr.nsrm-"), "{a:?}");
+        for bad in [
+            "x.tmp",
+            ".x.nsrm-1-abc.tmp",
+            ".x.nsrm--0123456789abcdef.tmp",
+            ".nsrm-1-0123456789abcdef.tmp",
+        ] {
+            assert!(!is_temp_name(OsStr::new(bad)), "{bad}");
+        }
+        assert!(is_temp_name(OsStr::new(
+            ".x.exr.nsrm-1-0123456789abcdef.tmp"
+        )));
+    }
+
+    #[test]
+    fn a_dropped_unit_removes_only_its_own_temporary() {
+        let dir = tempfile::tempdir().unwrap();
+        let dest = dir.path().join("x.bin");
+        // Someone else's file that looks like a temporary is never touched.
+        let other = dir.path().join(".x.bin.nsrm-1-0123456789abcdef.tmp");
+        std::fs::write(&other, b"theirs").unwrap();
+        let session = Session::new(false);
+        let mut unit = session.unit();
+        unit.write_bytes(&dest, b"mine").unwrap();
+        assert_eq!(session.temporaries_held(), 1);
+        assert_eq!(stale_temporaries(dir.path()).len(), 2);
+        drop(unit);
+        assert_eq!(session.temporaries_held(), 0);
+        assert!(!dest.exists());
+        assert_eq!(std::fs::read(&other).unwrap(), b"theirs");
+        assert_eq!(stale_temporaries(dir.path()), vec![other]);
+    }
+
+    #[test]
+    fn a_failing_encoder_leaves_nothing_behind() {
+        // A write failure (disk full, an encoder error) half-way through: simulated by the
+        // encoder, since a full filesystem cannot be made in CI.
+        let dir = tempfile::tempdir().unwrap();
+        let dest = dir.path().join("x.exr");
+        let session = Session::new(false);
+        let mut unit = session.unit();
+        let r: Result<(), WriteError> = unit.write_with(&dest, |w| {
+            w.write_all(&[0u8; 100_000]).unwrap();
+            Err(WriteError::Io {
+                path: dest.clone(),
+                err: std::io::Error::new(std::io::ErrorKind::StorageFull, "no space left"),
+            })
+        });
+        assert!(r.unwrap_err().to_string().contains("no space left"));
+        assert!(unit.is_empty());
+        unit.commit().unwrap();
+        assert!(!dest.exists());
+        assert_eq!(leftovers(dir.path()), 0);
+    }
+
+    #[test]
+    fn a_unit_places_all_or_none_and_restores_what_it_replaced() {
+        let dir = tempfile::tempdir().unwrap();
+        let (a, c) = (dir.path().join("a"), dir.path().join("c"));
+        let session = Session::new(false);
+        let mut unit = session.unit();
+        unit.write_bytes(&a, b"1").unwrap();
+        unit.write_bytes(&c, b"2").unwrap();
+        // a appears before the commit: c is not placed either.
+        std::fs::write(&a, b"raced").unwrap();
+        assert!(matches!(unit.commit(), Err(WriteError::Exists(_))));
+        assert!(!c.exists());
+        assert_eq!(std::fs::read(&a).unwrap(), b"raced");
+        assert_eq!(leftovers(dir.path()), 0);
+        // With overwrite: the first is replaced, the second fails (a directory appeared), the
+        // first's old content comes back.
+        let session = Session::new(true);
+        let mut unit = session.unit();
+        unit.write_bytes(&a, b"new").unwrap();
+        unit.write_bytes(&c, b"2").unwrap();
+        std::fs::create_dir(&c).unwrap();
+        assert!(unit.commit().is_err());
+        assert_eq!(std::fs::read(&a).unwrap(), b"raced");
+        assert_eq!(leftovers(dir.path()), 0);
+        assert_eq!(session.temporaries_held(), 0);
+    }
+
+    #[test]
+    fn outputs_are_checked_against_inputs_and_each_other() {
+        let dir = tempfile::tempdir().unwrap();
+        let d = dir.path();
+        let input = d.join("in.exr");
+        std::fs::write(&input, b"x").unwrap();
+        std::fs::create_dir(d.join("sub")).unwrap();
+        std::fs::hard_link(&input, d.join("link.exr")).unwrap();
+        #[cfg(unix)]
+        std::os::unix::fs::symlink(&input, d.join("sym.exr")).unwrap();
+        let mut s = Session::new(true);
+        s.input(&input).unwrap();
+        for bad in [
+            input.clone(),
+            d.join("sub/../in.exr"),
+            d.join("link.exr"),
+            #[cfg(unix)]
+            d.join("sym.exr"),
+        ] {
+            let e = s.output(&bad).unwrap_err();
+            assert!(
+                matches!(e, WriteError::OutputIsInput { .. }),
+                "{bad:?}: {e}"
+            );
+            assert!(e.is_usage());
+        }
+        s.output(&d.join("new/deep/o.csv")).unwrap();
+        assert!(d.join("new/deep").is_dir());
+        let e = s.output(&d.join("new/./deep/../deep/o.csv")).unwrap_err();
+        assert!(matches!(e, WriteError::SameOutput { .. }), "{e}");
+        assert!(matches!(
+            s.output(&d.join("sub/")),
+            Err(WriteError::NoFileName(_))
+        ));
+        // An input declared after the output is caught too.
+        let mut s = Session::new(false);
+        s.output(&d.join("o2")).unwrap();
+        assert!(s.input(&d.join("o2")).is_err());
+        // Existing outputs: refused without overwrite; never a directory.
+        assert!(matches!(
+            Session::new(false).output(&input),
+            Err(WriteError::Exists(_))
+        ));
+        assert!(matches!(
+            Session::new(true).output(&d.join("sub")),
+            Err(WriteError::NotRegular { .. })
+        ));
+    }
+
+    #[test]
+    fn an_abort_removes_temporaries_and_stops_writes() {
+        let dir = tempfile::tempdir().unwrap();
+        let session = Session::new(false);
+        let mut unit = session.unit();
+        unit.write_bytes(&dir.path().join("a"), b"1").unwrap();
+        let handle = session.abort_handle();
+        assert_eq!(handle.abort(), 1);
+        assert_eq!(leftovers(dir.path()), 0);
+        assert!(matches!(
+            unit.write_bytes(&dir.path().join("b"), b"2"),
+            Err(WriteError::Aborted(_))
+        ));
+        assert!(matches!(unit.commit(), Err(WriteError::Aborted(_))));
+        assert!(!dir.path().join("a").exists());
+        assert_eq!(leftovers(dir.path()), 0);
+    }
+}

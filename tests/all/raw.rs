@@ -81,7 +81,7 @@ fn half_gives_the_exact_block_means_of_the_mosaic_written() {
         ("BGGR", "50", "34", "512,512,512,512", "16383"),
         ("GRBG", "66", "40", "100,110,120,130", "4095"),
         ("GBRG", "31", "27", "2047,2049,2050,2046", "15000"),
-        ("RGGB", "2", "2", "10", "1023"),
+        ("RGGB", "26", "22", "10", "1023"),
     ];
     for (i, (pattern, w, h, black, white)) in cases.iter().enumerate() {
         let p = dir.join(format!("s{i}.dng"));

@@ -152,8 +152,20 @@ fn kept_rect(image: &rawler::RawImage) -> (usize, usize, usize, usize) {
     }
 }
 
-/// Black and white per position of a `bw`×`bh` repeat (row-major), from rawler's levels.
+/// Black level and divisor per position of the black level's repeat (row-major), from
+/// rawler's levels. The divisor is the white level less the smallest black level of the repeat,
+/// as LibRaw scales (it subtracts the common black from its maximum and each position's excess
+/// black from the samples only).
 fn levels(image: &rawler::RawImage, c: usize) -> Vec<(f32, f32)> {
+    let raw = raw_levels(image, c);
+    let min_black = raw.iter().map(|l| l.0).fold(f32::INFINITY, f32::min);
+    raw.iter()
+        .map(|&(b, w)| (b, (w - min_black).max(f32::MIN_POSITIVE)))
+        .collect()
+}
+
+/// Black and white per position of the black level's repeat (row-major).
+fn raw_levels(image: &rawler::RawImage, c: usize) -> Vec<(f32, f32)> {
     let b = &image.blacklevel;
     let w = &image.whitelevel.0;
     let n = (b.width * b.height).max(1);
@@ -243,9 +255,9 @@ fn develop(path: &Path, image: &rawler::RawImage, demosaic: Demosaic) -> Result<
                 let li = (y % bh) * bw + (x % bw);
                 for (ch, out) in px.iter_mut().enumerate() {
                     let c = ch.min(cpp - 1);
-                    let (b, wl) = lv[c].get(li).copied().unwrap_or(lv[c][0]);
+                    let (b, d) = lv[c].get(li).copied().unwrap_or(lv[c][0]);
                     let v = sample((y * iw + x) * cpp + c);
-                    *out = ((v - b).max(0.0)) / (wl - b).max(f32::MIN_POSITIVE);
+                    *out = (v - b).max(0.0) / d;
                 }
             }
         });
@@ -264,8 +276,8 @@ fn develop(path: &Path, image: &rawler::RawImage, demosaic: Demosaic) -> Result<
         let base = y * iw + x0;
         for (i, out) in row.iter_mut().enumerate() {
             let x = x0 + i;
-            let (b, wl) = lv[((y % bh) * bw + (x % bw)) % lv.len()];
-            *out = (sample(base + i) - b).max(0.0) / (wl - b).max(f32::MIN_POSITIVE);
+            let (b, d) = lv[((y % bh) * bw + (x % bw)) % lv.len()];
+            *out = (sample(base + i) - b).max(0.0) / d;
         }
     });
     let pattern = [

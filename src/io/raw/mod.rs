@@ -3,7 +3,8 @@
 //!
 //! **Values** follow LibRaw's `dcraw_emu -4 -T -o 0 -r 1 1 1 1` (linear camera RGB, up to its
 //! 16-bit scale): the black level is subtracted per CFA position, negatives are clamped to 0, the
-//! result is divided by (white level − black level); no white balance and no colour matrix. The
+//! result is divided by (white level − black level; with unequal per-position blacks, the
+//! smallest, as LibRaw does); no white balance and no colour matrix. The
 //! sensor's active area and the file's default crop are applied.
 //!
 //! **Orientation** is not applied: the frame stays in the sensor's orientation (like

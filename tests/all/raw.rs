@@ -428,9 +428,10 @@ fn bad_raw_files_are_refused_and_the_batch_goes_on() {
     );
     no_crash(&o, "batch");
     assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
-    assert_eq!(
-        common::names(&dir.join("out")),
-        vec!["a_good.exr".to_string()]
+    let written = common::names(&dir.join("out"));
+    assert!(
+        written.len() == 1 && written[0].starts_with("a_good"),
+        "only the good file is converted: {written:?}"
     );
     // --max-pixels is checked before decoding.
     let o = nsrm_in(

@@ -38,7 +38,8 @@ pub fn read(path: &Path, limits: &Limits, demosaic: Demosaic) -> Result<RawFrame
                 why: "not a camera raw file".into(),
             })
         }
-        Sniff::TiffRaw(d) => d,
+        Sniff::TiffRaw(_, Some(why)) => return Err(corrupt(path, why)),
+        Sniff::TiffRaw(d, None) => d,
         Sniff::OtherRaw => None,
     };
     if let Some((w, h)) = dims {

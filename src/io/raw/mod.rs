@@ -136,12 +136,14 @@ pub fn is_raw_name(path: &Path) -> bool {
 }
 
 /// What the first bytes and (for TIFF) the IFDs say.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[derive(Debug, Clone, PartialEq, Eq)]
 pub(crate) enum Sniff {
     /// Not a raw file (maybe a plain TIFF, an EXR, or nothing nsrm reads).
     NotRaw,
-    /// A TIFF-based raw file; the largest image its IFDs declare (width, height), if any.
-    TiffRaw(Option<(u64, u64)>),
+    /// A TIFF-based raw file; the largest image its IFDs declare (width, height), if any, and
+    /// why its structure is damaged, if it is (an entry or IFD reaching past the end of the
+    /// file: the decoder would allocate what the entry claims before finding out).
+    TiffRaw(Option<(u64, u64)>, Option<String>),
     /// A raw container that is not TIFF (CR3, RAF, ORF, RW2, …).
     OtherRaw,
 }
@@ -183,7 +185,7 @@ pub(crate) fn sniff(path: &Path) -> Result<Sniff, IoError> {
     let cr2 = at(8, b"CR\x02\0");
     let scan = scan_tiff(&mut f, h[0] == b'I').map_err(rd)?;
     if cr2 || scan.raw {
-        Ok(Sniff::TiffRaw(scan.largest))
+        Ok(Sniff::TiffRaw(scan.largest, scan.bad))
     } else {
         Ok(Sniff::NotRaw)
     }
@@ -193,6 +195,8 @@ pub(crate) fn sniff(path: &Path) -> Result<Sniff, IoError> {
 struct TiffScan {
     raw: bool,
     largest: Option<(u64, u64)>,
+    /// The first entry or IFD found to reach past the end of the file.
+    bad: Option<String>,
 }
 
 /// Walks a TIFF's IFD chain and SubIFDs (bounded: 64 IFDs, 4096 entries each, depth 3) for the
@@ -233,6 +237,9 @@ fn scan_tiff(f: &mut std::fs::File, le: bool) -> std::io::Result<TiffScan> {
         f.read_exact(&mut cnt)?;
         let count = u64::from(u16_of(&cnt)).min(4096);
         if off + 2 + count * 12 + 4 > len {
+            scan.bad.get_or_insert_with(|| {
+                format!("an IFD at byte {off} runs past the end of the file")
+            });
             continue;
         }
         let mut entries = vec![0u8; (count * 12 + 4) as usize];
@@ -246,11 +253,28 @@ fn scan_tiff(f: &mut std::fs::File, le: bool) -> std::io::Result<TiffScan> {
                 3 => u32::from(u16_of(&e[8..10])),
                 _ => u32_of(&e[8..12]),
             };
+            let size: u64 = match typ {
+                1 | 2 | 6 | 7 => 1,
+                3 | 8 => 2,
+                4 | 9 | 11 | 13 => 4,
+                5 | 10 | 12 => 8,
+                _ => 0,
+            };
+            let bytes = u64::from(n) * size;
+            if bytes > 4 && u64::from(u32_of(&e[8..12])) + bytes > len {
+                scan.bad.get_or_insert_with(|| {
+                    format!("tag {tag} claims {bytes} bytes, past the end of the file")
+                });
+            }
             match tag {
                 256 => w = u64::from(value),
                 257 => h = u64::from(value),
                 262 => photometric = value,
                 50706 => scan.raw = true,
+                // EXIF, GPS and interoperability IFDs: the decoder parses them too.
+                34665 | 34853 | 40965 if depth < 3 && n == 1 && (typ == 4 || typ == 13) => {
+                    queue.push((u64::from(value), depth + 1));
+                }
                 330 if depth < 3 => {
                     // SubIFDs: one offset inline, or an array of offsets.
                     if n == 1 {

@@ -157,11 +157,23 @@ fn kept_rect(image: &rawler::RawImage) -> (usize, usize, usize, usize) {
 /// rawler's levels. The divisor is the white level less the smallest black level of the repeat,
 /// as LibRaw scales (it subtracts the common black from its maximum and each position's excess
 /// black from the samples only).
-fn levels(image: &rawler::RawImage, c: usize) -> Vec<(f32, f32)> {
+/// A black level that is not finite and non-negative, or a white level not above it, is a
+/// damaged file.
+fn levels(path: &Path, image: &rawler::RawImage, c: usize) -> Result<Vec<(f32, f32)>, IoError> {
     let raw = raw_levels(image, c);
     let min_black = raw.iter().map(|l| l.0).fold(f32::INFINITY, f32::min);
     raw.iter()
-        .map(|&(b, w)| (b, (w - min_black).max(f32::MIN_POSITIVE)))
+        .map(|&(b, w)| {
+            let d = w - min_black;
+            if b.is_finite() && b >= 0.0 && w.is_finite() && d > 0.0 && w > b {
+                Ok((b, d))
+            } else {
+                Err(corrupt(
+                    path,
+                    format!("its black level {b} and white level {w} leave no range"),
+                ))
+            }
+        })
         .collect()
 }
 
@@ -209,10 +221,12 @@ fn develop(path: &Path, image: &rawler::RawImage, demosaic: Demosaic) -> Result<
             ),
         ));
     }
+    // A float raw's non-finite samples read as 0 (no value to scale).
     let sample = |i: usize| -> f32 {
         match &image.data {
             RawImageData::Integer(d) => f32::from(d[i]),
-            RawImageData::Float(d) => d[i],
+            RawImageData::Float(d) if d[i].is_finite() => d[i],
+            RawImageData::Float(_) => 0.0,
         }
     };
     let (x0, y0, w, h) = kept_rect(image);
@@ -247,7 +261,9 @@ fn develop(path: &Path, image: &rawler::RawImage, demosaic: Demosaic) -> Result<
                 why: format!("a linear raw image with {cpp} samples per pixel"),
             });
         }
-        let lv: Vec<Vec<(f32, f32)>> = (0..cpp).map(|c| levels(image, c)).collect();
+        let lv = (0..cpp)
+            .map(|c| levels(path, image, c))
+            .collect::<Result<Vec<_>, _>>()?;
         let mut data = crate::io::try_zeroed::<f32>(path, w * h * 3)?;
         data.par_chunks_mut(w * 3).enumerate().for_each(|(r, row)| {
             let y = y0 + r;
@@ -270,7 +286,7 @@ fn develop(path: &Path, image: &rawler::RawImage, demosaic: Demosaic) -> Result<
         });
     };
     // Bayer: scale the kept rectangle into a plane of f32, with its 2×2 colour pattern.
-    let lv = levels(image, 0);
+    let lv = levels(path, image, 0)?;
     let mut plane = crate::io::try_zeroed::<f32>(path, w * h)?;
     plane.par_chunks_mut(w).enumerate().for_each(|(r, row)| {
         let y = y0 + r;

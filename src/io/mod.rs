@@ -471,7 +471,7 @@ impl Decoded {
         opts: &ReadOptions,
         pool: Option<&FramePool>,
     ) -> Result<Decoded, IoError> {
-        if raw::sniff(path)? != raw::Sniff::NotRaw {
+        if raw::sniff(path)? != raw::Sniff::Plain {
             return Decoded::read_raw(path, opts);
         }
         match FileFormat::sniff(path)? {

@@ -32,15 +32,15 @@ fn panic_text(p: &(dyn std::any::Any + Send)) -> String {
 /// Decodes the raw file `path` into linear camera RGB (see the module documentation).
 pub fn read(path: &Path, limits: &Limits, demosaic: Demosaic) -> Result<RawFrame, IoError> {
     let dims = match sniff(path)? {
-        Sniff::NotRaw => {
+        Sniff::Plain => {
             return Err(IoError::Unsupported {
                 path: path.to_path_buf(),
                 why: "not a camera raw file".into(),
             })
         }
-        Sniff::TiffRaw(_, Some(why)) => return Err(corrupt(path, why)),
-        Sniff::TiffRaw(d, None) => d,
-        Sniff::OtherRaw => None,
+        Sniff::TiffBased(_, Some(why)) => return Err(corrupt(path, why)),
+        Sniff::TiffBased(d, None) => d,
+        Sniff::Container => None,
     };
     if let Some((w, h)) = dims {
         limits.check_frame(path, w, h, 3, 4, None)?;

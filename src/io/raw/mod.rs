@@ -139,13 +139,13 @@ pub fn is_raw_name(path: &Path) -> bool {
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub(crate) enum Sniff {
     /// Not a raw file (maybe a plain TIFF, an EXR, or nothing nsrm reads).
-    NotRaw,
+    Plain,
     /// A TIFF-based raw file; the largest image its IFDs declare (width, height), if any, and
     /// why its structure is damaged, if it is (an entry or IFD reaching past the end of the
     /// file: the decoder would allocate what the entry claims before finding out).
-    TiffRaw(Option<(u64, u64)>, Option<String>),
+    TiffBased(Option<(u64, u64)>, Option<String>),
     /// A raw container that is not TIFF (CR3, RAF, ORF, RW2, …).
-    OtherRaw,
+    Container,
 }
 
 /// Looks at `path`'s content: a raw file or not. A plain TIFF (no CFA or linear-raw image, no
@@ -169,25 +169,25 @@ pub(crate) fn sniff(path: &Path) -> Result<Sniff, IoError> {
     let starts = |s: &[u8]| h.starts_with(s);
     let at = |o: usize, s: &[u8]| h.len() >= o + s.len() && &h[o..o + s.len()] == s;
     if at(4, b"ftypcrx ") || starts(b"FUJIFILMCCD-RAW") || starts(b"FOVb") || starts(b"\0MRM") {
-        return Ok(Sniff::OtherRaw);
+        return Ok(Sniff::Container);
     }
     // ORF (IIRO, IIRS, MMOR), RW2 / RWL (IIU\0), CRW (II\x1a\0\0\0HEAPCCDR), IIQ (IIII).
     if starts(b"IIRO") || starts(b"IIRS") || starts(b"MMOR") || starts(b"IIU\0") {
-        return Ok(Sniff::OtherRaw);
+        return Ok(Sniff::Container);
     }
     if at(6, b"HEAPCCDR") || (starts(b"IIII") && at(8, b"IIII")) {
-        return Ok(Sniff::OtherRaw);
+        return Ok(Sniff::Container);
     }
     let tiff = starts(b"II*\0") || starts(b"MM\0*");
     if !tiff {
-        return Ok(Sniff::NotRaw);
+        return Ok(Sniff::Plain);
     }
     let cr2 = at(8, b"CR\x02\0");
     let scan = scan_tiff(&mut f, h[0] == b'I').map_err(rd)?;
     if cr2 || scan.raw {
-        Ok(Sniff::TiffRaw(scan.largest, scan.bad))
+        Ok(Sniff::TiffBased(scan.largest, scan.bad))
     } else {
-        Ok(Sniff::NotRaw)
+        Ok(Sniff::Plain)
     }
 }
 

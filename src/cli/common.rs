@@ -52,12 +52,11 @@ pub struct WhiteArg {
 impl WhiteArg {
     /// The parsed white, if given.
     pub fn get(&self) -> Result<Option<[f64; 3]>> {
-        Ok(self
-            .white
+        self.white
             .as_deref()
             .map(parse_white)
             .transpose()
-            .context("--white")?)
+            .context("--white")
     }
 }
 

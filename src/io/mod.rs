@@ -410,6 +410,7 @@ enum Container {
     Exr(Box<openexr::ExrContainer>),
     Tiff(tif::TiffContainer),
     /// A camera raw file: no pass-through data, only what it says about the camera.
+    #[cfg_attr(not(feature = "raw"), allow(dead_code))]
     Raw(Box<raw::CameraInfo>),
 }
 

@@ -112,6 +112,10 @@ pub struct CaptureProvenance {
     /// camera's tone curve still in them). Empty in files written before it was recorded.
     #[serde(default)]
     pub encoding: String,
+    /// The camera (`make model`) of a camera raw frame, as the file records it; absent for
+    /// EXR / TIFF frames and in files written before it existed.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub camera: Option<String>,
 }
 
 /// Patches with camera RGB and reference XYZ, and the reference white (for Lab).

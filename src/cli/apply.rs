@@ -101,6 +101,10 @@ pub struct Args {
     /// before anything is allocated. Default 268435456 (16384 × 16384).
     #[arg(long, value_name = "N", default_value_t = nsrm::io::DEFAULT_MAX_PIXELS)]
     max_pixels: u64,
+    /// How camera raw inputs are demosaiced: mhc (Malvar-He-Cutler, full resolution), bilinear
+    /// (LibRaw's), or half (one pixel per 2×2 CFA block: half width and height).
+    #[arg(long, value_enum, ignore_case = true, default_value_t = values::Demosaic::Mhc)]
+    demosaic: values::Demosaic,
     /// Remove the nsrm temporary files (`.NAME.nsrm-PID-RANDOM.tmp`) found in the output
     /// directories, left by a run that was killed; without it they are only reported. Make sure
     /// no other nsrm is writing there.
@@ -413,6 +417,7 @@ pub fn run(a: Args) -> Result<ExitCode> {
                 limits: Limits {
                     max_pixels: a.max_pixels,
                 },
+                demosaic: a.demosaic.into(),
             },
             write: WriteOptions {
                 format: req.format,
@@ -675,7 +680,26 @@ fn run_pipeline(
                 }
             });
         }
+        // The camera the model was fitted on (a raw chart capture), to warn once per other camera.
+        let fitted_on = model
+            .provenance()
+            .capture
+            .as_ref()
+            .and_then(|c| c.camera.clone());
+        let mut warned = std::collections::HashSet::new();
         for (i, mut d) in dec_rx {
+            if let (Some(fitted), Some(cam)) = (&fitted_on, d.camera()) {
+                let cam = cam.camera();
+                if !cam.eq_ignore_ascii_case(fitted) && warned.insert(cam.clone()) {
+                    pb.suspend(|| {
+                        eprintln!(
+                            "warning: {} comes from a {cam}, but the model was fitted on a {fitted}: \
+                             its colours will be off unless the sensors match",
+                            d.path.display()
+                        )
+                    });
+                }
+            }
             if interrupt.stopped() {
                 drop(d);
                 permits.release();
@@ -905,6 +929,7 @@ impl Args {
             limits: Limits {
                 max_pixels: self.max_pixels,
             },
+            demosaic: self.demosaic.into(),
         }
     }
 }

@@ -58,6 +58,11 @@ pub struct CaptureOptions {
     #[arg(long, value_name = "N", default_value_t = nsrm::io::DEFAULT_MAX_PIXELS,
           value_parser = clap::value_parser!(u64).range(1..))]
     pub max_pixels: u64,
+    /// How a camera raw frame (and flat frame) is demosaiced: half (one pixel per 2×2 CFA block,
+    /// no interpolation: the chart reading of profiling tools), bilinear (LibRaw's), or mhc
+    /// (Malvar-He-Cutler).
+    #[arg(long, value_enum, ignore_case = true, default_value_t = values::Demosaic::Half)]
+    pub demosaic: values::Demosaic,
 }
 
 /// `--encoding`.
@@ -83,6 +88,8 @@ pub struct Capture {
     pub frame: Frame,
     /// How the frame's values were decoded.
     pub transfer: Transfer,
+    /// `make model` of a camera raw frame.
+    pub camera: Option<String>,
     pub frame_path: PathBuf,
     pub sha256: String,
     pub reference: Reference,
@@ -161,10 +168,11 @@ impl CaptureOptions {
             &nsrm::io::ReadOptions {
                 layer: self.layer.clone(),
                 limits,
+                demosaic: self.demosaic.into(),
             },
             self.encoding.into(),
         )?;
-        let (frame, transfer) = (read.frame, read.transfer);
+        let (frame, transfer, camera) = (read.frame, read.transfer, read.camera);
         opts.quantisation = read.max_code.map(|max_code| Quantisation {
             max_code,
             srgb: transfer == Transfer::SrgbDecoded,
@@ -206,6 +214,7 @@ impl CaptureOptions {
                     Path::new(f),
                     &nsrm::io::ReadOptions {
                         limits,
+                        demosaic: self.demosaic.into(),
                         ..Default::default()
                     },
                 )
@@ -231,6 +240,7 @@ impl CaptureOptions {
             );
         }
         Ok(Capture {
+            camera: camera.map(|c| c.camera()),
             frame,
             transfer,
             frame_path: path.to_path_buf(),
@@ -303,6 +313,7 @@ impl Capture {
             light_nonuniformity: self.flat.as_ref().map_or(1.0, |f| f.nonuniformity),
             reference_match_de00: self.score,
             encoding: self.transfer.describe().into(),
+            camera: self.camera.clone(),
         }
     }
 

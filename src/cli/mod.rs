@@ -80,11 +80,23 @@ enum Command {
     Studio(studio::Args),
 }
 
+/// A panic inside the camera-raw decoder (rawler) on a damaged file is caught by the library
+/// and reported as that file's error; the default hook would also print it as if nsrm had
+/// crashed. Every other panic is printed as before.
+
 /// Parses the command line, runs the subcommand, and maps errors to exit codes.
 pub fn main() -> ExitCode {
     // A decoder's panic is contained per file by the library (reported as that file's error);
     // this hook keeps its message to one line. An uncontained panic still exits 101.
+    // A panic inside the camera-raw decoder (rawler) is contained the same way and says nothing
+    // here: the file's error names it.
     std::panic::set_hook(Box::new(|info| {
+        if info
+            .location()
+            .is_some_and(|l| l.file().contains("rawler-") || l.file().contains("/rawler/"))
+        {
+            return;
+        }
         let what = info
             .payload()
             .downcast_ref::<&str>()

@@ -66,6 +66,13 @@ value_enum!(
 );
 
 value_enum!(
+    /// `--demosaic` (camera raw inputs).
+    Demosaic => nsrm::io::raw::Demosaic,
+    nsrm::io::raw::Demosaic::parse,
+    { Half = "half", Bilinear = "bilinear", Mhc = "mhc" | "malvar" }
+);
+
+value_enum!(
     /// `apply --compression`.
     Compression => nsrm::io::ExrCompression,
     nsrm::io::ExrCompression::parse,
@@ -173,6 +180,7 @@ mod tests {
         Space::check();
         ModelKind::check();
         Normalise::check();
+        Demosaic::check();
         FileFormat::check();
         Compression::check();
         Device::check();

@@ -7,14 +7,15 @@ use std::ffi::{OsStr, OsString};
 use std::io::ErrorKind;
 use std::path::{Component, Path, PathBuf};
 
-/// Whether a file name looks like a frame nsrm reads: `.exr`, `.tif`, `.tiff` (any case), not
+/// Whether a file name looks like a frame nsrm reads: `.exr`, `.tif`, `.tiff` or a camera raw
+/// file's extension ([`super::raw::RAW_EXTENSIONS`]; any case), not
 /// hidden (so `._x.exr` AppleDouble files and nsrm's own `.x.tmp` files are left out). The
 /// rest of the name may be anything, UTF-8 or not.
 pub fn is_frame_name(path: &Path) -> bool {
     let hidden = path
         .file_name()
         .is_none_or(|n| n.as_encoded_bytes().first() == Some(&b'.'));
-    !hidden && FileFormat::from_extension(path).is_some()
+    !hidden && (FileFormat::from_extension(path).is_some() || super::raw::is_raw_name(path))
 }
 
 /// Whether a directory entry or glob match is taken: frame names that are not directories

@@ -324,6 +324,7 @@ pub fn write(
                 compression: super::ExrCompression::Keep,
                 space: None,
                 text: &[("comments", &describe), ("nsrmChartLayout", &layout_name)],
+                camera: None,
             },
             unit,
         )?;
@@ -352,6 +353,7 @@ pub fn write_camera_frame(
                 compression: super::ExrCompression::Keep,
                 space: None,
                 text: &[("comments", comments)],
+                camera: None,
             },
             unit,
         )

@@ -78,6 +78,8 @@ pub struct ChartFrame {
     /// The largest integer code of a display file decoded here (255, 65535); `None` for frames
     /// read by the linear readers.
     pub max_code: Option<f64>,
+    /// Make, model and exposure of a camera raw frame; `None` for other files.
+    pub camera: Option<super::raw::CameraInfo>,
 }
 
 /// The sRGB electro-optical transfer function: an encoded value in `[0, 1]` to linear.
@@ -148,12 +150,14 @@ pub fn read_chart_frame(
     opts: &ReadOptions,
     encoding: Encoding,
 ) -> Result<ChartFrame, IoError> {
+    let mut camera = None;
     let (frame, integer_display, format) = match sniff(path)? {
         Kind::Jpeg => (read_image(path, &opts.limits)?, true, "JPEG"),
         Kind::Png => (read_image(path, &opts.limits)?, true, "PNG"),
         Kind::Tiff8 => (read_image(path, &opts.limits)?, true, "TIFF (8-bit)"),
         Kind::Other => {
-            let f = super::read_frame(path, opts)?;
+            let (f, c) = super::read_frame_and_camera(path, opts)?;
+            camera = c;
             ((f, None), false, "frame")
         }
     };
@@ -178,6 +182,7 @@ pub fn read_chart_frame(
         transfer,
         format,
         max_code,
+        camera,
     })
 }
 

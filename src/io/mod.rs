@@ -22,6 +22,7 @@ pub mod batch;
 pub mod chart;
 pub mod display;
 mod openexr;
+pub mod raw;
 pub use openexr::{DEFAULT_ZIP_LEVEL, MAX_ZIP_LEVEL};
 pub mod preview;
 mod tif;
@@ -37,7 +38,7 @@ use std::path::{Path, PathBuf};
 pub enum IoError {
     #[error("{}: cannot read: {err}", path.display())]
     Read { path: PathBuf, err: std::io::Error },
-    #[error("{}: not an OpenEXR or TIFF file (its first bytes are neither signature)", path.display())]
+    #[error("{}: not an OpenEXR, TIFF or camera raw file (its first bytes are none of their signatures)", path.display())]
     UnknownFormat { path: PathBuf },
     #[error("{}: unreadable OpenEXR file: {err}", path.display())]
     Exr {
@@ -332,6 +333,8 @@ pub struct ReadOptions {
     pub layer: Option<String>,
     /// Bounds on the header's sizes, checked before allocating.
     pub limits: Limits,
+    /// How a camera raw file's CFA mosaic becomes RGB ([`raw`]).
+    pub demosaic: raw::Demosaic,
 }
 
 /// Lossless EXR compressions an output may be written with.
@@ -407,6 +410,9 @@ pub struct Decoded {
 enum Container {
     Exr(Box<openexr::ExrContainer>),
     Tiff(tif::TiffContainer),
+    /// A camera raw file: no pass-through data, only what it says about the camera.
+    #[cfg_attr(not(feature = "raw"), allow(dead_code))]
+    Raw(Box<raw::CameraInfo>),
 }
 
 impl Decoded {
@@ -425,6 +431,7 @@ impl Decoded {
         match &self.container {
             Container::Exr(c) => c.has_alpha(),
             Container::Tiff(c) => c.alpha.is_some(),
+            Container::Raw(_) => false,
         }
     }
 
@@ -433,11 +440,20 @@ impl Decoded {
     pub fn extra_channels(&self) -> Vec<String> {
         match &self.container {
             Container::Exr(c) => c.extra_channels(),
-            Container::Tiff(_) => Vec::new(),
+            Container::Tiff(_) | Container::Raw(_) => Vec::new(),
         }
     }
 
-    /// Decodes `path` (EXR or TIFF, told by its signature, not its name).
+    /// What a camera raw input says about the camera and the shot (`None` for EXR and TIFF).
+    pub fn camera(&self) -> Option<&raw::CameraInfo> {
+        match &self.container {
+            Container::Raw(c) => Some(c),
+            _ => None,
+        }
+    }
+
+    /// Decodes `path` (EXR, TIFF or, with the `raw` feature, a camera raw file; told by its
+    /// content, not its name).
     pub fn read(path: &Path, opts: &ReadOptions) -> Result<Decoded, IoError> {
         Decoded::read_from(path, opts, None)
     }
@@ -479,6 +495,9 @@ impl Decoded {
         opts: &ReadOptions,
         pool: Option<&FramePool>,
     ) -> Result<Decoded, IoError> {
+        if raw::sniff(path)? != raw::Sniff::Plain {
+            return Decoded::read_raw(path, opts);
+        }
         match FileFormat::sniff(path)? {
             FileFormat::Exr => openexr::read(path, opts, pool),
             FileFormat::Tiff => {
@@ -492,6 +511,34 @@ impl Decoded {
                 tif::read(path, &opts.limits)
             }
         }
+    }
+
+    #[cfg(feature = "raw")]
+    fn read_raw(path: &Path, opts: &ReadOptions) -> Result<Decoded, IoError> {
+        if let Some(layer) = &opts.layer {
+            return Err(IoError::Channels {
+                path: path.to_path_buf(),
+                why: format!("a camera raw file has no layers, but layer `{layer}` was asked for"),
+                concern: Some(crate::error::Concern::Value(crate::error::Param::Layer)),
+            });
+        }
+        let r = raw::read(path, &opts.limits, opts.demosaic)?;
+        Ok(Decoded {
+            path: path.to_path_buf(),
+            format: FileFormat::Tiff,
+            frame: r.frame,
+            levels: Vec::new(),
+            container: Container::Raw(Box::new(r.info)),
+        })
+    }
+
+    #[cfg(not(feature = "raw"))]
+    fn read_raw(path: &Path, _opts: &ReadOptions) -> Result<Decoded, IoError> {
+        Err(IoError::Unsupported {
+            path: path.to_path_buf(),
+            why: "a camera raw file, and this build of nsrm reads none (cargo feature `raw`)"
+                .into(),
+        })
     }
 
     /// Stages the (corrected) pixels for `dest` in `unit`, with the pass-through data of the
@@ -570,6 +617,17 @@ impl Decoded {
             (FileFormat::Tiff, Container::Tiff(c)) => {
                 tif::write(frame, c.alpha.as_deref(), dest, unit)
             }
+            (FileFormat::Exr, Container::Raw(c)) => openexr::write_new(
+                frame,
+                None,
+                dest,
+                &openexr::NewExr {
+                    camera: Some(&c),
+                    ..openexr::NewExr::output(opts)
+                },
+                unit,
+            ),
+            (FileFormat::Tiff, Container::Raw(_)) => tif::write(frame, None, dest, unit),
         }
     }
 }
@@ -604,12 +662,22 @@ pub fn write_tiff(frame: &Frame, dest: &Path, unit: &mut Unit) -> Result<(), IoE
 /// Reads an EXR or TIFF into one frame (RGB, or RGBA when the file has alpha); pass-through
 /// data is dropped. For tests and quick looks; batch conversion uses [`Decoded`].
 pub fn read_frame(path: &Path, opts: &ReadOptions) -> Result<Frame, IoError> {
+    read_frame_and_camera(path, opts).map(|(f, _)| f)
+}
+
+/// [`read_frame`], and what a camera raw file says about its camera (`None` for EXR / TIFF).
+pub fn read_frame_and_camera(
+    path: &Path,
+    opts: &ReadOptions,
+) -> Result<(Frame, Option<raw::CameraInfo>), IoError> {
     let d = Decoded::read(path, opts)?;
+    let camera = d.camera().cloned();
     let alpha = match &d.container {
         Container::Exr(c) => c.alpha_f32(),
         Container::Tiff(c) => c.alpha.clone(),
+        Container::Raw(_) => None,
     };
-    Ok(match alpha {
+    let frame = match alpha {
         None => d.frame,
         Some(a) => {
             let mut data = Vec::with_capacity(d.frame.pixels() * 4);
@@ -624,7 +692,8 @@ pub fn read_frame(path: &Path, opts: &ReadOptions) -> Result<Frame, IoError> {
                 data,
             }
         }
-    })
+    };
+    Ok((frame, camera))
 }
 
 fn split_alpha(frame: &Frame) -> (Frame, Option<Vec<f32>>) {

@@ -560,6 +560,9 @@ pub(super) struct NewExr<'a> {
     pub space: Option<OutputSpace>,
     /// Extra text attributes (`comments` goes to the standard attribute).
     pub text: &'a [(&'a str, &'a str)],
+    /// The camera of a raw input: make, model, ISO, exposure time and aperture in the standard
+    /// attributes, the as-shot neutral (camera RGB) in `nsrmAsShotNeutral`.
+    pub camera: Option<&'a super::raw::CameraInfo>,
 }
 
 impl NewExr<'static> {
@@ -570,6 +573,7 @@ impl NewExr<'static> {
             compression: opts.compression,
             space: Some(opts.space),
             text: &[],
+            camera: None,
         }
     }
 }
@@ -588,6 +592,7 @@ pub(super) fn write_new(
         compression,
         space,
         text,
+        camera,
     } = *how;
     let mut list = ::exr::prelude::SmallVec::new();
     for (ci, name) in ["R", "G", "B"].into_iter().enumerate() {
@@ -618,6 +623,9 @@ pub(super) fn write_new(
         } else {
             attributes.other.insert(k, AttributeValue::Text(v));
         }
+    }
+    if let Some(c) = camera {
+        camera_attributes(&mut attributes, c);
     }
     let layer = Layer::new(
         size,
@@ -651,4 +659,30 @@ fn write_image(image: &AnyImage, dest: &Path, unit: &mut Unit) -> Result<(), IoE
             .map(|_| ())
             .map_err(|e| encode_err(dest, e.into()))
     })
+}
+
+/// OpenEXR's standard attributes for what a raw file says (`cameraMake`, `cameraModel`,
+/// `isoSpeed`, `expTime`, `aperture`), and the as-shot neutral in camera RGB, which has no
+/// standard attribute (`adoptedNeutral` is a CIE xy chromaticity), as `nsrmAsShotNeutral` (v3f).
+fn camera_attributes(attributes: &mut LayerAttributes, c: &super::raw::CameraInfo) {
+    let mut text = |k: &str, v: &str| {
+        if v.trim().is_empty() {
+            return;
+        }
+        if let (Some(k), Some(v)) = (Text::new_or_none(k), Text::new_or_none(v.trim())) {
+            attributes.other.insert(k, AttributeValue::Text(v));
+        }
+    };
+    text("cameraMake", &c.make);
+    text("cameraModel", &c.model);
+    attributes.iso_speed = c.iso;
+    attributes.exposure = c.exposure_time;
+    attributes.aperture = c.aperture;
+    if let Some([r, g, b]) = c.as_shot_neutral {
+        if let Some(k) = Text::new_or_none("nsrmAsShotNeutral") {
+            attributes
+                .other
+                .insert(k, AttributeValue::FloatVec3((r, g, b)));
+        }
+    }
 }

@@ -59,6 +59,7 @@ mod parsers_fuzz;
 mod pixel_policy;
 #[cfg(feature = "cli")]
 mod profiles;
+mod raw;
 #[cfg(feature = "cli")]
 mod readme;
 #[cfg(feature = "studio")]

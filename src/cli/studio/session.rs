@@ -323,15 +323,20 @@ impl Studio {
     }
 
     fn open_inner(&self, id: &str, path: PathBuf, uploaded: bool) -> Result<Arc<FrameSlot>> {
-        let frame = nsrm::io::read_frame(
+        // Read as the chart is read: one pixel per 2×2 block of a raw frame, a camera JPEG/PNG
+        // decoded with the sRGB transfer function.
+        let frame = nsrm::io::display::read_chart_frame(
             &path,
             &nsrm::io::ReadOptions {
                 layer: None,
                 limits: nsrm::io::Limits {
                     max_pixels: self.max_pixels,
                 },
+                demosaic: values::Demosaic::Half.into(),
             },
+            nsrm::io::display::Encoding::Auto,
         )
+        .map(|r| r.frame)
         .map_err(|e| {
             BadRequest(format!(
                 "{}: not a frame nsrm can read: {e}",
@@ -479,6 +484,7 @@ impl FrameState {
             white_level: s.white_level,
             flat,
             encoding: capture::EncodingArg::Auto,
+            demosaic: values::Demosaic::Half,
             max_pixels: self.max_pixels,
         })
     }

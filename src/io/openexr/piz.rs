@@ -836,7 +836,7 @@ mod tests {
                             1 => ((i / 7) % 251) as u8,
                             2 => 0x3c,
                             3 => {
-                                if rng.next() % 9 == 0 {
+                                if rng.next().is_multiple_of(9) {
                                     rng.next() as u8
                                 } else {
                                     0

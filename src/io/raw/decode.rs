@@ -1,0 +1,349 @@
+//! Decoding with rawler and developing the mosaic (feature `raw`).
+
+use super::demosaic::Mosaic;
+use super::{sniff, CameraInfo, Demosaic, Sniff, MAX_RAW_BYTES};
+use crate::frame::Frame;
+use crate::io::{IoError, Limits};
+use rayon::prelude::*;
+use std::io::Read;
+use std::path::Path;
+
+/// A decoded raw file: its RGB frame and what it says about the camera.
+#[derive(Debug)]
+pub struct RawFrame {
+    pub frame: Frame,
+    pub info: CameraInfo,
+}
+
+pub(super) fn corrupt(path: &Path, why: impl Into<String>) -> IoError {
+    IoError::Corrupt {
+        path: path.to_path_buf(),
+        why: why.into(),
+    }
+}
+
+fn panic_text(p: &(dyn std::any::Any + Send)) -> String {
+    p.downcast_ref::<&str>()
+        .map(|s| s.to_string())
+        .or_else(|| p.downcast_ref::<String>().cloned())
+        .unwrap_or_else(|| "no message".into())
+}
+
+/// Decodes the raw file `path` into linear camera RGB (see the module documentation).
+pub fn read(path: &Path, limits: &Limits, demosaic: Demosaic) -> Result<RawFrame, IoError> {
+    let dims = match sniff(path)? {
+        Sniff::Plain => {
+            return Err(IoError::Unsupported {
+                path: path.to_path_buf(),
+                why: "not a camera raw file".into(),
+            })
+        }
+        Sniff::TiffBased(_, Some(why)) => return Err(corrupt(path, why)),
+        Sniff::TiffBased(d, None) => d,
+        Sniff::Container => None,
+    };
+    if let Some((w, h)) = dims {
+        limits.check_frame(path, w, h, 3, 4, None)?;
+    }
+    let rd = |err| IoError::Read {
+        path: path.to_path_buf(),
+        err,
+    };
+    let len = std::fs::metadata(path).map_err(rd)?.len();
+    if len > MAX_RAW_BYTES {
+        return Err(IoError::TooLarge {
+            path: path.to_path_buf(),
+            why: format!("{len} bytes, more than the {MAX_RAW_BYTES} bytes a raw file may have"),
+        });
+    }
+    let mut bytes: Vec<u8> = crate::io::try_with_capacity(path, len as usize)?;
+    std::fs::File::open(path)
+        .and_then(|f| f.take(len).read_to_end(&mut bytes))
+        .map_err(rd)?;
+    let source = rawler::rawsource::RawSource::new_from_shared_vec(std::sync::Arc::new(bytes))
+        .with_path(path);
+    let decoded = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
+        let params = rawler::decoders::RawDecodeParams::default();
+        let decoder = rawler::get_decoder(&source)?;
+        let image = decoder.raw_image(&source, &params, false)?;
+        let meta = decoder.raw_metadata(&source, &params).ok();
+        Ok::<_, rawler::RawlerError>((image, meta))
+    }));
+    let (image, meta) = match decoded {
+        Ok(Ok(v)) => v,
+        Ok(Err(e)) => return Err(corrupt(path, format!("the raw decoder refused it: {e}"))),
+        Err(p) => {
+            return Err(corrupt(
+                path,
+                format!("the raw decoder failed on it ({})", panic_text(&*p)),
+            ))
+        }
+    };
+    drop(source);
+    limits.check_frame(path, image.width as u64, image.height as u64, 3, 4, None)?;
+    let info = camera_info(&image, meta.as_ref(), demosaic);
+    let developed = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
+        develop(path, &image, demosaic)
+    }));
+    let frame = match developed {
+        Ok(r) => r?,
+        Err(p) => {
+            return Err(corrupt(
+                path,
+                format!("its raw data could not be developed ({})", panic_text(&*p)),
+            ))
+        }
+    };
+    Ok(RawFrame { frame, info })
+}
+
+fn camera_info(
+    image: &rawler::RawImage,
+    meta: Option<&rawler::decoders::RawMetadata>,
+    demosaic: Demosaic,
+) -> CameraInfo {
+    let pos = |v: f32| (v.is_finite() && v > 0.0).then_some(v);
+    let exif = meta.map(|m| &m.exif);
+    let rational = |r: &rawler::formats::tiff::Rational| {
+        pos(if r.d == 0 {
+            f32::NAN
+        } else {
+            r.n as f32 / r.d as f32
+        })
+    };
+    let wb = image.wb_coeffs;
+    let neutral = (wb[..3].iter().all(|v| v.is_finite() && *v > 0.0))
+        .then(|| [wb[1] / wb[0], 1.0, wb[1] / wb[2]]);
+    let cfa = match &image.photometric {
+        rawler::rawimage::RawPhotometricInterpretation::Cfa(c) => c.cfa.name.clone(),
+        _ => String::new(),
+    };
+    CameraInfo {
+        make: image.clean_make.clone(),
+        model: image.clean_model.clone(),
+        iso: exif.and_then(|e| {
+            e.iso_speed
+                .map(|v| v as f32)
+                .or(e.iso_speed_ratings.map(f32::from))
+                .and_then(pos)
+        }),
+        exposure_time: exif.and_then(|e| e.exposure_time.as_ref().and_then(rational)),
+        aperture: exif.and_then(|e| e.fnumber.as_ref().and_then(rational)),
+        as_shot_neutral: neutral,
+        orientation: image.orientation.to_u16(),
+        cfa,
+        demosaic: demosaic.name().to_string(),
+    }
+}
+
+/// The rectangle of the raw image that is kept: the default crop (or active area), clamped to
+/// the image. `(x, y, w, h)`.
+fn kept_rect(image: &rawler::RawImage) -> (usize, usize, usize, usize) {
+    let (iw, ih) = (image.width, image.height);
+    let clamp = |r: &rawler::imgop::Rect| {
+        let x = r.p.x.min(iw);
+        let y = r.p.y.min(ih);
+        (x, y, r.d.w.min(iw - x), r.d.h.min(ih - y))
+    };
+    let full = (0, 0, iw, ih);
+    let active = image.active_area.as_ref().map(clamp).unwrap_or(full);
+    match image.crop_area.as_ref().map(clamp) {
+        Some(c) if c.2 > 0 && c.3 > 0 => c,
+        _ => active,
+    }
+}
+
+/// Black level and divisor per position of the black level's repeat (row-major), from
+/// rawler's levels. The divisor is the white level less the smallest black level of the repeat,
+/// as LibRaw scales (it subtracts the common black from its maximum and each position's excess
+/// black from the samples only).
+/// A black level that is not finite and non-negative, or a white level not above it, is a
+/// damaged file.
+fn levels(path: &Path, image: &rawler::RawImage, c: usize) -> Result<Vec<(f32, f32)>, IoError> {
+    let raw = raw_levels(image, c);
+    let min_black = raw.iter().map(|l| l.0).fold(f32::INFINITY, f32::min);
+    raw.iter()
+        .map(|&(b, w)| {
+            let d = w - min_black;
+            if b.is_finite() && b >= 0.0 && w.is_finite() && d > 0.0 && w > b {
+                Ok((b, d))
+            } else {
+                Err(corrupt(
+                    path,
+                    format!("its black level {b} and white level {w} leave no range"),
+                ))
+            }
+        })
+        .collect()
+}
+
+/// Black and white per position of the black level's repeat (row-major).
+fn raw_levels(image: &rawler::RawImage, c: usize) -> Vec<(f32, f32)> {
+    let b = &image.blacklevel;
+    let w = &image.whitelevel.0;
+    let n = (b.width * b.height).max(1);
+    (0..n)
+        .map(|i| {
+            let black = if b.levels.len() == n * b.cpp.max(1) {
+                b.levels[i * b.cpp.max(1) + c.min(b.cpp.max(1) - 1)].as_f32()
+            } else {
+                b.levels.first().map_or(0.0, |r| r.as_f32())
+            };
+            let white = if w.len() == n {
+                w[i] as f32
+            } else if w.len() > c {
+                w[c] as f32
+            } else {
+                w.first().map_or(65535.0, |&v| v as f32)
+            };
+            (black, white)
+        })
+        .collect()
+}
+
+fn develop(path: &Path, image: &rawler::RawImage, demosaic: Demosaic) -> Result<Frame, IoError> {
+    use rawler::rawimage::{RawImageData, RawPhotometricInterpretation as P};
+    let (iw, ih) = (image.width, image.height);
+    let samples = iw
+        .checked_mul(ih)
+        .and_then(|p| p.checked_mul(image.cpp))
+        .ok_or_else(|| corrupt(path, "its image size overflows"))?;
+    let n_data = match &image.data {
+        RawImageData::Integer(d) => d.len(),
+        RawImageData::Float(d) => d.len(),
+    };
+    if n_data < samples || iw == 0 || ih == 0 {
+        return Err(corrupt(
+            path,
+            format!(
+                "the decoder gave {n_data} samples for a {iw}×{ih}×{} image",
+                image.cpp
+            ),
+        ));
+    }
+    // A float raw's non-finite samples read as 0 (no value to scale).
+    let sample = |i: usize| -> f32 {
+        match &image.data {
+            RawImageData::Integer(d) => f32::from(d[i]),
+            RawImageData::Float(d) if d[i].is_finite() => d[i],
+            RawImageData::Float(_) => 0.0,
+        }
+    };
+    let (x0, y0, w, h) = kept_rect(image);
+    if w == 0 || h == 0 {
+        return Err(corrupt(path, "its crop leaves no pixels"));
+    }
+    let bl = &image.blacklevel;
+    let (bw, bh) = (bl.width.max(1), bl.height.max(1));
+    let bayer = match &image.photometric {
+        P::Cfa(c) if image.cpp == 1 => {
+            let cfa = &c.cfa;
+            if cfa.width == 2 && cfa.height == 2 && cfa.is_rgb() && cfa.unique_colors() == 3 {
+                Some(cfa.clone())
+            } else {
+                return rawler_develop(path, image);
+            }
+        }
+        P::Cfa(_) => {
+            return Err(corrupt(
+                path,
+                "a CFA image with more than one sample per pixel",
+            ))
+        }
+        _ => None,
+    };
+    let Some(cfa) = bayer else {
+        // Linear raw (already RGB) or monochrome: scale only.
+        let cpp = image.cpp;
+        if cpp != 3 && cpp != 1 {
+            return Err(IoError::Unsupported {
+                path: path.to_path_buf(),
+                why: format!("a linear raw image with {cpp} samples per pixel"),
+            });
+        }
+        let lv = (0..cpp)
+            .map(|c| levels(path, image, c))
+            .collect::<Result<Vec<_>, _>>()?;
+        let mut data = crate::io::try_zeroed::<f32>(path, w * h * 3)?;
+        data.par_chunks_mut(w * 3).enumerate().for_each(|(r, row)| {
+            let y = y0 + r;
+            for (i, px) in row.chunks_exact_mut(3).enumerate() {
+                let x = x0 + i;
+                let li = (y % bh) * bw + (x % bw);
+                for (ch, out) in px.iter_mut().enumerate() {
+                    let c = ch.min(cpp - 1);
+                    let (b, d) = lv[c].get(li).copied().unwrap_or(lv[c][0]);
+                    let v = sample((y * iw + x) * cpp + c);
+                    *out = (v - b).max(0.0) / d;
+                }
+            }
+        });
+        return Ok(Frame {
+            width: w,
+            height: h,
+            layout: crate::Layout::Rgb,
+            data,
+        });
+    };
+    // Bayer: scale the kept rectangle into a plane of f32, with its 2×2 colour pattern.
+    let lv = levels(path, image, 0)?;
+    let mut plane = crate::io::try_zeroed::<f32>(path, w * h)?;
+    plane.par_chunks_mut(w).enumerate().for_each(|(r, row)| {
+        let y = y0 + r;
+        let base = y * iw + x0;
+        for (i, out) in row.iter_mut().enumerate() {
+            let x = x0 + i;
+            let (b, d) = lv[((y % bh) * bw + (x % bw)) % lv.len()];
+            *out = (sample(base + i) - b).max(0.0) / d;
+        }
+    });
+    let pattern = [
+        cfa.color_at(y0, x0) as u8,
+        cfa.color_at(y0, x0 + 1) as u8,
+        cfa.color_at(y0 + 1, x0) as u8,
+        cfa.color_at(y0 + 1, x0 + 1) as u8,
+    ];
+    let mosaic = Mosaic {
+        plane: &plane,
+        w,
+        h,
+        pattern,
+    };
+    match demosaic {
+        Demosaic::Half => mosaic.half(path),
+        Demosaic::Bilinear => mosaic.bilinear(path),
+        Demosaic::Mhc => mosaic.mhc(path),
+    }
+}
+
+/// X-Trans, four-colour and other patterns: rawler's development without white balance,
+/// matrix or gamma.
+fn rawler_develop(path: &Path, image: &rawler::RawImage) -> Result<Frame, IoError> {
+    use rawler::imgop::develop::{Intermediate, ProcessingStep as S, RawDevelop};
+    let dev = RawDevelop::new_with(&[S::Rescale, S::Demosaic, S::CropActiveArea, S::CropDefault]);
+    let out = dev
+        .develop_intermediate(image)
+        .map_err(|e| corrupt(path, format!("its raw data could not be developed: {e}")))?;
+    let (w, h, data): (usize, usize, Vec<f32>) = match out {
+        Intermediate::ThreeColor(p) => {
+            let d = p.dim();
+            (d.w, d.h, p.flatten())
+        }
+        Intermediate::Monochrome(p) => {
+            let d = p.dim();
+            (d.w, d.h, p.data.iter().flat_map(|&v| [v, v, v]).collect())
+        }
+        Intermediate::FourColor(_) => {
+            return Err(IoError::Unsupported {
+                path: path.to_path_buf(),
+                why: "a four-colour sensor (CYGM / RGBE) is not read".into(),
+            })
+        }
+    };
+    Ok(Frame {
+        width: w,
+        height: h,
+        layout: crate::Layout::Rgb,
+        data: data.into_iter().map(|v| v.max(0.0)).collect(),
+    })
+}

@@ -80,10 +80,6 @@ enum Command {
     Studio(studio::Args),
 }
 
-/// A panic inside the camera-raw decoder (rawler) on a damaged file is caught by the library
-/// and reported as that file's error; the default hook would also print it as if nsrm had
-/// crashed. Every other panic is printed as before.
-
 /// Parses the command line, runs the subcommand, and maps errors to exit codes.
 pub fn main() -> ExitCode {
     // A decoder's panic is contained per file by the library (reported as that file's error);

@@ -234,7 +234,7 @@ fn fit_capture_prints_the_chart_line_as_chart_extract_does() {
     let line = |o: &std::process::Output| {
         stderr(o)
             .lines()
-            .find(|l| l.starts_with("cc24 chart found in shot.exr"))
+            .find(|l| l.starts_with("cc24 chart found") && l.contains(" in shot.exr "))
             .map(|l| l.split("; written to").next().unwrap().to_string())
             .unwrap_or_else(|| panic!("no chart line: {}", stderr(o)))
     };

@@ -80,7 +80,8 @@ fn commands() -> BTreeMap<String, BTreeSet<String>> {
                 sub = format!("{sub} {}", words[2]);
             }
             let flags = out.entry(sub).or_default();
-            for w in &words {
+            // After a bare `--`, the words are another command's (`farm run -- APPLY'S FLAGS`).
+            for w in words.iter().take_while(|w| **w != "--") {
                 let w = w.trim_start_matches(['[', '(']);
                 if let Some(f) = w.strip_prefix("--") {
                     let f: String = f

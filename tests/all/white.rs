@@ -233,7 +233,7 @@ fn a_csv_without_a_white_needs_white_in_every_form() {
             "--training",
             "m.csv",
             "--white",
-            "D55",
+            "not-a-light",
             "-o",
             "y.json",
         ],

@@ -992,20 +992,7 @@ pub fn export_to(
     }
     let fw: Vec<FrameWhite> = whites.iter().map(|w| w.0).collect();
     let report = measure(&dcp, profile, &fw, sets[0], stops)?;
-    if let Some(limit) = max_de00 {
-        if report.max() > limit {
-            let where_ = if report.training.max >= report.dense.max {
-                "on the training patches"
-            } else {
-                "on the dense in-gamut set"
-            };
-            return Err(ExportError::TooInaccurate {
-                max: report.max(),
-                limit,
-                where_: where_.into(),
-            });
-        }
-    }
+    report.check_limit(max_de00)?;
     let white_miss = profile
         .models()
         .iter()

@@ -229,6 +229,23 @@ impl ErrorReport {
         self.training.max.max(self.dense.max)
     }
 
+    /// Refuses an export whose largest error passes the caller's `limit`, saying where it was.
+    pub fn check_limit(&self, limit: Option<f64>) -> Result<(), ExportError> {
+        match limit {
+            Some(limit) if self.max() > limit => Err(ExportError::TooInaccurate {
+                max: self.max(),
+                limit,
+                where_: if self.training.max >= self.dense.max {
+                    "on the training patches"
+                } else {
+                    "on the dense in-gamut set"
+                }
+                .into(),
+            }),
+            _ => Ok(()),
+        }
+    }
+
     /// One line for the CLF `Description`, the .cube header and the terminal.
     pub fn summary(&self) -> String {
         format!(
@@ -578,20 +595,7 @@ pub fn export_to(
         Format::Clf | Format::Ocio => LutExport::clf(model, space, options, training_rgb)?,
     };
     let report = e.measure(training_rgb)?;
-    if let Some(limit) = max_de00 {
-        if report.max() > limit {
-            let where_ = if report.training.max >= report.dense.max {
-                "on the training patches"
-            } else {
-                "on the dense in-gamut set"
-            };
-            return Err(ExportError::TooInaccurate {
-                max: report.max(),
-                limit,
-                where_: where_.into(),
-            });
-        }
-    }
+    report.check_limit(max_de00)?;
     let mut files = Vec::new();
     match format {
         Format::Dcp => unreachable!("refused above"),

@@ -40,7 +40,8 @@ pub struct TimeArgs {
     /// Runs per frame.
     #[arg(long, default_value_t = 5, value_parser = clap::value_parser!(u32).range(1..=1000))]
     repeat: u32,
-    #[arg(long, default_value_t = nsrm::io::DEFAULT_MAX_PIXELS,
+    /// Most pixels a frame may have, as in `chart extract`.
+    #[arg(long, value_name = "N", default_value_t = nsrm::io::DEFAULT_MAX_PIXELS,
           value_parser = clap::value_parser!(u64).range(1..))]
     max_pixels: u64,
 }

@@ -308,7 +308,10 @@ pub fn build(model: &Model, opts: IccOptions) -> Result<IccProfile, ExportError>
     let mut ok = p.write_tag(TagSignature::ProfileDescriptionTag, Tag::MLU(&desc))
         && p.write_tag(TagSignature::CopyrightTag, Tag::MLU(&cprt))
         && p.write_tag(TagSignature::MediaWhitePointTag, Tag::CIEXYZ(&wtpt))
-        && p.write_tag(TagSignature::ChromaticAdaptationTag, Tag::CIExyYTRIPLE(&chad));
+        && p.write_tag(
+            TagSignature::ChromaticAdaptationTag,
+            Tag::CIExyYTRIPLE(&chad),
+        );
 
     let exact = model.kind() == Kind::Lrm;
     let mut clut_size = None;
@@ -327,10 +330,11 @@ pub fn build(model: &Model, opts: IccOptions) -> Result<IccProfile, ExportError>
             && p.write_tag(TagSignature::RedTRCTag, Tag::ToneCurve(&gamma))
             && p.write_tag(TagSignature::GreenTRCTag, Tag::ToneCurve(&gamma))
             && p.write_tag(TagSignature::BlueTRCTag, Tag::ToneCurve(&gamma));
-        if !cols
-            .iter()
-            .all(|c| [c.X, c.Y, c.Z].iter().all(|v| v.is_finite() && v.abs() < 32767.0))
-        {
+        if !cols.iter().all(|c| {
+            [c.X, c.Y, c.Z]
+                .iter()
+                .all(|v| v.is_finite() && v.abs() < 32767.0)
+        }) {
             return Err(ExportError::Model(
                 "its matrix columns are not finite s15Fixed16 numbers".into(),
             ));
@@ -637,7 +641,12 @@ mod tests {
         )
         .unwrap();
         let rc = measure(&coarse, &m, &d.rgb).unwrap();
-        assert!(rc.max() > 2.0 * r.max(), "{} vs {}", rc.summary(), r.summary());
+        assert!(
+            rc.max() > 2.0 * r.max(),
+            "{} vs {}",
+            rc.summary(),
+            r.summary()
+        );
     }
 
     #[test]

@@ -642,7 +642,7 @@ fn writes_are_atomic_and_never_clobber() {
 
 #[test]
 fn chart_layout_round_trips() {
-    use nsrm::io::chart::{layout_path, render, write, ChartLayout, ChartOptions};
+    use nsrm::chart::synthetic::{layout_path, render, write, ChartLayout, ChartOptions};
     use nsrm::spectral::{simulate_named, Grid};
     let data = simulate_named("nikon-d5100", "D65", "cc24", &Grid::default()).unwrap();
     let (frame, layout) = render(

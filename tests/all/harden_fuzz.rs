@@ -189,6 +189,7 @@ proptest! {
         }
     }
 
+    #[cfg(feature = "chart")]
     #[test]
     fn exposure_and_noise_limits_keep_pixels_finite(e in any::<f64>(), n in any::<f64>()) {
         if nsrm::chart::synthetic::check_exposure_noise(e, n).is_ok() {

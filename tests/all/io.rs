@@ -640,6 +640,7 @@ fn writes_are_atomic_and_never_clobber() {
     assert_eq!(names, ["a.exr"]);
 }
 
+#[cfg(feature = "chart")]
 #[test]
 fn chart_layout_round_trips() {
     use nsrm::chart::synthetic::{layout_path, render, write, ChartLayout, ChartOptions};

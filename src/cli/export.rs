@@ -247,6 +247,12 @@ fn run_icc(a: &Args) -> Result<ExitCode> {
             w.report.out_of_range
         );
     }
+    let worst = w.report.max();
+    if worst > POOR_EXPORT_DE00 {
+        eprintln!(
+            "warning: the profile's max ΔE00 is {worst:.1} (over {POOR_EXPORT_DE00}): it departs visibly from the model somewhere in its range (a PRM can leave the PCS at dark exposures); narrow --stops, or set --max-de00 to refuse such exports"
+        );
+    }
     Ok(ExitCode::SUCCESS)
 }
 

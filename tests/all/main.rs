@@ -59,6 +59,8 @@ mod parsers_fuzz;
 mod pixel_policy;
 #[cfg(feature = "cli")]
 mod profiles;
+#[cfg(feature = "cli")]
+mod profiles_rawtherapee;
 mod raw;
 #[cfg(feature = "cli")]
 mod readme;
@@ -66,3 +68,5 @@ mod readme;
 mod studio;
 #[cfg(feature = "cli")]
 mod white;
+#[cfg(feature = "cli")]
+mod white_as_shot;

@@ -29,6 +29,8 @@ mod first_hour;
 #[cfg(feature = "cli")]
 mod fit_apply_agree;
 mod fit_hostile;
+#[cfg(feature = "cli")]
+mod fit_two_illuminants;
 mod fit_variants;
 #[cfg(all(feature = "gpu", feature = "io"))]
 mod gpu;

@@ -377,10 +377,10 @@ pub fn run(a: Args) -> Result<ExitCode> {
         super::white::ApplyModels::PerFrame(p) => (vec![p.models()[0].clone()], Some(p)),
     };
     let model = parts.remove(0);
-    let out_model = nsrm::colorimetry::output_model(&model, req.space)?;
+    let out_model = nsrm::model::output_model(&model, req.space)?;
     let extra: Vec<Model> = parts
         .iter()
-        .map(|m| nsrm::colorimetry::output_model(m, req.space))
+        .map(|m| nsrm::model::output_model(m, req.space))
         .collect::<Result<_, _>>()?;
 
     // Plan.

@@ -3,6 +3,7 @@
 
 #[cfg(feature = "cli")]
 mod apply;
+mod architecture;
 #[cfg(feature = "chart")]
 mod chart;
 #[cfg(feature = "cli")]

@@ -233,7 +233,7 @@ impl Corrector {
         let parts = c
             .parts
             .iter()
-            .map(|m| nsrm::colorimetry::output_model(m, a.space).map(|m| FastModel::new(&m)))
+            .map(|m| nsrm::model::output_model(m, a.space).map(|m| FastModel::new(&m)))
             .collect::<Result<Vec<_>, _>>()?;
         let line = format!(
             "nsrm apply: {}: as-shot {}",

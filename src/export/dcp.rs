@@ -702,8 +702,12 @@ impl Dcp {
 
     /// [`eval`](Self::eval) at a given weight of side 1.
     pub fn eval_weighted(&self, rgb: [f64; 3], neutral: [f64; 3], w: f64) -> [f64; 3] {
-        let n = neutral.map(|v| v / neutral[1]);
-        let b = [0, 1, 2].map(|k| rgb[k] / n[k]);
+        self.at_weight(w).eval(rgb, neutral)
+    }
+
+    /// The pipeline at a weight of side 1, its matrices and mixed map computed once (for
+    /// evaluating many colours).
+    pub fn at_weight(&self, w: f64) -> Pipeline {
         let mut fm = self.mix(w, |s| s.forward_matrix);
         // The SDK normalises the ForwardMatrix so that (1, 1, 1) maps to D50.
         let one = spaces::apply(&fm, [1.0; 3]);
@@ -713,21 +717,30 @@ impl Dcp {
                 fm[i][j] *= d[i] / one[i];
             }
         }
-        let xyz = spaces::apply(&fm, b);
         let pp = prophoto_to_xyz();
-        let rgb_pp = spaces::apply(&spaces::invert(&pp), xyz);
-        let (hd, sd) = (self.hue_divisions, self.sat_divisions);
-        let out = if self.sides.len() < 2 {
-            apply_hue_sat_map(&self.sides[0].hue_sat_map, hd, sd, rgb_pp)
+        let map: Vec<[f64; 3]> = if self.sides.len() < 2 {
+            self.sides[0]
+                .hue_sat_map
+                .iter()
+                .map(|e| e.map(f64::from))
+                .collect()
         } else {
-            let (a, bb) = (&self.sides[0].hue_sat_map, &self.sides[1].hue_sat_map);
+            let (a, b) = (&self.sides[0].hue_sat_map, &self.sides[1].hue_sat_map);
             // The SDK interpolates the two tables entry by entry (in f32).
-            let mix = |i: usize| {
-                [0, 1, 2].map(|k| (w * a[i][k] as f64 + (1.0 - w) * bb[i][k] as f64) as f32 as f64)
-            };
-            apply_hue_sat_map_with(mix, hd, sd, rgb_pp)
+            a.iter()
+                .zip(b)
+                .map(|(x, y)| {
+                    [0, 1, 2].map(|k| (w * x[k] as f64 + (1.0 - w) * y[k] as f64) as f32 as f64)
+                })
+                .collect()
         };
-        spaces::apply(&pp, out)
+        Pipeline {
+            to_prophoto: spaces::mul(&spaces::invert(&pp), &fm),
+            prophoto_to_xyz: pp,
+            map,
+            hue_divisions: self.hue_divisions,
+            sat_divisions: self.sat_divisions,
+        }
     }
 
     /// The DCP file: little-endian TIFF-like with the `RC` magic, one IFD.
@@ -987,6 +1000,34 @@ impl Dcp {
     }
 }
 
+/// A DCP's profile pipeline at one weight of its sides (see [`Dcp::at_weight`]).
+#[derive(Debug, Clone)]
+pub struct Pipeline {
+    /// ProPhoto⁻¹ · the mixed, normalised ForwardMatrix.
+    to_prophoto: Mat3,
+    prophoto_to_xyz: Mat3,
+    map: Vec<[f64; 3]>,
+    hue_divisions: usize,
+    sat_divisions: usize,
+}
+
+impl Pipeline {
+    /// White balance by the neutral (normalised to G = 1), the ForwardMatrix, the hue/saturation
+    /// map in linear ProPhoto RGB; XYZ D50 with the neutral at `Y = 1`.
+    pub fn eval(&self, rgb: [f64; 3], neutral: [f64; 3]) -> [f64; 3] {
+        let n = neutral.map(|v| v / neutral[1]);
+        let b = [0, 1, 2].map(|k| rgb[k] / n[k]);
+        let rgb_pp = spaces::apply(&self.to_prophoto, b);
+        let out = apply_hue_sat_map_with(
+            |i| self.map[i],
+            self.hue_divisions,
+            self.sat_divisions,
+            rgb_pp,
+        );
+        spaces::apply(&self.prophoto_to_xyz, out)
+    }
+}
+
 /// The ΔE00 (D50-referred, the white scaled with exposure) of the DCP against the combined model,
 /// for the frame whites `whites`: the first model's training patches, white-balanced by its
 /// calibration white (`b = c / w`), are put under each frame white (`b · n`); the error at a
@@ -1001,7 +1042,7 @@ pub fn measure(
 ) -> Result<super::ErrorReport, ExportError> {
     let d50 = d50();
     let w0 = profile.calibrations()[0].white_rgb;
-    let mut combos: Vec<(Combination, Mat3, f64)> = Vec::new();
+    let mut combos: Vec<(Combination, Mat3, Pipeline)> = Vec::new();
     for w in whites {
         let c = profile
             .combine(*w)
@@ -1010,7 +1051,7 @@ pub fn measure(
         // The DCP's weight for this white, found once.
         let xy = dcp.neutral_to_xy(c.neutral)?;
         let weight = dcp.weight_at(xy);
-        combos.push((c, adapt, weight));
+        combos.push((c, adapt, dcp.at_weight(weight)));
     }
     let balanced: Vec<[f64; 3]> = training_rgb
         .iter()
@@ -1018,10 +1059,10 @@ pub fn measure(
         .collect();
     let report = super::measure_fn(&balanced, stops, false, |b, k| {
         let mut worst = 0.0f64;
-        for (c, adapt, w) in &combos {
+        for (c, adapt, pipeline) in &combos {
             let rgb = [0, 1, 2].map(|j| b[j] * c.neutral[j]);
             let exact = spaces::apply(adapt, c.apply_f64(rgb));
-            let approx = dcp.eval_weighted(rgb, c.neutral, *w);
+            let approx = pipeline.eval(rgb, c.neutral);
             let d = crate::colorimetry::delta_e00_xyz(exact, approx, d50.map(|v| v * k));
             worst = worst.max(if d.is_finite() { d } else { f64::INFINITY });
         }
@@ -1339,12 +1380,28 @@ mod diag_dual {
                 fit_with(kind, 3, &dd, &o).unwrap().model,
             )
             .unwrap();
+            let t0 = std::time::Instant::now();
             let dcp = build(
                 &p,
                 &[da.rgb.as_slice(), dd.rgb.as_slice()],
                 DcpOptions::default(),
             )
             .unwrap();
+            let t_build = t0.elapsed();
+            let t0 = std::time::Instant::now();
+            let whites: Vec<FrameWhite> = p
+                .calibrations()
+                .iter()
+                .map(|c| FrameWhite::Neutral(c.white_rgb))
+                .collect();
+            let r = measure(&dcp, &p, &whites, &da.rgb, [-5.0, 4.0]).unwrap();
+            println!(
+                "{kind}: build {:.2} s, measure at two whites {:.2} s ({} dense samples): {}",
+                t_build.as_secs_f64(),
+                t0.elapsed().as_secs_f64(),
+                r.dense.count,
+                r.summary()
+            );
             let d50 = d50();
             let [t1, t2] = p.temperatures();
             let mid = 2.0 / (1.0 / t1 + 1.0 / t2);

@@ -30,6 +30,8 @@ mod first_hour;
 #[cfg(feature = "cli")]
 mod fit_apply_agree;
 mod fit_hostile;
+#[cfg(feature = "cli")]
+mod fit_two_illuminants;
 mod fit_variants;
 #[cfg(all(feature = "gpu", feature = "io"))]
 mod gpu;
@@ -62,6 +64,8 @@ mod parsers_fuzz;
 mod pixel_policy;
 #[cfg(feature = "cli")]
 mod profiles;
+#[cfg(feature = "cli")]
+mod profiles_rawtherapee;
 mod raw;
 #[cfg(feature = "cli")]
 mod readme;
@@ -69,3 +73,5 @@ mod readme;
 mod studio;
 #[cfg(feature = "cli")]
 mod white;
+#[cfg(feature = "cli")]
+mod white_as_shot;

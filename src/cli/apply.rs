@@ -471,6 +471,21 @@ pub fn run(a: Args) -> Result<ExitCode> {
             v.extend(extra.iter().map(FastModel::new));
             Corrector::Mix(v)
         };
+        if req.device == DeviceChoice::Gpu
+            && matches!(corrector, Corrector::Mix(_) | Corrector::AsShot(_))
+        {
+            // Said, not silent: the GPU engine runs one model; a white between a two-illuminant
+            // model's lights (or one per frame) needs two models mixed, which only the CPU does.
+            eprintln!(
+                "nsrm apply: warning: --device gpu: {} runs on the CPU (the GPU path applies one \
+                 model; mixing two is CPU-only)",
+                if as_shot.is_some() {
+                    "--white as-shot"
+                } else {
+                    "a two-illuminant model at a white between its lights"
+                }
+            );
+        }
         corrector_name = corrector.describe();
         let todo = plan.to_convert();
         let workers = a.jobs.unwrap_or_else(|| {

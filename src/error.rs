@@ -232,6 +232,8 @@ pub fn is_usage(err: &(dyn std::error::Error + 'static)) -> bool {
         crate::export::ExportError,
         #[cfg(feature = "chart")]
         crate::chart::ChartError,
+        #[cfg(feature = "chart")]
+        crate::chart::capture::CaptureError,
         #[cfg(feature = "plot")]
         crate::eval::plot::PlotError,
         #[cfg(feature = "gpu")]
@@ -252,6 +254,10 @@ pub fn concern(err: &(dyn std::error::Error + 'static)) -> Option<Concern> {
     }
     #[cfg(feature = "chart")]
     if let Some(e) = err.downcast_ref::<crate::chart::ChartError>() {
+        return e.concern();
+    }
+    #[cfg(feature = "chart")]
+    if let Some(e) = err.downcast_ref::<crate::chart::capture::CaptureError>() {
         return e.concern();
     }
     None

@@ -1,5 +1,6 @@
 //! `nsrm fit`: fit one model and write its JSON file.
 
+use super::capture::CaptureText;
 use super::common::{TrainingArgs, UsageError};
 use super::fit_args::FitVariantArgs;
 use super::values;
@@ -128,7 +129,7 @@ pub fn run(a: Args) -> Result<ExitCode> {
     if let (Some(c), Some(o)) = (&captured, &a.overlay) {
         let sw = super::capture::swatches(c, model);
         super::capture::write_overlay(
-            &c.frame,
+            c.frame.frame(),
             Some(&c.extraction),
             &[],
             Some((&sw, c.reference.white)),

@@ -3,6 +3,8 @@
 
 #[cfg(feature = "cli")]
 mod apply;
+#[cfg(feature = "cli")]
+mod capture_lib;
 #[cfg(feature = "chart")]
 mod chart;
 #[cfg(feature = "cli")]

@@ -11,6 +11,7 @@ use super::super::values;
 use super::http::{BadRequest, NotFound, Target};
 use anyhow::{bail, Context, Result};
 use clap::ValueEnum;
+use nsrm::chart::capture::{CaptureFrame, FlatField, ReadingOptions};
 use nsrm::colorimetry::spaces::{apply as mat_apply, OutputSpace};
 use nsrm::colorimetry::{delta_e00_xyz, output_matrix, srgb8, to_linear_srgb};
 use nsrm::eval::{evaluate_with, EvalResult, Protocol, Stats};
@@ -20,7 +21,7 @@ use nsrm::model::Kind;
 use nsrm::{Frame, Layout, Model};
 use serde::Deserialize;
 use serde_json::{json, Value};
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::{Arc, Mutex, MutexGuard};
 
@@ -198,6 +199,12 @@ pub struct FrameState {
     pub preview_scale: usize,
     /// The frame box-filtered to the preview's size (linear camera RGB), for corrected previews.
     pub small: Frame,
+    /// The decoded frame (read and hashed once; every reading is taken from it) and the EXR
+    /// layer it was decoded with.
+    frame: Arc<CaptureFrame>,
+    frame_layer: Option<String>,
+    /// The decoded flat frame last used (`flat` setting of a listed file), by the setting.
+    flat_cache: Option<(String, Arc<Frame>)>,
     pub settings: Settings,
     pub capture: Option<Capture>,
     pub error: Option<String>,
@@ -324,31 +331,14 @@ impl Studio {
 
     fn open_inner(&self, id: &str, path: PathBuf, uploaded: bool) -> Result<Arc<FrameSlot>> {
         // Read as the chart is read: one pixel per 2×2 block of a raw frame, a camera JPEG/PNG
-        // decoded with the sRGB transfer function.
-        let frame = nsrm::io::display::read_chart_frame(
-            &path,
-            &nsrm::io::ReadOptions {
-                layer: None,
-                limits: nsrm::io::Limits {
-                    max_pixels: self.max_pixels,
-                },
-                demosaic: values::Demosaic::Half.into(),
-            },
-            nsrm::io::display::Encoding::Auto,
-        )
-        .map(|r| r.frame)
-        .map_err(|e| {
-            BadRequest(format!(
-                "{}: not a frame nsrm can read: {e}",
-                path.file_name()
-                    .map(|s| s.to_string_lossy().into_owned())
-                    .unwrap_or_default()
-            ))
-        })?;
-        let img = nsrm::chart::overlay::render(&frame, None, &[], None);
+        // decoded with the sRGB transfer function. Decoded and hashed once: every reading of
+        // the chart (a corner drag, an exclusion) is taken from this frame.
+        let decoded = open_frame(&path, None, self.max_pixels)?;
+        let frame = decoded.frame();
+        let img = nsrm::chart::overlay::render(frame, None, &[], None);
         let scale = frame.width.div_ceil(img.width().max(1) as usize).max(1);
         let preview_png = nsrm::chart::overlay::encode(&img)?;
-        let small = downsample(&frame, scale);
+        let small = downsample(frame, scale);
         let shown = if uploaded {
             path.file_name()
                 .map(|s| s.to_string_lossy().into_owned())
@@ -366,6 +356,9 @@ impl Studio {
             preview_png,
             preview_scale: scale,
             small,
+            frame: decoded,
+            frame_layer: None,
+            flat_cache: None,
             settings: Settings::default(),
             capture: None,
             error: None,
@@ -373,7 +366,6 @@ impl Studio {
             max_pixels: self.max_pixels,
             files: self.files.clone(),
         };
-        drop(frame);
         st.read();
         Ok(Arc::new(FrameSlot(Mutex::new(st))))
     }
@@ -385,6 +377,30 @@ fn formats() -> Vec<&'static str> {
         .copied()
         .filter(|f| Format::parse(f).is_some())
         .collect()
+}
+
+/// Decodes `path` as `chart extract` reads it by default (raw: half; JPEG/PNG: sRGB-decoded),
+/// with a message for the page when it cannot.
+fn open_frame(path: &Path, layer: Option<String>, max_pixels: u64) -> Result<Arc<CaptureFrame>> {
+    CaptureFrame::open(
+        path,
+        &nsrm::io::ReadOptions {
+            layer,
+            limits: nsrm::io::Limits { max_pixels },
+            demosaic: values::Demosaic::Half.into(),
+        },
+        nsrm::io::display::Encoding::Auto,
+    )
+    .map(Arc::new)
+    .map_err(|e| {
+        BadRequest(format!(
+            "{}: not a frame nsrm can read: {e}",
+            path.file_name()
+                .map(|s| s.to_string_lossy().into_owned())
+                .unwrap_or_default()
+        ))
+        .into()
+    })
 }
 
 /// `frame` box-filtered by `s` (RGB).
@@ -489,14 +505,12 @@ impl FrameState {
         })
     }
 
-    /// Reads the chart with the current settings (as `chart extract` does).
+    /// Reads the chart with the current settings (as `chart extract` does), from the decoded
+    /// frame.
     fn read(&mut self) {
         self.fitted = None;
-        let r = self
-            .options()
-            .and_then(|o| o.read(&self.path, None).map(|c| (c, o)));
-        match r {
-            Ok((c, _)) => {
+        match self.read_inner() {
+            Ok(c) => {
                 self.capture = Some(c);
                 self.error = None;
             }
@@ -505,6 +519,38 @@ impl FrameState {
                 self.error = Some(explain_for_page(e));
             }
         }
+    }
+
+    fn read_inner(&mut self) -> Result<Capture> {
+        let o = self.options()?;
+        let reference = o.reference()?;
+        let layer = o.layer.clone();
+        if layer != self.frame_layer {
+            // Another EXR layer: the only setting that needs the file decoded again.
+            self.frame = open_frame(&self.path, layer.clone(), self.max_pixels)?;
+            self.frame_layer = layer;
+        }
+        let flat = match o.flat.as_deref() {
+            None => None,
+            Some(f) if f.eq_ignore_ascii_case("neutrals") => Some(FlatField::Neutrals),
+            Some(f) => {
+                let key = self.settings.flat.clone().unwrap_or_default();
+                if self.flat_cache.as_ref().is_none_or(|(k, _)| *k != key) {
+                    self.flat_cache = None;
+                    let ff = o
+                        .flat_frame()?
+                        .ok_or_else(|| BadRequest(format!("flat `{f}`: not a flat frame")))?;
+                    self.flat_cache = Some((key, Arc::new(ff)));
+                }
+                self.flat_cache.as_ref().map(|(_, ff)| FlatField::Frame(ff))
+            }
+        };
+        let opts = ReadingOptions {
+            corners: self.settings.corners,
+            white_level: self.settings.white_level,
+            flat,
+        };
+        Ok(nsrm::chart::capture::read(&self.frame, &reference, &opts)?)
     }
 
     /// New settings → a new reading.
@@ -590,7 +636,7 @@ impl FrameState {
         let c = self.capture()?;
         let sw = self.fitted.as_ref().map(|f| capture::swatches(c, &f.model));
         let img = nsrm::chart::overlay::render(
-            &c.frame,
+            c.frame.frame(),
             Some(&c.extraction),
             &[],
             sw.as_deref().map(|s| (s, c.reference.white)),

@@ -654,3 +654,60 @@ fn the_page_in_a_real_browser() {
         "the browser left a dconf directory in the repository"
     );
 }
+
+/// The corrected preview, computed by the server on the GPU (`--device gpu`: lavapipe here) and
+/// on the CPU (`--device cpu`), says where it ran and differs by at most one 8-bit code.
+#[test]
+fn the_server_preview_on_the_gpu_equals_the_cpu() {
+    let d = tempdir("studio-gpu");
+    let frame = scene(&d, "scene.exr");
+    let mut previews = Vec::new();
+    for device in ["gpu", "cpu"] {
+        let srv = Server::start(&d, &["--device", device, s(&frame)]);
+        let st = srv.json("POST", "/api/files/0/open", "");
+        let id = st["id"].as_str().unwrap().to_string();
+        assert!(st["error"].is_null(), "{}", st["error"]);
+        srv.json(
+            "POST",
+            &format!("/api/frames/{id}/fit"),
+            r#"{"kind": "nsrm", "order": 3}"#,
+        );
+        let host = format!("127.0.0.1:{}", srv.port);
+        let (status, headers, body) = srv.raw(
+            "GET",
+            &format!("/api/frames/{id}/corrected.png?space=acescg"),
+            &[("Host", &host), ("X-Nsrm-Token", &srv.token)],
+            b"",
+        );
+        let text = String::from_utf8_lossy(&body).into_owned();
+        if device == "gpu" && status != 200 && text.contains("the server's GPU") {
+            crate::common::skip(&format!("no GPU adapter for the studio: {text}"));
+            return;
+        }
+        assert_eq!(status, 200, "{device}: {text}");
+        let header = |k: &str| {
+            headers
+                .iter()
+                .find(|(n, _)| n == k)
+                .map(|(_, v)| v.clone())
+                .unwrap_or_default()
+        };
+        assert_eq!(header("x-nsrm-device"), device, "{headers:?}");
+        assert!(!header("x-nsrm-device-detail").is_empty(), "{headers:?}");
+        let img = image::load_from_memory(&body).unwrap().to_rgb8();
+        previews.push(img);
+    }
+    let (g, c) = (&previews[0], &previews[1]);
+    assert_eq!(g.dimensions(), c.dimensions());
+    let max = g
+        .as_raw()
+        .iter()
+        .zip(c.as_raw())
+        .map(|(a, b)| a.abs_diff(*b))
+        .max()
+        .unwrap();
+    assert!(max <= 1, "GPU and CPU previews differ by {max}/255");
+    // Not a blank image: the comparison means something.
+    let distinct: std::collections::BTreeSet<_> = c.pixels().map(|p| p.0).collect();
+    assert!(distinct.len() > 100, "{} colours", distinct.len());
+}

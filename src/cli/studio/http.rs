@@ -299,9 +299,24 @@ fn route(studio: &Studio, req: &mut Request, t: &Target) -> Result<Reply> {
         ("GET", ["api", "frames", id, "corrected.png"]) => {
             let f = studio.frame(id)?;
             let s = f.lock_state();
-            let (png, device) = s.corrected_png(t.param("space").unwrap_or("linear-srgb"))?;
+            let (png, computed) =
+                s.corrected_png(studio, t.param("space").unwrap_or("linear-srgb"))?;
             let mut r = Reply::new(200, "image/png", png);
-            r.extra.push(("X-Nsrm-Device", device));
+            r.extra.push(("X-Nsrm-Device", computed.device.to_string()));
+            // A header value: the adapter or the reason, in printable ASCII.
+            let detail: String = computed
+                .detail
+                .chars()
+                .map(|c| {
+                    if c.is_ascii_graphic() || c == ' ' {
+                        c
+                    } else {
+                        '?'
+                    }
+                })
+                .take(200)
+                .collect();
+            r.extra.push(("X-Nsrm-Device-Detail", detail));
             Ok(r)
         }
         ("GET", ["api", "frames", id, "export"]) => {

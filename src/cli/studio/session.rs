@@ -16,6 +16,7 @@ use nsrm::colorimetry::spaces::{apply as mat_apply, OutputSpace};
 use nsrm::colorimetry::{delta_e00_xyz, output_matrix, srgb8, to_linear_srgb};
 use nsrm::eval::{evaluate_with, EvalResult, Protocol, Stats};
 use nsrm::export::{export_to, Format, LutOptions};
+use nsrm::gpu::{DeviceChoice, Engine, GpuOptions, Opened};
 use nsrm::model::fit::{fit_with, FitReport, Normalise};
 use nsrm::model::Kind;
 use nsrm::{Frame, Layout, Model};
@@ -48,8 +49,26 @@ pub struct Studio {
     /// The per-run temporary directory: the only place the server writes.
     pub tmp: PathBuf,
     pub max_pixels: u64,
+    /// Where corrected previews are computed (`--device`), and the engine once opened.
+    device: DeviceChoice,
+    engine: Mutex<Option<ServerDevice>>,
     frames: Mutex<Vec<(String, Arc<FrameSlot>)>>,
     next: AtomicU64,
+}
+
+/// The server's device for corrected previews, opened on first use with the policy of `apply`:
+/// `auto` takes a hardware GPU and else the CPU, `gpu` any adapter (or the preview fails),
+/// `cpu` the CPU.
+enum ServerDevice {
+    Gpu(Box<Engine>),
+    /// The CPU, and why (asked for, no adapter, only a software rasteriser).
+    Cpu(String),
+}
+
+/// Where a corrected preview was computed: `gpu` or `cpu`, and the adapter or the reason.
+pub struct Computed {
+    pub device: &'static str,
+    pub detail: String,
 }
 
 /// One open frame.
@@ -220,7 +239,12 @@ fn random_hex(bytes: usize) -> Result<String> {
 }
 
 impl Studio {
-    pub fn new(files: Vec<PathBuf>, port: u16, max_pixels: u64) -> Result<Studio> {
+    pub fn new(
+        files: Vec<PathBuf>,
+        port: u16,
+        max_pixels: u64,
+        device: DeviceChoice,
+    ) -> Result<Studio> {
         let token = random_hex(16)?;
         let tmp = std::env::temp_dir().join(format!(
             "nsrm-studio-{}-{}",
@@ -241,6 +265,8 @@ impl Studio {
             files,
             tmp,
             max_pixels,
+            device,
+            engine: Mutex::new(None),
             frames: Mutex::new(Vec::new()),
             next: AtomicU64::new(1),
         })
@@ -282,8 +308,43 @@ impl Studio {
             "kinds": ["lrm", "prm", "rprm", "nsrm"],
             "max_pixels": self.max_pixels,
             "max_upload_bytes": self.max_upload_bytes(),
-            "server_device": "cpu",
+            "server_device": self.device.name(),
         })
+    }
+
+    /// Applies `model` to `frame` on the server's device (opened on first use); where it ran.
+    pub fn correct(&self, model: &Model, frame: &mut Frame) -> Result<Computed> {
+        let mut dev = self.engine.lock().unwrap_or_else(|e| e.into_inner());
+        if dev.is_none() {
+            let opts = GpuOptions {
+                adapter: None,
+                tile_pixels: None,
+            };
+            *dev = Some(match nsrm::gpu::open_device(self.device, &opts) {
+                Ok(Opened::Gpu(e)) => ServerDevice::Gpu(e),
+                Ok(Opened::Cpu(why)) => ServerDevice::Cpu(why.to_string()),
+                // `gpu` asked for and none opened: said on every preview, tried again next time.
+                Err(e) => bail!("the server's GPU: {e}"),
+            });
+        }
+        match dev.as_mut() {
+            Some(ServerDevice::Gpu(e)) => {
+                e.apply(model, frame)
+                    .map_err(|e| anyhow::anyhow!("the server's GPU: {e}"))?;
+                Ok(Computed {
+                    device: "gpu",
+                    detail: e.adapter_name(),
+                })
+            }
+            Some(ServerDevice::Cpu(why)) => {
+                nsrm::model::fast::apply_frame(model, frame);
+                Ok(Computed {
+                    device: "cpu",
+                    detail: why.clone(),
+                })
+            }
+            None => bail!("the server's device was not opened"),
+        }
     }
 
     pub fn frame(&self, id: &str) -> Result<Arc<FrameSlot>> {
@@ -812,16 +873,17 @@ impl FrameState {
         s
     }
 
-    /// The corrected preview in `space` (sRGB PNG) and where it was computed.
-    pub fn corrected_png(&self, space: &str) -> Result<(Vec<u8>, String)> {
+    /// The corrected preview in `space` (sRGB PNG), computed on the server's device (`--device`),
+    /// and where it was computed.
+    pub fn corrected_png(&self, studio: &Studio, space: &str) -> Result<(Vec<u8>, Computed)> {
         let space = parse_space(space)?;
         let f = self.fitted()?;
         let out = nsrm::colorimetry::output_model(&f.model, space)?;
         let mut frame = self.small.clone();
-        nsrm::model::fast::apply_frame(&out, &mut frame);
+        let computed = studio.correct(&out, &mut frame)?;
         let png =
             nsrm::io::preview::encode_png(&frame, &to_linear_srgb(f.model.white_xyz(), space))?;
-        Ok((png, "cpu".into()))
+        Ok((png, computed))
     }
 
     /// The generated WGSL (the model with `space` folded in, as `export-shader --lang wgsl

@@ -450,20 +450,44 @@ async function showCorrected() {
       $('corrected-device').textContent = 'WebGPU failed (' + e.message + '); computed by the server instead.';
     }
   }
-  const url = withToken(`/api/frames/${S.frame.id}/corrected.png?space=${encodeURIComponent(space)}`);
   const img = $('corrected');
-  await new Promise((ok, bad) => {
-    img.onload = ok;
-    img.onerror = () => bad(new Error('the corrected preview failed'));
-    img.src = url;
-  }).catch((e) => status(e.message, true));
+  let ran = null;
+  try {
+    const r = await fetch(`/api/frames/${S.frame.id}/corrected.png?space=${encodeURIComponent(space)}`, {
+      headers: { 'X-Nsrm-Token': TOKEN },
+    });
+    if (!r.ok) {
+      const ct = r.headers.get('Content-Type') || '';
+      const data = ct.startsWith('application/json') ? await r.json() : { error: await r.text() };
+      throw new Error((data && data.error) || r.statusText);
+    }
+    ran = { device: r.headers.get('X-Nsrm-Device') || 'cpu', detail: r.headers.get('X-Nsrm-Device-Detail') || '' };
+    const blob = await r.blob();
+    if (img.dataset.objectUrl) URL.revokeObjectURL(img.dataset.objectUrl);
+    const objectUrl = URL.createObjectURL(blob);
+    img.dataset.objectUrl = objectUrl;
+    await new Promise((ok, bad) => {
+      img.onload = ok;
+      img.onerror = () => bad(new Error('the corrected preview failed'));
+      img.src = objectUrl;
+    });
+  } catch (e) {
+    status('corrected preview: ' + e.message, true);
+    return;
+  }
   img.hidden = false;
   $('corrected-canvas').hidden = true;
   const why = navigator.gpu ? '' : ' (this browser has no WebGPU)';
+  const where = ran.device === 'gpu'
+    ? `on its GPU (${ran.detail})`
+    : `on the CPU${ran.detail && !ran.detail.includes('was asked for') ? ' (' + ran.detail + ')' : ''}`;
   if (!useGpu || !$('corrected-device').textContent.startsWith('WebGPU failed')) {
-    $('corrected-device').textContent = `Computed by the nsrm server on the CPU${why}, as nsrm apply --output-space ${space} does.`;
+    $('corrected-device').textContent = `Computed by the nsrm server ${where}${why}, as nsrm apply --output-space ${space} does.`;
+  } else {
+    $('corrected-device').textContent += ` The server computed it ${where}.`;
   }
   $('corrected-device').dataset.device = 'server';
+  $('corrected-device').dataset.serverDevice = ran.device;
 }
 
 function srgb8(v) {
@@ -524,7 +548,7 @@ async function correctedWebGpu(space) {
   return [info.vendor, info.architecture].filter(Boolean).join(' ') || 'adapter';
 }
 
-// The page's WebGPU result against the server's CPU preview, in 8-bit codes.
+// The page's WebGPU result against the server's preview, in 8-bit codes.
 async function compareWithServer(space) {
   const url = withToken(`/api/frames/${S.frame.id}/corrected.png?space=${encodeURIComponent(space)}`);
   const img = new Image();
@@ -543,7 +567,7 @@ async function compareWithServer(space) {
   let max = 0;
   for (let i = 0; i < a.length; i++) if ((i & 3) !== 3) max = Math.max(max, Math.abs(a[i] - b[i]));
   const el2 = $('corrected-device');
-  el2.textContent += ` Largest difference from the server's CPU preview: ${max}/255.`;
+  el2.textContent += ` Largest difference from the server's preview: ${max}/255.`;
   el2.dataset.maxDiff = String(max);
 }
 

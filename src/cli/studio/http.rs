@@ -274,6 +274,16 @@ fn route(studio: &Studio, req: &mut Request, t: &Target) -> Result<Reply> {
             s.set_reading(studio, body)?;
             Ok(json(200, &s.state()))
         }
+        ("POST", ["api", "frames", id, "flat"]) => {
+            let f = studio.frame(id)?;
+            let name = t.param("name").map(str::to_string);
+            let dir = studio.new_flat_dir(id)?;
+            // Received before the frame is locked: a slow upload blocks nothing else.
+            let saved = receive_upload(studio, req, &dir, name)?;
+            let mut s = f.lock_state();
+            s.set_flat_upload(&saved)?;
+            Ok(json(200, &s.state()))
+        }
         ("GET", ["api", "frames", id, "preview.png"]) => {
             let f = studio.frame(id)?;
             let png = f.lock_state().preview_png.clone();

@@ -224,6 +224,8 @@ pub struct FrameState {
     frame_layer: Option<String>,
     /// The decoded flat frame last used (`flat` setting of a listed file), by the setting.
     flat_cache: Option<(String, Arc<Frame>)>,
+    /// An uploaded flat frame (its file name and pixels): the `upload` flat setting.
+    flat_upload: Option<(String, Arc<Frame>)>,
     pub settings: Settings,
     pub capture: Option<Capture>,
     pub error: Option<String>,
@@ -292,6 +294,16 @@ impl Studio {
         let dir = self.tmp.join(&id);
         std::fs::create_dir(&dir).with_context(|| format!("creating {}", dir.display()))?;
         Ok((dir, id))
+    }
+
+    /// A fresh directory for a flat frame uploaded for frame `id` (removed with the frame).
+    pub fn new_flat_dir(&self, id: &str) -> Result<PathBuf> {
+        let dir = self
+            .tmp
+            .join(id)
+            .join(format!("flat-{}", self.next.fetch_add(1, Ordering::SeqCst)));
+        std::fs::create_dir_all(&dir).with_context(|| format!("creating {}", dir.display()))?;
+        Ok(dir)
     }
 
     pub fn info(&self) -> Value {
@@ -420,6 +432,7 @@ impl Studio {
             frame: decoded,
             frame_layer: None,
             flat_cache: None,
+            flat_upload: None,
             settings: Settings::default(),
             capture: None,
             error: None,
@@ -531,13 +544,19 @@ impl FrameState {
         let flat = match s.flat.as_deref().map(str::trim) {
             None | Some("") | Some("none") => None,
             Some(f) if f.eq_ignore_ascii_case("neutrals") => Some("neutrals".to_string()),
+            Some("upload") => Some(
+                self.flat_upload
+                    .as_ref()
+                    .map(|(name, _)| name.clone())
+                    .ok_or_else(|| BadRequest("flat `upload`: no flat frame uploaded".into()))?,
+            ),
             Some(f) => {
                 let i: usize = f
                     .strip_prefix("file:")
                     .and_then(|n| n.parse().ok())
                     .ok_or_else(|| {
                         BadRequest(format!(
-                            "flat `{f}`: none, neutrals or file:N (a listed file)"
+                            "flat `{f}`: none, neutrals, file:N (a listed file) or upload (the uploaded flat frame)"
                         ))
                     })?;
                 let p = self
@@ -593,6 +612,10 @@ impl FrameState {
         }
         let flat = match o.flat.as_deref() {
             None => None,
+            Some(_) if self.settings.flat.as_deref().map(str::trim) == Some("upload") => self
+                .flat_upload
+                .as_ref()
+                .map(|(_, ff)| FlatField::Frame(ff)),
             Some(f) if f.eq_ignore_ascii_case("neutrals") => Some(FlatField::Neutrals),
             Some(f) => {
                 let key = self.settings.flat.clone().unwrap_or_default();
@@ -612,6 +635,30 @@ impl FrameState {
             flat,
         };
         Ok(nsrm::chart::capture::read(&self.frame, &reference, &opts)?)
+    }
+
+    /// An uploaded flat frame (decoded as `--flat` reads one) becomes the flat field → a new
+    /// reading.
+    pub fn set_flat_upload(&mut self, path: &Path) -> Result<()> {
+        let name = path
+            .file_name()
+            .map(|s| s.to_string_lossy().into_owned())
+            .unwrap_or_default();
+        let ff = nsrm::io::read_frame(
+            path,
+            &nsrm::io::ReadOptions {
+                limits: nsrm::io::Limits {
+                    max_pixels: self.max_pixels,
+                },
+                demosaic: values::Demosaic::Half.into(),
+                ..Default::default()
+            },
+        )
+        .map_err(|e| BadRequest(format!("{name}: not a flat frame nsrm can read: {e}")))?;
+        self.flat_upload = Some((name, Arc::new(ff)));
+        self.settings.flat = Some("upload".into());
+        self.read();
+        Ok(())
     }
 
     /// New settings → a new reading.
@@ -688,6 +735,7 @@ impl FrameState {
             "error": self.error,
             "reading": self.capture.as_ref().map(|c| c.report()),
             "patches_spec": training,
+            "flat_upload": self.flat_upload.as_ref().map(|(name, _)| name),
             "fitted": self.fitted.as_ref().map(|f| json!({"kind": f.model.kind().to_string(), "order": f.model.order(), "report": f.report})),
             "command": self.command_text("clf", "xyz"),
         })

@@ -63,6 +63,7 @@ function option(sel, value, text) {
   o.value = value;
   o.textContent = text === undefined ? value : text;
   sel.appendChild(o);
+  return o;
 }
 
 // ---- opening frames -------------------------------------------------------------------------
@@ -115,6 +116,25 @@ async function upload(file) {
   }
 }
 
+async function uploadFlat(file) {
+  if (!S.frame) {
+    status('open a frame first, then its flat frame', true);
+    return;
+  }
+  if (S.info && file.size > S.info.max_upload_bytes) {
+    status(`${file.name}: ${file.size} bytes is over the limit of ${S.info.max_upload_bytes}`, true);
+    return;
+  }
+  status(`uploading the flat frame ${file.name}…`);
+  try {
+    const st = await api('POST', `/api/frames/${S.frame.id}/flat?name=` + encodeURIComponent(file.name), file, true);
+    showFrame(st);
+    if (!st.error) status(`flat field: ${file.name}`);
+  } catch (e) {
+    status(e.message, true);
+  }
+}
+
 function showFrame(st) {
   const first = !S.frame || S.frame.id !== st.id;
   S.frame = st;
@@ -135,7 +155,15 @@ function showFrame(st) {
   $('frame-name').textContent = `${st.name} (${st.width}×${st.height})`;
   $('chart').value = st.settings.chart;
   $('reference').value = st.settings.reference || '';
-  $('flat').value = st.settings.flat || 'none';
+  const flatSel = $('flat');
+  let up = flatSel.querySelector('option[value="upload"]');
+  if (st.flat_upload) {
+    if (!up) up = option(flatSel, 'upload', '');
+    up.textContent = 'flat frame: ' + st.flat_upload + ' (uploaded)';
+  } else if (up) {
+    up.remove();
+  }
+  flatSel.value = st.settings.flat || 'none';
   S.dragCorners = null;
   if (!st.fitted) {
     S.fit = null;
@@ -620,7 +648,15 @@ function wire() {
     e.preventDefault();
     viewer.classList.remove('dragging');
     const f = e.dataTransfer && e.dataTransfer.files[0];
-    if (f) upload(f);
+    if (!f) return;
+    // Dropped on the flat-field control: the flat frame of the open frame.
+    const onFlat = e.target instanceof Element && e.target.closest('#flat-drop, #flat-input');
+    if (onFlat) uploadFlat(f);
+    else upload(f);
+  });
+  $('flat-input').addEventListener('change', (e) => {
+    if (e.target.files[0]) uploadFlat(e.target.files[0]);
+    e.target.value = '';
   });
   $('chart').addEventListener('change', () => setReading({ chart: $('chart').value, corners: null, exclude: [] }));
   $('reference').addEventListener('change', () => setReading({ reference: $('reference').value || null }));

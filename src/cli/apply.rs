@@ -317,10 +317,10 @@ pub fn run(a: Args) -> Result<ExitCode> {
     let req = parse_request(&a)?;
     let mut parts = super::white::models_for_apply(&a.model, a.white.as_deref())?;
     let model = parts.remove(0);
-    let out_model = nsrm::colorimetry::output_model(&model, req.space)?;
+    let out_model = nsrm::model::output_model(&model, req.space)?;
     let extra: Vec<Model> = parts
         .iter()
-        .map(|m| nsrm::colorimetry::output_model(m, req.space))
+        .map(|m| nsrm::model::output_model(m, req.space))
         .collect::<Result<_, _>>()?;
 
     // Plan.

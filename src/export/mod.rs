@@ -5,7 +5,7 @@
 //! # What is written
 //! Every export maps linear camera RGB (the training white at `G = 1`) to the output space exactly
 //! as `nsrm apply` writes it: scene-linear, the training white at `Y = 1`, the output-space matrix
-//! folded into the model ([`crate::colorimetry::output_model`]).
+//! folded into the model ([`crate::model::output_model`]).
 //!
 //! * **LRM** is linear: one CLF `Matrix` node, exact (up to the f32 the readers compute in).
 //! * **PRM, RPRM, NSRM** have no closed form in CLF (no division, no channel products), so they
@@ -42,6 +42,8 @@ pub mod dcp;
 pub mod dctl;
 pub mod nodes;
 pub mod ocio;
+#[cfg(feature = "gpu")]
+pub mod shader;
 
 use crate::colorimetry::spaces::{self, Mat3, OutputSpace};
 use crate::model::{Kind, Model};
@@ -65,6 +67,17 @@ pub enum ExportError {
     },
     #[error(transparent)]
     Write(#[from] crate::output::WriteError),
+}
+
+impl ExportError {
+    /// True for export options out of range.
+    pub fn is_usage(&self) -> bool {
+        match self {
+            ExportError::Usage(_) => true,
+            ExportError::Write(w) => w.is_usage(),
+            _ => false,
+        }
+    }
 }
 
 /// File formats `nsrm export` writes.
@@ -316,7 +329,7 @@ pub fn linear_part(folded: &Model, training_rgb: &[[f64; 3]]) -> Result<Mat3, Ex
 
 fn fold(model: &Model, space: OutputSpace) -> Result<Model, ExportError> {
     check_model(model)?;
-    crate::colorimetry::output_model(model, space).map_err(|e| ExportError::Model(e.to_string()))
+    crate::model::output_model(model, space).map_err(|e| ExportError::Model(e.to_string()))
 }
 
 /// Refuses a sampled LUT with an entry that is not a finite 32-bit float: the model's output

@@ -3,6 +3,7 @@
 
 #[cfg(feature = "cli")]
 mod apply;
+mod architecture;
 #[cfg(feature = "cli")]
 mod capture_lib;
 #[cfg(feature = "chart")]

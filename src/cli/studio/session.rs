@@ -1000,18 +1000,43 @@ impl FrameState {
         // Written through an output session of its own, into this run's temporary directory.
         let session = nsrm::output::Session::new(false);
         let mut unit = session.unit();
-        let r = export_to(
-            &f.model,
-            format,
-            space,
-            options,
-            &training.rgb,
-            None,
-            &dest,
-            &mut unit,
-        );
-        let bytes = r
+        let r = if format == Format::Dcp {
+            // As `export --format dcp` does for a one-illuminant model file: the model as a
+            // profile, its training patches, the default map and stops, no accuracy limit.
+            nsrm::model::dual_illuminant::Profile::single(f.model.clone())
+                .map_err(anyhow::Error::from)
+                .and_then(|profile| {
+                    let t = nsrm::export::dcp::DcpTraining {
+                        rgb: training.rgb.clone(),
+                        white_rgb: training.white_rgb,
+                    };
+                    nsrm::export::dcp::export_to(
+                        &profile,
+                        &[t],
+                        nsrm::export::dcp::DcpOptions::default(),
+                        options.stops,
+                        None,
+                        &dest,
+                        &mut unit,
+                    )
+                    .map(|_| ())
+                    .map_err(anyhow::Error::from)
+                })
+        } else {
+            export_to(
+                &f.model,
+                format,
+                space,
+                options,
+                &training.rgb,
+                None,
+                &dest,
+                &mut unit,
+            )
+            .map(|_| ())
             .map_err(anyhow::Error::from)
+        };
+        let bytes = r
             .and_then(|_| unit.commit().map_err(anyhow::Error::from))
             .and_then(|_| {
                 std::fs::read(&dest).with_context(|| format!("reading {}", dest.display()))

@@ -962,3 +962,54 @@ fn an_uploaded_flat_frame_is_the_flat_field() {
     );
     srv.json("GET", "/api/info", "");
 }
+
+/// A long comparison does not hold the frame: its state, a new reading and a preview are
+/// answered while the models are still being evaluated.
+#[test]
+fn a_long_comparison_does_not_block_the_frame() {
+    use std::sync::atomic::{AtomicBool, Ordering};
+    use std::sync::Arc;
+    let d = tempdir("studio-compare");
+    let frame = scene(&d, "scene.exr");
+    let srv = Arc::new(Server::start(&d, &[s(&frame)]));
+    let st = srv.json("POST", "/api/files/0/open", "");
+    let id = st["id"].as_str().unwrap().to_string();
+    assert!(st["error"].is_null(), "{}", st["error"]);
+    let done = Arc::new(AtomicBool::new(false));
+    let t0 = Instant::now();
+    let worker = {
+        let (srv, done, id) = (Arc::clone(&srv), Arc::clone(&done), id.clone());
+        std::thread::spawn(move || {
+            // Every kind × order, leave-one-out and in-sample.
+            let v = srv.json(
+                "POST",
+                &format!("/api/frames/{id}/compare"),
+                r#"{"objective": "ls"}"#,
+            );
+            done.store(true, Ordering::SeqCst);
+            v
+        })
+    };
+    std::thread::sleep(Duration::from_millis(100));
+    let mut answered = 0;
+    for path in [
+        format!("/api/frames/{id}"),
+        format!("/api/frames/{id}/preview.png"),
+        format!("/api/frames/{id}/overlay.png"),
+    ] {
+        let (code, _) = srv.call("GET", &path, b"");
+        assert_eq!(code, 200, "{path}");
+        if !done.load(Ordering::SeqCst) {
+            answered += 1;
+        }
+    }
+    let during = t0.elapsed();
+    let cmp = worker.join().unwrap();
+    let total = t0.elapsed();
+    eprintln!("three requests answered {during:?} in; the comparison took {total:?}");
+    assert!(cmp["best"]["mean"].as_f64().unwrap() > 0.0);
+    assert_eq!(
+        answered, 3,
+        "requests waited for the comparison ({during:?} of {total:?})"
+    );
+}

@@ -303,8 +303,10 @@ fn route(studio: &Studio, req: &mut Request, t: &Target) -> Result<Reply> {
         ("POST", ["api", "frames", id, "compare"]) => {
             let body = read_json(req)?;
             let f = studio.frame(id)?;
-            let s = f.lock_state();
-            Ok(json(200, &s.compare(body)?))
+            // The frame's lock is held only to take the patches: other requests on this frame
+            // (a corner drag, a preview) go on while the models are evaluated.
+            let plan = f.lock_state().compare_plan(body)?;
+            Ok(json(200, &plan.run()?))
         }
         ("GET", ["api", "frames", id, "corrected.png"]) => {
             let f = studio.frame(id)?;

@@ -827,12 +827,44 @@ impl FrameState {
     /// Leave-one-out and in-sample ΔE00 of every kind and order with the request's variant (as
     /// `eval --capture … --orders 1-4` and with `--in-sample`), and the best by leave-one-out
     /// mean.
-    pub fn compare(&self, body: Value) -> Result<Value> {
+    ///
+    /// In two steps so that the frame is not held while the models are evaluated (seconds to
+    /// minutes on an SG): [`compare_plan`](Self::compare_plan) takes what the comparison needs
+    /// under the frame's lock, [`ComparePlan::run`] computes without it.
+    pub fn compare_plan(&self, body: Value) -> Result<ComparePlan> {
         let req: FitRequest = serde_json::from_value(body)
             .map_err(|e| BadRequest(format!("compare request: {e}")))?;
         let custom = req.variant_args()?.options()?;
         let c = self.capture()?;
         let data = c.training_set().select(&self.patches_spec(c))?;
+        let command_head = format!(
+            "nsrm eval --capture {} {}{}",
+            quote(&self.shown),
+            self.capture_flags().join(" "),
+            self.patches_flag(&req.flags()),
+        );
+        Ok(ComparePlan {
+            custom,
+            data,
+            command_head,
+        })
+    }
+}
+
+/// A comparison of every kind and order, ready to run without the frame's lock.
+pub struct ComparePlan {
+    custom: nsrm::model::fit::FitOptions,
+    data: nsrm::training::TrainingSet,
+    command_head: String,
+}
+
+impl ComparePlan {
+    pub fn run(self) -> Result<Value> {
+        let ComparePlan {
+            custom,
+            data,
+            command_head,
+        } = self;
         let mut out = serde_json::Map::new();
         let mut best: Option<EvalResult> = None;
         // The orders each kind could be fitted at (leave-one-out), for the command lines.
@@ -888,10 +920,7 @@ impl FrameState {
             .iter()
             .map(|(kind, orders)| {
                 format!(
-                    "nsrm eval --capture {} {}{} --kinds {} --orders {} --json",
-                    quote(&self.shown),
-                    self.capture_flags().join(" "),
-                    self.patches_flag(&req.flags()),
+                    "{command_head} --kinds {} --orders {} --json",
                     kind.to_string().to_ascii_lowercase(),
                     orders
                         .iter()
@@ -904,7 +933,9 @@ impl FrameState {
         out.insert("command".into(), json!(lines.join("\n")));
         Ok(Value::Object(out))
     }
+}
 
+impl FrameState {
     /// ` --patches … --variant-flags` for `fit`/`eval`.
     fn patches_flag(&self, variant: &[String]) -> String {
         let mut s = String::new();

@@ -175,7 +175,8 @@ pub fn serve(studio: &Studio, mut req: Request) {
                     } else {
                         400
                     };
-                    let msg = super::super::common::explain_line(e);
+                    // In the page's words: no CLI flag named.
+                    let msg = super::session::explain_for_page(e);
                     json(status, &serde_json::json!({ "error": msg }))
                 }
                 Err(_) => json(

@@ -1144,7 +1144,7 @@ impl FrameState {
 
 /// An error as the page shows it: the page's way out (drag the corners, pick a setting) where the
 /// CLI's hint would name a flag.
-fn explain_for_page(e: anyhow::Error) -> String {
+pub fn explain_for_page(e: anyhow::Error) -> String {
     use nsrm::error::{Concern, Param};
     let page_remedy = |p: Param| {
         match p {
@@ -1153,15 +1153,43 @@ fn explain_for_page(e: anyhow::Error) -> String {
         ),
         Param::Reflectances | Param::ReferenceWhite => Some("pick another reference"),
         Param::Flat => Some("pick another flat field"),
+        Param::WhitePatch => Some("name a neutral patch as the white patch"),
+        Param::MaxPixels => Some(
+            "the frame is over the studio's pixel limit: restart the studio with a higher limit if the frame is genuine",
+        ),
         _ => None,
     }
     };
-    match e.chain().find_map(super::super::errors::concern) {
+    let text = match e.chain().find_map(super::super::errors::concern) {
         Some(Concern::Remedy(p)) | Some(Concern::Value(p)) if page_remedy(p).is_some() => {
             format!("{e:#}. Way out: {}.", page_remedy(p).unwrap_or_default())
         }
-        _ => super::super::common::explain_line(e),
+        _ => format!("{e:#}"),
+    };
+    unflag(&text)
+}
+
+/// The page's words for a message that names a CLI flag: `--white-patch` → `white patch` (the
+/// page's controls are named as the flags are, without the dashes).
+pub fn unflag(s: &str) -> String {
+    let mut out = String::with_capacity(s.len());
+    let mut rest = s;
+    while let Some(i) = rest.find("--") {
+        let after = &rest[i + 2..];
+        if after.starts_with(|c: char| c.is_ascii_lowercase()) {
+            out.push_str(&rest[..i]);
+            let end = after
+                .find(|c: char| !(c.is_ascii_alphanumeric() || c == '-'))
+                .unwrap_or(after.len());
+            out.push_str(&after[..end].replace('-', " "));
+            rest = &after[end..];
+        } else {
+            out.push_str(&rest[..i + 2]);
+            rest = after;
+        }
     }
+    out.push_str(rest);
+    out
 }
 
 /// `--corners` text of four points, each number written so it reads back exactly.
@@ -1186,6 +1214,22 @@ mod tests {
             corners_text([[1.5, 2.0], [3.0, 4.0], [5.0, 6.0], [7.0, 8.25]]),
             "1.5,2 3,4 5,6 7,8.25"
         );
+    }
+
+    #[test]
+    fn page_messages_name_no_flags() {
+        assert_eq!(
+            unflag("--objective `x`: use --white-patch D4 or --ridge auto"),
+            "objective `x`: use white patch D4 or ridge auto"
+        );
+        assert_eq!(unflag("a -- b --1 c"), "a -- b --1 c");
+        let e = anyhow::Error::new(nsrm::io::IoError::OverLimit {
+            path: "big.exr".into(),
+            why: "10 pixels, more than the limit of 5".into(),
+        });
+        let m = explain_for_page(e);
+        assert!(!m.contains("--"), "{m}");
+        assert!(m.contains("Way out"), "{m}");
     }
 
     #[test]

@@ -196,6 +196,9 @@ function el(name, attrs, parent) {
   return e;
 }
 
+// Smallest label drawn, in screen pixels.
+const MIN_LABEL_PX = 7;
+
 function drawOverlay() {
   const st = S.frame;
   const svg = $('overlay');
@@ -207,6 +210,10 @@ function drawOverlay() {
   const pitch = patches.length > 1
     ? Math.hypot(patches[0].outline[1][0] - patches[0].outline[0][0], patches[0].outline[1][1] - patches[0].outline[0][1])
     : st.width / 20;
+  // Screen pixels per frame pixel (the overlay is scaled with the preview).
+  const shown = svg.getBoundingClientRect().width;
+  const scale = shown > 0 ? shown / st.width : 1;
+  let hidden = 0;
   for (const p of patches) {
     const flagged = p.flags.length > 0;
     const cls = 'patch' + (flagged ? ' flagged' : '') + (excluded.has(p.label) ? ' excluded' : '');
@@ -216,9 +223,18 @@ function drawOverlay() {
     t.textContent = `${p.label}: RGB ${p.rgb.map((v) => v.toPrecision(4)).join(', ')}` +
       (flagged ? ` — ${p.flags.join(', ')}` : '') + (excluded.has(p.label) ? ' — excluded by hand' : '');
     poly.addEventListener('click', () => toggleExclude(p));
-    const lab = el('text', { class: 'plabel' + (flagged ? ' flagged' : ''), x: p.centre[0], y: p.centre[1], 'font-size': Math.max(8, pitch * 0.45) }, svg);
-    lab.textContent = flagged ? `${p.label} ${p.flags.map((f) => f[0].toUpperCase()).join('')}` : p.label;
+    // A label fits inside its patch (about 0.6 em per character), and is left out when it would
+    // be too small to read on screen: then the patch's tooltip names it.
+    const text = flagged ? `${p.label} ${p.flags.map((f) => f[0].toUpperCase()).join('')}` : p.label;
+    const size = Math.min(pitch * 0.45, (pitch * 0.9) / (0.6 * text.length));
+    if (size * scale < MIN_LABEL_PX) {
+      hidden++;
+      continue;
+    }
+    const lab = el('text', { class: 'plabel' + (flagged ? ' flagged' : ''), x: p.centre[0], y: p.centre[1], 'font-size': size }, svg);
+    lab.textContent = text;
   }
+  svg.dataset.labelsHidden = String(hidden);
   const c = currentCorners();
   el('polygon', { class: 'grid', points: c.map((q) => q.join(',')).join(' ') }, svg);
   const r = Math.max(st.width, st.height) / 90;
@@ -634,6 +650,9 @@ async function refreshCommand() {
 // ---- wiring ---------------------------------------------------------------------------------
 
 function wire() {
+  window.addEventListener('resize', () => {
+    if (S.frame) drawOverlay();
+  });
   $('open-file').addEventListener('click', openListed);
   $('file-input').addEventListener('change', (e) => {
     if (e.target.files[0]) upload(e.target.files[0]);

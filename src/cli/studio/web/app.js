@@ -225,7 +225,9 @@ function drawOverlay() {
     poly.addEventListener('click', () => toggleExclude(p));
     // A label fits inside its patch (about 0.6 em per character), and is left out when it would
     // be too small to read on screen: then the patch's tooltip names it.
-    const text = flagged ? `${p.label} ${p.flags.map((f) => f[0].toUpperCase()).join('')}` : p.label;
+    // The patch's number or grid name (`01`, `A1`); the full name is in the tooltip.
+    const short = p.label.split(' ')[0];
+    const text = flagged ? `${short} ${p.flags.map((f) => f[0].toUpperCase()).join('')}` : short;
     const size = Math.min(pitch * 0.45, (pitch * 0.9) / (0.6 * text.length));
     if (size * scale < MIN_LABEL_PX) {
       hidden++;

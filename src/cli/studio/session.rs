@@ -1053,6 +1053,21 @@ impl FrameState {
                     .map(|_| ())
                     .map_err(anyhow::Error::from)
                 })
+        } else if format == Format::Icc {
+            // As `export --format icc` does: the LUT size asked for, the default stops.
+            nsrm::export::icc::export_to(
+                &f.model,
+                nsrm::export::icc::IccOptions {
+                    size: options.size,
+                    lo: nsrm::export::icc::DEFAULT_LO,
+                },
+                &training.rgb,
+                None,
+                &dest,
+                &mut unit,
+            )
+            .map(|_| ())
+            .map_err(anyhow::Error::from)
         } else {
             export_to(
                 &f.model,

@@ -24,6 +24,7 @@
 // `!(x > 0.0)` is meant: it is true for NaN too.
 #![allow(clippy::neg_cmp_op_on_partial_ord)]
 
+pub mod capture;
 pub mod detect;
 pub mod extract;
 pub mod flat;

@@ -4,18 +4,17 @@
 
 use super::common::UsageError;
 use super::values;
-use anyhow::{anyhow, Context, Result};
-use nsrm::chart::detect::{detect, Candidate, DetectOptions, Detection};
-use nsrm::chart::extract::{extract, verify, ExtractOptions, Extraction, Quantisation};
-use nsrm::chart::flat::{self, Flat};
+use anyhow::{Context, Result};
+use nsrm::chart::capture::{CaptureError, CaptureFrame, FlatField, ReadingOptions};
+use nsrm::chart::detect::Candidate;
+use nsrm::chart::extract::{ExtractOptions, Extraction};
 use nsrm::chart::reference::Reference;
-use nsrm::chart::{homography_from_corners, overlay, parse_corners, ChartKind};
-use nsrm::io::display::{read_chart_frame, Encoding, Transfer};
+use nsrm::chart::{overlay, parse_corners, ChartKind};
+use nsrm::io::display::Encoding;
 use nsrm::output::{Session, Unit};
-use nsrm::training::{CaptureProvenance, TrainingSet};
 use nsrm::Frame;
-use sha2::{Digest, Sha256};
-use std::path::{Path, PathBuf};
+use std::path::Path;
+use std::sync::Arc;
 
 /// How the chart in a frame is read.
 #[derive(Debug, Clone, clap::Args)]
@@ -83,21 +82,8 @@ impl From<EncodingArg> for Encoding {
     }
 }
 
-/// A read chart.
-pub struct Capture {
-    pub frame: Frame,
-    /// How the frame's values were decoded.
-    pub transfer: Transfer,
-    /// `make model` of a camera raw frame.
-    pub camera: Option<String>,
-    pub frame_path: PathBuf,
-    pub sha256: String,
-    pub reference: Reference,
-    pub extraction: Extraction,
-    pub detection: Option<Detection>,
-    pub flat: Option<Flat>,
-    pub score: f64,
-}
+/// A read chart (the library's reading, with the frame it was read from).
+pub use nsrm::chart::capture::Capture;
 
 impl CaptureOptions {
     /// The chart kind (usage error when missing or unknown).
@@ -149,89 +135,87 @@ impl CaptureOptions {
         v
     }
 
-    /// Reads the chart in `path`. On failure with `failure_overlay`, the frame and the rejected
-    /// detection candidates are drawn there (committed on its own in `session`).
-    pub fn read(&self, path: &Path, failure_overlay: Option<(&Path, &Session)>) -> Result<Capture> {
-        let reference = self.reference()?;
-        let kind = reference.chart;
-        let corners = self.corners.as_deref().map(parse_corners).transpose()?;
-        let mut opts = ExtractOptions {
-            white_level: self.white_level,
-            ..Default::default()
-        };
-        opts.validate()?;
-        let limits = nsrm::io::Limits {
-            max_pixels: self.max_pixels,
-        };
-        let read = read_chart_frame(
+    /// Decodes `path` as these options say (the frame and its hash, read once).
+    pub fn open_frame(&self, path: &Path) -> Result<Arc<CaptureFrame>> {
+        Ok(Arc::new(CaptureFrame::open(
             path,
             &nsrm::io::ReadOptions {
                 layer: self.layer.clone(),
-                limits,
+                limits: self.limits(),
                 demosaic: self.demosaic.into(),
             },
             self.encoding.into(),
-        )?;
-        let (frame, transfer, camera) = (read.frame, read.transfer, read.camera);
-        opts.quantisation = read.max_code.map(|max_code| Quantisation {
-            max_code,
-            srgb: transfer == Transfer::SrgbDecoded,
-        });
-        let sha256 = sha256_file(path)?;
-        let (h, detection) = match corners {
-            Some(c) => (
-                homography_from_corners(kind, &c, frame.width, frame.height)?,
-                None,
-            ),
-            None => match detect(&frame, &reference, &DetectOptions::default()) {
-                Ok(d) => (d.homography, Some(d)),
-                Err(f) => {
-                    if let Some((p, session)) = failure_overlay {
-                        let mut unit = session.unit();
-                        write_overlay(&frame, None, &f.candidates, None, p, &mut unit)?;
-                        unit.commit()?;
-                        eprintln!(
-                            "overlay with the {} rejected candidate regions written to {}",
-                            f.candidates.len(),
-                            p.display()
-                        );
-                    }
-                    return Err(anyhow!(f.error)).with_context(|| {
-                        format!("{}: looking for a {} chart", path.display(), kind.name())
-                    });
-                }
-            },
-        };
-        let mut ex = extract(&frame, &reference, &h, &opts)
-            .with_context(|| format!("{}: reading the patches", path.display()))?;
-        let flat = match self.flat.as_deref() {
-            None => None,
-            Some(s) if s.eq_ignore_ascii_case("neutrals") => {
-                Some(flat::from_neutrals(&ex, &reference)?)
-            }
-            Some(f) => {
-                let ff = nsrm::io::read_frame(
+        )?))
+    }
+
+    fn limits(&self) -> nsrm::io::Limits {
+        nsrm::io::Limits {
+            max_pixels: self.max_pixels,
+        }
+    }
+
+    /// Reads the `--flat` frame, if one is named.
+    pub fn flat_frame(&self) -> Result<Option<Frame>> {
+        match self.flat.as_deref() {
+            None => Ok(None),
+            Some(s) if s.eq_ignore_ascii_case("neutrals") => Ok(None),
+            Some(f) => Ok(Some(
+                nsrm::io::read_frame(
                     Path::new(f),
                     &nsrm::io::ReadOptions {
-                        limits,
+                        limits: self.limits(),
                         demosaic: self.demosaic.into(),
                         ..Default::default()
                     },
                 )
-                .with_context(|| format!("--flat {f}"))?;
-                Some(flat::from_flat_frame(
-                    &ff,
-                    (frame.width, frame.height),
-                    &ex,
-                    &opts,
-                )?)
-            }
-        };
-        if let Some(f) = &flat {
-            flat::apply(&mut ex, f);
+                .with_context(|| format!("--flat {f}"))?,
+            )),
         }
-        let score = verify(&ex, &reference).with_context(|| format!("{}", path.display()))?;
-        let flagged = ex.flagged();
+    }
+
+    /// Reads the chart in `path`. On failure with `failure_overlay`, the frame and the rejected
+    /// detection candidates are drawn there (committed on its own in `session`).
+    pub fn read(&self, path: &Path, failure_overlay: Option<(&Path, &Session)>) -> Result<Capture> {
+        let reference = self.reference()?;
+        let corners = self.corners.as_deref().map(parse_corners).transpose()?;
+        if let Some(w) = self.white_level {
+            ExtractOptions {
+                white_level: Some(w),
+                ..Default::default()
+            }
+            .validate()?;
+        }
+        let frame = self.open_frame(path)?;
+        let flat_frame = self.flat_frame()?;
+        let flat = match (&self.flat, &flat_frame) {
+            (_, Some(f)) => Some(FlatField::Frame(f)),
+            (Some(_), None) => Some(FlatField::Neutrals),
+            (None, None) => None,
+        };
+        let opts = ReadingOptions {
+            corners,
+            white_level: self.white_level,
+            flat,
+        };
+        let cap = nsrm::chart::capture::read(&frame, &reference, &opts).map_err(|e| {
+            if let (CaptureError::NotFound { candidates, .. }, Some((p, session))) =
+                (&e, failure_overlay)
+            {
+                let mut unit = session.unit();
+                let written = write_overlay(frame.frame(), None, candidates, None, p, &mut unit)
+                    .and_then(|_| Ok(unit.commit()?));
+                match written {
+                    Ok(()) => eprintln!(
+                        "overlay with the {} rejected candidate regions written to {}",
+                        candidates.len(),
+                        p.display()
+                    ),
+                    Err(w) => return w,
+                }
+            }
+            anyhow::Error::from(e)
+        })?;
+        let flagged = cap.extraction.flagged();
         if !flagged.is_empty() {
             eprintln!(
                 "warning: {} patch(es) excluded: {}",
@@ -239,94 +223,22 @@ impl CaptureOptions {
                 flagged.join("; ")
             );
         }
-        Ok(Capture {
-            camera: camera.map(|c| c.camera()),
-            frame,
-            transfer,
-            frame_path: path.to_path_buf(),
-            sha256,
-            reference,
-            extraction: ex,
-            detection,
-            flat,
-            score,
-        })
+        Ok(cap)
     }
 }
 
-/// SHA-256 of a file's bytes, read in 1 MiB blocks (hex).
-fn sha256_file(path: &Path) -> Result<String> {
-    use std::io::Read;
-    let mut f = std::fs::File::open(path).with_context(|| format!("reading {}", path.display()))?;
-    let mut h = Sha256::new();
-    let mut buf = vec![0u8; 1 << 20];
-    loop {
-        let n = f
-            .read(&mut buf)
-            .with_context(|| format!("reading {}", path.display()))?;
-        if n == 0 {
-            break;
-        }
-        h.update(&buf[..n]);
-    }
-    Ok(h.finalize().iter().map(|x| format!("{x:02x}")).collect())
-}
-
-impl Capture {
-    /// Camera G of the perfect white implied by the usable neutral patches.
-    pub fn white_g(&self) -> f64 {
-        let mut r: Vec<f64> = self
-            .extraction
-            .patches
-            .iter()
-            .filter(|p| p.usable() && p.xyz[1] > 1.0)
-            .filter(|p| {
-                let lab = nsrm::colorimetry::xyz_to_lab(p.xyz, self.reference.white);
-                lab[1].hypot(lab[2]) < 4.0
-            })
-            .map(|p| 100.0 * p.rgb[1] / p.xyz[1])
-            .collect();
-        r.sort_by(f64::total_cmp);
-        r.get(r.len() / 2).copied().unwrap_or(f64::NAN)
-    }
-
-    pub fn provenance(&self) -> CaptureProvenance {
-        CaptureProvenance {
-            frame: self
-                .frame_path
-                .file_name()
-                .map(|s| s.to_string_lossy().into_owned())
-                .unwrap_or_default(),
-            sha256: self.sha256.clone(),
-            chart: self.reference.chart.name().into(),
-            reference: self.reference.name.clone(),
-            located: if self.detection.is_some() { "detected" } else { "corners" }.into(),
-            excluded: self.extraction.flagged(),
-            exposure_normalisation:
-                "none: camera RGB as recorded (after flat-field division, factors of mean 1), so the model applies to this frame's raw values"
-                    .into(),
-            white_g: self.white_g(),
-            flat: self
-                .flat
-                .as_ref()
-                .map_or("none".to_string(), |f| f.method.clone()),
-            light_nonuniformity: self.flat.as_ref().map_or(1.0, |f| f.nonuniformity),
-            reference_match_de00: self.score,
-            encoding: self.transfer.describe().into(),
-            camera: self.camera.clone(),
-        }
-    }
-
-    /// The unflagged patches as training data, with the capture's provenance.
-    pub fn training_set(&self) -> TrainingSet {
-        let mut t = self.extraction.training_set(&self.reference);
-        t.provenance.capture = Some(self.provenance());
-        t
-    }
-
+/// The CLI's words about a reading (they name its flags).
+pub trait CaptureText {
     /// The line every command that reads a chart prints: where the chart was found, how well it
     /// matches its reference, the white its X,Y,Z are relative to and the light's non-uniformity.
-    pub fn summary(&self) -> String {
+    fn summary(&self) -> String;
+    /// A warning when the detected lattice holds more patches than the chart asked for: the
+    /// frame probably shows the other chart (a CC24 read inside an SG's patches).
+    fn other_chart_warning(&self) -> Option<String>;
+}
+
+impl CaptureText for Capture {
+    fn summary(&self) -> String {
         let used = self
             .extraction
             .patches
@@ -343,9 +255,9 @@ impl Capture {
                 ),
                 None => "read at --corners".into(),
             },
-            self.frame_path.display(),
-            self.sha256.get(..12).unwrap_or(""),
-            self.transfer.describe(),
+            self.frame.path.display(),
+            self.frame.sha256.get(..12).unwrap_or(""),
+            self.transfer().describe(),
             self.extraction.patches.len(),
             self.reference.name,
             self.score,
@@ -359,46 +271,15 @@ impl Capture {
 
     /// A warning when the detected lattice holds more patches than the chart asked for: the
     /// frame probably shows the other chart (a CC24 read inside an SG's patches).
-    pub fn other_chart_warning(&self) -> Option<String> {
-        let d = self.detection.as_ref()?;
+    fn other_chart_warning(&self) -> Option<String> {
+        let other = self.other_chart()?;
+        let lattice = self.detection.as_ref().map_or(0, |d| d.lattice);
         let n = self.reference.chart.columns() * self.reference.chart.rows();
-        (d.lattice > n + n / 4).then(|| {
-            let other = match self.reference.chart {
-                ChartKind::Cc24 => "sg",
-                ChartKind::Sg => "cc24",
-            };
-            format!(
-                "warning: the detected patch lattice has {} patches, more than a {}'s {n}: the frame may hold another chart (an SG?); if so, pass --chart {other}",
-                d.lattice,
-                self.reference.chart.name()
-            )
-        })
-    }
-
-    /// The full report (`--json`).
-    pub fn report(&self) -> serde_json::Value {
-        serde_json::json!({
-            "format": "nsrm-chart-reading",
-            "version": 1,
-            "frame": self.frame_path.display().to_string(),
-            "width": self.frame.width,
-            "height": self.frame.height,
-            "provenance": self.provenance(),
-            "reference_white": self.reference.white,
-            "homography": self.extraction.homography,
-            "corners": self.reference.chart.grid_corners().map(|c| self.extraction.homography.apply(c)),
-            "detection": self.detection.as_ref().map(|d| serde_json::json!({
-                "score_de00": d.score,
-                "runner_up_de00": d.runner_up,
-                "lattice_patches": d.lattice,
-                "mirrored": d.mirrored,
-                "downsample": d.downsample,
-                "candidates": d.candidates.len(),
-            })),
-            "white_level": self.extraction.white_level,
-            "white_level_inferred": self.extraction.white_level_inferred,
-            "patches": self.extraction.patches,
-        })
+        Some(format!(
+            "warning: the detected patch lattice has {lattice} patches, more than a {}'s {n}: the frame may hold another chart (an SG?); if so, pass --chart {}",
+            self.reference.chart.name(),
+            other.name()
+        ))
     }
 }
 
@@ -430,11 +311,11 @@ pub fn for_model(capture: Option<&Path>, o: &CaptureOptions) -> Result<Option<Ca
         Some(p) => {
             let cap = o.read(p, None)?;
             eprintln!("{}", cap.summary());
-            if cap.transfer.display_referred() {
+            if cap.transfer().display_referred() {
                 eprintln!(
                     "warning: {} is display-referred ({}): its values carry the camera's tone curve and saturation, so a model fitted from them maps display values, not light; use a raw, linear EXR or 16-bit linear TIFF capture for a calibration",
                     p.display(),
-                    cap.transfer.describe()
+                    cap.transfer().describe()
                 );
             }
             Ok(Some(cap))
@@ -444,18 +325,5 @@ pub fn for_model(capture: Option<&Path>, o: &CaptureOptions) -> Result<Option<Ca
 
 /// Swatches (reference vs the model's prediction) of the usable patches of a capture.
 pub fn swatches(cap: &Capture, model: &nsrm::Model) -> Vec<overlay::Swatch> {
-    cap.extraction
-        .patches
-        .iter()
-        .filter(|p| p.usable())
-        .map(|p| {
-            let c = model.apply_f64(p.rgb);
-            overlay::Swatch {
-                label: p.label.clone(),
-                reference_xyz: p.xyz,
-                corrected_xyz: c,
-                delta_e: nsrm::colorimetry::delta_e00_xyz(c, p.xyz, cap.reference.white),
-            }
-        })
-        .collect()
+    cap.swatches(model)
 }

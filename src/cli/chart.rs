@@ -1,7 +1,7 @@
 //! `nsrm chart`: read a photographed chart (`extract`), and measure detection over seeded
 //! synthetic scenes (`rate`).
 
-use super::capture::{write_overlay, CaptureOptions};
+use super::capture::{write_overlay, CaptureOptions, CaptureText};
 use super::common::UsageError;
 use super::values;
 use anyhow::{Context, Result};
@@ -246,7 +246,14 @@ fn run_extract(a: ExtractArgs) -> Result<ExitCode> {
             .with_context(|| format!("writing {}", j.display()))?;
     }
     if let Some(o) = &a.overlay {
-        write_overlay(&cap.frame, Some(&cap.extraction), &[], None, o, &mut unit)?;
+        write_overlay(
+            cap.frame.frame(),
+            Some(&cap.extraction),
+            &[],
+            None,
+            o,
+            &mut unit,
+        )?;
     }
     unit.commit()?;
     if let Some(w) = cap.other_chart_warning() {

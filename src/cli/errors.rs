@@ -27,6 +27,7 @@ pub fn is_usage(err: &(dyn std::error::Error + 'static)) -> bool {
         nsrm::farm::FarmError,
         nsrm::export::ExportError,
         nsrm::chart::ChartError,
+        nsrm::chart::capture::CaptureError,
         nsrm::eval::plot::PlotError,
         nsrm::gpu::GpuError,
     );
@@ -43,6 +44,9 @@ pub fn concern(err: &(dyn std::error::Error + 'static)) -> Option<Concern> {
         return e.concern();
     }
     if let Some(e) = err.downcast_ref::<nsrm::chart::ChartError>() {
+        return e.concern();
+    }
+    if let Some(e) = err.downcast_ref::<nsrm::chart::capture::CaptureError>() {
         return e.concern();
     }
     None

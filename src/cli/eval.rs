@@ -1,5 +1,6 @@
 //! `nsrm eval`: the paper's experiment.
 
+use super::capture::CaptureText;
 use super::common::{parse_models, parse_orders, TrainingArgs};
 use super::fit_args::FitVariantArgs;
 use anyhow::{Context, Result};

@@ -1,5 +1,6 @@
 //! `nsrm fit`: fit one model and write its JSON file.
 
+use super::capture::CaptureText;
 use super::common::{TrainingArgs, UsageError};
 use super::fit_args::FitVariantArgs;
 use super::values;
@@ -185,7 +186,7 @@ pub fn run(a: Args) -> Result<ExitCode> {
     if let (Some(c), Some(o)) = (&sets[0].1, &a.overlay) {
         let sw = super::capture::swatches(c, &fits[0].model);
         super::capture::write_overlay(
-            &c.frame,
+            c.frame.frame(),
             Some(&c.extraction),
             &[],
             Some((&sw, c.reference.white)),

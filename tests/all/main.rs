@@ -4,6 +4,8 @@
 #[cfg(feature = "cli")]
 mod apply;
 mod architecture;
+#[cfg(feature = "cli")]
+mod capture_lib;
 #[cfg(feature = "chart")]
 mod chart;
 #[cfg(feature = "cli")]

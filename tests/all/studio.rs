@@ -654,3 +654,373 @@ fn the_page_in_a_real_browser() {
         "the browser left a dconf directory in the repository"
     );
 }
+
+/// The corrected preview, computed by the server on the GPU (`--device gpu`: lavapipe here) and
+/// on the CPU (`--device cpu`), says where it ran and differs by at most one 8-bit code.
+#[test]
+fn the_server_preview_on_the_gpu_equals_the_cpu() {
+    let d = tempdir("studio-gpu");
+    let frame = scene(&d, "scene.exr");
+    let mut previews = Vec::new();
+    for device in ["gpu", "cpu"] {
+        let srv = Server::start(&d, &["--device", device, s(&frame)]);
+        let st = srv.json("POST", "/api/files/0/open", "");
+        let id = st["id"].as_str().unwrap().to_string();
+        assert!(st["error"].is_null(), "{}", st["error"]);
+        srv.json(
+            "POST",
+            &format!("/api/frames/{id}/fit"),
+            r#"{"kind": "nsrm", "order": 3}"#,
+        );
+        let host = format!("127.0.0.1:{}", srv.port);
+        let (status, headers, body) = srv.raw(
+            "GET",
+            &format!("/api/frames/{id}/corrected.png?space=acescg"),
+            &[("Host", &host), ("X-Nsrm-Token", &srv.token)],
+            b"",
+        );
+        let text = String::from_utf8_lossy(&body).into_owned();
+        if device == "gpu" && status != 200 && text.contains("the server's GPU") {
+            crate::common::skip(&format!("no GPU adapter for the studio: {text}"));
+            return;
+        }
+        assert_eq!(status, 200, "{device}: {text}");
+        let header = |k: &str| {
+            headers
+                .iter()
+                .find(|(n, _)| n == k)
+                .map(|(_, v)| v.clone())
+                .unwrap_or_default()
+        };
+        assert_eq!(header("x-nsrm-device"), device, "{headers:?}");
+        assert!(!header("x-nsrm-device-detail").is_empty(), "{headers:?}");
+        let img = image::load_from_memory(&body).unwrap().to_rgb8();
+        previews.push(img);
+    }
+    let (g, c) = (&previews[0], &previews[1]);
+    assert_eq!(g.dimensions(), c.dimensions());
+    let max = g
+        .as_raw()
+        .iter()
+        .zip(c.as_raw())
+        .map(|(a, b)| a.abs_diff(*b))
+        .max()
+        .unwrap();
+    assert!(max <= 1, "GPU and CPU previews differ by {max}/255");
+    // Not a blank image: the comparison means something.
+    let distinct: std::collections::BTreeSet<_> = c.pixels().map(|p| p.0).collect();
+    assert!(distinct.len() > 100, "{} colours", distinct.len());
+}
+
+/// Runs the page's command lines (`GET …/command`) in `dir` with the frame there as `name`.
+fn rerun(dir: &Path, frame: &Path, name: &str, command: &str) {
+    std::fs::create_dir_all(dir).unwrap();
+    std::os::unix::fs::symlink(frame, dir.join(name)).unwrap();
+    let nsrm_bin = env!("CARGO_BIN_EXE_nsrm");
+    for line in command.lines() {
+        let line = line.replacen("nsrm ", &format!("'{nsrm_bin}' "), 1);
+        let out = Command::new("sh")
+            .arg("-c")
+            .arg(&line)
+            .current_dir(dir)
+            .output()
+            .unwrap();
+        assert!(
+            out.status.success(),
+            "{line}: {}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+    }
+}
+
+/// Upload → reading → fit → every profile format the studio offers (DCP, and ICC where the
+/// library writes it), each equal byte for byte to the CLI's run of the page's command lines.
+fn frame_to_profiles(d: &Path, srv: &Server, frame: &Path, name: &str, chart: &str) {
+    let bytes = std::fs::read(frame).unwrap();
+    let (code, body) = srv.call("POST", &format!("/api/frames?name={name}"), &bytes);
+    assert_eq!(code, 200, "{name}: {}", String::from_utf8_lossy(&body));
+    let st: Value = serde_json::from_slice(&body).unwrap();
+    let id = st["id"].as_str().unwrap().to_string();
+    let st = if st["settings"]["chart"] != chart {
+        srv.json(
+            "POST",
+            &format!("/api/frames/{id}/reading"),
+            &format!(r#"{{"chart": "{chart}"}}"#),
+        )
+    } else {
+        st
+    };
+    assert!(st["error"].is_null(), "{name}: {}", st["error"]);
+    let fit = srv.json(
+        "POST",
+        &format!("/api/frames/{id}/fit"),
+        r#"{"kind": "rprm", "order": 2}"#,
+    );
+    assert!(fit["in_sample"]["mean"].as_f64().unwrap() < 5.0, "{fit}");
+    let info = srv.json("GET", "/api/info", "");
+    let formats: Vec<String> = info["formats"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|f| f.as_str().unwrap().to_string())
+        .filter(|f| f == "dcp" || f == "icc")
+        .collect();
+    assert!(formats.iter().any(|f| f == "dcp"), "{formats:?}");
+    for fmt in formats {
+        let (code, file) = srv.call(
+            "GET",
+            &format!("/api/frames/{id}/export?format={fmt}&space=xyz"),
+            b"",
+        );
+        assert_eq!(code, 200, "{fmt}: {}", String::from_utf8_lossy(&file));
+        let (_, command) = srv.call(
+            "GET",
+            &format!("/api/frames/{id}/command?format={fmt}&space=xyz"),
+            b"",
+        );
+        let command = String::from_utf8(command).unwrap();
+        let dir = d.join(format!("rerun-{chart}-{fmt}"));
+        rerun(&dir, frame, name, &command);
+        let mut theirs = std::fs::read(dir.join(format!("model.{fmt}"))).unwrap();
+        let mut ours = file;
+        if fmt == "icc" {
+            // The ICC header's creation date and time (bytes 24..36) is the moment of writing.
+            for b in [&mut ours, &mut theirs] {
+                if b.len() >= 36 {
+                    b[24..36].fill(0);
+                }
+            }
+        }
+        assert!(
+            ours == theirs,
+            "{name}: the {fmt} differs from the CLI's ({} vs {} bytes)",
+            ours.len(),
+            theirs.len()
+        );
+    }
+}
+
+/// A person goes from a raw frame of a chart (`../shared/data/colorchart.dng`) and from an SG
+/// scene to exported profiles through the API alone.
+#[test]
+fn raw_and_sg_frames_to_exported_profiles_through_the_api() {
+    let d = tempdir("studio-profiles");
+    let work = d.join("work");
+    std::fs::create_dir_all(&work).unwrap();
+    let srv = Server::start(&work, &[]);
+    if let Some(sg) = crate::common::sg_path() {
+        let f = d.join("sg.exr");
+        cli(
+            &d,
+            &[
+                "render-scene",
+                "--chart",
+                "sg",
+                "--reflectances",
+                s(&sg),
+                "--width",
+                "1000",
+                "--height",
+                "700",
+                "--seed",
+                "3",
+                "--min-area",
+                "0.25",
+                "-o",
+                s(&f),
+            ],
+        );
+        frame_to_profiles(&d, &srv, &f, "sg.exr", "sg");
+    }
+    let dng = PathBuf::from(concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/../shared/data/colorchart.dng"
+    ));
+    if !dng.exists() {
+        crate::common::skip(&format!("{} is absent", dng.display()));
+        return;
+    }
+    frame_to_profiles(&d, &srv, &dng, "colorchart.dng", "cc24");
+    // Nothing was written in the working directory.
+    assert_eq!(std::fs::read_dir(&work).unwrap().count(), 0);
+}
+
+/// A flat frame uploaded for an open frame is used as `--flat` uses it: the reading equals
+/// `chart extract --flat`, the command line names it; a hostile flat is refused clearly, a flat
+/// of another size is explained without naming a CLI flag.
+#[test]
+fn an_uploaded_flat_frame_is_the_flat_field() {
+    let d = tempdir("studio-flat");
+    let frame = d.join("scene.exr");
+    cli(
+        &d,
+        &[
+            "render-scene",
+            "--chart",
+            "cc24",
+            "--width",
+            "800",
+            "--height",
+            "560",
+            "--seed",
+            "5",
+            "--min-area",
+            "0.2",
+            "--gradient",
+            "0.3",
+            "-o",
+            s(&frame),
+            "--flat-output",
+            "flat.exr",
+        ],
+    );
+    let work = d.join("work");
+    std::fs::create_dir_all(&work).unwrap();
+    let srv = Server::start(&work, &[s(&frame)]);
+    let st = srv.json("POST", "/api/files/0/open", "");
+    let id = st["id"].as_str().unwrap().to_string();
+    assert!(st["error"].is_null(), "{}", st["error"]);
+    let flat = std::fs::read(d.join("flat.exr")).unwrap();
+    let (code, body) = srv.call(
+        "POST",
+        &format!("/api/frames/{id}/flat?name=flat.exr"),
+        &flat,
+    );
+    assert_eq!(code, 200, "{}", String::from_utf8_lossy(&body));
+    let st: Value = serde_json::from_slice(&body).unwrap();
+    assert!(st["error"].is_null(), "{}", st["error"]);
+    assert_eq!(st["flat_upload"], "flat.exr");
+    assert_eq!(st["settings"]["flat"], "upload");
+    assert_eq!(st["reading"]["provenance"]["flat"], "flat frame");
+    cli(
+        &d,
+        &[
+            "chart",
+            "extract",
+            "scene.exr",
+            "--chart",
+            "cc24",
+            "--flat",
+            "flat.exr",
+            "-o",
+            "p.csv",
+            "--json",
+            "r.json",
+        ],
+    );
+    let theirs: Value =
+        serde_json::from_str(&std::fs::read_to_string(d.join("r.json")).unwrap()).unwrap();
+    assert_eq!(st["reading"]["patches"], theirs["patches"]);
+    assert_eq!(
+        st["reading"]["provenance"]["light_nonuniformity"],
+        theirs["provenance"]["light_nonuniformity"]
+    );
+    assert!(
+        st["command"].as_str().unwrap().contains("--flat flat.exr"),
+        "{}",
+        st["command"]
+    );
+    // Back to none and again to the upload: no new upload needed.
+    let none = srv.json(
+        "POST",
+        &format!("/api/frames/{id}/reading"),
+        r#"{"chart": "cc24", "flat": "none"}"#,
+    );
+    assert_ne!(none["reading"]["patches"], theirs["patches"]);
+    let again = srv.json(
+        "POST",
+        &format!("/api/frames/{id}/reading"),
+        r#"{"chart": "cc24", "flat": "upload"}"#,
+    );
+    assert_eq!(again["reading"]["patches"], theirs["patches"]);
+    // A hostile flat: a clear 400, the server still serving.
+    let (code, body) = srv.call(
+        "POST",
+        &format!("/api/frames/{id}/flat?name=x.exr"),
+        b"v/1\x01not an exr at all",
+    );
+    let text = String::from_utf8_lossy(&body);
+    assert_eq!(code, 400, "{text}");
+    assert!(text.contains("not a flat frame nsrm can read"), "{text}");
+    // A flat of another size: the reading explains it in the page's words.
+    let small = d.join("small.exr");
+    cli(
+        &d,
+        &[
+            "render-scene",
+            "--chart",
+            "cc24",
+            "--width",
+            "400",
+            "--height",
+            "300",
+            "-o",
+            s(&small),
+        ],
+    );
+    let (code, body) = srv.call(
+        "POST",
+        &format!("/api/frames/{id}/flat?name=small.exr"),
+        &std::fs::read(&small).unwrap(),
+    );
+    assert_eq!(code, 200, "{}", String::from_utf8_lossy(&body));
+    let st: Value = serde_json::from_slice(&body).unwrap();
+    let err = st["error"].as_str().unwrap_or_default();
+    assert!(err.contains("flat frame is 400×300"), "{err}");
+    assert!(
+        !err.contains("--"),
+        "the page's message names a CLI flag: {err}"
+    );
+    srv.json("GET", "/api/info", "");
+}
+
+/// A long comparison does not hold the frame: its state, a new reading and a preview are
+/// answered while the models are still being evaluated.
+#[test]
+fn a_long_comparison_does_not_block_the_frame() {
+    use std::sync::atomic::{AtomicBool, Ordering};
+    use std::sync::Arc;
+    let d = tempdir("studio-compare");
+    let frame = scene(&d, "scene.exr");
+    let srv = Arc::new(Server::start(&d, &[s(&frame)]));
+    let st = srv.json("POST", "/api/files/0/open", "");
+    let id = st["id"].as_str().unwrap().to_string();
+    assert!(st["error"].is_null(), "{}", st["error"]);
+    let done = Arc::new(AtomicBool::new(false));
+    let t0 = Instant::now();
+    let worker = {
+        let (srv, done, id) = (Arc::clone(&srv), Arc::clone(&done), id.clone());
+        std::thread::spawn(move || {
+            // Every kind × order, leave-one-out and in-sample.
+            let v = srv.json(
+                "POST",
+                &format!("/api/frames/{id}/compare"),
+                r#"{"objective": "ls"}"#,
+            );
+            done.store(true, Ordering::SeqCst);
+            v
+        })
+    };
+    std::thread::sleep(Duration::from_millis(100));
+    let mut answered = 0;
+    for path in [
+        format!("/api/frames/{id}"),
+        format!("/api/frames/{id}/preview.png"),
+        format!("/api/frames/{id}/overlay.png"),
+    ] {
+        let (code, _) = srv.call("GET", &path, b"");
+        assert_eq!(code, 200, "{path}");
+        if !done.load(Ordering::SeqCst) {
+            answered += 1;
+        }
+    }
+    let during = t0.elapsed();
+    let cmp = worker.join().unwrap();
+    let total = t0.elapsed();
+    eprintln!("three requests answered {during:?} in; the comparison took {total:?}");
+    assert!(cmp["best"]["mean"].as_f64().unwrap() > 0.0);
+    assert_eq!(
+        answered, 3,
+        "requests waited for the comparison ({during:?} of {total:?})"
+    );
+}

@@ -175,7 +175,8 @@ pub fn serve(studio: &Studio, mut req: Request) {
                     } else {
                         400
                     };
-                    let msg = super::super::common::explain_line(e);
+                    // In the page's words: no CLI flag named.
+                    let msg = super::session::explain_for_page(e);
                     json(status, &serde_json::json!({ "error": msg }))
                 }
                 Err(_) => json(
@@ -274,6 +275,16 @@ fn route(studio: &Studio, req: &mut Request, t: &Target) -> Result<Reply> {
             s.set_reading(studio, body)?;
             Ok(json(200, &s.state()))
         }
+        ("POST", ["api", "frames", id, "flat"]) => {
+            let f = studio.frame(id)?;
+            let name = t.param("name").map(str::to_string);
+            let dir = studio.new_flat_dir(id)?;
+            // Received before the frame is locked: a slow upload blocks nothing else.
+            let saved = receive_upload(studio, req, &dir, name)?;
+            let mut s = f.lock_state();
+            s.set_flat_upload(&saved)?;
+            Ok(json(200, &s.state()))
+        }
         ("GET", ["api", "frames", id, "preview.png"]) => {
             let f = studio.frame(id)?;
             let png = f.lock_state().preview_png.clone();
@@ -293,15 +304,32 @@ fn route(studio: &Studio, req: &mut Request, t: &Target) -> Result<Reply> {
         ("POST", ["api", "frames", id, "compare"]) => {
             let body = read_json(req)?;
             let f = studio.frame(id)?;
-            let s = f.lock_state();
-            Ok(json(200, &s.compare(body)?))
+            // The frame's lock is held only to take the patches: other requests on this frame
+            // (a corner drag, a preview) go on while the models are evaluated.
+            let plan = f.lock_state().compare_plan(body)?;
+            Ok(json(200, &plan.run()?))
         }
         ("GET", ["api", "frames", id, "corrected.png"]) => {
             let f = studio.frame(id)?;
             let s = f.lock_state();
-            let (png, device) = s.corrected_png(t.param("space").unwrap_or("linear-srgb"))?;
+            let (png, computed) =
+                s.corrected_png(studio, t.param("space").unwrap_or("linear-srgb"))?;
             let mut r = Reply::new(200, "image/png", png);
-            r.extra.push(("X-Nsrm-Device", device));
+            r.extra.push(("X-Nsrm-Device", computed.device.to_string()));
+            // A header value: the adapter or the reason, in printable ASCII.
+            let detail: String = computed
+                .detail
+                .chars()
+                .map(|c| {
+                    if c.is_ascii_graphic() || c == ' ' {
+                        c
+                    } else {
+                        '?'
+                    }
+                })
+                .take(200)
+                .collect();
+            r.extra.push(("X-Nsrm-Device-Detail", detail));
             Ok(r)
         }
         ("GET", ["api", "frames", id, "export"]) => {

@@ -37,6 +37,11 @@ pub struct Args {
     #[arg(long, value_name = "N", default_value_t = nsrm::io::DEFAULT_MAX_PIXELS,
           value_parser = clap::value_parser!(u64).range(1..))]
     max_pixels: u64,
+    /// Where the server computes corrected previews: auto (a hardware GPU if there is one, else
+    /// the CPU; a software rasteriser such as lavapipe is slower than the CPU path), gpu (any
+    /// adapter, software ones included) or cpu. As in `apply`.
+    #[arg(long, value_enum, ignore_case = true, default_value_t = super::values::Device::Auto)]
+    device: super::values::Device,
     /// Request-handling threads.
     #[arg(long, default_value_t = 4, value_parser = clap::value_parser!(u64).range(1..=64))]
     threads: u64,
@@ -70,7 +75,12 @@ pub fn run(a: Args) -> Result<ExitCode> {
         signal_hook::flag::register_usize(sig, Arc::clone(&signal), sig as usize)
             .context("installing the signal handlers")?;
     }
-    let studio = Arc::new(Studio::new(files, port, a.max_pixels)?);
+    let studio = Arc::new(Studio::new(
+        files,
+        port,
+        a.max_pixels,
+        nsrm::gpu::DeviceChoice::from(a.device),
+    )?);
     let url = format!("http://127.0.0.1:{port}/?token={}", studio.token);
     println!("nsrm studio: {url}");
     println!(

@@ -11,16 +11,18 @@ use super::super::values;
 use super::http::{BadRequest, NotFound, Target};
 use anyhow::{bail, Context, Result};
 use clap::ValueEnum;
+use nsrm::chart::capture::{CaptureFrame, FlatField, ReadingOptions};
 use nsrm::colorimetry::spaces::{apply as mat_apply, OutputSpace};
 use nsrm::colorimetry::{delta_e00_xyz, output_matrix, srgb8, to_linear_srgb};
 use nsrm::eval::{evaluate_with, EvalResult, Protocol, Stats};
 use nsrm::export::{export_to, Format, LutOptions};
+use nsrm::gpu::{DeviceChoice, Engine, GpuOptions, Opened};
 use nsrm::model::fit::{fit_with, FitReport, Normalise};
 use nsrm::model::Kind;
 use nsrm::{Frame, Layout, Model};
 use serde::Deserialize;
 use serde_json::{json, Value};
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::{Arc, Mutex, MutexGuard};
 
@@ -47,8 +49,26 @@ pub struct Studio {
     /// The per-run temporary directory: the only place the server writes.
     pub tmp: PathBuf,
     pub max_pixels: u64,
+    /// Where corrected previews are computed (`--device`), and the engine once opened.
+    device: DeviceChoice,
+    engine: Mutex<Option<ServerDevice>>,
     frames: Mutex<Vec<(String, Arc<FrameSlot>)>>,
     next: AtomicU64,
+}
+
+/// The server's device for corrected previews, opened on first use with the policy of `apply`:
+/// `auto` takes a hardware GPU and else the CPU, `gpu` any adapter (or the preview fails),
+/// `cpu` the CPU.
+enum ServerDevice {
+    Gpu(Box<Engine>),
+    /// The CPU, and why (asked for, no adapter, only a software rasteriser).
+    Cpu(String),
+}
+
+/// Where a corrected preview was computed: `gpu` or `cpu`, and the adapter or the reason.
+pub struct Computed {
+    pub device: &'static str,
+    pub detail: String,
 }
 
 /// One open frame.
@@ -198,6 +218,14 @@ pub struct FrameState {
     pub preview_scale: usize,
     /// The frame box-filtered to the preview's size (linear camera RGB), for corrected previews.
     pub small: Frame,
+    /// The decoded frame (read and hashed once; every reading is taken from it) and the EXR
+    /// layer it was decoded with.
+    frame: Arc<CaptureFrame>,
+    frame_layer: Option<String>,
+    /// The decoded flat frame last used (`flat` setting of a listed file), by the setting.
+    flat_cache: Option<(String, Arc<Frame>)>,
+    /// An uploaded flat frame (its file name and pixels): the `upload` flat setting.
+    flat_upload: Option<(String, Arc<Frame>)>,
     pub settings: Settings,
     pub capture: Option<Capture>,
     pub error: Option<String>,
@@ -213,7 +241,12 @@ fn random_hex(bytes: usize) -> Result<String> {
 }
 
 impl Studio {
-    pub fn new(files: Vec<PathBuf>, port: u16, max_pixels: u64) -> Result<Studio> {
+    pub fn new(
+        files: Vec<PathBuf>,
+        port: u16,
+        max_pixels: u64,
+        device: DeviceChoice,
+    ) -> Result<Studio> {
         let token = random_hex(16)?;
         let tmp = std::env::temp_dir().join(format!(
             "nsrm-studio-{}-{}",
@@ -234,6 +267,8 @@ impl Studio {
             files,
             tmp,
             max_pixels,
+            device,
+            engine: Mutex::new(None),
             frames: Mutex::new(Vec::new()),
             next: AtomicU64::new(1),
         })
@@ -261,6 +296,16 @@ impl Studio {
         Ok((dir, id))
     }
 
+    /// A fresh directory for a flat frame uploaded for frame `id` (removed with the frame).
+    pub fn new_flat_dir(&self, id: &str) -> Result<PathBuf> {
+        let dir = self
+            .tmp
+            .join(id)
+            .join(format!("flat-{}", self.next.fetch_add(1, Ordering::SeqCst)));
+        std::fs::create_dir_all(&dir).with_context(|| format!("creating {}", dir.display()))?;
+        Ok(dir)
+    }
+
     pub fn info(&self) -> Value {
         json!({
             "version": env!("CARGO_PKG_VERSION"),
@@ -275,8 +320,43 @@ impl Studio {
             "kinds": ["lrm", "prm", "rprm", "nsrm"],
             "max_pixels": self.max_pixels,
             "max_upload_bytes": self.max_upload_bytes(),
-            "server_device": "cpu",
+            "server_device": self.device.name(),
         })
+    }
+
+    /// Applies `model` to `frame` on the server's device (opened on first use); where it ran.
+    pub fn correct(&self, model: &Model, frame: &mut Frame) -> Result<Computed> {
+        let mut dev = self.engine.lock().unwrap_or_else(|e| e.into_inner());
+        if dev.is_none() {
+            let opts = GpuOptions {
+                adapter: None,
+                tile_pixels: None,
+            };
+            *dev = Some(match nsrm::gpu::open_device(self.device, &opts) {
+                Ok(Opened::Gpu(e)) => ServerDevice::Gpu(e),
+                Ok(Opened::Cpu(why)) => ServerDevice::Cpu(why.to_string()),
+                // `gpu` asked for and none opened: said on every preview, tried again next time.
+                Err(e) => bail!("the server's GPU: {e}"),
+            });
+        }
+        match dev.as_mut() {
+            Some(ServerDevice::Gpu(e)) => {
+                e.apply(model, frame)
+                    .map_err(|e| anyhow::anyhow!("the server's GPU: {e}"))?;
+                Ok(Computed {
+                    device: "gpu",
+                    detail: e.adapter_name(),
+                })
+            }
+            Some(ServerDevice::Cpu(why)) => {
+                nsrm::model::fast::apply_frame(model, frame);
+                Ok(Computed {
+                    device: "cpu",
+                    detail: why.clone(),
+                })
+            }
+            None => bail!("the server's device was not opened"),
+        }
     }
 
     pub fn frame(&self, id: &str) -> Result<Arc<FrameSlot>> {
@@ -324,31 +404,14 @@ impl Studio {
 
     fn open_inner(&self, id: &str, path: PathBuf, uploaded: bool) -> Result<Arc<FrameSlot>> {
         // Read as the chart is read: one pixel per 2×2 block of a raw frame, a camera JPEG/PNG
-        // decoded with the sRGB transfer function.
-        let frame = nsrm::io::display::read_chart_frame(
-            &path,
-            &nsrm::io::ReadOptions {
-                layer: None,
-                limits: nsrm::io::Limits {
-                    max_pixels: self.max_pixels,
-                },
-                demosaic: values::Demosaic::Half.into(),
-            },
-            nsrm::io::display::Encoding::Auto,
-        )
-        .map(|r| r.frame)
-        .map_err(|e| {
-            BadRequest(format!(
-                "{}: not a frame nsrm can read: {e}",
-                path.file_name()
-                    .map(|s| s.to_string_lossy().into_owned())
-                    .unwrap_or_default()
-            ))
-        })?;
-        let img = nsrm::chart::overlay::render(&frame, None, &[], None);
+        // decoded with the sRGB transfer function. Decoded and hashed once: every reading of
+        // the chart (a corner drag, an exclusion) is taken from this frame.
+        let decoded = open_frame(&path, None, self.max_pixels)?;
+        let frame = decoded.frame();
+        let img = nsrm::chart::overlay::render(frame, None, &[], None);
         let scale = frame.width.div_ceil(img.width().max(1) as usize).max(1);
         let preview_png = nsrm::chart::overlay::encode(&img)?;
-        let small = downsample(&frame, scale);
+        let small = downsample(frame, scale);
         let shown = if uploaded {
             path.file_name()
                 .map(|s| s.to_string_lossy().into_owned())
@@ -366,6 +429,10 @@ impl Studio {
             preview_png,
             preview_scale: scale,
             small,
+            frame: decoded,
+            frame_layer: None,
+            flat_cache: None,
+            flat_upload: None,
             settings: Settings::default(),
             capture: None,
             error: None,
@@ -373,7 +440,6 @@ impl Studio {
             max_pixels: self.max_pixels,
             files: self.files.clone(),
         };
-        drop(frame);
         st.read();
         Ok(Arc::new(FrameSlot(Mutex::new(st))))
     }
@@ -385,6 +451,30 @@ fn formats() -> Vec<&'static str> {
         .copied()
         .filter(|f| Format::parse(f).is_some())
         .collect()
+}
+
+/// Decodes `path` as `chart extract` reads it by default (raw: half; JPEG/PNG: sRGB-decoded),
+/// with a message for the page when it cannot.
+fn open_frame(path: &Path, layer: Option<String>, max_pixels: u64) -> Result<Arc<CaptureFrame>> {
+    CaptureFrame::open(
+        path,
+        &nsrm::io::ReadOptions {
+            layer,
+            limits: nsrm::io::Limits { max_pixels },
+            demosaic: values::Demosaic::Half.into(),
+        },
+        nsrm::io::display::Encoding::Auto,
+    )
+    .map(Arc::new)
+    .map_err(|e| {
+        BadRequest(format!(
+            "{}: not a frame nsrm can read: {e}",
+            path.file_name()
+                .map(|s| s.to_string_lossy().into_owned())
+                .unwrap_or_default()
+        ))
+        .into()
+    })
 }
 
 /// `frame` box-filtered by `s` (RGB).
@@ -454,13 +544,19 @@ impl FrameState {
         let flat = match s.flat.as_deref().map(str::trim) {
             None | Some("") | Some("none") => None,
             Some(f) if f.eq_ignore_ascii_case("neutrals") => Some("neutrals".to_string()),
+            Some("upload") => Some(
+                self.flat_upload
+                    .as_ref()
+                    .map(|(name, _)| name.clone())
+                    .ok_or_else(|| BadRequest("flat `upload`: no flat frame uploaded".into()))?,
+            ),
             Some(f) => {
                 let i: usize = f
                     .strip_prefix("file:")
                     .and_then(|n| n.parse().ok())
                     .ok_or_else(|| {
                         BadRequest(format!(
-                            "flat `{f}`: none, neutrals or file:N (a listed file)"
+                            "flat `{f}`: none, neutrals, file:N (a listed file) or upload (the uploaded flat frame)"
                         ))
                     })?;
                 let p = self
@@ -489,14 +585,12 @@ impl FrameState {
         })
     }
 
-    /// Reads the chart with the current settings (as `chart extract` does).
+    /// Reads the chart with the current settings (as `chart extract` does), from the decoded
+    /// frame.
     fn read(&mut self) {
         self.fitted = None;
-        let r = self
-            .options()
-            .and_then(|o| o.read(&self.path, None).map(|c| (c, o)));
-        match r {
-            Ok((c, _)) => {
+        match self.read_inner() {
+            Ok(c) => {
                 self.capture = Some(c);
                 self.error = None;
             }
@@ -505,6 +599,66 @@ impl FrameState {
                 self.error = Some(explain_for_page(e));
             }
         }
+    }
+
+    fn read_inner(&mut self) -> Result<Capture> {
+        let o = self.options()?;
+        let reference = o.reference()?;
+        let layer = o.layer.clone();
+        if layer != self.frame_layer {
+            // Another EXR layer: the only setting that needs the file decoded again.
+            self.frame = open_frame(&self.path, layer.clone(), self.max_pixels)?;
+            self.frame_layer = layer;
+        }
+        let flat = match o.flat.as_deref() {
+            None => None,
+            Some(_) if self.settings.flat.as_deref().map(str::trim) == Some("upload") => self
+                .flat_upload
+                .as_ref()
+                .map(|(_, ff)| FlatField::Frame(ff)),
+            Some(f) if f.eq_ignore_ascii_case("neutrals") => Some(FlatField::Neutrals),
+            Some(f) => {
+                let key = self.settings.flat.clone().unwrap_or_default();
+                if self.flat_cache.as_ref().is_none_or(|(k, _)| *k != key) {
+                    self.flat_cache = None;
+                    let ff = o
+                        .flat_frame()?
+                        .ok_or_else(|| BadRequest(format!("flat `{f}`: not a flat frame")))?;
+                    self.flat_cache = Some((key, Arc::new(ff)));
+                }
+                self.flat_cache.as_ref().map(|(_, ff)| FlatField::Frame(ff))
+            }
+        };
+        let opts = ReadingOptions {
+            corners: self.settings.corners,
+            white_level: self.settings.white_level,
+            flat,
+        };
+        Ok(nsrm::chart::capture::read(&self.frame, &reference, &opts)?)
+    }
+
+    /// An uploaded flat frame (decoded as `--flat` reads one) becomes the flat field → a new
+    /// reading.
+    pub fn set_flat_upload(&mut self, path: &Path) -> Result<()> {
+        let name = path
+            .file_name()
+            .map(|s| s.to_string_lossy().into_owned())
+            .unwrap_or_default();
+        let ff = nsrm::io::read_frame(
+            path,
+            &nsrm::io::ReadOptions {
+                limits: nsrm::io::Limits {
+                    max_pixels: self.max_pixels,
+                },
+                demosaic: values::Demosaic::Half.into(),
+                ..Default::default()
+            },
+        )
+        .map_err(|e| BadRequest(format!("{name}: not a flat frame nsrm can read: {e}")))?;
+        self.flat_upload = Some((name, Arc::new(ff)));
+        self.settings.flat = Some("upload".into());
+        self.read();
+        Ok(())
     }
 
     /// New settings → a new reading.
@@ -581,6 +735,7 @@ impl FrameState {
             "error": self.error,
             "reading": self.capture.as_ref().map(|c| c.report()),
             "patches_spec": training,
+            "flat_upload": self.flat_upload.as_ref().map(|(name, _)| name),
             "fitted": self.fitted.as_ref().map(|f| json!({"kind": f.model.kind().to_string(), "order": f.model.order(), "report": f.report})),
             "command": self.command_text("clf", "xyz"),
         })
@@ -590,7 +745,7 @@ impl FrameState {
         let c = self.capture()?;
         let sw = self.fitted.as_ref().map(|f| capture::swatches(c, &f.model));
         let img = nsrm::chart::overlay::render(
-            &c.frame,
+            c.frame.frame(),
             Some(&c.extraction),
             &[],
             sw.as_deref().map(|s| (s, c.reference.white)),
@@ -672,12 +827,44 @@ impl FrameState {
     /// Leave-one-out and in-sample ΔE00 of every kind and order with the request's variant (as
     /// `eval --capture … --orders 1-4` and with `--in-sample`), and the best by leave-one-out
     /// mean.
-    pub fn compare(&self, body: Value) -> Result<Value> {
+    ///
+    /// In two steps so that the frame is not held while the models are evaluated (seconds to
+    /// minutes on an SG): [`compare_plan`](Self::compare_plan) takes what the comparison needs
+    /// under the frame's lock, [`ComparePlan::run`] computes without it.
+    pub fn compare_plan(&self, body: Value) -> Result<ComparePlan> {
         let req: FitRequest = serde_json::from_value(body)
             .map_err(|e| BadRequest(format!("compare request: {e}")))?;
         let custom = req.variant_args()?.options()?;
         let c = self.capture()?;
         let data = c.training_set().select(&self.patches_spec(c))?;
+        let command_head = format!(
+            "nsrm eval --capture {} {}{}",
+            quote(&self.shown),
+            self.capture_flags().join(" "),
+            self.patches_flag(&req.flags()),
+        );
+        Ok(ComparePlan {
+            custom,
+            data,
+            command_head,
+        })
+    }
+}
+
+/// A comparison of every kind and order, ready to run without the frame's lock.
+pub struct ComparePlan {
+    custom: nsrm::model::fit::FitOptions,
+    data: nsrm::training::TrainingSet,
+    command_head: String,
+}
+
+impl ComparePlan {
+    pub fn run(self) -> Result<Value> {
+        let ComparePlan {
+            custom,
+            data,
+            command_head,
+        } = self;
         let mut out = serde_json::Map::new();
         let mut best: Option<EvalResult> = None;
         // The orders each kind could be fitted at (leave-one-out), for the command lines.
@@ -733,10 +920,7 @@ impl FrameState {
             .iter()
             .map(|(kind, orders)| {
                 format!(
-                    "nsrm eval --capture {} {}{} --kinds {} --orders {} --json",
-                    quote(&self.shown),
-                    self.capture_flags().join(" "),
-                    self.patches_flag(&req.flags()),
+                    "{command_head} --kinds {} --orders {} --json",
                     kind.to_string().to_ascii_lowercase(),
                     orders
                         .iter()
@@ -749,7 +933,9 @@ impl FrameState {
         out.insert("command".into(), json!(lines.join("\n")));
         Ok(Value::Object(out))
     }
+}
 
+impl FrameState {
     /// ` --patches … --variant-flags` for `fit`/`eval`.
     fn patches_flag(&self, variant: &[String]) -> String {
         let mut s = String::new();
@@ -766,16 +952,17 @@ impl FrameState {
         s
     }
 
-    /// The corrected preview in `space` (sRGB PNG) and where it was computed.
-    pub fn corrected_png(&self, space: &str) -> Result<(Vec<u8>, String)> {
+    /// The corrected preview in `space` (sRGB PNG), computed on the server's device (`--device`),
+    /// and where it was computed.
+    pub fn corrected_png(&self, studio: &Studio, space: &str) -> Result<(Vec<u8>, Computed)> {
         let space = parse_space(space)?;
         let f = self.fitted()?;
         let out = nsrm::model::output_model(&f.model, space)?;
         let mut frame = self.small.clone();
-        nsrm::model::fast::apply_frame(&out, &mut frame);
+        let computed = studio.correct(&out, &mut frame)?;
         let png =
             nsrm::io::preview::encode_png(&frame, &to_linear_srgb(f.model.white_xyz(), space))?;
-        Ok((png, "cpu".into()))
+        Ok((png, computed))
     }
 
     /// The generated WGSL (the model with `space` folded in, as `export-shader --lang wgsl
@@ -844,18 +1031,58 @@ impl FrameState {
         // Written through an output session of its own, into this run's temporary directory.
         let session = nsrm::output::Session::new(false);
         let mut unit = session.unit();
-        let r = export_to(
-            &f.model,
-            format,
-            space,
-            options,
-            &training.rgb,
-            None,
-            &dest,
-            &mut unit,
-        );
-        let bytes = r
+        let r = if format == Format::Dcp {
+            // As `export --format dcp` does for a one-illuminant model file: the model as a
+            // profile, its training patches, the default map and stops, no accuracy limit.
+            nsrm::model::dual_illuminant::Profile::single(f.model.clone())
+                .map_err(anyhow::Error::from)
+                .and_then(|profile| {
+                    let t = nsrm::export::dcp::DcpTraining {
+                        rgb: training.rgb.clone(),
+                        white_rgb: training.white_rgb,
+                    };
+                    nsrm::export::dcp::export_to(
+                        &profile,
+                        &[t],
+                        nsrm::export::dcp::DcpOptions::default(),
+                        options.stops,
+                        None,
+                        &dest,
+                        &mut unit,
+                    )
+                    .map(|_| ())
+                    .map_err(anyhow::Error::from)
+                })
+        } else if format == Format::Icc {
+            // As `export --format icc` does: the LUT size asked for, the default stops.
+            nsrm::export::icc::export_to(
+                &f.model,
+                nsrm::export::icc::IccOptions {
+                    size: options.size,
+                    lo: nsrm::export::icc::DEFAULT_LO,
+                },
+                &training.rgb,
+                None,
+                &dest,
+                &mut unit,
+            )
+            .map(|_| ())
             .map_err(anyhow::Error::from)
+        } else {
+            export_to(
+                &f.model,
+                format,
+                space,
+                options,
+                &training.rgb,
+                None,
+                &dest,
+                &mut unit,
+            )
+            .map(|_| ())
+            .map_err(anyhow::Error::from)
+        };
+        let bytes = r
             .and_then(|_| unit.commit().map_err(anyhow::Error::from))
             .and_then(|_| {
                 std::fs::read(&dest).with_context(|| format!("reading {}", dest.display()))
@@ -932,7 +1159,7 @@ impl FrameState {
 
 /// An error as the page shows it: the page's way out (drag the corners, pick a setting) where the
 /// CLI's hint would name a flag.
-fn explain_for_page(e: anyhow::Error) -> String {
+pub fn explain_for_page(e: anyhow::Error) -> String {
     use nsrm::error::{Concern, Param};
     let page_remedy = |p: Param| {
         match p {
@@ -941,15 +1168,43 @@ fn explain_for_page(e: anyhow::Error) -> String {
         ),
         Param::Reflectances | Param::ReferenceWhite => Some("pick another reference"),
         Param::Flat => Some("pick another flat field"),
+        Param::WhitePatch => Some("name a neutral patch as the white patch"),
+        Param::MaxPixels => Some(
+            "the frame is over the studio's pixel limit: restart the studio with a higher limit if the frame is genuine",
+        ),
         _ => None,
     }
     };
-    match e.chain().find_map(super::super::errors::concern) {
+    let text = match e.chain().find_map(super::super::errors::concern) {
         Some(Concern::Remedy(p)) | Some(Concern::Value(p)) if page_remedy(p).is_some() => {
             format!("{e:#}. Way out: {}.", page_remedy(p).unwrap_or_default())
         }
-        _ => super::super::common::explain_line(e),
+        _ => format!("{e:#}"),
+    };
+    unflag(&text)
+}
+
+/// The page's words for a message that names a CLI flag: `--white-patch` → `white patch` (the
+/// page's controls are named as the flags are, without the dashes).
+pub fn unflag(s: &str) -> String {
+    let mut out = String::with_capacity(s.len());
+    let mut rest = s;
+    while let Some(i) = rest.find("--") {
+        let after = &rest[i + 2..];
+        if after.starts_with(|c: char| c.is_ascii_lowercase()) {
+            out.push_str(&rest[..i]);
+            let end = after
+                .find(|c: char| !(c.is_ascii_alphanumeric() || c == '-'))
+                .unwrap_or(after.len());
+            out.push_str(&after[..end].replace('-', " "));
+            rest = &after[end..];
+        } else {
+            out.push_str(&rest[..i + 2]);
+            rest = after;
+        }
     }
+    out.push_str(rest);
+    out
 }
 
 /// `--corners` text of four points, each number written so it reads back exactly.
@@ -974,6 +1229,22 @@ mod tests {
             corners_text([[1.5, 2.0], [3.0, 4.0], [5.0, 6.0], [7.0, 8.25]]),
             "1.5,2 3,4 5,6 7,8.25"
         );
+    }
+
+    #[test]
+    fn page_messages_name_no_flags() {
+        assert_eq!(
+            unflag("--objective `x`: use --white-patch D4 or --ridge auto"),
+            "objective `x`: use white patch D4 or ridge auto"
+        );
+        assert_eq!(unflag("a -- b --1 c"), "a -- b --1 c");
+        let e = anyhow::Error::new(nsrm::io::IoError::OverLimit {
+            path: "big.exr".into(),
+            why: "10 pixels, more than the limit of 5".into(),
+        });
+        let m = explain_for_page(e);
+        assert!(!m.contains("--"), "{m}");
+        assert!(m.contains("Way out"), "{m}");
     }
 
     #[test]

@@ -63,6 +63,7 @@ function option(sel, value, text) {
   o.value = value;
   o.textContent = text === undefined ? value : text;
   sel.appendChild(o);
+  return o;
 }
 
 // ---- opening frames -------------------------------------------------------------------------
@@ -115,6 +116,25 @@ async function upload(file) {
   }
 }
 
+async function uploadFlat(file) {
+  if (!S.frame) {
+    status('open a frame first, then its flat frame', true);
+    return;
+  }
+  if (S.info && file.size > S.info.max_upload_bytes) {
+    status(`${file.name}: ${file.size} bytes is over the limit of ${S.info.max_upload_bytes}`, true);
+    return;
+  }
+  status(`uploading the flat frame ${file.name}…`);
+  try {
+    const st = await api('POST', `/api/frames/${S.frame.id}/flat?name=` + encodeURIComponent(file.name), file, true);
+    showFrame(st);
+    if (!st.error) status(`flat field: ${file.name}`);
+  } catch (e) {
+    status(e.message, true);
+  }
+}
+
 function showFrame(st) {
   const first = !S.frame || S.frame.id !== st.id;
   S.frame = st;
@@ -135,7 +155,15 @@ function showFrame(st) {
   $('frame-name').textContent = `${st.name} (${st.width}×${st.height})`;
   $('chart').value = st.settings.chart;
   $('reference').value = st.settings.reference || '';
-  $('flat').value = st.settings.flat || 'none';
+  const flatSel = $('flat');
+  let up = flatSel.querySelector('option[value="upload"]');
+  if (st.flat_upload) {
+    if (!up) up = option(flatSel, 'upload', '');
+    up.textContent = 'flat frame: ' + st.flat_upload + ' (uploaded)';
+  } else if (up) {
+    up.remove();
+  }
+  flatSel.value = st.settings.flat || 'none';
   S.dragCorners = null;
   if (!st.fitted) {
     S.fit = null;
@@ -168,6 +196,9 @@ function el(name, attrs, parent) {
   return e;
 }
 
+// Smallest label drawn, in screen pixels.
+const MIN_LABEL_PX = 7;
+
 function drawOverlay() {
   const st = S.frame;
   const svg = $('overlay');
@@ -179,6 +210,10 @@ function drawOverlay() {
   const pitch = patches.length > 1
     ? Math.hypot(patches[0].outline[1][0] - patches[0].outline[0][0], patches[0].outline[1][1] - patches[0].outline[0][1])
     : st.width / 20;
+  // Screen pixels per frame pixel (the overlay is scaled with the preview).
+  const shown = svg.getBoundingClientRect().width;
+  const scale = shown > 0 ? shown / st.width : 1;
+  let hidden = 0;
   for (const p of patches) {
     const flagged = p.flags.length > 0;
     const cls = 'patch' + (flagged ? ' flagged' : '') + (excluded.has(p.label) ? ' excluded' : '');
@@ -188,9 +223,20 @@ function drawOverlay() {
     t.textContent = `${p.label}: RGB ${p.rgb.map((v) => v.toPrecision(4)).join(', ')}` +
       (flagged ? ` — ${p.flags.join(', ')}` : '') + (excluded.has(p.label) ? ' — excluded by hand' : '');
     poly.addEventListener('click', () => toggleExclude(p));
-    const lab = el('text', { class: 'plabel' + (flagged ? ' flagged' : ''), x: p.centre[0], y: p.centre[1], 'font-size': Math.max(8, pitch * 0.45) }, svg);
-    lab.textContent = flagged ? `${p.label} ${p.flags.map((f) => f[0].toUpperCase()).join('')}` : p.label;
+    // A label fits inside its patch (about 0.6 em per character), and is left out when it would
+    // be too small to read on screen: then the patch's tooltip names it.
+    // The patch's number or grid name (`01`, `A1`); the full name is in the tooltip.
+    const short = p.label.split(' ')[0];
+    const text = flagged ? `${short} ${p.flags.map((f) => f[0].toUpperCase()).join('')}` : short;
+    const size = Math.min(pitch * 0.45, (pitch * 0.9) / (0.6 * text.length));
+    if (size * scale < MIN_LABEL_PX) {
+      hidden++;
+      continue;
+    }
+    const lab = el('text', { class: 'plabel' + (flagged ? ' flagged' : ''), x: p.centre[0], y: p.centre[1], 'font-size': size }, svg);
+    lab.textContent = text;
   }
+  svg.dataset.labelsHidden = String(hidden);
   const c = currentCorners();
   el('polygon', { class: 'grid', points: c.map((q) => q.join(',')).join(' ') }, svg);
   const r = Math.max(st.width, st.height) / 90;
@@ -450,20 +496,44 @@ async function showCorrected() {
       $('corrected-device').textContent = 'WebGPU failed (' + e.message + '); computed by the server instead.';
     }
   }
-  const url = withToken(`/api/frames/${S.frame.id}/corrected.png?space=${encodeURIComponent(space)}`);
   const img = $('corrected');
-  await new Promise((ok, bad) => {
-    img.onload = ok;
-    img.onerror = () => bad(new Error('the corrected preview failed'));
-    img.src = url;
-  }).catch((e) => status(e.message, true));
+  let ran = null;
+  try {
+    const r = await fetch(`/api/frames/${S.frame.id}/corrected.png?space=${encodeURIComponent(space)}`, {
+      headers: { 'X-Nsrm-Token': TOKEN },
+    });
+    if (!r.ok) {
+      const ct = r.headers.get('Content-Type') || '';
+      const data = ct.startsWith('application/json') ? await r.json() : { error: await r.text() };
+      throw new Error((data && data.error) || r.statusText);
+    }
+    ran = { device: r.headers.get('X-Nsrm-Device') || 'cpu', detail: r.headers.get('X-Nsrm-Device-Detail') || '' };
+    const blob = await r.blob();
+    if (img.dataset.objectUrl) URL.revokeObjectURL(img.dataset.objectUrl);
+    const objectUrl = URL.createObjectURL(blob);
+    img.dataset.objectUrl = objectUrl;
+    await new Promise((ok, bad) => {
+      img.onload = ok;
+      img.onerror = () => bad(new Error('the corrected preview failed'));
+      img.src = objectUrl;
+    });
+  } catch (e) {
+    status('corrected preview: ' + e.message, true);
+    return;
+  }
   img.hidden = false;
   $('corrected-canvas').hidden = true;
   const why = navigator.gpu ? '' : ' (this browser has no WebGPU)';
+  const where = ran.device === 'gpu'
+    ? `on its GPU (${ran.detail})`
+    : `on the CPU${ran.detail && !ran.detail.includes('was asked for') ? ' (' + ran.detail + ')' : ''}`;
   if (!useGpu || !$('corrected-device').textContent.startsWith('WebGPU failed')) {
-    $('corrected-device').textContent = `Computed by the nsrm server on the CPU${why}, as nsrm apply --output-space ${space} does.`;
+    $('corrected-device').textContent = `Computed by the nsrm server ${where}${why}, as nsrm apply --output-space ${space} does.`;
+  } else {
+    $('corrected-device').textContent += ` The server computed it ${where}.`;
   }
   $('corrected-device').dataset.device = 'server';
+  $('corrected-device').dataset.serverDevice = ran.device;
 }
 
 function srgb8(v) {
@@ -524,7 +594,7 @@ async function correctedWebGpu(space) {
   return [info.vendor, info.architecture].filter(Boolean).join(' ') || 'adapter';
 }
 
-// The page's WebGPU result against the server's CPU preview, in 8-bit codes.
+// The page's WebGPU result against the server's preview, in 8-bit codes.
 async function compareWithServer(space) {
   const url = withToken(`/api/frames/${S.frame.id}/corrected.png?space=${encodeURIComponent(space)}`);
   const img = new Image();
@@ -543,7 +613,7 @@ async function compareWithServer(space) {
   let max = 0;
   for (let i = 0; i < a.length; i++) if ((i & 3) !== 3) max = Math.max(max, Math.abs(a[i] - b[i]));
   const el2 = $('corrected-device');
-  el2.textContent += ` Largest difference from the server's CPU preview: ${max}/255.`;
+  el2.textContent += ` Largest difference from the server's preview: ${max}/255.`;
   el2.dataset.maxDiff = String(max);
 }
 
@@ -582,6 +652,9 @@ async function refreshCommand() {
 // ---- wiring ---------------------------------------------------------------------------------
 
 function wire() {
+  window.addEventListener('resize', () => {
+    if (S.frame) drawOverlay();
+  });
   $('open-file').addEventListener('click', openListed);
   $('file-input').addEventListener('change', (e) => {
     if (e.target.files[0]) upload(e.target.files[0]);
@@ -596,7 +669,15 @@ function wire() {
     e.preventDefault();
     viewer.classList.remove('dragging');
     const f = e.dataTransfer && e.dataTransfer.files[0];
-    if (f) upload(f);
+    if (!f) return;
+    // Dropped on the flat-field control: the flat frame of the open frame.
+    const onFlat = e.target instanceof Element && e.target.closest('#flat-drop, #flat-input');
+    if (onFlat) uploadFlat(f);
+    else upload(f);
+  });
+  $('flat-input').addEventListener('change', (e) => {
+    if (e.target.files[0]) uploadFlat(e.target.files[0]);
+    e.target.value = '';
   });
   $('chart').addEventListener('change', () => setReading({ chart: $('chart').value, corners: null, exclude: [] }));
   $('reference').addEventListener('change', () => setReading({ reference: $('reference').value || null }));

@@ -342,21 +342,8 @@ pub fn run(a: Args) -> Result<ExitCode> {
     report_stale(&plan, a.remove_stale_temporaries && !a.dry_run);
     if a.dry_run {
         println!("# {scope}; model {}", a.model.display());
-        for j in &plan.jobs {
-            let what = match &j.action {
-                Action::Convert => String::new(),
-                Action::Skip(why) => format!("  # skip: {why}"),
-                Action::Fail(why) => format!("  # would fail: {}", refusal(why)),
-            };
-            match &j.preview {
-                Some(p) => println!(
-                    "{} -> {} (+ {}){what}",
-                    j.input.display(),
-                    j.output.display(),
-                    p.display()
-                ),
-                None => println!("{} -> {}{what}", j.input.display(), j.output.display()),
-            }
+        for line in dry_run_lines(&plan) {
+            println!("{line}");
         }
         return Ok(ExitCode::SUCCESS);
     }
@@ -364,32 +351,11 @@ pub fn run(a: Args) -> Result<ExitCode> {
         eprintln!("nsrm apply: nothing to do ({scope})");
         return Ok(ExitCode::SUCCESS);
     }
-
-    // The run's outputs: the plan compared them with the frames; the session adds the model.
-    let mut session = Session::new(a.overwrite);
-    session.input(&a.model)?;
-    for j in plan
-        .jobs
-        .iter()
-        .filter(|j| matches!(j.action, Action::Convert))
-    {
-        session.output(&j.output)?;
-        if let Some(p) = &j.preview {
-            session.output(p)?;
-        }
-    }
+    let session = open_session(&a, &plan)?;
 
     // Run.
     let interrupt = Interrupt::install(&session)?;
-    let mut outcomes: Vec<Option<Outcome>> = plan
-        .jobs
-        .iter()
-        .map(|j| match &j.action {
-            Action::Convert => None,
-            Action::Skip(why) => Some(Outcome::Skipped(why.clone())),
-            Action::Fail(why) => Some(Outcome::Failed(refusal(why))),
-        })
-        .collect();
+    let mut outcomes = planned_outcomes(&plan);
     let early_failure = outcomes
         .iter()
         .any(|o| matches!(o, Some(Outcome::Failed(_))));
@@ -406,28 +372,11 @@ pub fn run(a: Args) -> Result<ExitCode> {
         };
         corrector_name = corrector.describe();
         let todo = plan.to_convert();
-        let workers = a.jobs.unwrap_or_else(|| {
-            std::thread::available_parallelism()
-                .map(|n| n.get())
-                .unwrap_or(2)
-        });
         let settings = Settings {
-            read: ReadOptions {
-                layer: a.layer.clone(),
-                limits: Limits {
-                    max_pixels: a.max_pixels,
-                },
-                demosaic: a.demosaic.into(),
-            },
-            write: WriteOptions {
-                format: req.format,
-                half: a.half,
-                compression: req.compression,
-                space: req.space,
-                zip_level: a.zip_level,
-            },
+            read: read_options(&a),
+            write: write_options(&a, &req),
             to_srgb: nsrm::colorimetry::to_linear_srgb(model.white_xyz(), req.space),
-            workers: workers.min(todo.len()).max(1),
+            workers: workers(a.jobs, todo.len()),
             continue_on_error: a.continue_on_error,
             interrupt: interrupt.clone(),
             session: &session,
@@ -451,33 +400,22 @@ pub fn run(a: Args) -> Result<ExitCode> {
     let removed = session.remove_temporaries();
 
     // Report.
-    let count = |f: fn(&Outcome) -> bool| outcomes.iter().flatten().filter(|o| f(o)).count();
-    let converted = count(|o| matches!(o, Outcome::Converted));
-    let skipped = count(|o| matches!(o, Outcome::Skipped(_)));
-    let failed = count(|o| matches!(o, Outcome::Failed(_)));
-    let aborted = count(|o| matches!(o, Outcome::Aborted));
-    let not_attempted = outcomes.iter().filter(|o| o.is_none()).count();
+    let tally = Tally::of(&outcomes);
     let signal = interrupt.received();
-    eprintln!(
-        "nsrm apply: {}{converted} converted, {skipped} skipped, {failed} failed{}{} ({scope}; {}; output {} {}{})",
-        match signal {
-            Some((name, _)) => format!("interrupted by {name}: "),
-            None => String::new(),
-        },
-        if aborted > 0 {
-            format!(", {aborted} aborted while being written")
-        } else {
-            String::new()
-        },
-        if not_attempted > 0 {
-            format!(", {not_attempted} not attempted")
-        } else {
-            String::new()
-        },
-        if corrector_name.is_empty() { "no correction run".to_string() } else { corrector_name },
+    let corrector = if corrector_name.is_empty() {
+        "no correction run".to_string()
+    } else {
+        corrector_name
+    };
+    let output = format!(
+        "{} {}{}",
         req.space.name(),
         req.format.name(),
-        if a.half { " half" } else { "" },
+        if a.half { " half" } else { "" }
+    );
+    eprintln!(
+        "{}",
+        tally.summary(signal.map(|s| s.0), &scope, &corrector, &output)
     );
     for (j, o) in plan.jobs.iter().zip(&outcomes) {
         match o {
@@ -486,23 +424,178 @@ pub fn run(a: Args) -> Result<ExitCode> {
             _ => {}
         }
     }
-    if let Some((name, _)) = signal {
-        eprintln!(
-            "  stopped by {name}: {not_attempted} not attempted, {aborted} aborted while being written (nothing of them committed); {removed} temporary file(s) of this run removed"
-        );
-    } else if not_attempted > 0 {
-        eprintln!(
-            "  {not_attempted} not attempted: stopped after the first failure (pass --continue-on-error to go on)"
-        );
+    if let Some(line) = tally.stop_note(signal.map(|s| s.0), removed) {
+        eprintln!("{line}");
     }
     if a.timing {
         print_timing(&timing, wall);
     }
     Ok(match signal {
         Some((_, status)) => ExitCode::from(status),
-        None if failed > 0 => ExitCode::from(1),
+        None if tally.failed > 0 => ExitCode::from(1),
         None => ExitCode::SUCCESS,
     })
+}
+
+/// What `--dry-run` prints for each job: `input -> output (+ preview)`, and why it would be
+/// skipped or fail.
+fn dry_run_lines(plan: &BatchPlan) -> Vec<String> {
+    plan.jobs
+        .iter()
+        .map(|j| {
+            let what = match &j.action {
+                Action::Convert => String::new(),
+                Action::Skip(why) => format!("  # skip: {why}"),
+                Action::Fail(why) => format!("  # would fail: {}", refusal(why)),
+            };
+            match &j.preview {
+                Some(p) => format!(
+                    "{} -> {} (+ {}){what}",
+                    j.input.display(),
+                    j.output.display(),
+                    p.display()
+                ),
+                None => format!("{} -> {}{what}", j.input.display(), j.output.display()),
+            }
+        })
+        .collect()
+}
+
+/// The run's output session: the plan compared the outputs with the frames; the session adds
+/// the model and declares every output and preview to be written.
+fn open_session(a: &Args, plan: &BatchPlan) -> Result<Session> {
+    let mut session = Session::new(a.overwrite);
+    session.input(&a.model)?;
+    for j in plan
+        .jobs
+        .iter()
+        .filter(|j| matches!(j.action, Action::Convert))
+    {
+        session.output(&j.output)?;
+        if let Some(p) = &j.preview {
+            session.output(p)?;
+        }
+    }
+    Ok(session)
+}
+
+/// Each job's outcome known before anything runs (skipped, refused); `None` for those to
+/// convert.
+fn planned_outcomes(plan: &BatchPlan) -> Vec<Option<Outcome>> {
+    plan.jobs
+        .iter()
+        .map(|j| match &j.action {
+            Action::Convert => None,
+            Action::Skip(why) => Some(Outcome::Skipped(why.clone())),
+            Action::Fail(why) => Some(Outcome::Failed(refusal(why))),
+        })
+        .collect()
+}
+
+fn read_options(a: &Args) -> ReadOptions {
+    ReadOptions {
+        layer: a.layer.clone(),
+        limits: Limits {
+            max_pixels: a.max_pixels,
+        },
+        demosaic: a.demosaic.into(),
+    }
+}
+
+fn write_options(a: &Args, req: &Request) -> WriteOptions {
+    WriteOptions {
+        format: req.format,
+        half: a.half,
+        compression: req.compression,
+        space: req.space,
+        zip_level: a.zip_level,
+    }
+}
+
+/// Reader/writer threads: `--jobs`, else the machine's parallelism; at least 1 and no more
+/// than the frames to convert.
+fn workers(jobs: Option<usize>, frames: usize) -> usize {
+    let n = jobs.unwrap_or_else(|| {
+        std::thread::available_parallelism()
+            .map(|n| n.get())
+            .unwrap_or(2)
+    });
+    n.min(frames).max(1)
+}
+
+/// The outcomes of a run, counted.
+#[derive(Debug, Default, PartialEq, Eq)]
+struct Tally {
+    converted: usize,
+    skipped: usize,
+    failed: usize,
+    aborted: usize,
+    not_attempted: usize,
+}
+
+impl Tally {
+    fn of(outcomes: &[Option<Outcome>]) -> Tally {
+        let mut t = Tally::default();
+        for o in outcomes {
+            match o {
+                Some(Outcome::Converted) => t.converted += 1,
+                Some(Outcome::Skipped(_)) => t.skipped += 1,
+                Some(Outcome::Failed(_)) => t.failed += 1,
+                Some(Outcome::Aborted) => t.aborted += 1,
+                None => t.not_attempted += 1,
+            }
+        }
+        t
+    }
+
+    /// The summary line: interrupted by which signal, the counts, and what ran.
+    fn summary(&self, signal: Option<&str>, scope: &str, corrector: &str, output: &str) -> String {
+        let Tally {
+            converted,
+            skipped,
+            failed,
+            aborted,
+            not_attempted,
+        } = self;
+        format!(
+            "nsrm apply: {}{converted} converted, {skipped} skipped, {failed} failed{}{} ({scope}; {corrector}; output {output})",
+            match signal {
+                Some(name) => format!("interrupted by {name}: "),
+                None => String::new(),
+            },
+            if *aborted > 0 {
+                format!(", {aborted} aborted while being written")
+            } else {
+                String::new()
+            },
+            if *not_attempted > 0 {
+                format!(", {not_attempted} not attempted")
+            } else {
+                String::new()
+            },
+        )
+    }
+
+    /// Why frames were left: a signal (and the temporaries removed), or the first failure
+    /// without `--continue-on-error`.
+    fn stop_note(&self, signal: Option<&str>, removed: usize) -> Option<String> {
+        let Tally {
+            aborted,
+            not_attempted,
+            ..
+        } = self;
+        if let Some(name) = signal {
+            Some(format!(
+                "  stopped by {name}: {not_attempted} not attempted, {aborted} aborted while being written (nothing of them committed); {removed} temporary file(s) of this run removed"
+            ))
+        } else if *not_attempted > 0 {
+            Some(format!(
+                "  {not_attempted} not attempted: stopped after the first failure (pass --continue-on-error to go on)"
+            ))
+        } else {
+            None
+        }
+    }
 }
 
 /// `input: why`, or `why` alone when it already starts with the input's name.
@@ -992,5 +1085,93 @@ mod farm_tests {
             let b = Cmd::try_parse_from(&again).unwrap().a;
             assert_eq!(format!("{:?}", a), format!("{:?}", b), "{given:?}");
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn plan(actions: Vec<(Action, bool)>) -> BatchPlan {
+        BatchPlan {
+            jobs: actions
+                .into_iter()
+                .enumerate()
+                .map(|(i, (action, preview))| batch::Job {
+                    input: PathBuf::from(format!("in{i}.exr")),
+                    output: PathBuf::from(format!("out/in{i}.exr")),
+                    preview: preview.then(|| PathBuf::from(format!("prev/in{i}.png"))),
+                    action,
+                })
+                .collect(),
+            total_inputs: 2,
+            shard: None,
+            dirs: Vec::new(),
+            stale_temporaries: Vec::new(),
+        }
+    }
+
+    #[test]
+    fn dry_run_and_planned_outcomes_follow_the_plan() {
+        let p = plan(vec![
+            (Action::Convert, true),
+            (Action::Skip("exists".into()), false),
+        ]);
+        assert_eq!(
+            dry_run_lines(&p),
+            [
+                "in0.exr -> out/in0.exr (+ prev/in0.png)",
+                "in1.exr -> out/in1.exr  # skip: exists"
+            ]
+        );
+        let o = planned_outcomes(&p);
+        assert!(o[0].is_none());
+        assert!(matches!(&o[1], Some(Outcome::Skipped(w)) if w == "exists"));
+    }
+
+    #[test]
+    fn tally_counts_and_words_the_summary() {
+        let outcomes = vec![
+            Some(Outcome::Converted),
+            Some(Outcome::Converted),
+            Some(Outcome::Failed("x".into())),
+            Some(Outcome::Aborted),
+            None,
+        ];
+        let t = Tally::of(&outcomes);
+        assert_eq!(
+            t,
+            Tally {
+                converted: 2,
+                skipped: 0,
+                failed: 1,
+                aborted: 1,
+                not_attempted: 1
+            }
+        );
+        let line = t.summary(Some("SIGINT"), "all 5", "cpu", "acescg exr half");
+        assert_eq!(
+            line,
+            "nsrm apply: interrupted by SIGINT: 2 converted, 0 skipped, 1 failed, 1 aborted while being written, 1 not attempted (all 5; cpu; output acescg exr half)"
+        );
+        assert!(t
+            .stop_note(Some("SIGINT"), 3)
+            .unwrap()
+            .contains("3 temporary file(s)"));
+        assert!(t
+            .stop_note(None, 0)
+            .unwrap()
+            .contains("--continue-on-error"));
+        let clean = Tally::of(&[Some(Outcome::Converted)]);
+        assert_eq!(clean.stop_note(None, 0), None);
+        assert!(!clean.summary(None, "s", "c", "o").contains("not attempted"));
+    }
+
+    #[test]
+    fn workers_are_bounded_by_the_frames() {
+        assert_eq!(workers(Some(8), 3), 3);
+        assert_eq!(workers(Some(0), 3), 1);
+        assert_eq!(workers(Some(2), 0), 1);
+        assert!(workers(None, 1000) >= 1);
     }
 }

@@ -363,13 +363,7 @@ pub fn run(a: Args) -> Result<ExitCode> {
     let mut timing = Timing::default();
     let mut corrector_name = String::new();
     if (!early_failure || a.continue_on_error) && !interrupt.stopped() {
-        let mut corrector = if extra.is_empty() {
-            Corrector::open(req.device, a.adapter.as_deref(), &out_model)?
-        } else {
-            let mut v = vec![FastModel::new(&out_model)];
-            v.extend(extra.iter().map(FastModel::new));
-            Corrector::Mix(v)
-        };
+        let mut corrector = open_corrector(&req, &a, &out_model, &extra)?;
         corrector_name = corrector.describe();
         let todo = plan.to_convert();
         let settings = Settings {
@@ -407,12 +401,8 @@ pub fn run(a: Args) -> Result<ExitCode> {
     } else {
         corrector_name
     };
-    let output = format!(
-        "{} {}{}",
-        req.space.name(),
-        req.format.name(),
-        if a.half { " half" } else { "" }
-    );
+    let half = if a.half { " half" } else { "" };
+    let output = format!("{} {}{half}", req.space.name(), req.format.name());
     eprintln!(
         "{}",
         tally.summary(signal.map(|s| s.0), &scope, &corrector, &output)
@@ -435,6 +425,22 @@ pub fn run(a: Args) -> Result<ExitCode> {
         None if tally.failed > 0 => ExitCode::from(1),
         None => ExitCode::SUCCESS,
     })
+}
+
+/// The correction step: the device asked for, or for a two-illuminant model between its
+/// illuminants the CPU mix of its models (`extra`, folded like `out_model`).
+fn open_corrector(
+    req: &Request,
+    a: &Args,
+    out_model: &Model,
+    extra: &[Model],
+) -> Result<Corrector> {
+    if extra.is_empty() {
+        return Corrector::open(req.device, a.adapter.as_deref(), out_model);
+    }
+    let mut v = vec![FastModel::new(out_model)];
+    v.extend(extra.iter().map(FastModel::new));
+    Ok(Corrector::Mix(v))
 }
 
 /// What `--dry-run` prints for each job: `input -> output (+ preview)`, and why it would be

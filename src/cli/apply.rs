@@ -21,7 +21,7 @@ use std::io::IsTerminal;
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
-use std::sync::mpsc::sync_channel;
+use std::sync::mpsc::{sync_channel, Receiver, SyncSender};
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
@@ -683,103 +683,147 @@ fn run_pipeline(
     pb: &ProgressBar,
     timing: &mut Timing,
 ) -> Vec<(usize, Outcome)> {
-    let interrupt = &s.interrupt;
-    let stop = AtomicBool::new(false);
-    let next = AtomicUsize::new(0);
-    let results: Mutex<Vec<(usize, Outcome)>> = Mutex::new(Vec::new());
-    let shared_timing = Mutex::new(Timing::default());
-    let started = Instant::now();
-    let fail = |i: usize, why: String| {
-        pb.suspend(|| eprintln!("nsrm apply: failed: {why}"));
-        if !s.continue_on_error {
-            stop.store(true, Ordering::SeqCst);
-        }
-        results
-            .lock()
-            .unwrap_or_else(|e| e.into_inner())
-            .push((i, Outcome::Failed(why)));
-        pb.inc(1);
-    };
     // Frames alive at once (decoding, queued, correcting, encoding): `--jobs` + 1, so peak memory
-    // stays under (jobs + 2) decoded frames.
-    let permits = Permits::new(s.workers + 1);
-    let permits = &permits;
-    // Frame buffers of written frames, reused by the next decodes: never more buffers than
-    // frames alive at once, so the bound above holds.
-    let pool = fio::FramePool::new(s.workers + 1);
-    let pool = &pool;
+    // stays under (jobs + 2) decoded frames. Frame buffers of written frames are reused by the
+    // next decodes: never more buffers than frames alive at once, so the bound holds.
+    let p = Pipeline {
+        jobs,
+        todo,
+        s,
+        pb,
+        stop: AtomicBool::new(false),
+        next: AtomicUsize::new(0),
+        results: Mutex::new(Vec::new()),
+        timing: Mutex::new(Timing::default()),
+        started: Instant::now(),
+        permits: Permits::new(s.workers + 1),
+        pool: fio::FramePool::new(s.workers + 1),
+    };
+    let p = &p;
     std::thread::scope(|scope| {
         let (dec_tx, dec_rx) = sync_channel::<(usize, Decoded)>(s.workers);
         let (enc_tx, enc_rx) = sync_channel::<(usize, Decoded)>(s.workers);
         let enc_rx = Arc::new(Mutex::new(enc_rx));
         for _ in 0..s.workers {
             let tx = dec_tx.clone();
-            let (stop, next, fail, shared_timing) = (&stop, &next, &fail, &shared_timing);
-            scope.spawn(move || loop {
-                permits.acquire();
-                if stop.load(Ordering::SeqCst) || interrupt.stopped() {
-                    permits.release();
-                    break;
-                }
-                let k = next.fetch_add(1, Ordering::SeqCst);
-                let Some(&i) = todo.get(k) else {
-                    permits.release();
-                    break;
-                };
-                let t = Instant::now();
-                match Decoded::read_pooled(&jobs[i].input, &s.read, pool) {
-                    Ok(d) => {
-                        lock(shared_timing).decode += t.elapsed();
-                        if tx.send((i, d)).is_err() {
-                            permits.release();
-                            break;
-                        }
-                    }
-                    Err(e) => {
-                        permits.release();
-                        fail(i, super::common::explain_line(e.into()))
-                    }
-                }
-            });
+            scope.spawn(move || p.decode_loop(tx));
         }
         drop(dec_tx);
         for _ in 0..s.workers {
             let rx = Arc::clone(&enc_rx);
-            let (fail, results, shared_timing) = (&fail, &results, &shared_timing);
-            scope.spawn(move || loop {
-                let msg = lock(&rx).recv();
-                let Ok((i, d)) = msg else { break };
-                if interrupt.stopped() {
-                    // Not started: left as not attempted.
-                    drop(d);
-                    permits.release();
-                    continue;
-                }
-                let t = Instant::now();
-                let pixels = d.pixels();
-                let encoded = encode(&jobs[i], d, s, pool);
-                permits.release();
-                match encoded {
-                    Ok(()) => {
-                        let mut tm = lock(shared_timing);
-                        tm.encode += t.elapsed();
-                        tm.pixels += pixels;
-                        tm.frames += 1;
-                        let rate = tm.pixels as f64 / started.elapsed().as_secs_f64().max(1e-9);
-                        drop(tm);
-                        lock(results).push((i, Outcome::Converted));
-                        pb.set_message(format!("{:.1} Mpixel/s", rate / 1e6));
-                        pb.inc(1);
-                    }
-                    // Stopped by a signal while writing: not a failure of the file.
-                    Err(_) if interrupt.stopped() || s.session.is_aborted() => {
-                        lock(results).push((i, Outcome::Aborted));
-                    }
-                    Err(e) => fail(i, super::common::explain_line(e.into())),
-                }
-            });
+            scope.spawn(move || p.encode_loop(&rx));
         }
-        // The camera the model was fitted on (a raw chart capture), to warn once per other camera.
+        p.correct_loop(dec_rx, enc_tx, corrector, model);
+    });
+    *timing = std::mem::take(&mut *lock(&p.timing));
+    let results = std::mem::take(&mut *lock(&p.results));
+    results
+}
+
+/// What the reader, corrector and writer threads of one run share.
+struct Pipeline<'a, 's> {
+    jobs: &'a [Job],
+    todo: &'a [usize],
+    s: &'a Settings<'s>,
+    pb: &'a ProgressBar,
+    /// Set by the first failure without `--continue-on-error`: no more frames are started.
+    stop: AtomicBool,
+    /// The next index into `todo` to read.
+    next: AtomicUsize,
+    results: Mutex<Vec<(usize, Outcome)>>,
+    timing: Mutex<Timing>,
+    started: Instant,
+    permits: Permits,
+    pool: fio::FramePool,
+}
+
+impl Pipeline<'_, '_> {
+    fn fail(&self, i: usize, why: String) {
+        self.pb.suspend(|| eprintln!("nsrm apply: failed: {why}"));
+        if !self.s.continue_on_error {
+            self.stop.store(true, Ordering::SeqCst);
+        }
+        lock(&self.results).push((i, Outcome::Failed(why)));
+        self.pb.inc(1);
+    }
+
+    /// A reader thread: takes the next frame to convert (when a permit is free) and decodes it.
+    fn decode_loop(&self, tx: SyncSender<(usize, Decoded)>) {
+        loop {
+            self.permits.acquire();
+            if self.stop.load(Ordering::SeqCst) || self.s.interrupt.stopped() {
+                self.permits.release();
+                break;
+            }
+            let k = self.next.fetch_add(1, Ordering::SeqCst);
+            let Some(&i) = self.todo.get(k) else {
+                self.permits.release();
+                break;
+            };
+            let t = Instant::now();
+            match Decoded::read_pooled(&self.jobs[i].input, &self.s.read, &self.pool) {
+                Ok(d) => {
+                    lock(&self.timing).decode += t.elapsed();
+                    if tx.send((i, d)).is_err() {
+                        self.permits.release();
+                        break;
+                    }
+                }
+                Err(e) => {
+                    self.permits.release();
+                    self.fail(i, super::common::explain_line(e.into()))
+                }
+            }
+        }
+    }
+
+    /// A writer thread: encodes corrected frames and records each outcome.
+    fn encode_loop(&self, rx: &Mutex<Receiver<(usize, Decoded)>>) {
+        let interrupt = &self.s.interrupt;
+        loop {
+            let msg = lock(rx).recv();
+            let Ok((i, d)) = msg else { break };
+            if interrupt.stopped() {
+                // Not started: left as not attempted.
+                drop(d);
+                self.permits.release();
+                continue;
+            }
+            let t = Instant::now();
+            let pixels = d.pixels();
+            let encoded = encode(&self.jobs[i], d, self.s, &self.pool);
+            self.permits.release();
+            match encoded {
+                Ok(()) => {
+                    let mut tm = lock(&self.timing);
+                    tm.encode += t.elapsed();
+                    tm.pixels += pixels;
+                    tm.frames += 1;
+                    let secs = self.started.elapsed().as_secs_f64().max(1e-9);
+                    let rate = tm.pixels as f64 / secs;
+                    drop(tm);
+                    lock(&self.results).push((i, Outcome::Converted));
+                    self.pb.set_message(format!("{:.1} Mpixel/s", rate / 1e6));
+                    self.pb.inc(1);
+                }
+                // Stopped by a signal while writing: not a failure of the file.
+                Err(_) if interrupt.stopped() || self.s.session.is_aborted() => {
+                    lock(&self.results).push((i, Outcome::Aborted));
+                }
+                Err(e) => self.fail(i, super::common::explain_line(e.into())),
+            }
+        }
+    }
+
+    /// The correcting thread (the caller's): corrects each decoded frame and passes it on to
+    /// the writers; warns once per camera other than the one the model was fitted on.
+    fn correct_loop(
+        &self,
+        dec_rx: Receiver<(usize, Decoded)>,
+        enc_tx: SyncSender<(usize, Decoded)>,
+        corrector: &mut Corrector,
+        model: &Model,
+    ) {
         let fitted_on = model
             .provenance()
             .capture
@@ -788,45 +832,51 @@ fn run_pipeline(
         let mut warned = std::collections::HashSet::new();
         for (i, mut d) in dec_rx {
             if let (Some(fitted), Some(cam)) = (&fitted_on, d.camera()) {
-                let cam = cam.camera();
-                if !cam.eq_ignore_ascii_case(fitted) && warned.insert(cam.clone()) {
-                    pb.suspend(|| {
-                        eprintln!(
-                            "warning: {} comes from a {cam}, but the model was fitted on a {fitted}: \
-                             its colours will be off unless the sensors match",
-                            d.path.display()
-                        )
-                    });
+                if let Some(w) = camera_warning(fitted, &cam.camera(), &d.path, &mut warned) {
+                    self.pb.suspend(|| eprintln!("{w}"));
                 }
             }
-            if interrupt.stopped() {
+            if self.s.interrupt.stopped() {
                 drop(d);
-                permits.release();
+                self.permits.release();
                 continue;
             }
             let t = Instant::now();
             match corrector.apply(model, &mut d) {
                 Ok(()) => {
-                    lock(&shared_timing).correct += t.elapsed();
+                    lock(&self.timing).correct += t.elapsed();
                     if enc_tx.send((i, d)).is_err() {
-                        permits.release();
+                        self.permits.release();
                         break;
                     }
                 }
                 Err(e) => {
                     drop(d);
-                    permits.release();
-                    fail(i, format!("{}: correcting: {e:#}", jobs[i].input.display()))
+                    self.permits.release();
+                    let why = format!("{}: correcting: {e:#}", self.jobs[i].input.display());
+                    self.fail(i, why)
                 }
             }
         }
-        drop(enc_tx);
-    });
-    let t = shared_timing
-        .into_inner()
-        .unwrap_or_else(|e| e.into_inner());
-    *timing = t;
-    results.into_inner().unwrap_or_else(|e| e.into_inner())
+    }
+}
+
+/// The warning for a frame from camera `cam` when the model was fitted on `fitted`: once per
+/// camera (`warned` holds those warned about), none for the same camera (any case).
+fn camera_warning(
+    fitted: &str,
+    cam: &str,
+    path: &Path,
+    warned: &mut std::collections::HashSet<String>,
+) -> Option<String> {
+    if cam.eq_ignore_ascii_case(fitted) || !warned.insert(cam.to_string()) {
+        return None;
+    }
+    Some(format!(
+        "warning: {} comes from a {cam}, but the model was fitted on a {fitted}: \
+         its colours will be off unless the sensors match",
+        path.display()
+    ))
 }
 
 /// A counting semaphore: how many more frames may be decoded before one is written.
@@ -1171,6 +1221,25 @@ mod tests {
         let clean = Tally::of(&[Some(Outcome::Converted)]);
         assert_eq!(clean.stop_note(None, 0), None);
         assert!(!clean.summary(None, "s", "c", "o").contains("not attempted"));
+    }
+
+    #[test]
+    fn a_camera_mismatch_is_warned_about_once() {
+        let mut warned = std::collections::HashSet::new();
+        let p = Path::new("a.nef");
+        assert_eq!(
+            camera_warning("Nikon D850", "NIKON D850", p, &mut warned),
+            None
+        );
+        let w = camera_warning("Nikon D850", "Canon EOS R5", p, &mut warned).unwrap();
+        assert!(
+            w.contains("a.nef comes from a Canon EOS R5") && w.contains("Nikon D850"),
+            "{w}"
+        );
+        assert_eq!(
+            camera_warning("Nikon D850", "Canon EOS R5", p, &mut warned),
+            None
+        );
     }
 
     #[test]

@@ -16,7 +16,7 @@
 //! move it into place only when complete ([`crate::output`]).
 //!
 //! [`batch`] expands command-line inputs (files, directories, globs), slices them for `--shard`
-//! and names outputs; [`chart`] renders a synthetic chart frame; [`preview`] writes sRGB PNGs.
+//! and names outputs; `chart::synthetic` renders synthetic chart frames with [`write_camera_float`]; [`preview`] writes sRGB PNGs.
 
 pub mod batch;
 pub mod display;

@@ -733,6 +733,11 @@ impl Codec {
 }
 
 thread_local! {
+    /// Process-wide state, kept on purpose: scratch only (every use overwrites what it reads, so
+    /// nothing carries from one chunk or frame to the next but capacity), one per rayon worker,
+    /// as large as the largest chunk seen (a few MiB at most). Passing it explicitly would need
+    /// rayon's `*_init` hooks, which make a fresh one per split of the work: an allocation and
+    /// its page faults per split and frame. Not measured against that alternative.
     static CODEC: std::cell::RefCell<Codec> = const { std::cell::RefCell::new(Codec::empty()) };
 }
 
@@ -1191,7 +1196,8 @@ impl Chunked {
 const BATCH_BYTES: usize = 4 << 20;
 
 thread_local! {
-    /// The writing thread's round buffer, kept for its later frames.
+    /// The writing thread's round buffer, kept for its later frames: scratch only, about
+    /// [`BATCH_BYTES`] (process-wide state kept on purpose, as [`CODEC`]).
     static ROUND: std::cell::RefCell<Vec<u8>> = const { std::cell::RefCell::new(Vec::new()) };
 }
 

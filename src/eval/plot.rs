@@ -316,7 +316,7 @@ fn nice_step(max: f64) -> f64 {
 }
 
 /// The figure of `results` as an SVG document, with `title` above the panels.
-pub fn to_svg(results: &[EvalResult], title: Option<&str>) -> Result<String, PlotError> {
+pub(crate) fn to_svg(results: &[EvalResult], title: Option<&str>) -> Result<String, PlotError> {
     let fig = Figure::new(results, title)?;
     let mut out = String::new();
     {
@@ -327,7 +327,10 @@ pub fn to_svg(results: &[EvalResult], title: Option<&str>) -> Result<String, Plo
 }
 
 /// The figure of `results` as an RGB image, with `title` above the panels.
-pub fn to_image(results: &[EvalResult], title: Option<&str>) -> Result<image::RgbImage, PlotError> {
+pub(crate) fn to_image(
+    results: &[EvalResult],
+    title: Option<&str>,
+) -> Result<image::RgbImage, PlotError> {
     let fig = Figure::new(results, title)?;
     let (w, h) = fig.size();
     let mut buf = vec![255u8; w as usize * h as usize * 3];

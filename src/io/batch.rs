@@ -11,7 +11,7 @@ use std::path::{Component, Path, PathBuf};
 /// file's extension ([`super::raw::RAW_EXTENSIONS`]; any case), not
 /// hidden (so `._x.exr` AppleDouble files and nsrm's own `.x.tmp` files are left out). The
 /// rest of the name may be anything, UTF-8 or not.
-pub fn is_frame_name(path: &Path) -> bool {
+pub(crate) fn is_frame_name(path: &Path) -> bool {
     let hidden = path
         .file_name()
         .is_none_or(|n| n.as_encoded_bytes().first() == Some(&b'.'));
@@ -623,7 +623,7 @@ impl PlanError {
 /// resolved (symlinks, `.`, `..`), the rest applied lexically (components that do not exist
 /// yet cannot be symlinks, so this is exact). Relative paths are taken from the current
 /// directory.
-pub fn resolve(p: &Path) -> PathBuf {
+pub(crate) fn resolve(p: &Path) -> PathBuf {
     use std::path::Component;
     let abs = if p.is_absolute() {
         p.to_path_buf()
@@ -665,7 +665,7 @@ fn file_id(_: &std::fs::Metadata) -> Option<(u64, u64)> {
 
 /// Creates `dir` if needed and checks a file can be created in it (a probe with a temporary's
 /// name, removed at once).
-pub fn ensure_writable_dir(dir: &Path) -> Result<(), PlanError> {
+pub(crate) fn ensure_writable_dir(dir: &Path) -> Result<(), PlanError> {
     std::fs::create_dir_all(dir).map_err(|e| {
         PlanError::Setup(format!(
             "cannot create the output directory {}: {e}",

@@ -1080,7 +1080,7 @@ impl Chunked {
     }
 
     /// The alpha channel's samples as f32.
-    pub fn alpha_f32(&self) -> Option<Vec<f32>> {
+    pub(crate) fn alpha_f32(&self) -> Option<Vec<f32>> {
         let a = self.alpha?;
         let layout = self.layout();
         let (t, _, role) = layout.channels[a];

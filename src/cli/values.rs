@@ -90,7 +90,7 @@ value_enum!(
     /// `export --format`.
     ExportFormat => nsrm::export::Format,
     nsrm::export::Format::parse,
-    { Clf = "clf", Cube = "cube", Ocio = "ocio", Dcp = "dcp" }
+    { Clf = "clf", Cube = "cube", Ocio = "ocio", Dcp = "dcp", Icc = "icc" }
 );
 
 value_enum!(

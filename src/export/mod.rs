@@ -40,6 +40,7 @@ pub mod clf;
 pub mod cube;
 pub mod dcp;
 pub mod dctl;
+pub mod icc;
 pub mod nodes;
 pub mod ocio;
 #[cfg(feature = "gpu")]
@@ -88,6 +89,8 @@ pub enum Format {
     Ocio,
     /// A DNG Camera Profile ([`dcp`]), written from a model set by [`dcp::export_to`].
     Dcp,
+    /// An ICC input profile ([`icc`]), written by [`icc::export_to`].
+    Icc,
 }
 
 impl Format {
@@ -98,6 +101,7 @@ impl Format {
             "cube" => Some(Format::Cube),
             "ocio" => Some(Format::Ocio),
             "dcp" => Some(Format::Dcp),
+            "icc" => Some(Format::Icc),
             _ => None,
         }
     }
@@ -108,6 +112,7 @@ impl Format {
             Format::Cube => "cube",
             Format::Ocio => "ocio",
             Format::Dcp => "dcp",
+            Format::Icc => "icc",
         }
     }
 }
@@ -604,6 +609,11 @@ pub fn export_to(
                 "a DCP is written from a model set (one or two illuminants): dcp::export_to".into(),
             ))
         }
+        Format::Icc => {
+            return Err(ExportError::Usage(
+                "an ICC profile is written by icc::export_to".into(),
+            ))
+        }
         Format::Cube => LutExport::cube(model, space, options)?,
         Format::Clf | Format::Ocio => LutExport::clf(model, space, options, training_rgb)?,
     };
@@ -611,7 +621,7 @@ pub fn export_to(
     report.check_limit(max_de00)?;
     let mut files = Vec::new();
     match format {
-        Format::Dcp => unreachable!("refused above"),
+        Format::Dcp | Format::Icc => unreachable!("refused above"),
         Format::Clf => {
             unit.write_bytes(out, clf::write(&e, Some(&report)).as_bytes())?;
             files.push(out.to_path_buf());

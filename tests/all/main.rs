@@ -51,6 +51,8 @@ mod harden_signals;
 mod harden_tiff;
 #[cfg(feature = "cli")]
 mod hostile_exr;
+#[cfg(feature = "cli")]
+mod icc;
 #[cfg(feature = "io")]
 mod io;
 mod model_properties;

@@ -115,7 +115,7 @@ impl<'a> Table<'a> {
     }
 
     /// The header as one line, cells joined by `,` (for messages).
-    pub fn header_text(&self) -> String {
+    pub(crate) fn header_text(&self) -> String {
         self.header.join(",")
     }
 
@@ -182,7 +182,7 @@ impl<'a> Table<'a> {
     }
 
     /// The next data row, or `None` at the end of the text.
-    pub fn next_record(&mut self) -> Result<Option<Record<'_>>, CsvError> {
+    pub(crate) fn next_record(&mut self) -> Result<Option<Record<'_>>, CsvError> {
         if !self.advance()? {
             return Ok(None);
         }
@@ -232,7 +232,7 @@ impl<'r> Record<'r> {
     }
 
     /// Fails with [`CsvError::Ragged`] unless the row has `expected` cells.
-    pub fn expect_len(&self, expected: usize) -> Result<(), CsvError> {
+    pub(crate) fn expect_len(&self, expected: usize) -> Result<(), CsvError> {
         if self.record.len() == expected {
             Ok(())
         } else {

@@ -15,7 +15,7 @@ use std::path::Path;
 pub const MAX_TEXT_BYTES: u64 = 64 << 20;
 
 /// What a path is, for messages: `a directory`, `a FIFO`, `a character device`, …
-pub fn file_kind(meta: &std::fs::Metadata) -> &'static str {
+pub(crate) fn file_kind(meta: &std::fs::Metadata) -> &'static str {
     let t = meta.file_type();
     if t.is_file() {
         return "a regular file";
@@ -80,7 +80,7 @@ fn readable_text(meta: &std::fs::Metadata) -> bool {
 /// leading byte-order mark removed. The errors are plain [`std::io::Error`]s whose message says
 /// what is wrong (`not a regular file or pipe (it is a character device)`, `larger than the 64
 /// MiB limit for text inputs`, …); callers add the path.
-pub fn read_text_capped(path: &Path, cap: u64) -> std::io::Result<String> {
+pub(crate) fn read_text_capped(path: &Path, cap: u64) -> std::io::Result<String> {
     let not_text = |meta: &std::fs::Metadata| {
         Error::new(
             ErrorKind::InvalidInput,
@@ -130,12 +130,12 @@ pub fn read_text_capped(path: &Path, cap: u64) -> std::io::Result<String> {
 }
 
 /// [`read_text_capped`] with [`MAX_TEXT_BYTES`].
-pub fn read_text(path: &Path) -> std::io::Result<String> {
+pub(crate) fn read_text(path: &Path) -> std::io::Result<String> {
     read_text_capped(path, MAX_TEXT_BYTES)
 }
 
 /// `64 MiB`, `1.5 GiB`, `512 bytes`.
-pub fn human_bytes(n: u64) -> String {
+pub(crate) fn human_bytes(n: u64) -> String {
     const UNITS: [&str; 4] = ["KiB", "MiB", "GiB", "TiB"];
     if n < 1024 {
         return format!("{n} bytes");

@@ -349,7 +349,7 @@ impl Session {
 
     /// Fails with [`WriteError::Exists`] if `dest` exists and the session does not overwrite,
     /// and with [`WriteError::NotRegular`] if it exists and is not a regular file.
-    pub fn check_clobber(&self, dest: &Path) -> Result<(), WriteError> {
+    pub(crate) fn check_clobber(&self, dest: &Path) -> Result<(), WriteError> {
         check_clobber(dest, self.overwrite)
     }
 
@@ -407,7 +407,7 @@ fn random_u64() -> u64 {
 
 /// A fresh temporary path beside `dest` (same directory, so the final rename is atomic):
 /// `.NAME.nsrm-PID-RANDOM.tmp`. Nothing is created.
-pub fn temp_path_for(dest: &Path) -> PathBuf {
+pub(crate) fn temp_path_for(dest: &Path) -> PathBuf {
     let mut name = std::ffi::OsString::from(".");
     name.push(dest.file_name().unwrap_or(OsStr::new("out")));
     name.push(format!(
@@ -422,7 +422,7 @@ pub fn temp_path_for(dest: &Path) -> PathBuf {
 }
 
 /// Whether a file name has the form of this crate's temporaries (`.NAME.nsrm-PID-HEX16.tmp`).
-pub fn is_temp_name(name: &OsStr) -> bool {
+pub(crate) fn is_temp_name(name: &OsStr) -> bool {
     let b = name.as_encoded_bytes();
     let Some(rest) = b.strip_suffix(TEMP_END.as_bytes()) else {
         return false;
@@ -481,7 +481,7 @@ fn check_clobber(dest: &Path, overwrite: bool) -> Result<(), WriteError> {
 /// The temporary file an encoder writes into: a [`File`] whose writes fail once the session is
 /// aborted, so an interrupted encoder stops at its next buffer write.
 #[derive(Debug)]
-pub struct OutFile {
+pub(crate) struct OutFile {
     file: File,
     abort: Arc<AtomicBool>,
 }
@@ -536,7 +536,7 @@ pub struct Unit {
 
 impl Unit {
     /// Fails if `dest` exists and may not be replaced (see [`Session::check_clobber`]).
-    pub fn check_clobber(&self, dest: &Path) -> Result<(), WriteError> {
+    pub(crate) fn check_clobber(&self, dest: &Path) -> Result<(), WriteError> {
         check_clobber(dest, self.overwrite)
     }
 
@@ -593,7 +593,7 @@ impl Unit {
     /// Writes `dest`'s temporary through an encoder: `write` fills a buffered writer on a fresh
     /// temporary beside `dest`, which is then flushed, synced and staged in this unit. On any
     /// error the temporary is removed and `dest` is untouched.
-    pub fn write_with<E: From<WriteError>>(
+    pub(crate) fn write_with<E: From<WriteError>>(
         &mut self,
         dest: &Path,
         write: impl FnOnce(&mut BufWriter<OutFile>) -> Result<(), E>,

@@ -340,7 +340,10 @@ fn same_white(a: [f64; 3], b: [f64; 3]) -> bool {
 
 /// The white named by a `# white: …` comment line before a CSV's header (`None` without one).
 /// Two such lines, or one that does not parse, are errors.
-pub fn white_in_header(text: &str, source_name: &str) -> Result<Option<[f64; 3]>, TrainingError> {
+pub(crate) fn white_in_header(
+    text: &str,
+    source_name: &str,
+) -> Result<Option<[f64; 3]>, TrainingError> {
     let text = text.strip_prefix('\u{feff}').unwrap_or(text);
     let mut found: Option<[f64; 3]> = None;
     for line in text.lines() {
@@ -454,7 +457,7 @@ fn column_index(col: &str) -> Option<u32> {
 }
 
 /// The most patches a `B2:M9` rectangle may hold (charts have hundreds).
-pub const MAX_RECTANGLE: u64 = 1 << 20;
+pub(crate) const MAX_RECTANGLE: u64 = 1 << 20;
 
 /// Chooses patches by `spec`, returning indices into `labels` in the labels' own order.
 ///

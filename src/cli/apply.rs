@@ -21,7 +21,7 @@ use std::io::IsTerminal;
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
-use std::sync::mpsc::sync_channel;
+use std::sync::mpsc::{sync_channel, Receiver, SyncSender};
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
@@ -402,21 +402,8 @@ pub fn run(a: Args) -> Result<ExitCode> {
     report_stale(&plan, a.remove_stale_temporaries && !a.dry_run);
     if a.dry_run {
         println!("# {scope}; model {}", a.model.display());
-        for j in &plan.jobs {
-            let what = match &j.action {
-                Action::Convert => String::new(),
-                Action::Skip(why) => format!("  # skip: {why}"),
-                Action::Fail(why) => format!("  # would fail: {}", refusal(why)),
-            };
-            match &j.preview {
-                Some(p) => println!(
-                    "{} -> {} (+ {}){what}",
-                    j.input.display(),
-                    j.output.display(),
-                    p.display()
-                ),
-                None => println!("{} -> {}{what}", j.input.display(), j.output.display()),
-            }
+        for line in dry_run_lines(&plan) {
+            println!("{line}");
         }
         return Ok(ExitCode::SUCCESS);
     }
@@ -424,32 +411,11 @@ pub fn run(a: Args) -> Result<ExitCode> {
         eprintln!("nsrm apply: nothing to do ({scope})");
         return Ok(ExitCode::SUCCESS);
     }
-
-    // The run's outputs: the plan compared them with the frames; the session adds the model.
-    let mut session = Session::new(a.overwrite);
-    session.input(&a.model)?;
-    for j in plan
-        .jobs
-        .iter()
-        .filter(|j| matches!(j.action, Action::Convert))
-    {
-        session.output(&j.output)?;
-        if let Some(p) = &j.preview {
-            session.output(p)?;
-        }
-    }
+    let session = open_session(&a, &plan)?;
 
     // Run.
     let interrupt = Interrupt::install(&session)?;
-    let mut outcomes: Vec<Option<Outcome>> = plan
-        .jobs
-        .iter()
-        .map(|j| match &j.action {
-            Action::Convert => None,
-            Action::Skip(why) => Some(Outcome::Skipped(why.clone())),
-            Action::Fail(why) => Some(Outcome::Failed(refusal(why))),
-        })
-        .collect();
+    let mut outcomes = planned_outcomes(&plan);
     let early_failure = outcomes
         .iter()
         .any(|o| matches!(o, Some(Outcome::Failed(_))));
@@ -457,59 +423,14 @@ pub fn run(a: Args) -> Result<ExitCode> {
     let mut timing = Timing::default();
     let mut corrector_name = String::new();
     if (!early_failure || a.continue_on_error) && !interrupt.stopped() {
-        let mut corrector = if let Some(profile) = as_shot.clone() {
-            Corrector::AsShot(Box::new(AsShot {
-                profile,
-                space: req.space,
-                built: Vec::new(),
-                current: 0,
-            }))
-        } else if extra.is_empty() {
-            Corrector::open(req.device, a.adapter.as_deref(), &out_model)?
-        } else {
-            let mut v = vec![FastModel::new(&out_model)];
-            v.extend(extra.iter().map(FastModel::new));
-            Corrector::Mix(v)
-        };
-        if req.device == DeviceChoice::Gpu
-            && matches!(corrector, Corrector::Mix(_) | Corrector::AsShot(_))
-        {
-            // Said, not silent: the GPU engine runs one model; a white between a two-illuminant
-            // model's lights (or one per frame) needs two models mixed, which only the CPU does.
-            eprintln!(
-                "nsrm apply: warning: --device gpu: {} runs on the CPU (the GPU path applies one \
-                 model; mixing two is CPU-only)",
-                if as_shot.is_some() {
-                    "--white as-shot"
-                } else {
-                    "a two-illuminant model at a white between its lights"
-                }
-            );
-        }
+        let mut corrector = open_corrector(&req, &a, &out_model, &extra, as_shot.as_ref())?;
         corrector_name = corrector.describe();
         let todo = plan.to_convert();
-        let workers = a.jobs.unwrap_or_else(|| {
-            std::thread::available_parallelism()
-                .map(|n| n.get())
-                .unwrap_or(2)
-        });
         let settings = Settings {
-            read: ReadOptions {
-                layer: a.layer.clone(),
-                limits: Limits {
-                    max_pixels: a.max_pixels,
-                },
-                demosaic: a.demosaic.into(),
-            },
-            write: WriteOptions {
-                format: req.format,
-                half: a.half,
-                compression: req.compression,
-                space: req.space,
-                zip_level: a.zip_level,
-            },
+            read: read_options(&a),
+            write: write_options(&a, &req),
             to_srgb: nsrm::colorimetry::to_linear_srgb(model.white_xyz(), req.space),
-            workers: workers.min(todo.len()).max(1),
+            workers: workers(a.jobs, todo.len()),
             continue_on_error: a.continue_on_error,
             interrupt: interrupt.clone(),
             session: &session,
@@ -533,33 +454,18 @@ pub fn run(a: Args) -> Result<ExitCode> {
     let removed = session.remove_temporaries();
 
     // Report.
-    let count = |f: fn(&Outcome) -> bool| outcomes.iter().flatten().filter(|o| f(o)).count();
-    let converted = count(|o| matches!(o, Outcome::Converted));
-    let skipped = count(|o| matches!(o, Outcome::Skipped(_)));
-    let failed = count(|o| matches!(o, Outcome::Failed(_)));
-    let aborted = count(|o| matches!(o, Outcome::Aborted));
-    let not_attempted = outcomes.iter().filter(|o| o.is_none()).count();
+    let tally = Tally::of(&outcomes);
     let signal = interrupt.received();
+    let corrector = if corrector_name.is_empty() {
+        "no correction run".to_string()
+    } else {
+        corrector_name
+    };
+    let half = if a.half { " half" } else { "" };
+    let output = format!("{} {}{half}", req.space.name(), req.format.name());
     eprintln!(
-        "nsrm apply: {}{converted} converted, {skipped} skipped, {failed} failed{}{} ({scope}; {}; output {} {}{})",
-        match signal {
-            Some((name, _)) => format!("interrupted by {name}: "),
-            None => String::new(),
-        },
-        if aborted > 0 {
-            format!(", {aborted} aborted while being written")
-        } else {
-            String::new()
-        },
-        if not_attempted > 0 {
-            format!(", {not_attempted} not attempted")
-        } else {
-            String::new()
-        },
-        if corrector_name.is_empty() { "no correction run".to_string() } else { corrector_name },
-        req.space.name(),
-        req.format.name(),
-        if a.half { " half" } else { "" },
+        "{}",
+        tally.summary(signal.map(|s| s.0), &scope, &corrector, &output)
     );
     for (j, o) in plan.jobs.iter().zip(&outcomes) {
         match o {
@@ -568,23 +474,218 @@ pub fn run(a: Args) -> Result<ExitCode> {
             _ => {}
         }
     }
-    if let Some((name, _)) = signal {
-        eprintln!(
-            "  stopped by {name}: {not_attempted} not attempted, {aborted} aborted while being written (nothing of them committed); {removed} temporary file(s) of this run removed"
-        );
-    } else if not_attempted > 0 {
-        eprintln!(
-            "  {not_attempted} not attempted: stopped after the first failure (pass --continue-on-error to go on)"
-        );
+    if let Some(line) = tally.stop_note(signal.map(|s| s.0), removed) {
+        eprintln!("{line}");
     }
     if a.timing {
         print_timing(&timing, wall);
     }
     Ok(match signal {
         Some((_, status)) => ExitCode::from(status),
-        None if failed > 0 => ExitCode::from(1),
+        None if tally.failed > 0 => ExitCode::from(1),
         None => ExitCode::SUCCESS,
     })
+}
+
+/// The correction step: the device asked for; for a two-illuminant model between its
+/// illuminants the CPU mix of its models (`extra`, folded like `out_model`); with `--white
+/// as-shot` the set (`as_shot`) combined per frame. The GPU runs one model: asked for with a
+/// mix, it says the CPU runs it instead.
+fn open_corrector(
+    req: &Request,
+    a: &Args,
+    out_model: &Model,
+    extra: &[Model],
+    as_shot: Option<&nsrm::model::dual_illuminant::Profile>,
+) -> Result<Corrector> {
+    let mixed = if let Some(profile) = as_shot {
+        Corrector::AsShot(Box::new(AsShot {
+            profile: profile.clone(),
+            space: req.space,
+            built: Vec::new(),
+            current: 0,
+        }))
+    } else if extra.is_empty() {
+        return Corrector::open(req.device, a.adapter.as_deref(), out_model);
+    } else {
+        let mut v = vec![FastModel::new(out_model)];
+        v.extend(extra.iter().map(FastModel::new));
+        Corrector::Mix(v)
+    };
+    if req.device == DeviceChoice::Gpu {
+        // Said, not silent: mixing two models is CPU-only.
+        eprintln!(
+            "nsrm apply: warning: --device gpu: {} runs on the CPU (the GPU path applies one \
+             model; mixing two is CPU-only)",
+            if as_shot.is_some() {
+                "--white as-shot"
+            } else {
+                "a two-illuminant model at a white between its lights"
+            }
+        );
+    }
+    Ok(mixed)
+}
+
+/// What `--dry-run` prints for each job: `input -> output (+ preview)`, and why it would be
+/// skipped or fail.
+fn dry_run_lines(plan: &BatchPlan) -> Vec<String> {
+    plan.jobs
+        .iter()
+        .map(|j| {
+            let what = match &j.action {
+                Action::Convert => String::new(),
+                Action::Skip(why) => format!("  # skip: {why}"),
+                Action::Fail(why) => format!("  # would fail: {}", refusal(why)),
+            };
+            match &j.preview {
+                Some(p) => format!(
+                    "{} -> {} (+ {}){what}",
+                    j.input.display(),
+                    j.output.display(),
+                    p.display()
+                ),
+                None => format!("{} -> {}{what}", j.input.display(), j.output.display()),
+            }
+        })
+        .collect()
+}
+
+/// The run's output session: the plan compared the outputs with the frames; the session adds
+/// the model and declares every output and preview to be written.
+fn open_session(a: &Args, plan: &BatchPlan) -> Result<Session> {
+    let mut session = Session::new(a.overwrite);
+    session.input(&a.model)?;
+    for j in plan
+        .jobs
+        .iter()
+        .filter(|j| matches!(j.action, Action::Convert))
+    {
+        session.output(&j.output)?;
+        if let Some(p) = &j.preview {
+            session.output(p)?;
+        }
+    }
+    Ok(session)
+}
+
+/// Each job's outcome known before anything runs (skipped, refused); `None` for those to
+/// convert.
+fn planned_outcomes(plan: &BatchPlan) -> Vec<Option<Outcome>> {
+    plan.jobs
+        .iter()
+        .map(|j| match &j.action {
+            Action::Convert => None,
+            Action::Skip(why) => Some(Outcome::Skipped(why.clone())),
+            Action::Fail(why) => Some(Outcome::Failed(refusal(why))),
+        })
+        .collect()
+}
+
+fn read_options(a: &Args) -> ReadOptions {
+    ReadOptions {
+        layer: a.layer.clone(),
+        limits: Limits {
+            max_pixels: a.max_pixels,
+        },
+        demosaic: a.demosaic.into(),
+    }
+}
+
+fn write_options(a: &Args, req: &Request) -> WriteOptions {
+    WriteOptions {
+        format: req.format,
+        half: a.half,
+        compression: req.compression,
+        space: req.space,
+        zip_level: a.zip_level,
+    }
+}
+
+/// Reader/writer threads: `--jobs`, else the machine's parallelism; at least 1 and no more
+/// than the frames to convert.
+fn workers(jobs: Option<usize>, frames: usize) -> usize {
+    let n = jobs.unwrap_or_else(|| {
+        std::thread::available_parallelism()
+            .map(|n| n.get())
+            .unwrap_or(2)
+    });
+    n.min(frames).max(1)
+}
+
+/// The outcomes of a run, counted.
+#[derive(Debug, Default, PartialEq, Eq)]
+struct Tally {
+    converted: usize,
+    skipped: usize,
+    failed: usize,
+    aborted: usize,
+    not_attempted: usize,
+}
+
+impl Tally {
+    fn of(outcomes: &[Option<Outcome>]) -> Tally {
+        let mut t = Tally::default();
+        for o in outcomes {
+            match o {
+                Some(Outcome::Converted) => t.converted += 1,
+                Some(Outcome::Skipped(_)) => t.skipped += 1,
+                Some(Outcome::Failed(_)) => t.failed += 1,
+                Some(Outcome::Aborted) => t.aborted += 1,
+                None => t.not_attempted += 1,
+            }
+        }
+        t
+    }
+
+    /// The summary line: interrupted by which signal, the counts, and what ran.
+    fn summary(&self, signal: Option<&str>, scope: &str, corrector: &str, output: &str) -> String {
+        let Tally {
+            converted,
+            skipped,
+            failed,
+            aborted,
+            not_attempted,
+        } = self;
+        format!(
+            "nsrm apply: {}{converted} converted, {skipped} skipped, {failed} failed{}{} ({scope}; {corrector}; output {output})",
+            match signal {
+                Some(name) => format!("interrupted by {name}: "),
+                None => String::new(),
+            },
+            if *aborted > 0 {
+                format!(", {aborted} aborted while being written")
+            } else {
+                String::new()
+            },
+            if *not_attempted > 0 {
+                format!(", {not_attempted} not attempted")
+            } else {
+                String::new()
+            },
+        )
+    }
+
+    /// Why frames were left: a signal (and the temporaries removed), or the first failure
+    /// without `--continue-on-error`.
+    fn stop_note(&self, signal: Option<&str>, removed: usize) -> Option<String> {
+        let Tally {
+            aborted,
+            not_attempted,
+            ..
+        } = self;
+        if let Some(name) = signal {
+            Some(format!(
+                "  stopped by {name}: {not_attempted} not attempted, {aborted} aborted while being written (nothing of them committed); {removed} temporary file(s) of this run removed"
+            ))
+        } else if *not_attempted > 0 {
+            Some(format!(
+                "  {not_attempted} not attempted: stopped after the first failure (pass --continue-on-error to go on)"
+            ))
+        } else {
+            None
+        }
+    }
 }
 
 /// `input: why`, or `why` alone when it already starts with the input's name.
@@ -666,103 +767,147 @@ fn run_pipeline(
     pb: &ProgressBar,
     timing: &mut Timing,
 ) -> Vec<(usize, Outcome)> {
-    let interrupt = &s.interrupt;
-    let stop = AtomicBool::new(false);
-    let next = AtomicUsize::new(0);
-    let results: Mutex<Vec<(usize, Outcome)>> = Mutex::new(Vec::new());
-    let shared_timing = Mutex::new(Timing::default());
-    let started = Instant::now();
-    let fail = |i: usize, why: String| {
-        pb.suspend(|| eprintln!("nsrm apply: failed: {why}"));
-        if !s.continue_on_error {
-            stop.store(true, Ordering::SeqCst);
-        }
-        results
-            .lock()
-            .unwrap_or_else(|e| e.into_inner())
-            .push((i, Outcome::Failed(why)));
-        pb.inc(1);
-    };
     // Frames alive at once (decoding, queued, correcting, encoding): `--jobs` + 1, so peak memory
-    // stays under (jobs + 2) decoded frames.
-    let permits = Permits::new(s.workers + 1);
-    let permits = &permits;
-    // Frame buffers of written frames, reused by the next decodes: never more buffers than
-    // frames alive at once, so the bound above holds.
-    let pool = fio::FramePool::new(s.workers + 1);
-    let pool = &pool;
+    // stays under (jobs + 2) decoded frames. Frame buffers of written frames are reused by the
+    // next decodes: never more buffers than frames alive at once, so the bound holds.
+    let p = Pipeline {
+        jobs,
+        todo,
+        s,
+        pb,
+        stop: AtomicBool::new(false),
+        next: AtomicUsize::new(0),
+        results: Mutex::new(Vec::new()),
+        timing: Mutex::new(Timing::default()),
+        started: Instant::now(),
+        permits: Permits::new(s.workers + 1),
+        pool: fio::FramePool::new(s.workers + 1),
+    };
+    let p = &p;
     std::thread::scope(|scope| {
         let (dec_tx, dec_rx) = sync_channel::<(usize, Decoded)>(s.workers);
         let (enc_tx, enc_rx) = sync_channel::<(usize, Decoded)>(s.workers);
         let enc_rx = Arc::new(Mutex::new(enc_rx));
         for _ in 0..s.workers {
             let tx = dec_tx.clone();
-            let (stop, next, fail, shared_timing) = (&stop, &next, &fail, &shared_timing);
-            scope.spawn(move || loop {
-                permits.acquire();
-                if stop.load(Ordering::SeqCst) || interrupt.stopped() {
-                    permits.release();
-                    break;
-                }
-                let k = next.fetch_add(1, Ordering::SeqCst);
-                let Some(&i) = todo.get(k) else {
-                    permits.release();
-                    break;
-                };
-                let t = Instant::now();
-                match Decoded::read_pooled(&jobs[i].input, &s.read, pool) {
-                    Ok(d) => {
-                        lock(shared_timing).decode += t.elapsed();
-                        if tx.send((i, d)).is_err() {
-                            permits.release();
-                            break;
-                        }
-                    }
-                    Err(e) => {
-                        permits.release();
-                        fail(i, super::common::explain_line(e.into()))
-                    }
-                }
-            });
+            scope.spawn(move || p.decode_loop(tx));
         }
         drop(dec_tx);
         for _ in 0..s.workers {
             let rx = Arc::clone(&enc_rx);
-            let (fail, results, shared_timing) = (&fail, &results, &shared_timing);
-            scope.spawn(move || loop {
-                let msg = lock(&rx).recv();
-                let Ok((i, d)) = msg else { break };
-                if interrupt.stopped() {
-                    // Not started: left as not attempted.
-                    drop(d);
-                    permits.release();
-                    continue;
-                }
-                let t = Instant::now();
-                let pixels = d.pixels();
-                let encoded = encode(&jobs[i], d, s, pool);
-                permits.release();
-                match encoded {
-                    Ok(()) => {
-                        let mut tm = lock(shared_timing);
-                        tm.encode += t.elapsed();
-                        tm.pixels += pixels;
-                        tm.frames += 1;
-                        let rate = tm.pixels as f64 / started.elapsed().as_secs_f64().max(1e-9);
-                        drop(tm);
-                        lock(results).push((i, Outcome::Converted));
-                        pb.set_message(format!("{:.1} Mpixel/s", rate / 1e6));
-                        pb.inc(1);
-                    }
-                    // Stopped by a signal while writing: not a failure of the file.
-                    Err(_) if interrupt.stopped() || s.session.is_aborted() => {
-                        lock(results).push((i, Outcome::Aborted));
-                    }
-                    Err(e) => fail(i, super::common::explain_line(e.into())),
-                }
-            });
+            scope.spawn(move || p.encode_loop(&rx));
         }
-        // The camera the model was fitted on (a raw chart capture), to warn once per other camera.
+        p.correct_loop(dec_rx, enc_tx, corrector, model);
+    });
+    *timing = std::mem::take(&mut *lock(&p.timing));
+    let results = std::mem::take(&mut *lock(&p.results));
+    results
+}
+
+/// What the reader, corrector and writer threads of one run share.
+struct Pipeline<'a, 's> {
+    jobs: &'a [Job],
+    todo: &'a [usize],
+    s: &'a Settings<'s>,
+    pb: &'a ProgressBar,
+    /// Set by the first failure without `--continue-on-error`: no more frames are started.
+    stop: AtomicBool,
+    /// The next index into `todo` to read.
+    next: AtomicUsize,
+    results: Mutex<Vec<(usize, Outcome)>>,
+    timing: Mutex<Timing>,
+    started: Instant,
+    permits: Permits,
+    pool: fio::FramePool,
+}
+
+impl Pipeline<'_, '_> {
+    fn fail(&self, i: usize, why: String) {
+        self.pb.suspend(|| eprintln!("nsrm apply: failed: {why}"));
+        if !self.s.continue_on_error {
+            self.stop.store(true, Ordering::SeqCst);
+        }
+        lock(&self.results).push((i, Outcome::Failed(why)));
+        self.pb.inc(1);
+    }
+
+    /// A reader thread: takes the next frame to convert (when a permit is free) and decodes it.
+    fn decode_loop(&self, tx: SyncSender<(usize, Decoded)>) {
+        loop {
+            self.permits.acquire();
+            if self.stop.load(Ordering::SeqCst) || self.s.interrupt.stopped() {
+                self.permits.release();
+                break;
+            }
+            let k = self.next.fetch_add(1, Ordering::SeqCst);
+            let Some(&i) = self.todo.get(k) else {
+                self.permits.release();
+                break;
+            };
+            let t = Instant::now();
+            match Decoded::read_pooled(&self.jobs[i].input, &self.s.read, &self.pool) {
+                Ok(d) => {
+                    lock(&self.timing).decode += t.elapsed();
+                    if tx.send((i, d)).is_err() {
+                        self.permits.release();
+                        break;
+                    }
+                }
+                Err(e) => {
+                    self.permits.release();
+                    self.fail(i, super::common::explain_line(e.into()))
+                }
+            }
+        }
+    }
+
+    /// A writer thread: encodes corrected frames and records each outcome.
+    fn encode_loop(&self, rx: &Mutex<Receiver<(usize, Decoded)>>) {
+        let interrupt = &self.s.interrupt;
+        loop {
+            let msg = lock(rx).recv();
+            let Ok((i, d)) = msg else { break };
+            if interrupt.stopped() {
+                // Not started: left as not attempted.
+                drop(d);
+                self.permits.release();
+                continue;
+            }
+            let t = Instant::now();
+            let pixels = d.pixels();
+            let encoded = encode(&self.jobs[i], d, self.s, &self.pool);
+            self.permits.release();
+            match encoded {
+                Ok(()) => {
+                    let mut tm = lock(&self.timing);
+                    tm.encode += t.elapsed();
+                    tm.pixels += pixels;
+                    tm.frames += 1;
+                    let secs = self.started.elapsed().as_secs_f64().max(1e-9);
+                    let rate = tm.pixels as f64 / secs;
+                    drop(tm);
+                    lock(&self.results).push((i, Outcome::Converted));
+                    self.pb.set_message(format!("{:.1} Mpixel/s", rate / 1e6));
+                    self.pb.inc(1);
+                }
+                // Stopped by a signal while writing: not a failure of the file.
+                Err(_) if interrupt.stopped() || self.s.session.is_aborted() => {
+                    lock(&self.results).push((i, Outcome::Aborted));
+                }
+                Err(e) => self.fail(i, super::common::explain_line(e.into())),
+            }
+        }
+    }
+
+    /// The correcting thread (the caller's): corrects each decoded frame and passes it on to
+    /// the writers; warns once per camera other than the one the model was fitted on.
+    fn correct_loop(
+        &self,
+        dec_rx: Receiver<(usize, Decoded)>,
+        enc_tx: SyncSender<(usize, Decoded)>,
+        corrector: &mut Corrector,
+        model: &Model,
+    ) {
         let fitted_on = model
             .provenance()
             .capture
@@ -771,55 +916,61 @@ fn run_pipeline(
         let mut warned = std::collections::HashSet::new();
         for (i, mut d) in dec_rx {
             if let (Some(fitted), Some(cam)) = (&fitted_on, d.camera()) {
-                let cam = cam.camera();
-                if !cam.eq_ignore_ascii_case(fitted) && warned.insert(cam.clone()) {
-                    pb.suspend(|| {
-                        eprintln!(
-                            "warning: {} comes from a {cam}, but the model was fitted on a {fitted}: \
-                             its colours will be off unless the sensors match",
-                            d.path.display()
-                        )
-                    });
+                if let Some(w) = camera_warning(fitted, &cam.camera(), &d.path, &mut warned) {
+                    self.pb.suspend(|| eprintln!("{w}"));
                 }
             }
-            if interrupt.stopped() {
+            if self.s.interrupt.stopped() {
                 drop(d);
-                permits.release();
+                self.permits.release();
                 continue;
             }
             match corrector.prepare(&d) {
-                Ok(Some(line)) => pb.suspend(|| eprintln!("{line}")),
+                Ok(Some(line)) => self.pb.suspend(|| eprintln!("{line}")),
                 Ok(None) => {}
                 Err(e) => {
                     drop(d);
-                    permits.release();
-                    fail(i, format!("{}: {e:#}", jobs[i].input.display()));
+                    self.permits.release();
+                    self.fail(i, format!("{}: {e:#}", self.jobs[i].input.display()));
                     continue;
                 }
             }
             let t = Instant::now();
             match corrector.apply(model, &mut d) {
                 Ok(()) => {
-                    lock(&shared_timing).correct += t.elapsed();
+                    lock(&self.timing).correct += t.elapsed();
                     if enc_tx.send((i, d)).is_err() {
-                        permits.release();
+                        self.permits.release();
                         break;
                     }
                 }
                 Err(e) => {
                     drop(d);
-                    permits.release();
-                    fail(i, format!("{}: correcting: {e:#}", jobs[i].input.display()))
+                    self.permits.release();
+                    let why = format!("{}: correcting: {e:#}", self.jobs[i].input.display());
+                    self.fail(i, why)
                 }
             }
         }
-        drop(enc_tx);
-    });
-    let t = shared_timing
-        .into_inner()
-        .unwrap_or_else(|e| e.into_inner());
-    *timing = t;
-    results.into_inner().unwrap_or_else(|e| e.into_inner())
+    }
+}
+
+/// The warning for a frame from camera `cam` when the model was fitted on `fitted`: once per
+/// camera (`warned` holds those warned about), none for the same camera (any case).
+fn camera_warning(
+    fitted: &str,
+    cam: &str,
+    path: &Path,
+    warned: &mut std::collections::HashSet<String>,
+) -> Option<String> {
+    if cam.eq_ignore_ascii_case(fitted) || !warned.insert(cam.to_string()) {
+        return None;
+    }
+    Some(format!(
+        "warning: {} comes from a {cam}, but the model was fitted on a {fitted}: \
+         its colours will be off unless the sensors match",
+        path.display()
+    ))
 }
 
 /// A counting semaphore: how many more frames may be decoded before one is written.
@@ -1084,5 +1235,112 @@ mod farm_tests {
             let b = Cmd::try_parse_from(&again).unwrap().a;
             assert_eq!(format!("{:?}", a), format!("{:?}", b), "{given:?}");
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn plan(actions: Vec<(Action, bool)>) -> BatchPlan {
+        BatchPlan {
+            jobs: actions
+                .into_iter()
+                .enumerate()
+                .map(|(i, (action, preview))| batch::Job {
+                    input: PathBuf::from(format!("in{i}.exr")),
+                    output: PathBuf::from(format!("out/in{i}.exr")),
+                    preview: preview.then(|| PathBuf::from(format!("prev/in{i}.png"))),
+                    action,
+                })
+                .collect(),
+            total_inputs: 2,
+            shard: None,
+            dirs: Vec::new(),
+            stale_temporaries: Vec::new(),
+        }
+    }
+
+    #[test]
+    fn dry_run_and_planned_outcomes_follow_the_plan() {
+        let p = plan(vec![
+            (Action::Convert, true),
+            (Action::Skip("exists".into()), false),
+        ]);
+        assert_eq!(
+            dry_run_lines(&p),
+            [
+                "in0.exr -> out/in0.exr (+ prev/in0.png)",
+                "in1.exr -> out/in1.exr  # skip: exists"
+            ]
+        );
+        let o = planned_outcomes(&p);
+        assert!(o[0].is_none());
+        assert!(matches!(&o[1], Some(Outcome::Skipped(w)) if w == "exists"));
+    }
+
+    #[test]
+    fn tally_counts_and_words_the_summary() {
+        let outcomes = vec![
+            Some(Outcome::Converted),
+            Some(Outcome::Converted),
+            Some(Outcome::Failed("x".into())),
+            Some(Outcome::Aborted),
+            None,
+        ];
+        let t = Tally::of(&outcomes);
+        assert_eq!(
+            t,
+            Tally {
+                converted: 2,
+                skipped: 0,
+                failed: 1,
+                aborted: 1,
+                not_attempted: 1
+            }
+        );
+        let line = t.summary(Some("SIGINT"), "all 5", "cpu", "acescg exr half");
+        assert_eq!(
+            line,
+            "nsrm apply: interrupted by SIGINT: 2 converted, 0 skipped, 1 failed, 1 aborted while being written, 1 not attempted (all 5; cpu; output acescg exr half)"
+        );
+        assert!(t
+            .stop_note(Some("SIGINT"), 3)
+            .unwrap()
+            .contains("3 temporary file(s)"));
+        assert!(t
+            .stop_note(None, 0)
+            .unwrap()
+            .contains("--continue-on-error"));
+        let clean = Tally::of(&[Some(Outcome::Converted)]);
+        assert_eq!(clean.stop_note(None, 0), None);
+        assert!(!clean.summary(None, "s", "c", "o").contains("not attempted"));
+    }
+
+    #[test]
+    fn a_camera_mismatch_is_warned_about_once() {
+        let mut warned = std::collections::HashSet::new();
+        let p = Path::new("a.nef");
+        assert_eq!(
+            camera_warning("Nikon D850", "NIKON D850", p, &mut warned),
+            None
+        );
+        let w = camera_warning("Nikon D850", "Canon EOS R5", p, &mut warned).unwrap();
+        assert!(
+            w.contains("a.nef comes from a Canon EOS R5") && w.contains("Nikon D850"),
+            "{w}"
+        );
+        assert_eq!(
+            camera_warning("Nikon D850", "Canon EOS R5", p, &mut warned),
+            None
+        );
+    }
+
+    #[test]
+    fn workers_are_bounded_by_the_frames() {
+        assert_eq!(workers(Some(8), 3), 3);
+        assert_eq!(workers(Some(0), 3), 1);
+        assert_eq!(workers(Some(2), 0), 1);
+        assert!(workers(None, 1000) >= 1);
     }
 }

@@ -125,20 +125,12 @@ pub fn run(a: Args) -> Result<ExitCode> {
         }
         eprintln!("{}", c.summary());
     }
-    let illuminants: Vec<String> = if captured.is_some() {
-        vec!["capture".to_string()]
-    } else if a.training.training.is_some() {
-        vec![a
-            .training
-            .white
-            .white
-            .clone()
-            .unwrap_or_else(|| "measured".to_string())]
-    } else if a.illuminants.is_empty() {
-        vec!["D65".into(), "TL865".into(), "LED-B5".into()]
-    } else {
-        a.illuminants.clone()
-    };
+    let illuminants = illuminant_names(
+        captured.is_some(),
+        a.training.training.is_some(),
+        a.training.white.white.as_deref(),
+        &a.illuminants,
+    );
     let protocol = if a.in_sample {
         Protocol::InSample
     } else {
@@ -172,24 +164,11 @@ pub fn run(a: Args) -> Result<ExitCode> {
                     continue;
                 }
                 done.push(eff);
-                let list: Vec<(String, FitOptions)> = if a.variants {
-                    variants(kind)
-                        .into_iter()
-                        .map(|v| {
-                            let mut opts = v.opts;
-                            if let Some(l) = &a.fit.white_patch {
-                                opts.white = White::Patch(l.clone());
-                            }
-                            (v.name.to_string(), opts)
-                        })
-                        .collect()
+                let white_patch = a.fit.white_patch.as_deref();
+                let list = if a.variants {
+                    variant_fits(kind, white_patch)
                 } else {
-                    let mut o = custom.clone();
-                    // White balance is defined for NSRM: the other kinds are fitted raw.
-                    if kind != Kind::Nsrm {
-                        o.normalise = Normalise::Raw;
-                    }
-                    vec![(custom_name.to_string(), o)]
+                    vec![(custom_name.to_string(), custom_fit(kind, &custom))]
                 };
                 for (name, opts) in list {
                     let r = evaluate_with(kind, order, &data, protocol, &ill_name, &opts)
@@ -227,14 +206,9 @@ pub fn run(a: Args) -> Result<ExitCode> {
         print_table(&a, protocol, n_patches, &plain);
     }
     if let Some(p) = &a.plot {
-        let plain: Vec<EvalResult> = results
-            .iter()
-            .filter(|r| r.variant == "ls" || r.variant == "custom")
-            .map(|r| r.result.clone())
-            .collect();
         let title = format!("ΔE00 per patch: {}", plot_title(&a, protocol));
         let mut unit = session.unit();
-        plot::histograms(&plain, Some(&title), p, &mut unit)
+        plot::histograms(&plotted(&results), Some(&title), p, &mut unit)
             .with_context(|| format!("writing the plot {}", p.display()))?;
         unit.commit()?;
         if !a.json {
@@ -242,6 +216,59 @@ pub fn run(a: Args) -> Result<ExitCode> {
         }
     }
     Ok(ExitCode::SUCCESS)
+}
+
+/// The illuminants evaluated: the capture's, the measured file's white (or `measured`), those
+/// named, or by default the paper's three.
+fn illuminant_names(
+    captured: bool,
+    measured: bool,
+    white: Option<&str>,
+    named: &[String],
+) -> Vec<String> {
+    if captured {
+        vec!["capture".to_string()]
+    } else if measured {
+        vec![white.unwrap_or("measured").to_string()]
+    } else if named.is_empty() {
+        vec!["D65".into(), "TL865".into(), "LED-B5".into()]
+    } else {
+        named.to_vec()
+    }
+}
+
+/// `--variants`: the paper's fitting variants of `kind`, each with the named white patch when
+/// one is given.
+fn variant_fits(kind: Kind, white_patch: Option<&str>) -> Vec<(String, FitOptions)> {
+    variants(kind)
+        .into_iter()
+        .map(|v| {
+            let mut opts = v.opts;
+            if let Some(l) = white_patch {
+                opts.white = White::Patch(l.to_string());
+            }
+            (v.name.to_string(), opts)
+        })
+        .collect()
+}
+
+/// The fit asked for, for `kind`: white balance is defined for NSRM, the other kinds are
+/// fitted raw.
+fn custom_fit(kind: Kind, custom: &FitOptions) -> FitOptions {
+    let mut o = custom.clone();
+    if kind != Kind::Nsrm {
+        o.normalise = Normalise::Raw;
+    }
+    o
+}
+
+/// The results the plot shows: the plain fits, not the variants.
+fn plotted(results: &[VariantResult]) -> Vec<EvalResult> {
+    results
+        .iter()
+        .filter(|r| r.variant == "ls" || r.variant == "custom")
+        .map(|r| r.result.clone())
+        .collect()
 }
 
 /// Data set, camera and method in a few words (the plot's title).
@@ -449,5 +476,44 @@ fn print_table(a: &Args, protocol: Protocol, n: usize, results: &[EvalResult]) {
                 best(|r| r.stats.max)
             );
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn illuminants_follow_the_source() {
+        let named = vec!["FL7".to_string()];
+        assert_eq!(
+            illuminant_names(true, true, Some("D50"), &named),
+            ["capture"]
+        );
+        assert_eq!(illuminant_names(false, true, Some("D50"), &named), ["D50"]);
+        assert_eq!(illuminant_names(false, true, None, &named), ["measured"]);
+        assert_eq!(illuminant_names(false, false, None, &named), ["FL7"]);
+        assert_eq!(
+            illuminant_names(false, false, None, &[]),
+            ["D65", "TL865", "LED-B5"]
+        );
+    }
+
+    #[test]
+    fn fits_per_kind() {
+        let custom = FitOptions::default();
+        assert_eq!(custom_fit(Kind::Rprm, &custom).normalise, Normalise::Raw);
+        assert_eq!(custom_fit(Kind::Nsrm, &custom).normalise, custom.normalise);
+        let v = variant_fits(Kind::Nsrm, Some("D4"));
+        assert!(v.len() > 1, "{v:?}");
+        assert!(v.iter().all(|(_, o)| o.white == White::Patch("D4".into())));
+        let names: Vec<&str> = v.iter().map(|(n, _)| n.as_str()).collect();
+        assert_eq!(
+            names,
+            variants(Kind::Nsrm)
+                .iter()
+                .map(|v| v.name)
+                .collect::<Vec<_>>()
+        );
     }
 }

@@ -355,6 +355,108 @@ fn run_shard(r: RunArgs) -> Result<ExitCode> {
         .map(|d| d.as_secs_f64())
         .unwrap_or(0.0);
     let shard = Shard::parse(&r.shard).context("--shard")?;
+    let mut a = shard_apply_args(&r)?;
+    let parts = a.farm_parts();
+    let out_dir = parts
+        .output_dir
+        .clone()
+        .ok_or_else(|| UsageError("-o (the batch's output directory) is required".into()))?;
+    let model_path = parts.model.clone();
+    let inputs = batch::expand_inputs(parts.inputs)?;
+    let settings = a.settings_argv();
+    let (_, model_sha) = nsrm::farm::sha256_file(&model_path).context("--model")?;
+    let plan = a
+        .farm_plan(&inputs, shard)
+        .context("planning the outputs (--suffix, -o, --preview)")?;
+    // Every output's name in the batch (all shards), for the batch's identity.
+    let all_names: Vec<String> = {
+        let full = a
+            .farm_plan(&inputs, Shard { index: 1, count: 1 })
+            .context("planning the outputs")?;
+        full.jobs
+            .iter()
+            .map(|j| name_of(&j.output))
+            .collect::<Result<_>>()?
+    };
+    let batch_id = Batch::of(&all_names);
+    let previous =
+        ShardManifest::read(&out_dir.join(manifest::file_name(shard.index, shard.count)))
+            .ok()
+            .filter(|m| m.batch == batch_id);
+    let same_run = previous
+        .as_ref()
+        .is_some_and(|m| m.model.sha256 == model_sha && m.settings == settings);
+    let removed = remove_stale_temporaries(&plan);
+
+    // What is finished already.
+    let read_opts = a.farm_read_options();
+    let mut found = Vec::with_capacity(plan.jobs.len());
+    for j in &plan.jobs {
+        found.push(check_existing(j, previous.as_ref(), same_run, &read_opts)?);
+    }
+    let check_s = secs(t0);
+
+    // Convert the rest.
+    let todo: Vec<&batch::Job> = plan
+        .jobs
+        .iter()
+        .zip(&found)
+        .filter(|(_, f)| matches!(f, Found::Todo(_)))
+        .map(|(j, _)| j)
+        .collect();
+    let replace = found.iter().any(|f| matches!(f, Found::Todo(true)));
+    let t1 = Instant::now();
+    let mut status = ExitCode::SUCCESS;
+    if !todo.is_empty() {
+        let preview = a.farm_parts().preview.clone();
+        let inputs: Vec<&Path> = todo.iter().map(|j| j.input.as_path()).collect();
+        let words = convert_argv(&model_path, &out_dir, preview, &settings, replace, &inputs);
+        let args = ApplyCmd::try_parse_from(&words)
+            .map_err(|e| anyhow::anyhow!("internal: apply's arguments: {e}"))?
+            .a;
+        status = apply::run(args)?;
+    }
+    let convert_s = secs(t1);
+
+    // Record.
+    let t2 = Instant::now();
+    let (outputs, failures) = record(&plan.jobs, found);
+    let m = ShardManifest {
+        format: manifest::FORMAT.into(),
+        nsrm_version: env!("CARGO_PKG_VERSION").into(),
+        shard: shard.index,
+        shards: shard.count,
+        batch: batch_id,
+        model: ModelRecord {
+            path: model_path.display().to_string(),
+            sha256: model_sha,
+        },
+        settings,
+        outputs,
+        failures,
+        stale_temporaries_removed: removed,
+        timings: manifest::Timings {
+            started_unix,
+            check_s,
+            convert_s,
+            hash_s: secs(t2),
+            total_s: secs(t0),
+        },
+    };
+    let path = m
+        .write(&out_dir, &nsrm::output::Session::new(true))
+        .context("writing the shard manifest")?;
+    eprintln!("{}", shard_summary(shard, &m, &path));
+    if !m.failures.is_empty() && status == ExitCode::SUCCESS {
+        status = ExitCode::from(1);
+    }
+    Ok(status)
+}
+
+/// The apply arguments of a farm task: those after its `--`, its input list's lines (both
+/// through its path mapping), checked for the flags the task decides itself; it continues
+/// past a bad file.
+fn shard_apply_args(r: &RunArgs) -> Result<apply::Args> {
     let mut map = PathMap::new();
     for spec in &r.path_map {
         map.add_pair(spec).context("--path-map")?;
@@ -387,37 +489,12 @@ fn run_shard(r: RunArgs) -> Result<ExitCode> {
     if let Some(p) = parts.preview.as_mut() {
         *p = PathBuf::from(map.map(&utf8(p, "--preview")?));
     }
-    let out_dir = parts
-        .output_dir
-        .clone()
-        .ok_or_else(|| UsageError("-o (the batch's output directory) is required".into()))?;
-    let model_path = parts.model.clone();
-    let inputs = batch::expand_inputs(parts.inputs)?;
-    let settings = a.settings_argv();
-    let (_, model_sha) = nsrm::farm::sha256_file(&model_path).context("--model")?;
-    let plan = a
-        .farm_plan(&inputs, shard)
-        .context("planning the outputs (--suffix, -o, --preview)")?;
-    // Every output's name in the batch (all shards), for the batch's identity.
-    let all_names: Vec<String> = {
-        let full = a
-            .farm_plan(&inputs, Shard { index: 1, count: 1 })
-            .context("planning the outputs")?;
-        full.jobs
-            .iter()
-            .map(|j| name_of(&j.output))
-            .collect::<Result<_>>()?
-    };
-    let batch_id = Batch::of(&all_names);
-    let previous =
-        ShardManifest::read(&out_dir.join(manifest::file_name(shard.index, shard.count)))
-            .ok()
-            .filter(|m| m.batch == batch_id);
-    let same_run = previous
-        .as_ref()
-        .is_some_and(|m| m.model.sha256 == model_sha && m.settings == settings);
+    Ok(a)
+}
 
-    // Stale temporaries of this shard's own outputs (a killed run's): removed.
+/// Removes the stale temporaries (a killed run's) of this shard's own outputs and previews
+/// (none of another shard's); their names.
+fn remove_stale_temporaries(plan: &batch::BatchPlan) -> Vec<String> {
     let mine: Vec<String> = plan
         .jobs
         .iter()
@@ -435,51 +512,40 @@ fn run_shard(r: RunArgs) -> Result<ExitCode> {
             }
         }
     }
+    removed
+}
 
-    // What is finished already.
-    let read_opts = a.farm_read_options();
-    let mut found = Vec::with_capacity(plan.jobs.len());
-    for j in &plan.jobs {
-        found.push(check_existing(j, previous.as_ref(), same_run, &read_opts)?);
+/// The `apply` command line that converts `inputs` with the task's model, output directory,
+/// preview directory and settings (replacing what is there when `replace`).
+fn convert_argv(
+    model: &Path,
+    out_dir: &Path,
+    preview: Option<PathBuf>,
+    settings: &[String],
+    replace: bool,
+    inputs: &[&Path],
+) -> Vec<std::ffi::OsString> {
+    let mut words: Vec<std::ffi::OsString> = vec!["nsrm farm run --".into()];
+    words.extend(["--model".into(), model.as_os_str().to_owned()]);
+    words.extend(["-o".into(), out_dir.as_os_str().to_owned()]);
+    if let Some(p) = preview {
+        words.extend(["--preview".into(), p.into_os_string()]);
     }
-    let check_s = secs(t0);
-
-    // Convert the rest.
-    let todo: Vec<&batch::Job> = plan
-        .jobs
-        .iter()
-        .zip(&found)
-        .filter(|(_, f)| matches!(f, Found::Todo(_)))
-        .map(|(j, _)| j)
-        .collect();
-    let replace = found.iter().any(|f| matches!(f, Found::Todo(true)));
-    let t1 = Instant::now();
-    let mut status = ExitCode::SUCCESS;
-    if !todo.is_empty() {
-        let mut words: Vec<std::ffi::OsString> = vec!["nsrm farm run --".into()];
-        words.extend(["--model".into(), model_path.clone().into_os_string()]);
-        words.extend(["-o".into(), out_dir.clone().into_os_string()]);
-        if let Some(p) = a.farm_parts().preview.clone() {
-            words.extend(["--preview".into(), p.into_os_string()]);
-        }
-        words.extend(settings.iter().map(Into::into));
-        if replace {
-            words.push("--overwrite".into());
-        }
-        words.push("--".into());
-        words.extend(todo.iter().map(|j| j.input.clone().into_os_string()));
-        let args = ApplyCmd::try_parse_from(&words)
-            .map_err(|e| anyhow::anyhow!("internal: apply's arguments: {e}"))?
-            .a;
-        status = apply::run(args)?;
+    words.extend(settings.iter().map(Into::into));
+    if replace {
+        words.push("--overwrite".into());
     }
-    let convert_s = secs(t1);
+    words.push("--".into());
+    words.extend(inputs.iter().map(|p| p.as_os_str().to_owned()));
+    words
+}
 
-    // Record.
-    let t2 = Instant::now();
+/// The manifest's records of the shard's jobs after the conversion: what was kept, and for
+/// each converted output its record or, when it is missing or unreadable, a failure.
+fn record(jobs: &[batch::Job], found: Vec<Found>) -> (Vec<Entry>, Vec<Failure>) {
     let mut outputs = Vec::new();
     let mut failures = Vec::new();
-    for (j, f) in plan.jobs.iter().zip(found) {
+    for (j, f) in jobs.iter().zip(found) {
         match f {
             Found::Done(e) => outputs.push(e),
             Found::Todo(replaced) => {
@@ -499,49 +565,25 @@ fn run_shard(r: RunArgs) -> Result<ExitCode> {
             }
         }
     }
-    let hash_s = secs(t2);
-    let m = ShardManifest {
-        format: manifest::FORMAT.into(),
-        nsrm_version: env!("CARGO_PKG_VERSION").into(),
-        shard: shard.index,
-        shards: shard.count,
-        batch: batch_id,
-        model: ModelRecord {
-            path: model_path.display().to_string(),
-            sha256: model_sha,
-        },
-        settings,
-        outputs,
-        failures,
-        stale_temporaries_removed: removed,
-        timings: manifest::Timings {
-            started_unix,
-            check_s,
-            convert_s,
-            hash_s,
-            total_s: secs(t0),
-        },
-    };
-    let path = m
-        .write(&out_dir, &nsrm::output::Session::new(true))
-        .context("writing the shard manifest")?;
+    (outputs, failures)
+}
+
+/// The task's one-line summary of its manifest `m` (written at `path`).
+fn shard_summary(shard: Shard, m: &ShardManifest, path: &Path) -> String {
     let count = |h: How| m.outputs.iter().filter(|e| e.how == h).count();
-    eprintln!(
+    let n_removed = m.stale_temporaries_removed.len();
+    format!(
         "nsrm farm run: shard {shard}: {} converted, {} replaced, {} kept, {} adopted (complete, found without a record), {} failed; {} stale temporar{} removed; {:.2} s; manifest {}",
         count(How::Converted),
         count(How::Replaced),
         count(How::Kept),
         count(How::Adopted),
         m.failures.len(),
-        m.stale_temporaries_removed.len(),
-        if m.stale_temporaries_removed.len() == 1 { "y" } else { "ies" },
+        n_removed,
+        if n_removed == 1 { "y" } else { "ies" },
         m.timings.total_s,
         path.display()
-    );
-    if !m.failures.is_empty() && status == ExitCode::SUCCESS {
-        status = ExitCode::from(1);
-    }
-    Ok(status)
+    )
 }
 
 fn name_of(p: &Path) -> Result<String> {
@@ -663,4 +705,106 @@ fn run_verify(v: VerifyArgs) -> Result<ExitCode> {
         eprintln!("  {p}");
     }
     Ok(ExitCode::from(1))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn job(dir: &Path, name: &str) -> batch::Job {
+        batch::Job {
+            input: dir.join(format!("{name}.in.exr")),
+            output: dir.join(format!("{name}.exr")),
+            preview: None,
+            action: batch::Action::Convert,
+        }
+    }
+
+    #[test]
+    fn convert_argv_parses_as_apply_with_the_tasks_settings() {
+        let settings = vec!["--output-space".to_string(), "acescg".to_string()];
+        let inputs = [Path::new("a.exr"), Path::new("-b.exr")];
+        let words = convert_argv(
+            Path::new("m.json"),
+            Path::new("out"),
+            Some(PathBuf::from("prev")),
+            &settings,
+            true,
+            &inputs,
+        );
+        let text: Vec<String> = words.iter().map(|w| w.to_string_lossy().into()).collect();
+        assert_eq!(text[1..5], ["--model", "m.json", "-o", "out"]);
+        assert!(text.contains(&"--overwrite".to_string()));
+        // The inputs come after `--`, so one that starts with `-` is an input.
+        assert_eq!(text[text.len() - 3..], ["--", "a.exr", "-b.exr"]);
+        let mut a = ApplyCmd::try_parse_from(&words).unwrap().a;
+        assert!(a.farm_parts().overwrite);
+        let back = a.settings_argv();
+        assert!(back.windows(2).any(|w| w == settings), "{back:?}");
+        let words = convert_argv(Path::new("m"), Path::new("o"), None, &[], false, &inputs);
+        assert!(!words.iter().any(|w| w == "--overwrite" || w == "--preview"));
+    }
+
+    #[test]
+    fn stale_temporaries_of_other_shards_are_left_alone() {
+        let dir = std::env::temp_dir().join(format!("house2-farm-stale-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let mine = dir.join(".a.exr.nsrm-tmp-1");
+        let theirs = dir.join(".b.exr.nsrm-tmp-2");
+        for p in [&mine, &theirs] {
+            std::fs::write(p, b"x").unwrap();
+        }
+        let plan = batch::BatchPlan {
+            jobs: vec![job(&dir, "a")],
+            total_inputs: 2,
+            shard: None,
+            dirs: vec![dir.clone()],
+            stale_temporaries: vec![mine.clone(), theirs.clone()],
+        };
+        assert_eq!(remove_stale_temporaries(&plan), [".a.exr.nsrm-tmp-1"]);
+        assert!(!mine.exists() && theirs.exists());
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+
+    #[test]
+    fn a_missing_output_is_recorded_as_a_failure_and_counted() {
+        let dir = std::env::temp_dir().join(format!("house2-farm-rec-{}", std::process::id()));
+        let (outputs, failures) = record(&[job(&dir, "gone")], vec![Found::Todo(false)]);
+        assert!(outputs.is_empty());
+        assert_eq!(failures.len(), 1);
+        assert_eq!(failures[0].output, "gone.exr");
+        assert!(failures[0].why.contains("no output"), "{}", failures[0].why);
+        let m = ShardManifest {
+            format: manifest::FORMAT.into(),
+            nsrm_version: "0".into(),
+            shard: 2,
+            shards: 3,
+            batch: Batch::of(&["gone.exr".to_string()]),
+            model: ModelRecord {
+                path: "m.json".into(),
+                sha256: String::new(),
+            },
+            settings: Vec::new(),
+            outputs,
+            failures,
+            stale_temporaries_removed: vec!["x".into()],
+            timings: manifest::Timings {
+                started_unix: 0.0,
+                check_s: 0.0,
+                convert_s: 0.0,
+                hash_s: 0.0,
+                total_s: 1.5,
+            },
+        };
+        let shard = Shard { index: 2, count: 3 };
+        let line = shard_summary(shard, &m, Path::new("m.json"));
+        assert!(
+            line.contains("0 converted, 0 replaced, 0 kept, 0 adopted"),
+            "{line}"
+        );
+        assert!(
+            line.contains("1 failed; 1 stale temporary removed; 1.50 s"),
+            "{line}"
+        );
+    }
 }

@@ -110,7 +110,7 @@ impl<const N: usize> Dual<N> {
     }
 
     /// The variables of an input vector: `[var(x[0], 0), var(x[1], 1), …]`.
-    pub fn vars(x: [f64; N]) -> [Self; N] {
+    pub(crate) fn vars(x: [f64; N]) -> [Self; N] {
         std::array::from_fn(|k| Dual::var(x[k], k))
     }
 }

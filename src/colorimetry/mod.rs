@@ -18,7 +18,7 @@ const EPS: f64 = 216.0 / 24389.0;
 const KAPPA: f64 = 24389.0 / 27.0;
 
 /// CIE xyY → XYZ (same scale as `big_y`). A chromaticity with `y = 0` gives zeros.
-pub fn xyy_to_xyz(x: f64, y: f64, big_y: f64) -> [f64; 3] {
+pub(crate) fn xyy_to_xyz(x: f64, y: f64, big_y: f64) -> [f64; 3] {
     if y == 0.0 {
         return [0.0; 3];
     }
@@ -43,7 +43,7 @@ pub fn xyz_to_lab<T: Real>(xyz: [T; 3], white: [f64; 3]) -> [T; 3] {
 }
 
 /// CIELAB → CIE XYZ, the inverse of [`xyz_to_lab`].
-pub fn lab_to_xyz(lab: [f64; 3], white: [f64; 3]) -> [f64; 3] {
+pub(crate) fn lab_to_xyz(lab: [f64; 3], white: [f64; 3]) -> [f64; 3] {
     let fy = (lab[0] + 16.0) / 116.0;
     let fx = fy + lab[1] / 500.0;
     let fz = fy - lab[2] / 200.0;
@@ -75,7 +75,7 @@ pub fn ciede2000<T: Real>(lab1: [T; 3], lab2: [T; 3]) -> T {
 /// CIEDE2000 as a Euclidean norm: a vector `v` with `‖v‖ = ΔE00`,
 /// `v = (ΔL'/S_L, ΔC'/S_C + R_T/2·ΔH'/S_H, ΔH'/S_H·√(1 − R_T²/4))` (`|R_T| ≤ 2`). Smooth where
 /// ΔE00 = 0, unlike the norm itself: the residuals a Gauss–Newton fit of ΣΔE00² wants.
-pub fn ciede2000_vector<T: Real>(lab1: [T; 3], lab2: [T; 3]) -> [T; 3] {
+pub(crate) fn ciede2000_vector<T: Real>(lab1: [T; 3], lab2: [T; 3]) -> [T; 3] {
     let [tl, tc, th, rt] = ciede2000_parts(lab1, lab2);
     let k = (T::cst(1.0) - rt * rt * 0.25).sqrt();
     [tl, tc + rt * th * 0.5, th * k]
@@ -176,7 +176,7 @@ pub fn delta_e00_xyz_grad(
 
 /// [`ciede2000_vector`] between a predicted XYZ and a reference Lab colour, with its Jacobian with
 /// respect to the predicted X, Y, Z (forward-mode through [`xyz_to_lab`]).
-pub fn delta_e00_vector_xyz_jacobian(
+pub(crate) fn delta_e00_vector_xyz_jacobian(
     xyz: [f64; 3],
     reference_lab: [f64; 3],
     white: [f64; 3],

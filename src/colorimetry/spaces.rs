@@ -102,10 +102,10 @@ impl OutputSpace {
 }
 
 /// CIE D65 chromaticity (2° observer).
-pub const D65_XY: [f64; 2] = [0.3127, 0.3290];
+pub(crate) const D65_XY: [f64; 2] = [0.3127, 0.3290];
 
 /// How far (xy distance) a scene white may be from D65 and still count as D65 for XYZ output.
-pub const D65_XY_TOLERANCE: f64 = 1e-3;
+pub(crate) const D65_XY_TOLERANCE: f64 = 1e-3;
 
 /// The identity matrix.
 pub const IDENTITY: Mat3 = [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]];
@@ -116,7 +116,7 @@ pub fn xy_to_xyz(xy: [f64; 2]) -> [f64; 3] {
 }
 
 /// The normalised primary matrix (RGB → XYZ, white maps to Y = 1).
-pub fn rgb_to_xyz(prim: [[f64; 2]; 3], white: [f64; 2]) -> Mat3 {
+pub(crate) fn rgb_to_xyz(prim: [[f64; 2]; 3], white: [f64; 2]) -> Mat3 {
     let cols: Vec<[f64; 3]> = prim.iter().map(|p| xy_to_xyz(*p)).collect();
     let p = [
         [cols[0][0], cols[1][0], cols[2][0]],
@@ -134,7 +134,7 @@ pub fn rgb_to_xyz(prim: [[f64; 2]; 3], white: [f64; 2]) -> Mat3 {
 }
 
 /// Bradford chromatic adaptation from white `src` to white `dst` (both XYZ).
-pub fn bradford(src: [f64; 3], dst: [f64; 3]) -> Mat3 {
+pub(crate) fn bradford(src: [f64; 3], dst: [f64; 3]) -> Mat3 {
     const B: Mat3 = [
         [0.8951, 0.2664, -0.1614],
         [-0.7502, 1.7135, 0.0367],
@@ -173,7 +173,7 @@ pub fn mul(a: &Mat3, b: &Mat3) -> Mat3 {
 /// The inverse of a 3×3 matrix (nalgebra's), or `None` when it is singular or too close to
 /// singular to be worth inverting: a non-finite entry, or `|det|` at most `1e-12` of the product
 /// of its row norms (Hadamard's bound on `|det|`, so the test does not depend on the scale).
-pub fn try_invert(m: &Mat3) -> Option<Mat3> {
+pub(crate) fn try_invert(m: &Mat3) -> Option<Mat3> {
     let a = nalgebra::Matrix3::from_fn(|i, j| m[i][j]);
     let hadamard: f64 = m
         .iter()

@@ -135,7 +135,7 @@ pub fn predict(
 /// Predicted XYZ for every patch under `protocol`, fitting with `opts`. Leave-one-out runs the
 /// whole procedure (objective, white constraint, λ choice, white balance) inside every fold, folds
 /// in parallel.
-pub fn predict_with(
+pub(crate) fn predict_with(
     kind: Kind,
     order: u8,
     data: &TrainingSet,

@@ -94,18 +94,13 @@ const TITLE_LINE_H: u32 = 22;
 const FAMILY: &str = "DejaVu Sans, sans-serif";
 const FONT: &[u8] = include_bytes!("../../assets/DejaVuSans.ttf");
 
-/// Registers [`FONT`] with plotters once per process.
+/// Registers [`FONT`] with plotters (whose font registry is its own process-wide table; text is
+/// looked up there by family name). Done for every figure rather than remembered here: the
+/// registration is idempotent (the same bytes under the same name) and parsing the embedded
+/// font is cheap next to drawing, so this crate keeps no process-wide state of its own.
 fn register_font() -> Result<(), PlotError> {
-    static REGISTERED: std::sync::OnceLock<bool> = std::sync::OnceLock::new();
-    let ok = *REGISTERED
-        .get_or_init(|| plotters::style::register_font(FAMILY, FontStyle::Normal, FONT).is_ok());
-    if ok {
-        Ok(())
-    } else {
-        Err(PlotError::Draw(
-            "the embedded DejaVu Sans font does not parse".into(),
-        ))
-    }
+    plotters::style::register_font(FAMILY, FontStyle::Normal, FONT)
+        .map_err(|_| PlotError::Draw("the embedded DejaVu Sans font does not parse".into()))
 }
 
 /// Text in the embedded font; `size` in pixels as plotters counts them (the SVG gets
@@ -321,7 +316,7 @@ fn nice_step(max: f64) -> f64 {
 }
 
 /// The figure of `results` as an SVG document, with `title` above the panels.
-pub fn to_svg(results: &[EvalResult], title: Option<&str>) -> Result<String, PlotError> {
+pub(crate) fn to_svg(results: &[EvalResult], title: Option<&str>) -> Result<String, PlotError> {
     let fig = Figure::new(results, title)?;
     let mut out = String::new();
     {
@@ -332,7 +327,10 @@ pub fn to_svg(results: &[EvalResult], title: Option<&str>) -> Result<String, Plo
 }
 
 /// The figure of `results` as an RGB image, with `title` above the panels.
-pub fn to_image(results: &[EvalResult], title: Option<&str>) -> Result<image::RgbImage, PlotError> {
+pub(crate) fn to_image(
+    results: &[EvalResult],
+    title: Option<&str>,
+) -> Result<image::RgbImage, PlotError> {
     let fig = Figure::new(results, title)?;
     let (w, h) = fig.size();
     let mut buf = vec![255u8; w as usize * h as usize * 3];

@@ -6,7 +6,7 @@ use super::{provenance_line, ErrorReport, LutExport};
 use std::fmt::Write as _;
 
 /// Escapes text for XML element content and attribute values.
-pub fn xml_escape(s: &str) -> String {
+pub(crate) fn xml_escape(s: &str) -> String {
     let mut out = String::with_capacity(s.len());
     for c in s.chars() {
         match c {
@@ -24,7 +24,7 @@ pub fn xml_escape(s: &str) -> String {
 
 /// The `ProcessList` id: `urn:nsrm:<kind><order>:<camera>:<illuminant>:<space>:<digest>`, the digest
 /// (FNV-1a of the model's matrix and the LUT options) telling different fits apart.
-pub fn process_list_id(e: &LutExport) -> String {
+pub(crate) fn process_list_id(e: &LutExport) -> String {
     let p = e.model.provenance();
     let clean = |s: &str| -> String {
         crate::spectral::display_name(s)

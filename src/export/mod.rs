@@ -118,14 +118,14 @@ impl Format {
 }
 
 /// The smallest and largest 3D LUT size accepted (OpenColorIO reads .cube lattices of 2..=129).
-pub const LUT_SIZES: std::ops::RangeInclusive<usize> = 2..=129;
+pub(crate) const LUT_SIZES: std::ops::RangeInclusive<usize> = 2..=129;
 /// The largest .cube shaper accepted.
-pub const MAX_SHAPER_SIZE: usize = 65536;
+pub(crate) const MAX_SHAPER_SIZE: usize = 65536;
 
 /// How far (in stops) below the bottom of the documented range the shaper's logarithmic part
 /// starts: the lattice is smooth across the whole range, and the straight segment that takes the
 /// curve through 0 stays below it.
-pub const TOE_STOPS: f64 = 1.0;
+pub(crate) const TOE_STOPS: f64 = 1.0;
 
 /// How the LUT of a nonlinear model is built.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -192,9 +192,9 @@ impl LutOptions {
 }
 
 /// The step of the dense chromaticity grid (camera `r, g`).
-pub const DENSE_STEP: f64 = 0.005;
+pub(crate) const DENSE_STEP: f64 = 0.005;
 /// The step, in stops, between the exposures of the dense set.
-pub const EXPOSURE_STEP: f64 = 0.125;
+pub(crate) const EXPOSURE_STEP: f64 = 0.125;
 
 /// ΔE00 statistics over a sample set.
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
@@ -248,7 +248,7 @@ impl ErrorReport {
     }
 
     /// Refuses an export whose largest error passes the caller's `limit`, saying where it was.
-    pub fn check_limit(&self, limit: Option<f64>) -> Result<(), ExportError> {
+    pub(crate) fn check_limit(&self, limit: Option<f64>) -> Result<(), ExportError> {
         match limit {
             Some(limit) if self.max() > limit => Err(ExportError::TooInaccurate {
                 max: self.max(),
@@ -305,7 +305,7 @@ fn check_model(model: &Model) -> Result<(), ExportError> {
 /// The least-squares 3×3 `L` with `f(S) ≈ L·S` over the training patches: the CLF chain stores
 /// `log(L⁻¹·f(S))` in its LUT, which is nearly linear in the log-encoded input (exactly so for
 /// a linear model), and decodes and multiplies by `L` after it.
-pub fn linear_part(folded: &Model, training_rgb: &[[f64; 3]]) -> Result<Mat3, ExportError> {
+pub(crate) fn linear_part(folded: &Model, training_rgb: &[[f64; 3]]) -> Result<Mat3, ExportError> {
     if training_rgb.len() < 3 {
         return Err(ExportError::Usage(
             "the LUT export needs the training patches' camera RGB".into(),
@@ -461,7 +461,7 @@ impl LutExport {
     }
 
     /// The 3D LUT of the chain, if any.
-    pub fn lut3d(&self) -> Option<&Lut3d> {
+    pub(crate) fn lut3d(&self) -> Option<&Lut3d> {
         self.nodes.iter().find_map(|n| match n {
             Node::Lut3d(l) => Some(l),
             _ => None,
@@ -494,7 +494,7 @@ impl LutExport {
 /// ([`dense_chromaticities`]) at exposures every [`EXPOSURE_STEP`] stops across `stops` (relative
 /// to the brightest patch), leaving out samples with a channel outside `2^stops` when
 /// `skip_out_of_range`.
-pub fn measure_fn(
+pub(crate) fn measure_fn(
     training_rgb: &[[f64; 3]],
     stops: [f64; 2],
     skip_out_of_range: bool,

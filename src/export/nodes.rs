@@ -18,7 +18,7 @@ pub enum Interpolation {
 
 impl Interpolation {
     /// CLF's `interpolation` attribute value.
-    pub fn clf_name(self) -> &'static str {
+    pub(crate) fn clf_name(self) -> &'static str {
         match self {
             Interpolation::Trilinear => "trilinear",
             Interpolation::Tetrahedral => "tetrahedral",
@@ -49,7 +49,7 @@ pub struct LogCurve {
 impl LogCurve {
     /// The curve mapping `0 → 0` and `hi → 1`, logarithmic from `lo` up (`0 < lo < hi`) and
     /// linear between 0 and `lo`.
-    pub fn zero_to_one(lo: f64, hi: f64) -> LogCurve {
+    pub(crate) fn zero_to_one(lo: f64, hi: f64) -> LogCurve {
         // Linear part y = a·x with a = log_slope / (lo·ln 2) (slope continuity at the break), so
         // y(lo) = log_slope / ln 2; y(hi) = log_slope·(log2(hi/lo) + 1/ln 2) = 1.
         let inv_ln2 = std::f64::consts::LOG2_E;
@@ -63,7 +63,7 @@ impl LogCurve {
     }
 
     /// The slope of the linear segment (CLF's derived `linearSlope`).
-    pub fn linear_slope(&self) -> f64 {
+    pub(crate) fn linear_slope(&self) -> f64 {
         self.log_slope / (self.break_x * std::f64::consts::LN_2)
     }
 
@@ -72,7 +72,7 @@ impl LogCurve {
     }
 
     /// Linear → log.
-    pub fn forward(&self, x: f64) -> f64 {
+    pub(crate) fn forward(&self, x: f64) -> f64 {
         if x > self.break_x {
             self.log_slope * x.log2() + self.log_offset
         } else {
@@ -309,7 +309,7 @@ impl Node {
 }
 
 /// Applies a chain of nodes in order.
-pub fn eval_chain(nodes: &[Node], x: [f64; 3]) -> [f64; 3] {
+pub(crate) fn eval_chain(nodes: &[Node], x: [f64; 3]) -> [f64; 3] {
     nodes.iter().fold(x, |v, n| n.eval(v))
 }
 

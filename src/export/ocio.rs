@@ -10,7 +10,7 @@ use crate::colorimetry::spaces::{self, OutputSpace};
 use std::fmt::Write as _;
 
 /// The OCIO colour-space name of an output space.
-pub fn space_name(space: OutputSpace) -> &'static str {
+pub(crate) fn space_name(space: OutputSpace) -> &'static str {
     match space {
         OutputSpace::Xyz => "CIE-XYZ-D65",
         OutputSpace::LinearSrgb => "Linear Rec.709 (sRGB)",

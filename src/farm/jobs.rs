@@ -290,7 +290,7 @@ pub fn openjd(spec: &JobSpec) -> Result<Vec<JobFile>, FarmError> {
 }
 
 /// A word for a POSIX shell, single-quoted unless it is plainly safe.
-pub fn sh_quote(s: &str) -> String {
+pub(crate) fn sh_quote(s: &str) -> String {
     if !s.is_empty()
         && s.bytes()
             .all(|b| b.is_ascii_alphanumeric() || b"-_./=:,+@%".contains(&b))
@@ -416,7 +416,7 @@ pub struct Kube {
 }
 
 /// Where the input list (a ConfigMap) is mounted in the pods.
-pub const KUBE_LIST_DIR: &str = "/etc/nsrm-batch";
+pub(crate) const KUBE_LIST_DIR: &str = "/etc/nsrm-batch";
 
 /// A Kubernetes batch: `job.yaml` with a ConfigMap holding the input list and an Indexed Job
 /// (`completionMode: Indexed`, `completions: N`) whose pod `JOB_COMPLETION_INDEX` (0-based) runs

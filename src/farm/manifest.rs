@@ -126,7 +126,7 @@ pub fn file_name(k: usize, n: usize) -> String {
 }
 
 /// Parses a manifest's file name back to `(k, n)`.
-pub fn parse_file_name(name: &str) -> Option<(usize, usize)> {
+pub(crate) fn parse_file_name(name: &str) -> Option<(usize, usize)> {
     let rest = name
         .strip_prefix("nsrm-farm.shard-")?
         .strip_suffix(".json")?;
@@ -140,7 +140,7 @@ pub fn parse_file_name(name: &str) -> Option<(usize, usize)> {
 
 impl ShardManifest {
     /// Where this manifest goes in `dir`.
-    pub fn path_in(&self, dir: &Path) -> PathBuf {
+    pub(crate) fn path_in(&self, dir: &Path) -> PathBuf {
         dir.join(file_name(self.shard, self.shards))
     }
 

@@ -98,7 +98,7 @@ pub fn sha256_file(path: &Path) -> Result<(u64, String), FarmError> {
 }
 
 /// SHA-256 (lowercase hex) of bytes.
-pub fn sha256_bytes(bytes: &[u8]) -> String {
+pub(crate) fn sha256_bytes(bytes: &[u8]) -> String {
     use sha2::{Digest, Sha256};
     hex(&Sha256::digest(bytes))
 }

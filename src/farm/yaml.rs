@@ -24,7 +24,7 @@ impl Node {
     }
 
     /// A sequence of strings.
-    pub fn strs<S: Into<String>>(items: impl IntoIterator<Item = S>) -> Node {
+    pub(crate) fn strs<S: Into<String>>(items: impl IntoIterator<Item = S>) -> Node {
         Node::List(items.into_iter().map(|s| Node::Str(s.into())).collect())
     }
 }

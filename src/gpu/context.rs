@@ -38,7 +38,7 @@ impl GpuContext {
     /// only a hardware adapter is taken: when the default one is a software rasteriser (device
     /// type `Cpu`, e.g. lavapipe) another adapter that is not is looked for, else
     /// [`GpuError::SoftwareOnly`].
-    pub fn new_hardware(opts: &GpuOptions) -> Result<GpuContext, GpuError> {
+    pub(crate) fn new_hardware(opts: &GpuOptions) -> Result<GpuContext, GpuError> {
         GpuContext::open(opts, false)
     }
 

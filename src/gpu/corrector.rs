@@ -229,7 +229,7 @@ impl Corrector {
 
     /// The most pixels one binding may hold (a multiple of the step that keeps every chunk's
     /// offset aligned to `min_storage_buffer_offset_alignment`).
-    pub fn max_pixels_per_binding(&self) -> u64 {
+    pub(crate) fn max_pixels_per_binding(&self) -> u64 {
         let px = match self.target {
             Target::Buffer { layout, .. } => 4 * layout.channels() as u64,
             Target::Texture { .. } => 16,
@@ -469,7 +469,7 @@ impl Corrector {
 
 /// The `(x, y)` workgroup counts for `pixels` pixels of a buffer shader: `(G, 1)` when
 /// `G = ceil(pixels / WORKGROUP_SIZE) <= ROW_GROUPS`, else `(ROW_GROUPS, ceil(G / ROW_GROUPS))`.
-pub fn dispatch_size(pixels: u64) -> [u32; 2] {
+pub(crate) fn dispatch_size(pixels: u64) -> [u32; 2] {
     let g = pixels.div_ceil(WORKGROUP_SIZE as u64);
     if g <= ROW_GROUPS as u64 {
         [g as u32, 1]

@@ -104,7 +104,7 @@ impl Engine {
     /// Like [`Engine::new`], but a software adapter (device type `Cpu`, e.g. Mesa's lavapipe)
     /// is refused with [`GpuError::SoftwareOnly`] unless `opts` or `NSRM_ADAPTER` names it:
     /// the policy of [`DeviceChoice::Auto`](super::DeviceChoice::Auto).
-    pub fn new_hardware(opts: &GpuOptions) -> Result<Engine, GpuError> {
+    pub(crate) fn new_hardware(opts: &GpuOptions) -> Result<Engine, GpuError> {
         Engine::on(GpuContext::new_hardware(opts)?, opts)
     }
 

@@ -43,7 +43,7 @@ pub use shader::{Target, TexelFormat};
 pub use wgpu;
 
 /// The driver hint every "no adapter" error carries.
-pub const NO_ADAPTER_HINT: &str =
+pub(crate) const NO_ADAPTER_HINT: &str =
     "no GPU adapter found: install a Vulkan driver (e.g. apt-get install mesa-vulkan-drivers libvulkan1)";
 
 /// Errors of the GPU path.

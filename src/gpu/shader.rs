@@ -21,17 +21,17 @@ use crate::model::{term_name, terms, Kind, Model, Term};
 use std::fmt::Write as _;
 
 /// Threads per workgroup of the buffer shaders (one pixel each).
-pub const WORKGROUP_SIZE: u32 = 256;
+pub(crate) const WORKGROUP_SIZE: u32 = 256;
 /// Workgroups per dispatch row of the buffer shaders: a dispatch of `G` workgroups is
 /// `(G, 1, 1)` when `G <= ROW_GROUPS`, else `(ROW_GROUPS, ceil(G / ROW_GROUPS), 1)`.
-pub const ROW_GROUPS: u32 = 256;
+pub(crate) const ROW_GROUPS: u32 = 256;
 /// Side of the square workgroup of the texture shader.
-pub const TILE_SIZE: u32 = 16;
+pub(crate) const TILE_SIZE: u32 = 16;
 /// The entry point of every shader.
-pub const ENTRY_POINT: &str = "main";
+pub(crate) const ENTRY_POINT: &str = "main";
 
 /// The hand-written WGSL sources, by file name.
-pub const SOURCES: [(&str, &str); 8] = [
+pub(crate) const SOURCES: [(&str, &str); 8] = [
     (
         "model_uniform.wgsl",
         include_str!("../../shaders/model_uniform.wgsl"),
@@ -87,7 +87,7 @@ impl TexelFormat {
     }
 
     /// The texel format of a wgpu format, if a corrector can write it.
-    pub fn from_texture_format(f: wgpu::TextureFormat) -> Option<TexelFormat> {
+    pub(crate) fn from_texture_format(f: wgpu::TextureFormat) -> Option<TexelFormat> {
         match f {
             wgpu::TextureFormat::Rgba32Float => Some(TexelFormat::Rgba32Float),
             wgpu::TextureFormat::Rgba16Float => Some(TexelFormat::Rgba16Float),
@@ -134,7 +134,7 @@ impl Target {
     ];
 
     /// The frame file this target uses.
-    pub fn frame_file(self) -> &'static str {
+    pub(crate) fn frame_file(self) -> &'static str {
         match self {
             Target::Buffer {
                 in_place: false, ..
@@ -181,7 +181,7 @@ pub enum Coefficients<'a> {
 }
 
 /// The kind's hand-written file.
-pub fn kind_file(kind: Kind) -> &'static str {
+pub(crate) fn kind_file(kind: Kind) -> &'static str {
     match kind {
         Kind::Lrm => "lrm.wgsl",
         Kind::Prm => "prm.wgsl",
@@ -201,7 +201,7 @@ fn f32_literal(v: f32) -> String {
 }
 
 /// The matrix as `L` columns `(m[0][j], m[1][j], m[2][j], 0)` in f32, the layout of the uniform.
-pub fn matrix_columns(model: &Model) -> Vec<[f32; 4]> {
+pub(crate) fn matrix_columns(model: &Model) -> Vec<[f32; 4]> {
     let l = model.terms().len();
     (0..l)
         .map(|j| {
@@ -217,7 +217,7 @@ pub fn matrix_columns(model: &Model) -> Vec<[f32; 4]> {
 
 /// The uniform's contents: the [`matrix_columns`], then the input gains `(g_R, g_G, g_B, 0)`
 /// (`shaders/model_uniform.wgsl`'s `gain`): `L + 1` × `vec4<f32>`.
-pub fn uniform_data(model: &Model) -> Vec<[f32; 4]> {
+pub(crate) fn uniform_data(model: &Model) -> Vec<[f32; 4]> {
     let g = model.input_gains();
     let mut v = matrix_columns(model);
     v.push([g[0] as f32, g[1] as f32, g[2] as f32, 0.0]);
@@ -225,13 +225,13 @@ pub fn uniform_data(model: &Model) -> Vec<[f32; 4]> {
 }
 
 /// The uniform's size in bytes for a model of `kind` at `order`: `16 · (L + 1)`.
-pub fn uniform_bytes(kind: Kind, order: u8) -> u64 {
+pub(crate) fn uniform_bytes(kind: Kind, order: u8) -> u64 {
     16 * (terms(kind, kind.effective_order(order)).len() as u64 + 1)
 }
 
 /// The generated `fn model_gain() -> vec3<f32>` of NSRM shaders: the input gains, read from the
 /// uniform or baked in.
-pub fn model_gain_fn(coefficients: Coefficients<'_>) -> String {
+pub(crate) fn model_gain_fn(coefficients: Coefficients<'_>) -> String {
     let body = match coefficients {
         Coefficients::Uniform => "model.gain.xyz".to_string(),
         Coefficients::Baked(m) => {
@@ -255,7 +255,7 @@ pub fn model_gain_fn(coefficients: Coefficients<'_>) -> String {
 /// Roots are computed once per channel (`q2 = sroot2(x)`, `q3 = sroot3(x)`, `q4 = sroot4(x)`,
 /// from `shaders/rprm.wgsl`) and shared by every term; each term is the product of its
 /// channels' factors, as [`crate::model::terms::expand`] computes it in f64.
-pub fn model_terms_fn(kind: Kind, order: u8, coefficients: Coefficients<'_>) -> String {
+pub(crate) fn model_terms_fn(kind: Kind, order: u8, coefficients: Coefficients<'_>) -> String {
     let order = kind.effective_order(order);
     let list = terms(kind, order);
     let cols = match coefficients {

@@ -11,7 +11,7 @@ use std::path::{Component, Path, PathBuf};
 /// file's extension ([`super::raw::RAW_EXTENSIONS`]; any case), not
 /// hidden (so `._x.exr` AppleDouble files and nsrm's own `.x.tmp` files are left out). The
 /// rest of the name may be anything, UTF-8 or not.
-pub fn is_frame_name(path: &Path) -> bool {
+pub(crate) fn is_frame_name(path: &Path) -> bool {
     let hidden = path
         .file_name()
         .is_none_or(|n| n.as_encoded_bytes().first() == Some(&b'.'));
@@ -201,26 +201,30 @@ fn has_glob_bytes(b: &[u8]) -> bool {
     b.iter().any(|c| matches!(c, b'*' | b'?' | b'['))
 }
 
-/// `dir` and every directory below it (not hidden, symbolic links not followed), sorted.
+/// `dir` and every directory below it (not hidden, symbolic links not followed), sorted
+/// (walkdir, sorted by name, depth first). Directories that cannot be read are left out.
 fn walk_dirs(dir: &Path, out: &mut Vec<PathBuf>) -> Result<(), IoError> {
-    out.push(dir.to_path_buf());
-    let shown = if dir.as_os_str().is_empty() {
+    let root = if dir.as_os_str().is_empty() {
         Path::new(".")
     } else {
         dir
     };
-    let Ok(entries) = std::fs::read_dir(shown) else {
-        return Ok(());
-    };
-    let mut subs: Vec<PathBuf> = entries
-        .flatten()
-        .filter(|e| e.file_type().is_ok_and(|t| t.is_dir()))
-        .filter(|e| e.file_name().as_encoded_bytes().first() != Some(&b'.'))
-        .map(|e| dir.join(e.file_name()))
-        .collect();
-    subs.sort();
-    for s in subs {
-        walk_dirs(&s, out)?;
+    let walk = walkdir::WalkDir::new(root)
+        .follow_links(false)
+        .sort_by_file_name()
+        .into_iter()
+        .filter_entry(|e| {
+            e.depth() == 0
+                || (e.file_type().is_dir()
+                    && e.file_name().as_encoded_bytes().first() != Some(&b'.'))
+        });
+    for e in walk.flatten() {
+        if e.depth() == 0 {
+            out.push(dir.to_path_buf());
+        } else if e.file_type().is_dir() {
+            // Keep the pattern's form: `dir/sub…` (no `./` added).
+            out.push(dir.join(e.path().strip_prefix(root).unwrap_or(e.path())));
+        }
     }
     Ok(())
 }
@@ -619,7 +623,7 @@ impl PlanError {
 /// resolved (symlinks, `.`, `..`), the rest applied lexically (components that do not exist
 /// yet cannot be symlinks, so this is exact). Relative paths are taken from the current
 /// directory.
-pub fn resolve(p: &Path) -> PathBuf {
+pub(crate) fn resolve(p: &Path) -> PathBuf {
     use std::path::Component;
     let abs = if p.is_absolute() {
         p.to_path_buf()
@@ -661,7 +665,7 @@ fn file_id(_: &std::fs::Metadata) -> Option<(u64, u64)> {
 
 /// Creates `dir` if needed and checks a file can be created in it (a probe with a temporary's
 /// name, removed at once).
-pub fn ensure_writable_dir(dir: &Path) -> Result<(), PlanError> {
+pub(crate) fn ensure_writable_dir(dir: &Path) -> Result<(), PlanError> {
     std::fs::create_dir_all(dir).map_err(|e| {
         PlanError::Setup(format!(
             "cannot create the output directory {}: {e}",
@@ -1052,6 +1056,26 @@ mod tests {
         // A non-UTF-8 byte in the pattern matches the same byte.
         let q = Pattern::parse(b"pl\xe9*").unwrap();
         assert!(q.matches(b"pl\xe9te.exr") && !q.matches("plé".as_bytes()));
+    }
+
+    #[cfg(unix)]
+    #[test]
+    fn double_star_walks_sorted_and_does_not_follow_links() {
+        let dir = tempfile::tempdir().unwrap();
+        let root = dir.path();
+        for d in ["b/c", "a", ".h/x"] {
+            std::fs::create_dir_all(root.join(d)).unwrap();
+        }
+        // A loop: b/c/up → the root.
+        std::os::unix::fs::symlink(root, root.join("b/c/up")).unwrap();
+        let mut out = Vec::new();
+        walk_dirs(root, &mut out).unwrap();
+        let rel: Vec<_> = out
+            .iter()
+            .map(|p| p.strip_prefix(root).unwrap().to_path_buf())
+            .collect();
+        let want: Vec<PathBuf> = ["", "a", "b", "b/c"].iter().map(PathBuf::from).collect();
+        assert_eq!(rel, want);
     }
 
     #[cfg(unix)]

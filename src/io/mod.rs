@@ -16,7 +16,7 @@
 //! move it into place only when complete ([`crate::output`]).
 //!
 //! [`batch`] expands command-line inputs (files, directories, globs), slices them for `--shard`
-//! and names outputs; [`chart`] renders a synthetic chart frame; [`preview`] writes sRGB PNGs.
+//! and names outputs; `chart::synthetic` renders synthetic chart frames with [`write_camera_float`]; [`preview`] writes sRGB PNGs.
 
 pub mod batch;
 pub mod display;
@@ -148,7 +148,7 @@ impl Limits {
     /// [`max_pixels`](Self::max_pixels) and, when `stored_bytes` says how much of the file the
     /// samples may take (uncompressed data: the file's length), against that. Returns the pixel
     /// count.
-    pub fn check_frame(
+    pub(crate) fn check_frame(
         &self,
         path: &Path,
         width: u64,
@@ -193,7 +193,7 @@ impl Limits {
 
 /// A vector of `n` copies of `value`, allocated fallibly: an error naming `path` instead of an
 /// abort when memory runs out. For buffers whose size comes from a file.
-pub fn try_filled<T: Clone>(path: &Path, n: usize, value: T) -> Result<Vec<T>, IoError> {
+pub(crate) fn try_filled<T: Clone>(path: &Path, n: usize, value: T) -> Result<Vec<T>, IoError> {
     let mut v = try_with_capacity(path, n)?;
     v.resize(n, value);
     Ok(v)
@@ -202,7 +202,7 @@ pub fn try_filled<T: Clone>(path: &Path, n: usize, value: T) -> Result<Vec<T>, I
 /// A vector of `n` zeros, allocated fallibly (see [`try_filled`]) and zeroed lazily: a large
 /// allocation takes fresh pages from the kernel, which come zeroed, so nothing is written until
 /// the caller writes the samples (no pass over the whole buffer first).
-pub fn try_zeroed<T: bytemuck::Zeroable>(path: &Path, n: usize) -> Result<Vec<T>, IoError> {
+pub(crate) fn try_zeroed<T: bytemuck::Zeroable>(path: &Path, n: usize) -> Result<Vec<T>, IoError> {
     bytemuck::allocation::try_zeroed_vec(n).map_err(|()| IoError::TooLarge {
         path: path.to_path_buf(),
         why: format!(
@@ -277,7 +277,7 @@ impl FramePool {
 }
 
 /// An empty vector with room for `n` elements, allocated fallibly (see [`try_filled`]).
-pub fn try_with_capacity<T>(path: &Path, n: usize) -> Result<Vec<T>, IoError> {
+pub(crate) fn try_with_capacity<T>(path: &Path, n: usize) -> Result<Vec<T>, IoError> {
     let mut v = Vec::new();
     v.try_reserve_exact(n).map_err(|_| IoError::TooLarge {
         path: path.to_path_buf(),
@@ -313,7 +313,7 @@ impl FileFormat {
     }
 
     /// The format of a file by its signature (first four bytes).
-    pub fn sniff(path: &Path) -> Result<FileFormat, IoError> {
+    pub(crate) fn sniff(path: &Path) -> Result<FileFormat, IoError> {
         use std::io::Read;
         let mut magic = [0u8; 4];
         let mut read = || -> std::io::Result<usize> {
@@ -729,7 +729,7 @@ pub fn read_frame(path: &Path, opts: &ReadOptions) -> Result<Frame, IoError> {
 }
 
 /// [`read_frame`], and what a camera raw file says about its camera (`None` for EXR / TIFF).
-pub fn read_frame_and_camera(
+pub(crate) fn read_frame_and_camera(
     path: &Path,
     opts: &ReadOptions,
 ) -> Result<(Frame, Option<raw::CameraInfo>), IoError> {

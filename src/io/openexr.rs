@@ -30,7 +30,7 @@ use ::exr::prelude::traits::*;
 use std::path::Path;
 
 /// The standard attribute naming the colour space of the pixels (ASWF colour interop).
-pub const COLOR_INTEROP_ID: &str = "colorInteropID";
+pub(crate) const COLOR_INTEROP_ID: &str = "colorInteropID";
 
 /// A decoded EXR minus its camera RGB samples.
 #[derive(Debug)]

@@ -56,7 +56,7 @@ use rayon::prelude::*;
 use std::collections::HashMap;
 
 /// Pixels per block: one `[f32; LANES]` array per channel (one AVX or two SSE registers).
-pub const LANES: usize = 8;
+pub(crate) const LANES: usize = 8;
 
 /// Pixels per rayon task (64 Ki pixels: 768 KiB of packed RGB f32).
 pub const CHUNK_PIXELS: usize = 1 << 16;
@@ -696,7 +696,7 @@ fn third_mul(x: u32) -> u32 {
 /// over every f32, subnormals included (the unit test below bounds it by 1.3e-7);
 /// `±0 → ±0`, `±∞ → ±∞`, NaN → NaN. This is `cbrt_m` without FMA (the baseline's bits).
 #[inline(always)]
-pub fn cbrt_s(x: f32) -> f32 {
+pub(crate) fn cbrt_s(x: f32) -> f32 {
     cbrt_m::<false>(x, false)
 }
 

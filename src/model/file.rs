@@ -28,7 +28,7 @@ pub const FORMAT: &str = "nsrm-model";
 /// white-balanced NSRM), so builds that cannot apply gains refuse such a file by its version.
 /// Version 3 is a two-illuminant file (`super::dual_illuminant`): a model document with the
 /// second model added; [`Model::from_json`] refuses it with a message that says so.
-pub const VERSION: u32 = 3;
+pub(crate) const VERSION: u32 = 3;
 
 /// The first version with `input.gains`.
 const GAINS_VERSION: u32 = 2;

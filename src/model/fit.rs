@@ -34,7 +34,7 @@ use nalgebra::{DMatrix, DVector, SVD};
 
 /// The largest magnitude (and the reciprocal of the smallest non-zero one) a design entry or
 /// target may have: squares and products of such numbers stay far inside f64's range.
-pub const DESIGN_LIMIT: f64 = 1e100;
+pub(crate) const DESIGN_LIMIT: f64 = 1e100;
 
 /// What the fit minimises.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -299,7 +299,7 @@ pub(crate) fn design(
 }
 
 /// SVD with an iteration limit: never spins on a pathological matrix.
-pub fn svd(
+pub(crate) fn svd(
     a: DMatrix<f64>,
     vectors: bool,
 ) -> Result<SVD<f64, nalgebra::Dyn, nalgebra::Dyn>, ModelError> {
@@ -536,7 +536,7 @@ pub const F32_TOLERANCE_DE00: f64 = 0.01;
 
 /// The ridge λ [`fit_with`] tries, in order, when a fit's f32 evaluation error is too large: 10^-16
 /// … 10^2 in quarter decades (above the λ the options asked for).
-pub fn f32_guard_grid() -> impl Iterator<Item = f64> {
+pub(crate) fn f32_guard_grid() -> impl Iterator<Item = f64> {
     (0..=72).map(|i| 10f64.powf(-16.0 + 0.25 * i as f64))
 }
 

@@ -277,7 +277,7 @@ impl Model {
     }
 
     /// `rgb` multiplied by the input gains.
-    pub fn gained(&self, rgb: [f64; 3]) -> [f64; 3] {
+    pub(crate) fn gained(&self, rgb: [f64; 3]) -> [f64; 3] {
         let g = self.input_gains;
         [rgb[0] * g[0], rgb[1] * g[1], rgb[2] * g[2]]
     }
@@ -296,14 +296,14 @@ impl Model {
 
     /// The model with another Lab reference white (XYZ, finite, `Y > 0`): for a matrix made with
     /// [`from_matrix`](Self::from_matrix), whose white is D65 with `Y = 100`.
-    pub fn with_white_xyz(mut self, white_xyz: [f64; 3]) -> Result<Model, ModelError> {
+    pub(crate) fn with_white_xyz(mut self, white_xyz: [f64; 3]) -> Result<Model, ModelError> {
         check_white(white_xyz)?;
         self.white_xyz = white_xyz;
         Ok(self)
     }
 
     /// The model with a record of its training data (where it came from, the patch labels).
-    pub fn with_training(mut self, provenance: Provenance, patches: Vec<String>) -> Model {
+    pub(crate) fn with_training(mut self, provenance: Provenance, patches: Vec<String>) -> Model {
         self.provenance = provenance;
         self.patches = patches;
         self
@@ -340,7 +340,7 @@ impl Model {
     }
 
     /// [`apply_f64`](Self::apply_f64) with a caller-provided term buffer (length L).
-    pub fn apply_f64_with(&self, rgb: [f64; 3], p: &mut [f64]) -> [f64; 3] {
+    pub(crate) fn apply_f64_with(&self, rgb: [f64; 3], p: &mut [f64]) -> [f64; 3] {
         let scale = match self.features_of(rgb, p) {
             Some(s) => s,
             None => return [0.0; 3],
@@ -382,7 +382,7 @@ impl Model {
 }
 
 /// The input gains of every model but a white-balanced NSRM.
-pub const UNIT_GAINS: [f64; 3] = [1.0; 3];
+pub(crate) const UNIT_GAINS: [f64; 3] = [1.0; 3];
 
 /// Input gains: finite, `> 0`, finite in f32; other than 1 for NSRM only.
 fn check_gains(kind: Kind, g: [f64; 3]) -> Result<(), ModelError> {

@@ -20,7 +20,7 @@ use crate::colorimetry::{ciede2000, delta_e00_vector_xyz_jacobian, xyz_to_lab, R
 use nalgebra::{DMatrix, DVector};
 
 /// The most Jacobian evaluations one refinement makes.
-pub const MAX_ITERATIONS: usize = 100;
+pub(crate) const MAX_ITERATIONS: usize = 100;
 
 /// The refinement's result.
 pub(crate) struct Refined {

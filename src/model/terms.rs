@@ -27,7 +27,7 @@ pub struct Term {
 
 impl Term {
     /// The degree of the monomial under the root.
-    pub fn degree(&self) -> u8 {
+    pub(crate) fn degree(&self) -> u8 {
         self.exps.iter().sum()
     }
 }
@@ -36,7 +36,7 @@ impl Term {
 /// `…, RG², RB², GB², GR², BR², BG², RGB`). The order is part of the model file format (the
 /// columns of its matrix); PRM files written before the eq. (3) order (`…, BG², BR², RGB`) are
 /// converted by term name on load.
-pub const MONOMIALS: [&[[u8; 3]]; 4] = [
+pub(crate) const MONOMIALS: [&[[u8; 3]]; 4] = [
     // d = 1: R, G, B
     &[[1, 0, 0], [0, 1, 0], [0, 0, 1]],
     // d = 2: R², G², B², RG, GB, BR
@@ -84,7 +84,7 @@ pub const MONOMIALS: [&[[u8; 3]]; 4] = [
 /// RPRM's degree-d monomials before the irreducibility filter: the paper's eq. (4) order at d ≤ 3
 /// (`…, ∛RG², ∛RB², ∛GB², ∛GR², ∛BG², ∛BR², ∛RGB`, Finlayson et al. 2015), which differs from
 /// eq. (3) in the last two cube-root terms; d = 4 as [`MONOMIALS`].
-pub const ROOT_MONOMIALS: [&[[u8; 3]]; 4] = [
+pub(crate) const ROOT_MONOMIALS: [&[[u8; 3]]; 4] = [
     MONOMIALS[0],
     MONOMIALS[1],
     &[
@@ -104,7 +104,7 @@ pub const ROOT_MONOMIALS: [&[[u8; 3]]; 4] = [
 
 /// Degree-d monomials in (r, g), d = 0..=4, in the paper's order at d ≤ 3 (its eq. (8)):
 /// pure powers first, then the mixed terms with rising power of r.
-pub const CHROMA_MONOMIALS: [&[[u8; 2]]; 5] = [
+pub(crate) const CHROMA_MONOMIALS: [&[[u8; 2]]; 5] = [
     &[[0, 0]],
     &[[1, 0], [0, 1]],
     &[[2, 0], [0, 2], [1, 1]],

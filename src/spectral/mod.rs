@@ -188,7 +188,7 @@ impl SpectralTable {
     }
 
     /// Linear interpolation of spectrum `j` at wavelength `w`; zero outside the table's range.
-    pub fn value_at(&self, j: usize, w: f64) -> f64 {
+    pub(crate) fn value_at(&self, j: usize, w: f64) -> f64 {
         let wl = &self.wavelengths;
         let v = &self.values[j];
         let n = wl.len();
@@ -206,7 +206,7 @@ impl SpectralTable {
     }
 
     /// Every spectrum resampled onto `grid`.
-    pub fn resample(&self, grid: &Grid) -> Vec<Vec<f64>> {
+    pub(crate) fn resample(&self, grid: &Grid) -> Vec<Vec<f64>> {
         let ws = grid.wavelengths();
         (0..self.names.len())
             .map(|j| ws.iter().map(|&w| self.value_at(j, w)).collect())

@@ -146,6 +146,290 @@ fn max_decoded(compression: Compression, len: usize) -> Option<usize> {
     Some(len.saturating_mul(ratio).saturating_add(4096))
 }
 
+/// `spans` (start, end, part, entry) of every chunk: an error naming two entries whose chunks
+/// overlap (one chunk read twice), if any. Sorts `spans`.
+fn check_overlaps(spans: &mut [(u64, u64, usize, usize)], multi: bool) -> Result<(), String> {
+    spans.sort_unstable();
+    for w in spans.windows(2) {
+        let ((a, a_end, pa, ia), (b, _, pb, ib)) = (w[0], w[1]);
+        if b < a_end {
+            let what = |p: usize, i: usize| {
+                if multi {
+                    format!("entry {i} of part {p}")
+                } else {
+                    format!("entry {i}")
+                }
+            };
+            return Err(format!(
+                "offset table {} (byte {a}) and {} (byte {b}) point into the same chunk",
+                what(pa, ia),
+                what(pb, ib)
+            ));
+        }
+    }
+    Ok(())
+}
+
+/// An offset-table entry's name in messages.
+fn entry_name(multi: bool, part: usize, i: usize) -> String {
+    if multi {
+        format!("offset table entry {i} of part {part}")
+    } else {
+        format!("offset table entry {i}")
+    }
+}
+
+/// Why the chunk offset `off` cannot be right: a chunk head of `head_len` bytes must lie after
+/// the offset tables (which end at `table_end`) and inside the file.
+fn check_offset(off: u64, head_len: u64, table_end: u64, file_len: u64) -> Result<(), String> {
+    if off >= table_end && off.saturating_add(head_len) <= file_len {
+        return Ok(());
+    }
+    Err(if off == 0 {
+        "the chunk is missing (offset 0: an incomplete file)".to_string()
+    } else if off >= table_end {
+        format!("the chunk at byte {off} lies past the end of the file ({file_len} bytes)")
+    } else {
+        format!("offset {off} is outside the chunk data (bytes {table_end}..{file_len})")
+    })
+}
+
+/// The block a chunk head must name.
+#[derive(Debug, Clone, Copy)]
+enum Block {
+    /// A tile: its tile index (x, y) and level index (x, y).
+    Tile([usize; 4]),
+    /// A scanline block: its first line.
+    Line(i64),
+}
+
+/// The data length a chunk head declares (its integers after the offset: the part number in
+/// a multi-part file, the tile or line, the length), once the head is checked to name `part`
+/// and `block`.
+fn head_data_len(ints: &[i32], part: usize, multi: bool, block: Block) -> Result<i32, String> {
+    let mut ints = ints;
+    if multi {
+        if ints[0] as i64 != part as i64 {
+            return Err(format!("the chunk there belongs to part {}", ints[0]));
+        }
+        ints = &ints[1..];
+    }
+    match block {
+        Block::Tile(want) => {
+            if ints[..4]
+                .iter()
+                .zip(want)
+                .any(|(&g, w)| g as i64 != w as i64)
+            {
+                return Err(format!(
+                    "points at tile {:?}, expected tile {want:?} (a tile repeated or missing)",
+                    &ints[..4]
+                ));
+            }
+            ints = &ints[4..];
+        }
+        Block::Line(want) => {
+            if ints[0] as i64 != want {
+                return Err(format!(
+                    "points at the block of line {}, expected line {want} (a block repeated or missing)",
+                    ints[0]
+                ));
+            }
+            ints = &ints[1..];
+        }
+    }
+    Ok(ints[0])
+}
+
+/// Whether a chunk of `len` stored bytes compressed with `compression` can hold a block of
+/// `raw_len` bytes (unknown ratios: yes).
+fn length_fits(compression: Compression, len: usize, raw_len: usize) -> bool {
+    match max_decoded(compression, len) {
+        _ if len == raw_len => true,
+        Some(_) if compression == Compression::Uncompressed => false,
+        Some(max) => raw_len <= max,
+        None => true,
+    }
+}
+
+/// Checks the pixel and byte counts the headers claim, before anything is allocated for them:
+/// no deep data, each part and all of them within `limits`, uncompressed samples no more than
+/// the file holds.
+fn check_claims(
+    path: &Path,
+    meta: &MetaData,
+    file_len: u64,
+    limits: &Limits,
+) -> Result<(), IoError> {
+    let mut pixels: u64 = 0;
+    let mut stored: u64 = 0;
+    for h in meta.headers.iter() {
+        if h.deep {
+            return Err(IoError::Unsupported {
+                path: path.to_path_buf(),
+                why: "deep data".into(),
+            });
+        }
+        let (w, ht) = (h.layer_size.0 as u64, h.layer_size.1 as u64);
+        let factor = match h.blocks {
+            BlockDescription::ScanLines => 1,
+            BlockDescription::Tiles(t) => match t.level_mode {
+                ::exr::meta::attribute::LevelMode::Singular => 1,
+                ::exr::meta::attribute::LevelMode::MipMap => 2,
+                ::exr::meta::attribute::LevelMode::RipMap => 4,
+            },
+        };
+        let n = w.saturating_mul(ht).saturating_mul(factor);
+        pixels = pixels.saturating_add(n);
+        if h.compression == Compression::Uncompressed {
+            stored = stored.saturating_add(n.saturating_mul(h.channels.bytes_per_pixel as u64));
+        }
+        limits.check_frame(
+            path,
+            w,
+            ht.saturating_mul(factor),
+            h.channels.list.len() as u64,
+            4,
+            None,
+        )?;
+    }
+    if pixels > limits.max_pixels {
+        return Err(IoError::OverLimit {
+            path: path.to_path_buf(),
+            why: format!(
+                "the headers claim {pixels} pixels in all, more than the limit of {} pixels",
+                limits.max_pixels
+            ),
+        });
+    }
+    if stored > file_len {
+        return Err(IoError::TooLarge {
+            path: path.to_path_buf(),
+            why: format!(
+                "the headers claim {stored} bytes of uncompressed samples, but the file \
+                 holds only {file_len} bytes"
+            ),
+        });
+    }
+    Ok(())
+}
+
+/// The `total` offset-table entries starting at byte `table_start` of `file`, read once their
+/// size is checked against the file's.
+fn read_offsets(
+    path: &Path,
+    file: &File,
+    table_start: u64,
+    total: usize,
+    file_len: u64,
+) -> Result<Vec<u64>, IoError> {
+    let table_bytes = (total as u64).saturating_mul(8);
+    if table_start.saturating_add(table_bytes) > file_len {
+        return Err(corrupt(
+            path,
+            format!(
+                "the offset tables need {table_bytes} bytes for {total} chunks, but the file \
+                 ends {} bytes after the header",
+                file_len.saturating_sub(table_start)
+            ),
+        ));
+    }
+    let mut raw = Vec::new();
+    raw.try_reserve_exact(table_bytes as usize)
+        .map_err(|_| IoError::TooLarge {
+            path: path.to_path_buf(),
+            why: format!("not enough memory for an offset table of {total} chunks"),
+        })?;
+    raw.resize(table_bytes as usize, 0);
+    read_at(file, &mut raw, table_start).map_err(|e| read_err(path, e))?;
+    Ok(raw
+        .chunks_exact(8)
+        .map(|b| u64::from_le_bytes(b.try_into().expect("8 bytes")))
+        .collect())
+}
+
+/// One part of a file being checked: what its offset-table entries are held against.
+struct PartCheck<'a> {
+    path: &'a Path,
+    file: &'a File,
+    h: &'a Header,
+    part: usize,
+    multi: bool,
+    table_end: u64,
+    file_len: u64,
+}
+
+impl PartCheck<'_> {
+    /// The chunks of this part, from its offset-table entries `offsets` (each checked: inside
+    /// the file, its head naming this part and the expected block, its length possible); each
+    /// chunk's span is added to `spans`.
+    fn chunks(
+        &self,
+        offsets: &[u64],
+        spans: &mut Vec<(u64, u64, usize, usize)>,
+    ) -> Result<Vec<ChunkAt>, IoError> {
+        let h = self.h;
+        let tiled = matches!(h.blocks, BlockDescription::Tiles(_));
+        let head_len: u64 = if self.multi { 4 } else { 0 } + if tiled { 16 } else { 4 } + 4;
+        let lines = h.compression.scan_lines_per_block() as i64;
+        let y0 = i64::from(h.own_attributes.layer_position.1);
+        let full = full_resolution(&h.channels);
+        let mut list = Vec::with_capacity(h.chunk_count);
+        for ((i, tile), &off) in h.blocks_increasing_y_order().enumerate().zip(offsets) {
+            let at = |why: String| {
+                corrupt(
+                    self.path,
+                    format!("{}: {why}", entry_name(self.multi, self.part, i)),
+                )
+            };
+            check_offset(off, head_len, self.table_end, self.file_len).map_err(at)?;
+            let mut head = [0u8; 28];
+            let head = &mut head[..head_len as usize];
+            read_at(self.file, head, off).map_err(|e| read_err(self.path, e))?;
+            let ints: Vec<i32> = head
+                .chunks_exact(4)
+                .map(|b| i32::from_le_bytes(b.try_into().expect("4 bytes")))
+                .collect();
+            let block = if tiled {
+                let (t, l) = (tile.location.tile_index, tile.location.level_index);
+                Block::Tile([t.0, t.1, l.0, l.1])
+            } else {
+                Block::Line(y0 + i as i64 * lines)
+            };
+            let len = head_data_len(&ints, self.part, self.multi, block).map_err(at)?;
+            let data = off + head_len;
+            if len < 0 || data + len as u64 > self.file_len {
+                return Err(at(format!(
+                    "the chunk at byte {off} claims {len} data bytes, past the end of the file ({} bytes)",
+                    self.file_len
+                )));
+            }
+            let len = len as usize;
+            if full {
+                let bounds = h
+                    .get_absolute_block_pixel_coordinates(tile.location)
+                    .map_err(|err| IoError::Exr {
+                        path: self.path.to_path_buf(),
+                        err,
+                    })?;
+                let raw_len = bounds
+                    .size
+                    .area()
+                    .saturating_mul(h.channels.bytes_per_pixel);
+                if !length_fits(h.compression, len, raw_len) {
+                    return Err(at(format!(
+                        "a {} chunk of {len} bytes cannot hold a block of {raw_len} bytes",
+                        h.compression
+                    )));
+                }
+            }
+            spans.push((off, data + len as u64, self.part, i));
+            list.push(ChunkAt { data, len });
+        }
+        Ok(list)
+    }
+}
+
 impl Table {
     /// Reads the headers and the offset tables of `file` and checks every entry (see the
     /// module documentation), and the frame size against `limits`.
@@ -164,239 +448,29 @@ impl Table {
         MetaData::validate(&meta.headers, false).map_err(exr)?;
         let table_start = counting.n;
         drop(counting);
-
-        let mut pixels: u64 = 0;
-        let mut stored: u64 = 0;
-        for h in meta.headers.iter() {
-            if h.deep {
-                return Err(IoError::Unsupported {
-                    path: path.to_path_buf(),
-                    why: "deep data".into(),
-                });
-            }
-            let (w, ht) = (h.layer_size.0 as u64, h.layer_size.1 as u64);
-            let factor = match h.blocks {
-                BlockDescription::ScanLines => 1,
-                BlockDescription::Tiles(t) => match t.level_mode {
-                    ::exr::meta::attribute::LevelMode::Singular => 1,
-                    ::exr::meta::attribute::LevelMode::MipMap => 2,
-                    ::exr::meta::attribute::LevelMode::RipMap => 4,
-                },
-            };
-            let n = w.saturating_mul(ht).saturating_mul(factor);
-            pixels = pixels.saturating_add(n);
-            if h.compression == Compression::Uncompressed {
-                stored = stored.saturating_add(n.saturating_mul(h.channels.bytes_per_pixel as u64));
-            }
-            limits.check_frame(
-                path,
-                w,
-                ht.saturating_mul(factor),
-                h.channels.list.len() as u64,
-                4,
-                None,
-            )?;
-        }
-        if pixels > limits.max_pixels {
-            return Err(IoError::OverLimit {
-                path: path.to_path_buf(),
-                why: format!(
-                    "the headers claim {pixels} pixels in all, more than the limit of {} pixels",
-                    limits.max_pixels
-                ),
-            });
-        }
-        if stored > file_len {
-            return Err(IoError::TooLarge {
-                path: path.to_path_buf(),
-                why: format!(
-                    "the headers claim {stored} bytes of uncompressed samples, but the file \
-                     holds only {file_len} bytes"
-                ),
-            });
-        }
+        check_claims(path, &meta, file_len, limits)?;
 
         let total: usize = meta.headers.iter().map(|h| h.chunk_count).sum();
-        let table_bytes = (total as u64).saturating_mul(8);
-        let table_end = table_start.saturating_add(table_bytes);
-        if table_end > file_len {
-            return Err(corrupt(
-                path,
-                format!(
-                    "the offset tables need {table_bytes} bytes for {total} chunks, but the file \
-                     ends {} bytes after the header",
-                    file_len.saturating_sub(table_start)
-                ),
-            ));
-        }
-        let mut raw = Vec::new();
-        raw.try_reserve_exact(table_bytes as usize)
-            .map_err(|_| IoError::TooLarge {
-                path: path.to_path_buf(),
-                why: format!("not enough memory for an offset table of {total} chunks"),
-            })?;
-        raw.resize(table_bytes as usize, 0);
-        read_at(file, &mut raw, table_start).map_err(|e| read_err(path, e))?;
-        let mut entries = raw
-            .chunks_exact(8)
-            .map(|b| u64::from_le_bytes(b.try_into().expect("8 bytes")));
-
+        let offsets = read_offsets(path, file, table_start, total, file_len)?;
         let multi = meta.requirements.has_multiple_layers;
-        let mut spans: Vec<(u64, u64, usize, usize)> = Vec::with_capacity(total);
+        let mut spans = Vec::with_capacity(total);
         let mut chunks = Vec::with_capacity(meta.headers.len());
+        let mut rest = &offsets[..];
         for (part, h) in meta.headers.iter().enumerate() {
-            let mut list = Vec::with_capacity(h.chunk_count);
-            let tiled = matches!(h.blocks, BlockDescription::Tiles(_));
-            let head_len: u64 = if multi { 4 } else { 0 } + if tiled { 16 } else { 4 } + 4;
-            let lines = h.compression.scan_lines_per_block() as i64;
-            let y0 = i64::from(h.own_attributes.layer_position.1);
-            let full = full_resolution(&h.channels);
-            let where_ = |i: usize| {
-                if multi {
-                    format!("offset table entry {i} of part {part}")
-                } else {
-                    format!("offset table entry {i}")
-                }
+            let (mine, after) = rest.split_at(h.chunk_count.min(rest.len()));
+            rest = after;
+            let check = PartCheck {
+                path,
+                file,
+                h,
+                part,
+                multi,
+                table_end: table_start + offsets.len() as u64 * 8,
+                file_len,
             };
-            for (i, tile) in h.blocks_increasing_y_order().enumerate() {
-                let off = entries.next().expect("table sized from the chunk counts");
-                if off < table_end || off.saturating_add(head_len) > file_len {
-                    return Err(corrupt(
-                        path,
-                        if off == 0 {
-                            format!(
-                                "{}: the chunk is missing (offset 0: an incomplete file)",
-                                where_(i)
-                            )
-                        } else if off >= table_end {
-                            format!(
-                                "{}: the chunk at byte {off} lies past the end of the file ({file_len} bytes)",
-                                where_(i)
-                            )
-                        } else {
-                            format!(
-                                "{}: offset {off} is outside the chunk data (bytes {table_end}..{file_len})",
-                                where_(i)
-                            )
-                        },
-                    ));
-                }
-                let mut head = [0u8; 28];
-                let head = &mut head[..head_len as usize];
-                read_at(file, head, off).map_err(|e| read_err(path, e))?;
-                let ints: Vec<i32> = head
-                    .chunks_exact(4)
-                    .map(|b| i32::from_le_bytes(b.try_into().expect("4 bytes")))
-                    .collect();
-                let mut ints = &ints[..];
-                if multi {
-                    if ints[0] as i64 != part as i64 {
-                        return Err(corrupt(
-                            path,
-                            format!("{}: the chunk there belongs to part {}", where_(i), ints[0]),
-                        ));
-                    }
-                    ints = &ints[1..];
-                }
-                if tiled {
-                    let want = [
-                        tile.location.tile_index.0,
-                        tile.location.tile_index.1,
-                        tile.location.level_index.0,
-                        tile.location.level_index.1,
-                    ];
-                    if ints[..4]
-                        .iter()
-                        .zip(want)
-                        .any(|(&g, w)| g as i64 != w as i64)
-                    {
-                        return Err(corrupt(
-                            path,
-                            format!(
-                                "{}: points at tile {:?}, expected tile {want:?} (a tile repeated or missing)",
-                                where_(i),
-                                &ints[..4]
-                            ),
-                        ));
-                    }
-                    ints = &ints[4..];
-                } else {
-                    let want = y0 + i as i64 * lines;
-                    if ints[0] as i64 != want {
-                        return Err(corrupt(
-                            path,
-                            format!(
-                                "{}: points at the block of line {}, expected line {want} (a block repeated or missing)",
-                                where_(i),
-                                ints[0]
-                            ),
-                        ));
-                    }
-                    ints = &ints[1..];
-                }
-                let len = ints[0];
-                let data = off + head_len;
-                if len < 0 || data + len as u64 > file_len {
-                    return Err(corrupt(
-                        path,
-                        format!(
-                            "{}: the chunk at byte {off} claims {len} data bytes, past the end of the file ({file_len} bytes)",
-                            where_(i)
-                        ),
-                    ));
-                }
-                let len = len as usize;
-                if full {
-                    let bounds = h
-                        .get_absolute_block_pixel_coordinates(tile.location)
-                        .map_err(exr)?;
-                    let raw_len = bounds
-                        .size
-                        .area()
-                        .saturating_mul(h.channels.bytes_per_pixel);
-                    let bad = match max_decoded(h.compression, len) {
-                        _ if len == raw_len => false,
-                        Some(_) if h.compression == Compression::Uncompressed => true,
-                        Some(max) => raw_len > max,
-                        None => false,
-                    };
-                    if bad {
-                        return Err(corrupt(
-                            path,
-                            format!(
-                                "{}: a {} chunk of {len} bytes cannot hold a block of {raw_len} bytes",
-                                where_(i),
-                                h.compression
-                            ),
-                        ));
-                    }
-                }
-                spans.push((off, data + len as u64, part, i));
-                list.push(ChunkAt { data, len });
-            }
-            chunks.push(list);
+            chunks.push(check.chunks(mine, &mut spans)?);
         }
-        spans.sort_unstable();
-        for w in spans.windows(2) {
-            let ((a, a_end, pa, ia), (b, _, pb, ib)) = (w[0], w[1]);
-            if b < a_end {
-                let what = |p: usize, i: usize| {
-                    if multi {
-                        format!("entry {i} of part {p}")
-                    } else {
-                        format!("entry {i}")
-                    }
-                };
-                return Err(corrupt(
-                    path,
-                    format!(
-                        "offset table {} (byte {a}) and {} (byte {b}) point into the same chunk",
-                        what(pa, ia),
-                        what(pb, ib)
-                    ),
-                ));
-            }
-        }
+        check_overlaps(&mut spans, multi).map_err(|why| corrupt(path, why))?;
         Ok(Table { meta, chunks })
     }
 
@@ -659,6 +733,11 @@ impl Codec {
 }
 
 thread_local! {
+    /// Process-wide state, kept on purpose: scratch only (every use overwrites what it reads, so
+    /// nothing carries from one chunk or frame to the next but capacity), one per rayon worker,
+    /// as large as the largest chunk seen (a few MiB at most). Passing it explicitly would need
+    /// rayon's `*_init` hooks, which make a fresh one per split of the work: an allocation and
+    /// its page faults per split and frame. Not measured against that alternative.
     static CODEC: std::cell::RefCell<Codec> = const { std::cell::RefCell::new(Codec::empty()) };
 }
 
@@ -1001,7 +1080,7 @@ impl Chunked {
     }
 
     /// The alpha channel's samples as f32.
-    pub fn alpha_f32(&self) -> Option<Vec<f32>> {
+    pub(crate) fn alpha_f32(&self) -> Option<Vec<f32>> {
         let a = self.alpha?;
         let layout = self.layout();
         let (t, _, role) = layout.channels[a];
@@ -1117,7 +1196,8 @@ impl Chunked {
 const BATCH_BYTES: usize = 4 << 20;
 
 thread_local! {
-    /// The writing thread's round buffer, kept for its later frames.
+    /// The writing thread's round buffer, kept for its later frames: scratch only, about
+    /// [`BATCH_BYTES`] (process-wide state kept on purpose, as [`CODEC`]).
     static ROUND: std::cell::RefCell<Vec<u8>> = const { std::cell::RefCell::new(Vec::new()) };
 }
 
@@ -1216,6 +1296,59 @@ fn write_chunks<W: std::io::Write + std::io::Seek>(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn overlapping_chunks_are_named_by_entry() {
+        let mut ok = vec![(100, 150, 0, 1), (10, 100, 0, 0)];
+        assert_eq!(check_overlaps(&mut ok, false), Ok(()));
+        let mut bad = vec![(100, 150, 0, 1), (120, 130, 1, 0), (10, 100, 0, 0)];
+        let e = check_overlaps(&mut bad, true).unwrap_err();
+        assert!(
+            e.contains("entry 1 of part 0 (byte 100) and entry 0 of part 1 (byte 120)"),
+            "{e}"
+        );
+    }
+
+    #[test]
+    fn offsets_outside_the_chunk_data_are_refused() {
+        assert_eq!(check_offset(200, 8, 200, 208), Ok(()));
+        assert!(check_offset(0, 8, 200, 1000)
+            .unwrap_err()
+            .contains("missing"));
+        assert!(check_offset(100, 8, 200, 1000)
+            .unwrap_err()
+            .contains("outside the chunk data"));
+        assert!(check_offset(995, 8, 200, 1000)
+            .unwrap_err()
+            .contains("past the end"));
+        assert!(check_offset(u64::MAX, 8, 200, 1000).is_err());
+    }
+
+    #[test]
+    fn chunk_heads_must_name_their_part_and_block() {
+        assert_eq!(head_data_len(&[16, 77], 0, false, Block::Line(16)), Ok(77));
+        let e = head_data_len(&[32, 77], 0, false, Block::Line(16)).unwrap_err();
+        assert!(e.contains("line 32, expected line 16"), "{e}");
+        assert_eq!(head_data_len(&[1, 16, 5], 1, true, Block::Line(16)), Ok(5));
+        assert!(head_data_len(&[0, 16, 5], 1, true, Block::Line(16))
+            .unwrap_err()
+            .contains("belongs to part 0"));
+        let tile = Block::Tile([1, 2, 0, 0]);
+        assert_eq!(head_data_len(&[1, 2, 0, 0, 9], 0, false, tile), Ok(9));
+        assert!(head_data_len(&[2, 1, 0, 0, 9], 0, false, tile)
+            .unwrap_err()
+            .contains("repeated or missing"));
+    }
+
+    #[test]
+    fn stored_lengths_must_be_able_to_hold_the_block() {
+        assert!(length_fits(Compression::Uncompressed, 64, 64));
+        assert!(!length_fits(Compression::Uncompressed, 63, 64));
+        assert!(length_fits(Compression::ZIP16, 10, 64));
+        assert!(!length_fits(Compression::ZIP16, 1, usize::MAX / 2));
+        // Unknown ratio (PIZ): left to the decoder's own bounds.
+        assert!(length_fits(Compression::PIZ, 1, usize::MAX / 2));
+    }
 
     #[test]
     fn zip_preprocessing_round_trips() {

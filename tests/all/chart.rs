@@ -361,7 +361,14 @@ fn family_outcomes(family: nsrm::chart::scene::Family, seeds: std::ops::Range<u6
 fn real_photo_families_are_found_or_refused_never_wrong() {
     use nsrm::chart::scene::Family;
     // A handful per family here; `nsrm chart rate --family F` measures the rates (README).
-    for f in [Family::Jpeg, Family::Fill, Family::Small, Family::Passport] {
+    for f in [
+        Family::Jpeg,
+        Family::Fill,
+        Family::Small,
+        Family::Passport,
+        Family::Tilt,
+        Family::BlackFrame,
+    ] {
         let (ok, refused) = family_outcomes(f, 1..5);
         assert!(ok >= 3, "{}: {ok} found, {refused} refused", f.name());
     }

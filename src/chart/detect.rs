@@ -341,6 +341,10 @@ impl Regions {
 /// Lattice coordinates of linked candidates: (blob, `[i, j]`).
 type Lattice = Vec<(usize, [i32; 2])>;
 
+/// The fewest patches a lattice is fitted and placed with (a homography needs 4 points; 6
+/// leave some redundancy).
+const MIN_LATTICE: usize = 6;
+
 /// At most this many lattices (largest first) are placed and scored; a lattice other than the
 /// largest must hold half of the chart's cells (a second chart page, another chart in the
 /// frame) — smaller ones are clutter that lines up by chance.
@@ -362,7 +366,11 @@ fn lattices(blobs: &[Blob]) -> Vec<Lattice> {
         for (b, _) in &lat {
             seen[*b] = true;
         }
-        out.extend(split_gaps(lat).into_iter().filter(|l| l.len() >= 6));
+        out.extend(
+            split_gaps(lat)
+                .into_iter()
+                .filter(|l| l.len() >= MIN_LATTICE),
+        );
     }
     out.sort_by_key(|l| std::cmp::Reverse(l.len()));
     out
@@ -372,13 +380,20 @@ fn lattices(blobs: &[Blob]) -> Vec<Lattice> {
 /// patch. The walk's double step exists to bridge one missed (dark) patch; a whole line
 /// missing means the parts are not one grid — the hinge between a Passport's two pages or
 /// the gutter between two charts, whose width is no whole number of pitches, so one
-/// homography over both parts would misplace cells by a fraction of a pitch. Parts are
-/// returned largest first.
+/// homography over both parts would misplace cells by a fraction of a pitch. Only a split
+/// leaving at least [`MIN_LATTICE`] patches on both sides is made: a smaller part could not be
+/// placed on its own, and a sparsely seen chart (heavy blur: many missed patches, hence empty
+/// lines) is better judged whole, by its colours. Parts are returned largest first.
 fn split_gaps(l: Lattice) -> Vec<Lattice> {
     for k in 0..2 {
         let lo = l.iter().map(|x| x.1[k]).min().unwrap_or(0);
         let hi = l.iter().map(|x| x.1[k]).max().unwrap_or(0);
-        if let Some(gap) = (lo + 1..hi).find(|&g| l.iter().all(|x| x.1[k] != g)) {
+        let gap = (lo + 1..hi).find(|&g| {
+            l.iter().all(|x| x.1[k] != g)
+                && l.iter().filter(|x| x.1[k] < g).count() >= MIN_LATTICE
+                && l.iter().filter(|x| x.1[k] > g).count() >= MIN_LATTICE
+        });
+        if let Some(gap) = gap {
             let (a, b): (Lattice, Lattice) = l.into_iter().partition(|x| x.1[k] < gap);
             let mut parts = split_gaps(a);
             parts.extend(split_gaps(b));
@@ -429,7 +444,7 @@ fn refine(
             .into_iter()
             .max_by_key(|p| p.iter().filter(|x| used.contains(&x.0)).count())
             .unwrap_or_default();
-        if next.len() >= 6 {
+        if next.len() >= MIN_LATTICE {
             if let Ok(h2) = fit_lattice(blobs, &next) {
                 h_obs = h2;
                 lattice = next;
@@ -451,6 +466,10 @@ struct Placement {
     outside: usize,
     /// Every cell holds a lattice patch: nothing extrapolated past what was seen.
     complete: bool,
+    /// Chart → lattice ([`placement_map`]).
+    map: Homography,
+    /// The lattice window the chart covers: first `[i, j]` and sizes.
+    window: ([i32; 2], [i32; 2]),
 }
 
 /// Chart `(u, v)` → lattice `(i, j)`: axes swapped or not, signs `sx`, `sy`, the cell
@@ -498,7 +517,8 @@ fn placements(
                     let oi = if sx == 1 { si } else { si + ai - 1 };
                     let oj = if sy == 1 { sj } else { sj + aj - 1 };
                     let (sxf, syf) = (sx as f64, sy as f64);
-                    let hc = h_obs.then_after(&placement_map(swap, sxf, syf, oi, oj));
+                    let map = placement_map(swap, sxf, syf, oi, oj);
+                    let hc = h_obs.then_after(&map);
                     let means = cell_means(small, kind, &hc, side);
                     let inside = means.iter().filter(|m| m.is_some()).count();
                     if inside * 2 < kind.cells() {
@@ -520,6 +540,8 @@ fn placements(
                         mirrored: det * obs_det < 0.0,
                         outside: kind.cells() - inside,
                         complete: covered == kind.cells(),
+                        map,
+                        window: ([si, sj], [ai, aj]),
                     });
                 }
             }
@@ -527,6 +549,36 @@ fn placements(
     }
     scored.sort_by(|a, b| a.score.total_cmp(&b.score));
     scored
+}
+
+/// Step 5b: lattice points outside the best placement's window are no patches of the chart
+/// (clutter or a neighbouring object that lined up within a quarter pitch); the homography is
+/// refitted without them, since each pulls the fit towards itself (seen: three such points
+/// moving a patch of a chart tilted 40° by 0.39 pitch). The lattice returned is what remains.
+fn refit_inside(
+    blobs: &[Blob],
+    lattice: Lattice,
+    mut scored: Vec<Placement>,
+) -> (Lattice, Vec<Placement>) {
+    let Some(best) = scored.first_mut() else {
+        return (lattice, scored);
+    };
+    let ([si, sj], [ai, aj]) = best.window;
+    let inside: Lattice = lattice
+        .iter()
+        .copied()
+        .filter(|(_, ij)| ij[0] >= si && ij[0] < si + ai && ij[1] >= sj && ij[1] < sj + aj)
+        .collect();
+    if inside.len() == lattice.len() || inside.len() < MIN_LATTICE {
+        return (lattice, scored);
+    }
+    match fit_lattice(blobs, &inside) {
+        Ok(h) => {
+            best.hc = h.then_after(&best.map);
+            (inside, scored)
+        }
+        Err(_) => (lattice, scored),
+    }
 }
 
 /// Step 6: the best placement if it is certain — plausible colours, decisive against the next
@@ -662,6 +714,7 @@ pub fn detect(
         });
         return Err(fail(e, regions.candidates(f, &[])));
     };
+    let (lattice, scored) = refit_inside(blobs, lattice, scored);
     let mut accepted = vec![false; blobs.len()];
     for (b, _) in &lattice {
         accepted[*b] = true;
@@ -928,15 +981,15 @@ mod tests {
         // A missed patch is no empty line.
         let l: Lattice = vec![(0, [0, 0]), (1, [2, 0]), (2, [1, 1])];
         assert_eq!(split_gaps(l.clone()), vec![l]);
-        let l: Lattice = vec![
-            (0, [0, 0]),
-            (1, [0, 1]),
-            (2, [2, 0]),
-            (3, [3, 0]),
-            (4, [3, 1]),
-        ];
+        // An empty column with 6 patches on one side and 7 on the other splits; with 5 on
+        // one side it does not (a part too small to place).
+        let side =
+            |i0: i32, n: usize| (0..n).map(move |k| (k, [i0 + (k % 2) as i32, k as i32 / 2]));
+        let l: Lattice = side(0, 6).chain(side(3, 7)).collect();
         let parts = split_gaps(l);
-        assert_eq!(parts.iter().map(Vec::len).collect::<Vec<_>>(), [3, 2]);
+        assert_eq!(parts.iter().map(Vec::len).collect::<Vec<_>>(), [7, 6]);
+        let l: Lattice = side(0, 5).chain(side(3, 7)).collect();
+        assert_eq!(split_gaps(l).len(), 1);
     }
 
     #[test]
@@ -947,6 +1000,44 @@ mod tests {
         let (lat, h) = refine(&blobs, lat, 6).unwrap();
         assert_eq!(lat.len(), 24);
         assert!((local_step(&h, 0, 0) - 20.0).abs() < 1e-6);
+    }
+
+    #[test]
+    fn points_outside_the_placement_are_dropped_from_the_fit() {
+        // A 6×4 chart of pitch 20 and three stray points in the next column, 0.2 pitch off
+        // the grid: the refit is the chart's own grid again.
+        let mut blobs = grid([50.0, 40.0], 20.0, 6, 4, &[]);
+        let mut lat: Lattice = (0..24).map(|k| (k, [k as i32 % 6, k as i32 / 6])).collect();
+        for j in 0..3 {
+            blobs.push(Blob {
+                c: [50.0 + 6.0 * 20.0 + 4.0, 40.0 + 20.0 * j as f64],
+                area: 196.0,
+            });
+            lat.push((24 + j, [6, j as i32]));
+        }
+        let h_all = fit_lattice(&blobs, &lat).unwrap();
+        let map = placement_map(false, 1.0, 1.0, 0, 0);
+        let best = Placement {
+            score: 1.0,
+            hc: h_all.then_after(&map),
+            mirrored: false,
+            outside: 0,
+            complete: true,
+            map,
+            window: ([0, 0], [6, 4]),
+        };
+        let (kept, scored) = refit_inside(&blobs, lat, vec![best]);
+        assert_eq!(kept.len(), 24);
+        let p = scored[0].hc.apply([5.5, 3.5]);
+        assert!(
+            (p[0] - 150.0).abs() < 1e-6 && (p[1] - 100.0).abs() < 1e-6,
+            "{p:?}"
+        );
+        let q = h_all.apply([5.0, 3.0]);
+        assert!(
+            (q[0] - 150.0).abs() > 0.1,
+            "the strays did pull the first fit: {q:?}"
+        );
     }
 
     #[test]
@@ -978,6 +1069,8 @@ mod tests {
             mirrored: false,
             outside: 0,
             complete,
+            map: placement_map(false, 1.0, 1.0, 0, 0),
+            window: ([0, 0], [6, 4]),
         };
         let (best, runner, persp) = judge(&r, 24, &[p(1.0, false), p(3.0, false)]).unwrap();
         assert_eq!((best.score, runner), (1.0, 3.0));

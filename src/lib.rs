@@ -33,10 +33,10 @@
 //! | feature | brings |
 //! |---|---|
 //! | `gpu` | [`gpu`]: wgpu, the frame [`gpu::Engine`] and the embeddable [`gpu::Corrector`] |
-//! | `io` | [`io`]: OpenEXR / TIFF frames and batches, synthetic charts, PNG previews |
-//! | `export` | `gpu::export`: the shaders in SPIR-V, GLSL, HLSL and MSL (naga's back ends); implies `gpu` |
+//! | `io` | [`io`]: OpenEXR / TIFF frames and batches, PNG previews |
+//! | `export` | `export`: LUTs and profiles other tools read (CLF, `.cube`, OCIO, DCTL, DCP); with `gpu` also `export::shader`, the baked shaders in WGSL, SPIR-V, GLSL, HLSL and MSL (naga's back ends) |
 //! | `plot` | `eval::plot`: the paper's Fig. 1 as SVG or PNG |
-//! | `chart` | chart detection in captured frames; implies `io` |
+//! | `chart` | chart detection in captured frames, synthetic chart frames and scenes; implies `io` |
 //! | `farm` | [`farm`]: per-shard manifests, their verification, path mapping, farm job files; implies `io` |
 //! | `cli` (default) | the `nsrm` binary; implies all of the above |
 //!

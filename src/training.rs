@@ -62,6 +62,20 @@ pub enum TrainingError {
     },
 }
 
+impl TrainingError {
+    /// True for a malformed patch selection or white point, a white that is missing or that
+    /// contradicts the file's.
+    pub fn is_usage(&self) -> bool {
+        matches!(
+            self,
+            TrainingError::PatchSpec { .. }
+                | TrainingError::White { .. }
+                | TrainingError::NeedsWhite { .. }
+                | TrainingError::WhiteConflict { .. }
+        )
+    }
+}
+
 /// Where a training set came from; written into model files.
 #[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
 pub struct Provenance {

@@ -30,6 +30,7 @@ pub mod flat;
 pub mod overlay;
 pub mod reference;
 pub mod scene;
+pub mod synthetic;
 
 use crate::error::Param;
 use serde::{Deserialize, Serialize};
@@ -63,6 +64,37 @@ pub enum ChartError {
     },
     #[error(transparent)]
     Io(#[from] crate::io::IoError),
+}
+
+impl ChartError {
+    /// True for an unknown chart name, scene options out of range, and a parameter value that is
+    /// malformed or does not fit the frame (corners, white level, flat frame).
+    pub fn is_usage(&self) -> bool {
+        use ChartError;
+        matches!(
+            self,
+            ChartError::UnknownChart(_)
+                | ChartError::Options(_)
+                | ChartError::Param {
+                    concern: crate::error::Concern::Value(_),
+                    ..
+                }
+        )
+    }
+
+    /// The parameter this error is about; a chart that was not found can always be read from
+    /// its corners ([`crate::error::Param::Corners`]).
+    pub fn concern(&self) -> Option<crate::error::Concern> {
+        use ChartError;
+        match self {
+            ChartError::Param { concern, .. } => Some(*concern),
+            ChartError::NotFound(_) => {
+                Some(crate::error::Concern::Remedy(crate::error::Param::Corners))
+            }
+            ChartError::Io(e) => e.concern(),
+            _ => None,
+        }
+    }
 }
 
 impl ChartError {

@@ -3,10 +3,10 @@
 //! gradient), optionally partly occluded, blurred, with seeded sensor noise and clipping. The
 //! noise-free patch values and the pose are kept as ground truth ([`SceneTruth`]).
 
+use super::synthetic::Gaussian;
 use super::{ChartError, ChartKind, Homography};
 use crate::error::{Concern, Param};
 use crate::frame::{Frame, Layout};
-use crate::io::chart::Gaussian;
 use crate::spectral::{parse_csv, simulate, Camera, Grid, Illuminant, Reflectances};
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
@@ -214,8 +214,8 @@ impl SceneOptions {
         let pos = |v: f64| v.is_finite() && v > 0.0;
         let nonneg = |v: f64| v.is_finite() && v >= 0.0;
         // The bounds of a rendered chart: every pixel stays a finite 32-bit float.
-        let (lo, hi) = crate::io::chart::EXPOSURE_RANGE;
-        let max_noise = crate::io::chart::MAX_NOISE;
+        let (lo, hi) = super::synthetic::EXPOSURE_RANGE;
+        let max_noise = super::synthetic::MAX_NOISE;
         let within = |v: f64| pos(v) && (lo..=hi).contains(&v);
         if !(within(self.exposure) && within(self.white_level)) {
             return Err(ChartError::Options(format!(

@@ -85,8 +85,10 @@ pub struct Args {
     output_space: values::Space,
     /// The frames' white, for a two-illuminant model (or to white-balance a single one): a
     /// temperature in kelvin (Planckian below 4000 K, CIE daylight from 4000 K), x,y, or
-    /// as-shot:R,G,B (the raw file's as-shot neutral). The output is XYZ relative to that white.
-    #[arg(long, value_name = "CCT|x,y|as-shot:R,G,B")]
+    /// as-shot (each raw file's own as-shot neutral, its temperature by the DNG's fixed-point
+    /// iteration; a frame without one fails) or as-shot:R,G,B (a neutral given). The output is
+    /// that white's XYZ, adapted as --output-space says.
+    #[arg(long, value_name = "CCT|x,y|as-shot|as-shot:R,G,B")]
     white: Option<String>,
     /// Also write an 8-bit sRGB PNG of each frame here, for a quick look.
     #[arg(long, value_name = "DIR")]
@@ -131,7 +133,38 @@ enum Corrector {
     Cpu(Box<FastModel>),
     /// A two-illuminant model at a white between its illuminants: two models, outputs summed.
     Mix(Vec<FastModel>),
+    /// `--white as-shot`: the model set combined for each frame's as-shot neutral (the parts
+    /// kept per neutral seen), then as `Mix`.
+    AsShot(Box<AsShot>),
     Gpu(Box<Engine>),
+}
+
+/// The state of `--white as-shot`: the model set, the output space, the parts built for each
+/// neutral seen so far and which of them the current frame uses.
+struct AsShot {
+    profile: nsrm::model::dual_illuminant::Profile,
+    space: OutputSpace,
+    built: Vec<([f32; 3], Vec<FastModel>)>,
+    current: usize,
+}
+
+/// Sums the outputs of `parts` applied to the frame (one part: applied in place).
+fn apply_sum(parts: &[FastModel], f: &mut nsrm::Frame) {
+    let src = (parts.len() > 1).then(|| f.clone());
+    let ch = f.layout.channels();
+    for (i, p) in parts.iter().enumerate() {
+        if i == 0 {
+            p.apply(f, Threads::All);
+            continue;
+        }
+        let mut g = src.clone().expect("kept for more than one part");
+        p.apply(&mut g, Threads::All);
+        for (a, b) in f.data.chunks_exact_mut(ch).zip(g.data.chunks_exact(ch)) {
+            for k in 0..3 {
+                a[k] += b[k];
+            }
+        }
+    }
 }
 
 impl Corrector {
@@ -172,31 +205,53 @@ impl Corrector {
         match self {
             Corrector::Cpu(f) => format!("CPU ({} kernel)", f.kernel_name()),
             Corrector::Mix(f) => format!("CPU, {} models summed", f.len()),
+            Corrector::AsShot(a) => format!(
+                "CPU, {} combined for each frame's as-shot neutral",
+                if a.profile.is_dual() {
+                    "two models"
+                } else {
+                    "the model"
+                }
+            ),
             Corrector::Gpu(e) => format!("GPU {}", e.adapter_name()),
         }
+    }
+
+    /// Readies the correction for one frame: with `--white as-shot`, the model set combined for
+    /// its as-shot neutral (an error when it has none); returns a line describing a white not
+    /// seen before.
+    fn prepare(&mut self, d: &Decoded) -> Result<Option<String>> {
+        let Corrector::AsShot(a) = self else {
+            return Ok(None);
+        };
+        let neutral = d.camera().and_then(|c| c.as_shot_neutral);
+        if let Some(i) = a.built.iter().position(|(n, _)| Some(*n) == neutral) {
+            a.current = i;
+            return Ok(None);
+        }
+        let c = super::white::for_as_shot(&a.profile, neutral)?;
+        let parts = c
+            .parts
+            .iter()
+            .map(|m| nsrm::model::output_model(m, a.space).map(|m| FastModel::new(&m)))
+            .collect::<Result<Vec<_>, _>>()?;
+        let line = format!(
+            "nsrm apply: {}: as-shot {}",
+            d.path.display(),
+            super::white::describe(&a.profile, &c)
+        );
+        a.built
+            .push((neutral.expect("checked by for_as_shot"), parts));
+        a.current = a.built.len() - 1;
+        Ok(Some(line))
     }
 
     fn apply(&mut self, model: &Model, d: &mut Decoded) -> Result<()> {
         for f in d.frames_mut() {
             match self {
                 Corrector::Cpu(fast) => fast.apply(f, Threads::All),
-                Corrector::Mix(parts) => {
-                    let src = f.clone();
-                    let ch = f.layout.channels();
-                    for (i, p) in parts.iter().enumerate() {
-                        if i == 0 {
-                            p.apply(f, Threads::All);
-                            continue;
-                        }
-                        let mut g = src.clone();
-                        p.apply(&mut g, Threads::All);
-                        for (a, b) in f.data.chunks_exact_mut(ch).zip(g.data.chunks_exact(ch)) {
-                            for k in 0..3 {
-                                a[k] += b[k];
-                            }
-                        }
-                    }
-                }
+                Corrector::Mix(parts) => apply_sum(parts, f),
+                Corrector::AsShot(a) => apply_sum(&a.built[a.current].1, f),
                 Corrector::Gpu(e) => e.apply(model, f)?,
             }
         }
@@ -315,12 +370,17 @@ fn parse_request(a: &Args) -> Result<Request> {
 /// cleanly by a signal) → report (the summary and the exit status).
 pub fn run(a: Args) -> Result<ExitCode> {
     let req = parse_request(&a)?;
-    let mut parts = super::white::models_for_apply(&a.model, a.white.as_deref())?;
+    let (mut parts, as_shot) = match super::white::models_for_apply(&a.model, a.white.as_deref())? {
+        super::white::ApplyModels::Fixed(parts) => (parts, None),
+        // The first model stands for the set where one is needed before a frame is read (the
+        // camera it was fitted on; the preview matrix, which does not depend on the white).
+        super::white::ApplyModels::PerFrame(p) => (vec![p.models()[0].clone()], Some(p)),
+    };
     let model = parts.remove(0);
-    let out_model = nsrm::colorimetry::output_model(&model, req.space)?;
+    let out_model = nsrm::model::output_model(&model, req.space)?;
     let extra: Vec<Model> = parts
         .iter()
-        .map(|m| nsrm::colorimetry::output_model(m, req.space))
+        .map(|m| nsrm::model::output_model(m, req.space))
         .collect::<Result<_, _>>()?;
 
     // Plan.
@@ -397,7 +457,14 @@ pub fn run(a: Args) -> Result<ExitCode> {
     let mut timing = Timing::default();
     let mut corrector_name = String::new();
     if (!early_failure || a.continue_on_error) && !interrupt.stopped() {
-        let mut corrector = if extra.is_empty() {
+        let mut corrector = if let Some(profile) = as_shot.clone() {
+            Corrector::AsShot(Box::new(AsShot {
+                profile,
+                space: req.space,
+                built: Vec::new(),
+                current: 0,
+            }))
+        } else if extra.is_empty() {
             Corrector::open(req.device, a.adapter.as_deref(), &out_model)?
         } else {
             let mut v = vec![FastModel::new(&out_model)];
@@ -704,6 +771,16 @@ fn run_pipeline(
                 drop(d);
                 permits.release();
                 continue;
+            }
+            match corrector.prepare(&d) {
+                Ok(Some(line)) => pb.suspend(|| eprintln!("{line}")),
+                Ok(None) => {}
+                Err(e) => {
+                    drop(d);
+                    permits.release();
+                    fail(i, format!("{}: {e:#}", jobs[i].input.display()));
+                    continue;
+                }
             }
             let t = Instant::now();
             match corrector.apply(model, &mut d) {

@@ -187,7 +187,7 @@ fn remedy(p: Param) -> String {
 /// An error as the binary reports it: the whole context chain, with the flag whose value is at
 /// fault in front (`--corners: …`), and a hint naming the flag that is the way out, if any.
 pub fn explain(e: &anyhow::Error) -> (String, Option<String>) {
-    let concern = e.chain().find_map(nsrm::error::concern);
+    let concern = e.chain().find_map(super::errors::concern);
     match concern {
         Some(Concern::Value(p)) => (format!("{}: {e:#}", flag(p)), None),
         Some(Concern::Remedy(p)) => (format!("{e:#}"), Some(remedy(p))),

@@ -18,15 +18,16 @@ pub struct Args {
     #[arg(long, value_name = "FILE")]
     model: PathBuf,
     /// clf (Academy/SMPTE Common LUT Format v3), cube (Resolve/OCIO .cube: 1D shaper + 3D LUT) or
-    /// ocio (an OpenColorIO v2 config, with its CLF written beside it as <stem>.clf) or dcp (a DNG
-    /// camera profile for Lightroom/ACR and RawTherapee; one or two illuminants).
+    /// ocio (an OpenColorIO v2 config, with its CLF written beside it as <stem>.clf), dcp (a DNG
+    /// camera profile for Lightroom/ACR and RawTherapee; one or two illuminants) or icc (an ICC v2
+    /// input profile: camera RGB → PCS XYZ D50; matrix/TRC for LRM, shaper + CLUT otherwise).
     #[arg(long, value_enum, ignore_case = true)]
     format: values::ExportFormat,
     /// Output space, folded in exactly as `nsrm apply --output-space` does (training white at
     /// Y = 1): xyz (D65-referred), linear-srgb, acescg or aces2065-1. For OCIO: the scene reference.
     #[arg(long, value_enum, ignore_case = true, default_value_t = values::Space::Xyz)]
     output_space: values::Space,
-    /// Lattice points per axis of the 3D LUT (PRM, RPRM, NSRM; and every .cube), 2..129.
+    /// Lattice points per axis of the 3D LUT (PRM, RPRM, NSRM; and every .cube; the ICC CLUT), 2..129.
     #[arg(long, default_value_t = 65, value_name = "N")]
     lut_size: usize,
     /// Entries of the .cube 1D shaper, 2..65536.
@@ -36,14 +37,11 @@ pub struct Args {
     /// best; what `ocioconvert --lut` uses for .cube) or trilinear (Resolve's default for .cube).
     #[arg(long, value_enum, ignore_case = true, default_value_t = values::Interpolation::Tetrahedral)]
     interpolation: values::Interpolation,
-    /// The LUT's accurate range, log2 of camera units (training white G = 1): LO:HI.
-    #[arg(
-        long,
-        default_value = "-6:4",
-        value_name = "LO:HI",
-        allow_hyphen_values = true
-    )]
-    stops: String,
+    /// The LUT's accurate range, log2 of camera units (training white G = 1): LO:HI (default
+    /// -6:4). icc: log2 of device units, where the model's white has its largest channel at 1 and
+    /// an ICC CLUT has no headroom above it: LO:0 (default -6:0).
+    #[arg(long, value_name = "LO:HI", allow_hyphen_values = true)]
+    stops: Option<String>,
     /// dcp: the hue/saturation map's divisions, HUExSAT (one value division), e.g. 90x30.
     #[arg(long, default_value = "600x55", value_name = "HxS")]
     dcp_map: String,
@@ -67,6 +65,11 @@ pub struct Args {
 
 /// Max ΔE00 of an export above which it is flagged as poor (a visible departure from the model).
 const POOR_EXPORT_DE00: f64 = 5.0;
+
+/// The range given by --stops, or `default`.
+fn stops_or(a: &Args, default: [f64; 2]) -> Result<[f64; 2]> {
+    a.stops.as_deref().map_or(Ok(default), parse_stops)
+}
 
 fn parse_stops(s: &str) -> Result<[f64; 2]> {
     let bad = || UsageError(format!("--stops `{s}`: expected LO:HI, e.g. -6:4"));
@@ -180,10 +183,86 @@ fn run_dcp(a: &Args, stops: [f64; 2]) -> Result<ExitCode> {
     Ok(ExitCode::SUCCESS)
 }
 
+/// `--format icc`: one model, one illuminant.
+fn run_icc(a: &Args) -> Result<ExitCode> {
+    use nsrm::export::icc::{export_to, IccOptions};
+    let [lo, hi] = stops_or(a, [nsrm::export::icc::DEFAULT_LO, 0.0])?;
+    if hi != 0.0 {
+        return Err(UsageError(format!(
+            "--stops {lo}:{hi}: an ICC CLUT has no headroom above its white (the white's largest channel is device 1.0), so HI must be 0"
+        ))
+        .into());
+    }
+    let opts = IccOptions {
+        size: a.lut_size,
+        lo,
+    };
+    if let Err(e) = opts.check() {
+        return Err(UsageError(format!("--lut-size/--stops: {e}")).into());
+    }
+    if let Some(x) = a.max_de00 {
+        if !(x.is_finite() && x >= 0.0) {
+            return Err(
+                UsageError(format!("--max-de00 {x}: expected a non-negative number")).into(),
+            );
+        }
+    }
+    let mut inputs = vec![a.model.as_path()];
+    inputs.extend(a.training.as_deref());
+    let session = super::outputs::open(a.overwrite, &inputs, &[a.output.as_path()])?;
+    let model = Model::load(&a.model)?;
+    let data = training_set(a, &model)?;
+    let mut unit = session.unit();
+    let w = match export_to(&model, opts, &data.rgb, a.max_de00, &a.output, &mut unit) {
+        Ok(w) => w,
+        Err(e @ ExportError::TooInaccurate { limit, .. }) => {
+            return Err(e).context(format!("--max-de00 {limit}"))
+        }
+        Err(e) => return Err(e).with_context(|| format!("exporting {} as icc", a.model.display())),
+    };
+    unit.commit()?;
+    let what = match w.clut_size {
+        None => "matrix/TRC".to_string(),
+        Some(n) => format!("A2B0 lut16: shaper + {n}³ CLUT"),
+    };
+    eprintln!(
+        "{} order {} → ICC v2 input profile ({what}, {} bytes): {}",
+        model.kind(),
+        model.order(),
+        w.bytes,
+        a.output.display()
+    );
+    let d = w.device_white;
+    eprintln!(
+        "device values: camera RGB / {:.6}; the model's white is device ({:.4}, {:.4}, {:.4}) → PCS D50 (Y = 1); covered: 2^{}..2^0 of that scale, brighter clips (an ICC CLUT has no headroom above its white)",
+        w.scale, d[0], d[1], d[2], w.lo
+    );
+    println!(
+        "approximation error (the profile through Little CMS vs the model, PCS D50): {}",
+        w.report.summary()
+    );
+    if w.report.out_of_range > 0 {
+        eprintln!(
+            "({} dense samples left out: a channel outside the covered range, or an output brighter than the PCS can carry)",
+            w.report.out_of_range
+        );
+    }
+    let worst = w.report.max();
+    if worst > POOR_EXPORT_DE00 {
+        eprintln!(
+            "warning: the profile's max ΔE00 is {worst:.1} (over {POOR_EXPORT_DE00}): it departs visibly from the model somewhere in its range (a PRM can leave the PCS at dark exposures); narrow --stops, or set --max-de00 to refuse such exports"
+        );
+    }
+    Ok(ExitCode::SUCCESS)
+}
+
 pub fn run(a: Args) -> Result<ExitCode> {
     let format = Format::from(a.format);
+    if format == Format::Icc {
+        return run_icc(&a);
+    }
     if format == Format::Dcp {
-        let stops = parse_stops(&a.stops)?;
+        let stops = stops_or(&a, [-6.0, 4.0])?;
         if let Some(x) = a.max_de00 {
             if !(x.is_finite() && x >= 0.0) {
                 return Err(
@@ -196,7 +275,7 @@ pub fn run(a: Args) -> Result<ExitCode> {
     let space = OutputSpace::from(a.output_space);
     let options = LutOptions {
         size: a.lut_size,
-        stops: parse_stops(&a.stops)?,
+        stops: stops_or(&a, [-6.0, 4.0])?,
         shaper_size: a.shaper_size,
         interpolation: Interpolation::from(a.interpolation),
     };

@@ -4,7 +4,7 @@
 use super::values;
 use anyhow::{Context, Result};
 use nsrm::colorimetry::spaces::OutputSpace;
-use nsrm::gpu::export::export;
+use nsrm::export::shader::export;
 use nsrm::{Layout, Model};
 
 use std::path::PathBuf;
@@ -52,7 +52,7 @@ fn run_dctl(a: &Args) -> Result<ExitCode> {
     let space = output_space(a);
     let session = super::outputs::open(a.overwrite, &[&a.model], &[&a.output])?;
     let model = Model::load(&a.model)?;
-    let folded = nsrm::colorimetry::output_model(&model, space)?;
+    let folded = nsrm::model::output_model(&model, space)?;
     let header = vec![
         format!(
             "nsrm DCTL: {} to {} ({}), scene-linear, training white at Y = 1 (as nsrm apply --output-space {})",
@@ -86,7 +86,7 @@ pub fn run(a: Args) -> Result<ExitCode> {
     let space = output_space(&a);
     let session = super::outputs::open(a.overwrite, &[&a.model], &[&a.output])?;
     let model = Model::load(&a.model)?;
-    let model = nsrm::colorimetry::output_model(&model, space)?;
+    let model = nsrm::model::output_model(&model, space)?;
     let bytes = export(&model, layout, lang).with_context(|| {
         format!(
             "exporting {} order {} as {}",

@@ -5,6 +5,7 @@ use super::fit_args::FitVariantArgs;
 use super::values;
 use anyhow::{Context, Result};
 use nsrm::colorimetry::delta_e00_xyz;
+use nsrm::model::dual_illuminant::Profile;
 use nsrm::model::fit::{fit_with, Normalise};
 use nsrm::model::Kind;
 use rayon::prelude::*;
@@ -15,14 +16,13 @@ use std::process::ExitCode;
 pub struct Args {
     #[command(flatten)]
     training: TrainingArgs,
-    /// Illuminant the chart is lit by: a built-in name or a CSV file.
-    #[arg(
-        long,
-        default_value = "D65",
-        value_name = "NAME|FILE",
-        conflicts_with = "training"
-    )]
-    illuminant: String,
+    /// Illuminant the chart is lit by: a built-in name or a CSV file (default D65). Twice (e.g.
+    /// `--illuminant A --illuminant D65`): a model per illuminant, written as one
+    /// two-illuminant model file. With `--capture`: the light each capture was shot under, in
+    /// the same order (the chart's reference values are adapted to it, so the model's white is
+    /// that light's).
+    #[arg(long, value_name = "NAME|FILE", conflicts_with = "training", action = clap::ArgAction::Append)]
+    illuminant: Vec<String>,
     #[command(flatten)]
     kind: values::KindArg,
     /// Polynomial order, 1..4 (LRM is always linear).
@@ -34,13 +34,14 @@ pub struct Args {
     /// Replace an existing output file.
     #[arg(long)]
     overwrite: bool,
-    /// Fit on the chart photographed in this linear frame (EXR/TIFF) instead: see `nsrm chart
-    /// extract` for the chart options.
-    #[arg(long, value_name = "FRAME", conflicts_with_all = ["training", "camera", "reflectances", "grid"])]
-    capture: Option<PathBuf>,
+    /// Fit on the chart photographed in this frame (raw, EXR, TIFF) instead: see `nsrm chart
+    /// extract` for the chart options. Twice, each with its `--illuminant` (e.g. `--capture
+    /// a.dng --illuminant A --capture d65.dng --illuminant D65`): a two-illuminant model file.
+    #[arg(long, value_name = "FRAME", conflicts_with_all = ["training", "camera", "reflectances", "grid"], action = clap::ArgAction::Append)]
+    capture: Vec<PathBuf>,
     #[command(flatten)]
     chart: super::capture::CaptureOptions,
-    /// With --capture: an overlay PNG of the reading with a swatch panel (reference vs
+    /// With one --capture: an overlay PNG of the reading with a swatch panel (reference vs
     /// corrected, ΔE00 per patch).
     #[arg(long, value_name = "FILE.png", requires = "capture")]
     overlay: Option<PathBuf>,
@@ -89,44 +90,100 @@ pub fn run(a: Args) -> Result<ExitCode> {
         ))
         .into());
     }
-    let mut inputs: Vec<&Path> = Vec::new();
-    inputs.extend(a.capture.as_deref());
+    if a.capture.len() > 2 || a.illuminant.len() > 2 {
+        return Err(UsageError(
+            "--capture and --illuminant are given once, or twice for a two-illuminant model".into(),
+        )
+        .into());
+    }
+    if a.capture.len() == 2 && a.illuminant.len() != 2 {
+        return Err(UsageError(
+            "two --capture need an --illuminant each, in the same order (the light each chart was shot under, e.g. --capture a.dng --illuminant A --capture d65.dng --illuminant D65)".into(),
+        )
+        .into());
+    }
+    if a.capture.len() == 1 && a.illuminant.len() == 2 {
+        return Err(UsageError(
+            "two --illuminant with --capture need two --capture (one chart shot under each light)"
+                .into(),
+        )
+        .into());
+    }
+    if a.capture.len() == 2 && a.overlay.is_some() {
+        return Err(UsageError("--overlay takes one --capture".into()).into());
+    }
+    let illuminants: Vec<String> = if a.illuminant.is_empty() {
+        vec!["D65".to_string()]
+    } else {
+        a.illuminant.clone()
+    };
+    let mut inputs: Vec<&Path> = a.capture.iter().map(PathBuf::as_path).collect();
     inputs.extend(a.chart.input_files());
-    inputs.extend(a.training.input_files(&a.illuminant));
+    for ill in &illuminants {
+        inputs.extend(a.training.input_files(ill));
+    }
     let outputs: Vec<&Path> = std::iter::once(&a.output)
         .chain(&a.overlay)
         .map(PathBuf::as_path)
         .collect();
     let session = super::outputs::open(a.overwrite, &inputs, &outputs)?;
-    let captured = super::capture::for_model(a.capture.as_deref(), &a.chart)?;
-    if let Some(c) = &captured {
-        if let Some(w) = c.other_chart_warning() {
-            eprintln!("{w}");
+    // One fit per illuminant: (the training data, the capture it came from, where it came from).
+    let mut sets = Vec::new();
+    if a.capture.is_empty() {
+        super::capture::for_model(None, &a.chart)?;
+        for ill in &illuminants {
+            let data = a.training.load(ill)?;
+            let source = match &a.training.training {
+                Some(t) => format!(" of {}", t.display()),
+                None if illuminants.len() > 1 => format!(" simulated from spectra under {ill}"),
+                None => " simulated from spectra".to_string(),
+            };
+            sets.push((data, None, source));
         }
-        eprintln!("{}", c.summary());
+    } else {
+        for (i, f) in a.capture.iter().enumerate() {
+            let c = super::capture::for_model(Some(f), &a.chart)?.expect("a capture was given");
+            if let Some(w) = c.other_chart_warning() {
+                eprintln!("{w}");
+            }
+            let mut data = c.training_set().select(&a.training.patches)?;
+            let mut source = format!(" read from {}", f.display());
+            if let Some(ill) = a.illuminant.get(i) {
+                data = under_light(data, ill, &a.training)?;
+                source.push_str(&format!(" (reference adapted to {ill})"));
+            }
+            sets.push((data, Some(c), source));
+        }
     }
-    let data = match &captured {
-        Some(c) => c.training_set().select(&a.training.patches)?,
-        None => a.training.load(&a.illuminant)?,
+    let mut fits = Vec::new();
+    for (data, _, source) in &sets {
+        let fitted = fit_with(kind, a.order, data, &opts).with_context(|| {
+            format!(
+                "fitting {kind} order {} on {} patches{source}",
+                a.order,
+                data.len()
+            )
+        })?;
+        fits.push(fitted);
+    }
+    let profile = if fits.len() == 2 {
+        let p = Profile::dual(fits[0].model.clone(), fits[1].model.clone()).with_context(|| {
+            format!(
+                "combining the models fitted on the patches{} and{}",
+                sets[0].2, sets[1].2
+            )
+        })?;
+        Some(p)
+    } else {
+        None
     };
-    let source = match (&a.capture, &a.training.training) {
-        (Some(f), _) => format!(" read from {}", f.display()),
-        (None, Some(t)) => format!(" of {}", t.display()),
-        (None, None) => " simulated from spectra".to_string(),
-    };
-    let fitted = fit_with(kind, a.order, &data, &opts).with_context(|| {
-        format!(
-            "fitting {kind} order {} on {} patches{source}",
-            a.order,
-            data.len()
-        )
-    })?;
-    let model = &fitted.model;
-    let report = &fitted.report;
     let mut unit = session.unit();
-    unit.write_bytes(&a.output, model.to_json().as_bytes())?;
-    if let (Some(c), Some(o)) = (&captured, &a.overlay) {
-        let sw = super::capture::swatches(c, model);
+    match &profile {
+        Some(p) => unit.write_bytes(&a.output, p.to_json().as_bytes())?,
+        None => unit.write_bytes(&a.output, fits[0].model.to_json().as_bytes())?,
+    }
+    if let (Some(c), Some(o)) = (&sets[0].1, &a.overlay) {
+        let sw = super::capture::swatches(c, &fits[0].model);
         super::capture::write_overlay(
             &c.frame,
             Some(&c.extraction),
@@ -137,6 +194,52 @@ pub fn run(a: Args) -> Result<ExitCode> {
         )?;
     }
     unit.commit()?;
+    for ((data, _, source), fitted) in sets.iter().zip(&fits) {
+        report(fitted, data, source, &a.output);
+    }
+    if let Some(p) = &profile {
+        let c = p.calibrations();
+        eprintln!(
+            "two-illuminant model: calibration illuminants {:.0} K (x, y {:.4}, {:.4}) and {:.0} K (x, y {:.4}, {:.4}), written to {} (apply it with --white; export it as a DCP)",
+            c[0].cct,
+            c[0].xy[0],
+            c[0].xy[1],
+            c[1].cct,
+            c[1].xy[0],
+            c[1].xy[1],
+            a.output.display()
+        );
+    }
+    Ok(ExitCode::SUCCESS)
+}
+
+/// A chart capture's training set with its reference values adapted (Bradford) from their
+/// white to the light the chart was shot under (`--illuminant`, its perfect white at the same
+/// Y): the model fitted on it maps the camera's response to that light to that light's white,
+/// which is what a calibration illuminant is.
+fn under_light(
+    mut data: nsrm::TrainingSet,
+    ill: &str,
+    t: &super::common::TrainingArgs,
+) -> Result<nsrm::TrainingSet> {
+    let grid = nsrm::spectral::Grid::parse(&t.grid)?;
+    let light = nsrm::spectral::Illuminant::from_name_or_path(ill).context("--illuminant")?;
+    let w = nsrm::spectral::white_xyz(&light, &grid).context("--illuminant")?;
+    let y = data.white_xyz[1];
+    let dst = w.map(|v| v * y / w[1]);
+    let m = nsrm::colorimetry::temperature::bradford_between(data.white_xyz, dst);
+    for x in &mut data.xyz {
+        *x = nsrm::colorimetry::spaces::apply(&m, *x);
+    }
+    data.white_xyz = dst;
+    Ok(data)
+}
+
+/// What `fit` prints about one fitted model.
+fn report(fitted: &nsrm::model::fit::Fit, data: &nsrm::TrainingSet, source: &str, output: &Path) {
+    let model = &fitted.model;
+    let report = &fitted.report;
+    let kind = model.kind();
     // In parallel: a measured set can hold 10^6 patches.
     let de: Vec<f64> = data
         .rgb
@@ -147,12 +250,12 @@ pub fn run(a: Args) -> Result<ExitCode> {
     let mean = de.iter().sum::<f64>() / de.len() as f64;
     let max = de.iter().fold(0.0f64, |m, v| m.max(*v));
     eprintln!(
-        "{} order {} ({} terms) fitted on {} patches, written to {}",
+        "{} order {} ({} terms) fitted on {} patches{source}, written to {}",
         kind,
         model.order(),
         model.len_terms(),
         data.len(),
-        a.output.display()
+        output.display()
     );
     let cond = report
         .condition_number
@@ -178,11 +281,10 @@ pub fn run(a: Args) -> Result<ExitCode> {
             _ => String::new(),
         }
     );
-    eprintln!("{}", f32_summary(model, report, &data));
+    eprintln!("{}", f32_summary(model, report, data));
     if let Some(w) = few_patches_warning(model.len_terms(), data.len()) {
         eprintln!("{w}");
     }
-    Ok(ExitCode::SUCCESS)
 }
 
 /// A warning when the fit has fewer than 1.5 patches per term: it can follow the patches'

@@ -10,6 +10,7 @@ mod capture;
 mod chart;
 mod combine;
 mod common;
+mod errors;
 mod eval;
 mod export;
 mod export_shader;
@@ -154,9 +155,9 @@ pub fn main() -> ExitCode {
             }
             // A usage error of the binary's own, or of the library (which knows which of its
             // errors are the caller's mistake), anywhere in the context chain.
-            let usage = e.chain().any(|c| {
-                c.downcast_ref::<common::UsageError>().is_some() || nsrm::error::is_usage(c)
-            });
+            let usage = e
+                .chain()
+                .any(|c| c.downcast_ref::<common::UsageError>().is_some() || errors::is_usage(c));
             if usage {
                 ExitCode::from(2)
             } else {

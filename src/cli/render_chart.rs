@@ -2,7 +2,7 @@
 
 use super::common::{TrainingArgs, UsageError};
 use anyhow::{Context, Result};
-use nsrm::io::chart::{self, ChartOptions};
+use nsrm::chart::synthetic::{self, ChartOptions};
 use std::path::PathBuf;
 use std::process::ExitCode;
 
@@ -58,16 +58,16 @@ pub fn run(a: Args) -> Result<ExitCode> {
     };
     // Refuse bad options before the (slower) simulation.
     opts.validate()?;
-    let layout_file = chart::layout_path(&a.output);
+    let layout_file = synthetic::layout_path(&a.output);
     let session = super::outputs::open(
         a.overwrite,
         &a.training.input_files(&a.illuminant),
         &[&a.output, &layout_file],
     )?;
     let data = a.training.load(&a.illuminant)?;
-    let (frame, layout) = chart::render(&data, &opts).context("rendering the chart")?;
+    let (frame, layout) = synthetic::render(&data, &opts).context("rendering the chart")?;
     let mut unit = session.unit();
-    chart::write(&frame, &layout, &a.output, &mut unit)?;
+    synthetic::write(&frame, &layout, &a.output, &mut unit)?;
     unit.commit()?;
     eprintln!(
         "{} patches ({} columns, {} px) rendered to {} ({}×{}); layout in {}",
@@ -77,7 +77,7 @@ pub fn run(a: Args) -> Result<ExitCode> {
         a.output.display(),
         layout.width,
         layout.height,
-        chart::layout_path(&a.output).display()
+        synthetic::layout_path(&a.output).display()
     );
     Ok(ExitCode::SUCCESS)
 }

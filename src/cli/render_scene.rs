@@ -179,10 +179,10 @@ pub fn run(a: Args) -> Result<ExitCode> {
         }
     );
     let mut unit = session.unit();
-    nsrm::io::chart::write_camera_frame(&frame, &a.output, &note, &mut unit)
+    nsrm::chart::synthetic::write_camera_frame(&frame, &a.output, &note, &mut unit)
         .with_context(|| format!("writing {}", a.output.display()))?;
     if let Some(f) = &a.flat_output {
-        nsrm::io::chart::write_camera_frame(&flat, f, "nsrm scene: flat frame", &mut unit)
+        nsrm::chart::synthetic::write_camera_frame(&flat, f, "nsrm scene: flat frame", &mut unit)
             .with_context(|| format!("writing {}", f.display()))?;
     }
     unit.write_bytes(&tpath, json.as_bytes())?;

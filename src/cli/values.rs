@@ -90,7 +90,7 @@ value_enum!(
     /// `export --format`.
     ExportFormat => nsrm::export::Format,
     nsrm::export::Format::parse,
-    { Clf = "clf", Cube = "cube", Ocio = "ocio", Dcp = "dcp" }
+    { Clf = "clf", Cube = "cube", Ocio = "ocio", Dcp = "dcp", Icc = "icc" }
 );
 
 value_enum!(
@@ -115,8 +115,8 @@ pub enum Lang {
 
 impl Lang {
     /// The compute-shader language; `None` for DCTL.
-    pub fn shader(self) -> Option<nsrm::gpu::export::ShaderLang> {
-        use nsrm::gpu::export::ShaderLang as S;
+    pub fn shader(self) -> Option<nsrm::export::shader::ShaderLang> {
+        use nsrm::export::shader::ShaderLang as S;
         Some(match self {
             Lang::Wgsl => S::Wgsl,
             Lang::Glsl => S::Glsl,
@@ -189,7 +189,11 @@ mod tests {
         for v in Lang::value_variants() {
             let p = v.to_possible_value().unwrap();
             for n in p.get_name_and_aliases() {
-                assert_eq!(nsrm::gpu::export::ShaderLang::parse(n), v.shader(), "{n}");
+                assert_eq!(
+                    nsrm::export::shader::ShaderLang::parse(n),
+                    v.shader(),
+                    "{n}"
+                );
             }
         }
         Layout::check();

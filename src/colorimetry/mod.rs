@@ -9,7 +9,7 @@ pub mod spaces;
 pub mod temperature;
 
 pub use dual::{Dual, Real};
-pub use output::{output_matrix, output_model, srgb8, srgb_oetf, to_linear_srgb};
+pub use output::{output_matrix, srgb8, srgb_oetf, to_linear_srgb};
 
 /// CIE D65 white point (2° observer), Y = 100; used when measured XYZ data names no white.
 pub const D65_WHITE_XYZ: [f64; 3] = [95.047, 100.0, 108.883];

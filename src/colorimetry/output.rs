@@ -1,9 +1,8 @@
 //! From the model's XYZ to the pixels written and shown: the output-space matrix (scene-linear,
-//! the perfect white at `Y = 1`), the model with that matrix folded in, the preview matrix to
+//! the perfect white at `Y = 1`; `model::output_model` folds it into a model), the preview matrix to
 //! linear sRGB, and the sRGB transfer function.
 
 use super::spaces::{self, Mat3, OutputSpace};
-use crate::model::{Model, ModelError};
 
 /// The 3×3 matrix from the model's XYZ (perfect white at `Y = white[1]`, usually 100) to the
 /// frames written: scene-linear with the perfect white at `Y = 1`, in `space`, Bradford-adapted
@@ -13,31 +12,6 @@ pub fn output_matrix(white_xyz: [f64; 3], space: OutputSpace) -> Mat3 {
     let m = space.from_xyz(white_xyz);
     let k = 1.0 / white_xyz[1];
     m.map(|row| row.map(|v| v * k))
-}
-
-/// The model with [`output_matrix`] folded into its matrix: it maps camera RGB straight to the
-/// output space (white `Y = 1`), on every apply path, with no extra pass over the pixels. This
-/// is exact for all four kinds (each output is a linear combination of the same terms).
-pub fn output_model(model: &Model, space: OutputSpace) -> Result<Model, ModelError> {
-    let w = model.white_xyz();
-    if !(w.iter().all(|v| v.is_finite()) && w[1] > 0.0) {
-        return Err(ModelError::Invalid(format!(
-            "the model's reference white {w:?} has no positive Y; cannot scale the output"
-        )));
-    }
-    let p = output_matrix(w, space);
-    let l = model.len_terms();
-    let mut folded = vec![0.0; 3 * l];
-    for i in 0..3 {
-        for j in 0..l {
-            folded[i * l + j] = (0..3).map(|k| p[i][k] * model.matrix()[k * l + j]).sum();
-        }
-    }
-    let mut out = model.clone();
-    out.set_matrix(folded).map_err(|e| {
-        ModelError::Invalid(format!("folding the output space into the model: {e}"))
-    })?;
-    Ok(out)
 }
 
 /// The matrix from pixels in `space` (as written by `nsrm apply`, white `Y = 1`, scene white
@@ -65,24 +39,9 @@ pub fn srgb8(v: f64) -> u8 {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::model::Kind;
 
     #[test]
-    fn output_model_matches_matrix_after_model() {
-        let m = Model::from_matrix(Kind::Rprm, 2, (0..18).map(|i| 0.1 * i as f64).collect())
-            .unwrap()
-            .with_white_xyz([96.4, 100.0, 82.5])
-            .unwrap();
-        for space in OutputSpace::ALL.map(|(s, _)| s) {
-            let folded = output_model(&m, space).unwrap();
-            let p = output_matrix(m.white_xyz(), space);
-            let rgb = [0.3, 0.5, 0.2];
-            let want = spaces::apply(&p, m.apply_f64(rgb));
-            let got = folded.apply_f64(rgb);
-            for k in 0..3 {
-                assert!((want[k] - got[k]).abs() < 1e-12, "{space:?}");
-            }
-        }
+    fn output_matrix_maps_the_white() {
         // The training white maps to D65 with Y = 1 (XYZ, D65-referred) or to (1, 1, 1) (RGB).
         let w = [96.4, 100.0, 82.5];
         let xyz = spaces::apply(&output_matrix(w, OutputSpace::Xyz), w);

@@ -26,6 +26,13 @@ pub enum PlotError {
     Draw(String),
 }
 
+impl PlotError {
+    /// True for a plot file name that is neither `.png` nor `.svg`.
+    pub fn is_usage(&self) -> bool {
+        matches!(self, PlotError::Format(_))
+    }
+}
+
 /// The file formats a plot can be written in.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Format {

@@ -5,7 +5,7 @@
 //! # What is written
 //! Every export maps linear camera RGB (the training white at `G = 1`) to the output space exactly
 //! as `nsrm apply` writes it: scene-linear, the training white at `Y = 1`, the output-space matrix
-//! folded into the model ([`crate::colorimetry::output_model`]).
+//! folded into the model ([`crate::model::output_model`]).
 //!
 //! * **LRM** is linear: one CLF `Matrix` node, exact (up to the f32 the readers compute in).
 //! * **PRM, RPRM, NSRM** have no closed form in CLF (no division, no channel products), so they
@@ -40,8 +40,11 @@ pub mod clf;
 pub mod cube;
 pub mod dcp;
 pub mod dctl;
+pub mod icc;
 pub mod nodes;
 pub mod ocio;
+#[cfg(feature = "gpu")]
+pub mod shader;
 
 use crate::colorimetry::spaces::{self, Mat3, OutputSpace};
 use crate::model::{Kind, Model};
@@ -67,6 +70,17 @@ pub enum ExportError {
     Write(#[from] crate::output::WriteError),
 }
 
+impl ExportError {
+    /// True for export options out of range.
+    pub fn is_usage(&self) -> bool {
+        match self {
+            ExportError::Usage(_) => true,
+            ExportError::Write(w) => w.is_usage(),
+            _ => false,
+        }
+    }
+}
+
 /// File formats `nsrm export` writes.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Format {
@@ -75,6 +89,8 @@ pub enum Format {
     Ocio,
     /// A DNG Camera Profile ([`dcp`]), written from a model set by [`dcp::export_to`].
     Dcp,
+    /// An ICC input profile ([`icc`]), written by [`icc::export_to`].
+    Icc,
 }
 
 impl Format {
@@ -85,6 +101,7 @@ impl Format {
             "cube" => Some(Format::Cube),
             "ocio" => Some(Format::Ocio),
             "dcp" => Some(Format::Dcp),
+            "icc" => Some(Format::Icc),
             _ => None,
         }
     }
@@ -95,6 +112,7 @@ impl Format {
             Format::Cube => "cube",
             Format::Ocio => "ocio",
             Format::Dcp => "dcp",
+            Format::Icc => "icc",
         }
     }
 }
@@ -316,7 +334,7 @@ pub fn linear_part(folded: &Model, training_rgb: &[[f64; 3]]) -> Result<Mat3, Ex
 
 fn fold(model: &Model, space: OutputSpace) -> Result<Model, ExportError> {
     check_model(model)?;
-    crate::colorimetry::output_model(model, space).map_err(|e| ExportError::Model(e.to_string()))
+    crate::model::output_model(model, space).map_err(|e| ExportError::Model(e.to_string()))
 }
 
 /// Refuses a sampled LUT with an entry that is not a finite 32-bit float: the model's output
@@ -591,6 +609,11 @@ pub fn export_to(
                 "a DCP is written from a model set (one or two illuminants): dcp::export_to".into(),
             ))
         }
+        Format::Icc => {
+            return Err(ExportError::Usage(
+                "an ICC profile is written by icc::export_to".into(),
+            ))
+        }
         Format::Cube => LutExport::cube(model, space, options)?,
         Format::Clf | Format::Ocio => LutExport::clf(model, space, options, training_rgb)?,
     };
@@ -598,7 +621,7 @@ pub fn export_to(
     report.check_limit(max_de00)?;
     let mut files = Vec::new();
     match format {
-        Format::Dcp => unreachable!("refused above"),
+        Format::Dcp | Format::Icc => unreachable!("refused above"),
         Format::Clf => {
             unit.write_bytes(out, clf::write(&e, Some(&report)).as_bytes())?;
             files.push(out.to_path_buf());

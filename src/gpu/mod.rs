@@ -1,7 +1,8 @@
 //! Applying models on the GPU with wgpu: adapter and device setup ([`GpuContext`]), the
 //! [`Corrector`] (one model's pipeline and uniform, recording into a caller's encoder), the
 //! frame [`Engine`] built on it (tiling, double-buffered upload / compute / read-back), shader
-//! generation ([`shader`]) and export to other languages ([`export`]).
+//! generation ([`shader`]; the self-contained shaders other programs load are written by
+//! `export::shader`).
 //!
 //! The shaders follow the pixel policy of [`crate::model::pixel`] exactly: NaN / Inf propagate, NSRM
 //! with `s = R+G+B ≤ 0` gives 0, negative channels are allowed (RPRM's roots keep the sign),
@@ -31,14 +32,15 @@
 mod context;
 mod corrector;
 mod engine;
-#[cfg(feature = "export")]
-pub mod export;
 pub mod shader;
 
 pub use context::GpuContext;
 pub use corrector::Corrector;
 pub use engine::{Engine, GpuTiming, DEFAULT_TILE_PIXELS, OUTPUT_SENTINEL_BITS};
 pub use shader::{Target, TexelFormat};
+/// The wgpu this crate is built against: a renderer embedding a [`Corrector`] records into
+/// this version's encoders and textures.
+pub use wgpu;
 
 /// The driver hint every "no adapter" error carries.
 pub const NO_ADAPTER_HINT: &str =
@@ -91,6 +93,13 @@ pub enum GpuError {
     Image(#[from] image::ImageError),
     #[error(transparent)]
     Write(#[from] crate::output::WriteError),
+}
+
+impl GpuError {
+    /// True for buffers, textures or models the caller passed that a corrector cannot take.
+    pub fn is_usage(&self) -> bool {
+        matches!(self, GpuError::Usage(_) | GpuError::ModelMismatch { .. })
+    }
 }
 
 /// Options for [`Engine::new`] / [`open`].

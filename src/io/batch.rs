@@ -607,6 +607,14 @@ pub enum PlanError {
     Setup(String),
 }
 
+impl PlanError {
+    /// True for a batch that cannot be planned as asked (collisions, existing outputs, a bad
+    /// suffix); false for a directory that cannot be set up.
+    pub fn is_usage(&self) -> bool {
+        matches!(self, PlanError::Usage(_))
+    }
+}
+
 /// The path `p` will name once its missing directories exist: the longest existing prefix
 /// resolved (symlinks, `.`, `..`), the rest applied lexically (components that do not exist
 /// yet cannot be symlinks, so this is exact). Relative paths are taken from the current

@@ -19,7 +19,6 @@
 //! and names outputs; [`chart`] renders a synthetic chart frame; [`preview`] writes sRGB PNGs.
 
 pub mod batch;
-pub mod chart;
 pub mod display;
 mod openexr;
 pub mod raw;
@@ -85,6 +84,41 @@ pub enum IoError {
     /// The file is damaged: missing, repeated or out-of-file data blocks, and the like.
     #[error("{}: corrupt: {why}", path.display())]
     Corrupt { path: PathBuf, why: String },
+}
+
+impl IoError {
+    /// True for inputs that name no frame, a malformed shard, and a parameter value out of range.
+    pub fn is_usage(&self) -> bool {
+        use IoError;
+        matches!(
+            self,
+            IoError::NoMatch { .. }
+                | IoError::Shard { .. }
+                | IoError::Write(
+                    crate::output::WriteError::OutputIsInput { .. }
+                        | crate::output::WriteError::SameOutput { .. }
+                        | crate::output::WriteError::NoFileName(_)
+                )
+                | IoError::Param {
+                    concern: crate::error::Concern::Value(_),
+                    ..
+                }
+        )
+    }
+
+    /// The parameter this error is about: a frame over the pixel limit, a layer that is not
+    /// there or not named where several are, a rendered chart's option out of range.
+    pub fn concern(&self) -> Option<crate::error::Concern> {
+        use IoError;
+        match self {
+            IoError::OverLimit { .. } => Some(crate::error::Concern::Remedy(
+                crate::error::Param::MaxPixels,
+            )),
+            IoError::Channels { concern, .. } => *concern,
+            IoError::Param { concern, .. } => Some(*concern),
+            _ => None,
+        }
+    }
 }
 
 /// The default of [`Limits::max_pixels`] (and `--max-pixels`): 2²⁸ = 268 435 456 pixels
@@ -381,7 +415,7 @@ pub struct WriteOptions {
     /// EXR only: the compression of every part written. Lossy input compressions (DWA, B44,
     /// PXR24) are never reused: re-encoding would alter the pass-through channels again.
     pub compression: ExrCompression,
-    /// The space the pixels are in (they must already be; see [`crate::colorimetry::output_model`]). Sets the EXR
+    /// The space the pixels are in (they must already be; see [`crate::model::output_model`]). Sets the EXR
     /// attribute `colorInteropID` to [`OutputSpace::interop_id`] and the `chromaticities`
     /// attribute to the space's primaries and white (removed for XYZ).
     pub space: OutputSpace,
@@ -657,6 +691,35 @@ pub fn write_tiff(frame: &Frame, dest: &Path, unit: &mut Unit) -> Result<(), IoE
     unit.check_clobber(dest)?;
     let (rgb, alpha) = split_alpha(frame);
     tif::write(&rgb, alpha.as_deref(), dest, unit)
+}
+
+/// Writes a frame of camera RGB (no colour space attribute): a 32-bit float TIFF when `dest`
+/// ends in `.tif`/`.tiff`, else a float EXR carrying the `text` attributes (name, value) in its
+/// header; staged in `unit`.
+pub fn write_camera_float(
+    frame: &Frame,
+    dest: &Path,
+    text: &[(&str, &str)],
+    unit: &mut Unit,
+) -> Result<(), IoError> {
+    unit.check_clobber(dest)?;
+    if FileFormat::from_extension(dest) == Some(FileFormat::Tiff) {
+        tif::write(frame, None, dest, unit)
+    } else {
+        openexr::write_new(
+            frame,
+            None,
+            dest,
+            &openexr::NewExr {
+                half: false,
+                compression: ExrCompression::Keep,
+                space: None,
+                text,
+                camera: None,
+            },
+            unit,
+        )
+    }
 }
 
 /// Reads an EXR or TIFF into one frame (RGB, or RGBA when the file has alpha); pass-through

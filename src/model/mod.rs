@@ -11,10 +11,12 @@ pub mod dual_illuminant;
 pub mod fast;
 pub mod file;
 pub mod fit;
+mod output;
 pub mod pixel;
 mod refine;
 pub mod terms;
 
+pub use output::output_model;
 pub use terms::{term_name, terms, Term, MAX_ORDER};
 
 use crate::training::{Provenance, TrainingSet};
@@ -79,6 +81,27 @@ pub enum ModelError {
         path: String,
         err: serde_json::Error,
     },
+}
+
+impl ModelError {
+    /// True for an unknown model kind, an order outside 1..=4 and a malformed fit option.
+    pub fn is_usage(&self) -> bool {
+        matches!(
+            self,
+            ModelError::UnknownKind(_) | ModelError::Order(_) | ModelError::Spec(_)
+        )
+    }
+
+    /// A fit that needs the camera response of a white the data lacks: naming a neutral patch
+    /// ([`crate::error::Param::WhitePatch`]) is the way out.
+    pub fn concern(&self) -> Option<crate::error::Concern> {
+        match self {
+            ModelError::NoWhite => Some(crate::error::Concern::Remedy(
+                crate::error::Param::WhitePatch,
+            )),
+            _ => None,
+        }
+    }
 }
 
 /// The model families of the paper.

@@ -71,6 +71,13 @@ pub enum SpectralError {
     },
 }
 
+impl SpectralError {
+    /// True for a malformed wavelength grid.
+    pub fn is_usage(&self) -> bool {
+        matches!(self, SpectralError::Grid { .. })
+    }
+}
+
 /// A wavelength grid, `start..=end` in steps of `step` nm.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Grid {

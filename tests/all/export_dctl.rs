@@ -179,7 +179,7 @@ fn dctl_compiles_as_c_and_matches_the_f64_model() {
         for (suffix, model) in models {
             let (kind, order) = (model.kind(), model.order());
             for space in [OutputSpace::Xyz, OutputSpace::Acescg] {
-                let folded = nsrm::colorimetry::output_model(&model, space).unwrap();
+                let folded = nsrm::model::output_model(&model, space).unwrap();
                 let dctl = nsrm::export::dctl::generate(&folded, &["test".into()]).unwrap();
                 assert!(dctl.contains("__DEVICE__ float3 transform(int p_Width"));
                 let name = format!(
@@ -242,7 +242,7 @@ fn export_shader_writes_dctl_through_the_cli() {
         text.contains("acescg") && text.contains("cbrt(R*G^2)"),
         "{text}"
     );
-    let folded = nsrm::colorimetry::output_model(&model, OutputSpace::Acescg).unwrap();
+    let folded = nsrm::model::output_model(&model, OutputSpace::Acescg).unwrap();
     if let Some(cc) = cc() {
         let px = pixels(&data);
         let got = run_dctl(&cc, dir.path(), "cli", &text, &px);

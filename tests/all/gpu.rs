@@ -726,7 +726,8 @@ fn exported_wgsl_runs_and_matches_the_reference() {
             model(kind, order)
         };
         let src = String::from_utf8(
-            gpu::export::export(&m, layout, gpu::export::ShaderLang::Wgsl).unwrap(),
+            nsrm::export::shader::export(&m, layout, nsrm::export::shader::ShaderLang::Wgsl)
+                .unwrap(),
         )
         .unwrap();
         let input = random_frame(300, 5, layout, 77);

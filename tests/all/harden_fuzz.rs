@@ -189,9 +189,10 @@ proptest! {
         }
     }
 
+    #[cfg(feature = "chart")]
     #[test]
     fn exposure_and_noise_limits_keep_pixels_finite(e in any::<f64>(), n in any::<f64>()) {
-        if nsrm::io::chart::check_exposure_noise(e, n).is_ok() {
+        if nsrm::chart::synthetic::check_exposure_noise(e, n).is_ok() {
             // The brightest patch value (≤ 1) times the exposure plus 40σ of noise stays finite.
             prop_assert!(((e + 40.0 * n) as f32).is_finite());
             prop_assert!((e as f32) > 0.0);

@@ -3,6 +3,7 @@
 
 #[cfg(feature = "cli")]
 mod apply;
+mod architecture;
 #[cfg(feature = "chart")]
 mod chart;
 #[cfg(feature = "cli")]
@@ -29,6 +30,8 @@ mod first_hour;
 #[cfg(feature = "cli")]
 mod fit_apply_agree;
 mod fit_hostile;
+#[cfg(feature = "cli")]
+mod fit_two_illuminants;
 mod fit_variants;
 #[cfg(all(feature = "gpu", feature = "io"))]
 mod gpu;
@@ -50,6 +53,8 @@ mod harden_signals;
 mod harden_tiff;
 #[cfg(feature = "cli")]
 mod hostile_exr;
+#[cfg(feature = "cli")]
+mod icc;
 #[cfg(feature = "io")]
 mod io;
 mod model_properties;
@@ -59,6 +64,8 @@ mod parsers_fuzz;
 mod pixel_policy;
 #[cfg(feature = "cli")]
 mod profiles;
+#[cfg(feature = "cli")]
+mod profiles_rawtherapee;
 mod raw;
 #[cfg(feature = "cli")]
 mod readme;
@@ -66,3 +73,5 @@ mod readme;
 mod studio;
 #[cfg(feature = "cli")]
 mod white;
+#[cfg(feature = "cli")]
+mod white_as_shot;

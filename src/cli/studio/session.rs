@@ -770,7 +770,7 @@ impl FrameState {
     pub fn corrected_png(&self, space: &str) -> Result<(Vec<u8>, String)> {
         let space = parse_space(space)?;
         let f = self.fitted()?;
-        let out = nsrm::colorimetry::output_model(&f.model, space)?;
+        let out = nsrm::model::output_model(&f.model, space)?;
         let mut frame = self.small.clone();
         nsrm::model::fast::apply_frame(&out, &mut frame);
         let png =
@@ -783,8 +783,8 @@ impl FrameState {
     pub fn wgsl(&self, space: &str) -> Result<Value> {
         let space = parse_space(space)?;
         let f = self.fitted()?;
-        let out = nsrm::colorimetry::output_model(&f.model, space)?;
-        let wgsl = nsrm::gpu::export::baked_wgsl(&out, Layout::Rgb)?;
+        let out = nsrm::model::output_model(&f.model, space)?;
+        let wgsl = nsrm::export::shader::baked_wgsl(&out, Layout::Rgb)?;
         Ok(json!({
             "wgsl": wgsl,
             "to_linear_srgb": to_linear_srgb(f.model.white_xyz(), space),
@@ -944,7 +944,7 @@ fn explain_for_page(e: anyhow::Error) -> String {
         _ => None,
     }
     };
-    match e.chain().find_map(nsrm::error::concern) {
+    match e.chain().find_map(super::super::errors::concern) {
         Some(Concern::Remedy(p)) | Some(Concern::Value(p)) if page_remedy(p).is_some() => {
             format!("{e:#}. Way out: {}.", page_remedy(p).unwrap_or_default())
         }

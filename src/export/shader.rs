@@ -7,7 +7,7 @@
 //! `(G, 1, 1)` if G ≤ 256, else `(256, ceil(G / 256), 1)`.
 //!
 //! ```
-//! use nsrm::gpu::export::{export, ShaderLang};
+//! use nsrm::export::shader::{export, ShaderLang};
 //! use nsrm::{model::{Kind, Model}, Layout};
 //! let model = Model::from_matrix(Kind::Lrm, 1, vec![1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0])?;
 //! let glsl = export(&model, Layout::Rgba, ShaderLang::Glsl)?;
@@ -15,9 +15,9 @@
 //! # Ok::<(), Box<dyn std::error::Error>>(())
 //! ```
 
-use super::shader::{self, Coefficients, Target, ENTRY_POINT};
-use super::GpuError;
 use crate::frame::Layout;
+use crate::gpu::shader::{self, Coefficients, Target, ENTRY_POINT};
+use crate::gpu::GpuError;
 use crate::model::Model;
 
 /// An output language.

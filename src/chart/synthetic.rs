@@ -3,9 +3,9 @@
 //! seeded Gaussian noise. A layout ([`ChartLayout`], written as JSON beside the frame) says
 //! where each patch is and what its true RGB and XYZ are, so a corrected chart can be checked.
 
-use super::IoError;
 use crate::error::{Concern, Param};
 use crate::frame::{Frame, Layout};
+use crate::io::IoError;
 use crate::output::Unit;
 use crate::training::{Provenance, TrainingSet};
 use serde::{Deserialize, Serialize};
@@ -300,36 +300,24 @@ pub fn write(
     let json = serde_json::to_string_pretty(layout)
         .map_err(|e| IoError::Invalid(format!("serialising the chart layout: {e}")))?;
     unit.write_bytes(&layout_file, json.as_bytes())?;
-    if super::FileFormat::from_extension(dest) == Some(super::FileFormat::Tiff) {
-        super::tif::write(frame, None, dest, unit)?;
-    } else {
-        let describe = format!(
-            "nsrm chart: {} patches; camera {}; illuminant {}; reflectances {}; linear camera RGB (perfect white G = {})",
-            layout.patches.len(),
-            layout.provenance.camera.as_deref().unwrap_or("?"),
-            layout.provenance.illuminant.as_deref().unwrap_or("?"),
-            layout.provenance.reflectances.as_deref().unwrap_or("?"),
-            layout.exposure,
-        );
-        let layout_name = layout_file
-            .file_name()
-            .map(|s| s.to_string_lossy().into_owned())
-            .unwrap_or_default();
-        super::openexr::write_new(
-            frame,
-            None,
-            dest,
-            &super::openexr::NewExr {
-                half: false,
-                compression: super::ExrCompression::Keep,
-                space: None,
-                text: &[("comments", &describe), ("nsrmChartLayout", &layout_name)],
-                camera: None,
-            },
-            unit,
-        )?;
-    }
-    Ok(())
+    let describe = format!(
+        "nsrm chart: {} patches; camera {}; illuminant {}; reflectances {}; linear camera RGB (perfect white G = {})",
+        layout.patches.len(),
+        layout.provenance.camera.as_deref().unwrap_or("?"),
+        layout.provenance.illuminant.as_deref().unwrap_or("?"),
+        layout.provenance.reflectances.as_deref().unwrap_or("?"),
+        layout.exposure,
+    );
+    let layout_name = layout_file
+        .file_name()
+        .map(|s| s.to_string_lossy().into_owned())
+        .unwrap_or_default();
+    crate::io::write_camera_float(
+        frame,
+        dest,
+        &[("comments", &describe), ("nsrmChartLayout", &layout_name)],
+        unit,
+    )
 }
 
 /// Writes a camera-RGB frame (no colour space attribute) as a float EXR, or a 32-bit float TIFF
@@ -340,24 +328,7 @@ pub fn write_camera_frame(
     comments: &str,
     unit: &mut Unit,
 ) -> Result<(), IoError> {
-    unit.check_clobber(dest)?;
-    if super::FileFormat::from_extension(dest) == Some(super::FileFormat::Tiff) {
-        super::tif::write(frame, None, dest, unit)
-    } else {
-        super::openexr::write_new(
-            frame,
-            None,
-            dest,
-            &super::openexr::NewExr {
-                half: false,
-                compression: super::ExrCompression::Keep,
-                space: None,
-                text: &[("comments", comments)],
-                camera: None,
-            },
-            unit,
-        )
-    }
+    crate::io::write_camera_float(frame, dest, &[("comments", comments)], unit)
 }
 
 /// Standard normal deviates from SplitMix64 and the Box–Muller transform: small, seeded and the

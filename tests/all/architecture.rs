@@ -1,0 +1,270 @@
+//! `docs/ARCHITECTURE.md`'s room table is the law: every `crate::…` path in `src/` (outside the
+//! binary) must point to a room the using room may use, and the table itself must only lean one
+//! way (up), apart from the cycles it marks, which must still exist.
+
+use std::collections::{BTreeMap, BTreeSet};
+use std::path::{Path, PathBuf};
+
+const ROOT: &str = env!("CARGO_MANIFEST_DIR");
+
+/// One row of the table: the room and what it may use (`true`: marked `(cycle)`).
+struct Row {
+    room: String,
+    may_use: Vec<(String, bool)>,
+}
+
+/// The room table of `docs/ARCHITECTURE.md`, in order (top of the table = bottom layer).
+fn table(doc: &str) -> Vec<Row> {
+    let mut rows = Vec::new();
+    for line in doc.lines() {
+        let cells: Vec<&str> = line.trim().trim_matches('|').split('|').collect();
+        if cells.len() != 3 || !line.starts_with("| `") {
+            continue;
+        }
+        let room = cells[0].trim().trim_matches('`').to_string();
+        let may_use = cells[2]
+            .split(',')
+            .map(str::trim)
+            .filter(|c| !c.is_empty() && *c != "—")
+            .map(|c| {
+                let cycle = c.contains("(cycle)");
+                let name = c.replace("(cycle)", "").replace('`', "");
+                (name.trim().to_string(), cycle)
+            })
+            .collect();
+        rows.push(Row { room, may_use });
+    }
+    rows
+}
+
+/// The `.rs` files under `dir`, recursively.
+fn rust_files(dir: &Path, out: &mut Vec<PathBuf>) {
+    for e in std::fs::read_dir(dir).unwrap() {
+        let p = e.unwrap().path();
+        if p.is_dir() {
+            rust_files(&p, out);
+        } else if p.extension().is_some_and(|x| x == "rs") {
+            out.push(p);
+        }
+    }
+}
+
+/// The room a file of `src/` belongs to (its first path component, without `.rs`); `None` for
+/// the crate root and the binary.
+fn room_of(rel: &Path) -> Option<String> {
+    let first = rel.components().next()?.as_os_str().to_str()?;
+    let room = first.strip_suffix(".rs").unwrap_or(first);
+    (!matches!(room, "lib" | "main" | "cli")).then(|| room.to_string())
+}
+
+/// What the crate root re-exports (`pub use frame::{Frame, Layout};` → `Frame` → `frame`).
+fn root_reexports(lib: &str) -> BTreeMap<String, String> {
+    let mut map = BTreeMap::new();
+    for line in lib.lines() {
+        let Some(rest) = line.trim().strip_prefix("pub use ") else {
+            continue;
+        };
+        let rest = rest.trim_end_matches(';');
+        let Some((room, names)) = rest.split_once("::") else {
+            continue;
+        };
+        let names = names.trim_start_matches('{').trim_end_matches('}');
+        for n in names.split(',') {
+            let n = n.trim();
+            let n = n.rsplit("::").next().unwrap_or(n);
+            let n = n.split(" as ").last().unwrap_or(n).trim();
+            if !n.is_empty() {
+                map.insert(n.to_string(), room.trim().to_string());
+            }
+        }
+    }
+    map
+}
+
+/// The first path segments after `crate::` in one line of code: `crate::a::b` → `a`,
+/// `crate::{a, b::c}` → `a`, `b` (nested braces: only the outer level counts).
+fn crate_paths(line: &str) -> Vec<String> {
+    let mut out = Vec::new();
+    let b = line.as_bytes();
+    let mut from = 0;
+    while let Some(k) = line[from..].find("crate::") {
+        let at = from + k;
+        from = at + 7;
+        if at > 0 && (b[at - 1].is_ascii_alphanumeric() || b[at - 1] == b'_' || b[at - 1] == b'$') {
+            continue;
+        }
+        let rest = &line[from..];
+        if let Some(group) = rest.strip_prefix('{') {
+            let mut depth = 0;
+            let mut item = String::new();
+            let mut expect = true;
+            for c in group.chars() {
+                match c {
+                    '{' => depth += 1,
+                    '}' if depth == 0 => break,
+                    '}' => depth -= 1,
+                    ',' if depth == 0 => expect = true,
+                    c if expect && (c.is_alphanumeric() || c == '_') => item.push(c),
+                    _ if expect && !item.is_empty() => {
+                        out.push(std::mem::take(&mut item));
+                        expect = false;
+                    }
+                    _ => {}
+                }
+            }
+            if !item.is_empty() {
+                out.push(item);
+            }
+        } else {
+            let name: String = rest
+                .chars()
+                .take_while(|c| c.is_alphanumeric() || *c == '_')
+                .collect();
+            if !name.is_empty() {
+                out.push(name);
+            }
+        }
+    }
+    out
+}
+
+/// Every use of another room: (from, to) → the places (`file:line`).
+fn edges() -> BTreeMap<(String, String), Vec<String>> {
+    let src = Path::new(ROOT).join("src");
+    let lib = std::fs::read_to_string(src.join("lib.rs")).unwrap();
+    let reexports = root_reexports(&lib);
+    let mut files = Vec::new();
+    rust_files(&src, &mut files);
+    let mut edges: BTreeMap<(String, String), Vec<String>> = BTreeMap::new();
+    for f in &files {
+        let rel = f.strip_prefix(&src).unwrap();
+        let Some(room) = room_of(rel) else { continue };
+        for (i, line) in std::fs::read_to_string(f).unwrap().lines().enumerate() {
+            if line.trim_start().starts_with("//") {
+                continue;
+            }
+            for name in crate_paths(line) {
+                let to = reexports.get(&name).cloned().unwrap_or(name);
+                if to != room && to != "self" {
+                    edges.entry((room.clone(), to)).or_default().push(format!(
+                        "src/{}:{}",
+                        rel.display(),
+                        i + 1
+                    ));
+                }
+            }
+        }
+    }
+    edges
+}
+
+#[test]
+fn rooms_lean_only_the_way_the_architecture_doc_says() {
+    let doc = std::fs::read_to_string(Path::new(ROOT).join("docs/ARCHITECTURE.md")).unwrap();
+    let rows = table(&doc);
+    assert!(rows.len() >= 10, "the room table has {} rows", rows.len());
+    let position: BTreeMap<&str, usize> = rows
+        .iter()
+        .enumerate()
+        .map(|(i, r)| (r.room.as_str(), i))
+        .collect();
+    let mut problems = Vec::new();
+
+    // Every room of src/ has a row, and every row is a room.
+    let mut rooms = BTreeSet::new();
+    for e in std::fs::read_dir(Path::new(ROOT).join("src")).unwrap() {
+        let p = e.unwrap().path();
+        let name = p.file_name().unwrap().to_str().unwrap().to_string();
+        if let Some(room) = room_of(Path::new(&name)) {
+            if p.is_dir() || name.ends_with(".rs") {
+                rooms.insert(room);
+            }
+        }
+    }
+    for r in &rooms {
+        if !position.contains_key(r.as_str()) {
+            problems.push(format!(
+                "src/{r}: a room without a row in docs/ARCHITECTURE.md"
+            ));
+        }
+    }
+    for r in &rows {
+        if !rooms.contains(&r.room) {
+            problems.push(format!(
+                "`{}`: a row for a room that src/ does not have",
+                r.room
+            ));
+        }
+    }
+
+    // The table leans one way: a room may use only rooms above it, unless marked (cycle).
+    for (i, r) in rows.iter().enumerate() {
+        for (to, cycle) in &r.may_use {
+            match position.get(to.as_str()) {
+                None => problems.push(format!("`{}` may use `{to}`: no such row", r.room)),
+                Some(&j) if j >= i && !cycle => problems.push(format!(
+                    "`{}` may use `{to}`, which is below it in the table: mark it (cycle) or fix it",
+                    r.room
+                )),
+                _ => {}
+            }
+        }
+    }
+
+    // The code obeys the table.
+    let edges = edges();
+    assert!(
+        edges.len() > 20,
+        "only {} room-to-room uses found: is the parser blind?",
+        edges.len()
+    );
+    for ((from, to), places) in &edges {
+        let Some(row) = rows.iter().find(|r| &r.room == from) else {
+            continue; // reported above
+        };
+        if !row.may_use.iter().any(|(m, _)| m == to) {
+            problems.push(format!(
+                "`{from}` uses `{to}`, which docs/ARCHITECTURE.md does not allow: {}",
+                places.join(", ")
+            ));
+        }
+    }
+    // A (cycle) exception that the code no longer needs is stale.
+    for r in &rows {
+        for (to, cycle) in &r.may_use {
+            if *cycle && !edges.contains_key(&(r.room.clone(), to.clone())) {
+                problems.push(format!(
+                    "`{}` → `{to}` is marked (cycle) but no longer used: remove the exception",
+                    r.room
+                ));
+            }
+        }
+    }
+    assert!(problems.is_empty(), "{}", problems.join("\n"));
+}
+
+/// The parser the check relies on sees plain paths, grouped imports, root re-exports, and not
+/// `pub(crate)`, `$crate::` or identifiers that merely end in `crate`.
+#[test]
+fn crate_path_parser_reads_the_forms_used() {
+    assert_eq!(crate_paths("use crate::model::Model;"), ["model"]);
+    assert_eq!(
+        crate_paths("use crate::{colorimetry::{a, b}, frame::Frame, limits};"),
+        ["colorimetry", "frame", "limits"]
+    );
+    assert_eq!(
+        crate_paths("let x = crate::io::read(p).map_err(crate::error::f);"),
+        ["io", "error"]
+    );
+    assert!(crate_paths("pub(crate) fn f() {}").is_empty());
+    assert!(crate_paths("$crate::x; mycrate::y").is_empty());
+    let map = root_reexports("pub use frame::{Frame, Layout};\npub use model::Model;");
+    assert_eq!(map["Layout"], "frame");
+    assert_eq!(map["Model"], "model");
+    assert_eq!(
+        room_of(Path::new("io/openexr/chunks.rs")).as_deref(),
+        Some("io")
+    );
+    assert_eq!(room_of(Path::new("cli/apply.rs")), None);
+    assert_eq!(room_of(Path::new("output.rs")).as_deref(), Some("output"));
+}

@@ -1,0 +1,131 @@
+//! `apply --white as-shot`: each raw frame is corrected for the as-shot neutral its file records
+//! (the same output as that neutral given by hand as `as-shot:R,G,B`); a frame without one fails
+//! with a clear message and writes nothing. On `../shared/data/colorchart.dng` (AsShotNeutral
+//! 1, 2.477, 1.462, as exiftool prints it).
+
+use crate::common::{nsrm_in, nsrm_ok, skip, stderr, tempdir};
+use nsrm::io::{read_frame, ReadOptions};
+use std::path::PathBuf;
+
+const CHART_DNG: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/../shared/data/colorchart.dng");
+
+fn chart_dng() -> PathBuf {
+    let p = PathBuf::from(CHART_DNG);
+    match std::env::var_os("NSRM_SHARED") {
+        Some(s) if !p.exists() => PathBuf::from(s).join("data/colorchart.dng"),
+        _ => p,
+    }
+}
+
+/// The numbers after `camera neutral ` in apply's line about the white.
+fn neutral_printed(err: &str) -> [f64; 3] {
+    let s = err
+        .split("camera neutral ")
+        .nth(1)
+        .unwrap_or_else(|| panic!("no camera neutral in {err}"));
+    let v: Vec<f64> = s
+        .split(';')
+        .next()
+        .unwrap()
+        .split(',')
+        .map(|x| x.trim().parse().unwrap())
+        .collect();
+    [v[0], v[1], v[2]]
+}
+
+#[test]
+fn as_shot_reads_the_raw_files_neutral() {
+    let dng = chart_dng();
+    if !dng.exists() {
+        return skip("../shared/data/colorchart.dng is absent");
+    }
+    let dir = tempdir("white-as-shot");
+    for (ill, out) in [("A", "a.json"), ("D65", "d65.json")] {
+        nsrm_ok(
+            &dir,
+            &[
+                "fit",
+                "--kind",
+                "nsrm",
+                "--illuminant",
+                ill,
+                "--preserve-white",
+                "-o",
+                out,
+            ],
+        );
+    }
+    nsrm_ok(&dir, &["combine", "a.json", "d65.json", "-o", "dual.json"]);
+    let dng = dng.to_str().unwrap();
+    let run = |white: &str, out: &str| {
+        nsrm_ok(
+            &dir,
+            &[
+                "apply",
+                "--model",
+                "dual.json",
+                "--white",
+                white,
+                "--demosaic",
+                "half",
+                "--format",
+                "tiff",
+                "--device",
+                "cpu",
+                "-o",
+                out,
+                dng,
+            ],
+        )
+    };
+    let o = run("as-shot", "shot");
+    let err = stderr(&o);
+    let n = neutral_printed(&err);
+    // exiftool: AsShotNeutral 1 2.477 1.462 → G = 1.
+    let want = [1.0 / 2.477, 1.0, 1.462 / 2.477];
+    for k in 0..3 {
+        assert!((n[k] - want[k]).abs() < 1e-3, "{n:?} vs {want:?}\n{err}");
+    }
+    assert!(err.contains("as-shot white x, y"), "{err}");
+    let given = format!("as-shot:{},{},{}", want[0], want[1], want[2]);
+    run(&given, "given");
+    let read = |p: &str| {
+        read_frame(
+            &dir.join(p).join("colorchart_xyz.tif"),
+            &ReadOptions::default(),
+        )
+        .unwrap()
+    };
+    let (a, b) = (read("shot"), read("given"));
+    assert_eq!((a.width, a.height), (b.width, b.height));
+    let mut worst = 0.0f32;
+    for (x, y) in a.data.iter().zip(&b.data) {
+        worst = worst.max((x - y).abs() / y.abs().max(1e-3));
+    }
+    // The file's neutral is the f32 ratio of rawler's coefficients; the given one is 4 digits.
+    assert!(worst < 2e-3, "as-shot vs as-shot:R,G,B differ by {worst}");
+
+    // A frame that records no neutral (a TIFF) fails with a clear message and writes nothing.
+    let tif = dir.join("given/colorchart_xyz.tif");
+    let o = nsrm_in(
+        &dir,
+        &[
+            "apply",
+            "--model",
+            "dual.json",
+            "--white",
+            "as-shot",
+            "--device",
+            "cpu",
+            "-o",
+            "none",
+            tif.to_str().unwrap(),
+        ],
+    );
+    assert!(!o.status.success());
+    assert!(stderr(&o).contains("no as-shot neutral"), "{}", stderr(&o));
+    assert!(
+        !dir.join("none/colorchart_xyz_xyz.exr").exists(),
+        "a failed frame was written"
+    );
+}

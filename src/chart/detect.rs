@@ -50,6 +50,12 @@ pub const COMPLETE_AMBIGUITY_RATIO: f64 = 0.5;
 /// 1.51 (100 CC24 and 60 SG scenes).
 pub const PERSPECTIVE_LIMIT: f64 = 1.6;
 
+/// [`PERSPECTIVE_LIMIT`] for a complete placement (every cell of the chart seen as a patch and
+/// linked into the lattice): no cell is extrapolated past what was seen, so the bias of
+/// extrapolated cells does not arise; what remains is the centroid of a tilted patch lying
+/// off its projected centre, a small fraction of a pitch (measured with `--family tilt`).
+pub const COMPLETE_PERSPECTIVE_LIMIT: f64 = 2.2;
+
 /// [`PERSPECTIVE_LIMIT`]'s measure: largest over smallest local patch scale, over the cells
 /// that `h` (chart → image) places.
 pub fn perspective(kind: super::ChartKind, h: &Homography) -> f64 {
@@ -158,66 +164,94 @@ fn downsample(frame: &Frame, f: usize) -> (usize, usize, Vec<f32>) {
     (ws, hs, out)
 }
 
-/// Finds the chart of `reference` in `frame`.
-pub fn detect(
-    frame: &Frame,
-    reference: &Reference,
-    opts: &DetectOptions,
-) -> Result<Detection, DetectFailure> {
-    let kind = reference.chart;
-    let fail = |msg: String, candidates: Vec<Candidate>| DetectFailure {
-        error: ChartError::NotFound(msg),
-        candidates,
-    };
+/// Step 1's result: the downsampled frame and its log-luminance and chromaticity planes.
+struct Prepared {
+    /// Downsampling factor.
+    f: usize,
+    ws: usize,
+    hs: usize,
+    /// The downsampled linear RGB (unsmoothed; patch colours are read from it).
+    small: Vec<f32>,
+    logl: Vec<f32>,
+    cr: Vec<f32>,
+    cb: Vec<f32>,
+}
+
+/// Step 1: downsample so the long side is at most `max_side`, smooth (σ = 1) and convert.
+fn prepare(frame: &Frame, max_side: usize) -> Result<Prepared, String> {
     let long = frame.width.max(frame.height);
-    let f = long.div_ceil(opts.max_side.max(64)).max(1);
+    let f = long.div_ceil(max_side.max(64)).max(1);
     let (ws, hs, small) = downsample(frame, f);
     if ws < 32 || hs < 32 {
-        return Err(fail(
-            format!("the frame ({}×{}) is too small", frame.width, frame.height),
-            vec![],
+        return Err(format!(
+            "the frame ({}×{}) is too small",
+            frame.width, frame.height
         ));
     }
     let img: image::ImageBuffer<image::Rgb<f32>, Vec<f32>> =
         image::ImageBuffer::from_raw(ws as u32, hs as u32, small.clone()).expect("sized");
     let smooth = imageproc::filter::gaussian_blur_f32(&img, 1.0).into_raw();
-    // Log-luminance and chromaticity.
-    let ymax = smooth
+    let (logl, cr, cb) = log_chroma(&smooth).ok_or_else(|| "the frame is black".to_string())?;
+    Ok(Prepared {
+        f,
+        ws,
+        hs,
+        small,
+        logl,
+        cr,
+        cb,
+    })
+}
+
+/// Log-luminance (`R + 2G + B`) and chromaticity (`r`, `b`) of packed RGB; `None` when no
+/// pixel is above zero. A floor 10⁻⁵ below the brightest pixel keeps the logarithm finite.
+fn log_chroma(rgb: &[f32]) -> Option<(Vec<f32>, Vec<f32>, Vec<f32>)> {
+    let ymax = rgb
         .chunks_exact(3)
         .map(|p| p[0] + 2.0 * p[1] + p[2])
         .fold(0.0f32, f32::max);
     if !(ymax > 0.0) {
-        return Err(fail("the frame is black".into(), vec![]));
+        return None;
     }
     let floor = ymax * 1e-5;
-    let mut logl = vec![0.0f32; ws * hs];
-    let mut cr = vec![0.0f32; ws * hs];
-    let mut cb = vec![0.0f32; ws * hs];
-    for (i, p) in smooth.chunks_exact(3).enumerate() {
+    let n = rgb.len() / 3;
+    let (mut logl, mut cr, mut cb) = (vec![0.0f32; n], vec![0.0f32; n], vec![0.0f32; n]);
+    for (i, p) in rgb.chunks_exact(3).enumerate() {
         let (r, g, b) = (p[0].max(0.0), p[1].max(0.0), p[2].max(0.0));
         let s = r + g + b + floor;
         logl[i] = (r + 2.0 * g + b).max(floor).ln();
         cr[i] = r / s;
         cb[i] = b / s;
     }
-    let t = opts.flat_threshold;
+    Some((logl, cr, cb))
+}
+
+/// Step 2a: the flat pixels — log-luminance and (4×) chromaticity central differences below
+/// `t` — as 255 in a mask (the one-pixel border stays 0).
+fn flat_mask(p: &Prepared, t: f32) -> image::GrayImage {
+    let (ws, hs) = (p.ws, p.hs);
     let mut mask = image::GrayImage::new(ws as u32, hs as u32);
-    for y in 1..hs - 1 {
-        for x in 1..ws - 1 {
+    for y in 1..hs.saturating_sub(1) {
+        for x in 1..ws.saturating_sub(1) {
             let i = y * ws + x;
             let d = |a: &[f32]| {
                 let gx = (a[i + 1] - a[i - 1]) * 0.5;
                 let gy = (a[i + ws] - a[i - ws]) * 0.5;
                 gx.abs().max(gy.abs())
             };
-            let e = d(&logl).max(4.0 * d(&cr)).max(4.0 * d(&cb));
+            let e = d(&p.logl).max(4.0 * d(&p.cr)).max(4.0 * d(&p.cb));
             if e < t {
                 mask.put_pixel(x as u32, y as u32, image::Luma([255]));
             }
         }
     }
-    let labels = connected_components(&mask, Connectivity::Four, image::Luma([0u8]));
-    // Moments per region.
+    mask
+}
+
+/// Step 2b: the connected flat regions' moments `[n, Σx, Σy, Σx², Σxy, Σy²]` (pixel centres),
+/// indexed by label (0, the background, is unused).
+fn region_moments(mask: &image::GrayImage) -> Vec<[f64; 6]> {
+    let labels = connected_components(mask, Connectivity::Four, image::Luma([0u8]));
     let mut stats: Vec<[f64; 6]> = Vec::new();
     for (x, y, l) in labels.enumerate_pixels() {
         let l = l.0[0] as usize;
@@ -236,104 +270,153 @@ pub fn detect(
         s[4] += x * y;
         s[5] += y * y;
     }
-    let frame_area = (ws * hs) as f64;
-    let min_area = 10.0f64.max(frame_area * 0.05 / kind.cells() as f64 * 0.08);
-    // A patch is at most a cell of a chart whose patch grid fills the whole frame (a chart
-    // cropped tight, no surround): frame area / cells.
-    let max_area = frame_area / kind.cells() as f64;
-    let mut blobs = Vec::new();
-    let mut all = Vec::new();
-    for s in stats.iter().skip(1) {
-        let n = s[0];
-        if n < 4.0 {
-            continue;
+    stats
+}
+
+/// A region's centroid and whether its shape is that of a patch: a filled convex
+/// quadrilateral (area / (12 √det Σ) is 1 for any parallelogram, 0.8..1.12 allows blur and
+/// perspective), not elongated (eigenvalue ratio ≤ 4: a square tilted by 60° has 4), its area
+/// within `min..=max`.
+fn patch_shape(s: &[f64; 6], min: f64, max: f64) -> ([f64; 2], bool) {
+    let n = s[0];
+    let (mx, my) = (s[1] / n, s[2] / n);
+    let (sxx, sxy, syy) = (s[3] / n - mx * mx, s[4] / n - mx * my, s[5] / n - my * my);
+    let det = sxx * syy - sxy * sxy;
+    let tr = sxx + syy;
+    let disc = (tr * tr / 4.0 - det).max(0.0).sqrt();
+    let (l1, l2) = (tr / 2.0 + disc, tr / 2.0 - disc);
+    let fill = if det > 0.0 {
+        n / (12.0 * det.sqrt())
+    } else {
+        0.0
+    };
+    let ok = n >= min && n <= max && (0.8..=1.12).contains(&fill) && l2 > 0.0 && l1 / l2 <= 4.0;
+    ([mx, my], ok)
+}
+
+/// Step 2's result: the candidate patches and every region large enough to report.
+struct Regions {
+    blobs: Vec<Blob>,
+    /// (index in `blobs` when patch-like, patch-like, centre, area) in downsampled pixels.
+    all: Vec<(usize, bool, [f64; 2], f64)>,
+}
+
+impl Regions {
+    /// Step 2b: the regions of `stats` in a `ws × hs` image, for a chart of `cells` cells.
+    fn new(stats: &[[f64; 6]], cells: usize, ws: usize, hs: usize) -> Regions {
+        let frame_area = (ws * hs) as f64;
+        let min_area = 10.0f64.max(frame_area * 0.05 / cells as f64 * 0.08);
+        // A patch is at most a cell of a chart whose patch grid fills the whole frame (a
+        // chart cropped tight, no surround): frame area / cells.
+        let max_area = frame_area / cells as f64;
+        let mut blobs = Vec::new();
+        let mut all = Vec::new();
+        for s in stats.iter().skip(1).filter(|s| s[0] >= 4.0) {
+            let (c, ok) = patch_shape(s, min_area, max_area);
+            if s[0] >= min_area {
+                all.push((blobs.len(), ok, c, s[0]));
+            }
+            if ok {
+                blobs.push(Blob { c, area: s[0] });
+            }
         }
-        let (mx, my) = (s[1] / n, s[2] / n);
-        let (sxx, sxy, syy) = (s[3] / n - mx * mx, s[4] / n - mx * my, s[5] / n - my * my);
-        let det = sxx * syy - sxy * sxy;
-        let tr = sxx + syy;
-        let disc = (tr * tr / 4.0 - det).max(0.0).sqrt();
-        let (l1, l2) = (tr / 2.0 + disc, tr / 2.0 - disc);
-        let fill = if det > 0.0 {
-            n / (12.0 * det.sqrt())
-        } else {
-            0.0
-        };
-        let ok = n >= min_area
-            && n <= max_area
-            && (0.8..=1.12).contains(&fill)
-            && l2 > 0.0
-            && l1 / l2 <= 4.0;
-        if n >= min_area {
-            all.push((blobs.len(), ok, [mx, my], n));
-        }
-        if ok {
-            blobs.push(Blob {
-                c: [mx, my],
-                area: n,
-            });
-        }
+        Regions { blobs, all }
     }
-    let to_candidates = |accepted: &[bool]| -> Vec<Candidate> {
-        all.iter()
+
+    /// The regions in frame pixels (`f`: the downsampling factor), those of `accepted` blobs
+    /// marked.
+    fn candidates(&self, f: usize, accepted: &[bool]) -> Vec<Candidate> {
+        let f = f as f64;
+        self.all
+            .iter()
             .map(|(bi, ok, c, n)| Candidate {
-                centre: [c[0] * f as f64, c[1] * f as f64],
-                radius: (n / std::f64::consts::PI).sqrt() * f as f64,
+                centre: [c[0] * f, c[1] * f],
+                radius: (n / std::f64::consts::PI).sqrt() * f,
                 accepted: *ok && accepted.get(*bi).copied().unwrap_or(false),
             })
             .collect()
-    };
-    if blobs.len() < 6 {
-        return Err(fail(
-            format!(
-                "{} patch-like regions in the frame, too few for a {} chart",
-                blobs.len(),
-                kind.name()
-            ),
-            to_candidates(&[]),
-        ));
     }
-    // Lattice walk.
-    let mut best: Vec<(usize, [i32; 2])> = Vec::new();
+}
+
+/// Lattice coordinates of linked candidates: (blob, `[i, j]`).
+type Lattice = Vec<(usize, [i32; 2])>;
+
+/// The fewest patches a lattice is fitted and placed with (a homography needs 4 points; 6
+/// leave some redundancy).
+const MIN_LATTICE: usize = 6;
+
+/// At most this many lattices (largest first) are placed and scored; a lattice other than the
+/// largest must hold half of the chart's cells (a second chart page, another chart in the
+/// frame) — smaller ones are clutter that lines up by chance.
+const MAX_LATTICES: usize = 3;
+
+/// Step 3: the lattices the candidates form, largest first (at least 6 patches each). Seeds
+/// are taken largest region first; each walk's lattice is split at empty lines
+/// ([`split_gaps`]).
+fn lattices(blobs: &[Blob]) -> Vec<Lattice> {
     let mut seen = vec![false; blobs.len()];
     let mut order: Vec<usize> = (0..blobs.len()).collect();
     order.sort_by(|a, b| blobs[*b].area.total_cmp(&blobs[*a].area));
+    let mut out = Vec::new();
     for &seed in &order {
         if seen[seed] {
             continue;
         }
-        let lat = walk(&blobs, seed);
+        let lat = walk(blobs, seed);
         for (b, _) in &lat {
             seen[*b] = true;
         }
-        if lat.len() > best.len() {
-            best = lat;
-        }
-        if best.len() >= kind.cells() {
-            break;
+        out.extend(
+            split_gaps(lat)
+                .into_iter()
+                .filter(|l| l.len() >= MIN_LATTICE),
+        );
+    }
+    out.sort_by_key(|l| std::cmp::Reverse(l.len()));
+    out
+}
+
+/// Splits a lattice at every line (column `i` or row `j`) inside its extent that holds no
+/// patch. The walk's double step exists to bridge one missed (dark) patch; a whole line
+/// missing means the parts are not one grid — the hinge between a Passport's two pages or
+/// the gutter between two charts, whose width is no whole number of pitches, so one
+/// homography over both parts would misplace cells by a fraction of a pitch. Only a split
+/// leaving at least [`MIN_LATTICE`] patches on both sides is made: a smaller part could not be
+/// placed on its own, and a sparsely seen chart (heavy blur: many missed patches, hence empty
+/// lines) is better judged whole, by its colours. Parts are returned largest first.
+fn split_gaps(l: Lattice) -> Vec<Lattice> {
+    for k in 0..2 {
+        let lo = l.iter().map(|x| x.1[k]).min().unwrap_or(0);
+        let hi = l.iter().map(|x| x.1[k]).max().unwrap_or(0);
+        let gap = (lo + 1..hi).find(|&g| {
+            l.iter().all(|x| x.1[k] != g)
+                && l.iter().filter(|x| x.1[k] < g).count() >= MIN_LATTICE
+                && l.iter().filter(|x| x.1[k] > g).count() >= MIN_LATTICE
+        });
+        if let Some(gap) = gap {
+            let (a, b): (Lattice, Lattice) = l.into_iter().partition(|x| x.1[k] < gap);
+            let mut parts = split_gaps(a);
+            parts.extend(split_gaps(b));
+            parts.sort_by_key(|p| std::cmp::Reverse(p.len()));
+            return parts;
         }
     }
-    let mut accepted = vec![false; blobs.len()];
-    if best.len() < 6 {
-        return Err(fail(
-            format!(
-                "{} candidate patches, but at most {} of them form a grid",
-                blobs.len(),
-                best.len()
-            ),
-            to_candidates(&accepted),
-        ));
-    }
-    // Homography lattice → small image, refined with outlier removal and pick-up of candidates
-    // at predicted cells.
-    let mut lattice = best;
-    let mut h_obs = fit_lattice(&blobs, &lattice).map_err(|e| DetectFailure {
-        error: e,
-        candidates: to_candidates(&accepted),
-    })?;
+    vec![l]
+}
+
+/// Step 4: a homography from lattice coordinates to the downsampled image, fitted to the
+/// lattice's centroids, then twice: candidates within a quarter pitch of a predicted cell
+/// picked up, points more than a quarter pitch from the refit dropped, and the part split off
+/// by an empty line ([`split_gaps`]) that holds fewer of the previous points dropped.
+fn refine(
+    blobs: &[Blob],
+    lattice: Lattice,
+    span: i32,
+) -> Result<(Lattice, Homography), ChartError> {
+    let mut lattice = lattice;
+    let mut h_obs = fit_lattice(blobs, &lattice)?;
     for _ in 0..2 {
         let (imin, imax, jmin, jmax) = extent(&lattice);
-        let span = kind.columns().max(kind.rows()) as i32;
         let mut taken: std::collections::HashMap<[i32; 2], usize> =
             lattice.iter().map(|(b, ij)| (*ij, *b)).collect();
         let used: std::collections::HashSet<usize> = lattice.iter().map(|(b, _)| *b).collect();
@@ -344,193 +427,312 @@ pub fn detect(
                 }
                 let p = h_obs.apply([i as f64, j as f64]);
                 let step = local_step(&h_obs, i, j);
-                if let Some(b) = nearest(&blobs, p, 0.25 * step, |b| !used.contains(&b)) {
+                if let Some(b) = nearest(blobs, p, 0.25 * step, |b| !used.contains(&b)) {
                     taken.insert([i, j], b);
                 }
             }
         }
-        let mut next: Vec<(usize, [i32; 2])> = taken.into_iter().map(|(ij, b)| (b, ij)).collect();
+        let mut next: Lattice = taken.into_iter().map(|(ij, b)| (b, ij)).collect();
         next.sort_by_key(|(_, ij)| (ij[1], ij[0]));
-        // Drop the points far from the fitted lattice.
-        let h_new = fit_lattice(&blobs, &next).unwrap_or(h_obs);
+        let h_new = fit_lattice(blobs, &next).unwrap_or(h_obs);
         next.retain(|(b, ij)| {
             let p = h_new.apply([ij[0] as f64, ij[1] as f64]);
             let step = local_step(&h_new, ij[0], ij[1]);
             (p[0] - blobs[*b].c[0]).hypot(p[1] - blobs[*b].c[1]) < 0.25 * step
         });
-        if next.len() >= 6 {
-            if let Ok(h2) = fit_lattice(&blobs, &next) {
+        let next = split_gaps(next)
+            .into_iter()
+            .max_by_key(|p| p.iter().filter(|x| used.contains(&x.0)).count())
+            .unwrap_or_default();
+        if next.len() >= MIN_LATTICE {
+            if let Ok(h2) = fit_lattice(blobs, &next) {
                 h_obs = h2;
                 lattice = next;
             }
         }
     }
-    for (b, _) in &lattice {
-        accepted[*b] = true;
+    Ok((lattice, h_obs))
+}
+
+/// A placement of the chart on a lattice, scored.
+#[derive(Debug, Clone)]
+struct Placement {
+    /// Median ΔE00 ([`chart_score`]).
+    score: f64,
+    /// Chart coordinates → downsampled image.
+    hc: Homography,
+    mirrored: bool,
+    /// Cells outside the image.
+    outside: usize,
+    /// Every cell holds a lattice patch: nothing extrapolated past what was seen.
+    complete: bool,
+    /// Chart → lattice ([`placement_map`]).
+    map: Homography,
+    /// The lattice window the chart covers: first `[i, j]` and sizes.
+    window: ([i32; 2], [i32; 2]),
+}
+
+/// Chart `(u, v)` → lattice `(i, j)`: axes swapped or not, signs `sx`, `sy`, the cell
+/// centre of chart cell (0, 0) on lattice point `(oi, oj)`.
+fn placement_map(swap: bool, sx: f64, sy: f64, oi: i32, oj: i32) -> Homography {
+    let (ti, tj) = (-0.5 * sx + oi as f64, -0.5 * sy + oj as f64);
+    if swap {
+        Homography([0.0, sx, ti, sy, 0.0, tj, 0.0, 0.0, 1.0])
+    } else {
+        Homography([sx, 0.0, ti, 0.0, sy, tj, 0.0, 0.0, 1.0])
     }
-    // Placements of the chart on the lattice.
-    let (imin, imax, jmin, jmax) = extent(&lattice);
+}
+
+/// Step 5: every placement of the chart on the lattice — 4 rotations × mirror × the windows
+/// of the lattice holding the most points — with half of its cells inside the image, scored
+/// against the reference; best first.
+fn placements(
+    small: &Frame,
+    reference: &Reference,
+    lattice: &Lattice,
+    h_obs: &Homography,
+) -> Vec<Placement> {
+    let kind = reference.chart;
+    let (imin, imax, jmin, jmax) = extent(lattice);
     let side = kind.patch_fraction() * 0.5;
-    let small_frame = Frame::from_data(ws, hs, crate::frame::Layout::Rgb, small).expect("sized");
-    let mut scored: Vec<(f64, Homography, bool, usize, bool)> = Vec::new();
+    // Orientation-preserving maps have a positive determinant.
+    let obs_det = {
+        let p0 = h_obs.apply([0.0, 0.0]);
+        let p1 = h_obs.apply([1.0, 0.0]);
+        let p2 = h_obs.apply([0.0, 1.0]);
+        (p1[0] - p0[0]) * (p2[1] - p0[1]) - (p1[1] - p0[1]) * (p2[0] - p0[0])
+    };
+    let mut scored = Vec::new();
     for swap in [false, true] {
         let (ai, aj) = if swap {
             (kind.rows() as i32, kind.columns() as i32)
         } else {
             (kind.columns() as i32, kind.rows() as i32)
         };
-        let wins_i = windows(&lattice, imin, imax, ai, 0);
-        let wins_j = windows(&lattice, jmin, jmax, aj, 1);
-        for sx in [1i32, -1] {
-            for sy in [1i32, -1] {
-                for &si in &wins_i {
-                    for &sj in &wins_j {
-                        let oi = if sx == 1 { si } else { si + ai - 1 };
-                        let oj = if sy == 1 { sj } else { sj + aj - 1 };
-                        // chart (u, v) → lattice (i, j).
-                        let (sxf, syf) = (sx as f64, sy as f64);
-                        let a = if swap {
-                            Homography([
-                                0.0,
-                                sxf,
-                                -0.5 * sxf + oi as f64,
-                                syf,
-                                0.0,
-                                -0.5 * syf + oj as f64,
-                                0.0,
-                                0.0,
-                                1.0,
-                            ])
-                        } else {
-                            Homography([
-                                sxf,
-                                0.0,
-                                -0.5 * sxf + oi as f64,
-                                0.0,
-                                syf,
-                                -0.5 * syf + oj as f64,
-                                0.0,
-                                0.0,
-                                1.0,
-                            ])
-                        };
-                        let hc = h_obs.then_after(&a);
-                        let means = cell_means(&small_frame, kind, &hc, side);
-                        let inside = means.iter().filter(|m| m.is_some()).count();
-                        if inside * 2 < kind.cells() {
-                            continue;
-                        }
-                        if let Some(s) = chart_score(&means, reference) {
-                            // Orientation-preserving maps have a positive determinant.
-                            let det = if swap { -sxf * syf } else { sxf * syf };
-                            let obs_det = {
-                                let p0 = h_obs.apply([0.0, 0.0]);
-                                let p1 = h_obs.apply([1.0, 0.0]);
-                                let p2 = h_obs.apply([0.0, 1.0]);
-                                (p1[0] - p0[0]) * (p2[1] - p0[1])
-                                    - (p1[1] - p0[1]) * (p2[0] - p0[0])
-                            };
-                            let mirrored = det * obs_det < 0.0;
-                            // Every cell of the placement holds a lattice patch: nothing is
-                            // extrapolated past what was seen.
-                            let covered = lattice
-                                .iter()
-                                .filter(|(_, ij)| {
-                                    ij[0] >= si && ij[0] < si + ai && ij[1] >= sj && ij[1] < sj + aj
-                                })
-                                .count();
-                            scored.push((
-                                s,
-                                hc,
-                                mirrored,
-                                kind.cells() - inside,
-                                covered == kind.cells(),
-                            ));
-                        }
+        let wins_i = windows(lattice, imin, imax, ai, 0);
+        let wins_j = windows(lattice, jmin, jmax, aj, 1);
+        for (sx, sy) in [(1i32, 1i32), (1, -1), (-1, 1), (-1, -1)] {
+            for &si in &wins_i {
+                for &sj in &wins_j {
+                    let oi = if sx == 1 { si } else { si + ai - 1 };
+                    let oj = if sy == 1 { sj } else { sj + aj - 1 };
+                    let (sxf, syf) = (sx as f64, sy as f64);
+                    let map = placement_map(swap, sxf, syf, oi, oj);
+                    let hc = h_obs.then_after(&map);
+                    let means = cell_means(small, kind, &hc, side);
+                    let inside = means.iter().filter(|m| m.is_some()).count();
+                    if inside * 2 < kind.cells() {
+                        continue;
                     }
+                    let Some(score) = chart_score(&means, reference) else {
+                        continue;
+                    };
+                    let det = if swap { -sxf * syf } else { sxf * syf };
+                    let covered = lattice
+                        .iter()
+                        .filter(|(_, ij)| {
+                            ij[0] >= si && ij[0] < si + ai && ij[1] >= sj && ij[1] < sj + aj
+                        })
+                        .count();
+                    scored.push(Placement {
+                        score,
+                        hc,
+                        mirrored: det * obs_det < 0.0,
+                        outside: kind.cells() - inside,
+                        complete: covered == kind.cells(),
+                        map,
+                        window: ([si, sj], [ai, aj]),
+                    });
                 }
             }
         }
     }
-    scored.sort_by(|a, b| a.0.total_cmp(&b.0));
-    let candidates = to_candidates(&accepted);
-    let Some((score, hc, mirrored, outside, complete)) = scored.first().cloned() else {
-        return Err(fail(
-            format!(
-                "a grid of {} patches was found, but no placement of the chart fits it",
-                lattice.len()
-            ),
-            candidates,
-        ));
+    scored.sort_by(|a, b| a.score.total_cmp(&b.score));
+    scored
+}
+
+/// Step 5b: lattice points outside the best placement's window are no patches of the chart
+/// (clutter or a neighbouring object that lined up within a quarter pitch); the homography is
+/// refitted without them, since each pulls the fit towards itself (seen: three such points
+/// moving a patch of a chart tilted 40° by 0.39 pitch). The lattice returned is what remains.
+fn refit_inside(
+    blobs: &[Blob],
+    lattice: Lattice,
+    mut scored: Vec<Placement>,
+) -> (Lattice, Vec<Placement>) {
+    let Some(best) = scored.first_mut() else {
+        return (lattice, scored);
     };
-    let runner_up = scored.get(1).map_or(f64::INFINITY, |s| s.0);
+    let ([si, sj], [ai, aj]) = best.window;
+    let inside: Lattice = lattice
+        .iter()
+        .copied()
+        .filter(|(_, ij)| ij[0] >= si && ij[0] < si + ai && ij[1] >= sj && ij[1] < sj + aj)
+        .collect();
+    if inside.len() == lattice.len() || inside.len() < MIN_LATTICE {
+        return (lattice, scored);
+    }
+    match fit_lattice(blobs, &inside) {
+        Ok(h) => {
+            best.hc = h.then_after(&best.map);
+            (inside, scored)
+        }
+        Err(_) => (lattice, scored),
+    }
+}
+
+/// Step 6: the best placement if it is certain — plausible colours, decisive against the next
+/// placement, moderate perspective, inside the image — with the runner-up's score and the
+/// perspective; otherwise why not.
+fn judge(
+    reference: &Reference,
+    lattice: usize,
+    scored: &[Placement],
+) -> Result<(Placement, f64, f64), ChartError> {
+    let kind = reference.chart;
+    let nf = |m: String| ChartError::NotFound(m);
+    let Some(best) = scored.first().cloned() else {
+        return Err(nf(format!(
+            "a grid of {lattice} patches was found, but no placement of the chart fits it"
+        )));
+    };
+    let (score, complete) = (best.score, best.complete);
+    let runner_up = scored.get(1).map_or(f64::INFINITY, |s| s.score);
     if score > MATCH_LIMIT {
-        return Err(fail(
-            format!(
-                "a grid of {} patches was found, but its colours do not match reference {} (median ΔE00 {score:.1}, limit {MATCH_LIMIT})",
-                lattice.len(),
-                reference.name
-            ),
-            candidates,
-        ));
+        return Err(nf(format!(
+            "a grid of {lattice} patches was found, but its colours do not match reference {} (median ΔE00 {score:.1}, limit {MATCH_LIMIT})",
+            reference.name
+        )));
     }
     // A complete lattice (every cell seen as a patch) with a decisive orientation may match
     // up to MATCH_LIMIT: the looser match then cannot come from a placement shifted across a
     // partial lattice (the failure DETECT_MATCH_LIMIT guards against), only from colours the
     // camera rendered (tone curve, saturation, a strong cast).
-    let loose_ok =
-        complete && score <= MATCH_LIMIT && score <= COMPLETE_AMBIGUITY_RATIO * runner_up;
+    let loose_ok = complete && score <= COMPLETE_AMBIGUITY_RATIO * runner_up;
     if score > DETECT_MATCH_LIMIT && !loose_ok {
-        return Err(fail(
-            format!(
-                "a grid of {} patches was found, but its colours match reference {} only loosely (median ΔE00 {score:.1}, next placement {runner_up:.1}; limit {DETECT_MATCH_LIMIT} for a found chart{}): refused rather than risk a wrong placement; give the chart's corners",
-                lattice.len(),
-                reference.name,
-                if complete {
-                    format!(", or {MATCH_LIMIT} with a complete grid and the next placement {:.0}× worse", 1.0 / COMPLETE_AMBIGUITY_RATIO)
-                } else {
-                    String::new()
-                }
-            ),
-            candidates,
-        ));
+        return Err(nf(format!(
+            "a grid of {lattice} patches was found, but its colours match reference {} only loosely (median ΔE00 {score:.1}, next placement {runner_up:.1}; limit {DETECT_MATCH_LIMIT} for a found chart{}): refused rather than risk a wrong placement; give the chart's corners",
+            reference.name,
+            if complete {
+                format!(", or {MATCH_LIMIT} with a complete grid and the next placement {:.0}× worse", 1.0 / COMPLETE_AMBIGUITY_RATIO)
+            } else {
+                String::new()
+            }
+        )));
     }
-    let persp = perspective(kind, &hc);
-    if persp > PERSPECTIVE_LIMIT {
-        return Err(fail(
-            format!(
-                "the chart is seen under strong perspective (patch scale varies {persp:.2}× across it, limit {PERSPECTIVE_LIMIT}): refused rather than risk misplaced patches; shoot it more squarely or give the chart's corners"
-            ),
-            candidates,
-        ));
+    let persp = perspective(kind, &best.hc);
+    let limit = if complete {
+        COMPLETE_PERSPECTIVE_LIMIT
+    } else {
+        PERSPECTIVE_LIMIT
+    };
+    if persp > limit {
+        return Err(nf(format!(
+            "the chart is seen under strong perspective (patch scale varies {persp:.2}× across it, limit {limit}{}): refused rather than risk misplaced patches; shoot it more squarely or give the chart's corners",
+            if complete { "" } else { " when some cells were not seen as patches" }
+        )));
     }
     if score > AMBIGUITY_RATIO * runner_up {
+        return Err(nf(format!(
+            "the chart's orientation is ambiguous (median ΔE00 {score:.2} vs {runner_up:.2} for the next placement)"
+        )));
+    }
+    if best.outside > 0 {
+        return Err(ChartError::Geometry(format!(
+            "the chart is partly outside the frame ({} of {} patches)",
+            best.outside,
+            kind.cells()
+        )));
+    }
+    Ok((best, runner_up, persp))
+}
+
+/// Finds the chart of `reference` in `frame`.
+pub fn detect(
+    frame: &Frame,
+    reference: &Reference,
+    opts: &DetectOptions,
+) -> Result<Detection, DetectFailure> {
+    let kind = reference.chart;
+    let fail = |error: ChartError, candidates: Vec<Candidate>| DetectFailure { error, candidates };
+    let prep = prepare(frame, opts.max_side).map_err(|m| fail(ChartError::NotFound(m), vec![]))?;
+    let f = prep.f;
+    let regions = Regions::new(
+        &region_moments(&flat_mask(&prep, opts.flat_threshold)),
+        kind.cells(),
+        prep.ws,
+        prep.hs,
+    );
+    let blobs = &regions.blobs;
+    if blobs.len() < 6 {
         return Err(fail(
-            format!(
-                "the chart's orientation is ambiguous (median ΔE00 {score:.2} vs {runner_up:.2} for the next placement)"
-            ),
-            candidates,
+            ChartError::NotFound(format!(
+                "{} patch-like regions in the frame, too few for a {} chart",
+                blobs.len(),
+                kind.name()
+            )),
+            regions.candidates(f, &[]),
         ));
     }
-    if outside > 0 {
-        return Err(DetectFailure {
-            error: ChartError::Geometry(format!(
-                "the chart is partly outside the frame ({outside} of {} patches)",
-                kind.cells()
+    let lats = lattices(blobs);
+    let Some(largest) = lats.first().map(Vec::len) else {
+        return Err(fail(
+            ChartError::NotFound(format!(
+                "{} candidate patches, but fewer than 6 of them form a grid",
+                blobs.len()
             )),
-            candidates,
-        });
+            regions.candidates(f, &[]),
+        ));
+    };
+    let small =
+        Frame::from_data(prep.ws, prep.hs, crate::frame::Layout::Rgb, prep.small).expect("sized");
+    let span = kind.columns().max(kind.rows()) as i32;
+    // Each lattice tried: refined, placed; the one whose best placement matches best is judged.
+    let mut tried: Vec<(Lattice, Vec<Placement>)> = Vec::new();
+    let mut first_err = None;
+    for (k, lat) in lats.into_iter().take(MAX_LATTICES).enumerate() {
+        if k > 0 && lat.len() * 2 < kind.cells() {
+            break;
+        }
+        match refine(blobs, lat, span) {
+            Ok((lat, h_obs)) => {
+                let scored = placements(&small, reference, &lat, &h_obs);
+                tried.push((lat, scored));
+            }
+            Err(e) => {
+                first_err.get_or_insert(e);
+            }
+        }
     }
-    Ok(Detection {
-        homography: hc.scaled(f as f64),
-        score,
-        runner_up,
-        lattice: lattice.len(),
-        perspective: persp,
-        mirrored,
-        downsample: f,
-        candidates,
-    })
+    let best_of = |t: &(Lattice, Vec<Placement>)| t.1.first().map_or(f64::INFINITY, |p| p.score);
+    let Some((lattice, scored)) = tried
+        .into_iter()
+        .min_by(|a, b| best_of(a).total_cmp(&best_of(b)))
+    else {
+        let e = first_err.unwrap_or_else(|| {
+            ChartError::NotFound(format!("a grid of {largest} patches could not be fitted"))
+        });
+        return Err(fail(e, regions.candidates(f, &[])));
+    };
+    let (lattice, scored) = refit_inside(blobs, lattice, scored);
+    let mut accepted = vec![false; blobs.len()];
+    for (b, _) in &lattice {
+        accepted[*b] = true;
+    }
+    let candidates = regions.candidates(f, &accepted);
+    match judge(reference, lattice.len(), &scored) {
+        Ok((best, runner_up, persp)) => Ok(Detection {
+            homography: best.hc.scaled(f as f64),
+            score: best.score,
+            runner_up,
+            lattice: lattice.len(),
+            perspective: persp,
+            mirrored: best.mirrored,
+            downsample: f,
+            candidates,
+        }),
+        Err(e) => Err(fail(e, candidates)),
+    }
 }
 
 fn extent(l: &[(usize, [i32; 2])]) -> (i32, i32, i32, i32) {
@@ -653,4 +855,237 @@ fn walk(blobs: &[Blob], seed: usize) -> Vec<(usize, [i32; 2])> {
     let mut out: Vec<(usize, [i32; 2])> = at.into_iter().map(|(ij, b)| (b, ij)).collect();
     out.sort_by_key(|(_, ij)| (ij[1], ij[0]));
     out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::chart::ChartKind;
+    use crate::frame::Layout;
+
+    /// Blobs of area `side²` at the centres of a `cols × rows` grid of pitch `p` from `o`,
+    /// skipping `(c, r)` in `skip`.
+    fn grid(o: [f64; 2], p: f64, cols: i32, rows: i32, skip: &[(i32, i32)]) -> Vec<Blob> {
+        let mut v = Vec::new();
+        for r in 0..rows {
+            for c in 0..cols {
+                if !skip.contains(&(c, r)) {
+                    v.push(Blob {
+                        c: [o[0] + p * c as f64, o[1] + p * r as f64],
+                        area: (0.7 * p) * (0.7 * p),
+                    });
+                }
+            }
+        }
+        v
+    }
+
+    #[test]
+    fn downsample_takes_box_means_and_zeroes_non_finite_values() {
+        let mut data = vec![0.0f32; 4 * 2 * 3];
+        for (i, v) in data.iter_mut().enumerate() {
+            *v = i as f32;
+        }
+        data[0] = f32::NAN;
+        let f = Frame::from_data(4, 2, Layout::Rgb, data).unwrap();
+        let (w, h, out) = downsample(&f, 2);
+        assert_eq!((w, h), (2, 1));
+        // Pixel (0,0) block: pixels 0, 1 (row 0) and 4, 5 (row 1); red = 0(NaN→0), 3, 12, 15.
+        assert_eq!(out[0], (0.0 + 3.0 + 12.0 + 15.0) / 4.0);
+        assert_eq!(out[3], (6.0 + 9.0 + 18.0 + 21.0) / 4.0);
+    }
+
+    #[test]
+    fn log_chroma_refuses_a_black_frame_and_is_exposure_free_in_chroma() {
+        assert!(log_chroma(&[0.0; 12]).is_none());
+        let (l1, r1, b1) = log_chroma(&[0.2, 0.4, 0.1, 1.0, 1.0, 1.0]).unwrap();
+        let (l2, r2, b2) = log_chroma(&[0.4, 0.8, 0.2, 2.0, 2.0, 2.0]).unwrap();
+        assert!((l2[0] - l1[0] - 2f32.ln()).abs() < 1e-5);
+        assert!((r1[0] - r2[0]).abs() < 1e-4 && (b1[0] - b2[0]).abs() < 1e-4);
+    }
+
+    #[test]
+    fn flat_regions_and_their_shapes() {
+        // A 40×20 mask: a filled 8×8 square and a 16×2 bar.
+        let mut m = image::GrayImage::new(40, 20);
+        for y in 4..12 {
+            for x in 4..12 {
+                m.put_pixel(x, y, image::Luma([255]));
+            }
+        }
+        for y in 15..17 {
+            for x in 20..36 {
+                m.put_pixel(x, y, image::Luma([255]));
+            }
+        }
+        let stats = region_moments(&m);
+        let mut regions: Vec<&[f64; 6]> = stats.iter().skip(1).filter(|s| s[0] > 0.0).collect();
+        regions.sort_by(|a, b| b[0].total_cmp(&a[0]));
+        assert_eq!(regions.len(), 2);
+        let (c, ok) = patch_shape(regions[0], 10.0, 100.0);
+        assert!(ok, "the square is patch-like");
+        assert_eq!(c, [8.0, 8.0]);
+        assert!(
+            !patch_shape(regions[1], 10.0, 100.0).1,
+            "the 8:1 bar is not"
+        );
+        assert!(
+            !patch_shape(regions[0], 10.0, 50.0).1,
+            "above the largest area"
+        );
+    }
+
+    #[test]
+    fn flat_mask_marks_uniform_pixels_only() {
+        let (ws, hs) = (8, 8);
+        let logl: Vec<f32> = (0..ws * hs)
+            .map(|i| if i % ws < 4 { 0.0 } else { 1.0 })
+            .collect();
+        let p = Prepared {
+            f: 1,
+            ws,
+            hs,
+            small: vec![0.0; ws * hs * 3],
+            logl,
+            cr: vec![0.3; ws * hs],
+            cb: vec![0.3; ws * hs],
+        };
+        let m = flat_mask(&p, 0.08);
+        assert_eq!(m.get_pixel(1, 1).0[0], 255);
+        assert_eq!(m.get_pixel(3, 3).0[0], 0, "next to the step");
+        assert_eq!(m.get_pixel(0, 3).0[0], 0, "the border");
+    }
+
+    #[test]
+    fn the_walk_bridges_one_missed_patch() {
+        let blobs = grid([50.0, 40.0], 20.0, 6, 4, &[(2, 1)]);
+        let lats = lattices(&blobs);
+        assert_eq!(lats.len(), 1);
+        assert_eq!(lats[0].len(), 23);
+        let (imin, imax, jmin, jmax) = extent(&lats[0]);
+        assert_eq!((imax - imin, jmax - jmin), (5, 3));
+    }
+
+    #[test]
+    fn an_empty_line_splits_a_lattice() {
+        // Two 6×4 pages whose columns are 2.3 pitches apart across the hinge: the double
+        // step reaches across, the split separates them.
+        let mut blobs = grid([300.0, 40.0], 20.0, 6, 4, &[]);
+        blobs.extend(grid([300.0 - 7.3 * 20.0, 40.0], 20.0, 6, 4, &[]));
+        let lats = lattices(&blobs);
+        assert_eq!(lats.iter().map(Vec::len).collect::<Vec<_>>(), [24, 24]);
+        for l in &lats {
+            let (imin, imax, _, _) = extent(l);
+            assert_eq!(imax - imin, 5);
+        }
+        // A missed patch is no empty line.
+        let l: Lattice = vec![(0, [0, 0]), (1, [2, 0]), (2, [1, 1])];
+        assert_eq!(split_gaps(l.clone()), vec![l]);
+        // An empty column with 6 patches on one side and 7 on the other splits; with 5 on
+        // one side it does not (a part too small to place).
+        let side =
+            |i0: i32, n: usize| (0..n).map(move |k| (k, [i0 + (k % 2) as i32, k as i32 / 2]));
+        let l: Lattice = side(0, 6).chain(side(3, 7)).collect();
+        let parts = split_gaps(l);
+        assert_eq!(parts.iter().map(Vec::len).collect::<Vec<_>>(), [7, 6]);
+        let l: Lattice = side(0, 5).chain(side(3, 7)).collect();
+        assert_eq!(split_gaps(l).len(), 1);
+    }
+
+    #[test]
+    fn refine_keeps_the_page_and_fits_its_pitch() {
+        let mut blobs = grid([300.0, 40.0], 20.0, 6, 4, &[]);
+        blobs.extend(grid([300.0 - 7.3 * 20.0, 40.0], 20.0, 6, 4, &[]));
+        let lat = lattices(&blobs).remove(0);
+        let (lat, h) = refine(&blobs, lat, 6).unwrap();
+        assert_eq!(lat.len(), 24);
+        assert!((local_step(&h, 0, 0) - 20.0).abs() < 1e-6);
+    }
+
+    #[test]
+    fn points_outside_the_placement_are_dropped_from_the_fit() {
+        // A 6×4 chart of pitch 20 and three stray points in the next column, 0.2 pitch off
+        // the grid: the refit is the chart's own grid again.
+        let mut blobs = grid([50.0, 40.0], 20.0, 6, 4, &[]);
+        let mut lat: Lattice = (0..24).map(|k| (k, [k as i32 % 6, k as i32 / 6])).collect();
+        for j in 0..3 {
+            blobs.push(Blob {
+                c: [50.0 + 6.0 * 20.0 + 4.0, 40.0 + 20.0 * j as f64],
+                area: 196.0,
+            });
+            lat.push((24 + j, [6, j as i32]));
+        }
+        let h_all = fit_lattice(&blobs, &lat).unwrap();
+        let map = placement_map(false, 1.0, 1.0, 0, 0);
+        let best = Placement {
+            score: 1.0,
+            hc: h_all.then_after(&map),
+            mirrored: false,
+            outside: 0,
+            complete: true,
+            map,
+            window: ([0, 0], [6, 4]),
+        };
+        let (kept, scored) = refit_inside(&blobs, lat, vec![best]);
+        assert_eq!(kept.len(), 24);
+        let p = scored[0].hc.apply([5.5, 3.5]);
+        assert!(
+            (p[0] - 150.0).abs() < 1e-6 && (p[1] - 100.0).abs() < 1e-6,
+            "{p:?}"
+        );
+        let q = h_all.apply([5.0, 3.0]);
+        assert!(
+            (q[0] - 150.0).abs() > 0.1,
+            "the strays did pull the first fit: {q:?}"
+        );
+    }
+
+    #[test]
+    fn placement_map_puts_the_first_cell_on_the_origin_point() {
+        for swap in [false, true] {
+            for (sx, sy) in [(1.0, 1.0), (-1.0, 1.0), (1.0, -1.0), (-1.0, -1.0)] {
+                let h = placement_map(swap, sx, sy, 3, -2);
+                let p = h.apply([0.5, 0.5]);
+                assert!((p[0] - 3.0).abs() < 1e-12 && (p[1] + 2.0).abs() < 1e-12);
+            }
+        }
+    }
+
+    #[test]
+    fn windows_hold_the_most_points() {
+        let l: Lattice = (0..6).map(|i| (i as usize, [i, 0])).collect();
+        assert_eq!(windows(&l, 0, 5, 4, 0), vec![0, 1, 2]);
+        assert_eq!(windows(&l, 0, 5, 6, 0), vec![0]);
+    }
+
+    #[test]
+    fn judge_refuses_ambiguity_and_poor_matches() {
+        let r =
+            Reference::load(ChartKind::Cc24.default_reference(), ChartKind::Cc24, None).unwrap();
+        let hc = Homography([20.0, 0.0, 10.0, 0.0, 20.0, 10.0, 0.0, 0.0, 1.0]);
+        let p = |score: f64, complete: bool| Placement {
+            score,
+            hc,
+            mirrored: false,
+            outside: 0,
+            complete,
+            map: placement_map(false, 1.0, 1.0, 0, 0),
+            window: ([0, 0], [6, 4]),
+        };
+        let (best, runner, persp) = judge(&r, 24, &[p(1.0, false), p(3.0, false)]).unwrap();
+        assert_eq!((best.score, runner), (1.0, 3.0));
+        assert!((persp - 1.0).abs() < 1e-12);
+        assert!(judge(&r, 24, &[p(1.0, false), p(1.2, false)]).is_err());
+        assert!(judge(&r, 24, &[]).is_err());
+        // Loosely matching: only with a complete lattice and a decisive runner-up.
+        let loose = 0.5 * (DETECT_MATCH_LIMIT + MATCH_LIMIT);
+        assert!(judge(&r, 24, &[p(loose, false), p(4.0 * loose, false)]).is_err());
+        assert!(judge(&r, 24, &[p(loose, true), p(4.0 * loose, true)]).is_ok());
+        let mut out = p(1.0, true);
+        out.outside = 2;
+        assert!(matches!(
+            judge(&r, 24, &[out, p(3.0, true)]),
+            Err(ChartError::Geometry(_))
+        ));
+    }
 }

@@ -319,6 +319,10 @@ pub struct SceneTruth {
     pub illuminant: String,
     pub reflectances: String,
     pub patches: Vec<TruePatch>,
+    /// Set for a scene of a negative family (the name of the family): the chart drawn is not
+    /// the one named by `chart`, and `patches` is empty — no reading of it is right.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub impostor: Option<String>,
 }
 
 /// The truth file written beside a scene frame: `NAME.scene.json` for `NAME.exr`.
@@ -710,6 +714,7 @@ pub fn render(
         illuminant: colours.illuminant.clone(),
         reflectances: colours.reflectances.clone(),
         patches,
+        impostor: None,
     };
     Ok((frame, flat, truth))
 }
@@ -845,15 +850,23 @@ pub enum Family {
     /// Negative: the classic page's greys in place but its colours in another order (another
     /// chart made of the same materials).
     Shuffled,
+    // (New families go last: the discriminant seeds each family's draws.)
+    /// Stronger perspective than the envelope: tilt 30–50°, the chart covering 10–40 %.
+    Tilt,
+    /// The chart's body as dark as its black patch (0.8–1.2×), 2–5 stops under clipping and
+    /// blurred (σ 0.8–2 px): the dark patches merge with the frame around them.
+    BlackFrame,
 }
 
 impl Family {
-    pub const ALL: [Family; 8] = [
+    pub const ALL: [Family; 10] = [
         Family::Envelope,
         Family::Jpeg,
         Family::Fill,
         Family::Small,
         Family::Passport,
+        Family::Tilt,
+        Family::BlackFrame,
         Family::Spyder,
         Family::Random,
         Family::Shuffled,
@@ -866,6 +879,8 @@ impl Family {
             Family::Fill => "fill",
             Family::Small => "small",
             Family::Passport => "passport",
+            Family::Tilt => "tilt",
+            Family::BlackFrame => "black-frame",
             Family::Spyder => "spyder",
             Family::Random => "random",
             Family::Shuffled => "shuffled",
@@ -917,6 +932,25 @@ impl Family {
             Family::Passport => {
                 o.second_page = true;
                 o.max_area = 0.25;
+                if g.uniform() < 0.5 {
+                    o.look = Some(look(&mut g));
+                }
+            }
+            Family::Tilt => {
+                o.min_tilt_deg = 30.0;
+                o.max_tilt_deg = 50.0;
+                o.min_area = 0.1;
+            }
+            Family::BlackFrame => {
+                let black = colours
+                    .rgb
+                    .iter()
+                    .map(|p| p[1] / colours.white_rgb[1])
+                    .fold(f64::INFINITY, f64::min);
+                o.body_reflectance = black * (0.8 + 0.4 * g.uniform());
+                let brightest = colours.rgb.iter().flatten().copied().fold(0.0, f64::max);
+                o.exposure = 2f64.powf(-2.0 - 3.0 * g.uniform()) / brightest;
+                o.blur = 0.8 + 1.2 * g.uniform();
                 if g.uniform() < 0.5 {
                     o.look = Some(look(&mut g));
                 }

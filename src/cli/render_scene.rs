@@ -159,7 +159,12 @@ pub fn run(a: Args) -> Result<ExitCode> {
         };
         (colours, o)
     };
-    let (frame, flat, truth) = render(&colours, &opts)?;
+    let (frame, flat, mut truth) = render(&colours, &opts)?;
+    if let Some(f) = a.family.filter(|f| f.negative()) {
+        // The chart drawn is not a CC24: its cells carry no CC24 label or colour.
+        truth.patches.clear();
+        truth.impostor = Some(f.name().to_string());
+    }
     let json = serde_json::to_string_pretty(&truth)?;
     let note = format!(
         "nsrm scene: {} chart, seed {}, camera {}, illuminant {}; {}",

@@ -191,12 +191,18 @@ fn outside_the_envelope_a_wrong_answer_becomes_a_refusal() {
             .map(|d| d.score)
             .expect_err("refused");
         let msg = e.error.to_string();
-        let why = if what == "tilt" {
-            "strong perspective"
+        // (The SG's blurred lattice now also splits at an empty line, so its part may be
+        // refused for its colours instead: either is a refusal, never the shifted placement.)
+        let why: &[&str] = if what == "tilt" {
+            &["strong perspective"]
         } else {
-            "only loosely"
+            &["only loosely", "do not match"]
         };
-        assert!(msg.contains(why), "{} seed {seed}: {msg}", kind.name());
+        assert!(
+            why.iter().any(|w| msg.contains(w)),
+            "{} seed {seed}: {msg}",
+            kind.name()
+        );
     }
 }
 
@@ -361,7 +367,14 @@ fn family_outcomes(family: nsrm::chart::scene::Family, seeds: std::ops::Range<u6
 fn real_photo_families_are_found_or_refused_never_wrong() {
     use nsrm::chart::scene::Family;
     // A handful per family here; `nsrm chart rate --family F` measures the rates (README).
-    for f in [Family::Jpeg, Family::Fill, Family::Small, Family::Passport] {
+    for f in [
+        Family::Jpeg,
+        Family::Fill,
+        Family::Small,
+        Family::Passport,
+        Family::Tilt,
+        Family::BlackFrame,
+    ] {
         let (ok, refused) = family_outcomes(f, 1..5);
         assert!(ok >= 3, "{}: {ok} found, {refused} refused", f.name());
     }

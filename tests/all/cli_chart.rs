@@ -329,3 +329,37 @@ fn bad_inputs_fail_and_write_nothing() {
     let (ok, err) = run(&["fit", "--chart", "cc24", "-o", s(&d.join("m.json"))]);
     assert!(!ok && err.contains("need --capture"), "{err}");
 }
+
+#[test]
+fn a_negative_family_scene_carries_no_cc24_labels() {
+    let d = tempdir("negative-truth");
+    for (family, negative) in [("spyder", true), ("passport", false)] {
+        let f = d.join(format!("{family}.exr"));
+        let (ok, err) = run(&[
+            "render-scene",
+            "--chart",
+            "cc24",
+            "--family",
+            family,
+            "--width",
+            "300",
+            "--height",
+            "200",
+            "-o",
+            s(&f),
+        ]);
+        assert!(ok, "{err}");
+        let truth: serde_json::Value =
+            serde_json::from_slice(&std::fs::read(d.join(format!("{family}.scene.json"))).unwrap())
+                .unwrap();
+        let patches = truth["patches"].as_array().unwrap();
+        if negative {
+            assert!(patches.is_empty(), "{family}: {} patches", patches.len());
+            assert_eq!(truth["impostor"], family);
+        } else {
+            assert_eq!(patches.len(), 24);
+            assert_eq!(patches[0]["label"], "01 dark skin");
+            assert!(truth.get("impostor").is_none());
+        }
+    }
+}

@@ -596,3 +596,178 @@ mod mutated {
         }
     }
 }
+
+/// A model fitted on a raw chart capture records the camera; `apply` warns once per other
+/// camera it meets (never for the same camera), and still converts every file.
+#[test]
+fn apply_warns_once_per_camera_other_than_the_fitted_one() {
+    if !judge_available() {
+        return;
+    }
+    let chart = chart_dng();
+    if !chart.exists() {
+        assert!(!on_ci(), "{} is absent on CI", chart.display());
+        eprintln!("SKIP: {} is absent", chart.display());
+        return;
+    }
+    let dir = common::tempdir("raw-other-camera");
+    let fit = nsrm_in(
+        &dir,
+        &[
+            "fit",
+            "--capture",
+            chart.to_str().unwrap(),
+            "--chart",
+            "cc24",
+            "--model",
+            "lrm",
+            "-o",
+            "m.json",
+        ],
+    );
+    assert!(fit.status.success(), "{}", stderr(&fit));
+    let m: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(dir.join("m.json")).unwrap()).unwrap();
+    let fitted = m["training"]["capture"]["camera"]
+        .as_str()
+        .unwrap()
+        .to_string();
+    assert!(fitted.contains("Canon"), "{fitted}");
+    for (name, model) in [
+        ("a.dng", "Synth 9"),
+        ("b.dng", "Synth 9"),
+        ("c.dng", "Other 2"),
+    ] {
+        write_dng(
+            &dir.join(name),
+            &[
+                "--width", "40", "--height", "30", "--black", "64", "--white", "4095", "--make",
+                "Acme", "--model", model,
+            ],
+        );
+    }
+    let apply = |files: &[&str], out: &str| {
+        let mut args = vec![
+            "apply",
+            "--model",
+            "m.json",
+            "--device",
+            "cpu",
+            "--demosaic",
+            "half",
+            "-o",
+            out,
+        ];
+        args.extend_from_slice(files);
+        let o = nsrm_in(&dir, &args);
+        no_crash(&o, "apply");
+        assert!(o.status.success(), "{}", stderr(&o));
+        assert_eq!(common::names(&dir.join(out)).len(), files.len());
+        stderr(&o)
+    };
+    let err = apply(&["a.dng", "b.dng", "c.dng"], "out1");
+    let warnings: Vec<&str> = err.lines().filter(|l| l.contains("warning:")).collect();
+    assert_eq!(warnings.len(), 2, "one per other camera: {err}");
+    for (cam, w) in ["Synth 9", "Other 2"].iter().zip([
+        warnings.iter().find(|w| w.contains("Synth 9")),
+        warnings.iter().find(|w| w.contains("Other 2")),
+    ]) {
+        let w = w.unwrap_or_else(|| panic!("no warning for {cam}: {err}"));
+        assert!(w.contains(&fitted), "{w}");
+    }
+    // The camera it was fitted on: no warning.
+    let err = apply(&[chart.to_str().unwrap()], "out2");
+    assert!(!err.contains("warning:"), "{err}");
+}
+
+/// A lossless-JPEG DNG (Compression 7, as cameras and Adobe's converter write them), made here
+/// with rawler's DNG writer from an uncompressed one. LibRaw must read the same mosaic from
+/// both (so the file is a valid lossless DNG, judged by a reader that is not rawler), and nsrm
+/// must read the same frame from both: for the synthetic DNG, the exact block means written.
+/// (Two other LJPEG decoders, imagecodecs' liblj92 and jpegsof3, also decode rawler's tiles to
+/// exactly the mosaic; checked by hand, not here.)
+#[cfg(feature = "raw")]
+fn to_lossless_dng(src: &Path, dst: &Path) {
+    use rawler::dng::convert::{convert_raw_file, ConvertParams};
+    use rawler::dng::DngCompression;
+    let params = ConvertParams::default()
+        .with_compression(DngCompression::Lossless)
+        .with_embedded(false)
+        .with_preview(false)
+        .with_thumbnail(false);
+    let mut f = std::fs::File::create(dst).unwrap();
+    convert_raw_file(src, &mut f, &params).unwrap();
+}
+
+#[cfg(feature = "raw")]
+fn libraw_same(a: &Path, b: &Path) -> serde_json::Value {
+    let o = Command::new("python3")
+        .arg(JUDGE)
+        .arg("same")
+        .args([a, b])
+        .output()
+        .expect("running python3");
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    serde_json::from_slice(&o.stdout).unwrap()
+}
+
+#[cfg(feature = "raw")]
+#[test]
+fn lossless_jpeg_dngs_read_as_libraw_reads_them() {
+    if !judge_available() {
+        return;
+    }
+    let dir = common::tempdir("raw-ljpeg");
+    let mut pairs = Vec::new();
+    for (name, args) in [
+        (
+            "rggb",
+            ["--pattern", "RGGB", "--black", "64", "--white", "4095"],
+        ),
+        (
+            "gbrg",
+            ["--pattern", "GBRG", "--black", "512", "--white", "16383"],
+        ),
+    ] {
+        let plain = dir.join(format!("{name}.dng"));
+        // Frames of several 256×256 tiles, the last ones partial, as a camera's are: LibRaw
+        // (and dcraw) misplace the samples of a tile wider than the whole frame (a frame
+        // below 256 pixels wide; seen: rows from the tile's padding), which no camera writes.
+        let mut a = vec!["--width", "600", "--height", "420"];
+        a.extend_from_slice(&args);
+        write_dng(&plain, &a);
+        pairs.push((plain, Some(dir.join(format!("{name}.dng.half.f32")))));
+    }
+    let chart = chart_dng();
+    if chart.exists() {
+        pairs.push((chart, None));
+    } else {
+        assert!(!on_ci(), "{} is absent on CI", chart.display());
+        eprintln!("SKIP (that part): {} is absent", chart.display());
+    }
+    for (plain, truth) in pairs {
+        let lossless = dir.join(format!(
+            "{}-ljpeg.dng",
+            plain.file_stem().unwrap().to_string_lossy()
+        ));
+        to_lossless_dng(&plain, &lossless);
+        let j = libraw_same(&plain, &lossless);
+        assert_eq!(j["compression"][1], 7, "{}: {j}", lossless.display());
+        assert_eq!(j["mosaic_equal"], true, "{}: {j}", lossless.display());
+        assert_eq!(j["levels_equal"], true, "{}: {j}", lossless.display());
+        for demosaic in [Demosaic::Half, Demosaic::Mhc] {
+            let a = read(&plain, demosaic);
+            let b = read(&lossless, demosaic);
+            assert_eq!((a.width, a.height), (b.width, b.height));
+            assert!(a.data == b.data, "{}: {demosaic:?}", lossless.display());
+        }
+        if let Some(t) = truth {
+            let want = f32s(&t);
+            let got = read(&lossless, Demosaic::Half).data;
+            assert_eq!(got.len(), want.len());
+            for (g, w) in got.iter().zip(&want) {
+                assert!((g - w).abs() <= 1e-6 * w.abs().max(1e-3), "{g} vs {w}");
+            }
+        }
+    }
+}

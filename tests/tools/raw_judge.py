@@ -11,6 +11,9 @@
   raw_judge.py linear IN.dng OUT.f32
       LibRaw's LINEAR (bilinear) demosaic of IN, linear camera RGB without white balance or
       matrix, as float32 in [0, 1] (the 16-bit output / 65535), row-major RGB; prints W H.
+  raw_judge.py same A.dng B.dng
+      Whether LibRaw reads the same mosaic, black levels, white level and CFA pattern from both
+      files, and the TIFF Compression of each file's CFA image (7: lossless JPEG); prints JSON.
   raw_judge.py bench IN.dng REPEAT
       Seconds per LibRaw decode of IN: postprocess LINEAR, and half_size; prints JSON.
 """
@@ -148,6 +151,47 @@ def bench(inp, repeat):
     print(json.dumps(res))
 
 
+def cfa_compression(path):
+    import tifffile
+
+    with tifffile.TiffFile(path) as t:
+        pages = []
+        for page in t.pages:
+            pages.append(page)
+            pages.extend(getattr(page, "pages", []) or [])
+            for sub in page.tags.get(330).value if 330 in page.tags else []:
+                pages.append(tifffile.TiffPage(t, index=0, offset=sub))
+        for page in pages:
+            if int(page.photometric) == 32803:
+                return int(page.compression)
+    return None
+
+
+def same(a, b):
+    import rawpy
+
+    def mosaic(p):
+        with rawpy.imread(p) as r:
+            return (
+                r.raw_image_visible.copy(),
+                list(r.black_level_per_channel),
+                int(r.white_level),
+                r.raw_pattern.tolist(),
+            )
+
+    ma, mb = mosaic(a), mosaic(b)
+    print(
+        json.dumps(
+            {
+                "mosaic_equal": bool(ma[0].shape == mb[0].shape and (ma[0] == mb[0]).all()),
+                "shape": list(mb[0].shape),
+                "levels_equal": ma[1:] == mb[1:],
+                "compression": [cfa_compression(a), cfa_compression(b)],
+            }
+        )
+    )
+
+
 def main():
     a = sys.argv[1:]
     if a[0] == "dng":
@@ -171,6 +215,8 @@ def main():
             black = black * 4
         write_dng(o.out, o.width, o.height, o.pattern, black, o.white, o.seed, o.smooth,
                   o.make, o.model, o.bits)
+    elif a[0] == "same":
+        same(a[1], a[2])
     elif a[0] == "linear":
         linear(a[1], a[2])
     elif a[0] == "bench":

@@ -242,7 +242,7 @@ fn develop(
         .white_xyz;
     let written = OutputSpace::Xyz.from_xyz(white);
     let to_d50 = spaces::mul(
-        &spaces::bradford(white.map(|v| v / white[1]), d50),
+        &nsrm::colorimetry::temperature::bradford_between(white, d50),
         &spaces::invert(&written),
     );
     Developed {

@@ -154,21 +154,24 @@ impl CaptureOptions {
         }
     }
 
-    /// Reads the `--flat` frame, if one is named.
+    /// Reads the `--flat` frame, if one is named, decoded as the chart frame is (`--encoding`:
+    /// a JPEG/PNG/8-bit grey card is sRGB-decoded to linear under `auto`).
     pub fn flat_frame(&self) -> Result<Option<Frame>> {
         match self.flat.as_deref() {
             None => Ok(None),
             Some(s) if s.eq_ignore_ascii_case("neutrals") => Ok(None),
             Some(f) => Ok(Some(
-                nsrm::io::read_frame(
+                nsrm::io::display::read_chart_frame(
                     Path::new(f),
                     &nsrm::io::ReadOptions {
                         limits: self.limits(),
                         demosaic: self.demosaic.into(),
                         ..Default::default()
                     },
+                    self.encoding.into(),
                 )
-                .with_context(|| format!("--flat {f}"))?,
+                .with_context(|| format!("--flat {f}"))?
+                .frame,
             )),
         }
     }

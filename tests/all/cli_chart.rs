@@ -363,3 +363,88 @@ fn a_negative_family_scene_carries_no_cc24_labels() {
         }
     }
 }
+
+/// The camera R,G,B of each patch in a `chart extract` CSV (`label,R,G,B,X,Y,Z`).
+fn patch_rgb(csv: &Path) -> Vec<(String, [f64; 3])> {
+    std::fs::read_to_string(csv)
+        .unwrap()
+        .lines()
+        .filter(|l| !l.starts_with('#') && !l.starts_with("label,"))
+        .map(|l| {
+            let f: Vec<&str> = l.split(',').collect();
+            let v = |i: usize| f[i].parse::<f64>().unwrap();
+            (f[0].to_string(), [v(1), v(2), v(3)])
+        })
+        .collect()
+}
+
+#[test]
+fn a_display_referred_flat_frame_is_decoded_as_the_chart_frame_is() {
+    // The same grey card twice: as the linear EXR render-scene wrote, and as an sRGB-encoded
+    // 8-bit PNG. `--encoding auto` decodes the PNG to linear, so both flat-field the chart alike
+    // (within 8-bit steps); read as linear (`--encoding linear`), the PNG's flat is wrong.
+    let d = tempdir("flatenc");
+    let flat = d.join("flat.exr");
+    let frame = scene(
+        &d,
+        "chart.exr",
+        &["--vignetting", "0.3", "--flat-output", s(&flat)],
+    );
+    let f = nsrm::io::read_frame(&flat, &Default::default()).unwrap();
+    let ch = f.layout.channels();
+    let peak = f.data.iter().cloned().fold(0f32, f32::max).max(1e-6);
+    let bytes: Vec<u8> = f
+        .data
+        .chunks_exact(ch)
+        .flat_map(|p| {
+            (0..3).map(move |k| {
+                (nsrm::colorimetry::srgb_oetf(f64::from(p[k] / peak)).clamp(0.0, 1.0) * 255.0)
+                    .round() as u8
+            })
+        })
+        .collect();
+    let png = d.join("flat.png");
+    image::RgbImage::from_raw(f.width as u32, f.height as u32, bytes)
+        .unwrap()
+        .save(&png)
+        .unwrap();
+    let read = |flat: &Path, encoding: &str, out: &str| {
+        let csv = d.join(out);
+        let (ok, err) = run(&[
+            "chart",
+            "extract",
+            s(&frame),
+            "--chart",
+            "cc24",
+            "--flat",
+            s(flat),
+            "--encoding",
+            encoding,
+            "-o",
+            s(&csv),
+        ]);
+        assert!(ok, "{err}");
+        patch_rgb(&csv)
+    };
+    let exr = read(&flat, "auto", "exr.csv");
+    let auto = read(&png, "auto", "auto.csv");
+    let linear = read(&png, "linear", "linear.csv");
+    assert_eq!(exr.len(), auto.len());
+    let worst = |a: &[(String, [f64; 3])], b: &[(String, [f64; 3])]| {
+        a.iter()
+            .zip(b)
+            .flat_map(|((la, x), (lb, y))| {
+                assert_eq!(la, lb);
+                (0..3).map(move |k| ((x[k] - y[k]) / y[k].abs().max(1e-9)).abs())
+            })
+            .fold(0.0, f64::max)
+    };
+    // The flat field is applied relative to its own level, so the PNG's scale (÷ peak) cancels.
+    let (w_auto, w_lin) = (worst(&auto, &exr), worst(&linear, &exr));
+    eprintln!("flat as sRGB PNG: worst patch {w_auto:.4} relative (auto), {w_lin:.4} (linear)");
+    assert!(w_auto < 0.02, "auto-decoded PNG flat off by {w_auto}");
+    assert!(
+        w_lin > 0.03,
+        "a PNG flat read as linear should differ: {w_lin}"
+    );
+}

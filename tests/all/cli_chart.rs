@@ -442,9 +442,10 @@ fn a_display_referred_flat_frame_is_decoded_as_the_chart_frame_is() {
     // The flat field is applied relative to its own level, so the PNG's scale (÷ peak) cancels.
     let (w_auto, w_lin) = (worst(&auto, &exr), worst(&linear, &exr));
     eprintln!("flat as sRGB PNG: worst patch {w_auto:.4} relative (auto), {w_lin:.4} (linear)");
-    assert!(w_auto < 0.02, "auto-decoded PNG flat off by {w_auto}");
+    assert!(w_auto < 0.005, "auto-decoded PNG flat off by {w_auto}");
+    // (Measured: 0.0007 auto vs 0.019 linear at this vignetting.)
     assert!(
-        w_lin > 0.03,
-        "a PNG flat read as linear should differ: {w_lin}"
+        w_lin > 5.0 * w_auto.max(1e-3),
+        "a PNG flat read as linear should differ: {w_lin} vs {w_auto}"
     );
 }

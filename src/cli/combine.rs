@@ -43,18 +43,22 @@ pub fn run(a: Args) -> Result<ExitCode> {
     let mut unit = session.unit();
     unit.write_bytes(&a.output, profile.to_json().as_bytes())?;
     unit.commit()?;
-    let c = profile.calibrations();
     eprintln!(
-        "{} order {}: calibration illuminants {:.0} K (x, y {:.4}, {:.4}) and {:.0} K (x, y {:.4}, {:.4}) → {}",
+        "{} order {}: {} → {}",
         profile.models()[0].kind(),
         profile.models()[0].order(),
-        c[0].cct,
-        c[0].xy[0],
-        c[0].xy[1],
-        c[1].cct,
-        c[1].xy[0],
-        c[1].xy[1],
+        calibrations_line(&profile),
         a.output.display()
     );
     Ok(ExitCode::SUCCESS)
+}
+
+/// `calibration illuminants T1 K (x, y …) and T2 K (x, y …)`: how `combine` and a two-illuminant
+/// `fit` name a model set's two lights.
+pub(crate) fn calibrations_line(profile: &nsrm::model::dual_illuminant::Profile) -> String {
+    let c = profile.calibrations();
+    format!(
+        "calibration illuminants {:.0} K (x, y {:.4}, {:.4}) and {:.0} K (x, y {:.4}, {:.4})",
+        c[0].cct, c[0].xy[0], c[0].xy[1], c[1].cct, c[1].xy[0], c[1].xy[1]
+    )
 }

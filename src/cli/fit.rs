@@ -199,15 +199,9 @@ pub fn run(a: Args) -> Result<ExitCode> {
         report(fitted, data, source, &a.output);
     }
     if let Some(p) = &profile {
-        let c = p.calibrations();
         eprintln!(
-            "two-illuminant model: calibration illuminants {:.0} K (x, y {:.4}, {:.4}) and {:.0} K (x, y {:.4}, {:.4}), written to {} (apply it with --white; export it as a DCP)",
-            c[0].cct,
-            c[0].xy[0],
-            c[0].xy[1],
-            c[1].cct,
-            c[1].xy[0],
-            c[1].xy[1],
+            "two-illuminant model: {}, written to {} (apply it with --white; export it as a DCP)",
+            super::combine::calibrations_line(p),
             a.output.display()
         );
     }

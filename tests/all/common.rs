@@ -363,3 +363,24 @@ pub fn names(dir: &Path) -> Vec<String> {
     v.sort();
     v
 }
+
+/// Fits a white-preserving NSRM (default order) under StdA and D65 from the built-in spectra in `dir`
+/// (`a.json`, `d65.json`) and combines them into the two-illuminant `dual.json`.
+pub fn dual_nsrm_model(dir: &Path) {
+    for (ill, out) in [("A", "a.json"), ("D65", "d65.json")] {
+        nsrm_ok(
+            dir,
+            &[
+                "fit",
+                "--kind",
+                "nsrm",
+                "--illuminant",
+                ill,
+                "--preserve-white",
+                "-o",
+                out,
+            ],
+        );
+    }
+    nsrm_ok(dir, &["combine", "a.json", "d65.json", "-o", "dual.json"]);
+}

@@ -293,22 +293,7 @@ fn rawtherapee_develops_the_dcp_as_nsrm_applies_the_model() {
         return skip(&why);
     }
     let dir = tempdir("profiles-rt");
-    for (ill, out) in [("A", "a.json"), ("D65", "d65.json")] {
-        nsrm_ok(
-            &dir,
-            &[
-                "fit",
-                "--kind",
-                "nsrm",
-                "--illuminant",
-                ill,
-                "--preserve-white",
-                "-o",
-                out,
-            ],
-        );
-    }
-    nsrm_ok(&dir, &["combine", "a.json", "d65.json", "-o", "dual.json"]);
+    crate::common::dual_nsrm_model(&dir);
     let export = |model: &str, out: &str| {
         let o = nsrm_ok(
             &dir,

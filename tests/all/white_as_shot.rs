@@ -40,22 +40,7 @@ fn as_shot_reads_the_raw_files_neutral() {
         return skip("../shared/data/colorchart.dng is absent");
     }
     let dir = tempdir("white-as-shot");
-    for (ill, out) in [("A", "a.json"), ("D65", "d65.json")] {
-        nsrm_ok(
-            &dir,
-            &[
-                "fit",
-                "--kind",
-                "nsrm",
-                "--illuminant",
-                ill,
-                "--preserve-white",
-                "-o",
-                out,
-            ],
-        );
-    }
-    nsrm_ok(&dir, &["combine", "a.json", "d65.json", "-o", "dual.json"]);
+    crate::common::dual_nsrm_model(&dir);
     let dng = dng.to_str().unwrap();
     let run = |white: &str, out: &str| {
         nsrm_ok(

@@ -43,6 +43,7 @@
 //! A renderer embeds the correction pass with
 //! `nsrm = { version = "0.1", default-features = false, features = ["gpu"] }`.
 #![forbid(unsafe_code)]
+#![deny(unreachable_pub)]
 #![cfg_attr(docsrs, feature(doc_auto_cfg))]
 
 #[cfg(feature = "chart")]

@@ -12,12 +12,12 @@ pub struct GpuContext {
 }
 
 /// The backends to look at: `WGPU_BACKEND` if set, else Vulkan / Metal / DX12.
-pub fn backends() -> wgpu::Backends {
+pub(crate) fn backends() -> wgpu::Backends {
     wgpu::Backends::from_env().unwrap_or(wgpu::Backends::PRIMARY)
 }
 
 /// `name (Backend, DeviceType)`, e.g. `llvmpipe (LLVM 15.0.6, 256 bits) (Vulkan, Cpu)`.
-pub fn describe(info: &wgpu::AdapterInfo) -> String {
+pub(crate) fn describe(info: &wgpu::AdapterInfo) -> String {
     format!("{} ({:?}, {:?})", info.name, info.backend, info.device_type)
 }
 

@@ -421,7 +421,7 @@ impl Reduced {
     }
 
     /// The full matrix (L × 3) from reduced unknowns.
-    pub fn full(&self, z: &DMatrix<f64>) -> DMatrix<f64> {
+    pub(crate) fn full(&self, z: &DMatrix<f64>) -> DMatrix<f64> {
         match &self.constraint {
             Some(c) => &c.xp + &c.basis * z,
             None => z.clone(),

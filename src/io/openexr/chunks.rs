@@ -433,7 +433,7 @@ impl PartCheck<'_> {
 impl Table {
     /// Reads the headers and the offset tables of `file` and checks every entry (see the
     /// module documentation), and the frame size against `limits`.
-    pub fn read(path: &Path, file: &File, limits: &Limits) -> Result<Table, IoError> {
+    pub(crate) fn read(path: &Path, file: &File, limits: &Limits) -> Result<Table, IoError> {
         let file_len = file.metadata().map_err(|e| read_err(path, e))?.len();
         let exr = |err| IoError::Exr {
             path: path.to_path_buf(),
@@ -476,7 +476,7 @@ impl Table {
 
     /// Whether [`decode`] handles this file: one scanline part, full-resolution channels, lines
     /// stored in increasing (or unspecified) order, compressed with none, RLE, ZIPS, ZIP or PIZ.
-    pub fn fast(&self) -> bool {
+    pub(crate) fn fast(&self) -> bool {
         let [h] = self.meta.headers.as_slice() else {
             return false;
         };
@@ -1111,7 +1111,7 @@ impl Chunked {
     /// Writes `frame` (the corrected RGB) with the pass-through channels and the input's header,
     /// RGB now `F32` (or `F16` with `half`), compressed with `compression` (ZIP at `zip_level`),
     /// to `w`; `edit` adjusts the header's attributes first.
-    pub fn write<W: std::io::Write + std::io::Seek>(
+    pub(crate) fn write<W: std::io::Write + std::io::Seek>(
         self,
         frame: &Frame,
         w: W,

@@ -30,7 +30,7 @@ impl Mosaic<'_> {
         }
     }
 
-    pub fn half(&self, path: &Path) -> Result<Frame, IoError> {
+    pub(crate) fn half(&self, path: &Path) -> Result<Frame, IoError> {
         let (ow, oh) = (self.w / 2, self.h / 2);
         if ow == 0 || oh == 0 {
             return Err(corrupt(path, "the image is smaller than one 2×2 block"));
@@ -107,7 +107,7 @@ impl Mosaic<'_> {
         }
     }
 
-    pub fn bilinear(&self, path: &Path) -> Result<Frame, IoError> {
+    pub(crate) fn bilinear(&self, path: &Path) -> Result<Frame, IoError> {
         let (w, h) = (self.w, self.h);
         let mut data = crate::io::try_zeroed::<f32>(path, w * h * 3)?;
         data.par_chunks_mut(w * 3).enumerate().for_each(|(y, row)| {
@@ -124,7 +124,7 @@ impl Mosaic<'_> {
 
     /// Malvar–He–Cutler: bilinear plus a Laplacian correction from the pixel's own colour
     /// (the 5×5 filters of the paper, gains α = 1/2, β = 5/8, γ = 3/4).
-    pub fn mhc(&self, path: &Path) -> Result<Frame, IoError> {
+    pub(crate) fn mhc(&self, path: &Path) -> Result<Frame, IoError> {
         let (w, h) = (self.w, self.h);
         let mut data = crate::io::try_zeroed::<f32>(path, w * h * 3)?;
         data.par_chunks_mut(w * 3).enumerate().for_each(|(y, row)| {

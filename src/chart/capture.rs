@@ -101,6 +101,13 @@ pub struct CaptureFrame {
 
 impl CaptureFrame {
     /// Reads `path` for chart reading (see [`read_chart_frame`]) and hashes its bytes.
+    ///
+    /// For a camera raw file, chart readers want `opts.demosaic` = [`Demosaic::Half`] (one pixel
+    /// per CFA block, no interpolation; what `nsrm chart extract` uses); [`ReadOptions`]'s
+    /// default is the full-resolution demosaic that correcting frames uses.
+    ///
+    /// [`Demosaic::Half`]: crate::io::raw::Demosaic::Half
+    /// [`ReadOptions`]: crate::io::ReadOptions
     pub fn open(
         path: &Path,
         opts: &ReadOptions,

@@ -341,12 +341,32 @@ impl Studio {
         }
         match dev.as_mut() {
             Some(ServerDevice::Gpu(e)) => {
-                e.apply(model, frame)
-                    .map_err(|e| anyhow::anyhow!("the server's GPU: {e}"))?;
-                Ok(Computed {
-                    device: "gpu",
-                    detail: e.adapter_name(),
-                })
+                // Under `auto` a GPU that fails falls back to the CPU (for this preview and the
+                // rest of the run, saying why); under `gpu` its failure is the answer.
+                let keep = (self.device == DeviceChoice::Auto).then(|| frame.clone());
+                match e.apply(model, frame) {
+                    Ok(()) => Ok(Computed {
+                        device: "gpu",
+                        detail: e.adapter_name(),
+                    }),
+                    Err(err) => match keep {
+                        None => bail!("the server's GPU: {err}"),
+                        Some(original) => {
+                            let why = format!(
+                                "the GPU {} failed ({err}); the CPU corrects instead",
+                                e.adapter_name()
+                            );
+                            eprintln!("nsrm studio: {why}");
+                            *frame = original;
+                            nsrm::model::fast::apply_frame(model, frame);
+                            *dev = Some(ServerDevice::Cpu(why.clone()));
+                            Ok(Computed {
+                                device: "cpu",
+                                detail: why,
+                            })
+                        }
+                    },
+                }
             }
             Some(ServerDevice::Cpu(why)) => {
                 nsrm::model::fast::apply_frame(model, frame);

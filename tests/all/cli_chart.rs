@@ -19,26 +19,7 @@ fn s(p: &Path) -> &str {
 }
 
 fn scene(dir: &Path, name: &str, extra: &[&str]) -> PathBuf {
-    let f = dir.join(name);
-    let mut args = vec![
-        "render-scene",
-        "--chart",
-        "cc24",
-        "--width",
-        "800",
-        "--height",
-        "560",
-        "--seed",
-        "5",
-        "--min-area",
-        "0.2",
-        "-o",
-        s(&f),
-    ];
-    args.extend_from_slice(extra);
-    let (ok, err) = run(&args);
-    assert!(ok, "{err}");
-    f
+    common::cc24_scene(dir, name, extra)
 }
 
 #[test]

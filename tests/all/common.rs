@@ -384,3 +384,26 @@ pub fn dual_nsrm_model(dir: &Path) {
     }
     nsrm_ok(dir, &["combine", "a.json", "d65.json", "-o", "dual.json"]);
 }
+
+/// The tests' standard synthetic capture: `render-scene` of a CC24, 800×560, seed 5, chart at
+/// least a fifth of the frame, written as `dir/name` (plus `extra` flags, e.g. `--flat-output`).
+pub fn cc24_scene(dir: &Path, name: &str, extra: &[&str]) -> PathBuf {
+    let mut args = vec![
+        "render-scene",
+        "--chart",
+        "cc24",
+        "--width",
+        "800",
+        "--height",
+        "560",
+        "--seed",
+        "5",
+        "--min-area",
+        "0.2",
+        "-o",
+        name,
+    ];
+    args.extend_from_slice(extra);
+    nsrm_ok(dir, &args);
+    dir.join(name)
+}

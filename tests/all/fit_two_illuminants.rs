@@ -85,26 +85,7 @@ fn two_illuminants_from_spectra_is_two_fits_combined() {
 fn two_captures_each_with_its_light() {
     let d = tempdir("fit-two-captures");
     for (ill, out) in [("A", "a.exr"), ("D65", "d65.exr")] {
-        nsrm_ok(
-            &d,
-            &[
-                "render-scene",
-                "--chart",
-                "cc24",
-                "--illuminant",
-                ill,
-                "--width",
-                "800",
-                "--height",
-                "560",
-                "--seed",
-                "5",
-                "--min-area",
-                "0.2",
-                "-o",
-                out,
-            ],
-        );
+        crate::common::cc24_scene(&d, out, &["--illuminant", ill]);
     }
     let fit = |extra: &[&str], out: &str| {
         let mut args = vec![

@@ -161,31 +161,7 @@ fn s(p: &Path) -> &str {
 
 /// A synthetic CC24 scene (`render-scene`) in `dir`.
 pub fn scene(dir: &Path, name: &str) -> PathBuf {
-    let f = dir.join(name);
-    let out = nsrm()
-        .args([
-            "render-scene",
-            "--chart",
-            "cc24",
-            "--width",
-            "800",
-            "--height",
-            "560",
-            "--seed",
-            "5",
-            "--min-area",
-            "0.2",
-            "-o",
-            s(&f),
-        ])
-        .output()
-        .unwrap();
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    f
+    crate::common::cc24_scene(dir, name, &[])
 }
 
 fn cli(dir: &Path, args: &[&str]) -> Vec<u8> {
@@ -851,28 +827,10 @@ fn raw_and_sg_frames_to_exported_profiles_through_the_api() {
 #[test]
 fn an_uploaded_flat_frame_is_the_flat_field() {
     let d = tempdir("studio-flat");
-    let frame = d.join("scene.exr");
-    cli(
+    let frame = crate::common::cc24_scene(
         &d,
-        &[
-            "render-scene",
-            "--chart",
-            "cc24",
-            "--width",
-            "800",
-            "--height",
-            "560",
-            "--seed",
-            "5",
-            "--min-area",
-            "0.2",
-            "--gradient",
-            "0.3",
-            "-o",
-            s(&frame),
-            "--flat-output",
-            "flat.exr",
-        ],
+        "scene.exr",
+        &["--gradient", "0.3", "--flat-output", "flat.exr"],
     );
     let work = d.join("work");
     std::fs::create_dir_all(&work).unwrap();

@@ -30,24 +30,7 @@ fn assert_close(a: &[f64], b: &[f64], what: &str) {
 #[test]
 fn both_routes_from_one_frame_give_the_same_model() {
     let d = tempdir("white-routes");
-    nsrm_ok(
-        &d,
-        &[
-            "render-scene",
-            "--chart",
-            "cc24",
-            "--width",
-            "800",
-            "--height",
-            "560",
-            "--seed",
-            "5",
-            "--min-area",
-            "0.2",
-            "-o",
-            "shot.exr",
-        ],
-    );
+    crate::common::cc24_scene(&d, "shot.exr", &[]);
     nsrm_ok(
         &d,
         &[

@@ -180,6 +180,12 @@ try {
     execFileSync('sh', ['-c', `"$NSRM_BIN" ${line.slice(5)}`], { cwd: rerun, env: { ...process.env, NSRM_BIN: BIN }, stdio: ['ignore', 'ignore', 'inherit'] });
   }
   const cliClf = fs.readFileSync(path.join(rerun, 'model.clf'));
+  if (!cliClf.equals(downloaded)) {
+    // Both kept as artefacts, with the command lines, to see where they part.
+    fs.writeFileSync(path.join(OUT, 'mismatch-downloaded.clf'), downloaded);
+    fs.writeFileSync(path.join(OUT, 'mismatch-cli.clf'), cliClf);
+    fs.writeFileSync(path.join(OUT, 'mismatch-commands.txt'), command);
+  }
   if (!cliClf.equals(downloaded)) fail(`the downloaded CLF (${downloaded.length} bytes) differs from nsrm export's (${cliClf.length} bytes)`);
   log(`CLF download equals nsrm export's, byte for byte (${downloaded.length} bytes)`);
   fs.copyFileSync(clfPath, path.join(OUT, 'model.clf'));

@@ -48,6 +48,12 @@
 
 #[cfg(feature = "chart")]
 pub mod chart;
+/// The `nsrm` command line: argument parsing and one file per subcommand, over the library's
+/// public API and its crate-private machinery (the output session, the batch plan, the farm
+/// files). Not a library API: only [`cli::main`], the binary's entry point, is reachable.
+#[cfg(feature = "cli")]
+#[doc(hidden)]
+pub mod cli;
 pub mod colorimetry;
 pub mod csv_table;
 pub mod error;

@@ -1,8 +1,7 @@
-//! The `nsrm` command: a thin layer over the library (see `src/cli/`).
+//! The `nsrm` command: a thin binary over the library, whose `cli` room holds the command line
+//! (see `src/cli/`).
 #![forbid(unsafe_code)]
 
-mod cli;
-
 fn main() -> std::process::ExitCode {
-    cli::main()
+    nsrm::cli::main()
 }

@@ -8,15 +8,15 @@ use super::common::UsageError;
 use super::values;
 use anyhow::{Context, Result};
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
-use nsrm::colorimetry::spaces::{Mat3, OutputSpace};
-use nsrm::gpu::{DeviceChoice, Engine, GpuOptions};
-use nsrm::io::batch::{self, Action, BatchPlan, Existing, Job, PlanOptions, Shard};
-use nsrm::io::{
+use crate::colorimetry::spaces::{Mat3, OutputSpace};
+use crate::gpu::{DeviceChoice, Engine, GpuOptions};
+use crate::io::batch::{self, Action, BatchPlan, Existing, Job, PlanOptions, Shard};
+use crate::io::{
     self as fio, preview, Decoded, ExrCompression, FileFormat, Limits, ReadOptions, WriteOptions,
 };
-use nsrm::model::fast::{FastModel, Threads};
-use nsrm::output::Session;
-use nsrm::Model;
+use crate::model::fast::{FastModel, Threads};
+use crate::output::Session;
+use crate::Model;
 use std::io::IsTerminal;
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
@@ -26,7 +26,7 @@ use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
 #[derive(Debug, clap::Args)]
-pub struct Args {
+pub(crate) struct Args {
     /// Model file written by `nsrm fit`.
     #[arg(long, value_name = "FILE")]
     model: PathBuf,
@@ -101,7 +101,7 @@ pub struct Args {
     dry_run: bool,
     /// Most pixels a frame may have (width × height); a file whose header claims more is refused
     /// before anything is allocated. Default 268435456 (16384 × 16384).
-    #[arg(long, value_name = "N", default_value_t = nsrm::io::DEFAULT_MAX_PIXELS)]
+    #[arg(long, value_name = "N", default_value_t = crate::io::DEFAULT_MAX_PIXELS)]
     max_pixels: u64,
     /// How camera raw inputs are demosaiced: mhc (Malvar-He-Cutler, full resolution), bilinear
     /// (LibRaw's), or half (one pixel per 2×2 CFA block: half width and height).
@@ -142,14 +142,14 @@ enum Corrector {
 /// The state of `--white as-shot`: the model set, the output space, the parts built for each
 /// neutral seen so far and which of them the current frame uses.
 struct AsShot {
-    profile: nsrm::model::dual_illuminant::Profile,
+    profile: crate::model::dual_illuminant::Profile,
     space: OutputSpace,
     built: Vec<([f32; 3], Vec<FastModel>)>,
     current: usize,
 }
 
 /// Sums the outputs of `parts` applied to the frame (one part: applied in place).
-fn apply_sum(parts: &[FastModel], f: &mut nsrm::Frame) {
+fn apply_sum(parts: &[FastModel], f: &mut crate::Frame) {
     let src = (parts.len() > 1).then(|| f.clone());
     let ch = f.layout.channels();
     for (i, p) in parts.iter().enumerate() {
@@ -173,10 +173,10 @@ impl Corrector {
             adapter: adapter.map(str::to_string),
             tile_pixels: None,
         };
-        let opened = nsrm::gpu::open_device(device, &opts)
+        let opened = crate::gpu::open_device(device, &opts)
             .with_context(|| format!("--device {}", device.name()))?;
         Ok(match opened {
-            nsrm::gpu::Opened::Gpu(e) => {
+            crate::gpu::Opened::Gpu(e) => {
                 if device == DeviceChoice::Auto {
                     eprintln!(
                         "nsrm apply: --device auto: correcting on the GPU {}",
@@ -185,11 +185,11 @@ impl Corrector {
                 }
                 Corrector::Gpu(e)
             }
-            nsrm::gpu::Opened::Cpu(why) => {
+            crate::gpu::Opened::Cpu(why) => {
                 if device == DeviceChoice::Auto {
                     eprintln!(
                         "nsrm apply: --device auto: correcting on the CPU: {why}{}",
-                        if matches!(why, nsrm::gpu::CpuReason::SoftwareOnly { .. }) {
+                        if matches!(why, crate::gpu::CpuReason::SoftwareOnly { .. }) {
                             " (--device gpu uses it anyway)"
                         } else {
                             ""
@@ -233,7 +233,7 @@ impl Corrector {
         let parts = c
             .parts
             .iter()
-            .map(|m| nsrm::model::output_model(m, a.space).map(|m| FastModel::new(&m)))
+            .map(|m| crate::model::output_model(m, a.space).map(|m| FastModel::new(&m)))
             .collect::<Result<Vec<_>, _>>()?;
         let line = format!(
             "nsrm apply: {}: as-shot {}",
@@ -273,7 +273,7 @@ use super::outputs::STOP_SIGNALS;
 
 /// Set by SIGINT, SIGTERM or SIGHUP (to the signal's number): no new file is started, frames
 /// being decoded or corrected are dropped, a frame being written is aborted at its next buffer
-/// write (its temporary removed, nothing committed: [`nsrm::output::AbortHandle::flag`]), this run's
+/// write (its temporary removed, nothing committed: [`crate::output::AbortHandle::flag`]), this run's
 /// temporaries are removed, the summary is printed and the exit status is 128 + the signal.
 /// Outputs committed before the signal stay. A second signal ends the process at once.
 #[derive(Clone)]
@@ -368,7 +368,7 @@ fn parse_request(a: &Args) -> Result<Request> {
 
 /// `nsrm apply`: plan (every path checked, nothing written yet) → run (the pipeline, stopped
 /// cleanly by a signal) → report (the summary and the exit status).
-pub fn run(a: Args) -> Result<ExitCode> {
+pub(crate) fn run(a: Args) -> Result<ExitCode> {
     let req = parse_request(&a)?;
     let (mut parts, as_shot) = match super::white::models_for_apply(&a.model, a.white.as_deref())? {
         super::white::ApplyModels::Fixed(parts) => (parts, None),
@@ -377,10 +377,10 @@ pub fn run(a: Args) -> Result<ExitCode> {
         super::white::ApplyModels::PerFrame(p) => (vec![p.models()[0].clone()], Some(p)),
     };
     let model = parts.remove(0);
-    let out_model = nsrm::model::output_model(&model, req.space)?;
+    let out_model = crate::model::output_model(&model, req.space)?;
     let extra: Vec<Model> = parts
         .iter()
-        .map(|m| nsrm::model::output_model(m, req.space))
+        .map(|m| crate::model::output_model(m, req.space))
         .collect::<Result<_, _>>()?;
 
     // Plan.
@@ -429,7 +429,7 @@ pub fn run(a: Args) -> Result<ExitCode> {
         let settings = Settings {
             read: read_options(&a),
             write: write_options(&a, &req),
-            to_srgb: nsrm::colorimetry::to_linear_srgb(model.white_xyz(), req.space),
+            to_srgb: crate::colorimetry::to_linear_srgb(model.white_xyz(), req.space),
             workers: workers(a.jobs, todo.len()),
             continue_on_error: a.continue_on_error,
             interrupt: interrupt.clone(),
@@ -496,7 +496,7 @@ fn open_corrector(
     a: &Args,
     out_model: &Model,
     extra: &[Model],
-    as_shot: Option<&nsrm::model::dual_illuminant::Profile>,
+    as_shot: Option<&crate::model::dual_illuminant::Profile>,
 ) -> Result<Corrector> {
     let mixed = if let Some(profile) = as_shot {
         Corrector::AsShot(Box::new(AsShot {
@@ -1069,16 +1069,16 @@ fn refusal(r: &batch::Refusal) -> String {
 /// `apply`'s options as `nsrm farm` takes them apart: the paths (which a farm maps to the
 /// workers' mounts), the per-run policies a farm task sets itself, and the rest as words.
 pub(super) struct FarmParts<'a> {
-    pub model: &'a mut PathBuf,
-    pub output_dir: &'a mut Option<PathBuf>,
-    pub preview: &'a mut Option<PathBuf>,
-    pub inputs: &'a mut Vec<PathBuf>,
-    pub continue_on_error: &'a mut bool,
+    pub(crate) model: &'a mut PathBuf,
+    pub(crate) output_dir: &'a mut Option<PathBuf>,
+    pub(crate) preview: &'a mut Option<PathBuf>,
+    pub(crate) inputs: &'a mut Vec<PathBuf>,
+    pub(crate) continue_on_error: &'a mut bool,
     /// `--overwrite` (for `nsrm farm`'s job files: replace them).
-    pub overwrite: bool,
+    pub(crate) overwrite: bool,
     /// Set when one of `--skip-existing`, `--shard`, `--dry-run`,
     /// `--remove-stale-temporaries` was given (a farm task decides those itself).
-    pub policy_flag: Option<&'static str>,
+    pub(crate) policy_flag: Option<&'static str>,
 }
 
 impl Args {

@@ -7,27 +7,27 @@
 //!   way (`copy_from_slice` over the same 64 Ki-pixel chunks, one thread for `cpu-1`, the pool for
 //!   `cpu-all`). Kernel and memcpy repetitions alternate, so both see the same machine state; the
 //!   ratio is median / median.
-//! * GPU: [`nsrm::gpu::Engine::timed_apply`] — kernel time from timestamp queries (when the adapter has
+//! * GPU: [`crate::gpu::Engine::timed_apply`] — kernel time from timestamp queries (when the adapter has
 //!   them) and end-to-end time including upload and read-back. Its reference is the device's own
-//!   buffer-to-buffer copy of the frame's bytes ([`nsrm::gpu::Engine::copy_bandwidth`]).
+//!   buffer-to-buffer copy of the frame's bytes ([`crate::gpu::Engine::copy_bandwidth`]).
 
 use super::bench_aids::{memcpy_chunked, synthetic_camera_rgb};
 use super::common::{parse_models, UsageError};
 use super::values;
 use anyhow::{Context, Result};
 use clap::ValueEnum;
-use nsrm::gpu::{DeviceChoice, GpuOptions, Opened};
-use nsrm::model::fast::{FastModel, Threads};
-use nsrm::model::{fit, Kind, Model};
-use nsrm::spectral::{simulate_named, Grid};
-use nsrm::{Frame, Layout};
+use crate::gpu::{DeviceChoice, GpuOptions, Opened};
+use crate::model::fast::{FastModel, Threads};
+use crate::model::{fit, Kind, Model};
+use crate::spectral::{simulate_named, Grid};
+use crate::{Frame, Layout};
 use rayon::prelude::*;
 use serde::Serialize;
 use std::process::ExitCode;
 use std::time::Instant;
 
 #[derive(Debug, clap::Args)]
-pub struct Args {
+pub(crate) struct Args {
     /// Frame size, WIDTHxHEIGHT. The default (8.4 Mpixel, 100 MB of RGB f32 each way) is much
     /// larger than the caches and keeps the whole run (lavapipe included) under a minute.
     #[arg(long, default_value = "4096x2048", value_name = "WxH")]
@@ -169,7 +169,7 @@ fn plan(a: &Args) -> Result<Plan> {
 }
 
 /// `nsrm bench`: plan → measure → report (the table, or one JSON object).
-pub fn run(a: Args) -> Result<ExitCode> {
+pub(crate) fn run(a: Args) -> Result<ExitCode> {
     let plan = plan(&a)?;
     let report = measure(&plan)?;
     if a.json {
@@ -250,7 +250,7 @@ fn measure(plan: &Plan) -> Result<Report> {
     let mut gpu_copy = None;
     let mut gpu_timestamps = false;
     if let Some(choice) = plan.gpu {
-        match nsrm::gpu::open_device(choice, &GpuOptions::default()) {
+        match crate::gpu::open_device(choice, &GpuOptions::default()) {
             Err(e) => gpu_error = Some(e.to_string()),
             Ok(Opened::Cpu(why)) => gpu_error = Some(format!("not timed (--device auto): {why}")),
             Ok(Opened::Gpu(mut engine)) => {
@@ -472,7 +472,7 @@ fn parse_size(spec: &str) -> Result<(usize, usize)> {
         return Err(bad().into());
     }
     // The bench holds several f32 RGBA copies of the frame: bound it like a frame read.
-    let limit = nsrm::io::DEFAULT_MAX_PIXELS;
+    let limit = crate::io::DEFAULT_MAX_PIXELS;
     if (w as u64).checked_mul(h as u64).is_none_or(|p| p > limit) {
         return Err(UsageError(format!(
             "--size `{spec}`: {w}×{h} is more than the limit of {limit} pixels (16384×16384)"

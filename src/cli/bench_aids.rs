@@ -1,14 +1,14 @@
 //! What `nsrm bench` and `benches/kernels.rs` measure against: a synthetic camera frame and the
 //! memcpy reference. Not part of the library; `benches/kernels.rs` includes this file.
 
-use nsrm::model::fast::{Threads, CHUNK_PIXELS};
-use nsrm::{Frame, Layout};
+use crate::model::fast::{Threads, CHUNK_PIXELS};
+use crate::{Frame, Layout};
 use rayon::prelude::*;
 
 /// A benchmark frame of camera RGB in a realistic range, from `seed`: channels 0..1 with a
 /// camera-like balance, 2 % of pixels highlights up to ×8, alpha 1. Generated in parallel, the
 /// same for any thread count.
-pub fn synthetic_camera_rgb(width: usize, height: usize, layout: Layout, seed: u64) -> Frame {
+pub(crate) fn synthetic_camera_rgb(width: usize, height: usize, layout: Layout, seed: u64) -> Frame {
     let ch = layout.channels();
     let mut frame = Frame::new(width, height, layout);
     frame
@@ -44,7 +44,7 @@ pub fn synthetic_camera_rgb(width: usize, height: usize, layout: Layout, seed: u
 /// The memcpy reference: `dst.copy_from_slice(src)` in the same chunks of [`CHUNK_PIXELS`]
 /// pixels (`channels` floats each) and on the same threads as the fast kernels, so a kernel's
 /// throughput divided by this one's compares like with like.
-pub fn memcpy_chunked(src: &[f32], dst: &mut [f32], channels: usize, threads: Threads) {
+pub(crate) fn memcpy_chunked(src: &[f32], dst: &mut [f32], channels: usize, threads: Threads) {
     let n = CHUNK_PIXELS * channels;
     match threads {
         Threads::All => src

@@ -5,68 +5,68 @@
 use super::common::UsageError;
 use super::values;
 use anyhow::{Context, Result};
-use nsrm::chart::capture::{CaptureError, CaptureFrame, FlatField, ReadingOptions};
-use nsrm::chart::detect::Candidate;
-use nsrm::chart::extract::{ExtractOptions, Extraction};
-use nsrm::chart::reference::Reference;
-use nsrm::chart::{overlay, parse_corners, ChartKind};
-use nsrm::io::display::Encoding;
-use nsrm::output::{Session, Unit};
-use nsrm::Frame;
+use crate::chart::capture::{CaptureError, CaptureFrame, FlatField, ReadingOptions};
+use crate::chart::detect::Candidate;
+use crate::chart::extract::{ExtractOptions, Extraction};
+use crate::chart::reference::Reference;
+use crate::chart::{overlay, parse_corners, ChartKind};
+use crate::io::display::Encoding;
+use crate::output::{Session, Unit};
+use crate::Frame;
 use std::path::Path;
 use std::sync::Arc;
 
 /// How the chart in a frame is read.
 #[derive(Debug, Clone, clap::Args)]
-pub struct CaptureOptions {
+pub(crate) struct CaptureOptions {
     /// The chart photographed: cc24 (ColorChecker Classic) or sg (Digital ColorChecker SG).
     #[arg(long, value_enum, ignore_case = true)]
-    pub chart: Option<values::Chart>,
+    pub(crate) chart: Option<values::Chart>,
     /// Reference values: cc24-after2014 (default for cc24), cc24-before2014, sg-after2014
     /// (default for sg), sg-before2014, or a file: CSV `label` + `X,Y,Z` or `L,a,b`, or CGATS
     /// (.cie/.txt: SAMPLE_ID + XYZ_X/Y/Z or LAB_L/A/B).
     #[arg(long, value_name = "NAME|FILE")]
-    pub reference: Option<String>,
+    pub(crate) reference: Option<String>,
     /// White of a reference file's values, in the forms `--white` takes: `X,Y,Z`, `x,y`, D50 or
     /// an illuminant name (needed for a Lab file; XYZ files default to D50, as chart makers'
     /// tables are). Not `--white`: that names the white of a `--training` file, and a Lab
     /// reference's white is given here even when both are used. Built-in references ignore it.
     #[arg(long, value_name = "X,Y,Z|x,y|D50|ILLUMINANT")]
-    pub reference_white: Option<String>,
+    pub(crate) reference_white: Option<String>,
     /// The four outer corners of the patch grid in pixels, first patch's corner first, then
     /// clockwise: "X,Y X,Y X,Y X,Y". Without it the chart is found automatically.
     #[arg(long, value_name = "\"X,Y X,Y X,Y X,Y\"", allow_hyphen_values = true)]
-    pub corners: Option<String>,
+    pub(crate) corners: Option<String>,
     /// EXR layer holding the camera RGB (as in `apply`).
     #[arg(long, value_name = "NAME")]
-    pub layer: Option<String>,
+    pub(crate) layer: Option<String>,
     /// Sensor clipping level (default: inferred from the frame).
     #[arg(long, value_name = "V")]
-    pub white_level: Option<f64>,
+    pub(crate) white_level: Option<f64>,
     /// Uneven-light compensation: a flat frame (grey card under the same light), or `neutrals`
     /// (a smooth surface fitted to the chart's neutral patches).
     #[arg(long, value_name = "FRAME|neutrals")]
-    pub flat: Option<String>,
+    pub(crate) flat: Option<String>,
     /// How the frame's values are encoded: auto (sRGB for JPEG, PNG and 8-bit TIFF; linear for
     /// EXR, 16-bit and float TIFF, raw), linear, or srgb (decoded with the sRGB transfer
     /// function). Display-referred frames still carry the camera's tone curve: a model fitted
     /// from one is marked so and warned about.
     #[arg(long, value_enum, ignore_case = true, default_value = "auto")]
-    pub encoding: EncodingArg,
+    pub(crate) encoding: EncodingArg,
     /// Most pixels the frame (and the flat frame) may have, as in `apply`.
-    #[arg(long, value_name = "N", default_value_t = nsrm::io::DEFAULT_MAX_PIXELS,
+    #[arg(long, value_name = "N", default_value_t = crate::io::DEFAULT_MAX_PIXELS,
           value_parser = clap::value_parser!(u64).range(1..))]
-    pub max_pixels: u64,
+    pub(crate) max_pixels: u64,
     /// How a camera raw frame (and flat frame) is demosaiced: half (one pixel per 2×2 CFA block,
     /// no interpolation: the chart reading of profiling tools), bilinear (LibRaw's), or mhc
     /// (Malvar-He-Cutler).
     #[arg(long, value_enum, ignore_case = true, default_value_t = values::Demosaic::Half)]
-    pub demosaic: values::Demosaic,
+    pub(crate) demosaic: values::Demosaic,
 }
 
 /// `--encoding`.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
-pub enum EncodingArg {
+pub(crate) enum EncodingArg {
     Auto,
     Linear,
     Srgb,
@@ -83,11 +83,11 @@ impl From<EncodingArg> for Encoding {
 }
 
 /// A read chart (the library's reading, with the frame it was read from).
-pub use nsrm::chart::capture::Capture;
+pub(crate) use crate::chart::capture::Capture;
 
 impl CaptureOptions {
     /// The chart kind (usage error when missing or unknown).
-    pub fn kind(&self) -> Result<ChartKind> {
+    pub(crate) fn kind(&self) -> Result<ChartKind> {
         let c = self
             .chart
             .ok_or_else(|| UsageError("--chart cc24|sg is required".into()))?;
@@ -95,7 +95,7 @@ impl CaptureOptions {
     }
 
     /// True when any capture option is given.
-    pub fn any(&self) -> bool {
+    pub(crate) fn any(&self) -> bool {
         self.chart.is_some()
             || self.reference.is_some()
             || self.reference_white.is_some()
@@ -106,12 +106,12 @@ impl CaptureOptions {
     }
 
     /// Loads the reference (cheap; done before reading frames).
-    pub fn reference(&self) -> Result<Reference> {
+    pub(crate) fn reference(&self) -> Result<Reference> {
         let kind = self.kind()?;
         let white = self
             .reference_white
             .as_deref()
-            .map(nsrm::training::parse_white)
+            .map(crate::training::parse_white)
             .transpose()
             .context("--reference-white")?;
         let spec = self
@@ -122,7 +122,7 @@ impl CaptureOptions {
     }
 
     /// The files these options read (a reference file, a flat frame), for the run's session.
-    pub fn input_files(&self) -> Vec<&Path> {
+    pub(crate) fn input_files(&self) -> Vec<&Path> {
         let mut v = Vec::new();
         if let Some(r) = self.reference.as_deref().and_then(super::outputs::file_arg) {
             v.push(r);
@@ -136,10 +136,10 @@ impl CaptureOptions {
     }
 
     /// Decodes `path` as these options say (the frame and its hash, read once).
-    pub fn open_frame(&self, path: &Path) -> Result<Arc<CaptureFrame>> {
+    pub(crate) fn open_frame(&self, path: &Path) -> Result<Arc<CaptureFrame>> {
         Ok(Arc::new(CaptureFrame::open(
             path,
-            &nsrm::io::ReadOptions {
+            &crate::io::ReadOptions {
                 layer: self.layer.clone(),
                 limits: self.limits(),
                 demosaic: self.demosaic.into(),
@@ -148,22 +148,22 @@ impl CaptureOptions {
         )?))
     }
 
-    fn limits(&self) -> nsrm::io::Limits {
-        nsrm::io::Limits {
+    fn limits(&self) -> crate::io::Limits {
+        crate::io::Limits {
             max_pixels: self.max_pixels,
         }
     }
 
     /// Reads the `--flat` frame, if one is named, decoded as the chart frame is (`--encoding`:
     /// a JPEG/PNG/8-bit grey card is sRGB-decoded to linear under `auto`).
-    pub fn flat_frame(&self) -> Result<Option<Frame>> {
+    pub(crate) fn flat_frame(&self) -> Result<Option<Frame>> {
         match self.flat.as_deref() {
             None => Ok(None),
             Some(s) if s.eq_ignore_ascii_case("neutrals") => Ok(None),
             Some(f) => Ok(Some(
-                nsrm::io::display::read_chart_frame(
+                crate::io::display::read_chart_frame(
                     Path::new(f),
-                    &nsrm::io::ReadOptions {
+                    &crate::io::ReadOptions {
                         limits: self.limits(),
                         demosaic: self.demosaic.into(),
                         ..Default::default()
@@ -178,7 +178,7 @@ impl CaptureOptions {
 
     /// Reads the chart in `path`. On failure with `failure_overlay`, the frame and the rejected
     /// detection candidates are drawn there (committed on its own in `session`).
-    pub fn read(&self, path: &Path, failure_overlay: Option<(&Path, &Session)>) -> Result<Capture> {
+    pub(crate) fn read(&self, path: &Path, failure_overlay: Option<(&Path, &Session)>) -> Result<Capture> {
         let reference = self.reference()?;
         let corners = self.corners.as_deref().map(parse_corners).transpose()?;
         if let Some(w) = self.white_level {
@@ -200,7 +200,7 @@ impl CaptureOptions {
             white_level: self.white_level,
             flat,
         };
-        let cap = nsrm::chart::capture::read(&frame, &reference, &opts).map_err(|e| {
+        let cap = crate::chart::capture::read(&frame, &reference, &opts).map_err(|e| {
             if let (CaptureError::NotFound { candidates, .. }, Some((p, session))) =
                 (&e, failure_overlay)
             {
@@ -231,7 +231,7 @@ impl CaptureOptions {
 }
 
 /// The CLI's words about a reading (they name its flags).
-pub trait CaptureText {
+pub(crate) trait CaptureText {
     /// The line every command that reads a chart prints: where the chart was found, how well it
     /// matches its reference, the white its X,Y,Z are relative to and the light's non-uniformity.
     fn summary(&self) -> String;
@@ -264,7 +264,7 @@ impl CaptureText for Capture {
             self.extraction.patches.len(),
             self.reference.name,
             self.score,
-            nsrm::training::fmt_white(self.reference.white.map(|v| (v * 1e4).round() / 1e4)),
+            crate::training::fmt_white(self.reference.white.map(|v| (v * 1e4).round() / 1e4)),
             match &self.flat {
                 Some(f) => format!("{:.3} (max/min, compensated: {})", f.nonuniformity, f.method),
                 None => "not measured (no --flat)".into(),
@@ -287,7 +287,7 @@ impl CaptureText for Capture {
 }
 
 /// Stages an overlay PNG in `unit`.
-pub fn write_overlay(
+pub(crate) fn write_overlay(
     frame: &Frame,
     reading: Option<&Extraction>,
     candidates: &[Candidate],
@@ -304,7 +304,7 @@ pub fn write_overlay(
 
 /// `--capture FRAME` with its chart options, for `fit` and `eval`: the read capture, or `None`
 /// without `--capture` (then no chart option may be given).
-pub fn for_model(capture: Option<&Path>, o: &CaptureOptions) -> Result<Option<Capture>> {
+pub(crate) fn for_model(capture: Option<&Path>, o: &CaptureOptions) -> Result<Option<Capture>> {
     match capture {
         None if o.any() => Err(UsageError(
             "--chart, --reference, --corners, --flat, … need --capture FRAME".into(),
@@ -327,6 +327,6 @@ pub fn for_model(capture: Option<&Path>, o: &CaptureOptions) -> Result<Option<Ca
 }
 
 /// Swatches (reference vs the model's prediction) of the usable patches of a capture.
-pub fn swatches(cap: &Capture, model: &nsrm::Model) -> Vec<overlay::Swatch> {
+pub(crate) fn swatches(cap: &Capture, model: &crate::Model) -> Vec<overlay::Swatch> {
     cap.swatches(model)
 }

@@ -5,17 +5,17 @@ use super::capture::{write_overlay, CaptureOptions, CaptureText};
 use super::common::UsageError;
 use super::values;
 use anyhow::{Context, Result};
-use nsrm::chart::detect::{detect, DetectOptions};
-use nsrm::chart::extract::{extract, ExtractOptions};
-use nsrm::chart::reference::Reference;
-use nsrm::chart::scene::{render, ChartColours, Family};
-use nsrm::chart::ChartKind;
+use crate::chart::detect::{detect, DetectOptions};
+use crate::chart::extract::{extract, ExtractOptions};
+use crate::chart::reference::Reference;
+use crate::chart::scene::{render, ChartColours, Family};
+use crate::chart::ChartKind;
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 use std::time::Instant;
 
 #[derive(Debug, clap::Subcommand)]
-pub enum Command {
+pub(crate) enum Command {
     /// Read the patches of a chart in a linear frame and write them as `label,R,G,B,X,Y,Z`
     /// (the format `--training` reads; flagged patches are left out with a warning).
     Extract(ExtractArgs),
@@ -27,7 +27,7 @@ pub enum Command {
 }
 
 #[derive(Debug, clap::Args)]
-pub struct TimeArgs {
+pub(crate) struct TimeArgs {
     /// The frames.
     #[arg(value_name = "FRAME", required = true)]
     frames: Vec<PathBuf>,
@@ -41,13 +41,13 @@ pub struct TimeArgs {
     #[arg(long, default_value_t = 5, value_parser = clap::value_parser!(u32).range(1..=1000))]
     repeat: u32,
     /// Most pixels a frame may have, as in `chart extract`.
-    #[arg(long, value_name = "N", default_value_t = nsrm::io::DEFAULT_MAX_PIXELS,
+    #[arg(long, value_name = "N", default_value_t = crate::io::DEFAULT_MAX_PIXELS,
           value_parser = clap::value_parser!(u64).range(1..))]
     max_pixels: u64,
 }
 
 #[derive(Debug, clap::Args)]
-pub struct ExtractArgs {
+pub(crate) struct ExtractArgs {
     /// The frame: a linear camera-raw EXR or TIFF, or a display-referred JPEG, PNG or 8-bit
     /// TIFF (see --encoding).
     #[arg(value_name = "FRAME")]
@@ -70,7 +70,7 @@ pub struct ExtractArgs {
 }
 
 #[derive(Debug, clap::Args)]
-pub struct RateArgs {
+pub(crate) struct RateArgs {
     /// The chart: cc24 or sg.
     #[arg(long, value_enum, ignore_case = true)]
     chart: values::Chart,
@@ -142,7 +142,7 @@ pub(crate) fn parse_family(s: &str) -> std::result::Result<Family, String> {
     })
 }
 
-pub fn run(c: Command) -> Result<ExitCode> {
+pub(crate) fn run(c: Command) -> Result<ExitCode> {
     match c {
         Command::Extract(a) => run_extract(a),
         Command::Rate(a) => run_rate(a),
@@ -153,15 +153,15 @@ pub fn run(c: Command) -> Result<ExitCode> {
 fn run_time(a: TimeArgs) -> Result<ExitCode> {
     let kind = ChartKind::from(a.chart);
     let reference = Reference::load(kind.default_reference(), kind, None)?;
-    let opts = nsrm::io::ReadOptions {
-        limits: nsrm::io::Limits {
+    let opts = crate::io::ReadOptions {
+        limits: crate::io::Limits {
             max_pixels: a.max_pixels,
         },
         ..Default::default()
     };
     let mut failed = 0;
     for path in &a.frames {
-        let read = match nsrm::io::display::read_chart_frame(path, &opts, a.encoding.into()) {
+        let read = match crate::io::display::read_chart_frame(path, &opts, a.encoding.into()) {
             Ok(r) => r,
             Err(e) => {
                 eprintln!("error: {e}");
@@ -172,7 +172,7 @@ fn run_time(a: TimeArgs) -> Result<ExitCode> {
         let ex_opts = ExtractOptions {
             quantisation: read
                 .max_code
-                .map(|max_code| nsrm::chart::extract::Quantisation {
+                .map(|max_code| crate::chart::extract::Quantisation {
                     max_code,
                     srgb: read.transfer.display_referred(),
                 }),
@@ -186,7 +186,7 @@ fn run_time(a: TimeArgs) -> Result<ExitCode> {
                 .map_err(|f| f.error)
                 .and_then(|d| {
                     extract(&read.frame, &reference, &d.homography, &ex_opts)
-                        .and_then(|ex| nsrm::chart::extract::verify(&ex, &reference).map(|_| ex))
+                        .and_then(|ex| crate::chart::extract::verify(&ex, &reference).map(|_| ex))
                 });
             times.push(t0.elapsed().as_secs_f64());
             outcome = match r {
@@ -496,7 +496,7 @@ fn check_rate_ranges(a: &RateArgs) -> Result<()> {
 }
 
 /// The patch pitch in frame pixels near the chart's centre.
-pub fn pitch_px(t: &nsrm::chart::scene::SceneTruth) -> f64 {
+pub(crate) fn pitch_px(t: &crate::chart::scene::SceneTruth) -> f64 {
     let c = [t.chart.columns() as f64 / 2.0, t.chart.rows() as f64 / 2.0];
     let a = t.homography.apply(c);
     let b = t.homography.apply([c[0] + 1.0, c[1]]);

@@ -4,13 +4,13 @@
 
 use super::common::UsageError;
 use anyhow::{Context, Result};
-use nsrm::model::dual_illuminant::Profile;
-use nsrm::Model;
+use crate::model::dual_illuminant::Profile;
+use crate::Model;
 use std::path::PathBuf;
 use std::process::ExitCode;
 
 #[derive(Debug, clap::Args)]
-pub struct Args {
+pub(crate) struct Args {
     /// The two model files (`nsrm fit` under two illuminants, e.g. StdA and D65), in any order.
     #[arg(required = true, num_args = 2, value_name = "MODEL")]
     models: Vec<PathBuf>,
@@ -22,7 +22,7 @@ pub struct Args {
     overwrite: bool,
 }
 
-pub fn run(a: Args) -> Result<ExitCode> {
+pub(crate) fn run(a: Args) -> Result<ExitCode> {
     if a.models.len() != 2 {
         return Err(UsageError("combine takes exactly two model files".into()).into());
     }
@@ -55,7 +55,7 @@ pub fn run(a: Args) -> Result<ExitCode> {
 
 /// `calibration illuminants T1 K (x, y …) and T2 K (x, y …)`: how `combine` and a two-illuminant
 /// `fit` name a model set's two lights.
-pub(crate) fn calibrations_line(profile: &nsrm::model::dual_illuminant::Profile) -> String {
+pub(crate) fn calibrations_line(profile: &crate::model::dual_illuminant::Profile) -> String {
     let c = profile.calibrations();
     format!(
         "calibration illuminants {:.0} K (x, y {:.4}, {:.4}) and {:.0} K (x, y {:.4}, {:.4})",

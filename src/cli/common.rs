@@ -2,56 +2,56 @@
 
 use anyhow::{Context, Result};
 use clap::Args as ClapArgs;
-use nsrm::error::{Concern, Param};
-use nsrm::model::Kind;
-use nsrm::spectral::{simulate, Camera, Grid, Illuminant, Reflectances};
-use nsrm::training::{parse_white, TrainingSet};
+use crate::error::{Concern, Param};
+use crate::model::Kind;
+use crate::spectral::{simulate, Camera, Grid, Illuminant, Reflectances};
+use crate::training::{parse_white, TrainingSet};
 use std::path::PathBuf;
 
 /// An error in how the command was called (exit status 2).
 #[derive(Debug, thiserror::Error)]
 #[error("{0}")]
-pub struct UsageError(pub String);
+pub(crate) struct UsageError(pub String);
 
 /// Where training patches come from: simulated from spectra, or measured (`--training`).
 #[derive(Debug, Clone, ClapArgs)]
-pub struct TrainingArgs {
+pub(crate) struct TrainingArgs {
     /// Camera sensitivities: a built-in name (nikon-d5100) or a CSV file (wavelength, R, G, B).
     #[arg(long, default_value = "nikon-d5100", value_name = "NAME|FILE")]
-    pub camera: String,
+    pub(crate) camera: String,
     /// Reflectances, one column per patch: a built-in name (rawtoaces-190, cc24) or a CSV file,
     /// e.g. a ColorChecker SG (columns A1..N10).
     #[arg(long, default_value = "rawtoaces-190", value_name = "NAME|FILE")]
-    pub reflectances: String,
+    pub(crate) reflectances: String,
     /// Which patches to use: `all`, a list of labels (A1,C3,…), or a rectangle of chart labels
     /// such as B2:M9 (columns B..M × rows 2..9: the SG's inner 96).
     #[arg(long, default_value = "all", value_name = "SPEC")]
-    pub patches: String,
+    pub(crate) patches: String,
     /// Wavelength grid for the Riemann sums, START:END:STEP in nm.
     #[arg(long, default_value = "400:700:10", value_name = "START:END:STEP")]
-    pub grid: String,
+    pub(crate) grid: String,
     /// Measured patches instead of spectra: a CSV `label,R,G,B,X,Y,Z` or `label,R,G,B,L,a,b`,
     /// with a `# white: X,Y,Z` line before the header naming the white the values are relative
     /// to (`chart extract` writes it), or else `--white`.
     #[arg(long, value_name = "FILE", conflicts_with_all = ["camera", "reflectances", "grid"])]
-    pub training: Option<PathBuf>,
+    pub(crate) training: Option<PathBuf>,
     #[command(flatten)]
-    pub white: WhiteArg,
+    pub(crate) white: WhiteArg,
 }
 
 /// `--white`: the white a `--training` file's values are relative to.
 #[derive(Debug, Clone, ClapArgs)]
-pub struct WhiteArg {
+pub(crate) struct WhiteArg {
     /// The white of a `--training` file's X,Y,Z or L,a,b, when the file has no `# white:` line
     /// (if it has one, they must agree): `X,Y,Z`, a chromaticity `x,y` (at Y = 100), `D50`, or
     /// an illuminant name or file (its perfect white, Y = 100). There is no default.
     #[arg(long, value_name = "X,Y,Z|x,y|D50|ILLUMINANT", requires = "training")]
-    pub white: Option<String>,
+    pub(crate) white: Option<String>,
 }
 
 impl WhiteArg {
     /// The parsed white, if given.
-    pub fn get(&self) -> Result<Option<[f64; 3]>> {
+    pub(crate) fn get(&self) -> Result<Option<[f64; 3]>> {
         self.white
             .as_deref()
             .map(parse_white)
@@ -63,7 +63,7 @@ impl WhiteArg {
 impl TrainingArgs {
     /// The files these options read (for `illuminant`), for the run's output session: the
     /// measured CSV, or the spectra given as files (built-in names are no files).
-    pub fn input_files<'a>(&'a self, illuminant: &'a str) -> Vec<&'a std::path::Path> {
+    pub(crate) fn input_files<'a>(&'a self, illuminant: &'a str) -> Vec<&'a std::path::Path> {
         match &self.training {
             Some(p) => vec![p.as_path()],
             None => [self.camera.as_str(), self.reflectances.as_str(), illuminant]
@@ -74,7 +74,7 @@ impl TrainingArgs {
     }
 
     /// Builds the training set for `illuminant` (ignored with `--training`).
-    pub fn load(&self, illuminant: &str) -> Result<TrainingSet> {
+    pub(crate) fn load(&self, illuminant: &str) -> Result<TrainingSet> {
         let data = match &self.training {
             Some(path) => read_measured(path, self.white.get()?)?,
             None => {
@@ -92,8 +92,8 @@ impl TrainingArgs {
 }
 
 /// `--training FILE`: the measured patches; a file that names no white asks for `--white`.
-pub fn read_measured(path: &std::path::Path, white: Option<[f64; 3]>) -> Result<TrainingSet> {
-    use nsrm::training::TrainingError as E;
+pub(crate) fn read_measured(path: &std::path::Path, white: Option<[f64; 3]>) -> Result<TrainingSet> {
+    use crate::training::TrainingError as E;
     TrainingSet::read_measured(path, white).map_err(|e| match e {
         e @ E::NeedsWhite { .. } => anyhow::Error::new(e).context(
             "--training needs --white X,Y,Z|x,y|D50|ILLUMINANT (the file has no `# white:` line)",
@@ -104,7 +104,7 @@ pub fn read_measured(path: &std::path::Path, white: Option<[f64; 3]>) -> Result<
 }
 
 /// Parses `lrm,prm,rprm,nsrm`.
-pub fn parse_models(spec: &str) -> Result<Vec<Kind>> {
+pub(crate) fn parse_models(spec: &str) -> Result<Vec<Kind>> {
     let mut v = Vec::new();
     for s in spec.split(',').filter(|s| !s.trim().is_empty()) {
         let k = Kind::parse(s)?;
@@ -119,7 +119,7 @@ pub fn parse_models(spec: &str) -> Result<Vec<Kind>> {
 }
 
 /// Parses `--orders` (or `--order`, named by `flag` in messages): `3`, `1-4` or `1,3`.
-pub fn parse_orders(spec: &str, flag: &str) -> Result<Vec<u8>> {
+pub(crate) fn parse_orders(spec: &str, flag: &str) -> Result<Vec<u8>> {
     let bad = || {
         UsageError(if flag == "--order" {
             format!("--order `{spec}`: expected a whole number within 1..4")
@@ -149,7 +149,7 @@ pub fn parse_orders(spec: &str, flag: &str) -> Result<Vec<u8>> {
 }
 
 /// The flag that sets each library parameter: the one place the binary spells them.
-pub fn flag(p: Param) -> &'static str {
+pub(crate) fn flag(p: Param) -> &'static str {
     match p {
         Param::MaxPixels => "--max-pixels",
         Param::Layer => "--layer",
@@ -186,7 +186,7 @@ fn remedy(p: Param) -> String {
 
 /// An error as the binary reports it: the whole context chain, with the flag whose value is at
 /// fault in front (`--corners: …`), and a hint naming the flag that is the way out, if any.
-pub fn explain(e: &anyhow::Error) -> (String, Option<String>) {
+pub(crate) fn explain(e: &anyhow::Error) -> (String, Option<String>) {
     let concern = e.chain().find_map(super::errors::concern);
     match concern {
         Some(Concern::Value(p)) => (format!("{}: {e:#}", flag(p)), None),
@@ -196,7 +196,7 @@ pub fn explain(e: &anyhow::Error) -> (String, Option<String>) {
 }
 
 /// [`explain`] on one line (a batch's per-file failures).
-pub fn explain_line(e: anyhow::Error) -> String {
+pub(crate) fn explain_line(e: anyhow::Error) -> String {
     match explain(&e) {
         (msg, Some(hint)) => format!("{msg} (hint: {hint})"),
         (msg, None) => msg,

@@ -2,11 +2,11 @@
 //! about, asked of any link of an `anyhow` chain: the one place that knows every room's error
 //! type (each type classifies itself with its own `is_usage` / `concern` methods).
 
-use nsrm::error::Concern;
+use crate::error::Concern;
 
 /// True when `err` is one of this crate's errors and a usage error (see each type's
 /// `is_usage`).
-pub fn is_usage(err: &(dyn std::error::Error + 'static)) -> bool {
+pub(crate) fn is_usage(err: &(dyn std::error::Error + 'static)) -> bool {
     macro_rules! check {
         ($($(#[$cfg:meta])* $ty:ty),+ $(,)?) => {
             $(
@@ -18,35 +18,35 @@ pub fn is_usage(err: &(dyn std::error::Error + 'static)) -> bool {
         };
     }
     check!(
-        nsrm::spectral::SpectralError,
-        nsrm::training::TrainingError,
-        nsrm::model::ModelError,
-        nsrm::output::WriteError,
-        nsrm::io::IoError,
-        nsrm::io::batch::PlanError,
-        nsrm::farm::FarmError,
-        nsrm::export::ExportError,
-        nsrm::chart::ChartError,
-        nsrm::chart::capture::CaptureError,
-        nsrm::eval::plot::PlotError,
-        nsrm::gpu::GpuError,
+        crate::spectral::SpectralError,
+        crate::training::TrainingError,
+        crate::model::ModelError,
+        crate::output::WriteError,
+        crate::io::IoError,
+        crate::io::batch::PlanError,
+        crate::farm::FarmError,
+        crate::export::ExportError,
+        crate::chart::ChartError,
+        crate::chart::capture::CaptureError,
+        crate::eval::plot::PlotError,
+        crate::gpu::GpuError,
     );
     false
 }
 
 /// The parameter `err` is about, when it is one of this crate's errors that is about one (see
 /// the `concern` method of `ModelError`, `IoError` and `ChartError`).
-pub fn concern(err: &(dyn std::error::Error + 'static)) -> Option<Concern> {
-    if let Some(e) = err.downcast_ref::<nsrm::model::ModelError>() {
+pub(crate) fn concern(err: &(dyn std::error::Error + 'static)) -> Option<Concern> {
+    if let Some(e) = err.downcast_ref::<crate::model::ModelError>() {
         return e.concern();
     }
-    if let Some(e) = err.downcast_ref::<nsrm::io::IoError>() {
+    if let Some(e) = err.downcast_ref::<crate::io::IoError>() {
         return e.concern();
     }
-    if let Some(e) = err.downcast_ref::<nsrm::chart::ChartError>() {
+    if let Some(e) = err.downcast_ref::<crate::chart::ChartError>() {
         return e.concern();
     }
-    if let Some(e) = err.downcast_ref::<nsrm::chart::capture::CaptureError>() {
+    if let Some(e) = err.downcast_ref::<crate::chart::capture::CaptureError>() {
         return e.concern();
     }
     None
@@ -55,22 +55,22 @@ pub fn concern(err: &(dyn std::error::Error + 'static)) -> Option<Concern> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use nsrm::error::Param;
+    use crate::error::Param;
 
     #[test]
     fn concerns_name_the_parameter() {
-        let m = nsrm::model::ModelError::NoWhite;
+        let m = crate::model::ModelError::NoWhite;
         assert_eq!(concern(&m), Some(Concern::Remedy(Param::WhitePatch)));
-        assert_eq!(concern(&nsrm::model::ModelError::Degenerate), None);
+        assert_eq!(concern(&crate::model::ModelError::Degenerate), None);
         {
-            let e = nsrm::chart::synthetic::check_exposure_noise(f64::INFINITY, 0.0).unwrap_err();
+            let e = crate::chart::synthetic::check_exposure_noise(f64::INFINITY, 0.0).unwrap_err();
             assert_eq!(concern(&e), Some(Concern::Value(Param::Exposure)));
             assert!(is_usage(&e), "{e}");
-            let e = nsrm::chart::synthetic::check_exposure_noise(1.0, -1.0).unwrap_err();
+            let e = crate::chart::synthetic::check_exposure_noise(1.0, -1.0).unwrap_err();
             assert_eq!(concern(&e), Some(Concern::Value(Param::Noise)));
         }
         {
-            let e = nsrm::chart::parse_corners("1,2 3,4").unwrap_err();
+            let e = crate::chart::parse_corners("1,2 3,4").unwrap_err();
             assert_eq!(concern(&e), Some(Concern::Value(Param::Corners)));
             assert!(is_usage(&e), "{e}");
         }
@@ -78,20 +78,20 @@ mod tests {
 
     #[test]
     fn usage_errors_are_told_apart_from_data_errors() {
-        let grid = nsrm::spectral::Grid::parse("400:700").unwrap_err();
+        let grid = crate::spectral::Grid::parse("400:700").unwrap_err();
         assert!(grid.is_usage() && is_usage(&grid), "{grid}");
-        let kind = nsrm::model::Kind::parse("xyz").unwrap_err();
+        let kind = crate::model::Kind::parse("xyz").unwrap_err();
         assert!(is_usage(&kind), "{kind}");
-        let data = nsrm::model::ModelError::Degenerate;
+        let data = crate::model::ModelError::Degenerate;
         assert!(!is_usage(&data));
-        let unknown = nsrm::spectral::Camera::from_name_or_path("no-such-camera").unwrap_err();
+        let unknown = crate::spectral::Camera::from_name_or_path("no-such-camera").unwrap_err();
         assert!(!is_usage(&unknown), "{unknown}");
         // Not one of the crate's errors.
         assert!(!is_usage(&std::io::Error::other("x")));
         {
-            let shard = nsrm::io::batch::Shard::parse("0/3").unwrap_err();
+            let shard = crate::io::batch::Shard::parse("0/3").unwrap_err();
             assert!(is_usage(&shard), "{shard}");
-            let suffix = nsrm::io::batch::validate_suffix("a/b").unwrap_err();
+            let suffix = crate::io::batch::validate_suffix("a/b").unwrap_err();
             assert!(is_usage(&suffix), "{suffix}");
         }
     }

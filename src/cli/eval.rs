@@ -4,16 +4,16 @@ use super::capture::CaptureText;
 use super::common::{parse_models, parse_orders, TrainingArgs};
 use super::fit_args::FitVariantArgs;
 use anyhow::{Context, Result};
-use nsrm::eval::{evaluate_with, plot, variants, EvalResult, Protocol};
-use nsrm::model::fit::{FitOptions, Normalise, Ridge, White};
-use nsrm::model::Kind;
-use nsrm::spectral::display_name;
+use crate::eval::{evaluate_with, plot, variants, EvalResult, Protocol};
+use crate::model::fit::{FitOptions, Normalise, Ridge, White};
+use crate::model::Kind;
+use crate::spectral::display_name;
 use serde::Serialize;
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 
 #[derive(Debug, clap::Args)]
-pub struct Args {
+pub(crate) struct Args {
     #[command(flatten)]
     training: TrainingArgs,
     /// Illuminant: a built-in name (D65, FL3.15, FL7, TL865, LED-B5, LED-YAG) or a CSV file.
@@ -100,7 +100,7 @@ fn describe(name: &str, opts: &FitOptions, r: EvalResult) -> VariantResult {
     }
 }
 
-pub fn run(a: Args) -> Result<ExitCode> {
+pub(crate) fn run(a: Args) -> Result<ExitCode> {
     let kinds = parse_models(&a.kinds)?;
     let orders = match &a.orders {
         Some(s) => parse_orders(s, "--orders")?,

@@ -4,16 +4,16 @@
 use super::common::UsageError;
 use super::values;
 use anyhow::{Context, Result};
-use nsrm::colorimetry::spaces::OutputSpace;
-use nsrm::export::nodes::Interpolation;
-use nsrm::export::{export_to, ExportError, Format, LutOptions};
-use nsrm::training::TrainingSet;
-use nsrm::Model;
+use crate::colorimetry::spaces::OutputSpace;
+use crate::export::nodes::Interpolation;
+use crate::export::{export_to, ExportError, Format, LutOptions};
+use crate::training::TrainingSet;
+use crate::Model;
 use std::path::PathBuf;
 use std::process::ExitCode;
 
 #[derive(Debug, clap::Args)]
-pub struct Args {
+pub(crate) struct Args {
     /// Model file written by `nsrm fit`.
     #[arg(long, value_name = "FILE")]
     model: PathBuf,
@@ -93,8 +93,8 @@ fn training_set(a: &Args, model: &Model) -> Result<TrainingSet> {
         .into());
     };
     let strip = |s: &str| s.strip_prefix("builtin:").unwrap_or(s).to_string();
-    let grid = nsrm::spectral::Grid::parse(p.grid.as_deref().unwrap_or("400:700:10"))?;
-    let data = nsrm::spectral::simulate_named(&strip(camera), &strip(ill), &strip(refl), &grid)
+    let grid = crate::spectral::Grid::parse(p.grid.as_deref().unwrap_or("400:700:10"))?;
+    let data = crate::spectral::simulate_named(&strip(camera), &strip(ill), &strip(refl), &grid)
         .with_context(|| {
             "re-simulating the training patches from the model's provenance (pass --training FILE to give them)".to_string()
         })?;
@@ -109,10 +109,10 @@ fn training_set(a: &Args, model: &Model) -> Result<TrainingSet> {
     Ok(data)
 }
 
-fn parse_map(s: &str) -> Result<nsrm::export::dcp::DcpOptions> {
+fn parse_map(s: &str) -> Result<crate::export::dcp::DcpOptions> {
     let bad = || UsageError(format!("--dcp-map `{s}`: expected HUExSAT, e.g. 90x30"));
     let (h, sat) = s.split_once(['x', 'X']).ok_or_else(bad)?;
-    let o = nsrm::export::dcp::DcpOptions {
+    let o = crate::export::dcp::DcpOptions {
         hue_divisions: h.trim().parse().map_err(|_| bad())?,
         sat_divisions: sat.trim().parse().map_err(|_| bad())?,
     };
@@ -123,8 +123,8 @@ fn parse_map(s: &str) -> Result<nsrm::export::dcp::DcpOptions> {
 
 /// `--format dcp`: one or two illuminants, from the model file as it is.
 fn run_dcp(a: &Args, stops: [f64; 2]) -> Result<ExitCode> {
-    use nsrm::export::dcp::{export_to, DcpTraining};
-    use nsrm::model::dual_illuminant::Profile;
+    use crate::export::dcp::{export_to, DcpTraining};
+    use crate::model::dual_illuminant::Profile;
     let opts = parse_map(&a.dcp_map)?;
     let mut inputs = vec![a.model.as_path()];
     inputs.extend(a.training.as_deref());
@@ -185,8 +185,8 @@ fn run_dcp(a: &Args, stops: [f64; 2]) -> Result<ExitCode> {
 
 /// `--format icc`: one model, one illuminant.
 fn run_icc(a: &Args) -> Result<ExitCode> {
-    use nsrm::export::icc::{export_to, IccOptions};
-    let [lo, hi] = stops_or(a, [nsrm::export::icc::DEFAULT_LO, 0.0])?;
+    use crate::export::icc::{export_to, IccOptions};
+    let [lo, hi] = stops_or(a, [crate::export::icc::DEFAULT_LO, 0.0])?;
     if hi != 0.0 {
         return Err(UsageError(format!(
             "--stops {lo}:{hi}: an ICC CLUT has no headroom above its white (the white's largest channel is device 1.0), so HI must be 0"
@@ -256,7 +256,7 @@ fn run_icc(a: &Args) -> Result<ExitCode> {
     Ok(ExitCode::SUCCESS)
 }
 
-pub fn run(a: Args) -> Result<ExitCode> {
+pub(crate) fn run(a: Args) -> Result<ExitCode> {
     let format = Format::from(a.format);
     if format == Format::Icc {
         return run_icc(&a);
@@ -289,7 +289,7 @@ pub fn run(a: Args) -> Result<ExitCode> {
             );
         }
     }
-    let companion = nsrm::export::companion_path(format, &a.output)?;
+    let companion = crate::export::companion_path(format, &a.output)?;
     let mut inputs = vec![a.model.as_path()];
     inputs.extend(a.training.as_deref());
     let mut outputs = vec![a.output.as_path()];

@@ -3,15 +3,15 @@
 
 use super::values;
 use anyhow::{Context, Result};
-use nsrm::colorimetry::spaces::OutputSpace;
-use nsrm::export::shader::export;
-use nsrm::{Layout, Model};
+use crate::colorimetry::spaces::OutputSpace;
+use crate::export::shader::export;
+use crate::{Layout, Model};
 
 use std::path::PathBuf;
 use std::process::ExitCode;
 
 #[derive(Debug, clap::Args)]
-pub struct Args {
+pub(crate) struct Args {
     /// Model file written by `nsrm fit`.
     #[arg(long, value_name = "FILE")]
     model: PathBuf,
@@ -52,18 +52,18 @@ fn run_dctl(a: &Args) -> Result<ExitCode> {
     let space = output_space(a);
     let session = super::outputs::open(a.overwrite, &[&a.model], &[&a.output])?;
     let model = Model::load(&a.model)?;
-    let folded = nsrm::model::output_model(&model, space)?;
+    let folded = crate::model::output_model(&model, space)?;
     let header = vec![
         format!(
             "nsrm DCTL: {} to {} ({}), scene-linear, training white at Y = 1 (as nsrm apply --output-space {})",
-            nsrm::export::camera_space_name(&model),
+            crate::export::camera_space_name(&model),
             space.name(),
             space.interop_id(),
             space.name()
         ),
-        nsrm::export::provenance_line(&model),
+        crate::export::provenance_line(&model),
     ];
-    let text = nsrm::export::dctl::generate(&folded, &header)
+    let text = crate::export::dctl::generate(&folded, &header)
         .with_context(|| format!("exporting {} as DCTL", a.model.display()))?;
     session.write_bytes(&a.output, text.as_bytes())?;
     eprintln!(
@@ -78,7 +78,7 @@ fn run_dctl(a: &Args) -> Result<ExitCode> {
     Ok(ExitCode::SUCCESS)
 }
 
-pub fn run(a: Args) -> Result<ExitCode> {
+pub(crate) fn run(a: Args) -> Result<ExitCode> {
     let Some(lang) = a.lang.shader() else {
         return run_dctl(&a);
     };
@@ -86,7 +86,7 @@ pub fn run(a: Args) -> Result<ExitCode> {
     let space = output_space(&a);
     let session = super::outputs::open(a.overwrite, &[&a.model], &[&a.output])?;
     let model = Model::load(&a.model)?;
-    let model = nsrm::model::output_model(&model, space)?;
+    let model = crate::model::output_model(&model, space)?;
     let bytes = export(&model, layout, lang).with_context(|| {
         format!(
             "exporting {} order {} as {}",

@@ -1,7 +1,7 @@
 //! `nsrm farm`: batches on farm engines.
 //!
 //! - `nsrm farm openjd|slurm|k8s --shards N --job-dir DIR [apply's options] INPUT… -o OUT`
-//!   writes a ready job for the engine (see `nsrm::farm::jobs`).
+//!   writes a ready job for the engine (see `crate::farm::jobs`).
 //! - `nsrm farm run --shard K/N [--inputs-from FILE] [--path-map FROM=TO]… -- [apply's
 //!   options] [INPUT…]` is one task: it keeps the shard's finished outputs (checked against
 //!   its manifest, or read in full), removes stale temporaries of its own outputs, converts
@@ -12,17 +12,17 @@ use super::apply;
 use super::common::UsageError;
 use anyhow::{Context, Result};
 use clap::Parser;
-use nsrm::farm::jobs::{self, Arg, JobFile, JobSpec};
-use nsrm::farm::manifest::{self, Batch, Entry, Failure, How, ModelRecord, ShardManifest};
-use nsrm::farm::pathmap::PathMap;
-use nsrm::farm::verify::{self, Expect};
-use nsrm::io::batch::{self, Shard};
+use crate::farm::jobs::{self, Arg, JobFile, JobSpec};
+use crate::farm::manifest::{self, Batch, Entry, Failure, How, ModelRecord, ShardManifest};
+use crate::farm::pathmap::PathMap;
+use crate::farm::verify::{self, Expect};
+use crate::io::batch::{self, Shard};
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 use std::time::{Instant, SystemTime, UNIX_EPOCH};
 
 #[derive(Debug, clap::Subcommand)]
-pub enum Command {
+pub(crate) enum Command {
     /// Write an Open Job Description job bundle (template.yaml, parameter_values.yaml/.json):
     /// the format AWS Deadline Cloud submits; `openjd run` runs it locally.
     Openjd(GenArgs),
@@ -40,7 +40,7 @@ pub enum Command {
 }
 
 #[derive(Debug, clap::Args)]
-pub struct GenArgs {
+pub(crate) struct GenArgs {
     /// Shards the batch is split into (one farm task each).
     #[arg(long, value_name = "N")]
     shards: usize,
@@ -65,7 +65,7 @@ pub struct GenArgs {
 }
 
 #[derive(Debug, clap::Args)]
-pub struct KubeArgs {
+pub(crate) struct KubeArgs {
     /// Container image with nsrm (and /bin/sh).
     #[arg(long, value_name = "IMAGE")]
     image: String,
@@ -86,7 +86,7 @@ pub struct KubeArgs {
 }
 
 #[derive(Debug, clap::Args)]
-pub struct RunArgs {
+pub(crate) struct RunArgs {
     /// This task's shard: K of N (K from 1).
     #[arg(long, value_name = "K/N")]
     shard: String,
@@ -107,7 +107,7 @@ pub struct RunArgs {
 }
 
 #[derive(Debug, clap::Args)]
-pub struct VerifyArgs {
+pub(crate) struct VerifyArgs {
     /// The batch's output directory.
     #[arg(value_name = "DIR")]
     dir: PathBuf,
@@ -127,7 +127,7 @@ struct ApplyCmd {
     a: apply::Args,
 }
 
-pub fn run(c: Command) -> Result<ExitCode> {
+pub(crate) fn run(c: Command) -> Result<ExitCode> {
     match c {
         Command::Openjd(g) => generate(Engine::Openjd, g),
         Command::Slurm(g) => generate(Engine::Slurm, g),
@@ -311,7 +311,7 @@ fn write_job(dir: &Path, files: &[JobFile], overwrite: bool) -> Result<()> {
 
 /// Reads an input list: one path per line, blank lines ignored.
 fn read_list(path: &Path) -> Result<Vec<String>> {
-    const LIMIT: u64 = nsrm::farm::MAX_RECORD_BYTES;
+    const LIMIT: u64 = crate::farm::MAX_RECORD_BYTES;
     let bytes = if path == Path::new("-") {
         use std::io::Read;
         let mut v = Vec::new();
@@ -324,7 +324,7 @@ fn read_list(path: &Path) -> Result<Vec<String>> {
         }
         v
     } else {
-        nsrm::farm::read_bounded(path, LIMIT).context("--inputs-from")?
+        crate::farm::read_bounded(path, LIMIT).context("--inputs-from")?
     };
     let text = String::from_utf8(bytes)
         .map_err(|_| anyhow::anyhow!("{}: the input list is not UTF-8", path.display()))?;
@@ -364,7 +364,7 @@ fn run_shard(r: RunArgs) -> Result<ExitCode> {
     let model_path = parts.model.clone();
     let inputs = batch::expand_inputs(parts.inputs)?;
     let settings = a.settings_argv();
-    let (_, model_sha) = nsrm::farm::sha256_file(&model_path).context("--model")?;
+    let (_, model_sha) = crate::farm::sha256_file(&model_path).context("--model")?;
     let plan = a
         .farm_plan(&inputs, shard)
         .context("planning the outputs (--suffix, -o, --preview)")?;
@@ -444,7 +444,7 @@ fn run_shard(r: RunArgs) -> Result<ExitCode> {
         },
     };
     let path = m
-        .write(&out_dir, &nsrm::output::Session::new(true))
+        .write(&out_dir, &crate::output::Session::new(true))
         .context("writing the shard manifest")?;
     eprintln!("{}", shard_summary(shard, &m, &path));
     if !m.failures.is_empty() && status == ExitCode::SUCCESS {
@@ -598,11 +598,11 @@ fn entry(j: &batch::Job, how: How) -> std::result::Result<Entry, String> {
     if !j.output.is_file() {
         return Err("no output after the conversion (see the task's log)".into());
     }
-    let (bytes, sha256) = nsrm::farm::sha256_file(&j.output).map_err(|e| e.to_string())?;
+    let (bytes, sha256) = crate::farm::sha256_file(&j.output).map_err(|e| e.to_string())?;
     let preview = match &j.preview {
         None => None,
         Some(p) => {
-            let (bytes, sha256) = nsrm::farm::sha256_file(p).map_err(|e| e.to_string())?;
+            let (bytes, sha256) = crate::farm::sha256_file(p).map_err(|e| e.to_string())?;
             Some(manifest::Preview {
                 path: p.display().to_string(),
                 bytes,
@@ -627,7 +627,7 @@ fn check_existing(
     j: &batch::Job,
     previous: Option<&ShardManifest>,
     same_run: bool,
-    read: &nsrm::io::ReadOptions,
+    read: &crate::io::ReadOptions,
 ) -> Result<Found> {
     let there = j.output.is_file() && j.preview.as_ref().is_none_or(|p| p.is_file());
     if !j.output.exists() && j.preview.as_ref().is_none_or(|p| !p.exists()) {
@@ -654,7 +654,7 @@ fn check_existing(
         (Some(_), false) => Ok(Found::Todo(true)),
         (None, _) if previous.is_some() && !same_run => Ok(Found::Todo(true)),
         (None, _) => {
-            let complete = nsrm::io::Decoded::read(&j.output, read).is_ok();
+            let complete = crate::io::Decoded::read(&j.output, read).is_ok();
             Ok(if complete {
                 match entry(j, How::Adopted) {
                     Ok(e) => Found::Done(e),
@@ -669,7 +669,7 @@ fn check_existing(
 
 fn run_verify(v: VerifyArgs) -> Result<ExitCode> {
     let model_sha256 = match &v.model {
-        Some(p) => Some(nsrm::farm::sha256_file(p).context("--model")?.1),
+        Some(p) => Some(crate::farm::sha256_file(p).context("--model")?.1),
         None => None,
     };
     if v.shards == Some(0) {

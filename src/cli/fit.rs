@@ -5,16 +5,16 @@ use super::common::{TrainingArgs, UsageError};
 use super::fit_args::FitVariantArgs;
 use super::values;
 use anyhow::{Context, Result};
-use nsrm::colorimetry::delta_e00_xyz;
-use nsrm::model::dual_illuminant::Profile;
-use nsrm::model::fit::{fit_with, Normalise};
-use nsrm::model::Kind;
+use crate::colorimetry::delta_e00_xyz;
+use crate::model::dual_illuminant::Profile;
+use crate::model::fit::{fit_with, Normalise};
+use crate::model::Kind;
 use rayon::prelude::*;
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 
 #[derive(Debug, clap::Args)]
-pub struct Args {
+pub(crate) struct Args {
     #[command(flatten)]
     training: TrainingArgs,
     /// Illuminant the chart is lit by: a built-in name or a CSV file (default D65). Twice (e.g.
@@ -54,17 +54,17 @@ pub struct Args {
 /// the bound every back end keeps, what this CPU's fast path does, and whether the ridge λ was
 /// raised to keep it small.
 fn f32_summary(
-    model: &nsrm::model::Model,
-    report: &nsrm::model::fit::FitReport,
-    data: &nsrm::TrainingSet,
+    model: &crate::model::Model,
+    report: &crate::model::fit::FitReport,
+    data: &crate::TrainingSet,
 ) -> String {
-    let measured = nsrm::model::fit::f32_error_measured(model, &data.rgb, &data.xyz);
+    let measured = crate::model::fit::f32_error_measured(model, &data.rgb, &data.xyz);
     let bound = report.f32_error_bound.unwrap_or(f64::NAN);
     let raised = match report.ridge_requested {
         Some(r) => format!(
             "; ridge λ raised from {r} to {} to keep it within {}",
             report.ridge_lambda,
-            nsrm::model::fit::F32_TOLERANCE_DE00
+            crate::model::fit::F32_TOLERANCE_DE00
         ),
         None => String::new(),
     };
@@ -74,12 +74,12 @@ fn f32_summary(
 impl Args {
     /// The model kind asked for.
     #[cfg(test)]
-    pub fn kind(&self) -> Kind {
+    pub(crate) fn kind(&self) -> Kind {
         Kind::from(self.kind.kind)
     }
 }
 
-pub fn run(a: Args) -> Result<ExitCode> {
+pub(crate) fn run(a: Args) -> Result<ExitCode> {
     let kind = Kind::from(a.kind.kind);
     if !(1..=4).contains(&a.order) {
         return Err(UsageError(format!("--order {} is out of range (1..4)", a.order)).into());
@@ -213,25 +213,25 @@ pub fn run(a: Args) -> Result<ExitCode> {
 /// Y): the model fitted on it maps the camera's response to that light to that light's white,
 /// which is what a calibration illuminant is.
 fn under_light(
-    mut data: nsrm::TrainingSet,
+    mut data: crate::TrainingSet,
     ill: &str,
     t: &super::common::TrainingArgs,
-) -> Result<nsrm::TrainingSet> {
-    let grid = nsrm::spectral::Grid::parse(&t.grid)?;
-    let light = nsrm::spectral::Illuminant::from_name_or_path(ill).context("--illuminant")?;
-    let w = nsrm::spectral::white_xyz(&light, &grid).context("--illuminant")?;
+) -> Result<crate::TrainingSet> {
+    let grid = crate::spectral::Grid::parse(&t.grid)?;
+    let light = crate::spectral::Illuminant::from_name_or_path(ill).context("--illuminant")?;
+    let w = crate::spectral::white_xyz(&light, &grid).context("--illuminant")?;
     let y = data.white_xyz[1];
     let dst = w.map(|v| v * y / w[1]);
-    let m = nsrm::colorimetry::temperature::bradford_between(data.white_xyz, dst);
+    let m = crate::colorimetry::temperature::bradford_between(data.white_xyz, dst);
     for x in &mut data.xyz {
-        *x = nsrm::colorimetry::spaces::apply(&m, *x);
+        *x = crate::colorimetry::spaces::apply(&m, *x);
     }
     data.white_xyz = dst;
     Ok(data)
 }
 
 /// What `fit` prints about one fitted model.
-fn report(fitted: &nsrm::model::fit::Fit, data: &nsrm::TrainingSet, source: &str, output: &Path) {
+fn report(fitted: &crate::model::fit::Fit, data: &crate::TrainingSet, source: &str, output: &Path) {
     let model = &fitted.model;
     let report = &fitted.report;
     let kind = model.kind();
@@ -285,7 +285,7 @@ fn report(fitted: &nsrm::model::fit::Fit, data: &nsrm::TrainingSet, source: &str
 /// A warning when the fit has fewer than 1.5 patches per term: it can follow the patches'
 /// noise, and its in-sample error says nothing about other colours (PRM 3, 19 terms, on 23 CC24
 /// patches: leave-one-out max ΔE00 about 21).
-pub fn few_patches_warning(terms: usize, patches: usize) -> Option<String> {
+pub(crate) fn few_patches_warning(terms: usize, patches: usize) -> Option<String> {
     (2 * patches < 3 * terms).then(|| {
         format!(
             "warning: {terms} terms fitted on {patches} patches (fewer than 1.5 per term): the fit can follow the patches' noise and go wild between them; check it with `nsrm eval` (leave-one-out), use a lower --order or more patches, or regularise with --ridge auto"

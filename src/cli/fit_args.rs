@@ -3,38 +3,38 @@
 use super::common::UsageError;
 use super::values;
 use anyhow::{Context, Result};
-use nsrm::model::fit::{FitOptions, Normalise, Objective, Ridge, White};
+use crate::model::fit::{FitOptions, Normalise, Objective, Ridge, White};
 
 /// How the matrix is fitted (the paper: least squares, raw input, no constraint, no ridge).
 #[derive(Debug, Clone, clap::Args)]
-pub struct FitVariantArgs {
+pub(crate) struct FitVariantArgs {
     /// What the fit minimises: `ls` (least squares in XYZ, the paper), `de00` (Σ ΔE00² over the
     /// training patches, Levenberg–Marquardt from the least-squares solution) or `de00:P`
     /// (Σ ΔE00^P, 2 ≤ P ≤ 64: a larger P trades mean error for maximum error).
     #[arg(long, default_value = "ls", value_name = "ls|de00|de00:P")]
-    pub objective: String,
+    pub(crate) objective: String,
     /// Map the reference white exactly to its XYZ (an equality constraint, kept by `de00`): the
     /// perfect white of the training illuminant, or the patch named by `--white-patch`.
     #[arg(long)]
-    pub preserve_white: bool,
+    pub(crate) preserve_white: bool,
     /// A neutral training patch to use as the white (for `--preserve-white` and
     /// `--normalise white-balanced`); needed with measured data, which has no perfect white.
     #[arg(long, value_name = "LABEL")]
-    pub white_patch: Option<String>,
+    pub(crate) white_patch: Option<String>,
     /// Tikhonov regularisation of the matrix on standardised terms: λ ≥ 0, `auto` (λ chosen by
     /// generalised cross-validation on a log grid 1e-12..10; also `auto-gcv`) or `auto-loo` (by
     /// exact, closed-form leave-one-out of the ridge solve on the same grid).
     #[arg(long, value_name = "LAMBDA|auto|auto-loo")]
-    pub ridge: Option<String>,
+    pub(crate) ridge: Option<String>,
     /// NSRM's input: `raw` (the paper) or `white-balanced` (R, G, B divided by the training white's
     /// camera response before forming s, r, g; the gains go into the model file).
     #[arg(long, value_enum, ignore_case = true, default_value_t = values::Normalise::Raw)]
-    pub normalise: values::Normalise,
+    pub(crate) normalise: values::Normalise,
 }
 
 impl FitVariantArgs {
     /// The options these flags name.
-    pub fn options(&self) -> Result<FitOptions> {
+    pub(crate) fn options(&self) -> Result<FitOptions> {
         let objective = Objective::parse(&self.objective).context("--objective")?;
         let ridge = match &self.ridge {
             Some(s) => Ridge::parse(s).context("--ridge")?,
@@ -60,7 +60,7 @@ impl FitVariantArgs {
     }
 
     /// The fit in a few words: `least squares` (the paper's), or the objective and options.
-    pub fn method_name(&self) -> String {
+    pub(crate) fn method_name(&self) -> String {
         let mut parts = vec![if self.objective == "ls" {
             "least squares".to_string()
         } else {
@@ -79,7 +79,7 @@ impl FitVariantArgs {
     }
 
     /// Whether any flag differs from the paper's fit.
-    pub fn is_default(&self) -> bool {
+    pub(crate) fn is_default(&self) -> bool {
         self.objective == "ls"
             && !self.preserve_white
             && self.white_patch.is_none()

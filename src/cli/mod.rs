@@ -147,8 +147,8 @@ pub fn main() -> ExitCode {
             }
             if e.chain().any(|c| {
                 matches!(
-                    c.downcast_ref::<nsrm::output::WriteError>(),
-                    Some(nsrm::output::WriteError::Exists(_))
+                    c.downcast_ref::<crate::output::WriteError>(),
+                    Some(crate::output::WriteError::Exists(_))
                 )
             }) {
                 eprintln!("\n  hint: pass --overwrite to replace it");
@@ -239,6 +239,6 @@ mod tests {
         let Command::Fit(f) = new.command else {
             panic!()
         };
-        assert_eq!(f.kind(), nsrm::model::Kind::Prm);
+        assert_eq!(f.kind(), crate::model::Kind::Prm);
     }
 }

@@ -1,4 +1,4 @@
-//! The binary's side of the output session ([`nsrm::output`]): every command opens one with its
+//! The binary's side of the output session ([`crate::output`]): every command opens one with its
 //! inputs and outputs before any work, and a signal handler that aborts it.
 //!
 //! ```text
@@ -10,11 +10,11 @@
 //! ```
 
 use anyhow::{Context, Result};
-use nsrm::output::Session;
+use crate::output::Session;
 use std::path::Path;
 
 /// The signals that abort a run, with their names.
-pub const STOP_SIGNALS: [(i32, &str); 3] = [
+pub(crate) const STOP_SIGNALS: [(i32, &str); 3] = [
     (signal_hook::consts::SIGINT, "SIGINT"),
     (signal_hook::consts::SIGTERM, "SIGTERM"),
     (signal_hook::consts::SIGHUP, "SIGHUP"),
@@ -26,7 +26,7 @@ pub const STOP_SIGNALS: [(i32, &str); 3] = [
 /// 1, with the hint) when one exists without `overwrite`. Then a signal thread is started: on
 /// SIGINT, SIGTERM or SIGHUP it aborts the session (removing every temporary it holds, after a
 /// unit being committed is placed or rolled back) and ends the process with 128 + the signal.
-pub fn open(overwrite: bool, inputs: &[&Path], outputs: &[&Path]) -> Result<Session> {
+pub(crate) fn open(overwrite: bool, inputs: &[&Path], outputs: &[&Path]) -> Result<Session> {
     let mut session = Session::new(overwrite);
     for i in inputs {
         session.input(i)?;
@@ -39,7 +39,7 @@ pub fn open(overwrite: bool, inputs: &[&Path], outputs: &[&Path]) -> Result<Sess
 }
 
 /// Starts the thread that aborts `session` and exits with 128 + the signal (see [`open`]).
-pub fn exit_on_signal(session: &Session) -> Result<()> {
+pub(crate) fn exit_on_signal(session: &Session) -> Result<()> {
     let handle = session.abort_handle();
     let mut signals = signal_hook::iterator::Signals::new(STOP_SIGNALS.map(|(s, _)| s))
         .context("installing the signal handlers")?;
@@ -64,7 +64,7 @@ pub fn exit_on_signal(session: &Session) -> Result<()> {
 
 /// `spec` as a path when it names an existing file (a `NAME|FILE` option), for
 /// [`Session::input`].
-pub fn file_arg(spec: &str) -> Option<&Path> {
+pub(crate) fn file_arg(spec: &str) -> Option<&Path> {
     let p = Path::new(spec);
     p.exists().then_some(p)
 }

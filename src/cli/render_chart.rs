@@ -2,12 +2,12 @@
 
 use super::common::{TrainingArgs, UsageError};
 use anyhow::{Context, Result};
-use nsrm::chart::synthetic::{self, ChartOptions};
+use crate::chart::synthetic::{self, ChartOptions};
 use std::path::PathBuf;
 use std::process::ExitCode;
 
 #[derive(Debug, clap::Args)]
-pub struct Args {
+pub(crate) struct Args {
     #[command(flatten)]
     training: TrainingArgs,
     /// Illuminant the chart is lit by: a built-in name or a CSV file.
@@ -40,8 +40,8 @@ pub struct Args {
     overwrite: bool,
 }
 
-pub fn run(a: Args) -> Result<ExitCode> {
-    if nsrm::io::FileFormat::from_extension(&a.output).is_none() {
+pub(crate) fn run(a: Args) -> Result<ExitCode> {
+    if crate::io::FileFormat::from_extension(&a.output).is_none() {
         return Err(UsageError(format!(
             "{}: the chart must be written as .exr, .tif or .tiff",
             a.output.display()

@@ -4,13 +4,13 @@
 use super::common::UsageError;
 use super::values;
 use anyhow::{Context, Result};
-use nsrm::chart::scene::{render, truth_path, ChartColours, SceneOptions};
-use nsrm::chart::{parse_corners, ChartKind};
+use crate::chart::scene::{render, truth_path, ChartColours, SceneOptions};
+use crate::chart::{parse_corners, ChartKind};
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 
 #[derive(Debug, clap::Args)]
-pub struct Args {
+pub(crate) struct Args {
     /// cc24 (built-in BabelColor spectra) or sg (spectra from --reflectances).
     #[arg(long, value_enum, ignore_case = true)]
     chart: values::Chart,
@@ -42,7 +42,7 @@ pub struct Args {
     /// passport, or the negatives spyder, random, shuffled (cc24). A jpeg-look scene is written
     /// as the values nsrm decodes from the camera JPEG (sRGB decoded, tone curve kept).
     #[arg(long, value_parser = super::chart::parse_family, conflicts_with = "envelope")]
-    family: Option<nsrm::chart::scene::Family>,
+    family: Option<crate::chart::scene::Family>,
     /// Seed of the random pose, clutter and noise (and, with --envelope, of everything).
     #[arg(long, default_value_t = 1, value_name = "N")]
     seed: u64,
@@ -96,10 +96,10 @@ pub struct Args {
     overwrite: bool,
 }
 
-pub fn run(a: Args) -> Result<ExitCode> {
+pub(crate) fn run(a: Args) -> Result<ExitCode> {
     let kind = ChartKind::from(a.chart);
     for p in std::iter::once(&a.output).chain(&a.flat_output) {
-        if nsrm::io::FileFormat::from_extension(p).is_none() {
+        if crate::io::FileFormat::from_extension(p).is_none() {
             return Err(UsageError(format!("{}: must be .exr, .tif or .tiff", p.display())).into());
         }
     }
@@ -179,10 +179,10 @@ pub fn run(a: Args) -> Result<ExitCode> {
         }
     );
     let mut unit = session.unit();
-    nsrm::chart::synthetic::write_camera_frame(&frame, &a.output, &note, &mut unit)
+    crate::chart::synthetic::write_camera_frame(&frame, &a.output, &note, &mut unit)
         .with_context(|| format!("writing {}", a.output.display()))?;
     if let Some(f) = &a.flat_output {
-        nsrm::chart::synthetic::write_camera_frame(&flat, f, "nsrm scene: flat frame", &mut unit)
+        crate::chart::synthetic::write_camera_frame(&flat, f, "nsrm scene: flat frame", &mut unit)
             .with_context(|| format!("writing {}", f.display()))?;
     }
     unit.write_bytes(&tpath, json.as_bytes())?;

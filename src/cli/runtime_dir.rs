@@ -9,7 +9,7 @@
 ///
 /// The binary calls it first thing, while it has one thread (changing the environment later
 /// would race with threads reading it); the library itself never touches the environment.
-pub fn ensure_runtime_dir() {
+pub(crate) fn ensure_runtime_dir() {
     if std::env::var_os("XDG_RUNTIME_DIR").is_some_and(|d| std::path::Path::new(&d).is_dir()) {
         return;
     }

@@ -3,11 +3,11 @@
 use super::common::UsageError;
 use super::values;
 use anyhow::Result;
-use nsrm::model::{term_name, terms, Kind};
+use crate::model::{term_name, terms, Kind};
 use std::process::ExitCode;
 
 #[derive(Debug, clap::Args)]
-pub struct Args {
+pub(crate) struct Args {
     #[command(flatten)]
     kind: values::KindArg,
     /// Order, 1..4.
@@ -15,7 +15,7 @@ pub struct Args {
     order: u8,
 }
 
-pub fn run(a: Args) -> Result<ExitCode> {
+pub(crate) fn run(a: Args) -> Result<ExitCode> {
     let kind = Kind::from(a.kind.kind);
     if !(1..=4).contains(&a.order) {
         return Err(UsageError(format!("--order {} is out of range (1..4)", a.order)).into());

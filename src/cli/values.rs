@@ -10,7 +10,7 @@ macro_rules! value_enum {
      { $($var:ident = $value:literal $(| $alias:literal)*),+ $(,)? }) => {
         $(#[$meta])*
         #[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
-        pub enum $name {
+        pub(crate) enum $name {
             $(#[value(name = $value $(, alias = $alias)*)] $var),+
         }
 
@@ -39,70 +39,70 @@ macro_rules! value_enum {
 
 value_enum!(
     /// `--output-space`.
-    Space => nsrm::colorimetry::spaces::OutputSpace,
-    nsrm::colorimetry::spaces::OutputSpace::parse,
+    Space => crate::colorimetry::spaces::OutputSpace,
+    crate::colorimetry::spaces::OutputSpace::parse,
     { Xyz = "xyz", LinearSrgb = "linear-srgb", Acescg = "acescg", Aces2065_1 = "aces2065-1" }
 );
 
 value_enum!(
     /// `--kind` (one model kind).
-    ModelKind => nsrm::model::Kind,
-    |s| nsrm::model::Kind::parse(s).ok(),
+    ModelKind => crate::model::Kind,
+    |s| crate::model::Kind::parse(s).ok(),
     { Lrm = "lrm", Prm = "prm", Rprm = "rprm", Nsrm = "nsrm" }
 );
 
 value_enum!(
     /// `--normalise`.
-    Normalise => nsrm::model::fit::Normalise,
-    |s| nsrm::model::fit::Normalise::parse(s).ok(),
+    Normalise => crate::model::fit::Normalise,
+    |s| crate::model::fit::Normalise::parse(s).ok(),
     { Raw = "raw", WhiteBalanced = "white-balanced" | "wb" }
 );
 
 value_enum!(
     /// `apply --format`.
-    FileFormat => nsrm::io::FileFormat,
-    nsrm::io::FileFormat::parse,
+    FileFormat => crate::io::FileFormat,
+    crate::io::FileFormat::parse,
     { Exr = "exr" | "openexr", Tiff = "tiff" | "tif" }
 );
 
 value_enum!(
     /// `--demosaic` (camera raw inputs).
-    Demosaic => nsrm::io::raw::Demosaic,
-    nsrm::io::raw::Demosaic::parse,
+    Demosaic => crate::io::raw::Demosaic,
+    crate::io::raw::Demosaic::parse,
     { Half = "half", Bilinear = "bilinear", Mhc = "mhc" | "malvar" }
 );
 
 value_enum!(
     /// `apply --compression`.
-    Compression => nsrm::io::ExrCompression,
-    nsrm::io::ExrCompression::parse,
+    Compression => crate::io::ExrCompression,
+    crate::io::ExrCompression::parse,
     { Keep = "keep", None = "none", Rle = "rle", Zips = "zips", Zip = "zip", Piz = "piz" }
 );
 
 value_enum!(
     /// `--device` (apply, bench).
-    Device => nsrm::gpu::DeviceChoice,
-    nsrm::gpu::DeviceChoice::parse,
+    Device => crate::gpu::DeviceChoice,
+    crate::gpu::DeviceChoice::parse,
     { Auto = "auto", Gpu = "gpu", Cpu = "cpu" }
 );
 
 value_enum!(
     /// `export --format`.
-    ExportFormat => nsrm::export::Format,
-    nsrm::export::Format::parse,
+    ExportFormat => crate::export::Format,
+    crate::export::Format::parse,
     { Clf = "clf", Cube = "cube", Ocio = "ocio", Dcp = "dcp", Icc = "icc" }
 );
 
 value_enum!(
     /// `export --interpolation`.
-    Interpolation => nsrm::export::nodes::Interpolation,
-    nsrm::export::nodes::Interpolation::parse,
+    Interpolation => crate::export::nodes::Interpolation,
+    crate::export::nodes::Interpolation::parse,
     { Tetrahedral = "tetrahedral", Trilinear = "trilinear" | "linear" }
 );
 
 /// `export-shader --lang`: a compute-shader language, or DaVinci Resolve's DCTL.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
-pub enum Lang {
+pub(crate) enum Lang {
     Wgsl,
     Glsl,
     Hlsl,
@@ -115,8 +115,8 @@ pub enum Lang {
 
 impl Lang {
     /// The compute-shader language; `None` for DCTL.
-    pub fn shader(self) -> Option<nsrm::export::shader::ShaderLang> {
-        use nsrm::export::shader::ShaderLang as S;
+    pub(crate) fn shader(self) -> Option<crate::export::shader::ShaderLang> {
+        use crate::export::shader::ShaderLang as S;
         Some(match self {
             Lang::Wgsl => S::Wgsl,
             Lang::Glsl => S::Glsl,
@@ -130,44 +130,44 @@ impl Lang {
 
 value_enum!(
     /// `--layout` (export-shader, bench).
-    Layout => nsrm::Layout,
-    nsrm::Layout::parse,
+    Layout => crate::Layout,
+    crate::Layout::parse,
     { Rgb = "rgb", Rgba = "rgba" }
 );
 
 /// `--kind`, defined once for `fit` and `terms` (`--model` names a model file everywhere; it is
 /// kept as a hidden alias here, the old spelling).
 #[derive(Debug, Clone, clap::Args)]
-pub struct KindArg {
+pub(crate) struct KindArg {
     /// Model kind: lrm, prm, rprm or nsrm.
     #[arg(long, alias = "model", value_enum, ignore_case = true, default_value_t = ModelKind::Nsrm)]
-    pub kind: ModelKind,
+    pub(crate) kind: ModelKind,
 }
 
 /// `--device`, defined once for `apply` and `bench`.
 #[derive(Debug, Clone, clap::Args)]
-pub struct DeviceArg {
+pub(crate) struct DeviceArg {
     /// Where to run: `auto` (a hardware GPU if there is one, else the CPU path; a software
     /// rasteriser such as Mesa's lavapipe is slower than the CPU path and is used only by `gpu`
     /// or when named by --adapter / NSRM_ADAPTER; the choice and its reason are printed), `gpu`
     /// (any GPU adapter, or an error) or `cpu`.
     #[arg(long, value_enum, ignore_case = true, default_value_t = Device::Auto)]
-    pub device: Device,
+    pub(crate) device: Device,
 }
 
 /// `--layout`, defined once for every command that takes it (one default: `rgb`, the layout of
 /// the frames `apply` reads and writes).
 #[derive(Debug, Clone, clap::Args)]
-pub struct LayoutArg {
+pub(crate) struct LayoutArg {
     /// Pixel layout of the buffer: packed f32 `rgb`, or `rgba` (alpha untouched).
     #[arg(long, value_enum, ignore_case = true, default_value_t = Layout::Rgb)]
-    pub layout: Layout,
+    pub(crate) layout: Layout,
 }
 
 value_enum!(
     /// `--chart`.
-    Chart => nsrm::chart::ChartKind,
-    |s| nsrm::chart::ChartKind::parse(s).ok(),
+    Chart => crate::chart::ChartKind,
+    |s| crate::chart::ChartKind::parse(s).ok(),
     { Cc24 = "cc24", Sg = "sg" }
 );
 
@@ -190,7 +190,7 @@ mod tests {
             let p = v.to_possible_value().unwrap();
             for n in p.get_name_and_aliases() {
                 assert_eq!(
-                    nsrm::export::shader::ShaderLang::parse(n),
+                    crate::export::shader::ShaderLang::parse(n),
                     v.shader(),
                     "{n}"
                 );
@@ -202,17 +202,17 @@ mod tests {
 
     #[test]
     fn every_library_value_has_a_flag_value() {
-        use nsrm::colorimetry::spaces::OutputSpace;
+        use crate::colorimetry::spaces::OutputSpace;
         for (s, name) in OutputSpace::ALL {
             assert_eq!(OutputSpace::from(Space::from_str(name, false).unwrap()), s);
         }
-        for k in nsrm::model::Kind::ALL {
+        for k in crate::model::Kind::ALL {
             let v = ModelKind::from_str(k.name(), true).unwrap();
-            assert_eq!(nsrm::model::Kind::from(v), k);
+            assert_eq!(crate::model::Kind::from(v), k);
         }
-        for (c, name) in nsrm::io::ExrCompression::ALL {
+        for (c, name) in crate::io::ExrCompression::ALL {
             assert_eq!(
-                nsrm::io::ExrCompression::from(Compression::from_str(name, false).unwrap()),
+                crate::io::ExrCompression::from(Compression::from_str(name, false).unwrap()),
                 c
             );
         }

@@ -3,14 +3,14 @@
 
 use super::common::UsageError;
 use anyhow::{Context, Result};
-use nsrm::colorimetry::temperature::temperature_xy;
-use nsrm::model::dual_illuminant::{Combination, FrameWhite, Profile};
-use nsrm::Model;
+use crate::colorimetry::temperature::temperature_xy;
+use crate::model::dual_illuminant::{Combination, FrameWhite, Profile};
+use crate::Model;
 use std::path::Path;
 
 /// What `--white` names: one white for every frame, or each raw frame's own as-shot neutral.
 #[derive(Debug, Clone, Copy, PartialEq)]
-pub enum WhiteSpec {
+pub(crate) enum WhiteSpec {
     Fixed(FrameWhite),
     /// `as-shot`: the camera neutral the raw file records (its AsShotNeutral, or the inverse of
     /// its white-balance coefficients), per frame; its temperature by the DNG fixed-point
@@ -21,7 +21,7 @@ pub enum WhiteSpec {
 /// Parses `--white`: `CCT` (kelvin: Planckian below 4000 K, CIE daylight from 4000 K), `x,y`,
 /// `as-shot` (each raw frame's own as-shot neutral) or `as-shot:R,G,B` / `neutral:R,G,B` (the
 /// camera's response to the frame's white, given).
-pub fn parse_white(s: &str) -> Result<WhiteSpec> {
+pub(crate) fn parse_white(s: &str) -> Result<WhiteSpec> {
     let t = s.trim();
     let nums = |v: &str| -> Option<Vec<f64>> {
         v.split(',')
@@ -61,7 +61,7 @@ pub fn parse_white(s: &str) -> Result<WhiteSpec> {
 }
 
 /// The model(s) `apply` runs.
-pub enum ApplyModels {
+pub(crate) enum ApplyModels {
     /// One white for every frame: the model file's one model (no `--white`), or the model set
     /// combined for the white (one part, or two whose outputs are summed).
     Fixed(Vec<Model>),
@@ -70,7 +70,7 @@ pub enum ApplyModels {
 }
 
 /// The model(s) `apply` runs for `--model` and `--white`.
-pub fn models_for_apply(path: &Path, white: Option<&str>) -> Result<ApplyModels> {
+pub(crate) fn models_for_apply(path: &Path, white: Option<&str>) -> Result<ApplyModels> {
     let Some(w) = white else {
         return match Model::load(path) {
             Ok(m) => Ok(ApplyModels::Fixed(vec![m])),
@@ -112,7 +112,7 @@ pub fn models_for_apply(path: &Path, white: Option<&str>) -> Result<ApplyModels>
 }
 
 /// The white a combination was made for, and the models' weights.
-pub fn describe(profile: &Profile, c: &Combination) -> String {
+pub(crate) fn describe(profile: &Profile, c: &Combination) -> String {
     format!(
         "white x, y {:.4}, {:.4} ({:.0} K), camera neutral {:.4}, {:.4}, {:.4}; {}",
         c.xy[0],
@@ -137,7 +137,7 @@ pub fn describe(profile: &Profile, c: &Combination) -> String {
 
 /// The model set combined for a raw frame's as-shot neutral (`--white as-shot`): an error when
 /// the frame records none.
-pub fn for_as_shot(profile: &Profile, neutral: Option<[f32; 3]>) -> Result<Combination> {
+pub(crate) fn for_as_shot(profile: &Profile, neutral: Option<[f32; 3]>) -> Result<Combination> {
     let n = neutral.ok_or_else(|| {
         UsageError(
             "--white as-shot: this frame records no as-shot neutral (only camera raw files do, and this one has none): give the white as --white CCT, x,y or as-shot:R,G,B".into(),

@@ -17,17 +17,17 @@ const STYLE_CSS: &str = include_str!("web/style.css");
 const MAX_JSON: u64 = 1 << 20;
 
 /// What a handler answers.
-pub struct Reply {
-    pub status: u16,
-    pub content_type: &'static str,
-    pub body: Vec<u8>,
+pub(crate) struct Reply {
+    pub(crate) status: u16,
+    pub(crate) content_type: &'static str,
+    pub(crate) body: Vec<u8>,
     /// A download: `Content-Disposition: attachment; filename=…`.
-    pub filename: Option<String>,
-    pub extra: Vec<(&'static str, String)>,
+    pub(crate) filename: Option<String>,
+    pub(crate) extra: Vec<(&'static str, String)>,
 }
 
 impl Reply {
-    pub fn new(status: u16, content_type: &'static str, body: Vec<u8>) -> Reply {
+    pub(crate) fn new(status: u16, content_type: &'static str, body: Vec<u8>) -> Reply {
         Reply {
             status,
             content_type,
@@ -37,7 +37,7 @@ impl Reply {
         }
     }
 
-    pub fn download(content_type: &'static str, body: Vec<u8>, filename: String) -> Reply {
+    pub(crate) fn download(content_type: &'static str, body: Vec<u8>, filename: String) -> Reply {
         Reply {
             filename: Some(filename),
             ..Reply::new(200, content_type, body)
@@ -52,16 +52,16 @@ impl Reply {
 /// An error that is the client's fault (400), with its message for the page.
 #[derive(Debug, thiserror::Error)]
 #[error("{0}")]
-pub struct BadRequest(pub String);
+pub(crate) struct BadRequest(pub String);
 
 /// A parsed request target.
-pub struct Target {
-    pub path: String,
-    pub query: Vec<(String, String)>,
+pub(crate) struct Target {
+    pub(crate) path: String,
+    pub(crate) query: Vec<(String, String)>,
 }
 
 impl Target {
-    pub fn param(&self, k: &str) -> Option<&str> {
+    pub(crate) fn param(&self, k: &str) -> Option<&str> {
         self.query
             .iter()
             .find(|(n, _)| n == k)
@@ -86,7 +86,7 @@ fn parse_target(url: &str) -> Target {
 }
 
 /// `%XX` and `+` decoding (invalid escapes kept as they are; invalid UTF-8 replaced).
-pub fn percent_decode(s: &str) -> String {
+pub(crate) fn percent_decode(s: &str) -> String {
     let b = s.as_bytes();
     let mut out = Vec::with_capacity(b.len());
     let mut i = 0;
@@ -157,7 +157,7 @@ fn check(studio: &Studio, req: &Request, target: &Target) -> std::result::Result
 }
 
 /// Answers one request (never panics out: a panic in a handler becomes a 500).
-pub fn serve(studio: &Studio, mut req: Request) {
+pub(crate) fn serve(studio: &Studio, mut req: Request) {
     let target = parse_target(req.url());
     let reply = match check(studio, &req, &target) {
         Err(why) => Reply::text(403, &format!("403 forbidden: {why}\n")),
@@ -223,12 +223,12 @@ fn respond(req: Request, reply: Reply) {
 /// A 404.
 #[derive(Debug, thiserror::Error)]
 #[error("{0}")]
-pub struct NotFound(pub String);
+pub(crate) struct NotFound(pub String);
 
 /// A 413.
 #[derive(Debug, thiserror::Error)]
 #[error("{0}")]
-pub struct TooLarge(pub String);
+pub(crate) struct TooLarge(pub String);
 
 fn route(studio: &Studio, req: &mut Request, t: &Target) -> Result<Reply> {
     let method = req.method().as_str().to_ascii_uppercase();
@@ -410,7 +410,7 @@ fn read_json(req: &mut Request) -> Result<serde_json::Value> {
 }
 
 /// A file name safe to create in our directory: the last component, odd characters replaced.
-pub fn safe_name(name: &str) -> String {
+pub(crate) fn safe_name(name: &str) -> String {
     let last = name.rsplit(['/', '\\']).next().unwrap_or("");
     let s: String = last
         .chars()

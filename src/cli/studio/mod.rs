@@ -23,7 +23,7 @@ use std::sync::Arc;
 use std::time::Duration;
 
 #[derive(Debug, clap::Args)]
-pub struct Args {
+pub(crate) struct Args {
     /// Frames the page may open (whatever `chart extract` reads), or directories of them.
     #[arg(value_name = "DIR|FILE")]
     inputs: Vec<PathBuf>,
@@ -34,7 +34,7 @@ pub struct Args {
     #[arg(long)]
     no_browser: bool,
     /// Most pixels a frame may have (as in `chart extract`); uploads are bounded by it too.
-    #[arg(long, value_name = "N", default_value_t = nsrm::io::DEFAULT_MAX_PIXELS,
+    #[arg(long, value_name = "N", default_value_t = crate::io::DEFAULT_MAX_PIXELS,
           value_parser = clap::value_parser!(u64).range(1..))]
     max_pixels: u64,
     /// Where the server computes corrected previews: auto (a hardware GPU if there is one, else
@@ -53,11 +53,11 @@ const STOP_SIGNALS: [i32; 3] = [
     signal_hook::consts::SIGHUP,
 ];
 
-pub fn run(a: Args) -> Result<ExitCode> {
+pub(crate) fn run(a: Args) -> Result<ExitCode> {
     let files = if a.inputs.is_empty() {
         Vec::new()
     } else {
-        nsrm::io::batch::expand_inputs(&a.inputs).context("the frames to open")?
+        crate::io::batch::expand_inputs(&a.inputs).context("the frames to open")?
     };
     let server = tiny_http::Server::http(("127.0.0.1", a.port)).map_err(|e| {
         UsageError(format!(
@@ -79,7 +79,7 @@ pub fn run(a: Args) -> Result<ExitCode> {
         files,
         port,
         a.max_pixels,
-        nsrm::gpu::DeviceChoice::from(a.device),
+        crate::gpu::DeviceChoice::from(a.device),
     )?);
     let url = format!("http://127.0.0.1:{port}/?token={}", studio.token);
     println!("nsrm studio: {url}");

@@ -11,15 +11,15 @@ use super::super::values;
 use super::http::{BadRequest, NotFound, Target};
 use anyhow::{bail, Context, Result};
 use clap::ValueEnum;
-use nsrm::chart::capture::{CaptureFrame, FlatField, ReadingOptions};
-use nsrm::colorimetry::spaces::{apply as mat_apply, OutputSpace};
-use nsrm::colorimetry::{delta_e00_xyz, output_matrix, srgb8, to_linear_srgb};
-use nsrm::eval::{evaluate_with, EvalResult, Protocol, Stats};
-use nsrm::export::{export_to, Format, LutOptions};
-use nsrm::gpu::{DeviceChoice, Engine, GpuOptions, Opened};
-use nsrm::model::fit::{fit_with, FitReport, Normalise};
-use nsrm::model::Kind;
-use nsrm::{Frame, Layout, Model};
+use crate::chart::capture::{CaptureFrame, FlatField, ReadingOptions};
+use crate::colorimetry::spaces::{apply as mat_apply, OutputSpace};
+use crate::colorimetry::{delta_e00_xyz, output_matrix, srgb8, to_linear_srgb};
+use crate::eval::{evaluate_with, EvalResult, Protocol, Stats};
+use crate::export::{export_to, Format, LutOptions};
+use crate::gpu::{DeviceChoice, Engine, GpuOptions, Opened};
+use crate::model::fit::{fit_with, FitReport, Normalise};
+use crate::model::Kind;
+use crate::{Frame, Layout, Model};
 use serde::Deserialize;
 use serde_json::{json, Value};
 use std::path::{Path, PathBuf};
@@ -41,14 +41,14 @@ const REFERENCES: [&str; 4] = [
     "sg-before2014",
 ];
 
-pub struct Studio {
-    pub token: String,
-    pub port: u16,
+pub(crate) struct Studio {
+    pub(crate) token: String,
+    pub(crate) port: u16,
     /// The frames named on the command line: the only paths the server reads besides uploads.
-    pub files: Vec<PathBuf>,
+    pub(crate) files: Vec<PathBuf>,
     /// The per-run temporary directory: the only place the server writes.
-    pub tmp: PathBuf,
-    pub max_pixels: u64,
+    pub(crate) tmp: PathBuf,
+    pub(crate) max_pixels: u64,
     /// Where corrected previews are computed (`--device`), and the engine once opened.
     device: DeviceChoice,
     engine: Mutex<Option<ServerDevice>>,
@@ -66,16 +66,16 @@ enum ServerDevice {
 }
 
 /// Where a corrected preview was computed: `gpu` or `cpu`, and the adapter or the reason.
-pub struct Computed {
-    pub device: &'static str,
-    pub detail: String,
+pub(crate) struct Computed {
+    pub(crate) device: &'static str,
+    pub(crate) detail: String,
 }
 
 /// One open frame.
-pub struct FrameSlot(Mutex<FrameState>);
+pub(crate) struct FrameSlot(Mutex<FrameState>);
 
 impl FrameSlot {
-    pub fn lock_state(&self) -> MutexGuard<'_, FrameState> {
+    pub(crate) fn lock_state(&self) -> MutexGuard<'_, FrameState> {
         self.0.lock().unwrap_or_else(|e| e.into_inner())
     }
 }
@@ -83,27 +83,27 @@ impl FrameSlot {
 /// How the chart in a frame is read (the page's controls; the CLI's capture flags).
 #[derive(Debug, Clone, Deserialize, serde::Serialize)]
 #[serde(deny_unknown_fields)]
-pub struct Settings {
+pub(crate) struct Settings {
     #[serde(default = "default_chart")]
-    pub chart: String,
+    pub(crate) chart: String,
     #[serde(default)]
-    pub reference: Option<String>,
+    pub(crate) reference: Option<String>,
     #[serde(default)]
-    pub reference_white: Option<String>,
+    pub(crate) reference_white: Option<String>,
     /// The four outer corners of the patch grid (first patch's corner first, clockwise); `None`:
     /// detect.
     #[serde(default)]
-    pub corners: Option<[[f64; 2]; 4]>,
+    pub(crate) corners: Option<[[f64; 2]; 4]>,
     /// Patches left out of the fit by hand (labels).
     #[serde(default)]
-    pub exclude: Vec<String>,
+    pub(crate) exclude: Vec<String>,
     /// `none`, `neutrals`, or `file:N` (a flat frame among the listed files).
     #[serde(default)]
-    pub flat: Option<String>,
+    pub(crate) flat: Option<String>,
     #[serde(default)]
-    pub white_level: Option<f64>,
+    pub(crate) white_level: Option<f64>,
     #[serde(default)]
-    pub layer: Option<String>,
+    pub(crate) layer: Option<String>,
 }
 
 fn default_chart() -> String {
@@ -128,21 +128,21 @@ impl Default for Settings {
 /// A fit request: the kind, the order and the variant fields (the `fit` flags).
 #[derive(Debug, Clone, Deserialize, serde::Serialize)]
 #[serde(deny_unknown_fields)]
-pub struct FitRequest {
+pub(crate) struct FitRequest {
     #[serde(default = "default_kind")]
-    pub kind: String,
+    pub(crate) kind: String,
     #[serde(default = "default_order")]
-    pub order: u8,
+    pub(crate) order: u8,
     #[serde(default = "default_objective")]
-    pub objective: String,
+    pub(crate) objective: String,
     #[serde(default)]
-    pub preserve_white: bool,
+    pub(crate) preserve_white: bool,
     #[serde(default)]
-    pub white_patch: Option<String>,
+    pub(crate) white_patch: Option<String>,
     #[serde(default)]
-    pub ridge: Option<String>,
+    pub(crate) ridge: Option<String>,
     #[serde(default = "default_normalise")]
-    pub normalise: String,
+    pub(crate) normalise: String,
 }
 
 fn default_kind() -> String {
@@ -198,26 +198,26 @@ impl FitRequest {
 }
 
 /// The last fit of a frame.
-pub struct Fitted {
-    pub request: FitRequest,
-    pub model: Model,
-    pub report: FitReport,
+pub(crate) struct Fitted {
+    pub(crate) request: FitRequest,
+    pub(crate) model: Model,
+    pub(crate) report: FitReport,
 }
 
-pub struct FrameState {
-    pub id: String,
+pub(crate) struct FrameState {
+    pub(crate) id: String,
     /// The file read: a listed file, or the upload's copy in the temporary directory.
-    pub path: PathBuf,
+    pub(crate) path: PathBuf,
     /// How the command line names the frame (the listed path, or the uploaded file's name).
-    pub shown: String,
-    pub uploaded: bool,
-    pub width: usize,
-    pub height: usize,
-    pub preview_png: Vec<u8>,
+    pub(crate) shown: String,
+    pub(crate) uploaded: bool,
+    pub(crate) width: usize,
+    pub(crate) height: usize,
+    pub(crate) preview_png: Vec<u8>,
     /// Frame pixels per preview pixel.
-    pub preview_scale: usize,
+    pub(crate) preview_scale: usize,
     /// The frame box-filtered to the preview's size (linear camera RGB), for corrected previews.
-    pub small: Frame,
+    pub(crate) small: Frame,
     /// The decoded frame (read and hashed once; every reading is taken from it) and the EXR
     /// layer it was decoded with.
     frame: Arc<CaptureFrame>,
@@ -226,10 +226,10 @@ pub struct FrameState {
     flat_cache: Option<(String, Arc<Frame>)>,
     /// An uploaded flat frame (its file name and pixels): the `upload` flat setting.
     flat_upload: Option<(String, Arc<Frame>)>,
-    pub settings: Settings,
-    pub capture: Option<Capture>,
-    pub error: Option<String>,
-    pub fitted: Option<Fitted>,
+    pub(crate) settings: Settings,
+    pub(crate) capture: Option<Capture>,
+    pub(crate) error: Option<String>,
+    pub(crate) fitted: Option<Fitted>,
     max_pixels: u64,
     files: Vec<PathBuf>,
 }
@@ -241,7 +241,7 @@ fn random_hex(bytes: usize) -> Result<String> {
 }
 
 impl Studio {
-    pub fn new(
+    pub(crate) fn new(
         files: Vec<PathBuf>,
         port: u16,
         max_pixels: u64,
@@ -275,21 +275,21 @@ impl Studio {
     }
 
     /// Removes the temporary directory (on exit).
-    pub fn cleanup(&self) {
+    pub(crate) fn cleanup(&self) {
         let _ = std::fs::remove_dir_all(&self.tmp);
     }
 
     /// The largest upload: a frame at the pixel limit as 4 channels of f32, plus headers.
-    pub fn max_upload_bytes(&self) -> u64 {
+    pub(crate) fn max_upload_bytes(&self) -> u64 {
         self.max_pixels.saturating_mul(16).saturating_add(1 << 20)
     }
 
-    pub fn new_id(&self) -> String {
+    pub(crate) fn new_id(&self) -> String {
         format!("f{}", self.next.fetch_add(1, Ordering::SeqCst))
     }
 
     /// A fresh id and its directory for an upload.
-    pub fn new_upload_dir(&self) -> Result<(PathBuf, String)> {
+    pub(crate) fn new_upload_dir(&self) -> Result<(PathBuf, String)> {
         let id = self.new_id();
         let dir = self.tmp.join(&id);
         std::fs::create_dir(&dir).with_context(|| format!("creating {}", dir.display()))?;
@@ -297,7 +297,7 @@ impl Studio {
     }
 
     /// A fresh directory for a flat frame uploaded for frame `id` (removed with the frame).
-    pub fn new_flat_dir(&self, id: &str) -> Result<PathBuf> {
+    pub(crate) fn new_flat_dir(&self, id: &str) -> Result<PathBuf> {
         let dir = self
             .tmp
             .join(id)
@@ -306,7 +306,7 @@ impl Studio {
         Ok(dir)
     }
 
-    pub fn info(&self) -> Value {
+    pub(crate) fn info(&self) -> Value {
         json!({
             "version": env!("CARGO_PKG_VERSION"),
             "files": self.files.iter().enumerate().map(|(i, p)| json!({
@@ -325,14 +325,14 @@ impl Studio {
     }
 
     /// Applies `model` to `frame` on the server's device (opened on first use); where it ran.
-    pub fn correct(&self, model: &Model, frame: &mut Frame) -> Result<Computed> {
+    pub(crate) fn correct(&self, model: &Model, frame: &mut Frame) -> Result<Computed> {
         let mut dev = self.engine.lock().unwrap_or_else(|e| e.into_inner());
         if dev.is_none() {
             let opts = GpuOptions {
                 adapter: None,
                 tile_pixels: None,
             };
-            *dev = Some(match nsrm::gpu::open_device(self.device, &opts) {
+            *dev = Some(match crate::gpu::open_device(self.device, &opts) {
                 Ok(Opened::Gpu(e)) => ServerDevice::Gpu(e),
                 Ok(Opened::Cpu(why)) => ServerDevice::Cpu(why.to_string()),
                 // `gpu` asked for and none opened: said on every preview, tried again next time.
@@ -358,7 +358,7 @@ impl Studio {
                             );
                             eprintln!("nsrm studio: {why}");
                             *frame = original;
-                            nsrm::model::fast::apply_frame(model, frame);
+                            crate::model::fast::apply_frame(model, frame);
                             *dev = Some(ServerDevice::Cpu(why.clone()));
                             Ok(Computed {
                                 device: "cpu",
@@ -369,7 +369,7 @@ impl Studio {
                 }
             }
             Some(ServerDevice::Cpu(why)) => {
-                nsrm::model::fast::apply_frame(model, frame);
+                crate::model::fast::apply_frame(model, frame);
                 Ok(Computed {
                     device: "cpu",
                     detail: why.clone(),
@@ -379,7 +379,7 @@ impl Studio {
         }
     }
 
-    pub fn frame(&self, id: &str) -> Result<Arc<FrameSlot>> {
+    pub(crate) fn frame(&self, id: &str) -> Result<Arc<FrameSlot>> {
         let frames = self.frames.lock().unwrap_or_else(|e| e.into_inner());
         frames
             .iter()
@@ -393,7 +393,7 @@ impl Studio {
             })
     }
 
-    pub fn close(&self, id: &str) -> Result<()> {
+    pub(crate) fn close(&self, id: &str) -> Result<()> {
         let mut frames = self.frames.lock().unwrap_or_else(|e| e.into_inner());
         let i = frames
             .iter()
@@ -406,7 +406,7 @@ impl Studio {
 
     /// Opens `path` (read as `chart extract` reads it) under `id`, reads its chart with the
     /// default settings, and returns its state.
-    pub fn open(&self, id: String, path: PathBuf, uploaded: bool) -> Result<Value> {
+    pub(crate) fn open(&self, id: String, path: PathBuf, uploaded: bool) -> Result<Value> {
         let r = self.open_inner(&id, path, uploaded);
         if r.is_err() && uploaded {
             let _ = std::fs::remove_dir_all(self.tmp.join(&id));
@@ -428,9 +428,9 @@ impl Studio {
         // the chart (a corner drag, an exclusion) is taken from this frame.
         let decoded = open_frame(&path, None, self.max_pixels)?;
         let frame = decoded.frame();
-        let img = nsrm::chart::overlay::render(frame, None, &[], None);
+        let img = crate::chart::overlay::render(frame, None, &[], None);
         let scale = frame.width.div_ceil(img.width().max(1) as usize).max(1);
-        let preview_png = nsrm::chart::overlay::encode(&img)?;
+        let preview_png = crate::chart::overlay::encode(&img)?;
         let small = downsample(frame, scale);
         let shown = if uploaded {
             path.file_name()
@@ -478,12 +478,12 @@ fn formats() -> Vec<&'static str> {
 fn open_frame(path: &Path, layer: Option<String>, max_pixels: u64) -> Result<Arc<CaptureFrame>> {
     CaptureFrame::open(
         path,
-        &nsrm::io::ReadOptions {
+        &crate::io::ReadOptions {
             layer,
-            limits: nsrm::io::Limits { max_pixels },
+            limits: crate::io::Limits { max_pixels },
             demosaic: values::Demosaic::Half.into(),
         },
-        nsrm::io::display::Encoding::Auto,
+        crate::io::display::Encoding::Auto,
     )
     .map(Arc::new)
     .map_err(|e| {
@@ -524,7 +524,7 @@ fn downsample(frame: &Frame, s: usize) -> Frame {
 }
 
 /// A word for a POSIX shell: as it is when safe, else in single quotes.
-pub fn quote(s: &str) -> String {
+pub(crate) fn quote(s: &str) -> String {
     if !s.is_empty()
         && s.chars()
             .all(|c| c.is_ascii_alphanumeric() || "._/:,=+-@%".contains(c))
@@ -654,20 +654,20 @@ impl FrameState {
             white_level: self.settings.white_level,
             flat,
         };
-        Ok(nsrm::chart::capture::read(&self.frame, &reference, &opts)?)
+        Ok(crate::chart::capture::read(&self.frame, &reference, &opts)?)
     }
 
     /// An uploaded flat frame (decoded as `--flat` reads one) becomes the flat field → a new
     /// reading.
-    pub fn set_flat_upload(&mut self, path: &Path) -> Result<()> {
+    pub(crate) fn set_flat_upload(&mut self, path: &Path) -> Result<()> {
         let name = path
             .file_name()
             .map(|s| s.to_string_lossy().into_owned())
             .unwrap_or_default();
-        let ff = nsrm::io::read_frame(
+        let ff = crate::io::read_frame(
             path,
-            &nsrm::io::ReadOptions {
-                limits: nsrm::io::Limits {
+            &crate::io::ReadOptions {
+                limits: crate::io::Limits {
                     max_pixels: self.max_pixels,
                 },
                 demosaic: values::Demosaic::Half.into(),
@@ -682,7 +682,7 @@ impl FrameState {
     }
 
     /// New settings → a new reading.
-    pub fn set_reading(&mut self, _studio: &Studio, body: Value) -> Result<()> {
+    pub(crate) fn set_reading(&mut self, _studio: &Studio, body: Value) -> Result<()> {
         let s: Settings = serde_json::from_value(body)
             .map_err(|e| BadRequest(format!("reading settings: {e}")))?;
         if s.exclude.len() > 10_000 {
@@ -741,7 +741,7 @@ impl FrameState {
     }
 
     /// The frame's state as the page shows it.
-    pub fn state(&self) -> Value {
+    pub(crate) fn state(&self) -> Value {
         let base = format!("/api/frames/{}", self.id);
         let training = self.capture.as_ref().map(|c| self.patches_spec(c));
         json!({
@@ -761,20 +761,20 @@ impl FrameState {
         })
     }
 
-    pub fn overlay_png(&self) -> Result<Vec<u8>> {
+    pub(crate) fn overlay_png(&self) -> Result<Vec<u8>> {
         let c = self.capture()?;
         let sw = self.fitted.as_ref().map(|f| capture::swatches(c, &f.model));
-        let img = nsrm::chart::overlay::render(
+        let img = crate::chart::overlay::render(
             c.frame.frame(),
             Some(&c.extraction),
             &[],
             sw.as_deref().map(|s| (s, c.reference.white)),
         );
-        Ok(nsrm::chart::overlay::encode(&img)?)
+        Ok(crate::chart::overlay::encode(&img)?)
     }
 
     /// Fits as `fit --capture` does; the model file's text, its report and its errors.
-    pub fn fit(&mut self, body: Value) -> Result<Value> {
+    pub(crate) fn fit(&mut self, body: Value) -> Result<Value> {
         let req: FitRequest =
             serde_json::from_value(body).map_err(|e| BadRequest(format!("fit request: {e}")))?;
         let kind = Kind::parse(&req.kind).map_err(|e| BadRequest(format!("kind: {e}")))?;
@@ -851,7 +851,7 @@ impl FrameState {
     /// In two steps so that the frame is not held while the models are evaluated (seconds to
     /// minutes on an SG): [`compare_plan`](Self::compare_plan) takes what the comparison needs
     /// under the frame's lock, [`ComparePlan::run`] computes without it.
-    pub fn compare_plan(&self, body: Value) -> Result<ComparePlan> {
+    pub(crate) fn compare_plan(&self, body: Value) -> Result<ComparePlan> {
         let req: FitRequest = serde_json::from_value(body)
             .map_err(|e| BadRequest(format!("compare request: {e}")))?;
         let custom = req.variant_args()?.options()?;
@@ -872,14 +872,14 @@ impl FrameState {
 }
 
 /// A comparison of every kind and order, ready to run without the frame's lock.
-pub struct ComparePlan {
-    custom: nsrm::model::fit::FitOptions,
-    data: nsrm::training::TrainingSet,
+pub(crate) struct ComparePlan {
+    custom: crate::model::fit::FitOptions,
+    data: crate::training::TrainingSet,
     command_head: String,
 }
 
 impl ComparePlan {
-    pub fn run(self) -> Result<Value> {
+    pub(crate) fn run(self) -> Result<Value> {
         let ComparePlan {
             custom,
             data,
@@ -974,24 +974,24 @@ impl FrameState {
 
     /// The corrected preview in `space` (sRGB PNG), computed on the server's device (`--device`),
     /// and where it was computed.
-    pub fn corrected_png(&self, studio: &Studio, space: &str) -> Result<(Vec<u8>, Computed)> {
+    pub(crate) fn corrected_png(&self, studio: &Studio, space: &str) -> Result<(Vec<u8>, Computed)> {
         let space = parse_space(space)?;
         let f = self.fitted()?;
-        let out = nsrm::model::output_model(&f.model, space)?;
+        let out = crate::model::output_model(&f.model, space)?;
         let mut frame = self.small.clone();
         let computed = studio.correct(&out, &mut frame)?;
         let png =
-            nsrm::io::preview::encode_png(&frame, &to_linear_srgb(f.model.white_xyz(), space))?;
+            crate::io::preview::encode_png(&frame, &to_linear_srgb(f.model.white_xyz(), space))?;
         Ok((png, computed))
     }
 
     /// The generated WGSL (the model with `space` folded in, as `export-shader --lang wgsl
     /// --layout rgb --output-space`) and the matrix from `space` to linear sRGB.
-    pub fn wgsl(&self, space: &str) -> Result<Value> {
+    pub(crate) fn wgsl(&self, space: &str) -> Result<Value> {
         let space = parse_space(space)?;
         let f = self.fitted()?;
-        let out = nsrm::model::output_model(&f.model, space)?;
-        let wgsl = nsrm::export::shader::baked_wgsl(&out, Layout::Rgb)?;
+        let out = crate::model::output_model(&f.model, space)?;
+        let wgsl = crate::export::shader::baked_wgsl(&out, Layout::Rgb)?;
         Ok(json!({
             "wgsl": wgsl,
             "to_linear_srgb": to_linear_srgb(f.model.white_xyz(), space),
@@ -1002,7 +1002,7 @@ impl FrameState {
     }
 
     /// The preview-size linear frame as little-endian f32 RGB.
-    pub fn preview_pixels(&self) -> (Vec<u8>, usize, usize) {
+    pub(crate) fn preview_pixels(&self) -> (Vec<u8>, usize, usize) {
         let mut b = Vec::with_capacity(self.small.data.len() * 4);
         for v in &self.small.data {
             b.extend_from_slice(&v.to_le_bytes());
@@ -1010,18 +1010,18 @@ impl FrameState {
         (b, self.small.width, self.small.height)
     }
 
-    pub fn model_json(&self) -> Result<String> {
+    pub(crate) fn model_json(&self) -> Result<String> {
         Ok(self.fitted()?.model.to_json())
     }
 
-    pub fn patches_csv(&self) -> Result<String> {
+    pub(crate) fn patches_csv(&self) -> Result<String> {
         let c = self.capture()?;
         Ok(c.extraction.to_csv(&c.reference))
     }
 
     /// Exports the last fit as `export --model model.json --training patches.csv` does: the
     /// file's bytes and its name.
-    pub fn export(&self, studio: &Studio, t: &Target) -> Result<(Vec<u8>, String)> {
+    pub(crate) fn export(&self, studio: &Studio, t: &Target) -> Result<(Vec<u8>, String)> {
         let fname = t.param("format").unwrap_or("clf");
         let format = Format::parse(fname).ok_or_else(|| {
             BadRequest(format!("format `{fname}`: one of {}", formats().join(", ")))
@@ -1049,22 +1049,22 @@ impl FrameState {
         let name = format!("model.{}", format.name());
         let dest = dir.join(&name);
         // Written through an output session of its own, into this run's temporary directory.
-        let session = nsrm::output::Session::new(false);
+        let session = crate::output::Session::new(false);
         let mut unit = session.unit();
         let r = if format == Format::Dcp {
             // As `export --format dcp` does for a one-illuminant model file: the model as a
             // profile, its training patches, the default map and stops, no accuracy limit.
-            nsrm::model::dual_illuminant::Profile::single(f.model.clone())
+            crate::model::dual_illuminant::Profile::single(f.model.clone())
                 .map_err(anyhow::Error::from)
                 .and_then(|profile| {
-                    let t = nsrm::export::dcp::DcpTraining {
+                    let t = crate::export::dcp::DcpTraining {
                         rgb: training.rgb.clone(),
                         white_rgb: training.white_rgb,
                     };
-                    nsrm::export::dcp::export_to(
+                    crate::export::dcp::export_to(
                         &profile,
                         &[t],
-                        nsrm::export::dcp::DcpOptions::default(),
+                        crate::export::dcp::DcpOptions::default(),
                         options.stops,
                         None,
                         &dest,
@@ -1075,11 +1075,11 @@ impl FrameState {
                 })
         } else if format == Format::Icc {
             // As `export --format icc` does: the LUT size asked for, the default stops.
-            nsrm::export::icc::export_to(
+            crate::export::icc::export_to(
                 &f.model,
-                nsrm::export::icc::IccOptions {
+                crate::export::icc::IccOptions {
                     size: options.size,
-                    lo: nsrm::export::icc::DEFAULT_LO,
+                    lo: crate::export::icc::DEFAULT_LO,
                 },
                 &training.rgb,
                 None,
@@ -1139,14 +1139,14 @@ impl FrameState {
                 v.push(format!("--flat {}", quote(&f)));
             }
         }
-        if self.max_pixels != nsrm::io::DEFAULT_MAX_PIXELS {
+        if self.max_pixels != crate::io::DEFAULT_MAX_PIXELS {
             v.push(format!("--max-pixels {}", self.max_pixels));
         }
         v
     }
 
     /// The command lines that reproduce this session with the CLI.
-    pub fn command(&self, t: &Target) -> String {
+    pub(crate) fn command(&self, t: &Target) -> String {
         self.command_text(
             t.param("format").unwrap_or("clf"),
             t.param("space").unwrap_or("xyz"),
@@ -1179,8 +1179,8 @@ impl FrameState {
 
 /// An error as the page shows it: the page's way out (drag the corners, pick a setting) where the
 /// CLI's hint would name a flag.
-pub fn explain_for_page(e: anyhow::Error) -> String {
-    use nsrm::error::{Concern, Param};
+pub(crate) fn explain_for_page(e: anyhow::Error) -> String {
+    use crate::error::{Concern, Param};
     let page_remedy = |p: Param| {
         match p {
         Param::Corners => Some(
@@ -1206,7 +1206,7 @@ pub fn explain_for_page(e: anyhow::Error) -> String {
 
 /// The page's words for a message that names a CLI flag: `--white-patch` → `white patch` (the
 /// page's controls are named as the flags are, without the dashes).
-pub fn unflag(s: &str) -> String {
+pub(crate) fn unflag(s: &str) -> String {
     let mut out = String::with_capacity(s.len());
     let mut rest = s;
     while let Some(i) = rest.find("--") {
@@ -1258,7 +1258,7 @@ mod tests {
             "objective `x`: use white patch D4 or ridge auto"
         );
         assert_eq!(unflag("a -- b --1 c"), "a -- b --1 c");
-        let e = anyhow::Error::new(nsrm::io::IoError::OverLimit {
+        let e = anyhow::Error::new(crate::io::IoError::OverLimit {
             path: "big.exr".into(),
             why: "10 pixels, more than the limit of 5".into(),
         });

@@ -15,7 +15,10 @@ use nsrm::{Frame, Layout};
 use std::hint::black_box;
 use std::time::Duration;
 
-/// The benchmark frame and the memcpy reference, shared with `nsrm bench`.
+/// The benchmark frame and the memcpy reference, shared with `nsrm bench` (the file names the
+/// library as `crate::`, which it is inside nsrm; here the root's imports stand for it).
+#[allow(unused_imports)]
+use nsrm::model;
 #[path = "../src/cli/bench_aids.rs"]
 mod bench_aids;
 use bench_aids::{memcpy_chunked, synthetic_camera_rgb};

@@ -6,8 +6,6 @@
 
 use super::common::UsageError;
 use super::values;
-use anyhow::{Context, Result};
-use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 use crate::colorimetry::spaces::{Mat3, OutputSpace};
 use crate::gpu::{DeviceChoice, Engine, GpuOptions};
 use crate::io::batch::{self, Action, BatchPlan, Existing, Job, PlanOptions, Shard};
@@ -17,6 +15,8 @@ use crate::io::{
 use crate::model::fast::{FastModel, Threads};
 use crate::output::Session;
 use crate::Model;
+use anyhow::{Context, Result};
+use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 use std::io::IsTerminal;
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;

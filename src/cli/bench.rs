@@ -14,13 +14,13 @@
 use super::bench_aids::{memcpy_chunked, synthetic_camera_rgb};
 use super::common::{parse_models, UsageError};
 use super::values;
-use anyhow::{Context, Result};
-use clap::ValueEnum;
 use crate::gpu::{DeviceChoice, GpuOptions, Opened};
 use crate::model::fast::{FastModel, Threads};
 use crate::model::{fit, Kind, Model};
 use crate::spectral::{simulate_named, Grid};
 use crate::{Frame, Layout};
+use anyhow::{Context, Result};
+use clap::ValueEnum;
 use rayon::prelude::*;
 use serde::Serialize;
 use std::process::ExitCode;

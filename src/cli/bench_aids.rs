@@ -8,7 +8,12 @@ use rayon::prelude::*;
 /// A benchmark frame of camera RGB in a realistic range, from `seed`: channels 0..1 with a
 /// camera-like balance, 2 % of pixels highlights up to ×8, alpha 1. Generated in parallel, the
 /// same for any thread count.
-pub(crate) fn synthetic_camera_rgb(width: usize, height: usize, layout: Layout, seed: u64) -> Frame {
+pub(crate) fn synthetic_camera_rgb(
+    width: usize,
+    height: usize,
+    layout: Layout,
+    seed: u64,
+) -> Frame {
     let ch = layout.channels();
     let mut frame = Frame::new(width, height, layout);
     frame

@@ -4,7 +4,6 @@
 
 use super::common::UsageError;
 use super::values;
-use anyhow::{Context, Result};
 use crate::chart::capture::{CaptureError, CaptureFrame, FlatField, ReadingOptions};
 use crate::chart::detect::Candidate;
 use crate::chart::extract::{ExtractOptions, Extraction};
@@ -13,6 +12,7 @@ use crate::chart::{overlay, parse_corners, ChartKind};
 use crate::io::display::Encoding;
 use crate::output::{Session, Unit};
 use crate::Frame;
+use anyhow::{Context, Result};
 use std::path::Path;
 use std::sync::Arc;
 
@@ -178,7 +178,11 @@ impl CaptureOptions {
 
     /// Reads the chart in `path`. On failure with `failure_overlay`, the frame and the rejected
     /// detection candidates are drawn there (committed on its own in `session`).
-    pub(crate) fn read(&self, path: &Path, failure_overlay: Option<(&Path, &Session)>) -> Result<Capture> {
+    pub(crate) fn read(
+        &self,
+        path: &Path,
+        failure_overlay: Option<(&Path, &Session)>,
+    ) -> Result<Capture> {
         let reference = self.reference()?;
         let corners = self.corners.as_deref().map(parse_corners).transpose()?;
         if let Some(w) = self.white_level {

@@ -4,12 +4,12 @@
 use super::capture::{write_overlay, CaptureOptions, CaptureText};
 use super::common::UsageError;
 use super::values;
-use anyhow::{Context, Result};
 use crate::chart::detect::{detect, DetectOptions};
 use crate::chart::extract::{extract, ExtractOptions};
 use crate::chart::reference::Reference;
 use crate::chart::scene::{render, ChartColours, Family};
 use crate::chart::ChartKind;
+use anyhow::{Context, Result};
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 use std::time::Instant;

@@ -3,9 +3,9 @@
 //! as a two-illuminant DCP).
 
 use super::common::UsageError;
-use anyhow::{Context, Result};
 use crate::model::dual_illuminant::Profile;
 use crate::Model;
+use anyhow::{Context, Result};
 use std::path::PathBuf;
 use std::process::ExitCode;
 

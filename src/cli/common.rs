@@ -1,11 +1,11 @@
 //! Options shared by several subcommands: where the training data comes from.
 
-use anyhow::{Context, Result};
-use clap::Args as ClapArgs;
 use crate::error::{Concern, Param};
 use crate::model::Kind;
 use crate::spectral::{simulate, Camera, Grid, Illuminant, Reflectances};
 use crate::training::{parse_white, TrainingSet};
+use anyhow::{Context, Result};
+use clap::Args as ClapArgs;
 use std::path::PathBuf;
 
 /// An error in how the command was called (exit status 2).
@@ -92,7 +92,10 @@ impl TrainingArgs {
 }
 
 /// `--training FILE`: the measured patches; a file that names no white asks for `--white`.
-pub(crate) fn read_measured(path: &std::path::Path, white: Option<[f64; 3]>) -> Result<TrainingSet> {
+pub(crate) fn read_measured(
+    path: &std::path::Path,
+    white: Option<[f64; 3]>,
+) -> Result<TrainingSet> {
     use crate::training::TrainingError as E;
     TrainingSet::read_measured(path, white).map_err(|e| match e {
         e @ E::NeedsWhite { .. } => anyhow::Error::new(e).context(

@@ -3,11 +3,11 @@
 use super::capture::CaptureText;
 use super::common::{parse_models, parse_orders, TrainingArgs};
 use super::fit_args::FitVariantArgs;
-use anyhow::{Context, Result};
 use crate::eval::{evaluate_with, plot, variants, EvalResult, Protocol};
 use crate::model::fit::{FitOptions, Normalise, Ridge, White};
 use crate::model::Kind;
 use crate::spectral::display_name;
+use anyhow::{Context, Result};
 use serde::Serialize;
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;

@@ -3,12 +3,12 @@
 
 use super::common::UsageError;
 use super::values;
-use anyhow::{Context, Result};
 use crate::colorimetry::spaces::OutputSpace;
 use crate::export::nodes::Interpolation;
 use crate::export::{export_to, ExportError, Format, LutOptions};
 use crate::training::TrainingSet;
 use crate::Model;
+use anyhow::{Context, Result};
 use std::path::PathBuf;
 use std::process::ExitCode;
 

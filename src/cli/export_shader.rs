@@ -2,10 +2,10 @@
 //! WGSL or translated by naga to GLSL, HLSL, MSL or SPIR-V; or a DaVinci Resolve DCTL.
 
 use super::values;
-use anyhow::{Context, Result};
 use crate::colorimetry::spaces::OutputSpace;
 use crate::export::shader::export;
 use crate::{Layout, Model};
+use anyhow::{Context, Result};
 
 use std::path::PathBuf;
 use std::process::ExitCode;

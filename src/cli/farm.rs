@@ -10,13 +10,13 @@
 
 use super::apply;
 use super::common::UsageError;
-use anyhow::{Context, Result};
-use clap::Parser;
 use crate::farm::jobs::{self, Arg, JobFile, JobSpec};
 use crate::farm::manifest::{self, Batch, Entry, Failure, How, ModelRecord, ShardManifest};
 use crate::farm::pathmap::PathMap;
 use crate::farm::verify::{self, Expect};
 use crate::io::batch::{self, Shard};
+use anyhow::{Context, Result};
+use clap::Parser;
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 use std::time::{Instant, SystemTime, UNIX_EPOCH};

@@ -2,8 +2,8 @@
 
 use super::common::UsageError;
 use super::values;
-use anyhow::{Context, Result};
 use crate::model::fit::{FitOptions, Normalise, Objective, Ridge, White};
+use anyhow::{Context, Result};
 
 /// How the matrix is fitted (the paper: least squares, raw input, no constraint, no ridge).
 #[derive(Debug, Clone, clap::Args)]

@@ -9,8 +9,8 @@
 //! unit.commit()?;                                 // all outputs together, or none
 //! ```
 
-use anyhow::{Context, Result};
 use crate::output::Session;
+use anyhow::{Context, Result};
 use std::path::Path;
 
 /// The signals that abort a run, with their names.

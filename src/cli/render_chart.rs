@@ -1,8 +1,8 @@
 //! `nsrm render-chart`: a synthetic linear camera-RGB frame of a chart, for testing `apply`.
 
 use super::common::{TrainingArgs, UsageError};
-use anyhow::{Context, Result};
 use crate::chart::synthetic::{self, ChartOptions};
+use anyhow::{Context, Result};
 use std::path::PathBuf;
 use std::process::ExitCode;
 

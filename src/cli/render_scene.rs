@@ -3,9 +3,9 @@
 
 use super::common::UsageError;
 use super::values;
-use anyhow::{Context, Result};
 use crate::chart::scene::{render, truth_path, ChartColours, SceneOptions};
 use crate::chart::{parse_corners, ChartKind};
+use anyhow::{Context, Result};
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 

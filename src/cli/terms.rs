@@ -2,8 +2,8 @@
 
 use super::common::UsageError;
 use super::values;
-use anyhow::Result;
 use crate::model::{term_name, terms, Kind};
+use anyhow::Result;
 use std::process::ExitCode;
 
 #[derive(Debug, clap::Args)]

@@ -2,10 +2,10 @@
 //! model), and the model(s) `apply` runs for it.
 
 use super::common::UsageError;
-use anyhow::{Context, Result};
 use crate::colorimetry::temperature::temperature_xy;
 use crate::model::dual_illuminant::{Combination, FrameWhite, Profile};
 use crate::Model;
+use anyhow::{Context, Result};
 use std::path::Path;
 
 /// What `--white` names: one white for every frame, or each raw frame's own as-shot neutral.

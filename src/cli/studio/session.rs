@@ -9,8 +9,6 @@ use super::super::common::UsageError;
 use super::super::fit_args::FitVariantArgs;
 use super::super::values;
 use super::http::{BadRequest, NotFound, Target};
-use anyhow::{bail, Context, Result};
-use clap::ValueEnum;
 use crate::chart::capture::{CaptureFrame, FlatField, ReadingOptions};
 use crate::colorimetry::spaces::{apply as mat_apply, OutputSpace};
 use crate::colorimetry::{delta_e00_xyz, output_matrix, srgb8, to_linear_srgb};
@@ -20,6 +18,8 @@ use crate::gpu::{DeviceChoice, Engine, GpuOptions, Opened};
 use crate::model::fit::{fit_with, FitReport, Normalise};
 use crate::model::Kind;
 use crate::{Frame, Layout, Model};
+use anyhow::{bail, Context, Result};
+use clap::ValueEnum;
 use serde::Deserialize;
 use serde_json::{json, Value};
 use std::path::{Path, PathBuf};
@@ -974,7 +974,11 @@ impl FrameState {
 
     /// The corrected preview in `space` (sRGB PNG), computed on the server's device (`--device`),
     /// and where it was computed.
-    pub(crate) fn corrected_png(&self, studio: &Studio, space: &str) -> Result<(Vec<u8>, Computed)> {
+    pub(crate) fn corrected_png(
+        &self,
+        studio: &Studio,
+        space: &str,
+    ) -> Result<(Vec<u8>, Computed)> {
         let space = parse_space(space)?;
         let f = self.fitted()?;
         let out = crate::model::output_model(&f.model, space)?;

@@ -2,10 +2,13 @@
 //! is about: black, `s < 0`, `s = 0` with non-zero channels, negative channels, NaN, ±Inf, huge,
 //! tiny and subnormal values.
 //!
-//! Paths: the f64 reference, the fast CPU kernels (the clone detected for this CPU and the
+//! Every path is a printer or evaluator of the one pixel program (`nsrm::model::pixel`): the f64
+//! reference (its evaluator), the fast CPU kernels (the clone detected for this CPU and the
 //! baseline clone without FMA, called directly through `FastModel::apply_baseline`; the
-//! hand-written kernel at order 3 and the generic plan at the other orders), and the GPU (lavapipe
-//! here; skipped with a loud line when there is no adapter, failed under `CI=true`).
+//! hand-written kernel at order 3 and the generic plan at the other orders), the GPU's printed
+//! WGSL (lavapipe here; skipped with a loud line when there is no adapter, failed under
+//! `CI=true`) and the printed DCTL (compiled as C by `cc`, as `export_dctl` does). Models: every
+//! kind at every order 1–4, and white-balanced NSRM (non-unit input gains) at every order.
 //!
 //! The rules checked directly, on every path:
 //! * NSRM with `s ≤ 0` (`pixel::nsrm_signal` is `None`) gives exactly `(0, 0, 0)`;
@@ -21,7 +24,26 @@ use nsrm::model::{pixel, Kind, Model};
 use nsrm::{Frame, Layout};
 
 use crate::common;
-use common::{fitted_models as models, summands};
+use common::summands;
+
+/// Every kind at every order ([`common::fitted_models`]) and white-balanced NSRM (the program's
+/// gain step with gains other than 1) at every order.
+fn models() -> Vec<Model> {
+    use nsrm::model::fit::{fit_with, FitOptions, Normalise};
+    let mut v = common::fitted_models();
+    let opts = FitOptions {
+        normalise: Normalise::WhiteBalanced,
+        ..Default::default()
+    };
+    for order in 1..=nsrm::model::MAX_ORDER {
+        let m = fit_with(Kind::Nsrm, order, common::training(), &opts)
+            .unwrap()
+            .model;
+        assert!(!m.has_unit_gains(), "{:?}", m.input_gains());
+        v.push(m);
+    }
+    v
+}
 
 /// The policy's pixels, by name. `huge` only where the model is exposure-invariant (PRM's cubes and
 /// fourth powers of 1e30 overflow f32 as they would in any f32 evaluation).
@@ -184,5 +206,29 @@ fn gpu_shaders_follow_the_policy_including_negative_signal() {
         let mut f = frame_of(&policy_pixels(model.kind()));
         engine.apply(&model, &mut f).unwrap();
         check(&model, &format!("GPU {}", engine.adapter_name()), &f);
+    }
+}
+
+#[cfg(feature = "cli")]
+#[test]
+fn printed_dctl_follows_the_policy() {
+    let Some(cc) = crate::export_dctl::cc() else {
+        return;
+    };
+    let dir = tempfile::tempdir().unwrap();
+    for (i, model) in models().into_iter().enumerate() {
+        let pixels = policy_pixels(model.kind());
+        let dctl = nsrm::export::dctl::generate(&model, &[]).unwrap();
+        let px: Vec<[f64; 3]> = pixels.iter().map(|(_, p)| p.map(|v| v as f64)).collect();
+        let name = format!("policy{i}_{}{}", model.kind().name(), model.order());
+        let got = crate::export_dctl::run_dctl(&cc, dir.path(), &name, &dctl, &px);
+        let out = Frame::from_data(
+            got.len(),
+            1,
+            Layout::Rgb,
+            got.iter().flat_map(|p| p.map(|v| v as f32)).collect(),
+        )
+        .unwrap();
+        check(&model, "printed DCTL (cc)", &out);
     }
 }

@@ -11,7 +11,8 @@
 //! kind at every order 1–4, and white-balanced NSRM (non-unit input gains) at every order.
 //!
 //! The rules checked directly, on every path:
-//! * NSRM with `s ≤ 0` (`pixel::nsrm_signal` is `None`) gives exactly `(0, 0, 0)`;
+//! * NSRM with `s ≤ 0` (`pixel::nsrm_signal` of the pixel times the input gains is `None`) gives
+//!   exactly `(0, 0, 0)`;
 //! * a NaN input channel gives a NaN output on every channel it reaches (every kind: all three);
 //! * RPRM of finite negative channels is finite (sign-preserving roots);
 //! * otherwise the output is the f64 reference within `1e-5·max(max|ref|, T_k) + 1e-30`, with
@@ -75,6 +76,12 @@ fn policy_pixels(kind: Kind) -> Vec<(&'static str, [f32; 3])> {
     v
 }
 
+/// `x` times the model's input gains (its program's gain step).
+fn gained(model: &Model, x: [f64; 3]) -> [f64; 3] {
+    let g = model.input_gains();
+    [x[0] * g[0], x[1] * g[1], x[2] * g[2]]
+}
+
 fn frame_of(pixels: &[(&str, [f32; 3])]) -> Frame {
     let data = pixels.iter().flat_map(|(_, p)| *p).collect();
     Frame::from_data(pixels.len(), 1, Layout::Rgb, data).unwrap()
@@ -94,7 +101,7 @@ fn check(model: &Model, path: &str, out: &Frame) {
             model.order()
         );
         let x64 = x.map(|v| v as f64);
-        if model.kind() == Kind::Nsrm && pixel::nsrm_signal(x64).is_none() {
+        if model.kind() == Kind::Nsrm && pixel::nsrm_signal(gained(model, x64)).is_none() {
             assert!(got.iter().all(|v| *v == 0.0), "s ≤ 0 must give 0: {ctx}");
             continue;
         }
@@ -136,7 +143,8 @@ fn the_policy_module_is_what_the_f64_reference_does() {
             let x64 = x.map(|v| v as f64);
             let out = model.apply_f64(x64);
             if model.kind() == Kind::Nsrm {
-                match pixel::nsrm_signal(x64) {
+                // The gain step first (1, 1, 1 unless white-balanced), then the signal.
+                match pixel::nsrm_signal(gained(&model, x64)) {
                     None => assert_eq!(out, [0.0; 3], "{name}"),
                     Some((s, r, g)) => {
                         // (α, β, γ) = M·p(r, g), XYZ = s·(α, β, γ).

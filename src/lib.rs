@@ -72,6 +72,7 @@ pub mod model;
 pub mod output;
 pub mod spectral;
 pub mod training;
+mod training_set;
 
 pub use frame::{Frame, Layout};
 pub use model::{Kind, Model};

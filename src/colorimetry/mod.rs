@@ -4,6 +4,7 @@
 //! library (io, export, chart, the embedding example) is one of these.
 
 pub mod dual;
+pub(crate) mod observer;
 pub mod output;
 pub mod spaces;
 pub mod temperature;

@@ -18,7 +18,7 @@ pub use builtin::{
 pub use computed::computed_illuminant;
 pub use csv::parse_csv;
 
-use crate::training::{Provenance, TrainingSet};
+use crate::training_set::{Provenance, TrainingSet};
 use std::path::Path;
 
 /// Errors from reading spectral data or simulating a camera.

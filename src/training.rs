@@ -65,7 +65,7 @@ pub enum TrainingError {
 impl TrainingError {
     /// True for a malformed patch selection or white point, a white that is missing or that
     /// contradicts the file's.
-    pub fn is_usage(&self) -> bool {
+    pub(crate) fn is_usage(&self) -> bool {
         matches!(
             self,
             TrainingError::PatchSpec { .. }
@@ -78,6 +78,10 @@ impl TrainingError {
 
 impl TrainingSet {
     /// The patches at `indices`, in that order.
+    ///
+    /// # Panics
+    /// If an index is out of range (`indices` are the caller's own, like a slice index; a
+    /// selection from user input goes through [`select`](Self::select), which checks it).
     pub fn subset(&self, indices: &[usize]) -> TrainingSet {
         TrainingSet {
             labels: indices.iter().map(|&i| self.labels[i].clone()).collect(),
@@ -241,12 +245,12 @@ impl TrainingSet {
 
 /// `X,Y,Z` as the patch CSV's `# white:` line and messages write it (shortest round-trip
 /// decimals, so reading it back gives the same numbers).
-pub fn fmt_white(w: [f64; 3]) -> String {
+pub(crate) fn fmt_white(w: [f64; 3]) -> String {
     format!("{},{},{}", w[0], w[1], w[2])
 }
 
 /// The comment line that names a patch CSV's white, e.g. `# white: 96.42,100,82.49\n`.
-pub fn white_line(w: [f64; 3]) -> String {
+pub(crate) fn white_line(w: [f64; 3]) -> String {
     format!("# white: {}\n", fmt_white(w))
 }
 
@@ -297,7 +301,7 @@ pub(crate) fn white_in_header(
 
 /// The D50 white of chart makers' tables and ICC profiles (CIE 1931 2°, x 0.345703,
 /// y 0.358539), `Y = 100`.
-pub fn d50_white() -> [f64; 3] {
+pub(crate) fn d50_white() -> [f64; 3] {
     crate::colorimetry::xyy_to_xyz(0.345703, 0.358539, 100.0)
 }
 
@@ -382,7 +386,7 @@ pub(crate) const MAX_RECTANGLE: u64 = 1 << 20;
 /// * `all` — every patch;
 /// * `B2:M9` — a rectangle of chart labels: columns B..M × rows 2..9 (every label in it must exist);
 /// * `A1,C3,patch7` — a list of labels.
-pub fn select_patches(labels: &[String], spec: &str) -> Result<Vec<usize>, TrainingError> {
+pub(crate) fn select_patches(labels: &[String], spec: &str) -> Result<Vec<usize>, TrainingError> {
     let spec_t = spec.trim();
     let err = |why: String| TrainingError::Patches {
         spec: spec.to_string(),

@@ -15,7 +15,7 @@ use super::bench_aids::{memcpy_chunked, synthetic_camera_rgb};
 use super::common::{parse_models, UsageError};
 use super::values;
 use crate::gpu::{DeviceChoice, GpuOptions, Opened};
-use crate::model::fast::{FastModel, Threads};
+use crate::model::fast::{FastModel, Threads, CHUNK_PIXELS};
 use crate::model::{fit, Kind, Model};
 use crate::spectral::{simulate_named, Grid};
 use crate::{Frame, Layout};
@@ -197,10 +197,10 @@ fn measure(plan: &Plan) -> Result<Report> {
     // The plain memcpy figures (also when only the GPU is timed: they frame the numbers).
     let mut memcpy = MemcpyTimes {
         all: time_reps(reps, || {
-            memcpy_chunked(&input.data, &mut output.data, ch, Threads::All)
+            memcpy_chunked(&input.data, &mut output.data, CHUNK_PIXELS * ch, true)
         }),
         one: time_reps(reps, || {
-            memcpy_chunked(&input.data, &mut output.data, ch, Threads::Single)
+            memcpy_chunked(&input.data, &mut output.data, CHUNK_PIXELS * ch, false)
         }),
     };
     let whole = median(&time_reps(reps, || {
@@ -268,7 +268,7 @@ fn measure_cpu(
             fast.apply_into(input, output, th)?; // warm-up
             for _ in 0..reps {
                 m_times.push(time(|| {
-                    memcpy_chunked(&input.data, &mut output.data, ch, th)
+                    memcpy_chunked(&input.data, &mut output.data, CHUNK_PIXELS * ch, th == Threads::All)
                 }));
                 let t = Instant::now();
                 fast.apply_into(input, output, th)?;

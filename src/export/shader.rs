@@ -8,7 +8,7 @@
 //!
 //! ```
 //! use nsrm::export::shader::{export, ShaderLang};
-//! use nsrm::{model::{Kind, Model}, Layout};
+//! use nsrm::{Kind, Layout, Model};
 //! let model = Model::from_matrix(Kind::Lrm, 1, vec![1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0])?;
 //! let glsl = export(&model, Layout::Rgba, ShaderLang::Glsl)?;
 //! assert!(String::from_utf8(glsl)?.starts_with("#version 450"));

@@ -46,7 +46,8 @@
 //! * **Values far outside the training range** (HDR highlights) are not clamped: LRM, RPRM and NSRM
 //!   scale exactly with exposure, `f(kS) = k·f(S)` for `k > 0`; PRM extrapolates its polynomial.
 //!
-//! `tests/all/pixel_policy.rs` holds each path to these rules on the awkward pixels (zeros,
+//! `policy_tests.rs` (the f64 reference, the fast kernels) and `tests/all/pixel_policy.rs` (the
+//! GPU, the DCTL) hold each path to these rules on the awkward pixels (zeros,
 //! `s < 0`, `s = 0` with non-zero channels, negatives, NaN, ±Inf, huge and tiny values).
 
 use super::terms::{expand, Term};
@@ -229,7 +230,7 @@ impl<'a> Program<'a> {
 /// NSRM's signal and chromaticities `(s, r, g)` of a camera RGB, or `None` when `s ≤ 0` (the
 /// output is then `(0, 0, 0)`). NaN is not `≤ 0`: it is returned and propagates.
 #[inline]
-pub fn nsrm_signal(rgb: [f64; 3]) -> Option<(f64, f64, f64)> {
+pub(crate) fn nsrm_signal(rgb: [f64; 3]) -> Option<(f64, f64, f64)> {
     let s = rgb[0] + rgb[1] + rgb[2];
     if s <= 0.0 {
         None
@@ -240,7 +241,7 @@ pub fn nsrm_signal(rgb: [f64; 3]) -> Option<(f64, f64, f64)> {
 
 /// Sign-preserving d-th root: `sign(x)·|x|^(1/d)`; `±0 → ±0`, `±∞ → ±∞`, NaN stays NaN.
 #[inline]
-pub fn signed_root(x: f64, d: u8) -> f64 {
+pub(crate) fn signed_root(x: f64, d: u8) -> f64 {
     match d {
         1 => x,
         2 => x.abs().sqrt().copysign(x),

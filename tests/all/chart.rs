@@ -6,9 +6,9 @@ use nsrm::chart::flat;
 use nsrm::chart::reference::Reference;
 use nsrm::chart::scene::{render, ChartColours, SceneOptions};
 use nsrm::chart::{homography_from_corners, ChartKind};
-use nsrm::eval::{evaluate, Protocol};
-use nsrm::model::Kind;
+use nsrm::Kind;
 use nsrm::TrainingSet;
+use nsrm::{evaluate, Protocol};
 
 const SG_SPECTRA: &str = "../shared/data/colorchecker_sg_140.csv";
 

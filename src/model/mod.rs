@@ -13,20 +13,15 @@ pub(crate) mod fast;
 mod fast_tests;
 pub(crate) mod file;
 pub(crate) mod fit;
-mod output;
+pub(crate) mod output;
 pub(crate) mod pixel;
 #[cfg(test)]
 mod policy_tests;
 mod refine;
 pub(crate) mod terms;
 
-pub use dual_illuminant::{Combination, FrameWhite, Profile};
-pub use fit::{
-    fit_with, Fit, FitOptions, FitReport, Normalise, Objective, Ridge, White as FitWhite,
-    F32_TOLERANCE_DE00,
-};
-pub use output::output_model;
-pub use terms::MAX_ORDER;
+pub(crate) use output::output_model;
+pub(crate) use terms::MAX_ORDER;
 pub(crate) use terms::{term_name, terms, Term};
 
 use crate::training::{Provenance, TrainingSet};

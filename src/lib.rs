@@ -90,6 +90,7 @@ mod model;
 pub mod output;
 mod spectral;
 mod training;
+mod training_set;
 
 /// The unit tests' kit, shared with the integration tests (public API only; `nsrm` names this
 /// crate in it).

@@ -4,6 +4,7 @@
 //! library (io, export, chart, the embedding example) is one of these.
 
 pub(crate) mod dual;
+pub(crate) mod observer;
 pub(crate) mod output;
 pub(crate) mod spaces;
 pub(crate) mod temperature;

@@ -31,10 +31,10 @@ pub(crate) const DAYLIGHT_FROM: f64 = 4000.0;
 const C2: f64 = 1.438_776_877e-2;
 
 /// CIE 1931 chromaticity `(x, y)` of a Planckian radiator at `t` kelvin, integrated over the
-/// built-in CIE 1931 2° colour-matching functions (360–830 nm, 1 nm).
+/// built-in CIE 1931 2° colour-matching functions ([`super::observer`], 360–830 nm, 1 nm).
 pub(crate) fn planckian_xy(t: f64) -> Result<[f64; 2], TemperatureError> {
     check_t(t, MIN_CCT, 100_000.0)?;
-    let cmf = crate::spectral::cie1931_cmf();
+    let cmf = super::observer::cie1931();
     let mut xyz = [0.0; 3];
     for (i, &w) in cmf.wavelengths.iter().enumerate() {
         let l = w * 1e-9;

@@ -36,8 +36,6 @@ pub(crate) const REFLECTANCES: &[(&str, &str)] = &[
     ),
 ];
 
-const CMF: &str = include_str!("../../assets/cie1931_2deg_cmf.csv");
-
 fn lookup(list: &[(&str, &str)], name: &str) -> Option<SpectralTable> {
     list.iter()
         .find(|(n, _)| n.eq_ignore_ascii_case(name))
@@ -61,9 +59,16 @@ pub(crate) fn builtin_reflectances(name: &str) -> Option<SpectralTable> {
     lookup(REFLECTANCES, name)
 }
 
-/// The CIE 1931 2° standard observer colour-matching functions x̄, ȳ, z̄ (360–830 nm, 1 nm).
+/// The CIE 1931 2° standard observer colour-matching functions x̄, ȳ, z̄ (360–830 nm, 1 nm):
+/// colorimetry's table (`colorimetry::observer`) as a spectral table.
 pub(crate) fn cie1931_cmf() -> SpectralTable {
-    parse_csv(CMF, "builtin:cie1931_2deg").expect("built-in data parses (tested)")
+    let o = crate::colorimetry::observer::cie1931();
+    SpectralTable {
+        source_name: crate::colorimetry::observer::SOURCE.to_string(),
+        wavelengths: o.wavelengths.clone(),
+        names: o.names.to_vec(),
+        values: o.values.to_vec(),
+    }
 }
 
 #[cfg(test)]
@@ -78,6 +83,12 @@ mod tests {
             }
         }
         assert_eq!(cie1931_cmf().names.len(), 3);
+        // Colorimetry's observer is the asset, read as every spectral CSV is read.
+        let asset = include_str!("../../assets/cie1931_2deg_cmf.csv");
+        assert_eq!(
+            cie1931_cmf(),
+            parse_csv(asset, "builtin:cie1931_2deg").unwrap()
+        );
         assert_eq!(
             builtin_reflectances("rawtoaces-190").unwrap().names.len(),
             190

@@ -19,7 +19,7 @@ pub(crate) use builtin::{
 };
 pub(crate) use csv::parse_csv;
 
-use crate::training::{Provenance, TrainingSet};
+use crate::training_set::{Provenance, TrainingSet};
 use std::path::Path;
 
 /// Errors from reading spectral data or simulating a camera.

@@ -268,7 +268,12 @@ fn measure_cpu(
             fast.apply_into(input, output, th)?; // warm-up
             for _ in 0..reps {
                 m_times.push(time(|| {
-                    memcpy_chunked(&input.data, &mut output.data, CHUNK_PIXELS * ch, th == Threads::All)
+                    memcpy_chunked(
+                        &input.data,
+                        &mut output.data,
+                        CHUNK_PIXELS * ch,
+                        th == Threads::All,
+                    )
                 }));
                 let t = Instant::now();
                 fast.apply_into(input, output, th)?;

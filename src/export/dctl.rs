@@ -1,7 +1,7 @@
 //! DaVinci Resolve DCTL: the exact model (no LUT) as a `transform` function, the matrix — with the
 //! output space folded in as `nsrm apply` does — baked in as f32 constants.
 //!
-//! The term expansion is generated from [`crate::model::terms::term_factors`], the same
+//! The term expansion is generated from `model::terms::term_factors`, the same
 //! definition the WGSL shaders are generated from, and follows the same pixel policy: NaN / Inf
 //! propagate, NSRM with `R+G+B ≤ 0` gives black, RPRM takes sign-preserving roots. The code is
 //! scalar C (no `float3` arithmetic), using only the DCTL built-ins `make_float3`, `_fabs`,

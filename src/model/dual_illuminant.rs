@@ -441,7 +441,7 @@ impl Profile {
         })
     }
 
-    /// The models combined for a frame's white (see the [module docs](self)).
+    /// The models combined for a frame's white (DNG's interpolation by inverse temperature).
     pub fn combine(&self, white: FrameWhite) -> Result<Combination, ModelError> {
         let te = |e: TemperatureError| spec(e.to_string());
         let (xy, neutral) = match white {

@@ -5,7 +5,7 @@
 //! `\n` or `\r\n`; blank lines and lines whose first non-blank character is `#` are skipped; cells
 //! are trimmed; the first line kept is the header; standard CSV quoting (`"a,b"`) is understood.
 //! Rows may have any number of cells: the caller checks the count
-//! ([`Record::expect_len`]) so that the error names the line.
+//! (`Record::expect_len`) so that the error names the line.
 
 use thiserror::Error;
 
@@ -226,7 +226,7 @@ impl<'r> Record<'r> {
         self.record.len()
     }
 
-    /// True for a row without cells (never returned by [`Table::next_record`]).
+    /// True for a row without cells (never returned by `Table::next_record`).
     pub fn is_empty(&self) -> bool {
         self.record.is_empty()
     }

@@ -1,7 +1,7 @@
 //! Bounds on what a file may make this crate do before anything is allocated.
 //!
 //! * **Text inputs** (model JSON, camera / illuminant / reflectance CSVs, measured training CSVs,
-//!   chart layouts) are read by [`read_text`]: regular files, FIFOs and pipes (a shell's
+//!   chart layouts) are read by `read_text`: regular files, FIFOs and pipes (a shell's
 //!   `<(cat m.json)`); a device such as `/dev/zero`, a socket or a directory is refused by
 //!   name, before it is opened; at most [`MAX_TEXT_BYTES`] (64 MiB) whatever the file claims,
 //!   valid UTF-8, a leading UTF-8 byte-order mark dropped.

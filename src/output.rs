@@ -629,7 +629,7 @@ impl Unit {
         }
     }
 
-    /// Stages `bytes` for `dest` (see [`write_with`](Self::write_with)).
+    /// Stages `bytes` for `dest` (see `write_with`).
     pub fn write_bytes(&mut self, dest: &Path, bytes: &[u8]) -> Result<(), WriteError> {
         self.write_with(dest, |w| {
             w.write_all(bytes).map_err(|err| WriteError::Io {

@@ -1,5 +1,5 @@
 //! Calibration from a photographed chart: the chart geometries ([`ChartKind`]), their reference
-//! values ([`reference`]), reading the patches of a linear frame ([`extract`]) located by four
+//! values ([`mod@reference`]), reading the patches of a linear frame ([`extract`]) located by four
 //! corners or found automatically ([`detect`]), compensation of uneven light ([`flat`]),
 //! synthetic captures for tests and users ([`scene`]) and the overlay picture ([`overlay`]).
 //!

@@ -1,10 +1,10 @@
 //! DaVinci Resolve DCTL: the exact model (no LUT) as a `transform` function, the matrix — with the
 //! output space folded in as `nsrm apply` does — baked in as f32 constants.
 //!
-//! The code is the model's pixel program ([`crate::model::pixel`], the one description the f64
+//! The code is the model's pixel program (`model::pixel`, the one description the f64
 //! reference, the fast kernels and the WGSL shaders follow) printed as scalar C, one block per
 //! step: input gains, NSRM's signal with its black rule, the terms (from
-//! [`crate::model::terms::term_factors`], sign-preserving roots computed once per channel) and
+//! `model::terms::term_factors`, sign-preserving roots computed once per channel) and
 //! their combine, the rescale. It uses only the DCTL built-ins `make_float3`, `_fabs`, `_sqrtf`,
 //! `_cbrtf` and `_copysignf`; the tests compile it as C with a small shim.
 

@@ -65,7 +65,9 @@ fn source(name: &str) -> &'static str {
 /// The format of the texture a texture-target [`Corrector`](super::Corrector) writes.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
 pub enum TexelFormat {
+    /// `rgba32float`.
     Rgba32Float,
+    /// `rgba16float`.
     Rgba16Float,
 }
 
@@ -101,9 +103,17 @@ impl TexelFormat {
 pub enum Target {
     /// Packed f32 storage buffers: `src` (read) → `dst` (written), or one buffer corrected in
     /// place (`in_place`).
-    Buffer { layout: Layout, in_place: bool },
+    Buffer {
+        /// RGB or RGBA packing of the buffers.
+        layout: Layout,
+        /// One buffer corrected in place (else `src` → `dst`).
+        in_place: bool,
+    },
     /// A float texture read with `textureLoad` → a write-only storage texture of `format`.
-    Texture { format: TexelFormat },
+    Texture {
+        /// The texel format of both textures.
+        format: TexelFormat,
+    },
 }
 
 impl Target {

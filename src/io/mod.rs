@@ -127,7 +127,7 @@ pub const DEFAULT_MAX_PIXELS: u64 = 1 << 28;
 
 /// Bounds on what a frame's header may make a reader allocate. Checked from the header, before
 /// any pixel buffer exists; buffers whose size comes from a file are then allocated fallibly
-/// ([`try_filled`]), so a hostile or damaged file costs an error, never the process.
+/// (`try_filled`), so a hostile or damaged file costs an error, never the process.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct Limits {
     /// Most pixels in one frame (width × height; for a multi-part / multi-level EXR, of all the

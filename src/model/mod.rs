@@ -15,20 +15,15 @@ pub(crate) mod fast;
 mod fast_tests;
 pub(crate) mod file;
 pub(crate) mod fit;
-mod output;
+pub(crate) mod output;
 pub(crate) mod pixel;
 #[cfg(test)]
 mod policy_tests;
 mod refine;
 pub(crate) mod terms;
 
-pub use dual_illuminant::{Combination, FrameWhite, Profile};
-pub use fit::{
-    fit_with, Fit, FitOptions, FitReport, Normalise, Objective, Ridge, White as FitWhite,
-    F32_TOLERANCE_DE00,
-};
-pub use output::output_model;
-pub use terms::MAX_ORDER;
+pub(crate) use output::output_model;
+pub(crate) use terms::MAX_ORDER;
 pub(crate) use terms::{term_name, terms, Term};
 
 use crate::training::{Provenance, TrainingSet};
@@ -130,6 +125,7 @@ pub enum Kind {
 }
 
 impl Kind {
+    /// The four kinds, in the paper's order.
     pub const ALL: [Kind; 4] = [Kind::Lrm, Kind::Prm, Kind::Rprm, Kind::Nsrm];
 
     /// Lower-case name: `lrm`, `prm`, `rprm`, `nsrm`.
@@ -309,7 +305,7 @@ impl Model {
     }
 
     /// The term values of `rgb` (input gains applied first) written into `p` (length L), and the
-    /// output scale (`s` for NSRM, 1 otherwise), or `None` when NSRM's `s ≤ 0`: [`features`] for
+    /// output scale (`s` for NSRM, 1 otherwise), or `None` when NSRM's `s ≤ 0`: `features` for
     /// this model.
     pub fn features_of(&self, rgb: [f64; 3], p: &mut [f64]) -> Option<f64> {
         self.program().features(self.input_gains, rgb, p)
@@ -365,7 +361,7 @@ impl Model {
     }
 
     /// Applies the model to one camera RGB in f64 (the input gains first, then the terms): the
-    /// reference every faster path is checked against. Follows the [pixel policy](pixel).
+    /// reference every faster path is checked against. Follows the pixel policy (the README's *Pixel policy*).
     pub fn apply_f64(&self, rgb: [f64; 3]) -> [f64; 3] {
         let mut p = vec![0.0; self.terms.len()];
         self.apply_f64_with(rgb, &mut p)
@@ -380,7 +376,7 @@ impl Model {
     ///
     /// Computes in f32 with vectorised kernels, on every thread of rayon's current pool (the
     /// global pool; call it inside `rayon::ThreadPool::install` to choose the threads). Follows
-    /// the [pixel policy](pixel) and agrees with [`apply_f64`](Self::apply_f64) to f32 precision.
+    /// the pixel policy and agrees with [`apply_f64`](Self::apply_f64) to f32 precision.
     ///
     /// ```
     /// use nsrm::{fit, simulate_named, Frame, Grid, Kind, Layout};

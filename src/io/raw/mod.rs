@@ -22,7 +22,7 @@
 //!
 //! **Hostile files:** the file must be a regular file no larger than [`MAX_RAW_BYTES`]; in a
 //! TIFF-based raw (DNG, NEF, ARW, PEF, …) the image dimensions in every IFD are checked against
-//! [`Limits::max_pixels`] before the decoder runs; for other containers (CR3, RAF, …) the
+//! `Limits::max_pixels` before the decoder runs; for other containers (CR3, RAF, …) the
 //! decoded mosaic is checked before anything of nsrm's is allocated. A panic inside the decoder
 //! is caught and reported as a corrupt file.
 

@@ -370,7 +370,11 @@ fn rate_options(a: &RateArgs, opts: &mut SceneOptions, clip_exposure: f64) {
     opts.min_area = a.min_area.unwrap_or(opts.min_area);
     opts.max_area = a.max_area.unwrap_or(opts.max_area).max(opts.min_area);
     opts.max_tilt_deg = a.max_tilt.unwrap_or(opts.max_tilt_deg);
-    opts.min_tilt_deg = a.min_tilt.unwrap_or(0.0).min(opts.max_tilt_deg);
+    // The family's own minimum (the tilt family's 30°) unless `--min-tilt` is given.
+    opts.min_tilt_deg = a
+        .min_tilt
+        .unwrap_or(opts.min_tilt_deg)
+        .min(opts.max_tilt_deg);
     if a.max_stops.is_some() || a.min_stops.is_some() {
         // Same draw as the envelope's (u uniform in 0..1, 4·u stops below clipping),
         // rescaled to MIN..S stops.
@@ -588,6 +592,16 @@ mod tests {
         let a = args(&["--min-area", "0.5", "--max-area", "0.2", "--occlusion"]);
         rate_options(&a, &mut o, 1.0);
         assert_eq!((o.min_area, o.max_area, o.occlusion), (0.5, 0.5, true));
+        // A family's minimum tilt (the tilt family's 30°) stays unless --min-tilt is given.
+        let mut t = SceneOptions {
+            min_tilt_deg: 30.0,
+            max_tilt_deg: 50.0,
+            ..SceneOptions::default()
+        };
+        rate_options(&args(&[]), &mut t, 1.0);
+        assert_eq!((t.min_tilt_deg, t.max_tilt_deg), (30.0, 50.0));
+        rate_options(&args(&["--min-tilt", "40"]), &mut t, 1.0);
+        assert_eq!((t.min_tilt_deg, t.max_tilt_deg), (40.0, 50.0));
     }
 
     #[test]

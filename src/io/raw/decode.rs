@@ -50,7 +50,7 @@ pub fn read(path: &Path, limits: &Limits, demosaic: Demosaic) -> Result<RawFrame
                     path,
                     format!(
                         "its {kind} headers declare no image size (nothing to check against \
-                         --max-pixels before decoding)"
+                         the pixel limit before decoding)"
                     ),
                 ))
             }

@@ -1,7 +1,7 @@
 //! Bounds on what a file may make this crate do before anything is allocated.
 //!
 //! * **Text inputs** (model JSON, camera / illuminant / reflectance CSVs, measured training CSVs,
-//!   chart layouts) are read by [`read_text`]: regular files, FIFOs and pipes (a shell's
+//!   chart layouts) are read by `read_text`: regular files, FIFOs and pipes (a shell's
 //!   `<(cat m.json)`); a device such as `/dev/zero`, a socket or a directory is refused by
 //!   name, before it is opened; at most [`MAX_TEXT_BYTES`] (64 MiB) whatever the file claims,
 //!   valid UTF-8, a leading UTF-8 byte-order mark dropped.
@@ -46,7 +46,7 @@ pub(crate) fn file_kind(meta: &std::fs::Metadata) -> &'static str {
 }
 
 /// An [`std::io::Error`] saying `path` is not a regular file (and what it is).
-pub fn not_regular(meta: &std::fs::Metadata) -> Error {
+pub(crate) fn not_regular(meta: &std::fs::Metadata) -> Error {
     Error::new(
         ErrorKind::InvalidInput,
         format!("not a regular file (it is {})", file_kind(meta)),
@@ -55,7 +55,7 @@ pub fn not_regular(meta: &std::fs::Metadata) -> Error {
 
 /// Checks that `path` is a regular file (following symlinks) without opening it, so a FIFO is
 /// never opened (which would block) and a device never read.
-pub fn check_regular(path: &Path) -> std::io::Result<std::fs::Metadata> {
+pub(crate) fn check_regular(path: &Path) -> std::io::Result<std::fs::Metadata> {
     let meta = std::fs::metadata(path)?;
     if !meta.is_file() {
         return Err(not_regular(&meta));

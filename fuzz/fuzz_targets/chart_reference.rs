@@ -4,8 +4,8 @@
 #![no_main]
 
 use libfuzzer_sys::fuzz_target;
-use nsrm::chart::reference::{d50_white, Reference};
-use nsrm::chart::ChartKind;
+use nsrm::chart::{ChartKind, Reference};
+use nsrm::training::d50_white;
 
 fuzz_target!(|data: &[u8]| {
     let Some((&pick, body)) = data.split_first() else {

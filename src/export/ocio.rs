@@ -29,7 +29,7 @@ fn matrix44(m: &spaces::Mat3) -> String {
 }
 
 /// The config text; `clf_file` is the CLF's file name, resolved beside the config.
-pub fn write(e: &LutExport, clf_file: &str) -> String {
+pub(crate) fn write(e: &LutExport, clf_file: &str) -> String {
     let w = e.model.white_xyz();
     let reference = e.space;
     let to_ref = crate::colorimetry::output_matrix(w, reference);

@@ -7,7 +7,7 @@ use std::path::{Path, PathBuf};
 
 /// What to expect beyond what the manifests say.
 #[derive(Debug, Clone, Default)]
-pub struct Expect {
+pub(crate) struct Expect {
     /// The shard count the job was made with.
     pub shards: Option<usize>,
     /// The SHA-256 of the model the job applies.
@@ -16,7 +16,7 @@ pub struct Expect {
 
 /// What [`verify`] found.
 #[derive(Debug, Clone, Default)]
-pub struct Report {
+pub(crate) struct Report {
     /// Manifests read.
     pub manifests: usize,
     /// Shards of the batch (as the manifests say).
@@ -33,7 +33,7 @@ pub struct Report {
 
 impl Report {
     /// Whether the batch is whole.
-    pub fn ok(&self) -> bool {
+    pub(crate) fn ok(&self) -> bool {
         self.problems.is_empty()
     }
 }
@@ -43,7 +43,7 @@ impl Report {
 /// each input of the batch has exactly one output; every output (and preview) is there with
 /// the size and SHA-256 its manifest records; and no nsrm temporary is left in `dir`. Errors
 /// only when `dir` cannot be listed; everything else is a problem in the report.
-pub fn verify(dir: &Path, expect: &Expect) -> Result<Report, FarmError> {
+pub(crate) fn verify(dir: &Path, expect: &Expect) -> Result<Report, FarmError> {
     let mut r = Report::default();
     let mut found: Vec<(usize, usize, PathBuf)> = Vec::new();
     let listing = std::fs::read_dir(dir).map_err(|err| FarmError::Io {

@@ -1,6 +1,6 @@
 //! End-to-end tests of `nsrm render-chart` + `nsrm fit` + `nsrm apply`, running the built binary.
 
-use nsrm::chart::synthetic::{layout_path, ChartLayout};
+use nsrm::chart::{layout_path, ChartLayout};
 use nsrm::colorimetry::delta_e00_xyz;
 use nsrm::colorimetry::spaces::{apply as mat_apply, OutputSpace};
 use nsrm::eval::Stats;

@@ -57,7 +57,7 @@ fn extract_fit_apply_reproduces_the_reference() {
     assert!(ok, "{err}");
     let text = std::fs::read_to_string(&csv).unwrap();
     // A comment line, the white line (D50, the reference's), then the header and the patches.
-    let white = nsrm::training::white_line(nsrm::chart::reference::d50_white());
+    let white = nsrm::training::white_line(nsrm::training::d50_white());
     assert!(
         text.starts_with("# nsrm chart patches:")
             && text.contains(&format!("\n{white}label,R,G,B,X,Y,Z\n01 dark skin,")),

@@ -13,7 +13,7 @@ use nsrm::colorimetry::delta_e00_xyz;
 use nsrm::colorimetry::spaces;
 use nsrm::colorimetry::spaces::OutputSpace;
 use nsrm::colorimetry::temperature::D50_XY;
-use nsrm::export::dcp::{prophoto_to_xyz, Dcp};
+use nsrm::export::{prophoto_to_xyz, Dcp};
 use nsrm::model::dual_illuminant::{FrameWhite, Profile};
 use nsrm::spectral::{simulate_named, Grid};
 use std::path::Path;

@@ -5,10 +5,10 @@
 //! `cargo bench --bench fit`.
 
 use criterion::{criterion_group, criterion_main, Criterion};
-use nsrm::eval::{evaluate, evaluate_with, Protocol};
-use nsrm::model::fit::{FitOptions, Normalise, Objective, Ridge};
-use nsrm::model::{fit, Kind, MAX_ORDER};
-use nsrm::spectral::{simulate_named, Grid};
+use nsrm::{evaluate, evaluate_with, Protocol};
+use nsrm::{fit, Kind, MAX_ORDER};
+use nsrm::{simulate_named, Grid};
+use nsrm::{FitOptions, Normalise, Objective, Ridge};
 use std::hint::black_box;
 use std::time::Duration;
 

@@ -2,8 +2,8 @@
 //!
 //! `cargo run --example 01_fit_nsrm`
 
-use nsrm::model::{fit, Kind};
-use nsrm::spectral::{simulate_named, Grid};
+use nsrm::{fit, Kind};
+use nsrm::{simulate_named, Grid};
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
     // Camera RGB and CIE XYZ of the 190 rawtoaces patches under D65 (perfect white: G = 1, Y = 100).

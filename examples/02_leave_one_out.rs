@@ -3,9 +3,9 @@
 //! `cargo run --release --example 02_leave_one_out [REFLECTANCES.csv PATCHES]`, e.g.
 //! `… ../shared/data/colorchecker_sg_140.csv B2:M9` for the ColorChecker SG's inner 96 patches.
 
-use nsrm::eval::{evaluate, Protocol};
-use nsrm::model::Kind;
-use nsrm::spectral::{simulate_named, Grid};
+use nsrm::Kind;
+use nsrm::{evaluate, Protocol};
+use nsrm::{simulate_named, Grid};
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
     let args: Vec<String> = std::env::args().skip(1).collect();

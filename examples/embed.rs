@@ -28,10 +28,10 @@
 //! [`Corrector`]: nsrm::gpu::Corrector
 
 use anyhow::{Context, Result};
-use nsrm::colorimetry::{self, spaces::OutputSpace};
 use nsrm::gpu::{Corrector, Target, TexelFormat};
-use nsrm::model::{fit, Kind, Model};
-use nsrm::spectral::{simulate_named, Grid};
+use nsrm::OutputSpace;
+use nsrm::{fit, Kind, Model};
+use nsrm::{simulate_named, Grid};
 use nsrm::{Frame, Layout, TrainingSet};
 use std::path::{Path, PathBuf};
 use wgpu::util::DeviceExt;
@@ -115,20 +115,20 @@ pub fn chart_frame(data: &TrainingSet, cols: usize, patch: usize) -> Frame {
 /// The model's XYZ (its white at `Y = white_xyz[1]`) → linear sRGB with the white at 1, the white
 /// adapted to D65: the display matrix, on the CPU and in the display shader's uniform.
 fn xyz_to_display(model: &Model) -> [[f64; 3]; 3] {
-    colorimetry::output_matrix(model.white_xyz(), OutputSpace::LinearSrgb)
+    nsrm::output_matrix(model.white_xyz(), OutputSpace::LinearSrgb)
 }
 
-/// The same picture on the CPU: the f64 reference, then the display matrix and the sRGB
-/// encoding, as RGBA8 (alpha 255).
+/// The same picture on the CPU: the f64 reference (rounded to f32, as the GPU's XYZ texture
+/// holds it), then the display matrix and the sRGB encoding, as RGBA8 (alpha 255).
 pub fn cpu_srgb8(model: &Model, frame: &Frame) -> Vec<u8> {
-    let mut xyz = frame.clone();
-    model.apply_frame_f64(&mut xyz);
     let m = xyz_to_display(model);
-    let ch = xyz.layout.channels();
-    let mut out = Vec::with_capacity(4 * xyz.pixels());
-    for px in xyz.data.chunks_exact(ch) {
-        let rgb = colorimetry::spaces::apply(&m, [px[0] as f64, px[1] as f64, px[2] as f64]);
-        out.extend(rgb.map(colorimetry::srgb8));
+    let ch = frame.layout.channels();
+    let mut out = Vec::with_capacity(4 * frame.pixels());
+    for px in frame.data.chunks_exact(ch) {
+        let xyz = model.apply_f64([px[0], px[1], px[2]].map(f64::from));
+        let xyz = xyz.map(|v| f64::from(v as f32));
+        let rgb = m.map(|row| row[0] * xyz[0] + row[1] * xyz[1] + row[2] * xyz[2]);
+        out.extend(rgb.map(nsrm::srgb8));
         out.push(255);
     }
     out

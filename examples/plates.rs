@@ -12,8 +12,8 @@
 //! 24-Mpixel float plates take about 1.1 GB.
 
 use anyhow::{bail, Context, Result};
-use nsrm::colorimetry::spaces::OutputSpace;
 use nsrm::io::{write_exr, ExrCompression, FileFormat, WriteOptions, DEFAULT_ZIP_LEVEL};
+use nsrm::OutputSpace;
 use nsrm::{Frame, Layout};
 use std::path::PathBuf;
 

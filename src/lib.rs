@@ -8,12 +8,12 @@
 //! Data flows one way:
 //!
 //! ```text
-//! spectra ─► spectral::simulate ─► TrainingSet ─► model::fit ─► Model ─► apply (cpu / gpu)
-//! measured CSV ─────────────────────┘       └─► eval::evaluate (leave-one-out ΔE00)
+//! spectra ─► simulate ─► TrainingSet ─► fit ─► Model ─► apply (CPU pixel / CPU frame / GPU)
+//! measured CSV ───────────┘      └─► evaluate (leave-one-out ΔE00)
 //! ```
 //!
 //! ```
-//! use nsrm::{model::{fit, Kind}, spectral::{simulate, Camera, Grid, Illuminant, Reflectances}};
+//! use nsrm::{fit, simulate, Camera, Grid, Illuminant, Kind, Reflectances};
 //! let data = simulate(
 //!     &Camera::from_name_or_path("nikon-d5100")?,
 //!     &Illuminant::from_name_or_path("D65")?,
@@ -26,18 +26,36 @@
 //! # Ok::<(), Box<dyn std::error::Error>>(())
 //! ```
 //!
+//! # The API
+//! The colour-science core is one flat list of items at the crate root (below, grouped as the
+//! documentation lists them): frames, models (fit, file, apply), dual-illuminant profiles,
+//! colorimetry, spectral simulation, training sets and evaluation. The rooms behind optional
+//! features are modules, each with its own flat list: [`gpu`], `io`, `chart`, `export`, `farm`.
+//!
+//! # Applying a model: one way per back end
+//! | back end | the way | notes |
+//! |---|---|---|
+//! | CPU, one pixel | [`Model::apply_f64`] | f64, the reference every other path is checked against |
+//! | CPU, a frame | [`Model::apply_frame`] | f32, vectorised, on every thread of rayon's current pool (`ThreadPool::install` to choose the threads) |
+//! | GPU, a frame | `gpu::Engine::apply` | owns its device; tiles the frame through upload, compute and read-back |
+//! | GPU, inside a renderer | `gpu::Corrector` | records the correction into the caller's encoder, on the caller's buffers or textures |
+//!
+//! All four follow one pixel policy (NaN and ±Inf propagate, NSRM with `R+G+B ≤ 0` gives 0,
+//! negative channels allowed, nothing clamped) and agree with [`Model::apply_f64`] to f32
+//! precision ([`F32_TOLERANCE_DE00`] on the training patches).
+//!
 //! # Cargo features
-//! The colour-science core (`spectral`, `colorimetry`, `model`, `eval`, `training`, `frame`) has
-//! no optional dependency: `default-features = false` builds just that.
+//! The colour-science core has no optional dependency: `default-features = false` builds just
+//! that.
 //!
 //! | feature | brings |
 //! |---|---|
-//! | `gpu` | [`gpu`]: wgpu, the frame [`gpu::Engine`] and the embeddable [`gpu::Corrector`] |
-//! | `io` | [`io`]: OpenEXR / TIFF frames and batches, PNG previews |
-//! | `export` | `export`: LUTs and profiles other tools read (CLF, `.cube`, OCIO, DCTL, DCP); with `gpu` also `export::shader`, the baked shaders in WGSL, SPIR-V, GLSL, HLSL and MSL (naga's back ends) |
-//! | `plot` | `eval::plot`: the paper's Fig. 1 as SVG or PNG |
+//! | `gpu` | `gpu`: wgpu, the frame `gpu::Engine` and the embeddable `gpu::Corrector` |
+//! | `io` | `io`: OpenEXR / TIFF frames and batches, PNG previews |
+//! | `export` | `export`: LUTs and profiles other tools read (CLF, `.cube`, OCIO, DCTL, DCP); with `gpu` also the baked shaders in WGSL, SPIR-V, GLSL, HLSL and MSL (naga's back ends) |
+//! | `plot` | `plot_histograms`: the paper's Fig. 1 as SVG or PNG |
 //! | `chart` | chart detection in captured frames, synthetic chart frames and scenes; implies `io` |
-//! | `farm` | [`farm`]: per-shard manifests, their verification, path mapping, farm job files; implies `io` |
+//! | `farm` | `farm`: per-shard manifests, their verification, path mapping, farm job files; implies `io` |
 //! | `cli` (default) | the `nsrm` binary; implies all of the above |
 //!
 //! A renderer embeds the correction pass with
@@ -54,25 +72,59 @@ pub mod chart;
 #[cfg(feature = "cli")]
 #[doc(hidden)]
 pub mod cli;
-pub mod colorimetry;
+mod colorimetry;
 pub mod csv_table;
 pub mod error;
-pub mod eval;
+mod eval;
 #[cfg(feature = "export")]
 pub mod export;
 #[cfg(feature = "farm")]
 pub mod farm;
-pub mod frame;
+mod frame;
 #[cfg(feature = "gpu")]
 pub mod gpu;
 #[cfg(feature = "io")]
 pub mod io;
 pub mod limits;
-pub mod model;
+mod model;
 pub mod output;
-pub mod spectral;
-pub mod training;
+mod spectral;
+mod training;
+mod training_set;
 
+/// The unit tests' kit, shared with the integration tests (public API only; `nsrm` names this
+/// crate in it).
+#[cfg(test)]
+extern crate self as nsrm;
+#[cfg(test)]
+#[path = "../tests/all/common/kit.rs"]
+#[allow(unreachable_pub, dead_code)]
+mod kit;
+
+// Frames: the pixels every apply path takes.
 pub use frame::{Frame, Layout};
-pub use model::{Kind, Model};
-pub use training::TrainingSet;
+
+// Models: kinds, fitting, the model file, applying on the CPU.
+pub use model::output_model;
+pub use model::{fit, fit_with, Fit, FitOptions, FitReport, Kind, Model, ModelError};
+pub use model::{FitWhite, Normalise, Objective, Ridge, F32_TOLERANCE_DE00, MAX_ORDER};
+
+// Dual-illuminant profiles: two models interpolated by the frame's white, as DNG does.
+pub use model::{Combination, FrameWhite, Profile};
+
+// Colorimetry: Lab, ΔE00, output spaces, colour temperature.
+pub use colorimetry::{bradford_between, cct, temperature_xy, TemperatureError, D50_XY};
+pub use colorimetry::{ciede2000, delta_e00_xyz, xyz_to_lab, D65_WHITE_XYZ};
+pub use colorimetry::{output_matrix, srgb8, srgb_oetf, Mat3, OutputSpace};
+
+// Spectral simulation: camera × illuminant × reflectances on a wavelength grid.
+pub use spectral::SpectralError;
+pub use spectral::{simulate, simulate_named, Camera, Grid, Illuminant, Reflectances};
+
+// Training sets: patches with camera RGB and reference XYZ, and their white.
+pub use training::{parse_white, CaptureProvenance, Provenance, TrainingError, TrainingSet};
+
+// Evaluation: leave-one-out and in-sample ΔE00 statistics.
+pub use eval::{evaluate, evaluate_with, EvalResult, PatchError, Protocol, Stats};
+#[cfg(feature = "plot")]
+pub use eval::{plot_histograms, PlotError};

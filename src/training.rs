@@ -2,7 +2,7 @@
 //! or measured by a user ([`TrainingSet::read_measured`]), and patch selection (`--patches`).
 
 use crate::colorimetry::lab_to_xyz;
-use serde::{Deserialize, Serialize};
+pub use crate::training_set::{CaptureProvenance, Provenance, TrainingSet};
 use std::path::Path;
 
 /// Errors from reading measured training data or selecting patches.
@@ -65,7 +65,7 @@ pub enum TrainingError {
 impl TrainingError {
     /// True for a malformed patch selection or white point, a white that is missing or that
     /// contradicts the file's.
-    pub fn is_usage(&self) -> bool {
+    pub(crate) fn is_usage(&self) -> bool {
         matches!(
             self,
             TrainingError::PatchSpec { .. }
@@ -76,90 +76,12 @@ impl TrainingError {
     }
 }
 
-/// Where a training set came from; written into model files.
-#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
-pub struct Provenance {
-    /// `spectral` (simulated from spectra) or `measured` (a user's CSV).
-    pub source: String,
-    #[serde(skip_serializing_if = "Option::is_none", default)]
-    pub camera: Option<String>,
-    #[serde(skip_serializing_if = "Option::is_none", default)]
-    pub illuminant: Option<String>,
-    #[serde(skip_serializing_if = "Option::is_none", default)]
-    pub reflectances: Option<String>,
-    #[serde(skip_serializing_if = "Option::is_none", default)]
-    pub grid: Option<String>,
-    /// The `--patches` selection, if one was applied.
-    #[serde(skip_serializing_if = "Option::is_none", default)]
-    pub patches: Option<String>,
-    /// Patches read from a photographed chart (`--capture`).
-    #[serde(skip_serializing_if = "Option::is_none", default)]
-    pub capture: Option<CaptureProvenance>,
-}
-
-/// Where patches read from a chart capture came from.
-#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
-pub struct CaptureProvenance {
-    /// The frame's file name.
-    pub frame: String,
-    /// SHA-256 of the frame file's bytes (hex).
-    pub sha256: String,
-    /// `cc24` or `sg`.
-    pub chart: String,
-    /// The reference values (a built-in name or a file).
-    pub reference: String,
-    /// `corners` or `detected`.
-    pub located: String,
-    /// Excluded patches with their flags, e.g. `19 white 9.5 (clipped)`.
-    pub excluded: Vec<String>,
-    /// How camera RGB was normalised before fitting.
-    pub exposure_normalisation: String,
-    /// Camera G of the perfect white implied by the neutral patches (median of 100 G / Y).
-    pub white_g: f64,
-    /// Flat-field compensation: `none`, `flat frame` or `neutral patches`, and the estimated
-    /// non-uniformity of the light (max/min over the chart).
-    pub flat: String,
-    pub light_nonuniformity: f64,
-    /// Median ΔE00 of the patches against the reference after the best 3×3 linear map.
-    pub reference_match_de00: f64,
-    /// How the frame's values were decoded: `linear`, or display-referred (sRGB decoded, the
-    /// camera's tone curve still in them). Empty in files written before it was recorded.
-    #[serde(default)]
-    pub encoding: String,
-    /// The camera (`make model`) of a camera raw frame, as the file records it; absent for
-    /// EXR / TIFF frames and in files written before it existed.
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub camera: Option<String>,
-}
-
-/// Patches with camera RGB and reference XYZ, and the reference white (for Lab).
-#[derive(Debug, Clone, PartialEq)]
-pub struct TrainingSet {
-    pub labels: Vec<String>,
-    /// Linear camera RGB (perfect white: G = 1 for simulated data).
-    pub rgb: Vec<[f64; 3]>,
-    /// CIE XYZ (perfect white: Y = 100 for simulated data).
-    pub xyz: Vec<[f64; 3]>,
-    /// XYZ of the perfect white under the illuminant: the Lab reference white.
-    pub white_xyz: [f64; 3],
-    /// Camera RGB of the perfect white under the illuminant (same scale as `rgb`), when known:
-    /// simulated data always has it; measured data does not (name a neutral patch instead).
-    /// White-balanced NSRM and `--preserve-white` use it.
-    pub white_rgb: Option<[f64; 3]>,
-    pub provenance: Provenance,
-}
-
 impl TrainingSet {
-    /// Number of patches.
-    pub fn len(&self) -> usize {
-        self.labels.len()
-    }
-
-    pub fn is_empty(&self) -> bool {
-        self.labels.is_empty()
-    }
-
     /// The patches at `indices`, in that order.
+    ///
+    /// # Panics
+    /// If an index is out of range (`indices` are the caller's own, like a slice index; a
+    /// selection from user input goes through [`select`](Self::select), which checks it).
     pub fn subset(&self, indices: &[usize]) -> TrainingSet {
         TrainingSet {
             labels: indices.iter().map(|&i| self.labels[i].clone()).collect(),
@@ -323,12 +245,12 @@ impl TrainingSet {
 
 /// `X,Y,Z` as the patch CSV's `# white:` line and messages write it (shortest round-trip
 /// decimals, so reading it back gives the same numbers).
-pub fn fmt_white(w: [f64; 3]) -> String {
+pub(crate) fn fmt_white(w: [f64; 3]) -> String {
     format!("{},{},{}", w[0], w[1], w[2])
 }
 
 /// The comment line that names a patch CSV's white, e.g. `# white: 96.42,100,82.49\n`.
-pub fn white_line(w: [f64; 3]) -> String {
+pub(crate) fn white_line(w: [f64; 3]) -> String {
     format!("# white: {}\n", fmt_white(w))
 }
 
@@ -379,7 +301,7 @@ pub(crate) fn white_in_header(
 
 /// The D50 white of chart makers' tables and ICC profiles (CIE 1931 2°, x 0.345703,
 /// y 0.358539), `Y = 100`.
-pub fn d50_white() -> [f64; 3] {
+pub(crate) fn d50_white() -> [f64; 3] {
     crate::colorimetry::xyy_to_xyz(0.345703, 0.358539, 100.0)
 }
 
@@ -464,7 +386,7 @@ pub(crate) const MAX_RECTANGLE: u64 = 1 << 20;
 /// * `all` — every patch;
 /// * `B2:M9` — a rectangle of chart labels: columns B..M × rows 2..9 (every label in it must exist);
 /// * `A1,C3,patch7` — a list of labels.
-pub fn select_patches(labels: &[String], spec: &str) -> Result<Vec<usize>, TrainingError> {
+pub(crate) fn select_patches(labels: &[String], spec: &str) -> Result<Vec<usize>, TrainingError> {
     let spec_t = spec.trim();
     let err = |why: String| TrainingError::Patches {
         spec: spec.to_string(),

@@ -40,7 +40,7 @@ pub use detect::{detect, Candidate, DetectFailure, DetectOptions, Detection};
 pub use extract::{extract, verify, ExtractOptions, Extraction, Flag, PatchReading, Quantisation};
 pub use flat::from_neutrals as flat_from_neutrals;
 pub use flat::{apply as apply_flat, from_flat_frame as flat_from_frame, Flat};
-pub use reference::Reference;
+pub use reference::{d50_white, Reference};
 pub use scene::{render as render_scene, CameraLook, ChartColours, Family, SceneOptions};
 pub use scene::{SceneTruth, TruePatch};
 pub use synthetic::{layout_path, render as render_chart, write as write_chart};

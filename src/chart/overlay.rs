@@ -51,7 +51,9 @@ fn label(img: &mut RgbImage, colour: Rgb<u8>, x: i32, y: i32, px: f32, font: &Fo
     draw_text_mut(img, colour, x + 2, y + 2, PxScale::from(px), font, text);
 }
 
-/// Draws the overlay. `swatches`: (patches, reference white) after a fit.
+/// Draws the overlay. `swatches`: (patches, reference white) after a fit. The steps: the
+/// white balance and exposure (`balance`), the frame scaled down (`preview`), the
+/// candidates (`draw_candidates`), the reading (`draw_reading`), the swatch panel.
 pub(crate) fn render(
     frame: &Frame,
     reading: Option<&Extraction>,
@@ -59,10 +61,26 @@ pub(crate) fn render(
     swatches: Option<(&[Swatch], [f64; 3])>,
 ) -> RgbImage {
     let s = frame.width.max(frame.height).div_ceil(MAX_SIDE).max(1);
-    let (w, h) = ((frame.width / s).max(1), (frame.height / s).max(1));
-    let ch = frame.layout.channels();
-    // White balance and exposure from the reading, else from the frame's 99th percentile.
-    let (gain, level) = match reading {
+    let (gain, level) = balance(frame, reading);
+    let k = if level > 0.0 { 0.9 / level } else { 1.0 };
+    let mut img = preview(frame, s, gain, k);
+    let font = font();
+    let sc = 1.0 / s as f32;
+    draw_candidates(&mut img, candidates, sc);
+    if let Some(ex) = reading {
+        draw_reading(&mut img, ex, sc, &font);
+    }
+    match swatches {
+        Some((sw, white)) if !sw.is_empty() => append_swatches(img, sw, white, &font),
+        _ => img,
+    }
+}
+
+/// The preview's white balance (per-channel gains, G = 1) and the level to show at 90 %: from
+/// the reading's neutral patches (a* and b* within 4) and its brightest usable patch, else no
+/// balance and the frame's 99th percentile of green (every 7th pixel).
+fn balance(frame: &Frame, reading: Option<&Extraction>) -> ([f64; 3], f64) {
+    match reading {
         Some(ex) => {
             let usable: Vec<_> = ex.patches.iter().filter(|p| p.usable()).collect();
             let neutral: Vec<_> = usable
@@ -90,6 +108,7 @@ pub(crate) fn render(
             (gain, top)
         }
         None => {
+            let ch = frame.layout.channels();
             let mut g: Vec<f32> = frame
                 .data
                 .chunks_exact(ch)
@@ -101,8 +120,14 @@ pub(crate) fn render(
             let p = g.get(g.len() * 99 / 100).copied().unwrap_or(1.0) as f64;
             ([1.0; 3], p)
         }
-    };
-    let k = if level > 0.0 { 0.9 / level } else { 1.0 };
+    }
+}
+
+/// The frame as 8-bit sRGB, each `s × s` block averaged and scaled by `gain` per channel and
+/// by `k` (an incomplete block at the right or bottom edge is left out).
+fn preview(frame: &Frame, s: usize, gain: [f64; 3], k: f64) -> RgbImage {
+    let (w, h) = ((frame.width / s).max(1), (frame.height / s).max(1));
+    let ch = frame.layout.channels();
     let mut img = RgbImage::new(w as u32, h as u32);
     for y in 0..h {
         for x in 0..w {
@@ -120,8 +145,12 @@ pub(crate) fn render(
             img.put_pixel(x as u32, y as u32, Rgb(px));
         }
     }
-    let font = font();
-    let sc = 1.0 / s as f32;
+    img
+}
+
+/// The detection's candidate regions (frame pixels × `sc`): cyan when linked into a grid,
+/// yellow when rejected.
+fn draw_candidates(img: &mut RgbImage, candidates: &[Candidate], sc: f32) {
     for c in candidates {
         let colour = if c.accepted {
             Rgb([0, 230, 230])
@@ -129,7 +158,7 @@ pub(crate) fn render(
             Rgb([255, 220, 0])
         };
         draw_hollow_circle_mut(
-            &mut img,
+            img,
             (
                 (c.centre[0] as f32 * sc) as i32,
                 (c.centre[1] as f32 * sc) as i32,
@@ -138,50 +167,48 @@ pub(crate) fn render(
             colour,
         );
     }
-    if let Some(ex) = reading {
-        let text_px = (0.3
-            * ((ex.patches[0].outline[1][0] - ex.patches[0].outline[0][0])
-                .hypot(ex.patches[0].outline[1][1] - ex.patches[0].outline[0][1]))
-                as f32
-            * sc)
-            .clamp(LABEL_PX.0, LABEL_PX.1);
-        for p in &ex.patches {
-            let colour = if p.usable() {
-                Rgb([0, 255, 0])
-            } else {
-                Rgb([255, 0, 0])
-            };
-            for q in 0..4 {
-                let (a, b) = (p.outline[q], p.outline[(q + 1) % 4]);
-                draw_line_segment_mut(
-                    &mut img,
-                    (a[0] as f32 * sc, a[1] as f32 * sc),
-                    (b[0] as f32 * sc, b[1] as f32 * sc),
-                    colour,
-                );
-            }
-            let short = p.label.split(' ').next().unwrap_or(&p.label).to_string();
-            let text = if p.usable() {
-                short
-            } else {
-                let f: Vec<&str> = p.flags.iter().map(|f| f.name()).collect();
-                format!("{short} {}", f.join(","))
-            };
-            let (tw, _) = text_size(PxScale::from(text_px), &font, &text);
-            label(
-                &mut img,
+}
+
+/// Each sampled area outlined and labelled (frame pixels × `sc`): green when used, red with its
+/// flags when not; labels a third of the patch wide, within [`LABEL_PX`].
+fn draw_reading(img: &mut RgbImage, ex: &Extraction, sc: f32, font: &FontRef) {
+    let text_px = (0.3
+        * ((ex.patches[0].outline[1][0] - ex.patches[0].outline[0][0])
+            .hypot(ex.patches[0].outline[1][1] - ex.patches[0].outline[0][1])) as f32
+        * sc)
+        .clamp(LABEL_PX.0, LABEL_PX.1);
+    for p in &ex.patches {
+        let colour = if p.usable() {
+            Rgb([0, 255, 0])
+        } else {
+            Rgb([255, 0, 0])
+        };
+        for q in 0..4 {
+            let (a, b) = (p.outline[q], p.outline[(q + 1) % 4]);
+            draw_line_segment_mut(
+                img,
+                (a[0] as f32 * sc, a[1] as f32 * sc),
+                (b[0] as f32 * sc, b[1] as f32 * sc),
                 colour,
-                (p.centre[0] as f32 * sc) as i32 - tw as i32 / 2 - 2,
-                (p.centre[1] as f32 * sc) as i32 - (text_px as i32) / 2 - 2,
-                text_px,
-                &font,
-                &text,
             );
         }
-    }
-    match swatches {
-        Some((sw, white)) if !sw.is_empty() => append_swatches(img, sw, white, &font),
-        _ => img,
+        let short = p.label.split(' ').next().unwrap_or(&p.label).to_string();
+        let text = if p.usable() {
+            short
+        } else {
+            let f: Vec<&str> = p.flags.iter().map(|f| f.name()).collect();
+            format!("{short} {}", f.join(","))
+        };
+        let (tw, _) = text_size(PxScale::from(text_px), font, &text);
+        label(
+            img,
+            colour,
+            (p.centre[0] as f32 * sc) as i32 - tw as i32 / 2 - 2,
+            (p.centre[1] as f32 * sc) as i32 - (text_px as i32) / 2 - 2,
+            text_px,
+            font,
+            &text,
+        );
     }
 }
 
@@ -251,4 +278,66 @@ pub(crate) fn encode(img: &RgbImage) -> Result<Vec<u8>, crate::io::IoError> {
         )
         .map_err(|e| crate::io::IoError::Invalid(format!("encoding the overlay PNG: {e}")))?;
     Ok(png)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::chart::extract::PatchReading;
+    use crate::chart::{ChartKind, Homography};
+    use crate::frame::Layout;
+
+    fn patch(rgb: [f64; 3], xyz: [f64; 3]) -> PatchReading {
+        PatchReading {
+            label: "p".into(),
+            rgb,
+            std: [0.0; 3],
+            count: 1,
+            flags: Vec::new(),
+            xyz,
+            centre: [0.0; 2],
+            outline: [[0.0; 2]; 4],
+            flat: 1.0,
+        }
+    }
+
+    #[test]
+    fn the_balance_comes_from_the_neutrals_else_the_frame() {
+        let frame = Frame::from_data(
+            10,
+            1,
+            Layout::Rgb,
+            (0..10).flat_map(|i| [0.0, i as f32, 0.0]).collect(),
+        )
+        .unwrap();
+        // Every 7th pixel's green: 0 and 7; the 99th percentile of two is the larger.
+        assert_eq!(balance(&frame, None), ([1.0; 3], 7.0));
+        let ex = Extraction {
+            chart: ChartKind::Cc24,
+            homography: Homography([1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0]),
+            white_level: None,
+            white_level_inferred: false,
+            patches: vec![
+                patch([0.5, 1.0, 0.25], [96.42, 100.0, 82.51]),
+                patch([1.0, 0.2, 0.1], [40.0, 20.0, 5.0]),
+            ],
+        };
+        // The grey sets the gains; the red patch, balanced, is the brightest.
+        assert_eq!(balance(&frame, Some(&ex)), ([2.0, 1.0, 4.0], 2.0));
+    }
+
+    #[test]
+    fn the_preview_averages_blocks() {
+        let data = vec![
+            0.0, 0.0, 0.0, 1.0, 1.0, 1.0, 0.5, 0.5, 0.5, 0.5, 0.5, 0.5, //
+            1.0, 1.0, 1.0, 0.0, 0.0, 0.0, 0.5, 0.5, 0.5, 0.5, 0.5, 0.5, //
+        ];
+        let frame = Frame::from_data(4, 2, Layout::Rgb, data).unwrap();
+        let img = preview(&frame, 2, [1.0; 3], 1.0);
+        assert_eq!(img.dimensions(), (2, 1));
+        assert_eq!(img.get_pixel(0, 0), img.get_pixel(1, 0));
+        assert_eq!(img.get_pixel(0, 0).0, [srgb8(0.5); 3]);
+        let dark = preview(&frame, 2, [1.0, 0.0, 1.0], 0.5);
+        assert_eq!(dark.get_pixel(1, 0).0, [srgb8(0.25), 0, srgb8(0.25)]);
+    }
 }

@@ -5,11 +5,16 @@
 use super::{ChartError, ChartKind};
 use crate::colorimetry::{lab_to_xyz, xyy_to_xyz};
 use crate::error::{Concern, Param};
-use crate::training::d50_white;
 use std::path::Path;
 
 /// Largest reference file read (bytes).
 pub(crate) const MAX_REFERENCE_BYTES: u64 = 1 << 20;
+
+/// XYZ of the D50 white, `Y = 100` (the white of the built-in references and the default of
+/// Lab reference files).
+pub fn d50_white() -> [f64; 3] {
+    crate::training::d50_white()
+}
 
 /// Built-in references: (name, chart, CSV `label,x,y,Y,L,a,b`, D50, Y of the white = 1).
 pub(crate) const BUILTIN: &[(&str, ChartKind, &str)] = &[

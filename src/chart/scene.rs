@@ -462,6 +462,12 @@ impl Shape {
 
 /// Renders a scene: the frame, a flat frame (a grey card of reflectance 0.5 under the same
 /// light, same noise) and the truth.
+///
+/// The steps, in the order they draw from the seeded generator: the pose, the background
+/// (`Background`), the occluder (`place_occluder`), the light (`Light`) and the Passport's
+/// second page; then the chart is drawn (`ChartDrawing`) and rasterised (`rasterise`), the
+/// flat frame lit alike (`flat_frame`), both blurred and made noisy (`add_noise`), and the
+/// truth read off the same geometry (`true_patches`, `scene_truth`).
 pub fn render(
     colours: &ChartColours,
     opts: &SceneOptions,
@@ -478,119 +484,250 @@ pub fn render(
         .inverse()
         .ok_or_else(|| ChartError::Geometry("the pose is singular".into()))?;
     let white = colours.white_rgb;
-    // Background: a smooth two-colour gradient and random shapes of random colours.
-    let rand_rgb = |g: &mut Gaussian| {
-        let base = 0.03 + 0.8 * g.uniform();
-        let tint = [
-            0.6 + 0.8 * g.uniform(),
-            0.6 + 0.8 * g.uniform(),
-            0.6 + 0.8 * g.uniform(),
-        ];
-        [0, 1, 2].map(|k| (white[k] * base * tint[k]).min(0.95 * white[k]))
-    };
-    let bg0 = rand_rgb(&mut g);
-    let bg1 = rand_rgb(&mut g);
-    let mut shapes = Vec::with_capacity(opts.clutter);
-    let short = w.min(h) as f64;
-    for _ in 0..opts.clutter {
-        let c = [g.uniform() * w as f64, g.uniform() * h as f64];
-        let half = [
-            short * (0.01 + 0.12 * g.uniform()),
-            short * (0.01 + 0.12 * g.uniform()),
-        ];
-        let a = std::f64::consts::PI * g.uniform();
-        let shape = if g.uniform() < 0.5 {
-            Shape::Rect {
-                c,
-                half,
-                cos: a.cos(),
-                sin: a.sin(),
-            }
-        } else {
-            Shape::Ellipse {
-                c,
-                half,
-                cos: a.cos(),
-                sin: a.sin(),
-            }
-        };
-        shapes.push((shape, rand_rgb(&mut g)));
-    }
-    // Occluder: an ellipse of skin-like colour over a random corner of the patch grid.
-    let occluder = if opts.occlusion {
-        let corner = kind.grid_corners()[(g.uniform() * 4.0) as usize % 4];
-        let c = hom.apply(corner);
-        let pitch_px = {
-            let a = hom.apply([corner[0], corner[1]]);
-            let b = hom.apply([corner[0] + 1.0, corner[1]]);
-            (a[0] - b[0]).hypot(a[1] - b[1])
-        };
-        let ang = std::f64::consts::PI * g.uniform();
-        Some((
-            Shape::Ellipse {
-                c,
-                half: [0.9 * pitch_px, 0.45 * pitch_px],
-                cos: ang.cos(),
-                sin: ang.sin(),
-            },
-            colours.rgb[1].map(|v| v * 0.8),
-        ))
-    } else {
-        None
-    };
-    let body_rgb = white.map(|v| v * opts.body_reflectance);
-    let gpos = 0.5 * (1.0 - kind.patch_fraction());
-    let (cols, rows) = (kind.columns() as f64, kind.rows() as f64);
-    let m = kind.margin();
-    let light_dir = std::f64::consts::TAU * g.uniform();
-    let light_raw = |x: f64, y: f64| -> f64 {
-        let (nx, ny) = (x / w as f64 - 0.5, y / h as f64 - 0.5);
-        let r2 = (nx * nx + ny * ny) / 0.5;
-        (1.0 - opts.vignetting * r2)
-            * (1.0 + opts.gradient * (nx * light_dir.cos() + ny * light_dir.sin()))
-    };
+    let background = Background::new(white, w, h, opts.clutter, &mut g);
+    let occluder = opts
+        .occlusion
+        .then(|| place_occluder(colours, &hom, &mut g));
     let centres: Vec<[f64; 2]> = (0..kind.cells())
         .map(|i| hom.apply(kind.cell_centre(i)))
         .collect();
-    let light_mean =
-        centres.iter().map(|c| light_raw(c[0], c[1])).sum::<f64>() / centres.len() as f64;
-    if !(light_mean > 0.0) {
-        return Err(ChartError::Options(
-            "the light is not positive on the chart (vignetting and gradient too strong)".into(),
-        ));
-    }
-    let light = |x: f64, y: f64| light_raw(x, y) / light_mean;
-    let body_q = kind.body_corners().map(|c| hom.apply(c));
+    let light = Light::new(opts, g.uniform(), &centres)?;
     let second = opts.second_page.then(|| SecondPage::new(colours, &mut g));
-    // The drawn body: the chart's, and the second page's beside it.
-    let drawn: Vec<[f64; 2]> = kind
-        .body_corners()
-        .iter()
-        .flat_map(|c| {
-            let mut v = vec![*c];
-            if second.is_some() {
-                v.push([c[0] - SECOND_PAGE_SHIFT, c[1]]);
-            }
-            v
-        })
-        .collect();
-    let in_front = drawn.iter().all(|c| hom.w(*c) > 0.0);
-    let (bx0, by0, bx1, by1) = drawn.iter().map(|c| hom.apply(*c)).fold(
-        (f64::MAX, f64::MAX, f64::MIN, f64::MIN),
-        |(a, b, c, d), p| (a.min(p[0]), b.min(p[1]), c.max(p[0]), d.max(p[1])),
+    let drawing = ChartDrawing::new(colours, hom, hinv, occluder.as_ref(), second, opts);
+    let data = rasterise(w, h, &background, &drawing, &light, opts.exposure);
+    let mut frame = Frame::from_data(w, h, Layout::Rgb, data).expect("sized");
+    let mut flat = flat_frame(w, h, white, &light, opts.exposure);
+    if opts.blur > 0.0 {
+        blur(&mut frame, opts.blur);
+    }
+    add_noise(&mut frame, opts, 0);
+    add_noise(&mut flat, opts, 0x9e37_79b9);
+    if let Some(look) = opts.look {
+        apply_look(&mut frame, look, opts.white_level)?;
+    }
+    let patches = true_patches(colours, &hom, &light, occluder.as_ref(), opts);
+    let truth = scene_truth(
+        colours,
+        opts,
+        hom,
+        (rotation, tilt),
+        &light,
+        &centres,
+        patches,
     );
-    // Reflected colour (camera RGB, unlit) at a point.
-    let scene_at = |p: [f64; 2], bg: [f64; 3]| -> [f64; 3] {
-        if let Some((o, rgb)) = &occluder {
+    Ok((frame, flat, truth))
+}
+
+/// A random colour of the surroundings: a grey of random lightness, tinted, below the white.
+fn random_rgb(white: [f64; 3], g: &mut Gaussian) -> [f64; 3] {
+    let base = 0.03 + 0.8 * g.uniform();
+    let tint = [
+        0.6 + 0.8 * g.uniform(),
+        0.6 + 0.8 * g.uniform(),
+        0.6 + 0.8 * g.uniform(),
+    ];
+    [0, 1, 2].map(|k| (white[k] * base * tint[k]).min(0.95 * white[k]))
+}
+
+/// The background: a smooth two-colour gradient under random shapes of random colours (the
+/// last drawn on top).
+struct Background {
+    from: [f64; 3],
+    to: [f64; 3],
+    shapes: Vec<(Shape, [f64; 3])>,
+    width: f64,
+    height: f64,
+}
+
+impl Background {
+    fn new(white: [f64; 3], w: usize, h: usize, clutter: usize, g: &mut Gaussian) -> Background {
+        let from = random_rgb(white, g);
+        let to = random_rgb(white, g);
+        let mut shapes = Vec::with_capacity(clutter);
+        let short = w.min(h) as f64;
+        for _ in 0..clutter {
+            let c = [g.uniform() * w as f64, g.uniform() * h as f64];
+            let half = [
+                short * (0.01 + 0.12 * g.uniform()),
+                short * (0.01 + 0.12 * g.uniform()),
+            ];
+            let a = std::f64::consts::PI * g.uniform();
+            let (cos, sin) = (a.cos(), a.sin());
+            let shape = if g.uniform() < 0.5 {
+                Shape::Rect { c, half, cos, sin }
+            } else {
+                Shape::Ellipse { c, half, cos, sin }
+            };
+            shapes.push((shape, random_rgb(white, g)));
+        }
+        Background {
+            from,
+            to,
+            shapes,
+            width: w as f64,
+            height: h as f64,
+        }
+    }
+
+    /// The background's colour at pixel centre `(px, py)`.
+    fn at(&self, px: f64, py: f64) -> [f64; 3] {
+        if let Some((_, rgb)) = self.shapes.iter().rev().find(|(s, _)| s.contains([px, py])) {
+            return *rgb;
+        }
+        let t = px / self.width * 0.7 + py / self.height * 0.3;
+        [0, 1, 2].map(|k| self.from[k] * (1.0 - t) + self.to[k] * t)
+    }
+}
+
+/// The occluder: an ellipse of skin-like colour over a random corner of the patch grid.
+fn place_occluder(colours: &ChartColours, hom: &Homography, g: &mut Gaussian) -> (Shape, [f64; 3]) {
+    let corner = colours.chart.grid_corners()[(g.uniform() * 4.0) as usize % 4];
+    let c = hom.apply(corner);
+    let pitch_px = {
+        let a = hom.apply([corner[0], corner[1]]);
+        let b = hom.apply([corner[0] + 1.0, corner[1]]);
+        (a[0] - b[0]).hypot(a[1] - b[1])
+    };
+    let ang = std::f64::consts::PI * g.uniform();
+    (
+        Shape::Ellipse {
+            c,
+            half: [0.9 * pitch_px, 0.45 * pitch_px],
+            cos: ang.cos(),
+            sin: ang.sin(),
+        },
+        colours.rgb[1].map(|v| v * 0.8),
+    )
+}
+
+/// The light: vignetting and a linear gradient in direction `dir` (radians), normalised to 1 on
+/// average over the patch centres.
+struct Light {
+    width: f64,
+    height: f64,
+    vignetting: f64,
+    gradient: f64,
+    dir: f64,
+    mean: f64,
+}
+
+impl Light {
+    /// `dir_draw` is a uniform draw in (0, 1] (the direction is `τ · dir_draw`).
+    fn new(opts: &SceneOptions, dir_draw: f64, centres: &[[f64; 2]]) -> Result<Light, ChartError> {
+        let mut light = Light {
+            width: opts.width as f64,
+            height: opts.height as f64,
+            vignetting: opts.vignetting,
+            gradient: opts.gradient,
+            dir: std::f64::consts::TAU * dir_draw,
+            mean: 1.0,
+        };
+        let mean =
+            centres.iter().map(|c| light.raw(c[0], c[1])).sum::<f64>() / centres.len() as f64;
+        if !(mean > 0.0) {
+            return Err(ChartError::Options(
+                "the light is not positive on the chart (vignetting and gradient too strong)"
+                    .into(),
+            ));
+        }
+        light.mean = mean;
+        Ok(light)
+    }
+
+    /// The light at `(x, y)` before normalisation.
+    fn raw(&self, x: f64, y: f64) -> f64 {
+        let (nx, ny) = (x / self.width - 0.5, y / self.height - 0.5);
+        let r2 = (nx * nx + ny * ny) / 0.5;
+        (1.0 - self.vignetting * r2)
+            * (1.0 + self.gradient * (nx * self.dir.cos() + ny * self.dir.sin()))
+    }
+
+    /// The light at `(x, y)`.
+    fn at(&self, x: f64, y: f64) -> f64 {
+        self.raw(x, y) / self.mean
+    }
+}
+
+/// The chart as drawn in the frame: its patches and body (and the Passport's second page), the
+/// occluder over them, and the bounding box outside which only the background shows.
+struct ChartDrawing<'a> {
+    colours: &'a ChartColours,
+    hinv: Homography,
+    occluder: Option<&'a (Shape, [f64; 3])>,
+    second: Option<SecondPage>,
+    /// Every corner of the drawn body lies in front of the camera.
+    in_front: bool,
+    /// The drawn body's bounding box in the frame: x0, y0, x1, y1.
+    bounds: [f64; 4],
+    body_rgb: [f64; 3],
+    /// Where a patch starts within its cell (chart units).
+    gpos: f64,
+}
+
+impl<'a> ChartDrawing<'a> {
+    fn new(
+        colours: &'a ChartColours,
+        hom: Homography,
+        hinv: Homography,
+        occluder: Option<&'a (Shape, [f64; 3])>,
+        second: Option<SecondPage>,
+        opts: &SceneOptions,
+    ) -> ChartDrawing<'a> {
+        let kind = colours.chart;
+        // The drawn body: the chart's, and the second page's beside it.
+        let drawn: Vec<[f64; 2]> = kind
+            .body_corners()
+            .iter()
+            .flat_map(|c| {
+                let mut v = vec![*c];
+                if second.is_some() {
+                    v.push([c[0] - SECOND_PAGE_SHIFT, c[1]]);
+                }
+                v
+            })
+            .collect();
+        let in_front = drawn.iter().all(|c| hom.w(*c) > 0.0);
+        let (bx0, by0, bx1, by1) = drawn.iter().map(|c| hom.apply(*c)).fold(
+            (f64::MAX, f64::MAX, f64::MIN, f64::MIN),
+            |(a, b, c, d), p| (a.min(p[0]), b.min(p[1]), c.max(p[0]), d.max(p[1])),
+        );
+        ChartDrawing {
+            colours,
+            hinv,
+            occluder,
+            second,
+            in_front,
+            bounds: [bx0, by0, bx1, by1],
+            body_rgb: colours.white_rgb.map(|v| v * opts.body_reflectance),
+            gpos: 0.5 * (1.0 - kind.patch_fraction()),
+        }
+    }
+
+    /// Whether pixel centre `(px, py)` needs supersampling: within a pixel of the chart, or
+    /// anywhere when there is an occluder.
+    fn near(&self, px: f64, py: f64) -> bool {
+        let [bx0, by0, bx1, by1] = self.bounds;
+        let near = px >= bx0 - 1.0 && px <= bx1 + 1.0 && py >= by0 - 1.0 && py <= by1 + 1.0;
+        near || self.occluder.is_some()
+    }
+
+    /// The reflected colour (camera RGB, unlit) at frame point `p` over background `bg`.
+    fn at(&self, p: [f64; 2], bg: [f64; 3]) -> [f64; 3] {
+        if let Some((o, rgb)) = self.occluder {
             if o.contains(p) {
                 return *rgb;
             }
         }
-        if !in_front || p[0] < bx0 || p[0] > bx1 || p[1] < by0 || p[1] > by1 {
+        let [bx0, by0, bx1, by1] = self.bounds;
+        if !self.in_front || p[0] < bx0 || p[0] > bx1 || p[1] < by0 || p[1] > by1 {
             return bg;
         }
-        let q = hinv.apply(p);
-        let left = if second.is_some() {
+        let kind = self.colours.chart;
+        let (cols, rows) = (kind.columns() as f64, kind.rows() as f64);
+        let m = kind.margin();
+        let gpos = self.gpos;
+        let q = self.hinv.apply(p);
+        let left = if self.second.is_some() {
             -SECOND_PAGE_SHIFT - m
         } else {
             -m
@@ -598,7 +735,7 @@ pub fn render(
         if q[0] < left || q[1] < -m || q[0] > cols + m || q[1] > rows + m {
             return bg;
         }
-        if let Some(page) = &second {
+        if let Some(page) = &self.second {
             if let Some(c) = page.at(q, gpos) {
                 return c;
             }
@@ -607,95 +744,117 @@ pub fn render(
             let (c, r) = (q[0].floor(), q[1].floor());
             let (fu, fv) = (q[0] - c, q[1] - r);
             if fu >= gpos && fu <= 1.0 - gpos && fv >= gpos && fv <= 1.0 - gpos {
-                return colours.rgb[r as usize * kind.columns() + c as usize];
+                return self.colours.rgb[r as usize * kind.columns() + c as usize];
             }
         }
-        body_rgb
-    };
+        self.body_rgb
+    }
+
+    /// The mean colour of pixel `(x, y)` over `bg`: 4 × 4 samples.
+    fn supersampled(&self, x: usize, y: usize, bg: [f64; 3]) -> [f64; 3] {
+        let mut acc = [0.0; 3];
+        for sy in 0..4 {
+            for sx in 0..4 {
+                let p = [
+                    x as f64 + (sx as f64 + 0.5) / 4.0,
+                    y as f64 + (sy as f64 + 0.5) / 4.0,
+                ];
+                let c = self.at(p, bg);
+                for k in 0..3 {
+                    acc[k] += c[k] / 16.0;
+                }
+            }
+        }
+        acc
+    }
+}
+
+/// The lit frame's RGB samples (row-major): the chart over the background, supersampled near
+/// the chart, times the light and the exposure.
+fn rasterise(
+    w: usize,
+    h: usize,
+    background: &Background,
+    drawing: &ChartDrawing,
+    light: &Light,
+    exposure: f64,
+) -> Vec<f32> {
     let mut data = vec![0.0f32; w * h * 3];
     data.par_chunks_mut(w * 3).enumerate().for_each(|(y, row)| {
         for x in 0..w {
             let (px, py) = (x as f64 + 0.5, y as f64 + 0.5);
-            let t = px / w as f64 * 0.7 + py / h as f64 * 0.3;
-            let mut bg = [0, 1, 2].map(|k| bg0[k] * (1.0 - t) + bg1[k] * t);
-            for (s, rgb) in shapes.iter().rev() {
-                if s.contains([px, py]) {
-                    bg = *rgb;
-                    break;
-                }
-            }
-            // Supersample near the chart (4×4), once elsewhere.
-            let near = px >= bx0 - 1.0 && px <= bx1 + 1.0 && py >= by0 - 1.0 && py <= by1 + 1.0;
-            let near = near || occluder.is_some();
-            let v = if near {
-                let mut acc = [0.0; 3];
-                for sy in 0..4 {
-                    for sx in 0..4 {
-                        let p = [
-                            x as f64 + (sx as f64 + 0.5) / 4.0,
-                            y as f64 + (sy as f64 + 0.5) / 4.0,
-                        ];
-                        let c = scene_at(p, bg);
-                        for k in 0..3 {
-                            acc[k] += c[k] / 16.0;
-                        }
-                    }
-                }
-                acc
+            let bg = background.at(px, py);
+            let v = if drawing.near(px, py) {
+                drawing.supersampled(x, y, bg)
             } else {
                 bg
             };
-            let l = light(px, py) * opts.exposure;
+            let l = light.at(px, py) * exposure;
             for k in 0..3 {
                 row[x * 3 + k] = (v[k] * l) as f32;
             }
         }
     });
-    let mut frame = Frame::from_data(w, h, Layout::Rgb, data).expect("sized");
+    data
+}
+
+/// The flat frame: a grey card of reflectance 0.5 under the same light.
+fn flat_frame(w: usize, h: usize, white: [f64; 3], light: &Light, exposure: f64) -> Frame {
     let mut flat = Frame::new(w, h, Layout::Rgb);
     flat.data
         .par_chunks_mut(w * 3)
         .enumerate()
         .for_each(|(y, row)| {
             for x in 0..w {
-                let l = light(x as f64 + 0.5, y as f64 + 0.5) * opts.exposure * 0.5;
+                let l = light.at(x as f64 + 0.5, y as f64 + 0.5) * exposure * 0.5;
                 for k in 0..3 {
                     row[x * 3 + k] = (white[k] * l) as f32;
                 }
             }
         });
-    if opts.blur > 0.0 {
-        blur(&mut frame, opts.blur);
-    }
-    for (f, salt) in [(&mut frame, 0u64), (&mut flat, 0x9e37_79b9)] {
-        let seed = opts.seed.wrapping_mul(0x2545_f491_4f6c_dd1d) ^ salt;
-        f.data
-            .par_chunks_mut(w * 3)
-            .enumerate()
-            .for_each(|(y, row)| {
-                let mut n = Gaussian::new(seed ^ (y as u64).wrapping_mul(0x9e37_79b9_7f4a_7c15));
-                for v in row.iter_mut() {
-                    let s = (*v as f64).max(0.0);
-                    let sd = (opts.noise * opts.noise + opts.shot_noise * s).sqrt();
-                    let nv = if sd > 0.0 { s + sd * n.next() } else { s };
-                    *v = nv.min(opts.white_level) as f32;
-                }
-            });
-    }
-    if let Some(look) = opts.look {
-        apply_look(&mut frame, look, opts.white_level)?;
-    }
-    // Truth.
+    flat
+}
+
+/// Seeded sensor noise (additive and shot, each row its own stream; `salt` tells frames of one
+/// scene apart), then clipping at the white level.
+fn add_noise(frame: &mut Frame, opts: &SceneOptions, salt: u64) {
+    let seed = opts.seed.wrapping_mul(0x2545_f491_4f6c_dd1d) ^ salt;
+    let w = frame.width;
+    frame
+        .data
+        .par_chunks_mut(w * 3)
+        .enumerate()
+        .for_each(|(y, row)| {
+            let mut n = Gaussian::new(seed ^ (y as u64).wrapping_mul(0x9e37_79b9_7f4a_7c15));
+            for v in row.iter_mut() {
+                let s = (*v as f64).max(0.0);
+                let sd = (opts.noise * opts.noise + opts.shot_noise * s).sqrt();
+                let nv = if sd > 0.0 { s + sd * n.next() } else { s };
+                *v = nv.min(opts.white_level) as f32;
+            }
+        });
+}
+
+/// Each patch as it truly is: its noise-free colour, lit and unlit, its centre, and whether the
+/// occluder touches it (on a 5 × 5 grid over the patch's central half) or it clips.
+fn true_patches(
+    colours: &ChartColours,
+    hom: &Homography,
+    light: &Light,
+    occluder: Option<&(Shape, [f64; 3])>,
+    opts: &SceneOptions,
+) -> Vec<TruePatch> {
+    let kind = colours.chart;
     let side = kind.patch_fraction() * 0.5;
-    let patches = (0..kind.cells())
+    (0..kind.cells())
         .map(|i| {
             let (c, r) = kind.cell(i);
             let cc = kind.cell_centre(i);
             let centre = hom.apply(cc);
             let rgb = colours.rgb[i].map(|v| v * opts.exposure);
-            let l = light(centre[0], centre[1]);
+            let l = light.at(centre[0], centre[1]);
             let rgb_lit = rgb.map(|v| v * l);
-            let occluded = occluder.as_ref().is_some_and(|(o, _)| {
+            let occluded = occluder.is_some_and(|(o, _)| {
                 (0..=4).any(|a| {
                     (0..=4).any(|b| {
                         let p = [
@@ -716,11 +875,27 @@ pub fn render(
                 clipped: rgb_lit.iter().any(|&v| v >= opts.white_level),
             }
         })
-        .collect::<Vec<_>>();
-    let lights: Vec<f64> = centres.iter().map(|c| light(c[0], c[1])).collect();
+        .collect()
+}
+
+/// The truth file's value: the pose (`angles`: rotation and tilt in degrees), the options, the
+/// light's non-uniformity over the patch `centres`, and the patches.
+fn scene_truth(
+    colours: &ChartColours,
+    opts: &SceneOptions,
+    hom: Homography,
+    angles: (f64, f64),
+    light: &Light,
+    centres: &[[f64; 2]],
+    patches: Vec<TruePatch>,
+) -> SceneTruth {
+    let kind = colours.chart;
+    let (w, h) = (opts.width, opts.height);
+    let body_q = kind.body_corners().map(|c| hom.apply(c));
+    let lights: Vec<f64> = centres.iter().map(|c| light.at(c[0], c[1])).collect();
     let lmax = lights.iter().copied().fold(f64::MIN, f64::max);
     let lmin = lights.iter().copied().fold(f64::MAX, f64::min);
-    let truth = SceneTruth {
+    SceneTruth {
         format: FORMAT.into(),
         version: 1,
         chart: kind,
@@ -731,8 +906,8 @@ pub fn render(
         corners: kind.grid_corners().map(|c| hom.apply(c)),
         body_corners: body_q,
         area_fraction: quad_area(&body_q) / (w * h) as f64,
-        rotation_deg: rotation,
-        tilt_deg: tilt,
+        rotation_deg: angles.0,
+        tilt_deg: angles.1,
         exposure: opts.exposure,
         white_level: opts.white_level,
         noise: opts.noise,
@@ -746,8 +921,7 @@ pub fn render(
         reflectances: colours.reflectances.clone(),
         patches,
         impostor: None,
-    };
-    Ok((frame, flat, truth))
+    }
 }
 
 /// How far (chart units) the Passport's second page is shifted left of the classic page: the
@@ -1088,4 +1262,201 @@ fn blur(frame: &mut Frame, sigma: f64) {
         image::ImageBuffer::from_raw(w, h, std::mem::take(&mut frame.data)).expect("sized");
     let out = imageproc::filter::gaussian_blur_f32(&img, sigma as f32);
     frame.data = out.into_raw();
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A CC24 whose patch `i` has colour `[i, i, i] / 100`, white `[1, 1, 1]`.
+    fn colours() -> ChartColours {
+        ChartColours {
+            chart: ChartKind::Cc24,
+            rgb: (0..24).map(|i| [i as f64 / 100.0; 3]).collect(),
+            xyz: (0..24).map(|i| [i as f64; 3]).collect(),
+            white_rgb: [1.0; 3],
+            camera: "c".into(),
+            illuminant: "i".into(),
+            reflectances: "r".into(),
+        }
+    }
+
+    /// Ten pixels per chart unit, the chart's top-left body corner at (10, 10).
+    fn pose() -> (Homography, Homography) {
+        let hom = Homography([10.0, 0.0, 14.0, 0.0, 10.0, 14.0, 0.0, 0.0, 1.0]);
+        (hom, hom.inverse().unwrap())
+    }
+
+    fn opts(w: usize, h: usize) -> SceneOptions {
+        SceneOptions {
+            width: w,
+            height: h,
+            ..SceneOptions::default()
+        }
+    }
+
+    #[test]
+    fn light_is_normalised_over_the_centres_and_falls_off_at_the_corners() {
+        let o = SceneOptions {
+            vignetting: 0.4,
+            gradient: 0.2,
+            ..opts(100, 100)
+        };
+        let centres = [[20.0, 30.0], [50.0, 50.0], [90.0, 10.0]];
+        let light = Light::new(&o, 0.25, &centres).unwrap();
+        let mean = centres.iter().map(|c| light.at(c[0], c[1])).sum::<f64>() / 3.0;
+        assert!((mean - 1.0).abs() < 1e-12, "{mean}");
+        let flat = Light::new(
+            &SceneOptions {
+                gradient: 0.0,
+                ..o.clone()
+            },
+            0.25,
+            &centres,
+        );
+        let flat = flat.unwrap();
+        assert!(flat.at(0.0, 0.0) < flat.at(50.0, 50.0));
+        // With the gradient pointing down (τ/4), the bottom is brighter than the top.
+        assert!(light.raw(50.0, 90.0) > light.raw(50.0, 10.0));
+        let dark = SceneOptions {
+            vignetting: 3.0,
+            ..opts(100, 100)
+        };
+        assert!(Light::new(&dark, 0.5, &[[0.0, 0.0]]).is_err());
+    }
+
+    #[test]
+    fn background_is_a_gradient_under_the_last_shape_drawn() {
+        let mut g = Gaussian::new(7);
+        let mut bg = Background::new([1.0; 3], 100, 50, 0, &mut g);
+        assert_eq!(bg.at(0.0, 0.0), bg.from);
+        let mid = bg.at(50.0, 25.0);
+        for k in 0..3 {
+            assert!((mid[k] - 0.5 * (bg.from[k] + bg.to[k])).abs() < 1e-12);
+            assert!(bg.from[k] < 0.95 + 1e-12 && bg.from[k] > 0.0);
+        }
+        let square = |c: [f64; 2]| Shape::Rect {
+            c,
+            half: [5.0, 5.0],
+            cos: 1.0,
+            sin: 0.0,
+        };
+        bg.shapes.push((square([20.0, 20.0]), [0.1; 3]));
+        bg.shapes.push((square([24.0, 20.0]), [0.2; 3]));
+        assert_eq!(bg.at(16.0, 20.0), [0.1; 3]);
+        assert_eq!(bg.at(22.0, 20.0), [0.2; 3]);
+        assert_ne!(bg.at(40.0, 20.0), [0.2; 3]);
+    }
+
+    #[test]
+    fn the_drawing_shows_patches_body_occluder_and_background() {
+        let c = colours();
+        let (hom, hinv) = pose();
+        let o = opts(100, 80);
+        let bg = [0.7; 3];
+        let drawing = ChartDrawing::new(&c, hom, hinv, None, None, &o);
+        // Patch 7 (column 1, row 1) at chart (1.5, 1.5).
+        assert_eq!(drawing.at(hom.apply([1.5, 1.5]), bg), c.rgb[7]);
+        // Between two patches and in the margin: the body.
+        assert_eq!(drawing.at(hom.apply([1.0, 1.5]), bg), [0.035; 3]);
+        assert_eq!(drawing.at(hom.apply([-0.2, 0.5]), bg), [0.035; 3]);
+        // Beyond the body.
+        assert_eq!(drawing.at(hom.apply([-0.6, 0.5]), bg), bg);
+        assert!(drawing.near(12.0, 12.0) && !drawing.near(95.0, 5.0));
+        // A pixel inside a patch averages to the patch; one on its edge (the patch starts at
+        // x = 24.8) mixes: three samples of body, one of patch.
+        assert!((drawing.supersampled(29, 29, bg)[0] - c.rgb[7][0]).abs() < 1e-15);
+        let edge = drawing.supersampled(24, 29, bg)[0];
+        assert!((edge - (3.0 * 0.035 + 0.07) / 4.0).abs() < 1e-12, "{edge}");
+        let occ = (
+            Shape::Ellipse {
+                c: hom.apply([1.5, 1.5]),
+                half: [3.0, 3.0],
+                cos: 1.0,
+                sin: 0.0,
+            },
+            [0.5; 3],
+        );
+        let drawing = ChartDrawing::new(&c, hom, hinv, Some(&occ), None, &o);
+        assert_eq!(drawing.at(hom.apply([1.5, 1.5]), bg), [0.5; 3]);
+        assert!(drawing.near(95.0, 5.0));
+    }
+
+    #[test]
+    fn noise_free_frames_are_clipped_at_the_white_level_and_floored_at_zero() {
+        let o = SceneOptions {
+            noise: 0.0,
+            shot_noise: 0.0,
+            white_level: 0.5,
+            ..opts(2, 1)
+        };
+        let mut f =
+            Frame::from_data(2, 1, Layout::Rgb, vec![-1.0, 0.25, 0.5, 0.75, 2.0, 0.1]).unwrap();
+        add_noise(&mut f, &o, 0);
+        assert_eq!(f.data, [0.0, 0.25, 0.5, 0.5, 0.5, 0.1]);
+        let noisy = SceneOptions {
+            noise: 0.01,
+            white_level: 10.0,
+            ..o
+        };
+        let (mut a, mut b) = (f.clone(), f.clone());
+        add_noise(&mut a, &noisy, 0);
+        add_noise(&mut b, &noisy, 1);
+        assert_ne!(a.data, f.data);
+        assert_ne!(a.data, b.data, "the salt tells the frames apart");
+    }
+
+    #[test]
+    fn rasterised_frames_are_lit_background_away_from_the_chart() {
+        let c = colours();
+        let (hom, hinv) = pose();
+        let o = SceneOptions {
+            exposure: 2.0,
+            ..opts(120, 80)
+        };
+        let mut g = Gaussian::new(3);
+        let bg = Background::new([1.0; 3], 120, 80, 0, &mut g);
+        let drawing = ChartDrawing::new(&c, hom, hinv, None, None, &o);
+        let light = Light::new(&o, 0.1, &[[10.0, 10.0]]).unwrap();
+        let data = rasterise(120, 80, &bg, &drawing, &light, o.exposure);
+        let (x, y) = (110, 70);
+        let want = bg.at(110.5, 70.5)[0] * (light.at(110.5, 70.5) * 2.0);
+        assert_eq!(data[(y * 120 + x) * 3], want as f32);
+        let (x, y) = (29, 29);
+        let patch = data[(y * 120 + x) * 3] as f64;
+        assert!((patch - c.rgb[7][0] * 2.0).abs() < 1e-7, "{patch}");
+        let flat = flat_frame(120, 80, [1.0; 3], &light, 2.0);
+        assert_eq!(flat.data[0], 1.0);
+    }
+
+    #[test]
+    fn true_patches_flag_occlusion_and_clipping() {
+        let c = colours();
+        let (hom, _) = pose();
+        let o = SceneOptions {
+            exposure: 4.0,
+            white_level: 0.9,
+            ..opts(100, 80)
+        };
+        let light = Light::new(&o, 0.1, &[[10.0, 10.0]]).unwrap();
+        let occ = (
+            Shape::Ellipse {
+                c: hom.apply([0.5, 0.5]),
+                half: [1.0, 1.0],
+                cos: 1.0,
+                sin: 0.0,
+            },
+            [0.5; 3],
+        );
+        let p = true_patches(&c, &hom, &light, Some(&occ), &o);
+        assert_eq!(p.len(), 24);
+        assert!(p[0].occluded && !p[1].occluded);
+        assert_eq!(p[7].centre, [29.0, 29.0]);
+        assert_eq!(p[7].rgb, c.rgb[7].map(|v| v * 4.0));
+        assert!(!p[22].clipped && p[23].clipped, "0.88 < 0.9 ≤ 0.92");
+        let truth = scene_truth(&c, &o, hom, (1.0, 2.0), &light, &[[1.0, 1.0]], p);
+        assert_eq!((truth.rotation_deg, truth.tilt_deg), (1.0, 2.0));
+        assert_eq!(truth.light_nonuniformity, 1.0);
+        assert_eq!(truth.patches[0].label, ChartKind::Cc24.label(0, 0));
+    }
 }

@@ -15,7 +15,7 @@ use super::bench_aids::{memcpy_chunked, synthetic_camera_rgb};
 use super::common::{parse_models, UsageError};
 use super::values;
 use crate::gpu::{DeviceChoice, GpuOptions, Opened};
-use crate::model::fast::{FastModel, Threads};
+use crate::model::fast::{FastModel, Threads, CHUNK_PIXELS};
 use crate::model::{fit, Kind, Model};
 use crate::spectral::{simulate_named, Grid};
 use crate::{Frame, Layout};
@@ -180,127 +180,219 @@ pub(crate) fn run(a: Args) -> Result<ExitCode> {
     Ok(ExitCode::SUCCESS)
 }
 
-/// Runs the plan: the memcpy references, the fast CPU path and the GPU engine (an engine that
-/// cannot start is recorded in the report, not an error).
+/// Runs the plan: the memcpy references, the fast CPU path ([`measure_cpu`]) and the GPU
+/// engine ([`measure_gpu`]; an engine that cannot start is recorded in the report, not an
+/// error), then the NSRM/RPRM ratios ([`nsrm_over_rprm`]).
 fn measure(plan: &Plan) -> Result<Report> {
     let (width, height, layout, reps) = (plan.width, plan.height, plan.layout, plan.reps);
     let threads = rayon::current_num_threads();
     let pixels = width * height;
     let ch = layout.channels();
-    let bpp = 4 * ch;
 
     let models = fit_models(&plan.kinds, plan.order)?;
     let input = synthetic_camera_rgb(width, height, layout, 0x5eed_0005);
     let mut output = Frame::new(width, height, layout);
     prefault(&mut output.data);
 
-    let mpix = |secs: f64| pixels as f64 / secs / 1e6;
-    let mut results = Vec::new();
-    let mut memcpy_all = Vec::new();
-    let mut memcpy_one = Vec::new();
-
     // The plain memcpy figures (also when only the GPU is timed: they frame the numbers).
-    memcpy_all.extend(time_reps(reps, || {
-        memcpy_chunked(&input.data, &mut output.data, ch, Threads::All)
-    }));
-    memcpy_one.extend(time_reps(reps, || {
-        memcpy_chunked(&input.data, &mut output.data, ch, Threads::Single)
-    }));
+    let mut memcpy = MemcpyTimes {
+        all: time_reps(reps, || {
+            memcpy_chunked(&input.data, &mut output.data, CHUNK_PIXELS * ch, true)
+        }),
+        one: time_reps(reps, || {
+            memcpy_chunked(&input.data, &mut output.data, CHUNK_PIXELS * ch, false)
+        }),
+    };
     let whole = median(&time_reps(reps, || {
         output.data.copy_from_slice(&input.data)
     }));
 
+    let mut results = Vec::new();
     if plan.cpu {
-        for model in &models {
-            let fast = FastModel::new(model);
-            for (device, th) in [("cpu-1", Threads::Single), ("cpu-all", Threads::All)] {
-                let mut k_times = Vec::with_capacity(reps);
-                let mut m_times = Vec::with_capacity(reps);
-                fast.apply_into(&input, &mut output, th)?; // warm-up
-                for _ in 0..reps {
-                    m_times.push(time(|| {
-                        memcpy_chunked(&input.data, &mut output.data, ch, th)
-                    }));
-                    let t = Instant::now();
-                    fast.apply_into(&input, &mut output, th)?;
-                    k_times.push(t.elapsed().as_secs_f64());
-                }
-                match th {
-                    Threads::Single => memcpy_one.extend(&m_times),
-                    Threads::All => memcpy_all.extend(&m_times),
-                }
-                let (k, m) = (mpix(median(&k_times)), mpix(median(&m_times)));
-                results.push(Row {
-                    label: label(model),
-                    model: model.kind().name(),
-                    order: model.order(),
-                    device,
-                    mpix_s: k,
-                    ratio_to_memcpy: Some(k / m),
-                    memcpy_mpix_s: Some(m),
-                    end_to_end_mpix_s: None,
-                    kernel_timing: None,
-                });
+        results = measure_cpu(&models, &input, &mut output, reps, &mut memcpy)?;
+    }
+    let gpu = match plan.gpu {
+        Some(choice) => measure_gpu(choice, plan.gpu_reps, &models, &input)?,
+        None => GpuRun::default(),
+    };
+    results.extend(gpu.rows);
+    let nsrm_over_rprm = nsrm_over_rprm(&results);
+    Ok(Report {
+        size: [width, height],
+        layout: layout.name(),
+        memcpy_mpix_s: mpix(pixels, median(&memcpy.all)),
+        memcpy_1t_mpix_s: mpix(pixels, median(&memcpy.one)),
+        memcpy_whole_1t_mpix_s: mpix(pixels, whole),
+        memcpy_method: MEMCPY_METHOD,
+        threads,
+        reps,
+        gpu_reps: plan.gpu_reps,
+        adapter: gpu.adapter,
+        gpu_error: gpu.error,
+        gpu_timestamps: gpu.timestamps,
+        gpu_copy_mpix_s: gpu.copy,
+        results,
+        nsrm_over_rprm,
+    })
+}
+
+/// Mpixel/s of `pixels` done in `secs`.
+fn mpix(pixels: usize, secs: f64) -> f64 {
+    pixels as f64 / secs / 1e6
+}
+
+/// The memcpy repetitions' times, all threads and one (the CPU rows add theirs).
+struct MemcpyTimes {
+    all: Vec<f64>,
+    one: Vec<f64>,
+}
+
+/// The fast CPU path of each model, one thread and all, from `input` into `output`: after a
+/// warm-up, `reps` kernel repetitions each after a memcpy of the same bytes by the same threads
+/// (added to `memcpy`); the row's ratio is median over median.
+fn measure_cpu(
+    models: &[Model],
+    input: &Frame,
+    output: &mut Frame,
+    reps: usize,
+    memcpy: &mut MemcpyTimes,
+) -> Result<Vec<Row>> {
+    let pixels = input.pixels();
+    let ch = input.layout.channels();
+    let mut results = Vec::new();
+    for model in models {
+        let fast = FastModel::new(model);
+        for (device, th) in [("cpu-1", Threads::Single), ("cpu-all", Threads::All)] {
+            let mut k_times = Vec::with_capacity(reps);
+            let mut m_times = Vec::with_capacity(reps);
+            fast.apply_into(input, output, th)?; // warm-up
+            for _ in 0..reps {
+                m_times.push(time(|| {
+                    memcpy_chunked(
+                        &input.data,
+                        &mut output.data,
+                        CHUNK_PIXELS * ch,
+                        th == Threads::All,
+                    )
+                }));
+                let t = Instant::now();
+                fast.apply_into(input, output, th)?;
+                k_times.push(t.elapsed().as_secs_f64());
             }
+            match th {
+                Threads::Single => memcpy.one.extend(&m_times),
+                Threads::All => memcpy.all.extend(&m_times),
+            }
+            let (k, m) = (
+                mpix(pixels, median(&k_times)),
+                mpix(pixels, median(&m_times)),
+            );
+            results.push(Row {
+                label: label(model),
+                model: model.kind().name(),
+                order: model.order(),
+                device,
+                mpix_s: k,
+                ratio_to_memcpy: Some(k / m),
+                memcpy_mpix_s: Some(m),
+                end_to_end_mpix_s: None,
+                kernel_timing: None,
+            });
         }
     }
+    Ok(results)
+}
 
-    let mut adapter = None;
-    let mut gpu_error = None;
-    let mut gpu_copy = None;
-    let mut gpu_timestamps = false;
-    if let Some(choice) = plan.gpu {
-        match crate::gpu::open_device(choice, &GpuOptions::default()) {
-            Err(e) => gpu_error = Some(e.to_string()),
-            Ok(Opened::Cpu(why)) => gpu_error = Some(format!("not timed (--device auto): {why}")),
-            Ok(Opened::Gpu(mut engine)) => {
-                let name = engine.adapter_name();
-                gpu_timestamps = engine.has_timestamps();
-                let copy = engine
-                    .copy_bandwidth((pixels * bpp) as u64)
-                    .context("timing the GPU buffer copy")?
-                    .map(|bytes_s| bytes_s / bpp as f64 / 1e6);
-                let mut work = input.clone();
-                for model in &models {
-                    let mut kernel = Vec::new();
-                    let mut total = Vec::new();
-                    for rep in 0..=plan.gpu_reps {
-                        // Every repetition corrects the same input (the engine works in place).
-                        work.data.copy_from_slice(&input.data);
-                        let t = engine
-                            .timed_apply(model, &mut work)
-                            .with_context(|| format!("{} on the GPU", label(model)))?;
-                        if rep > 0 {
-                            total.push(t.total_seconds);
-                            if let Some(k) = t.kernel_seconds {
-                                kernel.push(k);
-                            }
-                        }
-                    }
-                    let e2e = mpix(median(&total));
-                    let (k, timing) = if kernel.len() == total.len() {
-                        (mpix(median(&kernel)), "timestamps")
-                    } else {
-                        (e2e, "none")
-                    };
-                    results.push(Row {
-                        label: label(model),
-                        model: model.kind().name(),
-                        order: model.order(),
-                        device: "gpu",
-                        mpix_s: k,
-                        ratio_to_memcpy: copy.map(|c| k / c),
-                        memcpy_mpix_s: copy,
-                        end_to_end_mpix_s: Some(e2e),
-                        kernel_timing: Some(timing),
-                    });
+/// What the GPU part of a run found: its rows, the adapter (or why none was timed), its copy
+/// bandwidth (Mpixel/s) and whether kernel times came from timestamps.
+#[derive(Default)]
+struct GpuRun {
+    rows: Vec<Row>,
+    adapter: Option<String>,
+    error: Option<String>,
+    copy: Option<f64>,
+    timestamps: bool,
+}
+
+/// The GPU engine `choice` opens, if any: its buffer copy of the frame's bytes, then per model
+/// `gpu_reps` timed corrections of `input` after one warm-up (kernel time from timestamps when
+/// every repetition has one, else end-to-end).
+fn measure_gpu(
+    choice: DeviceChoice,
+    gpu_reps: usize,
+    models: &[Model],
+    input: &Frame,
+) -> Result<GpuRun> {
+    let mut engine = match crate::gpu::open_device(choice, &GpuOptions::default()) {
+        Err(e) => {
+            return Ok(GpuRun {
+                error: Some(e.to_string()),
+                ..GpuRun::default()
+            })
+        }
+        Ok(Opened::Cpu(why)) => {
+            return Ok(GpuRun {
+                error: Some(format!("not timed (--device auto): {why}")),
+                ..GpuRun::default()
+            })
+        }
+        Ok(Opened::Gpu(engine)) => engine,
+    };
+    let pixels = input.pixels();
+    let bpp = 4 * input.layout.channels();
+    let name = engine.adapter_name();
+    let timestamps = engine.has_timestamps();
+    let copy = engine
+        .copy_bandwidth((pixels * bpp) as u64)
+        .context("timing the GPU buffer copy")?
+        .map(|bytes_s| bytes_s / bpp as f64 / 1e6);
+    let mut work = input.clone();
+    let mut rows = Vec::new();
+    for model in models {
+        let mut kernel = Vec::new();
+        let mut total = Vec::new();
+        for rep in 0..=gpu_reps {
+            // Every repetition corrects the same input (the engine works in place).
+            work.data.copy_from_slice(&input.data);
+            let t = engine
+                .timed_apply(model, &mut work)
+                .with_context(|| format!("{} on the GPU", label(model)))?;
+            if rep > 0 {
+                total.push(t.total_seconds);
+                if let Some(k) = t.kernel_seconds {
+                    kernel.push(k);
                 }
-                adapter = Some(name);
-                gpu_copy = copy;
             }
         }
+        let e2e = mpix(pixels, median(&total));
+        let (k, timing) = if kernel.len() == total.len() {
+            (mpix(pixels, median(&kernel)), "timestamps")
+        } else {
+            (e2e, "none")
+        };
+        rows.push(Row {
+            label: label(model),
+            model: model.kind().name(),
+            order: model.order(),
+            device: "gpu",
+            mpix_s: k,
+            ratio_to_memcpy: copy.map(|c| k / c),
+            memcpy_mpix_s: copy,
+            end_to_end_mpix_s: Some(e2e),
+            kernel_timing: Some(timing),
+        });
     }
+    Ok(GpuRun {
+        rows,
+        adapter: Some(name),
+        error: None,
+        copy,
+        timestamps,
+    })
+}
 
+/// NSRM's throughput over RPRM's per device where both were timed (> 1: NSRM is cheaper).
+fn nsrm_over_rprm(results: &[Row]) -> serde_json::Map<String, serde_json::Value> {
     let mut ratio = serde_json::Map::new();
     let find = |kind: Kind, device: &str| {
         results
@@ -313,23 +405,7 @@ fn measure(plan: &Plan) -> Result<Report> {
             ratio.insert(device.into(), serde_json::json!(n / r));
         }
     }
-    Ok(Report {
-        size: [width, height],
-        layout: layout.name(),
-        memcpy_mpix_s: mpix(median(&memcpy_all)),
-        memcpy_1t_mpix_s: mpix(median(&memcpy_one)),
-        memcpy_whole_1t_mpix_s: mpix(whole),
-        memcpy_method: MEMCPY_METHOD,
-        threads,
-        reps,
-        gpu_reps: plan.gpu_reps,
-        adapter,
-        gpu_error,
-        gpu_timestamps,
-        gpu_copy_mpix_s: gpu_copy,
-        results,
-        nsrm_over_rprm: ratio,
-    })
+    ratio
 }
 
 /// The report as the table `nsrm bench` prints.
@@ -594,5 +670,30 @@ mod tests {
         assert_eq!(json["size"], serde_json::json!([97, 13]));
         assert!(json["results"][0].get("label").is_none());
         assert!(json.get("gpu_timestamps").is_none());
+    }
+
+    #[test]
+    fn the_cost_ratio_pairs_nsrm_and_rprm_on_one_device() {
+        let row = |model: &'static str, device: &'static str, mpix_s: f64| Row {
+            label: model.into(),
+            model,
+            order: 3,
+            device,
+            mpix_s,
+            ratio_to_memcpy: None,
+            memcpy_mpix_s: None,
+            end_to_end_mpix_s: None,
+            kernel_timing: None,
+        };
+        let rows = [
+            row(Kind::Nsrm.name(), "cpu-1", 30.0),
+            row(Kind::Rprm.name(), "cpu-1", 20.0),
+            row(Kind::Nsrm.name(), "gpu", 500.0),
+            row(Kind::Rprm.name(), "cpu-all", 80.0),
+        ];
+        let r = nsrm_over_rprm(&rows);
+        assert_eq!(r.len(), 1, "{r:?}");
+        assert_eq!(r["cpu-1"], serde_json::json!(1.5));
+        assert_eq!(mpix(2_000_000, 0.5), 4.0);
     }
 }

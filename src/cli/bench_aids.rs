@@ -1,7 +1,6 @@
 //! What `nsrm bench` and `benches/kernels.rs` measure against: a synthetic camera frame and the
 //! memcpy reference. Not part of the library; `benches/kernels.rs` includes this file.
 
-use crate::model::fast::{Threads, CHUNK_PIXELS};
 use crate::{Frame, Layout};
 use rayon::prelude::*;
 
@@ -46,20 +45,18 @@ pub(crate) fn synthetic_camera_rgb(
     frame
 }
 
-/// The memcpy reference: `dst.copy_from_slice(src)` in the same chunks of [`CHUNK_PIXELS`]
-/// pixels (`channels` floats each) and on the same threads as the fast kernels, so a kernel's
-/// throughput divided by this one's compares like with like.
-pub(crate) fn memcpy_chunked(src: &[f32], dst: &mut [f32], channels: usize, threads: Threads) {
-    let n = CHUNK_PIXELS * channels;
-    match threads {
-        Threads::All => src
-            .par_chunks(n)
-            .zip(dst.par_chunks_mut(n))
-            .for_each(|(s, d)| d.copy_from_slice(s)),
-        Threads::Single => src
-            .chunks(n)
-            .zip(dst.chunks_mut(n))
-            .for_each(|(s, d)| d.copy_from_slice(s)),
+/// The memcpy reference: `dst.copy_from_slice(src)` in chunks of `chunk` floats (the fast path's
+/// 64 Ki pixels), on rayon's current pool when `parallel`, else on the calling thread, so a
+/// kernel's throughput divided by this one's compares like with like.
+pub(crate) fn memcpy_chunked(src: &[f32], dst: &mut [f32], chunk: usize, parallel: bool) {
+    if parallel {
+        src.par_chunks(chunk)
+            .zip(dst.par_chunks_mut(chunk))
+            .for_each(|(s, d)| d.copy_from_slice(s));
+    } else {
+        src.chunks(chunk)
+            .zip(dst.chunks_mut(chunk))
+            .for_each(|(s, d)| d.copy_from_slice(s));
     }
 }
 
@@ -76,7 +73,10 @@ mod tests {
             assert_eq!(px[3], 1.0);
         }
         let mut dst = vec![0.0; a.data.len()];
-        memcpy_chunked(&a.data, &mut dst, 4, Threads::All);
+        memcpy_chunked(&a.data, &mut dst, 4 << 16, true);
+        assert_eq!(dst, a.data);
+        let mut dst = vec![0.0; a.data.len()];
+        memcpy_chunked(&a.data, &mut dst, 4 << 16, false);
         assert_eq!(dst, a.data);
     }
 }

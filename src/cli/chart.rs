@@ -4,11 +4,11 @@
 use super::capture::{write_overlay, CaptureOptions, CaptureText};
 use super::common::UsageError;
 use super::values;
-use crate::chart::detect::{detect, DetectOptions};
-use crate::chart::extract::{extract, ExtractOptions};
+use crate::chart::detect::{detect, DetectFailure, DetectOptions, Detection};
+use crate::chart::extract::{extract, ExtractOptions, Extraction, PatchReading};
 use crate::chart::reference::Reference;
-use crate::chart::scene::{render, ChartColours, Family};
-use crate::chart::ChartKind;
+use crate::chart::scene::{render, ChartColours, Family, SceneOptions, SceneTruth, TruePatch};
+use crate::chart::{ChartError, ChartKind};
 use anyhow::{Context, Result};
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
@@ -267,54 +267,22 @@ fn run_extract(a: ExtractArgs) -> Result<ExitCode> {
     Ok(ExitCode::SUCCESS)
 }
 
+/// `chart rate`: the arguments checked ([`check_rate_args`]), then per seed the family's scene
+/// with the asked ranges ([`rate_options`]), rendered, detected and read (timed), and judged
+/// against its truth ([`judge_negative`], [`judge_positive`]); last the tally.
 fn run_rate(a: RateArgs) -> Result<ExitCode> {
     let kind = ChartKind::from(a.chart);
-    if a.scenes == 0 || a.scenes > 100_000 {
-        return Err(UsageError("--scenes must be 1..100000".into()).into());
-    }
-    if a.seed.checked_add(a.scenes - 1).is_none() {
-        return Err(UsageError(format!(
-            "--seed {} + --scenes {}: the last seed would pass {} (the largest seed)",
-            a.seed,
-            a.scenes,
-            u64::MAX
-        ))
-        .into());
-    }
-    check_rate_ranges(&a)?;
-    if a.family.negative() && kind != ChartKind::Cc24 {
-        return Err(UsageError(format!(
-            "--family {}: the negative families are cc24 layouts (use --chart cc24)",
-            a.family.name()
-        ))
-        .into());
-    }
+    check_rate_args(&a, kind)?;
     let colours =
         ChartColours::simulate(kind, &a.camera, &a.illuminant, a.reflectances.as_deref())?;
     let reference = Reference::load(kind.default_reference(), kind, None)?;
     let clip_exposure = 1.0 / colours.rgb.iter().flatten().copied().fold(0.0, f64::max);
-    let (mut ok, mut refused, mut wrong) = (0u64, 0u64, 0u64);
+    let mut tally = [0u64; 3];
     let mut t_detect = Vec::new();
     for s in 0..a.scenes {
         let seed = a.seed + s;
         let (scene_colours, mut opts) = a.family.scene(&colours, a.width, a.height, seed);
-        opts.min_area = a.min_area.unwrap_or(opts.min_area);
-        opts.max_area = a.max_area.unwrap_or(opts.max_area).max(opts.min_area);
-        opts.max_tilt_deg = a.max_tilt.unwrap_or(opts.max_tilt_deg);
-        opts.min_tilt_deg = a.min_tilt.unwrap_or(0.0).min(opts.max_tilt_deg);
-        if a.max_stops.is_some() || a.min_stops.is_some() {
-            // Same draw as the envelope's (u uniform in 0..1, 4·u stops below clipping),
-            // rescaled to MIN..S stops.
-            let u = -(opts.exposure / clip_exposure).log2() / 4.0;
-            let (lo, hi) = (a.min_stops.unwrap_or(0.0), a.max_stops.unwrap_or(4.0));
-            opts.exposure = clip_exposure * 2f64.powf(-(lo + (hi - lo).max(0.0) * u));
-        }
-        if a.max_blur.is_some() || a.min_blur.is_some() {
-            let u = opts.blur / 1.2;
-            let (lo, hi) = (a.min_blur.unwrap_or(0.0), a.max_blur.unwrap_or(1.2));
-            opts.blur = lo + (hi - lo).max(0.0) * u;
-        }
-        opts.occlusion |= a.occlusion;
+        rate_options(&a, &mut opts, clip_exposure);
         let (frame, _, truth) = render(&scene_colours, &opts)?;
         let t0 = Instant::now();
         let found = detect(&frame, &reference, &DetectOptions::default());
@@ -328,83 +296,14 @@ fn run_rate(a: RateArgs) -> Result<ExitCode> {
             (d, ex)
         });
         t_detect.push(t0.elapsed().as_secs_f64());
-        if a.family.negative() {
-            match result {
-                Ok((d, _)) => {
-                    wrong += 1;
-                    eprintln!(
-                        "seed {seed}: WRONG: a {} chart reported in a {} scene (score {:.2}, runner-up {:.2}, lattice {})",
-                        kind.name(),
-                        a.family.name(),
-                        d.score,
-                        d.runner_up,
-                        d.lattice
-                    );
-                }
-                Err(f) => {
-                    refused += 1;
-                    if a.verbose {
-                        eprintln!("seed {seed}: refused: {}", f.error);
-                    }
-                }
-            }
-            continue;
-        }
-        match result {
-            Ok((d, Ok(ex))) => {
-                // Every label in the right cell: each sampled centre within a quarter pitch of
-                // the true centre.
-                let pitch = pitch_px(&truth);
-                let bad = ex
-                    .patches
-                    .iter()
-                    .zip(&truth.patches)
-                    .filter(|(p, t)| {
-                        p.label != t.label
-                            || (p.centre[0] - t.centre[0]).hypot(p.centre[1] - t.centre[1])
-                                > 0.25 * pitch
-                    })
-                    .count();
-                let worst = ex
-                    .patches
-                    .iter()
-                    .zip(&truth.patches)
-                    .map(|(p, t)| (p.centre[0] - t.centre[0]).hypot(p.centre[1] - t.centre[1]))
-                    .fold(0.0, f64::max)
-                    / pitch;
-                if bad == 0 {
-                    ok += 1;
-                    if a.verbose {
-                        eprintln!(
-                            "seed {seed}: ok (score {:.2}, runner-up {:.2}, lattice {}, worst centre {worst:.2} pitch, perspective {:.3})",
-                            d.score, d.runner_up, d.lattice, d.perspective
-                        );
-                    }
-                } else {
-                    wrong += 1;
-                    eprintln!(
-                        "seed {seed}: WRONG: {bad} patches in the wrong cell (score {:.2}, runner-up {:.2}, lattice {}, worst centre {worst:.2} pitch, perspective {:.3}; area {:.3}, tilt {:.0}°, blur {:.2})",
-                        d.score, d.runner_up, d.lattice, d.perspective, truth.area_fraction, truth.tilt_deg, truth.blur
-                    );
-                }
-            }
-            Ok((_, Err(e))) => {
-                refused += 1;
-                if a.verbose {
-                    eprintln!("seed {seed}: refused: {e}");
-                }
-            }
-            Err(f) => {
-                refused += 1;
-                if a.verbose {
-                    eprintln!(
-                        "seed {seed}: refused: {} (area {:.3}, tilt {:.0}°, exposure {:.3})",
-                        f.error, truth.area_fraction, truth.tilt_deg, truth.exposure
-                    );
-                }
-            }
-        }
+        let verdict = if a.family.negative() {
+            judge_negative(&a, kind, seed, result)
+        } else {
+            judge_positive(&a, seed, &truth, result)
+        };
+        tally[verdict as usize] += 1;
     }
+    let [ok, refused, wrong] = tally;
     t_detect.sort_by(f64::total_cmp);
     let n = a.scenes as f64;
     println!(
@@ -425,6 +324,150 @@ fn run_rate(a: RateArgs) -> Result<ExitCode> {
     } else {
         ExitCode::from(1)
     })
+}
+
+/// What `chart rate` made of one scene (the index of its count in the tally).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Verdict {
+    Ok = 0,
+    Refused = 1,
+    Wrong = 2,
+}
+
+/// What one scene's detection and extraction gave.
+type RateResult =
+    std::result::Result<(Detection, std::result::Result<Extraction, ChartError>), DetectFailure>;
+
+/// The usage checks of `chart rate`: the scene count, the seed range, the ranges
+/// ([`check_rate_ranges`]), and the negative families' layout.
+fn check_rate_args(a: &RateArgs, kind: ChartKind) -> Result<()> {
+    if a.scenes == 0 || a.scenes > 100_000 {
+        return Err(UsageError("--scenes must be 1..100000".into()).into());
+    }
+    if a.seed.checked_add(a.scenes - 1).is_none() {
+        return Err(UsageError(format!(
+            "--seed {} + --scenes {}: the last seed would pass {} (the largest seed)",
+            a.seed,
+            a.scenes,
+            u64::MAX
+        ))
+        .into());
+    }
+    check_rate_ranges(a)?;
+    if a.family.negative() && kind != ChartKind::Cc24 {
+        return Err(UsageError(format!(
+            "--family {}: the negative families are cc24 layouts (use --chart cc24)",
+            a.family.name()
+        ))
+        .into());
+    }
+    Ok(())
+}
+
+/// A scene's options with the ranges `chart rate` was given: the area, tilt, exposure (stops
+/// below `clip_exposure`) and blur drawn within them, and the occlusion.
+fn rate_options(a: &RateArgs, opts: &mut SceneOptions, clip_exposure: f64) {
+    opts.min_area = a.min_area.unwrap_or(opts.min_area);
+    opts.max_area = a.max_area.unwrap_or(opts.max_area).max(opts.min_area);
+    opts.max_tilt_deg = a.max_tilt.unwrap_or(opts.max_tilt_deg);
+    opts.min_tilt_deg = a.min_tilt.unwrap_or(0.0).min(opts.max_tilt_deg);
+    if a.max_stops.is_some() || a.min_stops.is_some() {
+        // Same draw as the envelope's (u uniform in 0..1, 4·u stops below clipping),
+        // rescaled to MIN..S stops.
+        let u = -(opts.exposure / clip_exposure).log2() / 4.0;
+        let (lo, hi) = (a.min_stops.unwrap_or(0.0), a.max_stops.unwrap_or(4.0));
+        opts.exposure = clip_exposure * 2f64.powf(-(lo + (hi - lo).max(0.0) * u));
+    }
+    if a.max_blur.is_some() || a.min_blur.is_some() {
+        let u = opts.blur / 1.2;
+        let (lo, hi) = (a.min_blur.unwrap_or(0.0), a.max_blur.unwrap_or(1.2));
+        opts.blur = lo + (hi - lo).max(0.0) * u;
+    }
+    opts.occlusion |= a.occlusion;
+}
+
+/// A scene of a negative family: any chart found is wrong (and said), a refusal right.
+fn judge_negative(a: &RateArgs, kind: ChartKind, seed: u64, result: RateResult) -> Verdict {
+    match result {
+        Ok((d, _)) => {
+            eprintln!(
+                "seed {seed}: WRONG: a {} chart reported in a {} scene (score {:.2}, runner-up {:.2}, lattice {})",
+                kind.name(),
+                a.family.name(),
+                d.score,
+                d.runner_up,
+                d.lattice
+            );
+            Verdict::Wrong
+        }
+        Err(f) => {
+            if a.verbose {
+                eprintln!("seed {seed}: refused: {}", f.error);
+            }
+            Verdict::Refused
+        }
+    }
+}
+
+/// How many read patches are misplaced — another label, or a sampled centre more than a quarter
+/// of `pitch` from the true centre — and the largest centre error, in pitches.
+fn misplaced(patches: &[PatchReading], truth: &[TruePatch], pitch: f64) -> (usize, f64) {
+    let off = |p: &PatchReading, t: &TruePatch| {
+        (p.centre[0] - t.centre[0]).hypot(p.centre[1] - t.centre[1])
+    };
+    let bad = patches
+        .iter()
+        .zip(truth)
+        .filter(|(p, t)| p.label != t.label || off(p, t) > 0.25 * pitch)
+        .count();
+    let worst = patches
+        .iter()
+        .zip(truth)
+        .map(|(p, t)| off(p, t))
+        .fold(0.0, f64::max)
+        / pitch;
+    (bad, worst)
+}
+
+/// A scene of the chart asked for: right when every label is in its true cell (each sampled
+/// centre within a quarter pitch of the true one), wrong (and said) otherwise; a refusal is
+/// said with `--verbose`.
+fn judge_positive(a: &RateArgs, seed: u64, truth: &SceneTruth, result: RateResult) -> Verdict {
+    match result {
+        Ok((d, Ok(ex))) => {
+            let (bad, worst) = misplaced(&ex.patches, &truth.patches, pitch_px(truth));
+            if bad == 0 {
+                if a.verbose {
+                    eprintln!(
+                        "seed {seed}: ok (score {:.2}, runner-up {:.2}, lattice {}, worst centre {worst:.2} pitch, perspective {:.3})",
+                        d.score, d.runner_up, d.lattice, d.perspective
+                    );
+                }
+                Verdict::Ok
+            } else {
+                eprintln!(
+                    "seed {seed}: WRONG: {bad} patches in the wrong cell (score {:.2}, runner-up {:.2}, lattice {}, worst centre {worst:.2} pitch, perspective {:.3}; area {:.3}, tilt {:.0}°, blur {:.2})",
+                    d.score, d.runner_up, d.lattice, d.perspective, truth.area_fraction, truth.tilt_deg, truth.blur
+                );
+                Verdict::Wrong
+            }
+        }
+        Ok((_, Err(e))) => {
+            if a.verbose {
+                eprintln!("seed {seed}: refused: {e}");
+            }
+            Verdict::Refused
+        }
+        Err(f) => {
+            if a.verbose {
+                eprintln!(
+                    "seed {seed}: refused: {} (area {:.3}, tilt {:.0}°, exposure {:.3})",
+                    f.error, truth.area_fraction, truth.tilt_deg, truth.exposure
+                );
+            }
+            Verdict::Refused
+        }
+    }
 }
 
 /// The scene ranges of `chart rate`: each a finite number ≥ 0 (areas in (0, 0.9], tilts up to
@@ -504,4 +547,96 @@ pub(crate) fn pitch_px(t: &crate::chart::scene::SceneTruth) -> f64 {
     (a[0] - b[0])
         .hypot(a[1] - b[1])
         .min((a[0] - d[0]).hypot(a[1] - d[1]))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use clap::Parser;
+
+    #[derive(clap::Parser)]
+    struct Rate {
+        #[command(flatten)]
+        a: RateArgs,
+    }
+
+    fn args(extra: &[&str]) -> RateArgs {
+        let argv = ["rate", "--chart", "cc24"]
+            .into_iter()
+            .chain(extra.iter().copied());
+        Rate::try_parse_from(argv).unwrap().a
+    }
+
+    #[test]
+    fn rate_ranges_rescale_the_scenes_own_draws() {
+        let mut o = SceneOptions {
+            exposure: 0.25,
+            blur: 0.6,
+            ..SceneOptions::default()
+        };
+        let before = o.clone();
+        rate_options(&args(&[]), &mut o, 1.0);
+        assert_eq!(o, before, "no range given: the family's scene");
+        // Two stops under clipping of 0..4 is the middle; of 0..2 it becomes one stop.
+        rate_options(
+            &args(&["--max-stops", "2", "--max-blur", "2.4"]),
+            &mut o,
+            1.0,
+        );
+        assert!((o.exposure - 0.5).abs() < 1e-12, "{}", o.exposure);
+        assert!((o.blur - 1.2).abs() < 1e-12, "{}", o.blur);
+        let a = args(&["--min-area", "0.5", "--max-area", "0.2", "--occlusion"]);
+        rate_options(&a, &mut o, 1.0);
+        assert_eq!((o.min_area, o.max_area, o.occlusion), (0.5, 0.5, true));
+    }
+
+    #[test]
+    fn rate_arguments_outside_their_ranges_are_usage_errors() {
+        let kind = ChartKind::Cc24;
+        assert!(check_rate_args(&args(&[]), kind).is_ok());
+        for bad in [
+            &["--scenes", "0"][..],
+            &["--seed", "18446744073709551615", "--scenes", "2"],
+            &["--min-tilt", "40", "--max-tilt", "20"],
+        ] {
+            let e = check_rate_args(&args(bad), kind).unwrap_err();
+            assert!(e.downcast_ref::<UsageError>().is_some(), "{bad:?}: {e}");
+        }
+        let spyder = args(&["--family", "spyder"]);
+        assert!(check_rate_args(&spyder, kind).is_ok());
+        assert!(check_rate_args(&spyder, ChartKind::Sg).is_err());
+    }
+
+    #[test]
+    fn a_patch_is_misplaced_by_its_label_or_a_quarter_pitch() {
+        let reading = |label: &str, centre: [f64; 2]| PatchReading {
+            label: label.into(),
+            rgb: [0.0; 3],
+            std: [0.0; 3],
+            count: 1,
+            flags: Vec::new(),
+            xyz: [0.0; 3],
+            centre,
+            outline: [[0.0; 2]; 4],
+            flat: 1.0,
+        };
+        let truth = |label: &str, centre: [f64; 2]| TruePatch {
+            label: label.into(),
+            rgb: [0.0; 3],
+            rgb_lit: [0.0; 3],
+            xyz: [0.0; 3],
+            centre,
+            occluded: false,
+            clipped: false,
+        };
+        let t = [truth("a", [0.0, 0.0]), truth("b", [10.0, 0.0])];
+        let good = [reading("a", [2.0, 0.0]), reading("b", [10.0, 2.4])];
+        let (bad, worst) = misplaced(&good, &t, 10.0);
+        assert_eq!(bad, 0);
+        assert!((worst - 0.24).abs() < 1e-12, "{worst}");
+        let far = [reading("a", [3.0, 0.0]), reading("b", [10.0, 0.0])];
+        assert_eq!(misplaced(&far, &t, 10.0), (1, 0.3));
+        let swapped = [reading("b", [0.0, 0.0]), reading("a", [10.0, 0.0])];
+        assert_eq!(misplaced(&swapped, &t, 10.0).0, 2);
+    }
 }

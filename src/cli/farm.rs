@@ -210,38 +210,12 @@ fn generate(engine: Engine, mut g: GenArgs) -> Result<ExitCode> {
         inputs.push(m(i, "input")?);
     }
 
-    let lit = |s: &str| Arg::Lit(s.to_string());
-    let mut task = vec![
-        lit("farm"),
-        lit("run"),
-        lit("--shard"),
-        Arg::Shard,
-        lit("--inputs-from"),
-        Arg::InputList,
-    ];
-    if matches!(engine, Engine::Openjd) {
-        task.extend([lit("--path-mapping-rules"), Arg::PathMappingRules]);
-    }
-    task.extend([
-        lit("--"),
-        lit("--model"),
-        Arg::Model,
-        lit("-o"),
-        Arg::OutputDir,
-    ]);
-    if let Some(p) = &preview {
-        task.extend([lit("--preview"), lit(p)]);
-    }
-    task.extend(settings.iter().map(|s| lit(s)));
-    let verify = vec![
-        lit("farm"),
-        lit("verify"),
-        Arg::OutputDir,
-        lit("--shards"),
-        Arg::Shards,
-        lit("--model"),
-        Arg::Model,
-    ];
+    let task = task_args(
+        matches!(engine, Engine::Openjd),
+        preview.as_deref(),
+        &settings,
+    );
+    let verify = verify_args();
     let spec = JobSpec {
         name: g.name.clone(),
         shards: g.shards,
@@ -252,27 +226,7 @@ fn generate(engine: Engine, mut g: GenArgs) -> Result<ExitCode> {
         task,
         verify,
     };
-    let (files, how) = match &engine {
-        Engine::Openjd => (
-            jobs::openjd(&spec)?,
-            format!(
-                "openjd run {dir}/template.yaml --step Apply -p file://{dir}/parameter_values.json, then --step Verify; or submit {dir} as a Deadline Cloud job bundle",
-                dir = g.job_dir.display()
-            ),
-        ),
-        Engine::Slurm => (
-            jobs::slurm(&spec)?,
-            format!("sh {}/submit.sh", g.job_dir.display()),
-        ),
-        Engine::Kube(k) => (
-            jobs::kube(&spec, k)?,
-            format!(
-                "kubectl apply -f {dir}/job.yaml; kubectl wait --for=condition=complete job/{name}; kubectl apply -f {dir}/verify.yaml",
-                dir = g.job_dir.display(),
-                name = g.name
-            ),
-        ),
-    };
+    let (files, how) = engine_files(&engine, &spec, &g.job_dir)?;
     write_job(&g.job_dir, &files, overwrite)?;
     eprintln!(
         "nsrm farm: {} input(s) in {} shard(s); wrote {} in {}",
@@ -287,6 +241,76 @@ fn generate(engine: Engine, mut g: GenArgs) -> Result<ExitCode> {
     );
     eprintln!("nsrm farm: run it with: {how}");
     Ok(ExitCode::SUCCESS)
+}
+
+/// A shard's command after the program: `farm run` of the shard with the listed inputs (and,
+/// for Open Job Description, its path-mapping rules), then the apply flags: the model, the
+/// output directory, the `preview` directory and the conversion `settings`.
+fn task_args(openjd: bool, preview: Option<&str>, settings: &[String]) -> Vec<Arg> {
+    let lit = |s: &str| Arg::Lit(s.to_string());
+    let mut task = vec![
+        lit("farm"),
+        lit("run"),
+        lit("--shard"),
+        Arg::Shard,
+        lit("--inputs-from"),
+        Arg::InputList,
+    ];
+    if openjd {
+        task.extend([lit("--path-mapping-rules"), Arg::PathMappingRules]);
+    }
+    task.extend([
+        lit("--"),
+        lit("--model"),
+        Arg::Model,
+        lit("-o"),
+        Arg::OutputDir,
+    ]);
+    if let Some(p) = preview {
+        task.extend([lit("--preview"), lit(p)]);
+    }
+    task.extend(settings.iter().map(|s| lit(s)));
+    task
+}
+
+/// The verification's command after the program: `farm verify` of the output directory with
+/// the shard count and the model.
+fn verify_args() -> Vec<Arg> {
+    let lit = |s: &str| Arg::Lit(s.to_string());
+    vec![
+        lit("farm"),
+        lit("verify"),
+        Arg::OutputDir,
+        lit("--shards"),
+        Arg::Shards,
+        lit("--model"),
+        Arg::Model,
+    ]
+}
+
+/// The engine's job files for `spec`, and how to run them from `job_dir`.
+fn engine_files(engine: &Engine, spec: &JobSpec, job_dir: &Path) -> Result<(Vec<JobFile>, String)> {
+    Ok(match engine {
+        Engine::Openjd => (
+            jobs::openjd(spec)?,
+            format!(
+                "openjd run {dir}/template.yaml --step Apply -p file://{dir}/parameter_values.json, then --step Verify; or submit {dir} as a Deadline Cloud job bundle",
+                dir = job_dir.display()
+            ),
+        ),
+        Engine::Slurm => (
+            jobs::slurm(spec)?,
+            format!("sh {}/submit.sh", job_dir.display()),
+        ),
+        Engine::Kube(k) => (
+            jobs::kube(spec, k)?,
+            format!(
+                "kubectl apply -f {dir}/job.yaml; kubectl wait --for=condition=complete job/{name}; kubectl apply -f {dir}/verify.yaml",
+                dir = job_dir.display(),
+                name = spec.name
+            ),
+        ),
+    })
 }
 
 /// Writes the job's files together: all staged, then committed (all appear or none).
@@ -805,5 +829,39 @@ mod tests {
             line.contains("1 failed; 1 stale temporary removed; 1.50 s"),
             "{line}"
         );
+    }
+
+    #[test]
+    fn a_shards_command_carries_the_rules_only_for_openjd() {
+        let lit = |s: &str| Arg::Lit(s.to_string());
+        let settings = vec!["--output-space".to_string(), "acescg".to_string()];
+        let slurm = task_args(false, Some("/p"), &settings);
+        assert_eq!(
+            slurm,
+            [
+                lit("farm"),
+                lit("run"),
+                lit("--shard"),
+                Arg::Shard,
+                lit("--inputs-from"),
+                Arg::InputList,
+                lit("--"),
+                lit("--model"),
+                Arg::Model,
+                lit("-o"),
+                Arg::OutputDir,
+                lit("--preview"),
+                lit("/p"),
+                lit("--output-space"),
+                lit("acescg"),
+            ]
+        );
+        let openjd = task_args(true, None, &[]);
+        assert_eq!(
+            &openjd[6..8],
+            &[lit("--path-mapping-rules"), Arg::PathMappingRules]
+        );
+        assert_eq!(openjd.len(), 13);
+        assert!(verify_args().contains(&Arg::Shards));
     }
 }

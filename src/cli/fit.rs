@@ -1,6 +1,6 @@
 //! `nsrm fit`: fit one model and write its JSON file.
 
-use super::capture::CaptureText;
+use super::capture::{Capture, CaptureText};
 use super::common::{TrainingArgs, UsageError};
 use super::fit_args::FitVariantArgs;
 use super::values;
@@ -8,6 +8,7 @@ use crate::colorimetry::delta_e00_xyz;
 use crate::model::dual_illuminant::Profile;
 use crate::model::fit::{fit_with, Normalise};
 use crate::model::Kind;
+use crate::training::TrainingSet;
 use anyhow::{Context, Result};
 use rayon::prelude::*;
 use std::path::{Path, PathBuf};
@@ -85,34 +86,7 @@ pub(crate) fn run(a: Args) -> Result<ExitCode> {
         return Err(UsageError(format!("--order {} is out of range (1..4)", a.order)).into());
     }
     let opts = a.fit.options()?;
-    if opts.normalise == Normalise::WhiteBalanced && kind != Kind::Nsrm {
-        return Err(UsageError(format!(
-            "--normalise white-balanced is defined for NSRM only, not {kind}"
-        ))
-        .into());
-    }
-    if a.capture.len() > 2 || a.illuminant.len() > 2 {
-        return Err(UsageError(
-            "--capture and --illuminant are given once, or twice for a two-illuminant model".into(),
-        )
-        .into());
-    }
-    if a.capture.len() == 2 && a.illuminant.len() != 2 {
-        return Err(UsageError(
-            "two --capture need an --illuminant each, in the same order (the light each chart was shot under, e.g. --capture a.dng --illuminant A --capture d65.dng --illuminant D65)".into(),
-        )
-        .into());
-    }
-    if a.capture.len() == 1 && a.illuminant.len() == 2 {
-        return Err(UsageError(
-            "two --illuminant with --capture need two --capture (one chart shot under each light)"
-                .into(),
-        )
-        .into());
-    }
-    if a.capture.len() == 2 && a.overlay.is_some() {
-        return Err(UsageError("--overlay takes one --capture".into()).into());
-    }
+    check_args(&a, kind, opts.normalise)?;
     let illuminants: Vec<String> = if a.illuminant.is_empty() {
         vec!["D65".to_string()]
     } else {
@@ -128,34 +102,7 @@ pub(crate) fn run(a: Args) -> Result<ExitCode> {
         .map(PathBuf::as_path)
         .collect();
     let session = super::outputs::open(a.overwrite, &inputs, &outputs)?;
-    // One fit per illuminant: (the training data, the capture it came from, where it came from).
-    let mut sets = Vec::new();
-    if a.capture.is_empty() {
-        super::capture::for_model(None, &a.chart)?;
-        for ill in &illuminants {
-            let data = a.training.load(ill)?;
-            let source = match &a.training.training {
-                Some(t) => format!(" of {}", t.display()),
-                None if illuminants.len() > 1 => format!(" simulated from spectra under {ill}"),
-                None => " simulated from spectra".to_string(),
-            };
-            sets.push((data, None, source));
-        }
-    } else {
-        for (i, f) in a.capture.iter().enumerate() {
-            let c = super::capture::for_model(Some(f), &a.chart)?.expect("a capture was given");
-            if let Some(w) = c.other_chart_warning() {
-                eprintln!("{w}");
-            }
-            let mut data = c.training_set().select(&a.training.patches)?;
-            let mut source = format!(" read from {}", f.display());
-            if let Some(ill) = a.illuminant.get(i) {
-                data = under_light(data, ill, &a.training)?;
-                source.push_str(&format!(" (reference adapted to {ill})"));
-            }
-            sets.push((data, Some(c), source));
-        }
-    }
+    let sets = training_sets(&a, &illuminants)?;
     let mut fits = Vec::new();
     for (data, _, source) in &sets {
         let fitted = fit_with(kind, a.order, data, &opts).with_context(|| {
@@ -206,6 +153,76 @@ pub(crate) fn run(a: Args) -> Result<ExitCode> {
         );
     }
     Ok(ExitCode::SUCCESS)
+}
+
+/// The usage checks of `nsrm fit` after the order's: the normalisation the kind allows
+/// (`normalise`), and how `--capture`, `--illuminant` and `--overlay` go together.
+fn check_args(a: &Args, kind: Kind, normalise: Normalise) -> Result<()> {
+    if normalise == Normalise::WhiteBalanced && kind != Kind::Nsrm {
+        return Err(UsageError(format!(
+            "--normalise white-balanced is defined for NSRM only, not {kind}"
+        ))
+        .into());
+    }
+    if a.capture.len() > 2 || a.illuminant.len() > 2 {
+        return Err(UsageError(
+            "--capture and --illuminant are given once, or twice for a two-illuminant model".into(),
+        )
+        .into());
+    }
+    if a.capture.len() == 2 && a.illuminant.len() != 2 {
+        return Err(UsageError(
+            "two --capture need an --illuminant each, in the same order (the light each chart was shot under, e.g. --capture a.dng --illuminant A --capture d65.dng --illuminant D65)".into(),
+        )
+        .into());
+    }
+    if a.capture.len() == 1 && a.illuminant.len() == 2 {
+        return Err(UsageError(
+            "two --illuminant with --capture need two --capture (one chart shot under each light)"
+                .into(),
+        )
+        .into());
+    }
+    if a.capture.len() == 2 && a.overlay.is_some() {
+        return Err(UsageError("--overlay takes one --capture".into()).into());
+    }
+    Ok(())
+}
+
+/// One training set per illuminant: (the data, the capture it came from, where it came from —
+/// the tail of the messages that name it).
+fn training_sets(
+    a: &Args,
+    illuminants: &[String],
+) -> Result<Vec<(TrainingSet, Option<Capture>, String)>> {
+    let mut sets = Vec::new();
+    if a.capture.is_empty() {
+        super::capture::for_model(None, &a.chart)?;
+        for ill in illuminants {
+            let data = a.training.load(ill)?;
+            let source = match &a.training.training {
+                Some(t) => format!(" of {}", t.display()),
+                None if illuminants.len() > 1 => format!(" simulated from spectra under {ill}"),
+                None => " simulated from spectra".to_string(),
+            };
+            sets.push((data, None, source));
+        }
+    } else {
+        for (i, f) in a.capture.iter().enumerate() {
+            let c = super::capture::for_model(Some(f), &a.chart)?.expect("a capture was given");
+            if let Some(w) = c.other_chart_warning() {
+                eprintln!("{w}");
+            }
+            let mut data = c.training_set().select(&a.training.patches)?;
+            let mut source = format!(" read from {}", f.display());
+            if let Some(ill) = a.illuminant.get(i) {
+                data = under_light(data, ill, &a.training)?;
+                source.push_str(&format!(" (reference adapted to {ill})"));
+            }
+            sets.push((data, Some(c), source));
+        }
+    }
+    Ok(sets)
 }
 
 /// A chart capture's training set with its reference values adapted (Bradford) from their
@@ -291,4 +308,76 @@ pub(crate) fn few_patches_warning(terms: usize, patches: usize) -> Option<String
             "warning: {terms} terms fitted on {patches} patches (fewer than 1.5 per term): the fit can follow the patches' noise and go wild between them; check it with `nsrm eval` (leave-one-out), use a lower --order or more patches, or regularise with --ridge auto"
         )
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use clap::Parser;
+
+    #[derive(clap::Parser)]
+    struct Fit {
+        #[command(flatten)]
+        a: Args,
+    }
+
+    fn args(extra: &[&str]) -> Args {
+        let argv = ["fit", "-o", "m.json"]
+            .into_iter()
+            .chain(extra.iter().copied());
+        Fit::try_parse_from(argv).unwrap().a
+    }
+
+    #[test]
+    fn captures_illuminants_and_overlays_must_pair_up() {
+        let ok = |extra: &[&str]| {
+            let a = args(extra);
+            check_args(&a, a.kind(), Normalise::default())
+        };
+        assert!(ok(&[]).is_ok());
+        assert!(ok(&["--capture", "a.dng", "--illuminant", "A"]).is_ok());
+        for bad in [
+            &[
+                "--capture",
+                "a.dng",
+                "--capture",
+                "b.dng",
+                "--illuminant",
+                "A",
+            ][..],
+            &[
+                "--capture",
+                "a.dng",
+                "--illuminant",
+                "A",
+                "--illuminant",
+                "D65",
+            ],
+            &[
+                "--illuminant",
+                "A",
+                "--illuminant",
+                "D50",
+                "--illuminant",
+                "D65",
+            ],
+            &[
+                "--capture",
+                "a.dng",
+                "--capture",
+                "b.dng",
+                "--illuminant",
+                "A",
+                "--illuminant",
+                "D65",
+                "--overlay",
+                "o.png",
+            ],
+        ] {
+            let e = ok(bad).unwrap_err();
+            assert!(e.downcast_ref::<UsageError>().is_some(), "{bad:?}: {e}");
+        }
+        let lrm = args(&["--kind", "lrm"]);
+        assert!(check_args(&lrm, lrm.kind(), Normalise::WhiteBalanced).is_err());
+    }
 }

@@ -2,7 +2,7 @@
 //! in [`super`] are written over, implemented by `f64` (plain values) and by [`Dual`] (a value with
 //! its gradient with respect to `N` inputs).
 //!
-//! [`super::xyz_to_lab`] and [`super::ciede2000`] are generic over [`Real`], so the ΔE00 the
+//! [`super::xyz_to_lab_generic`] and [`super::ciede2000_generic`] are generic over [`Real`], so the ΔE00 the
 //! evaluation reports and the ΔE00 whose gradient the fit follows (`model::refine`) are one
 //! definition: there is no second, hand-derived formula to drift from it.
 //!
@@ -12,7 +12,7 @@
 use std::ops::{Add, Div, Mul, Neg, Sub};
 
 /// The arithmetic the colour conversions need.
-pub trait Real:
+pub(crate) trait Real:
     Copy
     + Add<Output = Self>
     + Sub<Output = Self>
@@ -85,7 +85,7 @@ impl Real for f64 {
 
 /// A value with its gradient with respect to `N` inputs (forward-mode automatic differentiation).
 #[derive(Debug, Clone, Copy, PartialEq)]
-pub struct Dual<const N: usize> {
+pub(crate) struct Dual<const N: usize> {
     /// The value.
     pub v: f64,
     /// `∂v/∂input_k`.
@@ -94,7 +94,7 @@ pub struct Dual<const N: usize> {
 
 impl<const N: usize> Dual<N> {
     /// Input `k` of `N` with value `v` (gradient = unit vector `k`).
-    pub fn var(v: f64, k: usize) -> Self {
+    pub(crate) fn var(v: f64, k: usize) -> Self {
         let mut d = [0.0; N];
         d[k] = 1.0;
         Dual { v, d }

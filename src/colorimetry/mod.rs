@@ -3,13 +3,17 @@
 //! preview / display matrices and the sRGB transfer function. Every colour conversion of the
 //! library (io, export, chart, the embedding example) is one of these.
 
-pub mod dual;
-pub mod output;
-pub mod spaces;
-pub mod temperature;
+pub(crate) mod dual;
+pub(crate) mod observer;
+pub(crate) mod output;
+pub(crate) mod spaces;
+pub(crate) mod temperature;
 
-pub use dual::{Dual, Real};
-pub use output::{output_matrix, srgb8, srgb_oetf, to_linear_srgb};
+pub(crate) use dual::{Dual, Real};
+pub(crate) use output::to_linear_srgb;
+pub use output::{output_matrix, srgb8, srgb_oetf};
+pub use spaces::{Mat3, OutputSpace};
+pub use temperature::{bradford_between, cct, temperature_xy, TemperatureError, D50_XY};
 
 /// CIE D65 white point (2° observer), Y = 100; used when measured XYZ data names no white.
 pub const D65_WHITE_XYZ: [f64; 3] = [95.047, 100.0, 108.883];
@@ -27,8 +31,17 @@ pub(crate) fn xyy_to_xyz(x: f64, y: f64, big_y: f64) -> [f64; 3] {
 
 /// CIE XYZ → CIELAB relative to the reference white `white` (same scale as `xyz`).
 ///
-/// Generic over [`Real`]: with [`Dual`] inputs it also returns the derivatives (see [`dual`]).
-pub fn xyz_to_lab<T: Real>(xyz: [T; 3], white: [f64; 3]) -> [T; 3] {
+/// ```
+/// let lab = nsrm::xyz_to_lab([95.047, 100.0, 108.883], nsrm::D65_WHITE_XYZ);
+/// assert!((lab[0] - 100.0).abs() < 1e-9 && lab[1].abs() < 1e-9 && lab[2].abs() < 1e-9);
+/// ```
+pub fn xyz_to_lab(xyz: [f64; 3], white: [f64; 3]) -> [f64; 3] {
+    xyz_to_lab_generic(xyz, white)
+}
+
+/// [`xyz_to_lab`] generic over [`Real`]: with [`Dual`] inputs it also returns the derivatives
+/// (see [`dual`]).
+pub(crate) fn xyz_to_lab_generic<T: Real>(xyz: [T; 3], white: [f64; 3]) -> [T; 3] {
     let f = |t: T| {
         if t.re() > EPS {
             t.cbrt()
@@ -63,11 +76,15 @@ pub(crate) fn lab_to_xyz(lab: [f64; 3], white: [f64; 3]) -> [f64; 3] {
     [finv(fx) * white[0], yr * white[1], finv(fz) * white[2]]
 }
 
-/// CIEDE2000 colour difference (Sharma, Wu & Dalal 2005) with kL = kC = kH = 1.
-///
-/// Generic over [`Real`]: with [`Dual`] inputs it also returns the gradient (see [`dual`]); the
-/// `f64` instance is the ΔE00 every evaluation reports.
-pub fn ciede2000<T: Real>(lab1: [T; 3], lab2: [T; 3]) -> T {
+/// CIEDE2000 colour difference (Sharma, Wu & Dalal 2005) with kL = kC = kH = 1: the ΔE00 every
+/// evaluation reports.
+pub fn ciede2000(lab1: [f64; 3], lab2: [f64; 3]) -> f64 {
+    ciede2000_generic(lab1, lab2)
+}
+
+/// [`ciede2000`] generic over [`Real`]: with [`Dual`] inputs it also returns the gradient (see
+/// [`dual`]).
+pub(crate) fn ciede2000_generic<T: Real>(lab1: [T; 3], lab2: [T; 3]) -> T {
     let [tl, tc, th, rt] = ciede2000_parts(lab1, lab2);
     (tl * tl + tc * tc + th * th + rt * tc * th).sqrt()
 }
@@ -164,13 +181,14 @@ pub fn delta_e00_xyz(xyz1: [f64; 3], xyz2: [f64; 3], white: [f64; 3]) -> f64 {
 
 /// ΔE00 between a predicted XYZ and a reference Lab colour, with its gradient with respect to the
 /// predicted X, Y, Z (forward-mode through [`xyz_to_lab`] and [`ciede2000`]; 0 where ΔE00 = 0).
-pub fn delta_e00_xyz_grad(
+#[cfg(test)]
+pub(crate) fn delta_e00_xyz_grad(
     xyz: [f64; 3],
     reference_lab: [f64; 3],
     white: [f64; 3],
 ) -> (f64, [f64; 3]) {
-    let lab = xyz_to_lab(Dual::<3>::vars(xyz), white);
-    let d = ciede2000(lab, reference_lab.map(Dual::cst));
+    let lab = xyz_to_lab_generic(Dual::<3>::vars(xyz), white);
+    let d = ciede2000_generic(lab, reference_lab.map(Dual::cst));
     (d.v, d.d)
 }
 
@@ -181,7 +199,7 @@ pub(crate) fn delta_e00_vector_xyz_jacobian(
     reference_lab: [f64; 3],
     white: [f64; 3],
 ) -> [Dual<3>; 3] {
-    let lab = xyz_to_lab(Dual::<3>::vars(xyz), white);
+    let lab = xyz_to_lab_generic(Dual::<3>::vars(xyz), white);
     ciede2000_vector(lab, reference_lab.map(Dual::cst))
 }
 

@@ -16,7 +16,7 @@ pub fn output_matrix(white_xyz: [f64; 3], space: OutputSpace) -> Mat3 {
 
 /// The matrix from pixels in `space` (as written by `nsrm apply`, white `Y = 1`, scene white
 /// `white_xyz`) to linear sRGB (D65, white = 1): for previews.
-pub fn to_linear_srgb(white_xyz: [f64; 3], space: OutputSpace) -> Mat3 {
+pub(crate) fn to_linear_srgb(white_xyz: [f64; 3], space: OutputSpace) -> Mat3 {
     let srgb = OutputSpace::LinearSrgb.from_xyz(white_xyz);
     spaces::mul(&srgb, &spaces::invert(&space.from_xyz(white_xyz)))
 }

@@ -108,10 +108,10 @@ pub(crate) const D65_XY: [f64; 2] = [0.3127, 0.3290];
 pub(crate) const D65_XY_TOLERANCE: f64 = 1e-3;
 
 /// The identity matrix.
-pub const IDENTITY: Mat3 = [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]];
+pub(crate) const IDENTITY: Mat3 = [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]];
 
 /// xy chromaticity → XYZ with Y = 1.
-pub fn xy_to_xyz(xy: [f64; 2]) -> [f64; 3] {
+pub(crate) fn xy_to_xyz(xy: [f64; 2]) -> [f64; 3] {
     [xy[0] / xy[1], 1.0, (1.0 - xy[0] - xy[1]) / xy[1]]
 }
 
@@ -151,7 +151,7 @@ pub(crate) fn bradford(src: [f64; 3], dst: [f64; 3]) -> Mat3 {
 }
 
 /// `m · v`.
-pub fn apply(m: &Mat3, v: [f64; 3]) -> [f64; 3] {
+pub(crate) fn apply(m: &Mat3, v: [f64; 3]) -> [f64; 3] {
     [
         m[0][0] * v[0] + m[0][1] * v[1] + m[0][2] * v[2],
         m[1][0] * v[0] + m[1][1] * v[1] + m[1][2] * v[2],
@@ -160,7 +160,7 @@ pub fn apply(m: &Mat3, v: [f64; 3]) -> [f64; 3] {
 }
 
 /// `a · b`.
-pub fn mul(a: &Mat3, b: &Mat3) -> Mat3 {
+pub(crate) fn mul(a: &Mat3, b: &Mat3) -> Mat3 {
     let mut m = [[0.0; 3]; 3];
     for (i, row) in m.iter_mut().enumerate() {
         for (j, v) in row.iter_mut().enumerate() {
@@ -191,7 +191,7 @@ pub(crate) fn try_invert(m: &Mat3) -> Option<Mat3> {
 /// [`try_invert`] for the matrices that are invertible by construction (primaries, Bradford, the
 /// output matrices of a checked white): should one be singular after all, every entry is NaN
 /// (never a silently huge inverse), which the callers' finiteness checks refuse.
-pub fn invert(m: &Mat3) -> Mat3 {
+pub(crate) fn invert(m: &Mat3) -> Mat3 {
     try_invert(m).unwrap_or([[f64::NAN; 3]; 3])
 }
 

@@ -22,19 +22,19 @@ pub enum TemperatureError {
 
 /// The range of temperatures handled, in kelvin (Robertson's table spans 1667 K to infinity; CIE
 /// daylight is defined from 4000 K to 25000 K).
-pub const MIN_CCT: f64 = 1000.0;
-pub const MAX_CCT: f64 = 25000.0;
+pub(crate) const MIN_CCT: f64 = 1000.0;
+pub(crate) const MAX_CCT: f64 = 25000.0;
 /// Below this a bare temperature names a Planckian light, from it up CIE daylight.
-pub const DAYLIGHT_FROM: f64 = 4000.0;
+pub(crate) const DAYLIGHT_FROM: f64 = 4000.0;
 
 /// Second radiation constant c2 = hc/k (m·K), CODATA 2018 (what CIE 15:2018 uses).
 const C2: f64 = 1.438_776_877e-2;
 
 /// CIE 1931 chromaticity `(x, y)` of a Planckian radiator at `t` kelvin, integrated over the
-/// built-in CIE 1931 2° colour-matching functions (360–830 nm, 1 nm).
-pub fn planckian_xy(t: f64) -> Result<[f64; 2], TemperatureError> {
+/// built-in CIE 1931 2° colour-matching functions ([`super::observer`], 360–830 nm, 1 nm).
+pub(crate) fn planckian_xy(t: f64) -> Result<[f64; 2], TemperatureError> {
     check_t(t, MIN_CCT, 100_000.0)?;
-    let cmf = crate::spectral::cie1931_cmf();
+    let cmf = super::observer::cie1931();
     let mut xyz = [0.0; 3];
     for (i, &w) in cmf.wavelengths.iter().enumerate() {
         let l = w * 1e-9;
@@ -49,7 +49,7 @@ pub fn planckian_xy(t: f64) -> Result<[f64; 2], TemperatureError> {
 
 /// CIE 1931 chromaticity of CIE daylight at correlated colour temperature `t` (CIE 15, 4000 K to
 /// 25000 K). `t` is taken as given (D65 is 6504 K: 6500 × 1.4388/1.4380).
-pub fn daylight_xy(t: f64) -> Result<[f64; 2], TemperatureError> {
+pub(crate) fn daylight_xy(t: f64) -> Result<[f64; 2], TemperatureError> {
     check_t(t, DAYLIGHT_FROM, MAX_CCT)?;
     let x = if t <= 7000.0 {
         -4.6070e9 / t.powi(3) + 2.9678e6 / t.powi(2) + 0.09911e3 / t + 0.244063
@@ -153,7 +153,7 @@ pub fn cct(xy: [f64; 2]) -> Result<f64, TemperatureError> {
 
 /// The weight of the first of two calibration illuminants (temperatures `t1 < t2`) at temperature
 /// `t`, by the DNG rule: linear in `1/t` between them, clamped to 1 below `t1` and 0 above `t2`.
-pub fn dng_weight(t: f64, t1: f64, t2: f64) -> f64 {
+pub(crate) fn dng_weight(t: f64, t1: f64, t2: f64) -> f64 {
     if t <= t1 {
         1.0
     } else if t >= t2 {
@@ -164,12 +164,12 @@ pub fn dng_weight(t: f64, t1: f64, t2: f64) -> f64 {
 }
 
 /// XYZ (`Y = 1`) of a chromaticity.
-pub fn xy_to_xyz(xy: [f64; 2]) -> [f64; 3] {
+pub(crate) fn xy_to_xyz(xy: [f64; 2]) -> [f64; 3] {
     super::spaces::xy_to_xyz(xy)
 }
 
 /// Chromaticity of an XYZ colour (`None` for a non-positive sum or a non-finite value).
-pub fn xyz_to_xy(xyz: [f64; 3]) -> Option<[f64; 2]> {
+pub(crate) fn xyz_to_xy(xyz: [f64; 3]) -> Option<[f64; 2]> {
     let s = xyz[0] + xyz[1] + xyz[2];
     (s.is_finite() && s > 0.0).then(|| [xyz[0] / s, xyz[1] / s])
 }
@@ -181,7 +181,7 @@ pub const D50_XY: [f64; 2] = [0.3457, 0.3585];
 /// D50, map the neutral to XYZ with the camera model interpolated for the current guess's
 /// temperature (`camera_to_xyz(neutral, weight)`), take that XYZ's chromaticity, and repeat until
 /// it moves less than 1e-7, at most 30 passes (the last one averaged, as the SDK does).
-pub fn neutral_to_xy(
+pub(crate) fn neutral_to_xy(
     neutral: [f64; 3],
     temperatures: [f64; 2],
     mut camera_to_xyz: impl FnMut([f64; 3], f64) -> Option<[f64; 3]>,

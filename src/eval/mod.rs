@@ -1,7 +1,9 @@
 //! Evaluation: leave-one-out (the paper's protocol) and in-sample ΔE00 statistics.
 
 #[cfg(feature = "plot")]
-pub mod plot;
+pub(crate) mod plot;
+#[cfg(feature = "plot")]
+pub use plot::{histograms as plot_histograms, PlotError};
 
 use crate::colorimetry::delta_e00_xyz;
 use crate::model::fit::{fit_with, FitOptions};
@@ -72,7 +74,7 @@ pub struct EvalResult {
 
 /// A named fit variant of `eval --variants`.
 #[derive(Debug, Clone, PartialEq)]
-pub struct Variant {
+pub(crate) struct Variant {
     /// `ls`, `de00`, `de00+preserve-white`, `ridge-auto`, `white-balanced`.
     pub name: &'static str,
     pub opts: FitOptions,
@@ -80,7 +82,7 @@ pub struct Variant {
 
 /// The variants compared by `eval --variants` for `kind`: least squares, ΔE00, ΔE00 with the
 /// perfect white preserved, ridge with λ by GCV, and for NSRM white-balanced least squares.
-pub fn variants(kind: Kind) -> Vec<Variant> {
+pub(crate) fn variants(kind: Kind) -> Vec<Variant> {
     use crate::model::fit::{Normalise, Objective, Ridge};
     let de00 = FitOptions {
         objective: Objective::De00 { power: 2.0 },
@@ -120,16 +122,6 @@ pub fn variants(kind: Kind) -> Vec<Variant> {
         });
     }
     v
-}
-
-/// Predicted XYZ for every patch under `protocol`, fitting with the paper's least squares.
-pub fn predict(
-    kind: Kind,
-    order: u8,
-    data: &TrainingSet,
-    protocol: Protocol,
-) -> Result<Vec<[f64; 3]>, ModelError> {
-    predict_with(kind, order, data, protocol, &FitOptions::default())
 }
 
 /// Predicted XYZ for every patch under `protocol`, fitting with `opts`. Leave-one-out runs the

@@ -28,21 +28,21 @@ pub enum PlotError {
 
 impl PlotError {
     /// True for a plot file name that is neither `.png` nor `.svg`.
-    pub fn is_usage(&self) -> bool {
+    pub(crate) fn is_usage(&self) -> bool {
         matches!(self, PlotError::Format(_))
     }
 }
 
 /// The file formats a plot can be written in.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum Format {
+pub(crate) enum Format {
     Svg,
     Png,
 }
 
 impl Format {
     /// From the file name's extension.
-    pub fn from_path(path: &Path) -> Result<Format, PlotError> {
+    pub(crate) fn from_path(path: &Path) -> Result<Format, PlotError> {
         match path
             .extension()
             .map(|e| e.to_string_lossy().to_ascii_lowercase())

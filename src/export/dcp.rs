@@ -44,7 +44,7 @@
 use super::ExportError;
 use crate::colorimetry::spaces::{self, Mat3};
 use crate::colorimetry::temperature::{self, D50_XY};
-use crate::model::dual_illuminant::{Combination, FrameWhite, Profile};
+use crate::model::dual_illuminant::{Calibration, Combination, FrameWhite, Profile};
 use crate::model::Kind;
 
 /// Hue divisions (the map's hue axis, 0..360°) and saturation divisions (0..1) of the default map.
@@ -443,7 +443,9 @@ fn harmonic_fill(vals: &mut [[f64; 3]], known: &[bool], hd: usize, sd: usize) {
 /// Builds the DCP of a model set.
 ///
 /// `training[i]` holds model `i`'s training patches (camera RGB under its illuminant); one set
-/// serves both models of a pair when only one is given.
+/// serves both models of a pair when only one is given. The steps: each model's target and own
+/// matrices (`targets`, `matrices`), then per calibration a side (`side`) at the weights
+/// of its named light (`mix_weights`), then the names (`profile_names`).
 pub(crate) fn build(
     profile: &Profile,
     training: &[&[[f64; 3]]],
@@ -461,20 +463,7 @@ pub(crate) fn build(
             "the DCP's ForwardMatrix is fitted on the training patches' camera RGB".into(),
         ));
     }
-    let d50 = d50();
-    let targets: Vec<Target> = profile
-        .models()
-        .iter()
-        .zip(profile.calibrations())
-        .map(|(m, cal)| {
-            let w = m.white_xyz();
-            Target {
-                part: m,
-                adapt: temperature::bradford_between(w, d50).map(|r| r.map(|v| v / w[1])),
-                white_rgb: cal.white_rgb,
-            }
-        })
-        .collect();
+    let targets = targets(profile);
     // Each model's colour matrix (XYZ → camera, for the white-balance temperature only):
     // `diag(w_i)·F_i⁻¹·Bradford(W_i → D50)` with its own ForwardMatrix, which sends `W_i` to
     // `w_i` exactly; normalised as the DNG SDK normalises (max of `C_i·D50` = 1).
@@ -491,54 +480,12 @@ pub(crate) fn build(
     }
     let mut sides = Vec::new();
     for (i, cal) in profile.calibrations().iter().enumerate() {
-        let (ls, _, named) = light_source_for(cal.cct)?;
-        // The set's weights at the named light's temperature, extrapolated (see `Mix`).
-        let weights: Vec<f64> = if profile.is_dual() {
-            let [t1, t2] = profile.temperatures();
-            let a = (1.0 / named - 1.0 / t2) / (1.0 / t1 - 1.0 / t2);
-            vec![a, 1.0 - a]
-        } else {
-            vec![1.0]
-        };
-        let mix = Mix {
-            parts: targets
-                .iter()
-                .zip(&weights)
-                .map(|(t, w)| (*w, *t))
-                .collect(),
-        };
-        let mut fm = [[0.0; 3]; 3];
-        let mut cm = [[0.0; 3]; 3];
-        for (k, w) in weights.iter().enumerate() {
-            for r in 0..3 {
-                for c in 0..3 {
-                    fm[r][c] += w * forward[k][r][c];
-                    cm[r][c] += w * colour[k][r][c];
-                }
-            }
-        }
-        // Refit the ForwardMatrix on the mixed target (exact for LRM, where it is the mix).
         let training_rgb = training[i.min(training.len() - 1)];
-        let bs: Vec<[f64; 3]> = training_rgb
-            .iter()
-            .map(|c| [0, 1, 2].map(|k| c[k] / cal.white_rgb[k]))
-            .collect();
-        let ts: Vec<[f64; 3]> = bs.iter().map(|b| mix.eval(*b)).collect();
-        if ts.iter().flatten().all(|v| v.is_finite()) && weights.len() > 1 {
-            fm = constrained_forward_matrix(&bs, &ts, d50);
-        }
-        let fm = quantise(&fm, Some(d50));
-        if !spaces::invert(&fm).iter().flatten().all(|v| v.is_finite()) {
-            return Err(ExportError::Model("its ForwardMatrix is singular".into()));
-        }
-        let cm = quantise(&cm, None);
-        let hsm = hue_sat_map(&mix, &fm, opts);
-        sides.push(DcpSide {
-            illuminant: ls,
-            color_matrix: cm,
-            forward_matrix: fm,
-            hue_sat_map: hsm,
-        });
+        let own = Own {
+            forward: &forward,
+            colour: &colour,
+        };
+        sides.push(side(profile, &targets, own, cal, training_rgb, opts)?);
     }
     if sides.len() == 2 && sides[0].illuminant == sides[1].illuminant {
         return Err(ExportError::Usage(format!(
@@ -546,6 +493,112 @@ pub(crate) fn build(
             sides[0].illuminant
         )));
     }
+    let (camera, name, copyright) = profile_names(profile);
+    Ok(Dcp {
+        unique_camera_model: camera,
+        profile_name: ascii(&name),
+        copyright: ascii(&copyright),
+        hue_divisions: opts.hue_divisions,
+        sat_divisions: opts.sat_divisions,
+        sides,
+        tone_curve: vec![[0.0, 0.0], [1.0, 1.0]],
+    })
+}
+
+/// Each model's white-balanced target, adapted to D50 at `Y = 1`.
+fn targets(profile: &Profile) -> Vec<Target<'_>> {
+    let d50 = d50();
+    profile
+        .models()
+        .iter()
+        .zip(profile.calibrations())
+        .map(|(m, cal)| {
+            let w = m.white_xyz();
+            Target {
+                part: m,
+                adapt: temperature::bradford_between(w, d50).map(|r| r.map(|v| v / w[1])),
+                white_rgb: cal.white_rgb,
+            }
+        })
+        .collect()
+}
+
+/// The models' weights at a light of temperature `named` (K): affine in 1/T through the set's
+/// calibration temperatures, not clamped (see [`Mix`]); `[1]` for one model.
+fn mix_weights(profile: &Profile, named: f64) -> Vec<f64> {
+    if profile.is_dual() {
+        let [t1, t2] = profile.temperatures();
+        let a = (1.0 / named - 1.0 / t2) / (1.0 / t1 - 1.0 / t2);
+        vec![a, 1.0 - a]
+    } else {
+        vec![1.0]
+    }
+}
+
+/// Each model's own ForwardMatrix and ColorMatrix.
+#[derive(Clone, Copy)]
+struct Own<'a> {
+    forward: &'a [Mat3],
+    colour: &'a [Mat3],
+}
+
+/// The DCP side of calibration `cal`: its named light, the models' matrices mixed at that
+/// light's weights (the ForwardMatrix refitted on the mixed target over `training_rgb` for a
+/// pair), quantised, and the hue/saturation map of the mixed target.
+fn side(
+    profile: &Profile,
+    targets: &[Target],
+    own: Own,
+    cal: &Calibration,
+    training_rgb: &[[f64; 3]],
+    opts: DcpOptions,
+) -> Result<DcpSide, ExportError> {
+    let d50 = d50();
+    let (ls, _, named) = light_source_for(cal.cct)?;
+    let weights = mix_weights(profile, named);
+    let mix = Mix {
+        parts: targets
+            .iter()
+            .zip(&weights)
+            .map(|(t, w)| (*w, *t))
+            .collect(),
+    };
+    let mut fm = [[0.0; 3]; 3];
+    let mut cm = [[0.0; 3]; 3];
+    for (k, w) in weights.iter().enumerate() {
+        for r in 0..3 {
+            for c in 0..3 {
+                fm[r][c] += w * own.forward[k][r][c];
+                cm[r][c] += w * own.colour[k][r][c];
+            }
+        }
+    }
+    // Refit the ForwardMatrix on the mixed target (exact for LRM, where it is the mix).
+    let bs: Vec<[f64; 3]> = training_rgb
+        .iter()
+        .map(|c| [0, 1, 2].map(|k| c[k] / cal.white_rgb[k]))
+        .collect();
+    let ts: Vec<[f64; 3]> = bs.iter().map(|b| mix.eval(*b)).collect();
+    if ts.iter().flatten().all(|v| v.is_finite()) && weights.len() > 1 {
+        fm = constrained_forward_matrix(&bs, &ts, d50);
+    }
+    let fm = quantise(&fm, Some(d50));
+    if !spaces::invert(&fm).iter().flatten().all(|v| v.is_finite()) {
+        return Err(ExportError::Model("its ForwardMatrix is singular".into()));
+    }
+    let cm = quantise(&cm, None);
+    let hsm = hue_sat_map(&mix, &fm, opts);
+    Ok(DcpSide {
+        illuminant: ls,
+        color_matrix: cm,
+        forward_matrix: fm,
+        hue_sat_map: hsm,
+    })
+}
+
+/// The DCP's camera name (from the first model's provenance), profile name (kind, order,
+/// camera, calibration temperatures) and copyright line, before the ASCII folding.
+fn profile_names(profile: &Profile) -> (String, String, String) {
     let m0 = &profile.models()[0];
     let p = m0.provenance();
     let camera = p
@@ -560,24 +613,17 @@ pub(crate) fn build(
         .collect();
     let name = format!(
         "nsrm {}{} {} {}",
-        kind,
+        m0.kind(),
         m0.order(),
         camera,
         lights.join("+")
     );
-    Ok(Dcp {
-        unique_camera_model: camera,
-        profile_name: ascii(&name),
-        copyright: ascii(&format!(
-            "Generated by nsrm {} from {}",
-            env!("CARGO_PKG_VERSION"),
-            super::provenance_line(m0)
-        )),
-        hue_divisions: opts.hue_divisions,
-        sat_divisions: opts.sat_divisions,
-        sides,
-        tone_curve: vec![[0.0, 0.0], [1.0, 1.0]],
-    })
+    let copyright = format!(
+        "Generated by nsrm {} from {}",
+        env!("CARGO_PKG_VERSION"),
+        super::provenance_line(m0)
+    );
+    (camera, name, copyright)
 }
 
 /// One model's ForwardMatrix (constrained least squares of its white-balanced target over its
@@ -851,24 +897,63 @@ impl Dcp {
     /// Reads a DCP (or the profile tags of a DNG-like IFD): every size is checked against the
     /// file before it is read.
     pub fn parse(bytes: &[u8]) -> Result<Dcp, ExportError> {
-        let bad = |why: &str| ExportError::Model(format!("not a DCP: {why}"));
+        let tags = DcpTags::read(bytes)?;
+        let (hd, sd) = tags.map_dimensions()?;
+        let mut sides = Vec::new();
+        for i in 0..2u16 {
+            if let Some(side) = tags.side(i, hd * sd)? {
+                sides.push(side);
+            }
+        }
+        if sides.is_empty() {
+            return Err(not_dcp("no ColorMatrix1"));
+        }
+        let tone_curve = tags
+            .floats(50940)
+            .map(|v| v.chunks_exact(2).map(|c| [c[0], c[1]]).collect())
+            .unwrap_or_default();
+        Ok(Dcp {
+            unique_camera_model: tags.text(50708),
+            profile_name: tags.text(50936),
+            copyright: tags.text(50942),
+            hue_divisions: hd,
+            sat_divisions: sd,
+            sides,
+            tone_curve,
+        })
+    }
+}
+
+/// Why bytes are not a DCP [`Dcp::parse`] reads.
+fn not_dcp(why: &str) -> ExportError {
+    ExportError::Model(format!("not a DCP: {why}"))
+}
+
+/// The tags of a DCP's first IFD: tag → (type, count, value bytes); tags of unknown types are
+/// skipped.
+struct DcpTags<'a>(std::collections::HashMap<u16, (u16, usize, &'a [u8])>);
+
+impl<'a> DcpTags<'a> {
+    /// Reads the little-endian header (`IIRC`, or a TIFF's `II*`) and the first IFD, each tag's
+    /// value inside `bytes`.
+    fn read(bytes: &'a [u8]) -> Result<DcpTags<'a>, ExportError> {
         if bytes.len() < 8
             || &bytes[0..2] != b"II"
             || (bytes[2..4] != *b"RC" && bytes[2..4] != [42, 0])
         {
-            return Err(bad("no little-endian `IIRC` header"));
+            return Err(not_dcp("no little-endian `IIRC` header"));
         }
         let u16_at = |o: usize| -> Result<u16, ExportError> {
             bytes
                 .get(o..o + 2)
                 .map(|b| u16::from_le_bytes([b[0], b[1]]))
-                .ok_or_else(|| bad("truncated"))
+                .ok_or_else(|| not_dcp("truncated"))
         };
         let u32_at = |o: usize| -> Result<u32, ExportError> {
             bytes
                 .get(o..o + 4)
                 .map(|b| u32::from_le_bytes([b[0], b[1], b[2], b[3]]))
-                .ok_or_else(|| bad("truncated"))
+                .ok_or_else(|| not_dcp("truncated"))
         };
         let ifd = u32_at(4)? as usize;
         let n = u16_at(ifd)? as usize;
@@ -885,7 +970,7 @@ impl Dcp {
             };
             let len = count
                 .checked_mul(size)
-                .ok_or_else(|| bad("tag size overflows"))?;
+                .ok_or_else(|| not_dcp("tag size overflows"))?;
             let off = if len <= 4 {
                 e + 8
             } else {
@@ -895,48 +980,63 @@ impl Dcp {
                 .get(
                     off..off
                         .checked_add(len)
-                        .ok_or_else(|| bad("tag offset overflows"))?,
+                        .ok_or_else(|| not_dcp("tag offset overflows"))?,
                 )
-                .ok_or_else(|| bad("a tag points past the end of the file"))?;
+                .ok_or_else(|| not_dcp("a tag points past the end of the file"))?;
             tags.insert(tag, (typ, count, data));
         }
-        let text = |t: u16| -> String {
-            tags.get(&t)
-                .map(|(_, _, d)| {
-                    String::from_utf8_lossy(d)
-                        .trim_end_matches('\0')
-                        .to_string()
-                })
-                .unwrap_or_default()
+        Ok(DcpTags(tags))
+    }
+
+    /// An ASCII tag's text (empty when absent).
+    fn text(&self, t: u16) -> String {
+        self.0
+            .get(&t)
+            .map(|(_, _, d)| {
+                String::from_utf8_lossy(d)
+                    .trim_end_matches('\0')
+                    .to_string()
+            })
+            .unwrap_or_default()
+    }
+
+    /// A matrix tag (9 signed rationals, row by row).
+    fn mat(&self, t: u16) -> Result<Option<Mat3>, ExportError> {
+        let Some((typ, count, d)) = self.0.get(&t) else {
+            return Ok(None);
         };
-        let mat = |t: u16| -> Result<Option<Mat3>, ExportError> {
-            let Some((typ, count, d)) = tags.get(&t) else {
-                return Ok(None);
-            };
-            if *typ != 10 || *count != 9 {
-                return Err(bad(&format!("tag {t} is not 9 signed rationals")));
+        if *typ != 10 || *count != 9 {
+            return Err(not_dcp(&format!("tag {t} is not 9 signed rationals")));
+        }
+        let mut m = [[0.0; 3]; 3];
+        for k in 0..9 {
+            let num = i32::from_le_bytes(d[8 * k..8 * k + 4].try_into().expect("4 bytes"));
+            let den = i32::from_le_bytes(d[8 * k + 4..8 * k + 8].try_into().expect("4 bytes"));
+            if den == 0 {
+                return Err(not_dcp(&format!("tag {t} has a zero denominator")));
             }
-            let mut m = [[0.0; 3]; 3];
-            for k in 0..9 {
-                let num = i32::from_le_bytes(d[8 * k..8 * k + 4].try_into().expect("4 bytes"));
-                let den = i32::from_le_bytes(d[8 * k + 4..8 * k + 8].try_into().expect("4 bytes"));
-                if den == 0 {
-                    return Err(bad(&format!("tag {t} has a zero denominator")));
-                }
-                m[k / 3][k % 3] = num as f64 / den as f64;
-            }
-            Ok(Some(m))
-        };
-        let floats = |t: u16| -> Option<Vec<f32>> {
-            tags.get(&t)
-                .filter(|(typ, _, _)| *typ == 11)
-                .map(|(_, _, d)| {
-                    d.chunks_exact(4)
-                        .map(|c| f32::from_le_bytes([c[0], c[1], c[2], c[3]]))
-                        .collect()
-                })
-        };
-        let dims = tags
+            m[k / 3][k % 3] = num as f64 / den as f64;
+        }
+        Ok(Some(m))
+    }
+
+    /// A float tag's values (`None` when absent or of another type).
+    fn floats(&self, t: u16) -> Option<Vec<f32>> {
+        self.0
+            .get(&t)
+            .filter(|(typ, _, _)| *typ == 11)
+            .map(|(_, _, d)| {
+                d.chunks_exact(4)
+                    .map(|c| f32::from_le_bytes([c[0], c[1], c[2], c[3]]))
+                    .collect()
+            })
+    }
+
+    /// The hue/saturation map's hue and saturation divisions (one value division only; `(0, 0)`
+    /// without a map).
+    fn map_dimensions(&self) -> Result<(usize, usize), ExportError> {
+        let dims = self
+            .0
             .get(&50937)
             .filter(|(typ, count, _)| *typ == 4 && *count == 3)
             .map(|(_, _, d)| {
@@ -944,58 +1044,47 @@ impl Dcp {
                     u32::from_le_bytes(d[4 * k..4 * k + 4].try_into().expect("4")) as usize
                 })
             });
-        let (hd, sd) = match dims {
-            Some([h, s, 1]) if h >= 1 && s >= 2 => (h, s),
-            Some(d) => {
-                return Err(bad(&format!(
-                    "hue/saturation map dimensions {d:?} (only one value division is read)"
-                )))
-            }
-            None => (0, 0),
+        match dims {
+            Some([h, s, 1]) if h >= 1 && s >= 2 => Ok((h, s)),
+            Some(d) => Err(not_dcp(&format!(
+                "hue/saturation map dimensions {d:?} (only one value division is read)"
+            ))),
+            None => Ok((0, 0)),
+        }
+    }
+
+    /// Side `i` (0 or 1) when its ColorMatrix is there: with its ForwardMatrix, calibration
+    /// illuminant and hue/saturation map of `entries` entries.
+    fn side(&self, i: u16, entries: usize) -> Result<Option<DcpSide>, ExportError> {
+        let Some(cm) = self.mat(50721 + i)? else {
+            return Ok(None);
         };
-        let mut sides = Vec::new();
-        for i in 0..2u16 {
-            let Some(cm) = mat(50721 + i)? else { continue };
-            let fm =
-                mat(50964 + i)?.ok_or_else(|| bad("a ColorMatrix without its ForwardMatrix"))?;
-            let ill = tags
-                .get(&(50778 + i))
-                .filter(|(typ, _, _)| *typ == 3)
-                .map(|(_, _, d)| u16::from_le_bytes([d[0], d[1]]))
-                .unwrap_or(0);
-            let map = match floats(50938 + i) {
-                Some(v) if v.len() == hd * sd * 3 => {
-                    v.chunks_exact(3).map(|c| [c[0], c[1], c[2]]).collect()
-                }
-                Some(_) => {
-                    return Err(bad(
-                        "the hue/saturation map's size does not match its dimensions",
-                    ))
-                }
-                None => Vec::new(),
-            };
-            sides.push(DcpSide {
-                illuminant: ill,
-                color_matrix: cm,
-                forward_matrix: fm,
-                hue_sat_map: map,
-            });
-        }
-        if sides.is_empty() {
-            return Err(bad("no ColorMatrix1"));
-        }
-        let tone_curve = floats(50940)
-            .map(|v| v.chunks_exact(2).map(|c| [c[0], c[1]]).collect())
-            .unwrap_or_default();
-        Ok(Dcp {
-            unique_camera_model: text(50708),
-            profile_name: text(50936),
-            copyright: text(50942),
-            hue_divisions: hd,
-            sat_divisions: sd,
-            sides,
-            tone_curve,
-        })
+        let fm = self
+            .mat(50964 + i)?
+            .ok_or_else(|| not_dcp("a ColorMatrix without its ForwardMatrix"))?;
+        let ill = self
+            .0
+            .get(&(50778 + i))
+            .filter(|(typ, _, _)| *typ == 3)
+            .map(|(_, _, d)| u16::from_le_bytes([d[0], d[1]]))
+            .unwrap_or(0);
+        let map = match self.floats(50938 + i) {
+            Some(v) if v.len() == entries * 3 => {
+                v.chunks_exact(3).map(|c| [c[0], c[1], c[2]]).collect()
+            }
+            Some(_) => {
+                return Err(not_dcp(
+                    "the hue/saturation map's size does not match its dimensions",
+                ))
+            }
+            None => Vec::new(),
+        };
+        Ok(Some(DcpSide {
+            illuminant: ill,
+            color_matrix: cm,
+            forward_matrix: fm,
+            hue_sat_map: map,
+        }))
     }
 }
 
@@ -1290,6 +1379,113 @@ mod tests {
         )
         .unwrap_err();
         assert!(e.to_string().contains("not one a DCP can name"), "{e}");
+    }
+
+    #[test]
+    fn a_pairs_weights_are_affine_in_reciprocal_temperature() {
+        let (a, _) = fitted(Kind::Lrm, "A");
+        let (b, _) = fitted(Kind::Lrm, "D65");
+        let p = Profile::dual(b, a).unwrap();
+        let [t1, t2] = p.temperatures();
+        let w1 = mix_weights(&p, t1);
+        let w2 = mix_weights(&p, t2);
+        assert!((w1[0] - 1.0).abs() < 1e-12 && w1[1].abs() < 1e-12, "{w1:?}");
+        assert!(w2[0].abs() < 1e-12 && (w2[1] - 1.0).abs() < 1e-12, "{w2:?}");
+        // Halfway in 1/T is half and half; beyond t1 it extrapolates.
+        let mid = mix_weights(&p, 2.0 / (1.0 / t1 + 1.0 / t2));
+        assert!((mid[0] - 0.5).abs() < 1e-12, "{mid:?}");
+        let beyond = mix_weights(&p, t1 - 100.0);
+        assert!(beyond[0] > 1.0 && beyond[1] < 0.0, "{beyond:?}");
+        assert_eq!(targets(&p).len(), 2);
+        let (_, name, copyright) = profile_names(&p);
+        assert!(
+            name.starts_with("nsrm LRM") && name.contains("K+"),
+            "{name}"
+        );
+        assert!(copyright.starts_with("Generated by nsrm"), "{copyright}");
+        let single = Profile::single(fitted(Kind::Lrm, "D65").0).unwrap();
+        assert_eq!(mix_weights(&single, 5000.0), [1.0]);
+    }
+
+    /// A little-endian `IIRC` file of `tags` (tag, type, count, value bytes), values after the IFD.
+    fn dcp_bytes(tags: &[(u16, u16, u32, Vec<u8>)]) -> Vec<u8> {
+        let mut b = b"IIRC".to_vec();
+        b.extend_from_slice(&8u32.to_le_bytes());
+        b.extend_from_slice(&(tags.len() as u16).to_le_bytes());
+        let mut data_at = 8 + 2 + 12 * tags.len() + 4;
+        let mut data = Vec::new();
+        for (tag, typ, count, v) in tags {
+            b.extend_from_slice(&tag.to_le_bytes());
+            b.extend_from_slice(&typ.to_le_bytes());
+            b.extend_from_slice(&count.to_le_bytes());
+            if v.len() <= 4 {
+                let mut inline = v.clone();
+                inline.resize(4, 0);
+                b.extend_from_slice(&inline);
+            } else {
+                b.extend_from_slice(&(data_at as u32).to_le_bytes());
+                data.extend_from_slice(v);
+                data_at += v.len();
+            }
+        }
+        b.extend_from_slice(&0u32.to_le_bytes());
+        b.extend_from_slice(&data);
+        b
+    }
+
+    fn rationals(m: [[i32; 3]; 3], den: i32) -> Vec<u8> {
+        m.iter()
+            .flatten()
+            .flat_map(|v| [v.to_le_bytes(), den.to_le_bytes()].concat())
+            .collect()
+    }
+
+    #[test]
+    fn dcp_tags_read_text_matrices_and_sides() {
+        let id = [[2, 0, 0], [0, 2, 0], [0, 0, 2]];
+        let bytes = dcp_bytes(&[
+            (50708, 2, 4, b"cam\0".to_vec()),
+            (50721, 10, 9, rationals(id, 2)),
+            (50964, 10, 9, rationals(id, 4)),
+            (50778, 3, 1, 21u16.to_le_bytes().to_vec()),
+        ]);
+        let tags = DcpTags::read(&bytes).unwrap();
+        assert_eq!(tags.text(50708), "cam");
+        assert_eq!(tags.text(1), "");
+        assert_eq!(tags.map_dimensions().unwrap(), (0, 0));
+        let side = tags.side(0, 0).unwrap().unwrap();
+        assert_eq!(side.color_matrix, spaces::IDENTITY);
+        assert_eq!(side.forward_matrix[1], [0.0, 0.5, 0.0]);
+        assert_eq!(side.illuminant, 21);
+        assert!(tags.side(1, 0).unwrap().is_none());
+        let dcp = Dcp::parse(&bytes).unwrap();
+        assert_eq!(
+            (dcp.unique_camera_model.as_str(), dcp.sides.len()),
+            ("cam", 1)
+        );
+    }
+
+    #[test]
+    fn malformed_dcp_tags_are_errors() {
+        assert!(DcpTags::read(b"MM\0*\0\0\0\x08").is_err());
+        let zero = dcp_bytes(&[(50721, 10, 9, rationals([[1; 3]; 3], 0))]);
+        let e = DcpTags::read(&zero).unwrap().mat(50721).unwrap_err();
+        assert!(e.to_string().contains("zero denominator"), "{e}");
+        let lonely = dcp_bytes(&[(50721, 10, 9, rationals([[1; 3]; 3], 1))]);
+        assert!(
+            Dcp::parse(&lonely).is_err(),
+            "a ColorMatrix without its ForwardMatrix"
+        );
+        let dims: Vec<u8> = [7u32, 4, 2].iter().flat_map(|v| v.to_le_bytes()).collect();
+        let two_values = dcp_bytes(&[(50937, 4, 3, dims)]);
+        assert!(DcpTags::read(&two_values)
+            .unwrap()
+            .map_dimensions()
+            .is_err());
+        let mut cut = dcp_bytes(&[(50721, 10, 9, rationals([[1; 3]; 3], 1))]);
+        cut.truncate(cut.len() - 8);
+        assert!(DcpTags::read(&cut).is_err(), "a value past the end");
+        assert!(Dcp::parse(&dcp_bytes(&[(50708, 2, 4, b"cam\0".to_vec())])).is_err());
     }
 }
 

@@ -269,7 +269,9 @@ fn carrier(tag: &[u8]) -> Vec<u8> {
     h
 }
 
-/// Builds the profile of `model` (one illuminant).
+/// Builds the profile of `model` (one illuminant): the header, the tags every profile has
+/// (`common_tags`), then for LRM the colorants and TRCs (`matrix_tags`), for the others the
+/// CLUT sampled from the model (`sample_clut`) written as a lut16 `A2B0` (`lut_tag`).
 pub(crate) fn build(model: &Model, opts: IccOptions) -> Result<IccProfile, ExportError> {
     opts.check()?;
     let a = pcs_matrix(model)?;
@@ -282,6 +284,37 @@ pub(crate) fn build(model: &Model, opts: IccOptions) -> Result<IccProfile, Expor
     p.set_color_space(ColorSpaceSignature::RgbData);
     p.set_pcs(ColorSpaceSignature::XYZData);
     p.set_header_rendering_intent(Intent::Perceptual);
+    let mut ok = common_tags(&mut p, model, s, device_white);
+    let exact = model.kind() == Kind::Lrm;
+    let mut clut_size = None;
+    if exact {
+        ok = matrix_tags(&mut p, pcs)? && ok;
+    } else {
+        let input = input_table(&opts)?;
+        let clut = sample_clut(&opts, &input, pcs)?;
+        ok = lut_tag(&mut p, &opts, &input, &clut)? && ok;
+        clut_size = Some(opts.size);
+    }
+    if !ok {
+        return Err(ExportError::Model(
+            "Little CMS refused one of the profile's tags".into(),
+        ));
+    }
+    let bytes = p.icc().map_err(lcms_err("serialising the profile"))?;
+    Ok(IccProfile {
+        bytes,
+        exact,
+        scale: s,
+        device_white,
+        clut_size,
+        options: opts,
+    })
+}
+
+/// The tags of every profile: `desc` (the camera space, its scale `s` and white at device
+/// `device_white`), `cprt` (the provenance), `wtpt` (D50) and `chad` (Bradford from the model's
+/// white to D50). False when Little CMS refused one.
+fn common_tags(p: &mut Profile, model: &Model, s: f64, device_white: [f64; 3]) -> bool {
     let name = super::camera_space_name(model);
     let desc = mlu(&format!(
         "{name} (camera RGB / {s:.6}: white at device {:.4} {:.4} {:.4})",
@@ -305,105 +338,111 @@ pub(crate) fn build(model: &Model, opts: IccOptions) -> Result<IccProfile, Expor
         Green: row(chad_m[1]),
         Blue: row(chad_m[2]),
     };
-    let mut ok = p.write_tag(TagSignature::ProfileDescriptionTag, Tag::MLU(&desc))
+    p.write_tag(TagSignature::ProfileDescriptionTag, Tag::MLU(&desc))
         && p.write_tag(TagSignature::CopyrightTag, Tag::MLU(&cprt))
         && p.write_tag(TagSignature::MediaWhitePointTag, Tag::CIEXYZ(&wtpt))
         && p.write_tag(
             TagSignature::ChromaticAdaptationTag,
             Tag::CIExyYTRIPLE(&chad),
-        );
+        )
+}
 
-    let exact = model.kind() == Kind::Lrm;
-    let mut clut_size = None;
-    let carrier_profile;
-    if exact {
-        let cols = [0, 1, 2].map(|k| {
-            let mut e = [0.0; 3];
-            e[k] = 1.0;
-            xyz(pcs(e))
-        });
-        let gamma = ToneCurve::new(1.0);
-        ok = ok
-            && p.write_tag(TagSignature::RedColorantTag, Tag::CIEXYZ(&cols[0]))
-            && p.write_tag(TagSignature::GreenColorantTag, Tag::CIEXYZ(&cols[1]))
-            && p.write_tag(TagSignature::BlueColorantTag, Tag::CIEXYZ(&cols[2]))
-            && p.write_tag(TagSignature::RedTRCTag, Tag::ToneCurve(&gamma))
-            && p.write_tag(TagSignature::GreenTRCTag, Tag::ToneCurve(&gamma))
-            && p.write_tag(TagSignature::BlueTRCTag, Tag::ToneCurve(&gamma));
-        if !cols.iter().all(|c| {
-            [c.X, c.Y, c.Z]
-                .iter()
-                .all(|v| v.is_finite() && v.abs() < 32767.0)
-        }) {
-            return Err(ExportError::Model(
-                "its matrix columns are not finite s15Fixed16 numbers".into(),
-            ));
-        }
-    } else {
-        let n = opts.size;
-        let input = input_table(&opts)?;
-        let enc = opts.encoding();
-        let nodes: Vec<f64> = (0..n)
-            .map(|j| table_inverse(&input, j as f64 / (n - 1) as f64))
-            .collect();
-        let mut clut = Vec::with_capacity(3 * n * n * n);
-        let mut bad = 0usize;
-        let mut first_bad = None;
-        for (ir, &r) in nodes.iter().enumerate() {
-            for (ig, &g) in nodes.iter().enumerate() {
-                for (ib, &b) in nodes.iter().enumerate() {
-                    let v = pcs([r, g, b]);
-                    if !v.iter().all(|x| x.is_finite()) {
-                        bad += 1;
-                        first_bad.get_or_insert((ir, ig, ib, v));
-                    }
-                    for x in v {
-                        let e = if x.is_finite() { enc.forward(x) } else { 0.0 };
-                        clut.push((e.clamp(0.0, 1.0) * 65535.0).round() as u16);
-                    }
+/// A linear model as matrix/TRC: the colorants are `pcs` of the device primaries, the TRCs
+/// the identity. False when Little CMS refused a tag; an error when a colorant is no
+/// s15Fixed16 number.
+fn matrix_tags(p: &mut Profile, pcs: impl Fn([f64; 3]) -> [f64; 3]) -> Result<bool, ExportError> {
+    let cols = [0, 1, 2].map(|k| {
+        let mut e = [0.0; 3];
+        e[k] = 1.0;
+        xyz(pcs(e))
+    });
+    let gamma = ToneCurve::new(1.0);
+    let ok = p.write_tag(TagSignature::RedColorantTag, Tag::CIEXYZ(&cols[0]))
+        && p.write_tag(TagSignature::GreenColorantTag, Tag::CIEXYZ(&cols[1]))
+        && p.write_tag(TagSignature::BlueColorantTag, Tag::CIEXYZ(&cols[2]))
+        && p.write_tag(TagSignature::RedTRCTag, Tag::ToneCurve(&gamma))
+        && p.write_tag(TagSignature::GreenTRCTag, Tag::ToneCurve(&gamma))
+        && p.write_tag(TagSignature::BlueTRCTag, Tag::ToneCurve(&gamma));
+    if !cols.iter().all(|c| {
+        [c.X, c.Y, c.Z]
+            .iter()
+            .all(|v| v.is_finite() && v.abs() < 32767.0)
+    }) {
+        return Err(ExportError::Model(
+            "its matrix columns are not finite s15Fixed16 numbers".into(),
+        ));
+    }
+    Ok(ok)
+}
+
+/// The lut16's CLUT (`opts.size`³ nodes, red slowest, 16-bit): `pcs` at the device values the
+/// `input` curves map to the lattice, in the PCS encoding. An error when `pcs` is not finite at
+/// some node.
+fn sample_clut(
+    opts: &IccOptions,
+    input: &[u16],
+    pcs: impl Fn([f64; 3]) -> [f64; 3],
+) -> Result<Vec<u16>, ExportError> {
+    let n = opts.size;
+    let enc = opts.encoding();
+    let nodes: Vec<f64> = (0..n)
+        .map(|j| table_inverse(input, j as f64 / (n - 1) as f64))
+        .collect();
+    let mut clut = Vec::with_capacity(3 * n * n * n);
+    let mut bad = 0usize;
+    let mut first_bad = None;
+    for (ir, &r) in nodes.iter().enumerate() {
+        for (ig, &g) in nodes.iter().enumerate() {
+            for (ib, &b) in nodes.iter().enumerate() {
+                let v = pcs([r, g, b]);
+                if !v.iter().all(|x| x.is_finite()) {
+                    bad += 1;
+                    first_bad.get_or_insert((ir, ig, ib, v));
+                }
+                for x in v {
+                    let e = if x.is_finite() { enc.forward(x) } else { 0.0 };
+                    clut.push((e.clamp(0.0, 1.0) * 65535.0).round() as u16);
                 }
             }
         }
-        if let Some((ir, ig, ib, v)) = first_bad {
-            return Err(ExportError::Model(format!(
-                "its output is not finite at {bad} of the {} CLUT nodes (the first at device RGB {:.4} {:.4} {:.4}: {v:?}): it explodes over the profile's range 2^{}..2^0 of the white",
-                n * n * n,
-                nodes[ir],
-                nodes[ig],
-                nodes[ib],
-                opts.lo
-            )));
-        }
-        let output: Vec<u16> = (0..CURVE_ENTRIES)
-            .map(|i| {
-                let x = enc.inverse(i as f64 / (CURVE_ENTRIES - 1) as f64);
-                (x.clamp(0.0, PCS_MAX) * 32768.0).round() as u16
-            })
-            .collect();
-        carrier_profile = Profile::new_icc(&carrier(&mft2(&input, &clut, n, &output)))
-            .map_err(lcms_err("reading the lut16 back"))?;
-        let Tag::Pipeline(pipe) = carrier_profile.read_tag(TagSignature::AToB0Tag) else {
-            return Err(ExportError::Model(
-                "Little CMS did not read the lut16 back as a pipeline".into(),
-            ));
-        };
-        ok = ok && p.write_tag(TagSignature::AToB0Tag, Tag::Pipeline(pipe));
-        clut_size = Some(n);
     }
-    if !ok {
+    if let Some((ir, ig, ib, v)) = first_bad {
+        return Err(ExportError::Model(format!(
+            "its output is not finite at {bad} of the {} CLUT nodes (the first at device RGB {:.4} {:.4} {:.4}: {v:?}): it explodes over the profile's range 2^{}..2^0 of the white",
+            n * n * n,
+            nodes[ir],
+            nodes[ig],
+            nodes[ib],
+            opts.lo
+        )));
+    }
+    Ok(clut)
+}
+
+/// Writes `A2B0`: the lut16 of the `input` curves, the `clut` and output curves decoding the
+/// PCS encoding, passed through Little CMS (which reads it back from a carrier profile as a
+/// pipeline). False when Little CMS refused the tag.
+fn lut_tag(
+    p: &mut Profile,
+    opts: &IccOptions,
+    input: &[u16],
+    clut: &[u16],
+) -> Result<bool, ExportError> {
+    let enc = opts.encoding();
+    let output: Vec<u16> = (0..CURVE_ENTRIES)
+        .map(|i| {
+            let x = enc.inverse(i as f64 / (CURVE_ENTRIES - 1) as f64);
+            (x.clamp(0.0, PCS_MAX) * 32768.0).round() as u16
+        })
+        .collect();
+    let carrier_profile = Profile::new_icc(&carrier(&mft2(input, clut, opts.size, &output)))
+        .map_err(lcms_err("reading the lut16 back"))?;
+    let Tag::Pipeline(pipe) = carrier_profile.read_tag(TagSignature::AToB0Tag) else {
         return Err(ExportError::Model(
-            "Little CMS refused one of the profile's tags".into(),
+            "Little CMS did not read the lut16 back as a pipeline".into(),
         ));
-    }
-    let bytes = p.icc().map_err(lcms_err("serialising the profile"))?;
-    Ok(IccProfile {
-        bytes,
-        exact,
-        scale: s,
-        device_white,
-        clut_size,
-        options: opts,
-    })
+    };
+    Ok(p.write_tag(TagSignature::AToB0Tag, Tag::Pipeline(pipe)))
 }
 
 /// Evaluates an ICC input profile with Little CMS: device RGB (0..1) → PCS XYZ (D50, `Y = 1`
@@ -672,5 +711,34 @@ mod tests {
             .and_then(|p| measure(&p, &bad, &d.rgb))
             .unwrap_err();
         assert!(e.to_string().contains("explodes"), "{e}");
+    }
+
+    #[test]
+    fn the_clut_samples_the_model_at_the_lattice_and_refuses_what_explodes() {
+        let o = IccOptions {
+            size: 3,
+            ..Default::default()
+        };
+        let input = input_table(&o).unwrap();
+        let clut = sample_clut(&o, &input, |d| d).unwrap();
+        assert_eq!(clut.len(), 3 * 27);
+        // The corners: device black → 0, device white → the encoding of 1.
+        assert_eq!(&clut[..3], &[0, 0, 0]);
+        let one = (o.encoding().forward(1.0).clamp(0.0, 1.0) * 65535.0).round() as u16;
+        assert_eq!(&clut[78..], &[one; 3]);
+        // Red is the slowest axis: node (0, 0, 2) is blue only.
+        assert_eq!((clut[6], clut[7], clut[8]), (0, 0, one));
+        let e =
+            sample_clut(&o, &input, |d| if d[0] > 0.9 { [f64::NAN; 3] } else { d }).unwrap_err();
+        assert!(e.to_string().contains("at 9 of the 27 CLUT nodes"), "{e}");
+    }
+
+    #[test]
+    fn matrix_tags_refuse_colorants_beyond_s15fixed16() {
+        let mut p = Profile::new_placeholder();
+        assert!(matrix_tags(&mut p, |d| d).unwrap());
+        assert!(p.has_tag(TagSignature::GreenColorantTag));
+        let mut p = Profile::new_placeholder();
+        assert!(matrix_tags(&mut p, |d| d.map(|v| v * 1e5)).is_err());
     }
 }

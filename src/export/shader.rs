@@ -92,7 +92,7 @@ fn err(lang: ShaderLang, e: impl std::fmt::Display) -> GpuError {
 ///
 /// ```
 /// use nsrm::export::{export_shader, ShaderLang};
-/// use nsrm::{model::{Kind, Model}, Layout};
+/// use nsrm::{Kind, Layout, Model};
 /// let model = Model::from_matrix(Kind::Lrm, 1, vec![1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0])?;
 /// let glsl = export_shader(&model, Layout::Rgba, ShaderLang::Glsl)?;
 /// assert!(String::from_utf8(glsl)?.starts_with("#version 450"));

@@ -129,27 +129,6 @@ fn openjd_arg(a: &Arg) -> Result<String, FarmError> {
 /// form, and `parameter_values.json` the same for `openjd run`'s job parameters.
 pub(crate) fn openjd(spec: &JobSpec) -> Result<Vec<JobFile>, FarmError> {
     spec.check()?;
-    let args = |list: &[Arg]| -> Result<Node, FarmError> {
-        Ok(Node::List(
-            list.iter()
-                .map(|a| openjd_arg(a).map(Node::Str))
-                .collect::<Result<_, _>>()?,
-        ))
-    };
-    let param = |name: &str, ty: &str, extra: Vec<(&str, Node)>| {
-        let mut pairs = vec![("name", Node::str(name)), ("type", Node::str(ty))];
-        pairs.extend(extra);
-        Node::map(pairs)
-    };
-    let action = |list: &[Arg]| -> Result<Node, FarmError> {
-        Ok(Node::map([(
-            "onRun",
-            Node::map([
-                ("command", Node::str("{{Param.NsrmProgram}}")),
-                ("args", args(list)?),
-            ]),
-        )]))
-    };
     let template = Node::map([
         ("specificationVersion", Node::str("jobtemplate-2023-09")),
         ("name", Node::str(&spec.name)),
@@ -161,94 +140,147 @@ pub(crate) fn openjd(spec: &JobSpec) -> Result<Vec<JobFile>, FarmError> {
                 spec.shards
             )),
         ),
-        (
-            "parameterDefinitions",
-            Node::List(vec![
-                param(
-                    "Shards",
-                    "INT",
-                    vec![
-                        ("default", Node::Int(spec.shards as i64)),
-                        ("minValue", Node::Int(1)),
-                        (
-                            "description",
-                            Node::str("Shards the batch is split into (one task each)"),
-                        ),
-                    ],
-                ),
-                param(
-                    "Model",
-                    "PATH",
-                    vec![
-                        ("objectType", Node::str("FILE")),
-                        ("dataFlow", Node::str("IN")),
-                        ("description", Node::str("The model file (nsrm fit)")),
-                    ],
-                ),
-                param(
-                    "OutputDir",
-                    "PATH",
-                    vec![
-                        ("objectType", Node::str("DIRECTORY")),
-                        ("dataFlow", Node::str("OUT")),
-                        (
-                            "description",
-                            Node::str("Where the outputs and the shard manifests go"),
-                        ),
-                    ],
-                ),
-                param(
-                    "NsrmProgram",
-                    "STRING",
-                    vec![
-                        ("default", Node::str(&spec.program)),
-                        ("description", Node::str("The nsrm program on the workers")),
-                    ],
-                ),
-            ]),
-        ),
-        (
-            "steps",
-            Node::List(vec![
-                Node::map([
-                    ("name", Node::str("Apply")),
-                    (
-                        "parameterSpace",
-                        Node::map([(
-                            "taskParameterDefinitions",
-                            Node::List(vec![Node::map([
-                                ("name", Node::str("Shard")),
-                                ("type", Node::str("INT")),
-                                ("range", Node::str("1-{{Param.Shards}}")),
-                            ])]),
-                        )]),
-                    ),
-                    (
-                        "script",
-                        Node::map([
-                            (
-                                "embeddedFiles",
-                                Node::List(vec![Node::map([
-                                    ("name", Node::str("Inputs")),
-                                    ("type", Node::str("TEXT")),
-                                    ("data", Node::str(spec.input_list())),
-                                ])]),
-                            ),
-                            ("actions", action(&spec.task)?),
-                        ]),
-                    ),
-                ]),
-                Node::map([
-                    ("name", Node::str("Verify")),
-                    (
-                        "dependencies",
-                        Node::List(vec![Node::map([("dependsOn", Node::str("Apply"))])]),
-                    ),
-                    ("script", Node::map([("actions", action(&spec.verify)?)])),
-                ]),
-            ]),
-        ),
+        ("parameterDefinitions", openjd_parameters(spec)),
+        ("steps", openjd_steps(spec)?),
     ]);
+    let (bundle_values, json) = openjd_values(spec);
+    Ok(vec![
+        JobFile {
+            name: "template.yaml".into(),
+            text: yaml::to_string(&template),
+            executable: false,
+        },
+        JobFile {
+            name: "parameter_values.yaml".into(),
+            text: yaml::to_string(&bundle_values),
+            executable: false,
+        },
+        JobFile {
+            name: "parameter_values.json".into(),
+            text: json,
+            executable: false,
+        },
+    ])
+}
+
+/// The template's job parameters: `Shards` (INT), `Model` and `OutputDir` (PATH) and
+/// `NsrmProgram` (STRING).
+fn openjd_parameters(spec: &JobSpec) -> Node {
+    let param = |name: &str, ty: &str, extra: Vec<(&str, Node)>| {
+        let mut pairs = vec![("name", Node::str(name)), ("type", Node::str(ty))];
+        pairs.extend(extra);
+        Node::map(pairs)
+    };
+    Node::List(vec![
+        param(
+            "Shards",
+            "INT",
+            vec![
+                ("default", Node::Int(spec.shards as i64)),
+                ("minValue", Node::Int(1)),
+                (
+                    "description",
+                    Node::str("Shards the batch is split into (one task each)"),
+                ),
+            ],
+        ),
+        param(
+            "Model",
+            "PATH",
+            vec![
+                ("objectType", Node::str("FILE")),
+                ("dataFlow", Node::str("IN")),
+                ("description", Node::str("The model file (nsrm fit)")),
+            ],
+        ),
+        param(
+            "OutputDir",
+            "PATH",
+            vec![
+                ("objectType", Node::str("DIRECTORY")),
+                ("dataFlow", Node::str("OUT")),
+                (
+                    "description",
+                    Node::str("Where the outputs and the shard manifests go"),
+                ),
+            ],
+        ),
+        param(
+            "NsrmProgram",
+            "STRING",
+            vec![
+                ("default", Node::str(&spec.program)),
+                ("description", Node::str("The nsrm program on the workers")),
+            ],
+        ),
+    ])
+}
+
+/// The action running `{{Param.NsrmProgram}}` with `list`'s arguments.
+fn openjd_action(list: &[Arg]) -> Result<Node, FarmError> {
+    let args = Node::List(
+        list.iter()
+            .map(|a| openjd_arg(a).map(Node::Str))
+            .collect::<Result<_, _>>()?,
+    );
+    Ok(Node::map([(
+        "onRun",
+        Node::map([
+            ("command", Node::str("{{Param.NsrmProgram}}")),
+            ("args", args),
+        ]),
+    )]))
+}
+
+/// The template's steps: `Apply` (a task per shard, the input list embedded) and `Verify`
+/// after it.
+fn openjd_steps(spec: &JobSpec) -> Result<Node, FarmError> {
+    Ok(Node::List(vec![
+        Node::map([
+            ("name", Node::str("Apply")),
+            (
+                "parameterSpace",
+                Node::map([(
+                    "taskParameterDefinitions",
+                    Node::List(vec![Node::map([
+                        ("name", Node::str("Shard")),
+                        ("type", Node::str("INT")),
+                        ("range", Node::str("1-{{Param.Shards}}")),
+                    ])]),
+                )]),
+            ),
+            (
+                "script",
+                Node::map([
+                    (
+                        "embeddedFiles",
+                        Node::List(vec![Node::map([
+                            ("name", Node::str("Inputs")),
+                            ("type", Node::str("TEXT")),
+                            ("data", Node::str(spec.input_list())),
+                        ])]),
+                    ),
+                    ("actions", openjd_action(&spec.task)?),
+                ]),
+            ),
+        ]),
+        Node::map([
+            ("name", Node::str("Verify")),
+            (
+                "dependencies",
+                Node::List(vec![Node::map([("dependsOn", Node::str("Apply"))])]),
+            ),
+            (
+                "script",
+                Node::map([("actions", openjd_action(&spec.verify)?)]),
+            ),
+        ]),
+    ]))
+}
+
+/// The job parameters' values: in Deadline Cloud's job-bundle form (YAML) and as `openjd run`
+/// takes them (JSON text).
+fn openjd_values(spec: &JobSpec) -> (Node, String) {
     let values = [
         ("Shards", spec.shards.to_string()),
         ("Model", spec.model.clone()),
@@ -270,23 +302,7 @@ pub(crate) fn openjd(spec: &JobSpec) -> Result<Vec<JobFile>, FarmError> {
         .collect();
     let mut json = serde_json::to_string_pretty(&json).unwrap_or_default();
     json.push('\n');
-    Ok(vec![
-        JobFile {
-            name: "template.yaml".into(),
-            text: yaml::to_string(&template),
-            executable: false,
-        },
-        JobFile {
-            name: "parameter_values.yaml".into(),
-            text: yaml::to_string(&bundle_values),
-            executable: false,
-        },
-        JobFile {
-            name: "parameter_values.json".into(),
-            text: json,
-            executable: false,
-        },
-    ])
+    (bundle_values, json)
 }
 
 /// A word for a POSIX shell, single-quoted unless it is plainly safe.
@@ -432,57 +448,88 @@ pub(crate) fn kube(spec: &JobSpec, k: &Kube) -> Result<Vec<JobFile>, FarmError> 
     let task = sh_command(spec, &spec.task, "\"$shard\"", &list_path)?;
     let script = format!("set -eu\nshard=\"$((JOB_COMPLETION_INDEX + 1))/{n}\"\nexec {task}\n");
     let verify = sh_command(spec, &spec.verify, "", "")?;
-    let volume = |with_list: bool| {
-        let mut mounts = vec![Node::map([
-            ("name", Node::str("data")),
-            ("mountPath", Node::str(&k.mount_path)),
-        ])];
-        let mut volumes = vec![Node::map([
-            ("name", Node::str("data")),
+    let config = kube_config_map(spec);
+    let job = kube_indexed_job(spec, k, &script);
+    let verify_job = kube_verify_job(spec, k, &format!("exec {verify}"));
+    Ok(vec![
+        JobFile {
+            name: "job.yaml".into(),
+            text: format!("{}---\n{}", yaml::to_string(&config), yaml::to_string(&job)),
+            executable: false,
+        },
+        JobFile {
+            name: "verify.yaml".into(),
+            text: yaml::to_string(&verify_job),
+            executable: false,
+        },
+    ])
+}
+
+/// The labels of every object of a batch.
+fn kube_labels() -> Node {
+    Node::map([("app.kubernetes.io/name", Node::str("nsrm"))])
+}
+
+/// A pod's volume mounts and volumes: the claim at `mount_path`, and with `with_list` the
+/// input list's ConfigMap at [`KUBE_LIST_DIR`].
+fn kube_volumes(spec: &JobSpec, k: &Kube, with_list: bool) -> (Node, Node) {
+    let mut mounts = vec![Node::map([
+        ("name", Node::str("data")),
+        ("mountPath", Node::str(&k.mount_path)),
+    ])];
+    let mut volumes = vec![Node::map([
+        ("name", Node::str("data")),
+        (
+            "persistentVolumeClaim",
+            Node::map([("claimName", Node::str(&k.claim))]),
+        ),
+    ])];
+    if with_list {
+        mounts.push(Node::map([
+            ("name", Node::str("batch")),
+            ("mountPath", Node::str(KUBE_LIST_DIR)),
+            ("readOnly", Node::Bool(true)),
+        ]));
+        volumes.push(Node::map([
+            ("name", Node::str("batch")),
             (
-                "persistentVolumeClaim",
-                Node::map([("claimName", Node::str(&k.claim))]),
+                "configMap",
+                Node::map([("name", Node::str(format!("{}-inputs", spec.name)))]),
             ),
-        ])];
-        if with_list {
-            mounts.push(Node::map([
-                ("name", Node::str("batch")),
-                ("mountPath", Node::str(KUBE_LIST_DIR)),
-                ("readOnly", Node::Bool(true)),
-            ]));
-            volumes.push(Node::map([
-                ("name", Node::str("batch")),
-                (
-                    "configMap",
-                    Node::map([("name", Node::str(format!("{}-inputs", spec.name)))]),
-                ),
-            ]));
-        }
-        (Node::List(mounts), Node::List(volumes))
-    };
-    let labels = Node::map([("app.kubernetes.io/name", Node::str("nsrm"))]);
-    let config = Node::map([
+        ]));
+    }
+    (Node::List(mounts), Node::List(volumes))
+}
+
+/// The ConfigMap `NAME-inputs` holding the input list as `inputs.txt`.
+fn kube_config_map(spec: &JobSpec) -> Node {
+    Node::map([
         ("apiVersion", Node::str("v1")),
         ("kind", Node::str("ConfigMap")),
         (
             "metadata",
             Node::map([
                 ("name", Node::str(format!("{}-inputs", spec.name))),
-                ("labels", labels.clone()),
+                ("labels", kube_labels()),
             ]),
         ),
         (
             "data",
             Node::map([("inputs.txt", Node::str(spec.input_list()))]),
         ),
-    ]);
-    let (mounts, volumes) = volume(true);
-    let job = Node::map([
+    ])
+}
+
+/// The Indexed Job whose pods run the shell `script` (one shard each).
+fn kube_indexed_job(spec: &JobSpec, k: &Kube, script: &str) -> Node {
+    let n = spec.shards;
+    let (mounts, volumes) = kube_volumes(spec, k, true);
+    Node::map([
         ("apiVersion", Node::str("batch/v1")),
         ("kind", Node::str("Job")),
         (
             "metadata",
-            Node::map([("name", Node::str(&spec.name)), ("labels", labels.clone())]),
+            Node::map([("name", Node::str(&spec.name)), ("labels", kube_labels())]),
         ),
         (
             "spec",
@@ -497,7 +544,7 @@ pub(crate) fn kube(spec: &JobSpec, k: &Kube) -> Result<Vec<JobFile>, FarmError> 
                 (
                     "template",
                     Node::map([
-                        ("metadata", Node::map([("labels", labels.clone())])),
+                        ("metadata", Node::map([("labels", kube_labels())])),
                         (
                             "spec",
                             Node::map([
@@ -507,7 +554,7 @@ pub(crate) fn kube(spec: &JobSpec, k: &Kube) -> Result<Vec<JobFile>, FarmError> 
                                     Node::List(vec![Node::map([
                                         ("name", Node::str("nsrm")),
                                         ("image", Node::str(&k.image)),
-                                        ("command", Node::strs(["/bin/sh", "-c", &script])),
+                                        ("command", Node::strs(["/bin/sh", "-c", script])),
                                         ("volumeMounts", mounts),
                                     ])]),
                                 ),
@@ -518,16 +565,20 @@ pub(crate) fn kube(spec: &JobSpec, k: &Kube) -> Result<Vec<JobFile>, FarmError> 
                 ),
             ]),
         ),
-    ]);
-    let (mounts, volumes) = volume(false);
-    let verify_job = Node::map([
+    ])
+}
+
+/// The Job `NAME-verify`, one pod running the shell `script` once, never retried.
+fn kube_verify_job(spec: &JobSpec, k: &Kube, script: &str) -> Node {
+    let (mounts, volumes) = kube_volumes(spec, k, false);
+    Node::map([
         ("apiVersion", Node::str("batch/v1")),
         ("kind", Node::str("Job")),
         (
             "metadata",
             Node::map([
                 ("name", Node::str(format!("{}-verify", spec.name))),
-                ("labels", labels.clone()),
+                ("labels", kube_labels()),
             ]),
         ),
         (
@@ -545,10 +596,7 @@ pub(crate) fn kube(spec: &JobSpec, k: &Kube) -> Result<Vec<JobFile>, FarmError> 
                                 Node::List(vec![Node::map([
                                     ("name", Node::str("verify")),
                                     ("image", Node::str(&k.image)),
-                                    (
-                                        "command",
-                                        Node::strs(["/bin/sh", "-c", &format!("exec {verify}")]),
-                                    ),
+                                    ("command", Node::strs(["/bin/sh", "-c", script])),
                                     ("volumeMounts", mounts),
                                 ])]),
                             ),
@@ -558,18 +606,6 @@ pub(crate) fn kube(spec: &JobSpec, k: &Kube) -> Result<Vec<JobFile>, FarmError> 
                 ),
             ]),
         ),
-    ]);
-    Ok(vec![
-        JobFile {
-            name: "job.yaml".into(),
-            text: format!("{}---\n{}", yaml::to_string(&config), yaml::to_string(&job)),
-            executable: false,
-        },
-        JobFile {
-            name: "verify.yaml".into(),
-            text: yaml::to_string(&verify_job),
-            executable: false,
-        },
     ])
 }
 
@@ -637,5 +673,87 @@ mod tests {
         let mut s = spec();
         s.name = "two words".into();
         assert!(openjd(&s).unwrap_err().is_usage());
+    }
+
+    /// The value under `key` in mapping `n`.
+    fn get<'a>(n: &'a Node, key: &str) -> &'a Node {
+        match n {
+            Node::Map(pairs) => &pairs.iter().find(|(k, _)| k == key).expect(key).1,
+            _ => panic!("not a mapping: {n:?}"),
+        }
+    }
+
+    fn list(n: &Node) -> &[Node] {
+        match n {
+            Node::List(v) => v,
+            _ => panic!("not a list: {n:?}"),
+        }
+    }
+
+    fn kube_place() -> Kube {
+        Kube {
+            image: "nsrm:1".into(),
+            claim: "plates".into(),
+            mount_path: "/data".into(),
+            parallelism: 8,
+            retries_per_index: 2,
+        }
+    }
+
+    #[test]
+    fn openjd_parameters_values_and_actions() {
+        let s = spec();
+        let params = openjd_parameters(&s);
+        let named: Vec<(&Node, &Node)> = list(&params)
+            .iter()
+            .map(|p| (get(p, "name"), get(p, "type")))
+            .collect();
+        assert_eq!(
+            named,
+            [
+                (&Node::str("Shards"), &Node::str("INT")),
+                (&Node::str("Model"), &Node::str("PATH")),
+                (&Node::str("OutputDir"), &Node::str("PATH")),
+                (&Node::str("NsrmProgram"), &Node::str("STRING")),
+            ]
+        );
+        assert_eq!(get(&list(&params)[0], "default"), &Node::Int(3));
+        let (yaml_values, json) = openjd_values(&s);
+        let v: serde_json::Value = serde_json::from_str(&json).unwrap();
+        assert_eq!(v["Shards"], "3");
+        assert_eq!(v["OutputDir"], "/out");
+        assert_eq!(list(get(&yaml_values, "parameterValues")).len(), 4);
+        let action = openjd_action(&s.verify).unwrap();
+        assert_eq!(
+            get(get(&action, "onRun"), "args"),
+            &Node::strs(["verify", "{{Param.OutputDir}}", "{{Param.Shards}}"])
+        );
+        let steps = openjd_steps(&s).unwrap();
+        assert_eq!(get(&list(&steps)[1], "name"), &Node::str("Verify"));
+    }
+
+    #[test]
+    fn kubernetes_pods_mount_the_claim_and_the_shards_the_list() {
+        let (s, k) = (spec(), kube_place());
+        let (mounts, volumes) = kube_volumes(&s, &k, true);
+        assert_eq!(list(&mounts).len(), 2);
+        assert_eq!(
+            get(get(&list(&volumes)[1], "configMap"), "name"),
+            &Node::str("plates-inputs")
+        );
+        let (mounts, volumes) = kube_volumes(&s, &k, false);
+        assert_eq!((list(&mounts).len(), list(&volumes).len()), (1, 1));
+        let job = kube_indexed_job(&s, &k, "true");
+        assert_eq!(get(get(&job, "spec"), "parallelism"), &Node::Int(3));
+        assert_eq!(get(get(&job, "spec"), "completions"), &Node::Int(3));
+        let verify = kube_verify_job(&s, &k, "exec x");
+        assert_eq!(
+            get(get(&verify, "metadata"), "name"),
+            &Node::str("plates-verify")
+        );
+        assert_eq!(
+            get(&kube_config_map(&s), "data"),
+            &Node::map([("inputs.txt", Node::str("/in/a b.exr\n/in/it's.exr\n"))])
+        );
     }
 }

@@ -174,30 +174,9 @@ impl Corrector {
         })
     }
 
-    /// The model kind this corrector applies.
-    pub fn kind(&self) -> Kind {
-        self.kind
-    }
-
-    /// The model order this corrector applies.
-    pub fn order(&self) -> u8 {
-        self.order
-    }
-
-    /// What it reads and writes.
-    pub fn target(&self) -> Target {
-        self.target
-    }
-
     /// Whether [`set_model`](Self::set_model) takes `model` (same kind and order).
-    pub fn accepts(&self, model: &Model) -> bool {
+    pub(crate) fn accepts(&self, model: &Model) -> bool {
         model.kind() == self.kind && model.order() == self.order
-    }
-
-    /// The matrix uniform (binding 0): `L + 1` × `vec4<f32>`, column `j` = term `j`'s weights,
-    /// then the input gains ([`shader::uniform_data`]).
-    pub fn uniform_buffer(&self) -> &wgpu::Buffer {
-        &self.uniform
     }
 
     /// Swaps in the matrix of another model of the same kind and order (written through

@@ -18,7 +18,7 @@ use std::sync::mpsc;
 use std::time::Instant;
 
 /// Default pixels per tile (1 Mpixel: 16 MiB per RGBA tile buffer).
-pub const DEFAULT_TILE_PIXELS: usize = 1 << 20;
+pub(crate) const DEFAULT_TILE_PIXELS: usize = 1 << 20;
 
 /// The bit pattern of the quiet NaN the output tiles are filled with before the shader runs, in
 /// builds with debug assertions (the tests): a pixel the shader failed to write comes back as
@@ -28,7 +28,7 @@ pub const OUTPUT_SENTINEL_BITS: u32 = 0x7FC0_BAD5;
 
 /// Timing of one [`Engine::timed_apply`].
 #[derive(Debug, Clone, Copy, PartialEq)]
-pub struct GpuTiming {
+pub(crate) struct GpuTiming {
     /// GPU time of the correction passes (sum over tiles) from timestamp queries; `None` if
     /// the adapter has no timestamp queries.
     pub kernel_seconds: Option<f64>,
@@ -61,7 +61,7 @@ struct Timestamps {
 ///
 /// ```
 /// use nsrm::gpu::{Engine, GpuError, GpuOptions};
-/// use nsrm::{model::{Kind, Model}, Frame, Layout};
+/// use nsrm::{Frame, Kind, Layout, Model};
 /// let model = Model::from_matrix(Kind::Lrm, 1, vec![2.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0])?;
 /// let mut engine = match Engine::new(&GpuOptions::default()) {
 ///     Ok(e) => e,
@@ -159,13 +159,8 @@ impl Engine {
         &self.ctx
     }
 
-    /// Pixels per tile.
-    pub fn tile_pixels(&self) -> usize {
-        self.tile_pixels
-    }
-
     /// Whether [`timed_apply`](Self::timed_apply) can report kernel time.
-    pub fn has_timestamps(&self) -> bool {
+    pub(crate) fn has_timestamps(&self) -> bool {
         self.timestamps.is_some()
     }
 
@@ -177,7 +172,11 @@ impl Engine {
 
     /// [`apply`](Self::apply), timed: kernel time from timestamp queries (if the adapter has
     /// them) and the wall time of upload + compute + read-back.
-    pub fn timed_apply(&mut self, model: &Model, frame: &mut Frame) -> Result<GpuTiming, GpuError> {
+    pub(crate) fn timed_apply(
+        &mut self,
+        model: &Model,
+        frame: &mut Frame,
+    ) -> Result<GpuTiming, GpuError> {
         self.run(model, frame, true)
     }
 
@@ -401,7 +400,7 @@ impl Engine {
     /// Bytes per second of a `bytes`-byte buffer-to-buffer copy on the device, timed with
     /// timestamp queries (best of three after a warm-up); `None` if the device cannot write
     /// timestamps between commands. `bytes` is capped at the device's buffer size limit.
-    pub fn copy_bandwidth(&mut self, bytes: u64) -> Result<Option<f64>, GpuError> {
+    pub(crate) fn copy_bandwidth(&mut self, bytes: u64) -> Result<Option<f64>, GpuError> {
         let dev = &self.ctx.device;
         let needed =
             wgpu::Features::TIMESTAMP_QUERY | wgpu::Features::TIMESTAMP_QUERY_INSIDE_ENCODERS;

@@ -24,7 +24,7 @@
 //! # let mut frame: nsrm::Frame = unimplemented!();
 //! match open(DeviceChoice::Auto, &GpuOptions::default())? {
 //!     Some(mut engine) => engine.apply(&model, &mut frame)?,
-//!     None => model.apply_frame_f64(&mut frame), // no adapter: the CPU path
+//!     None => model.apply_frame(&mut frame), // no adapter: the CPU frame path
 //! }
 //! # Ok(()) }
 //! ```
@@ -32,11 +32,13 @@
 mod context;
 mod corrector;
 mod engine;
-pub mod shader;
+#[cfg(test)]
+mod engine_tests;
+pub(crate) mod shader;
 
 pub use context::GpuContext;
 pub use corrector::Corrector;
-pub use engine::{Engine, GpuTiming, DEFAULT_TILE_PIXELS, OUTPUT_SENTINEL_BITS};
+pub use engine::{Engine, OUTPUT_SENTINEL_BITS};
 pub use shader::{Target, TexelFormat};
 /// The wgpu this crate is built against: a renderer embedding a [`Corrector`] records into
 /// this version's encoders and textures.
@@ -97,7 +99,7 @@ pub enum GpuError {
 
 impl GpuError {
     /// True for buffers, textures or models the caller passed that a corrector cannot take.
-    pub fn is_usage(&self) -> bool {
+    pub(crate) fn is_usage(&self) -> bool {
         matches!(self, GpuError::Usage(_) | GpuError::ModelMismatch { .. })
     }
 }
@@ -144,7 +146,7 @@ impl DeviceChoice {
     }
 
     /// `auto`, `gpu` or `cpu`.
-    pub fn name(self) -> &'static str {
+    pub(crate) fn name(self) -> &'static str {
         match self {
             DeviceChoice::Auto => "auto",
             DeviceChoice::Gpu => "gpu",
@@ -155,7 +157,7 @@ impl DeviceChoice {
 
 /// Why [`open_device`] chose the CPU path.
 #[derive(Debug, Clone, PartialEq, Eq)]
-pub enum CpuReason {
+pub(crate) enum CpuReason {
     /// The caller asked for the CPU.
     Asked,
     /// `Auto` found no adapter.
@@ -182,7 +184,7 @@ impl std::fmt::Display for CpuReason {
 
 /// What [`open_device`] opened: a GPU engine, or the CPU path and why.
 #[derive(Debug)]
-pub enum Opened {
+pub(crate) enum Opened {
     Gpu(Box<Engine>),
     Cpu(CpuReason),
 }
@@ -194,7 +196,7 @@ pub enum Opened {
 ///   (a named adapter that does not exist, a device that cannot be opened) are errors.
 /// * `Gpu`: the engine on any adapter (software included), or an error.
 /// * `Cpu`: the CPU.
-pub fn open_device(choice: DeviceChoice, opts: &GpuOptions) -> Result<Opened, GpuError> {
+pub(crate) fn open_device(choice: DeviceChoice, opts: &GpuOptions) -> Result<Opened, GpuError> {
     let gpu = |e: Engine| Opened::Gpu(Box::new(e));
     match choice {
         DeviceChoice::Cpu => Ok(Opened::Cpu(CpuReason::Asked)),
@@ -239,6 +241,8 @@ mod tests {
             assert_eq!(DeviceChoice::parse(c.name()), Some(c));
         }
         assert_eq!(DeviceChoice::parse(" Auto "), Some(DeviceChoice::Auto));
+        assert_eq!(DeviceChoice::parse("GPU"), Some(DeviceChoice::Gpu));
+        assert_eq!(DeviceChoice::parse("tpu"), None);
         assert_eq!(DeviceChoice::parse(""), None);
     }
 

@@ -71,7 +71,7 @@ pub enum TexelFormat {
 
 impl TexelFormat {
     /// The WGSL texel format name.
-    pub fn wgsl(self) -> &'static str {
+    pub(crate) fn wgsl(self) -> &'static str {
         match self {
             TexelFormat::Rgba32Float => "rgba32float",
             TexelFormat::Rgba16Float => "rgba16float",
@@ -108,7 +108,8 @@ pub enum Target {
 
 impl Target {
     /// Every target the engine and the embedding API use.
-    pub const ALL: [Target; 6] = [
+    #[cfg(test)]
+    pub(crate) const ALL: [Target; 6] = [
         Target::Buffer {
             layout: Layout::Rgb,
             in_place: false,
@@ -145,7 +146,8 @@ impl Target {
     }
 
     /// The workgroup size of the target's entry point.
-    pub fn workgroup_size(self) -> [u32; 3] {
+    #[cfg(test)]
+    pub(crate) fn workgroup_size(self) -> [u32; 3] {
         match self {
             Target::Buffer { .. } => [WORKGROUP_SIZE, 1, 1],
             Target::Texture { .. } => [TILE_SIZE, TILE_SIZE, 1],
@@ -173,7 +175,7 @@ impl Target {
 
 /// Where the matrix comes from.
 #[derive(Debug, Clone, Copy)]
-pub enum Coefficients<'a> {
+pub(crate) enum Coefficients<'a> {
     /// The uniform of `shaders/model_uniform.wgsl` (binding 0), rewritten to swap models.
     Uniform,
     /// Baked into the shader as constants (exported, self-contained shaders).
@@ -319,7 +321,12 @@ fn term_expr(t: &Term) -> String {
 
 /// The complete WGSL source of the correction shader for `kind` at `order`, `target`, with the
 /// matrix from `coefficients`. The entry point is [`ENTRY_POINT`].
-pub fn wgsl(kind: Kind, order: u8, target: Target, coefficients: Coefficients<'_>) -> String {
+pub(crate) fn wgsl(
+    kind: Kind,
+    order: u8,
+    target: Target,
+    coefficients: Coefficients<'_>,
+) -> String {
     let order = kind.effective_order(order);
     let n_terms = terms(kind, order).len();
     let mut s = String::new();
@@ -376,7 +383,7 @@ pub fn wgsl(kind: Kind, order: u8, target: Target, coefficients: Coefficients<'_
 }
 
 /// Parses and validates WGSL with naga (all validation flags, default capabilities).
-pub fn validate(src: &str) -> Result<(naga::Module, naga::valid::ModuleInfo), GpuError> {
+pub(crate) fn validate(src: &str) -> Result<(naga::Module, naga::valid::ModuleInfo), GpuError> {
     let module = naga::front::wgsl::parse_str(src).map_err(|e| GpuError::Shader {
         stage: "WGSL parse",
         message: e.emit_to_string(src),
@@ -390,7 +397,7 @@ pub fn validate(src: &str) -> Result<(naga::Module, naga::valid::ModuleInfo), Gp
 
 /// Validates a naga module (from any front end) with the flags every shader here is held to:
 /// all validation flags, default capabilities.
-pub fn validate_module(
+pub(crate) fn validate_module(
     module: &naga::Module,
 ) -> Result<naga::valid::ModuleInfo, Box<naga::WithSpan<naga::valid::ValidationError>>> {
     naga::valid::Validator::new(

@@ -272,74 +272,21 @@ fn check_chunks<R: std::io::Read + std::io::Seek>(
     Ok(())
 }
 
+/// Reads an RGB or RGBA TIFF of 16-bit unsigned or float samples: the decoder opened within
+/// bounds ([`open_decoder`]), the colour type and sample type checked ([`rgb_channels`],
+/// [`uniform_sample_type`]), the frame size and the chunk table checked, the samples read
+/// (whole, or chunk by chunk for planar files and extra samples), and alpha split off
+/// ([`split_alpha`]).
 pub(super) fn read(path: &Path, limits: &super::Limits) -> Result<Decoded, IoError> {
     let tiff_err = |err| IoError::Tiff {
         path: path.to_path_buf(),
         err,
     };
-    let file = std::fs::File::open(path).map_err(|err| IoError::Read {
-        path: path.to_path_buf(),
-        err,
-    })?;
-    let file_len = file
-        .metadata()
-        .map_err(|err| IoError::Read {
-            path: path.to_path_buf(),
-            err,
-        })?
-        .len();
-    // The decoder's own bounds: a whole frame within --max-pixels of RGBA f64, and tag values
-    // (the strip tables) bounded by the file itself.
-    let mut tiff_limits = Limits::default();
-    tiff_limits.decoding_buffer_size =
-        usize::try_from(limits.max_pixels.saturating_mul(32)).unwrap_or(usize::MAX);
-    tiff_limits.intermediate_buffer_size = 1 << 30;
-    tiff_limits.ifd_value_size = usize::try_from(file_len.min(1 << 30)).unwrap_or(1 << 30);
-    let mut dec = Decoder::new(BufReader::new(file))
-        .map_err(tiff_err)?
-        .with_limits(tiff_limits);
+    let (mut dec, file_len) = open_decoder(path, limits)?;
     let (w, h) = dec.dimensions().map_err(tiff_err)?;
     let ct = dec.colortype().map_err(tiff_err)?;
-    let (channels, bits) = match ct {
-        ColorType::RGB(b) => (3usize, b),
-        ColorType::RGBA(b) => (4, b),
-        ColorType::Gray(_) | ColorType::GrayA(_) => {
-            return Err(unsupported(
-                path,
-                "one colour channel (greyscale); camera RGB needs R, G and B",
-            ))
-        }
-        ColorType::Palette(_) => return Err(unsupported(path, "palette (indexed) colour")),
-        ColorType::CMYK(_) | ColorType::CMYKA(_) => return Err(unsupported(path, "CMYK colour")),
-        ColorType::YCbCr(_) => return Err(unsupported(path, "YCbCr colour")),
-        ColorType::Lab(_) => return Err(unsupported(path, "CIE L*a*b* colour")),
-        ColorType::Multiband {
-            bit_depth,
-            num_samples,
-        } => {
-            return Err(unsupported(
-                path,
-                format!(
-                    "{num_samples} samples per pixel of {bit_depth} bits with no RGB \
-                     interpretation (photometric interpretation grey)"
-                ),
-            ))
-        }
-        other => return Err(unsupported(path, format!("colour type {other:?}"))),
-    };
-    // One SampleFormat per sample; all must agree (the decoder reads them as one type).
-    let formats = dec
-        .find_tag_unsigned_vec::<u16>(tiff::tags::Tag::SampleFormat)
-        .map_err(tiff_err)?
-        .unwrap_or_default();
-    let format = formats.first().copied().unwrap_or(1);
-    if formats.iter().any(|&f| f != format) {
-        return Err(unsupported(
-            path,
-            format!("mixed sample formats {formats:?}"),
-        ));
-    }
-    let sample = sample_type(bits, format).map_err(|why| unsupported(path, why))?;
+    let (channels, bits) = rgb_channels(path, ct)?;
+    let sample = uniform_sample_type(&mut dec, path, bits)?;
     let compression = dec
         .find_tag_unsigned::<u16>(tiff::tags::Tag::Compression)
         .map_err(tiff_err)?
@@ -367,11 +314,8 @@ pub(super) fn read(path: &Path, limits: &super::Limits) -> Result<Decoded, IoErr
     // The whole-image read of the tiff crate serves the common layout (chunky, no extra samples);
     // planar files and extra samples are assembled here chunk by chunk (the crate's whole-image
     // path asserts on planar tiles with partial edge tiles, and drops extra samples).
-    let (interleaved, stride) = if planar || samples != channels as u64 {
-        (
-            by_chunks(&mut dec, path, (w, h), sample, channels, planar)?,
-            channels,
-        )
+    let interleaved = if planar || samples != channels as u64 {
+        by_chunks(&mut dec, path, (w, h), sample, channels, planar)?
     } else {
         let total = n
             .checked_mul(channels)
@@ -385,23 +329,9 @@ pub(super) fn read(path: &Path, limits: &super::Limits) -> Result<Decoded, IoErr
                 why: format!("holds {} samples for {w}×{h}×{channels}", raw.len()),
             });
         }
-        (raw, channels)
+        raw
     };
-    let mut rgb = super::try_with_capacity(path, n * 3)?;
-    let alpha = if channels == 4 {
-        let mut a = super::try_with_capacity(path, n)?;
-        for px in interleaved.chunks_exact(stride).take(n) {
-            rgb.extend_from_slice(&px[..3]);
-            a.push(px[3]);
-        }
-        Some(a)
-    } else {
-        for px in interleaved.chunks_exact(stride).take(n) {
-            rgb.extend_from_slice(&px[..3]);
-        }
-        None
-    };
-    drop(interleaved);
+    let (rgb, alpha) = split_alpha(path, interleaved, channels, n)?;
     Ok(Decoded {
         path: path.to_path_buf(),
         format: FileFormat::Tiff,
@@ -414,6 +344,112 @@ pub(super) fn read(path: &Path, limits: &super::Limits) -> Result<Decoded, IoErr
         levels: Vec::new(),
         container: Container::Tiff(TiffContainer { alpha }),
     })
+}
+
+/// The file opened in a decoder with its own bounds (a whole frame within `--max-pixels` of
+/// RGBA f64, tag values such as the strip tables bounded by the file itself), and its length.
+fn open_decoder(
+    path: &Path,
+    limits: &super::Limits,
+) -> Result<(Decoder<BufReader<std::fs::File>>, u64), IoError> {
+    let read_err = |err| IoError::Read {
+        path: path.to_path_buf(),
+        err,
+    };
+    let file = std::fs::File::open(path).map_err(read_err)?;
+    let file_len = file.metadata().map_err(read_err)?.len();
+    let mut tiff_limits = Limits::default();
+    tiff_limits.decoding_buffer_size =
+        usize::try_from(limits.max_pixels.saturating_mul(32)).unwrap_or(usize::MAX);
+    tiff_limits.intermediate_buffer_size = 1 << 30;
+    tiff_limits.ifd_value_size = usize::try_from(file_len.min(1 << 30)).unwrap_or(1 << 30);
+    let dec = Decoder::new(BufReader::new(file))
+        .map_err(|err| IoError::Tiff {
+            path: path.to_path_buf(),
+            err,
+        })?
+        .with_limits(tiff_limits);
+    Ok((dec, file_len))
+}
+
+/// The channels (3: RGB, 4: RGBA) and bits per sample of a colour type, or why it is refused.
+fn rgb_channels(path: &Path, ct: ColorType) -> Result<(usize, u8), IoError> {
+    Ok(match ct {
+        ColorType::RGB(b) => (3usize, b),
+        ColorType::RGBA(b) => (4, b),
+        ColorType::Gray(_) | ColorType::GrayA(_) => {
+            return Err(unsupported(
+                path,
+                "one colour channel (greyscale); camera RGB needs R, G and B",
+            ))
+        }
+        ColorType::Palette(_) => return Err(unsupported(path, "palette (indexed) colour")),
+        ColorType::CMYK(_) | ColorType::CMYKA(_) => return Err(unsupported(path, "CMYK colour")),
+        ColorType::YCbCr(_) => return Err(unsupported(path, "YCbCr colour")),
+        ColorType::Lab(_) => return Err(unsupported(path, "CIE L*a*b* colour")),
+        ColorType::Multiband {
+            bit_depth,
+            num_samples,
+        } => {
+            return Err(unsupported(
+                path,
+                format!(
+                    "{num_samples} samples per pixel of {bit_depth} bits with no RGB \
+                     interpretation (photometric interpretation grey)"
+                ),
+            ))
+        }
+        other => return Err(unsupported(path, format!("colour type {other:?}"))),
+    })
+}
+
+/// The sample type of samples of `bits` bits: one SampleFormat per sample, all alike (the
+/// decoder reads them as one type).
+fn uniform_sample_type<R: std::io::Read + std::io::Seek>(
+    dec: &mut Decoder<R>,
+    path: &Path,
+    bits: u8,
+) -> Result<Sample, IoError> {
+    let formats = dec
+        .find_tag_unsigned_vec::<u16>(tiff::tags::Tag::SampleFormat)
+        .map_err(|err| IoError::Tiff {
+            path: path.to_path_buf(),
+            err,
+        })?
+        .unwrap_or_default();
+    let format = formats.first().copied().unwrap_or(1);
+    if formats.iter().any(|&f| f != format) {
+        return Err(unsupported(
+            path,
+            format!("mixed sample formats {formats:?}"),
+        ));
+    }
+    sample_type(bits, format).map_err(|why| unsupported(path, why))
+}
+
+/// The first `n` pixels of `interleaved` (`channels` samples each) as RGB, and their alpha
+/// when there are four channels.
+fn split_alpha(
+    path: &Path,
+    interleaved: Vec<f32>,
+    channels: usize,
+    n: usize,
+) -> Result<(Vec<f32>, Option<Vec<f32>>), IoError> {
+    let mut rgb = super::try_with_capacity(path, n * 3)?;
+    let alpha = if channels == 4 {
+        let mut a = super::try_with_capacity(path, n)?;
+        for px in interleaved.chunks_exact(channels).take(n) {
+            rgb.extend_from_slice(&px[..3]);
+            a.push(px[3]);
+        }
+        Some(a)
+    } else {
+        for px in interleaved.chunks_exact(channels).take(n) {
+            rgb.extend_from_slice(&px[..3]);
+        }
+        None
+    };
+    Ok((rgb, alpha))
 }
 
 /// Writes a 32-bit float RGB or RGBA TIFF (deflate), staged in `unit`.
@@ -472,4 +508,35 @@ pub(super) fn write(
         }
         Ok(())
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn only_rgb_and_rgba_colour_types_are_read() {
+        let p = Path::new("x.tif");
+        assert_eq!(rgb_channels(p, ColorType::RGB(16)).unwrap(), (3, 16));
+        assert_eq!(rgb_channels(p, ColorType::RGBA(32)).unwrap(), (4, 32));
+        for refused in [
+            ColorType::Gray(16),
+            ColorType::CMYK(8),
+            ColorType::Palette(8),
+        ] {
+            let e = rgb_channels(p, refused).unwrap_err();
+            assert!(matches!(e, IoError::Unsupported { .. }), "{refused:?}: {e}");
+        }
+    }
+
+    #[test]
+    fn alpha_is_split_off_and_extra_pixels_dropped() {
+        let p = Path::new("x.tif");
+        let rgba = vec![1.0, 2.0, 3.0, 0.5, 4.0, 5.0, 6.0, 0.25, 9.0, 9.0, 9.0, 9.0];
+        let (rgb, alpha) = split_alpha(p, rgba, 4, 2).unwrap();
+        assert_eq!(rgb, [1.0, 2.0, 3.0, 4.0, 5.0, 6.0]);
+        assert_eq!(alpha.unwrap(), [0.5, 0.25]);
+        let (rgb, alpha) = split_alpha(p, vec![1.0, 2.0, 3.0], 3, 1).unwrap();
+        assert_eq!((rgb, alpha), (vec![1.0, 2.0, 3.0], None));
+    }
 }

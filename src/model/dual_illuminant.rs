@@ -33,18 +33,18 @@ use crate::colorimetry::temperature::{
 use std::path::Path;
 
 /// The version of a two-illuminant model file.
-pub const DUAL_VERSION: u32 = 3;
+pub(crate) const DUAL_VERSION: u32 = 3;
 /// The field holding the second model.
-pub const SECOND_FIELD: &str = "second_illuminant";
+pub(crate) const SECOND_FIELD: &str = "second_illuminant";
 const CALIBRATION_FIELD: &str = "calibration_illuminants";
 
 /// Two calibration temperatures closer than this (in mired) cannot be interpolated between.
-pub const MIN_MIRED_APART: f64 = 20.0;
+pub(crate) const MIN_MIRED_APART: f64 = 20.0;
 
 /// The camera RGB that `model` maps to `xyz`: exact for LRM (its matrix inverted), a damped
 /// Newton iteration on the f64 model otherwise. `None` when there is none (no convergence, a
 /// non-finite or non-positive-signal answer).
-pub fn invert(model: &Model, xyz: [f64; 3]) -> Option<[f64; 3]> {
+pub(crate) fn invert(model: &Model, xyz: [f64; 3]) -> Option<[f64; 3]> {
     if !xyz.iter().all(|v| v.is_finite()) {
         return None;
     }
@@ -137,7 +137,7 @@ fn jacobian(model: &Model, x: [f64; 3]) -> Mat3 {
 /// `model` evaluated on `diag(gains)·rgb`: the gains go into the input gains for NSRM (whose
 /// chromaticities they change) and into the matrix columns for the other kinds (each term is a
 /// monomial, or a root of one, so a positive gain per channel scales each column).
-pub fn with_extra_gains(model: &Model, gains: [f64; 3]) -> Result<Model, ModelError> {
+pub(crate) fn with_extra_gains(model: &Model, gains: [f64; 3]) -> Result<Model, ModelError> {
     if !gains.iter().all(|g| g.is_finite() && *g > 0.0) {
         return Err(ModelError::Invalid(format!(
             "white-balance gains {gains:?} must be finite and > 0"
@@ -167,7 +167,7 @@ pub fn with_extra_gains(model: &Model, gains: [f64; 3]) -> Result<Model, ModelEr
 }
 
 /// `mat · model(rgb)`: a 3×3 folded into the model's matrix (exact for every kind).
-pub fn premultiplied(model: &Model, mat: &Mat3) -> Result<Model, ModelError> {
+pub(crate) fn premultiplied(model: &Model, mat: &Mat3) -> Result<Model, ModelError> {
     let l = model.len_terms();
     let src = model.matrix();
     let mut m = vec![0.0; 3 * l];
@@ -183,7 +183,7 @@ pub fn premultiplied(model: &Model, mat: &Mat3) -> Result<Model, ModelError> {
 
 /// One calibration illuminant of a model: its white's chromaticity, CCT and camera response.
 #[derive(Debug, Clone, PartialEq)]
-pub struct Calibration {
+pub(crate) struct Calibration {
     pub xy: [f64; 2],
     pub cct: f64,
     /// The camera RGB the model maps to its white (`invert(model, white_xyz)`).
@@ -193,7 +193,7 @@ pub struct Calibration {
 impl Calibration {
     /// The calibration of a model: its white, and the camera response it maps to that white,
     /// which must be positive in every channel (a re-balance divides by it).
-    pub fn of(model: &Model) -> Result<Calibration, ModelError> {
+    pub(crate) fn of(model: &Model) -> Result<Calibration, ModelError> {
         let w = model.white_xyz();
         let xy = xyz_to_xy(w).ok_or_else(|| {
             ModelError::Invalid(format!("the model's white {w:?} is not a colour"))
@@ -322,7 +322,7 @@ impl Profile {
         &self.models
     }
 
-    pub fn calibrations(&self) -> &[Calibration] {
+    pub(crate) fn calibrations(&self) -> &[Calibration] {
         &self.calibrations
     }
 
@@ -356,7 +356,7 @@ impl Profile {
 
     /// The camera response (normalised as the DNG normalises its matrices) to XYZ `xyz` with the
     /// models mixed by weight `w`: `Σ c_i · k_i · model_i⁻¹(xyz)`.
-    pub fn xyz_to_camera(&self, xyz: [f64; 3], w: f64) -> Option<[f64; 3]> {
+    pub(crate) fn xyz_to_camera(&self, xyz: [f64; 3], w: f64) -> Option<[f64; 3]> {
         let mut out = [0.0; 3];
         for ((m, k), c) in self.models.iter().zip(&self.norms).zip(self.weights(w)) {
             if c == 0.0 {
@@ -372,7 +372,7 @@ impl Profile {
 
     /// The XYZ whose mixed camera response ([`xyz_to_camera`](Self::xyz_to_camera)) is `rgb`
     /// (Newton from the models' mixed forward output; exact for LRM in one step).
-    pub fn camera_to_xyz(&self, rgb: [f64; 3], w: f64) -> Option<[f64; 3]> {
+    pub(crate) fn camera_to_xyz(&self, rgb: [f64; 3], w: f64) -> Option<[f64; 3]> {
         let mut x = [0.0; 3];
         for ((m, k), c) in self.models.iter().zip(&self.norms).zip(self.weights(w)) {
             let y = m.apply_f64(rgb.map(|v| v / k));

@@ -46,7 +46,7 @@
 //! # Accuracy
 //! Every kernel follows the [pixel policy](super::pixel) exactly (NaN/Inf propagate, NSRM `s ≤ 0 → 0`,
 //! negative channels allowed, nothing clamped). Values are the f64 reference
-//! ([`Model::apply_frame_f64`]) to f32 precision: `tests/fast.rs` checks every kind, order and
+//! ([`Model::apply_frame_f64`]) to f32 precision: `fast_tests.rs` checks every kind, order and
 //! layout against it.
 
 use crate::frame::{Frame, Layout};
@@ -59,13 +59,13 @@ use std::collections::HashMap;
 pub(crate) const LANES: usize = 8;
 
 /// Pixels per rayon task (64 Ki pixels: 768 KiB of packed RGB f32).
-pub const CHUNK_PIXELS: usize = 1 << 16;
+pub(crate) const CHUNK_PIXELS: usize = 1 << 16;
 
 type Lanes = [f32; LANES];
 
 /// Errors of the fast path: only frames of the wrong shape (every [`Model`] has a kernel).
 #[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
-pub enum FastError {
+pub(crate) enum FastError {
     /// Source and destination frames differ in size or layout.
     #[error("source frame is {src_w}×{src_h} {src_layout}, destination {dst_w}×{dst_h} {dst_layout}: they must match")]
     FrameMismatch {
@@ -89,7 +89,7 @@ pub enum FastError {
 
 /// How many threads an apply call uses.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum Threads {
+pub(crate) enum Threads {
     /// The calling thread only.
     Single,
     /// Every thread of rayon's current pool (the global pool unless called inside `install`).
@@ -100,12 +100,13 @@ pub enum Threads {
 ///
 /// Every [`Model`] takes the fast path: a model is valid by construction (its term list derives
 /// from its kind and order), and every standard term list has a kernel.
-pub fn apply_frame(model: &Model, frame: &mut Frame) {
+pub(crate) fn apply_frame(model: &Model, frame: &mut Frame) {
     FastModel::new(model).apply(frame, Threads::All)
 }
 
 /// [`apply_frame`] on the calling thread only.
-pub fn apply_frame_single(model: &Model, frame: &mut Frame) {
+#[cfg(test)]
+pub(crate) fn apply_frame_single(model: &Model, frame: &mut Frame) {
     FastModel::new(model).apply(frame, Threads::Single)
 }
 
@@ -115,6 +116,7 @@ enum Code {
     /// The clone for this CPU, detected at run time (AVX2 + FMA where present).
     Detected,
     /// The baseline clone: no fused multiply-add, so the same bits on every CPU.
+    #[cfg_attr(not(test), allow(dead_code))] // only the tests run the baseline clone directly
     Baseline,
 }
 
@@ -130,16 +132,14 @@ enum Kernel {
 
 /// A model prepared for the fast path: f32 matrix and the kernel chosen for its term list.
 #[derive(Debug, Clone)]
-pub struct FastModel {
-    kind: Kind,
-    order: u8,
+pub(crate) struct FastModel {
     kernel: Kernel,
 }
 
 impl FastModel {
     /// Prepares `model`: a hand-written kernel when its terms are the standard list of LRM, PRM 3,
     /// RPRM 3 or NSRM 3 (or of PRM / RPRM order 1), otherwise a product plan built from its terms.
-    pub fn new(model: &Model) -> FastModel {
+    pub(crate) fn new(model: &Model) -> FastModel {
         let standard =
             |kind: Kind, order: u8| model.kind == kind && model.terms == terms(kind, order);
         let linear = [Kind::Lrm, Kind::Prm, Kind::Rprm]
@@ -167,25 +167,11 @@ impl FastModel {
         };
         let mut kernel = kernel;
         set_nsrm_gains(&mut kernel, model.input_gains);
-        FastModel {
-            kind: model.kind,
-            order: model.order,
-            kernel,
-        }
-    }
-
-    /// The model kind.
-    pub fn kind(&self) -> Kind {
-        self.kind
-    }
-
-    /// The model order.
-    pub fn order(&self) -> u8 {
-        self.order
+        FastModel { kernel }
     }
 
     /// The kernel's name: `linear`, `prm3`, `rprm3`, `nsrm3` or `plan` (the generic one).
-    pub fn kernel_name(&self) -> &'static str {
+    pub(crate) fn kernel_name(&self) -> &'static str {
         match self.kernel {
             Kernel::Linear(_) => "linear",
             Kernel::Prm3(_) => "prm3",
@@ -197,14 +183,15 @@ impl FastModel {
 
     /// Corrects `frame` in place (alpha untouched). Whole pixels only: should the data length not
     /// be a multiple of the channel count, the trailing partial pixel is left as it is.
-    pub fn apply(&self, frame: &mut Frame, threads: Threads) {
+    pub(crate) fn apply(&self, frame: &mut Frame, threads: Threads) {
         self.apply_code(frame, threads, Code::Detected)
     }
 
     /// [`apply`](Self::apply) with the baseline code on any CPU: no fused multiply-add, so the
     /// output is the same bits on every machine (the detected AVX2 + FMA clone rounds some
-    /// multiply-adds once instead of twice). Both stay within the bounds of `tests/fast.rs`.
-    pub fn apply_baseline(&self, frame: &mut Frame, threads: Threads) {
+    /// multiply-adds once instead of twice). Both stay within the bounds of `fast_tests.rs`.
+    #[cfg(test)]
+    pub(crate) fn apply_baseline(&self, frame: &mut Frame, threads: Threads) {
         self.apply_code(frame, threads, Code::Baseline)
     }
 
@@ -219,7 +206,7 @@ impl FastModel {
     }
 
     /// Corrects `src` into `dst` (same size and layout; alpha copied), leaving `src` unchanged.
-    pub fn apply_into(
+    pub(crate) fn apply_into(
         &self,
         src: &Frame,
         dst: &mut Frame,
@@ -783,7 +770,7 @@ fn nsrm_signal(r: f32, g: f32, b: f32) -> (f32, f32, f32, bool) {
 }
 
 // ---------------------------------------------------------------------------------------------
-// Hand-written kernels. Term order is exactly `terms(kind, order)` (tests/fast.rs checks each
+// Hand-written kernels. Term order is exactly `terms(kind, order)` (fast_tests.rs checks each
 // against the f64 reference).
 // ---------------------------------------------------------------------------------------------
 

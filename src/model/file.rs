@@ -22,7 +22,7 @@ use serde::{Deserialize, Serialize};
 use std::path::Path;
 
 /// The `format` field of every model file.
-pub const FORMAT: &str = "nsrm-model";
+pub(crate) const FORMAT: &str = "nsrm-model";
 /// The newest version written; files of a newer version are refused. A model is written with
 /// the oldest version that holds it: 1 without input gains, 2 with them (`input.gains`, a
 /// white-balanced NSRM), so builds that cannot apply gains refuse such a file by its version.

@@ -48,7 +48,7 @@ pub enum Objective {
 
 impl Objective {
     /// Parses `ls`, `de00` or `de00:P` (P ≥ 2, at most 64).
-    pub fn parse(s: &str) -> Result<Objective, ModelError> {
+    pub(crate) fn parse(s: &str) -> Result<Objective, ModelError> {
         let s = s.trim();
         let bad = || {
             ModelError::Spec(format!(
@@ -73,7 +73,7 @@ impl Objective {
     }
 
     /// `ls`, `de00`, `de00:4`.
-    pub fn name(&self) -> String {
+    pub(crate) fn name(&self) -> String {
         match self {
             Objective::LeastSquares => "ls".into(),
             Objective::De00 { power } if *power == 2.0 => "de00".into(),
@@ -107,7 +107,7 @@ pub enum Ridge {
 
 impl Ridge {
     /// Parses `auto` or a number ≥ 0 (`0` is no regularisation).
-    pub fn parse(s: &str) -> Result<Ridge, ModelError> {
+    pub(crate) fn parse(s: &str) -> Result<Ridge, ModelError> {
         let s = s.trim();
         if s.eq_ignore_ascii_case("auto") || s.eq_ignore_ascii_case("auto-gcv") {
             return Ok(Ridge::Auto);
@@ -137,7 +137,8 @@ pub enum Normalise {
 
 impl Normalise {
     /// Parses `raw` or `white-balanced`.
-    pub fn parse(s: &str) -> Result<Normalise, ModelError> {
+    #[cfg(test)]
+    pub(crate) fn parse(s: &str) -> Result<Normalise, ModelError> {
         match s.trim().to_ascii_lowercase().as_str() {
             "raw" => Ok(Normalise::Raw),
             "white-balanced" | "wb" => Ok(Normalise::WhiteBalanced),
@@ -148,7 +149,7 @@ impl Normalise {
     }
 
     /// `raw` or `white-balanced`.
-    pub fn name(self) -> &'static str {
+    pub(crate) fn name(self) -> &'static str {
         match self {
             Normalise::Raw => "raw",
             Normalise::WhiteBalanced => "white-balanced",
@@ -324,7 +325,8 @@ fn cutoff(svd: &SVD<f64, nalgebra::Dyn, nalgebra::Dyn>, rows: usize, cols: usize
 }
 
 /// Minimum-norm least-squares solution of `A·X ≈ B` by (bounded) SVD with numpy's cut-off.
-pub fn lstsq(a: DMatrix<f64>, b: &DMatrix<f64>) -> Result<DMatrix<f64>, ModelError> {
+#[cfg(test)]
+pub(crate) fn lstsq(a: DMatrix<f64>, b: &DMatrix<f64>) -> Result<DMatrix<f64>, ModelError> {
     let (n, l) = a.shape();
     let svd = svd(a, true)?;
     let eps = cutoff(&svd, n, l);
@@ -504,7 +506,7 @@ struct RidgeSolve {
 }
 
 /// The λ grid of `--ridge auto`: 10^-12 … 10^1 in quarter decades.
-pub fn lambda_grid() -> impl Iterator<Item = f64> {
+pub(crate) fn lambda_grid() -> impl Iterator<Item = f64> {
     (0..=52).map(|i| 10f64.powf(-12.0 + 0.25 * i as f64))
 }
 
@@ -857,7 +859,7 @@ const F32_CONFIDENCE: f64 = 6.0;
 /// Jacobian of the CIEDE2000 difference vector (whose norm is ΔE00) with respect to XYZ. Patches
 /// NSRM maps to 0 (`s ≤ 0`) add nothing. `tests/all/fit_apply_agree.rs` holds the CPU and GPU
 /// paths to what this promises.
-pub fn f32_error_bound(model: &Model, rgb: &[[f64; 3]], xyz: &[[f64; 3]]) -> f64 {
+pub(crate) fn f32_error_bound(model: &Model, rgb: &[[f64; 3]], xyz: &[[f64; 3]]) -> f64 {
     let white = model.white_xyz();
     let l = model.len_terms();
     let weight: Vec<f64> = model
@@ -903,7 +905,7 @@ pub fn f32_error_bound(model: &Model, rgb: &[[f64; 3]], xyz: &[[f64; 3]]) -> f64
 /// How much the fast CPU path (f32, this machine's kernels) moves the ΔE00 of the patches `rgb`
 /// against their references `xyz`, measured: the largest `|ΔE00(f32) − ΔE00(f64)|`, the camera RGB
 /// rounded to f32 as a frame holds it. [`f32_error_bound`] bounds it on every back end.
-pub fn f32_error_measured(model: &Model, rgb: &[[f64; 3]], xyz: &[[f64; 3]]) -> f64 {
+pub(crate) fn f32_error_measured(model: &Model, rgb: &[[f64; 3]], xyz: &[[f64; 3]]) -> f64 {
     use crate::frame::{Frame, Layout};
     let data: Vec<f32> = rgb.iter().flat_map(|c| c.map(|v| v as f32)).collect();
     let Some(mut frame) = Frame::from_data(rgb.len(), 1, Layout::Rgb, data) else {
@@ -1065,6 +1067,30 @@ mod tests {
         let got = k.xp.transpose() * cv;
         for (g, w) in got.iter().zip([1.0, 2.0, 3.0]) {
             assert!((g - w).abs() < 1e-14);
+        }
+    }
+
+    /// Automatic λ (GCV and exact leave-one-out) is one of [`lambda_grid`]'s values (the rest of
+    /// this check, the shrinking, is `tests/all/fit_variants.rs`'
+    /// `ridge_shrinks_coefficients_and_auto_picks_from_the_grid`).
+    #[test]
+    fn auto_ridge_picks_from_the_grid() {
+        let data = crate::spectral::simulate_named(
+            "nikon-d5100",
+            "D65",
+            "rawtoaces-190",
+            &crate::spectral::Grid::default(),
+        )
+        .unwrap();
+        for (ridge, criterion) in [(Ridge::Auto, "gcv"), (Ridge::AutoLoo, "loo")] {
+            let opts = FitOptions {
+                ridge,
+                ..Default::default()
+            };
+            let r = fit_with(Kind::Rprm, 3, &data, &opts).unwrap().report;
+            assert!(r.ridge_auto && r.ridge_lambda > 0.0, "{r:?}");
+            assert_eq!(r.ridge_criterion.as_deref(), Some(criterion));
+            assert!(lambda_grid().any(|l| l == r.ridge_lambda), "{r:?}");
         }
     }
 }

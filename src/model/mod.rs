@@ -7,17 +7,27 @@
 //! gains first; the policy then holds for the gained pixel (`s = g_R·R + g_G·G + g_B·B`). Gains
 //! are positive, so exposure invariance is kept.
 
-pub mod dual_illuminant;
-pub mod fast;
-pub mod file;
-pub mod fit;
+pub(crate) mod dual_illuminant;
+pub(crate) mod fast;
+#[cfg(test)]
+mod fast_tests;
+pub(crate) mod file;
+pub(crate) mod fit;
 mod output;
-pub mod pixel;
+pub(crate) mod pixel;
+#[cfg(test)]
+mod policy_tests;
 mod refine;
-pub mod terms;
+pub(crate) mod terms;
 
+pub use dual_illuminant::{Combination, FrameWhite, Profile};
+pub use fit::{
+    fit_with, Fit, FitOptions, FitReport, Normalise, Objective, Ridge, White as FitWhite,
+    F32_TOLERANCE_DE00,
+};
 pub use output::output_model;
-pub use terms::{term_name, terms, Term, MAX_ORDER};
+pub use terms::MAX_ORDER;
+pub(crate) use terms::{term_name, terms, Term};
 
 use crate::training::{Provenance, TrainingSet};
 
@@ -85,7 +95,7 @@ pub enum ModelError {
 
 impl ModelError {
     /// True for an unknown model kind, an order outside 1..=4 and a malformed fit option.
-    pub fn is_usage(&self) -> bool {
+    pub(crate) fn is_usage(&self) -> bool {
         matches!(
             self,
             ModelError::UnknownKind(_) | ModelError::Order(_) | ModelError::Spec(_)
@@ -94,7 +104,7 @@ impl ModelError {
 
     /// A fit that needs the camera response of a white the data lacks: naming a neutral patch
     /// ([`crate::error::Param::WhitePatch`]) is the way out.
-    pub fn concern(&self) -> Option<crate::error::Concern> {
+    pub(crate) fn concern(&self) -> Option<crate::error::Concern> {
         match self {
             ModelError::NoWhite => Some(crate::error::Concern::Remedy(
                 crate::error::Param::WhitePatch,
@@ -139,7 +149,7 @@ impl Kind {
     }
 
     /// The order a model of this kind really has when `order` is asked for: LRM is always 1.
-    pub fn effective_order(self, order: u8) -> u8 {
+    pub(crate) fn effective_order(self, order: u8) -> u8 {
         if self == Kind::Lrm {
             1
         } else {
@@ -150,6 +160,26 @@ impl Kind {
     /// Whether `f(kS) = k·f(S)` for every `k > 0`.
     pub fn exposure_invariant(self) -> bool {
         self != Kind::Prm
+    }
+
+    /// The names of this kind's terms at `order` (1..=[`MAX_ORDER`]; LRM has its three at any
+    /// order), in the order of a model's matrix columns: `R`, `G*B`, `sqrt(R*G)`, `r*g^2`, ….
+    ///
+    /// ```
+    /// use nsrm::Kind;
+    /// assert_eq!(Kind::Prm.term_names(2)?.len(), 9);
+    /// assert_eq!(Kind::Nsrm.term_names(1)?, ["1", "r", "g"]);
+    /// assert!(Kind::Rprm.term_names(5).is_err());
+    /// # Ok::<(), nsrm::ModelError>(())
+    /// ```
+    pub fn term_names(self, order: u8) -> Result<Vec<String>, ModelError> {
+        if !(1..=MAX_ORDER).contains(&order) {
+            return Err(ModelError::Order(order));
+        }
+        Ok(terms(self, self.effective_order(order))
+            .iter()
+            .map(|t| term_name(self, t))
+            .collect())
     }
 }
 
@@ -232,7 +262,7 @@ impl Model {
     }
 
     /// The terms, derived from (kind, order).
-    pub fn terms(&self) -> &[Term] {
+    pub(crate) fn terms(&self) -> &[Term] {
         &self.terms
     }
 
@@ -358,10 +388,35 @@ impl Model {
         out
     }
 
+    /// Corrects a frame in place on the CPU (alpha untouched): the CPU frame back end.
+    ///
+    /// Computes in f32 with vectorised kernels, on every thread of rayon's current pool (the
+    /// global pool; call it inside `rayon::ThreadPool::install` to choose the threads). Follows
+    /// the [pixel policy](pixel) and agrees with [`apply_f64`](Self::apply_f64) to f32 precision.
+    ///
+    /// ```
+    /// use nsrm::{fit, simulate_named, Frame, Grid, Kind, Layout};
+    /// let data = simulate_named("nikon-d5100", "D65", "cc24", &Grid::default())?;
+    /// let model = fit(Kind::Rprm, 2, &data)?;
+    /// let rgb = data.rgb[5];
+    /// let mut frame = Frame::new(1, 1, Layout::Rgb);
+    /// frame.data.copy_from_slice(&rgb.map(|v| v as f32));
+    /// model.apply_frame(&mut frame);
+    /// let want = model.apply_f64(rgb);
+    /// for c in 0..3 {
+    ///     assert!((f64::from(frame.data[c]) - want[c]).abs() <= 1e-4 * want[c].abs());
+    /// }
+    /// # Ok::<(), Box<dyn std::error::Error>>(())
+    /// ```
+    pub fn apply_frame(&self, frame: &mut crate::frame::Frame) {
+        fast::apply_frame(self, frame)
+    }
+
     /// Applies the f64 reference to every pixel of a frame in place (alpha untouched): the oracle
     /// for the fast CPU path and the GPU shaders. Each pixel is widened to f64, corrected, and
     /// rounded once to f32.
-    pub fn apply_frame_f64(&self, frame: &mut crate::frame::Frame) {
+    #[cfg(test)]
+    pub(crate) fn apply_frame_f64(&self, frame: &mut crate::frame::Frame) {
         let ch = frame.layout.channels();
         let mut p = vec![0.0; self.terms.len()];
         for px in frame.data.chunks_exact_mut(ch) {
@@ -370,14 +425,6 @@ impl Model {
                 px[k] = out[k] as f32;
             }
         }
-    }
-
-    /// Applies the f64 reference to many pixels.
-    pub fn apply_all_f64(&self, rgb: &[[f64; 3]]) -> Vec<[f64; 3]> {
-        let mut p = vec![0.0; self.terms.len()];
-        rgb.iter()
-            .map(|&x| self.apply_f64_with(x, &mut p))
-            .collect()
     }
 }
 
@@ -421,7 +468,7 @@ fn finite_in_f32(v: f64) -> bool {
 
 /// Writes the term values of `rgb` into `p` and returns the output scale (`s` for NSRM, 1
 /// otherwise), or `None` when NSRM's `s ≤ 0` (the output is then 0 by the pixel policy).
-pub fn features(kind: Kind, terms: &[Term], rgb: [f64; 3], p: &mut [f64]) -> Option<f64> {
+pub(crate) fn features(kind: Kind, terms: &[Term], rgb: [f64; 3], p: &mut [f64]) -> Option<f64> {
     if kind == Kind::Nsrm {
         let (s, r, g) = pixel::nsrm_signal(rgb)?;
         terms::expand(terms, [r, g, 0.0], p);

@@ -15,13 +15,13 @@
 //!
 //! The f64 reference ([`super::Model::apply_f64`]) is written with these functions; the f32
 //! kernels of [`super::fast`] and the shaders spell the same rules in their own arithmetic, and
-//! `tests/pixel_policy.rs` holds each of them to this module on the awkward pixels (zeros,
+//! `policy_tests.rs` and `tests/all/pixel_policy.rs` hold each of them to this module on the awkward pixels (zeros,
 //! `s < 0`, `s = 0` with non-zero channels, negatives, NaN, ±Inf, huge and tiny values).
 
 /// NSRM's signal and chromaticities `(s, r, g)` of a camera RGB, or `None` when `s ≤ 0` (the
 /// output is then `(0, 0, 0)`). NaN is not `≤ 0`: it is returned and propagates.
 #[inline]
-pub fn nsrm_signal(rgb: [f64; 3]) -> Option<(f64, f64, f64)> {
+pub(crate) fn nsrm_signal(rgb: [f64; 3]) -> Option<(f64, f64, f64)> {
     let s = rgb[0] + rgb[1] + rgb[2];
     if s <= 0.0 {
         None
@@ -32,7 +32,7 @@ pub fn nsrm_signal(rgb: [f64; 3]) -> Option<(f64, f64, f64)> {
 
 /// Sign-preserving d-th root: `sign(x)·|x|^(1/d)`; `±0 → ±0`, `±∞ → ±∞`, NaN stays NaN.
 #[inline]
-pub fn signed_root(x: f64, d: u8) -> f64 {
+pub(crate) fn signed_root(x: f64, d: u8) -> f64 {
     match d {
         1 => x,
         2 => x.abs().sqrt().copysign(x),

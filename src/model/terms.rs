@@ -20,7 +20,7 @@ use super::Kind;
 /// For LRM, PRM and RPRM the variables `x` are `(R, G, B)`; for NSRM they are `(r, g)` and
 /// `exps[2]` is always 0.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
-pub struct Term {
+pub(crate) struct Term {
     pub exps: [u8; 3],
     pub root: u8,
 }
@@ -126,7 +126,7 @@ fn gcd(a: u8, b: u8) -> u8 {
 /// The terms of `kind` at `order` (1..=[`MAX_ORDER`]; LRM ignores the order).
 ///
 /// Panics if `order` is out of range; [`super::Model`] and the fit check it first.
-pub fn terms(kind: Kind, order: u8) -> Vec<Term> {
+pub(crate) fn terms(kind: Kind, order: u8) -> Vec<Term> {
     assert!(
         (1..=MAX_ORDER).contains(&order),
         "order {order} out of range"
@@ -162,7 +162,7 @@ pub fn terms(kind: Kind, order: u8) -> Vec<Term> {
 
 /// A readable name for a term: `R`, `G*B`, `R^2*G`, `sqrt(R*G)`, `cbrt(R*G^2)`, `root4(R^3*G)`,
 /// `1`, `r`, `r*g^2`.
-pub fn term_name(kind: Kind, t: &Term) -> String {
+pub(crate) fn term_name(kind: Kind, t: &Term) -> String {
     let vars: [&str; 3] = if kind == Kind::Nsrm {
         ["r", "g", "-"]
     } else {
@@ -189,13 +189,13 @@ pub fn term_name(kind: Kind, t: &Term) -> String {
     }
 }
 
-pub use super::pixel::signed_root;
+pub(crate) use super::pixel::signed_root;
 
 /// The factors of a term, one per unit of exponent, as `(variable, root)`: the term is the product
 /// of `signed_root(x[variable], root)` over them (1 for none), which is what [`expand`] computes.
 /// Code generators (the WGSL of `crate::gpu::shader`, the DCTL of `crate::export::dctl`) spell
 /// each factor in their language, so every back end follows this one definition.
-pub fn term_factors(t: &Term) -> Vec<(usize, u8)> {
+pub(crate) fn term_factors(t: &Term) -> Vec<(usize, u8)> {
     t.exps
         .iter()
         .enumerate()
@@ -206,7 +206,7 @@ pub fn term_factors(t: &Term) -> Vec<(usize, u8)> {
 /// Writes the term values of one pixel into `out` (the f64 reference expansion).
 ///
 /// For NSRM, `rgb` must already be the chromaticities `(r, g, _)`.
-pub fn expand(terms: &[Term], vars: [f64; 3], out: &mut [f64]) {
+pub(crate) fn expand(terms: &[Term], vars: [f64; 3], out: &mut [f64]) {
     debug_assert_eq!(terms.len(), out.len());
     for (t, o) in terms.iter().zip(out.iter_mut()) {
         let mut v = 1.0;

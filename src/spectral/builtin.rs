@@ -3,13 +3,13 @@
 use super::{parse_csv, SpectralTable};
 
 /// Built-in cameras: (name, CSV text).
-pub const CAMERAS: &[(&str, &str)] = &[(
+pub(crate) const CAMERAS: &[(&str, &str)] = &[(
     "nikon-d5100",
     include_str!("../../assets/nikon_d5100_npl_darrodi2015.csv"),
 )];
 
 /// Built-in illuminants: (name, CSV text).
-pub const ILLUMINANTS: &[(&str, &str)] = &[
+pub(crate) const ILLUMINANTS: &[(&str, &str)] = &[
     ("D65", include_str!("../../assets/illuminant_D65.csv")),
     ("FL3.15", include_str!("../../assets/illuminant_FL3.15.csv")),
     ("FL7", include_str!("../../assets/illuminant_FL7.csv")),
@@ -25,7 +25,7 @@ pub const ILLUMINANTS: &[(&str, &str)] = &[
 ];
 
 /// Built-in reflectance sets: (name, CSV text).
-pub const REFLECTANCES: &[(&str, &str)] = &[
+pub(crate) const REFLECTANCES: &[(&str, &str)] = &[
     (
         "rawtoaces-190",
         include_str!("../../assets/rawtoaces_190_patches.csv"),
@@ -36,8 +36,6 @@ pub const REFLECTANCES: &[(&str, &str)] = &[
     ),
 ];
 
-const CMF: &str = include_str!("../../assets/cie1931_2deg_cmf.csv");
-
 fn lookup(list: &[(&str, &str)], name: &str) -> Option<SpectralTable> {
     list.iter()
         .find(|(n, _)| n.eq_ignore_ascii_case(name))
@@ -47,23 +45,30 @@ fn lookup(list: &[(&str, &str)], name: &str) -> Option<SpectralTable> {
 }
 
 /// A built-in camera by name (case-insensitive).
-pub fn builtin_camera(name: &str) -> Option<SpectralTable> {
+pub(crate) fn builtin_camera(name: &str) -> Option<SpectralTable> {
     lookup(CAMERAS, name)
 }
 
 /// A built-in illuminant by name (case-insensitive).
-pub fn builtin_illuminant(name: &str) -> Option<SpectralTable> {
+pub(crate) fn builtin_illuminant(name: &str) -> Option<SpectralTable> {
     lookup(ILLUMINANTS, name)
 }
 
 /// A built-in reflectance set by name (case-insensitive).
-pub fn builtin_reflectances(name: &str) -> Option<SpectralTable> {
+pub(crate) fn builtin_reflectances(name: &str) -> Option<SpectralTable> {
     lookup(REFLECTANCES, name)
 }
 
-/// The CIE 1931 2° standard observer colour-matching functions x̄, ȳ, z̄ (360–830 nm, 1 nm).
-pub fn cie1931_cmf() -> SpectralTable {
-    parse_csv(CMF, "builtin:cie1931_2deg").expect("built-in data parses (tested)")
+/// The CIE 1931 2° standard observer colour-matching functions x̄, ȳ, z̄ (360–830 nm, 1 nm):
+/// colorimetry's table (`colorimetry::observer`) as a spectral table.
+pub(crate) fn cie1931_cmf() -> SpectralTable {
+    let o = crate::colorimetry::observer::cie1931();
+    SpectralTable {
+        source_name: crate::colorimetry::observer::SOURCE.to_string(),
+        wavelengths: o.wavelengths.clone(),
+        names: o.names.to_vec(),
+        values: o.values.to_vec(),
+    }
 }
 
 #[cfg(test)]
@@ -78,6 +83,12 @@ mod tests {
             }
         }
         assert_eq!(cie1931_cmf().names.len(), 3);
+        // Colorimetry's observer is the asset, read as every spectral CSV is read.
+        let asset = include_str!("../../assets/cie1931_2deg_cmf.csv");
+        assert_eq!(
+            cie1931_cmf(),
+            parse_csv(asset, "builtin:cie1931_2deg").unwrap()
+        );
         assert_eq!(
             builtin_reflectances("rawtoaces-190").unwrap().names.len(),
             190

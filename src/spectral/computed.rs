@@ -9,7 +9,7 @@ const DAYLIGHT_BASIS: &str = include_str!("../../assets/cie_daylight_basis.csv")
 /// An illuminant named by formula, or `None` for a name that is not one: `A` / `StdA` (CIE 15's
 /// definition), `P<kelvin>` (Planck, 1000..=25000 K), `D<2 digits>` (CIE daylight at the digits ×
 /// 100 × 1.4388/1.4380 K: D50, D55, D75) and `D<kelvin>` (CIE daylight, 4000..=25000 K).
-pub fn computed_illuminant(name: &str) -> Option<SpectralTable> {
+pub(crate) fn computed_illuminant(name: &str) -> Option<SpectralTable> {
     let n = name.trim();
     let upper = n.to_ascii_uppercase();
     let wl: Vec<f64> = (300..=830).step_by(5).map(|w| w as f64).collect();

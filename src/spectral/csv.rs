@@ -6,7 +6,7 @@ use super::{SpectralError, SpectralTable};
 ///
 /// Blank lines and lines starting with `#` are skipped. Wavelengths must increase strictly; every row
 /// must have as many cells as the header; every cell must be a finite number.
-pub fn parse_csv(text: &str, source_name: &str) -> Result<SpectralTable, SpectralError> {
+pub(crate) fn parse_csv(text: &str, source_name: &str) -> Result<SpectralTable, SpectralError> {
     let src = || source_name.to_string();
     let mut table = crate::csv_table::Table::new(text, source_name)?
         .ok_or_else(|| SpectralError::Empty { source_name: src() })?;

@@ -10,15 +10,16 @@
 mod builtin;
 mod computed;
 mod csv;
+#[cfg(test)]
+mod fuzz_tests;
 
-pub use builtin::{
+pub(crate) use builtin::{
     builtin_camera, builtin_illuminant, builtin_reflectances, cie1931_cmf, CAMERAS, ILLUMINANTS,
     REFLECTANCES,
 };
-pub use computed::computed_illuminant;
-pub use csv::parse_csv;
+pub(crate) use csv::parse_csv;
 
-use crate::training::{Provenance, TrainingSet};
+use crate::training_set::{Provenance, TrainingSet};
 use std::path::Path;
 
 /// Errors from reading spectral data or simulating a camera.
@@ -73,7 +74,7 @@ pub enum SpectralError {
 
 impl SpectralError {
     /// True for a malformed wavelength grid.
-    pub fn is_usage(&self) -> bool {
+    pub(crate) fn is_usage(&self) -> bool {
         matches!(self, SpectralError::Grid { .. })
     }
 }
@@ -165,7 +166,7 @@ impl std::fmt::Display for Grid {
 
 /// A table of spectra sampled at common wavelengths.
 #[derive(Debug, Clone, PartialEq)]
-pub struct SpectralTable {
+pub(crate) struct SpectralTable {
     /// Where it came from (a file path or `builtin:NAME`), for messages and provenance.
     pub source_name: String,
     /// Strictly increasing wavelengths in nm.
@@ -178,7 +179,7 @@ pub struct SpectralTable {
 
 impl SpectralTable {
     /// Reads a CSV file.
-    pub fn read(path: &Path) -> Result<SpectralTable, SpectralError> {
+    pub(crate) fn read(path: &Path) -> Result<SpectralTable, SpectralError> {
         let source_name = path.display().to_string();
         let text = crate::limits::read_text(path).map_err(|err| SpectralError::Io {
             source_name: source_name.clone(),
@@ -216,10 +217,10 @@ impl SpectralTable {
 
 /// A camera: three spectral sensitivities (R, G, B), in that column order.
 #[derive(Debug, Clone)]
-pub struct Camera(pub SpectralTable);
+pub struct Camera(pub(crate) SpectralTable);
 
 impl Camera {
-    pub fn new(table: SpectralTable) -> Result<Camera, SpectralError> {
+    pub(crate) fn new(table: SpectralTable) -> Result<Camera, SpectralError> {
         if table.names.len() != 3 {
             return Err(SpectralError::CameraColumns {
                 source_name: table.source_name,
@@ -241,10 +242,10 @@ impl Camera {
 
 /// An illuminant: one spectral power distribution.
 #[derive(Debug, Clone)]
-pub struct Illuminant(pub SpectralTable);
+pub struct Illuminant(pub(crate) SpectralTable);
 
 impl Illuminant {
-    pub fn new(table: SpectralTable) -> Result<Illuminant, SpectralError> {
+    pub(crate) fn new(table: SpectralTable) -> Result<Illuminant, SpectralError> {
         if table.names.len() != 1 {
             return Err(SpectralError::IlluminantColumns {
                 source_name: table.source_name,
@@ -262,16 +263,11 @@ impl Illuminant {
         };
         Illuminant::new(table)
     }
-
-    /// A short display name: the built-in name, or the file stem.
-    pub fn display_name(&self) -> String {
-        display_name(&self.0.source_name)
-    }
 }
 
 /// Reflectances, one spectrum per patch (column names are the patch labels).
 #[derive(Debug, Clone)]
-pub struct Reflectances(pub SpectralTable);
+pub struct Reflectances(pub(crate) SpectralTable);
 
 impl Reflectances {
     /// A built-in name (`rawtoaces-190`, `cc24`) or a CSV path.
@@ -285,7 +281,7 @@ impl Reflectances {
 }
 
 /// The name shown for a table: `D65` for `builtin:D65`, the file stem for a path.
-pub fn display_name(source_name: &str) -> String {
+pub(crate) fn display_name(source_name: &str) -> String {
     if let Some(n) = source_name.strip_prefix("builtin:") {
         return n.to_string();
     }
@@ -327,7 +323,7 @@ fn looks_like_a_path(spec: &str) -> bool {
 }
 
 /// XYZ of the perfect white (ρ = 1) under `illuminant` on `grid`, scaled to `Y = 100`.
-pub fn white_xyz(illuminant: &Illuminant, grid: &Grid) -> Result<[f64; 3], SpectralError> {
+pub(crate) fn white_xyz(illuminant: &Illuminant, grid: &Grid) -> Result<[f64; 3], SpectralError> {
     let cmf = cie1931_cmf().resample(grid);
     let e = illuminant.0.resample(grid).remove(0);
     let ones = vec![1.0; grid.len()];

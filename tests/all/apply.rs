@@ -1,10 +1,11 @@
 //! End-to-end tests of `nsrm render-chart` + `nsrm fit` + `nsrm apply`, running the built binary.
 
+use crate::common::mat::apply as mat_apply;
 use nsrm::chart::{layout_path, ChartLayout};
-use nsrm::colorimetry::delta_e00_xyz;
-use nsrm::colorimetry::spaces::{apply as mat_apply, OutputSpace};
-use nsrm::eval::Stats;
+use nsrm::delta_e00_xyz;
 use nsrm::io::{read_frame, ReadOptions};
+use nsrm::OutputSpace;
+use nsrm::Stats;
 use std::path::{Path, PathBuf};
 
 use crate::common;

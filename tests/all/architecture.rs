@@ -60,8 +60,14 @@ fn room_of(rel: &Path) -> Option<String> {
 /// What the crate root re-exports (`pub use frame::{Frame, Layout};` → `Frame` → `frame`).
 fn root_reexports(lib: &str) -> BTreeMap<String, String> {
     let mut map = BTreeMap::new();
-    for line in lib.lines() {
-        let Some(rest) = line.trim().strip_prefix("pub use ") else {
+    // A statement may span lines (rustfmt breaks a long list): join the code lines, split at `;`.
+    let code: Vec<&str> = lib
+        .lines()
+        .map(str::trim)
+        .filter(|l| !l.starts_with("//") && !l.starts_with('#'))
+        .collect();
+    for stmt in code.join(" ").split(';') {
+        let Some(rest) = stmt.trim().strip_prefix("pub use ") else {
             continue;
         };
         let rest = rest.trim_end_matches(';');
@@ -144,6 +150,9 @@ fn edges() -> BTreeMap<(String, String), Vec<String>> {
                 continue;
             }
             for name in crate_paths(line) {
+                if name == "kit" {
+                    continue; // the unit tests' kit (`tests/all/common/kit.rs`), not a room
+                }
                 let to = reexports.get(&name).cloned().unwrap_or(name);
                 if to != room && to != "self" {
                     edges.entry((room.clone(), to)).or_default().push(format!(
@@ -258,13 +267,224 @@ fn crate_path_parser_reads_the_forms_used() {
     );
     assert!(crate_paths("pub(crate) fn f() {}").is_empty());
     assert!(crate_paths("$crate::x; mycrate::y").is_empty());
-    let map = root_reexports("pub use frame::{Frame, Layout};\npub use model::Model;");
+    let map = root_reexports(
+        "pub use frame::{Frame, Layout};\npub use model::Model;\npub use model::{\n    fit, White as FitWhite,\n};",
+    );
     assert_eq!(map["Layout"], "frame");
     assert_eq!(map["Model"], "model");
+    assert_eq!(map["fit"], "model");
+    assert_eq!(map["FitWhite"], "model");
     assert_eq!(
         room_of(Path::new("io/openexr/chunks.rs")).as_deref(),
         Some("io")
     );
     assert_eq!(room_of(Path::new("cli/apply.rs")), None);
     assert_eq!(room_of(Path::new("output.rs")).as_deref(), Some("output"));
+}
+
+/// The longest a function may be, in lines: from the line of its `fn` to the line of its closing
+/// brace (issue 19). Longer ones are split into their steps.
+const MAX_FN_LINES: usize = 120;
+
+/// Every function with a body in `text`: (name, line of its `fn` (1-based), lines from there to
+/// its closing brace). A small lexer skips comments, string, raw string and character literals
+/// (so generated code held in strings is not read as functions) and tells lifetimes from
+/// characters; a `fn` followed by a name opens a function, whose body is the first `{` outside
+/// parentheses and brackets after it (a `;` first: a declaration without a body).
+fn function_lengths(text: &str) -> Vec<(String, usize, usize)> {
+    // The code with every comment and literal blanked (newlines kept), so braces and `fn` can be
+    // found by plain scanning.
+    let code = blank_comments_and_literals(text);
+    let b = code.as_bytes();
+    let line_at = |i: usize| code[..i].matches('\n').count() + 1;
+    let ident = |c: u8| c.is_ascii_alphanumeric() || c == b'_';
+    let mut out = Vec::new();
+    let mut i = 0;
+    while let Some(k) = code[i..].find("fn") {
+        let at = i + k;
+        i = at + 2;
+        if (at > 0 && ident(b[at - 1])) || !b.get(at + 2).is_some_and(u8::is_ascii_whitespace) {
+            continue;
+        }
+        let rest = code[at + 2..].trim_start();
+        let name: String = rest
+            .chars()
+            .take_while(|&c| c.is_alphanumeric() || c == '_')
+            .collect();
+        if name.is_empty() {
+            continue; // `fn(` of a function pointer type
+        }
+        // The body: the first `{` outside (), [] and <> after the name; `;` first: no body.
+        let mut j = at + 2;
+        let mut depth = 0i32;
+        let open = loop {
+            match b.get(j) {
+                None => break None,
+                Some(b'(' | b'[') => depth += 1,
+                Some(b')' | b']') => depth -= 1,
+                Some(b';') if depth == 0 => break None,
+                Some(b'{') if depth == 0 => break Some(j),
+                _ => {}
+            }
+            j += 1;
+        };
+        let Some(open) = open else { continue };
+        let mut level = 0usize;
+        let mut end = None;
+        for (n, &c) in b.iter().enumerate().skip(open) {
+            match c {
+                b'{' => level += 1,
+                b'}' => {
+                    level -= 1;
+                    if level == 0 {
+                        end = Some(n);
+                        break;
+                    }
+                }
+                _ => {}
+            }
+        }
+        let end = end.unwrap_or(b.len() - 1);
+        out.push((name, line_at(at), line_at(end) - line_at(at) + 1));
+    }
+    out
+}
+
+/// `text` with comments, string / raw string / byte string literals and character literals
+/// replaced by spaces (newlines kept, so line numbers stay).
+fn blank_comments_and_literals(text: &str) -> String {
+    let c: Vec<char> = text.chars().collect();
+    let mut out = String::with_capacity(text.len());
+    let blank = |out: &mut String, from: &[char]| {
+        out.extend(from.iter().map(|&ch| if ch == '\n' { '\n' } else { ' ' }))
+    };
+    let ident = |ch: char| ch.is_alphanumeric() || ch == '_';
+    let mut i = 0;
+    while i < c.len() {
+        let at = |k: usize| c.get(k).copied().unwrap_or('\0');
+        // The prefix of a byte literal (b'x', b"x") is no identifier before the quote.
+        let ident_before =
+            i > 0 && ident(c[i - 1]) && !(c[i - 1] == 'b' && (i < 2 || !ident(c[i - 2])));
+        let end = if at(i) == '/' && at(i + 1) == '/' {
+            i + c[i..].iter().take_while(|&&ch| ch != '\n').count()
+        } else if at(i) == '/' && at(i + 1) == '*' {
+            let (mut j, mut depth) = (i, 0);
+            while j < c.len() {
+                if at(j) == '/' && at(j + 1) == '*' {
+                    depth += 1;
+                    j += 2;
+                } else if at(j) == '*' && at(j + 1) == '/' {
+                    depth -= 1;
+                    j += 2;
+                    if depth == 0 {
+                        break;
+                    }
+                } else {
+                    j += 1;
+                }
+            }
+            j
+        } else if !ident_before && (at(i) == 'r' || (at(i) == 'b' && at(i + 1) == 'r')) && {
+            let s = i + if at(i) == 'b' { 2 } else { 1 };
+            let hashes = c[s..].iter().take_while(|&&h| h == '#').count();
+            at(s + hashes) == '"'
+        } {
+            // A raw string: r"…", r#"…"#, br"…", ended by `"` and as many `#`.
+            let s = i + if at(i) == 'b' { 2 } else { 1 };
+            let hashes = c[s..].iter().take_while(|&&h| h == '#').count();
+            let mut j = s + hashes + 1;
+            while j < c.len() && !(at(j) == '"' && (1..=hashes).all(|h| at(j + h) == '#')) {
+                j += 1;
+            }
+            j + 1 + hashes
+        } else if at(i) == '"' {
+            let mut j = i + 1;
+            while j < c.len() && at(j) != '"' {
+                j += if at(j) == '\\' { 2 } else { 1 };
+            }
+            j + 1
+        } else if at(i) == '\'' && !ident_before && at(i + 1) == '\\' {
+            // An escaped character: '\n', '\'', '\u{1F600}'.
+            i + 3
+                + c[(i + 3).min(c.len())..]
+                    .iter()
+                    .take_while(|&&ch| ch != '\'')
+                    .count()
+                + 1
+        } else if at(i) == '\'' && !ident_before && at(i + 2) == '\'' {
+            i + 3
+        } else {
+            // Code, a lifetime's quote included.
+            out.push(c[i]);
+            i += 1;
+            continue;
+        };
+        let end = end.min(c.len());
+        blank(&mut out, &c[i..end]);
+        i = end;
+    }
+    out
+}
+
+/// No function in `src/` (the binary's `src/cli` and unit-test modules included) is longer than
+/// [`MAX_FN_LINES`].
+#[test]
+fn no_function_is_longer_than_the_limit() {
+    let src = Path::new(ROOT).join("src");
+    let mut files = Vec::new();
+    rust_files(&src, &mut files);
+    files.sort();
+    let mut long = Vec::new();
+    let mut seen = 0;
+    for f in &files {
+        let text = std::fs::read_to_string(f).unwrap();
+        for (name, line, lines) in function_lengths(&text) {
+            seen += 1;
+            if lines > MAX_FN_LINES {
+                let rel = f.strip_prefix(ROOT).unwrap().display().to_string();
+                long.push(format!("{rel}:{line}: fn {name} has {lines} lines"));
+            }
+        }
+    }
+    assert!(
+        seen > 1000,
+        "only {seen} functions found: is the scanner blind?"
+    );
+    assert!(
+        long.is_empty(),
+        "functions over {MAX_FN_LINES} lines (split them into their steps):\n{}",
+        long.join("\n")
+    );
+}
+
+/// The scanner counts from `fn` to the closing brace, and is not fooled by braces or `fn` in
+/// comments, strings, raw strings and character literals, nor by lifetimes, function pointer
+/// types or declarations without a body.
+#[test]
+fn function_scanner_reads_bodies_not_literals() {
+    let text = r####"
+/// fn in_a_doc() {
+fn one() {}
+pub(crate) fn two<'a>(x: &'a str, f: fn(u8) -> u8) -> [u8; 2] {
+    let s = "fn fake() { {";
+    let r = r#"fn raw() { "# ;
+    let c = '{';
+    let e = '\'';
+    /* fn in_a_comment() { /* nested */ */
+    [0, 1]
+}
+trait T {
+    fn declared(&self);
+    fn provided(&self) {
+        let _ = b'}';
+    }
+}
+"####;
+    let found: Vec<(String, usize, usize)> = function_lengths(text);
+    let want = [("one", 3, 1), ("two", 4, 8), ("provided", 14, 3)];
+    assert_eq!(
+        found,
+        want.map(|(n, l, c)| (n.to_string(), l, c)),
+        "{found:?}"
+    );
 }

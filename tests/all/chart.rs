@@ -4,9 +4,9 @@ use nsrm::chart::render_scene as render;
 use nsrm::chart::{apply_flat, flat_from_frame, flat_from_neutrals};
 use nsrm::chart::{detect, extract, verify, DetectOptions, ExtractOptions, Reference};
 use nsrm::chart::{homography_from_corners, ChartColours, ChartKind, SceneOptions};
-use nsrm::eval::{evaluate, Protocol};
-use nsrm::model::Kind;
+use nsrm::Kind;
 use nsrm::TrainingSet;
+use nsrm::{evaluate, Protocol};
 
 const SG_SPECTRA: &str = "../shared/data/colorchecker_sg_140.csv";
 

@@ -1,6 +1,6 @@
 //! CIEDE2000 against all 34 pairs of Sharma, Wu & Dalal (2005), Table 1.
 
-use nsrm::colorimetry::ciede2000;
+use nsrm::ciede2000;
 
 #[test]
 fn all_34_sharma_pairs_to_1e_4() {

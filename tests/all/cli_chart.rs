@@ -57,7 +57,8 @@ fn extract_fit_apply_reproduces_the_reference() {
     assert!(ok, "{err}");
     let text = std::fs::read_to_string(&csv).unwrap();
     // A comment line, the white line (D50, the reference's), then the header and the patches.
-    let white = nsrm::training::white_line(nsrm::training::d50_white());
+    let w = nsrm::chart::d50_white();
+    let white = format!("# white: {},{},{}\n", w[0], w[1], w[2]);
     assert!(
         text.starts_with("# nsrm chart patches:")
             && text.contains(&format!("\n{white}label,R,G,B,X,Y,Z\n01 dark skin,")),
@@ -149,9 +150,8 @@ fn apply_on_the_fitted_frame_reproduces_the_reference() {
     let model = nsrm::Model::load(&model_path).unwrap();
     let white = model.white_xyz();
     // The output is XYZ with white Y = 1, adapted from the reference white (D50) to D65.
-    let to_out =
-        nsrm::colorimetry::output_matrix(white, nsrm::colorimetry::spaces::OutputSpace::Xyz);
-    let d65 = nsrm::colorimetry::D65_WHITE_XYZ;
+    let to_out = nsrm::output_matrix(white, nsrm::OutputSpace::Xyz);
+    let d65 = nsrm::D65_WHITE_XYZ;
     for p in reading["patches"].as_array().unwrap() {
         let v = |k: &str| -> Vec<f64> {
             p[k].as_array()
@@ -172,22 +172,20 @@ fn apply_on_the_fitted_frame_reproduces_the_reference() {
             }
         }
         let got = got.map(|v| v * 100.0);
-        let fitted =
-            nsrm::colorimetry::spaces::apply(&to_out, model.apply_f64([rgb[0], rgb[1], rgb[2]]))
-                .map(|v| v * 100.0);
-        let want =
-            nsrm::colorimetry::spaces::apply(&to_out, [reference[0], reference[1], reference[2]])
-                .map(|v| v * 100.0);
+        let fitted = crate::common::mat::apply(&to_out, model.apply_f64([rgb[0], rgb[1], rgb[2]]))
+            .map(|v| v * 100.0);
+        let want = crate::common::mat::apply(&to_out, [reference[0], reference[1], reference[2]])
+            .map(|v| v * 100.0);
         // apply = the model at the patch (up to pixel noise) …
-        let noise = nsrm::colorimetry::delta_e00_xyz(got, fitted, d65);
+        let noise = nsrm::delta_e00_xyz(got, fitted, d65);
         assert!(
             noise < 0.5,
             "{}: apply {got:?} vs model {fitted:?}",
             p["label"]
         );
         // … and the model = the reference up to the fit error.
-        let fit_error = nsrm::colorimetry::delta_e00_xyz(fitted, want, d65);
-        let total = nsrm::colorimetry::delta_e00_xyz(got, want, d65);
+        let fit_error = nsrm::delta_e00_xyz(fitted, want, d65);
+        let total = nsrm::delta_e00_xyz(got, want, d65);
         assert!(
             total <= fit_error + 0.5,
             "{}: ΔE00 {total} vs fit error {fit_error}",
@@ -379,8 +377,7 @@ fn a_display_referred_flat_frame_is_decoded_as_the_chart_frame_is() {
         .chunks_exact(ch)
         .flat_map(|p| {
             (0..3).map(move |k| {
-                (nsrm::colorimetry::srgb_oetf(f64::from(p[k] / peak)).clamp(0.0, 1.0) * 255.0)
-                    .round() as u8
+                (nsrm::srgb_oetf(f64::from(p[k] / peak)).clamp(0.0, 1.0) * 255.0).round() as u8
             })
         })
         .collect();

@@ -139,13 +139,7 @@ fn fit_writes_a_model_that_loads_and_refuses_to_clobber() {
 fn measured_training_data_round_trip() {
     // Simulated patches written as a measured CSV give the same figures as the spectra.
     let d = tempdir("measured");
-    let data = nsrm::spectral::simulate_named(
-        "nikon-d5100",
-        "D65",
-        "cc24",
-        &nsrm::spectral::Grid::default(),
-    )
-    .unwrap();
+    let data = nsrm::simulate_named("nikon-d5100", "D65", "cc24", &nsrm::Grid::default()).unwrap();
     let mut csv = String::from("label,R,G,B,X,Y,Z\n");
     for i in 0..data.len() {
         let (c, x) = (data.rgb[i], data.xyz[i]);

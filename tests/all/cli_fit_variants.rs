@@ -175,13 +175,13 @@ fn fit_writes_a_white_balanced_nsrm_with_its_gains() {
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(out.status.success(), "{err}");
     assert!(err.contains("normalise white-balanced"), "{err}");
-    let m = nsrm::model::Model::load(&o).unwrap();
+    let m = nsrm::Model::load(&o).unwrap();
     // The gains balance the training white (D5100 under D65, rawtoaces-190 by default).
-    let data = nsrm::spectral::simulate_named(
+    let data = nsrm::simulate_named(
         "nikon-d5100",
         "D65",
         "rawtoaces-190",
-        &nsrm::spectral::Grid::default(),
+        &nsrm::Grid::default(),
     )
     .unwrap();
     let w = data.white_rgb.unwrap();

@@ -7,138 +7,15 @@
 
 #![allow(dead_code)]
 
-use nsrm::model::Model;
-use nsrm::spectral::{simulate_named, Grid};
-use nsrm::{Frame, Layout, TrainingSet};
+mod kit;
+
+use nsrm::Model;
+use nsrm::{Frame, Layout};
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 use std::sync::OnceLock;
 
-/// SplitMix64: a fixed-seed generator (no extra dependency).
-pub struct Rng(pub u64);
-
-impl Rng {
-    pub fn next_u64(&mut self) -> u64 {
-        self.0 = self.0.wrapping_add(0x9e37_79b9_7f4a_7c15);
-        let mut z = self.0;
-        z = (z ^ (z >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
-        z ^ (z >> 31)
-    }
-    pub fn next_u32(&mut self) -> u32 {
-        (self.next_u64() >> 32) as u32
-    }
-    /// Uniform in [0, 1).
-    pub fn unit(&mut self) -> f32 {
-        (self.next_u64() >> 40) as f32 / (1u64 << 24) as f32
-    }
-    /// Uniform in [a, b).
-    pub fn range(&mut self, a: f32, b: f32) -> f32 {
-        a + (b - a) * self.unit()
-    }
-    /// Uniform in 0..n.
-    pub fn below(&mut self, n: u64) -> usize {
-        (self.next_u64() % n) as usize
-    }
-}
-
-/// One pixel of a given flavour (`flavour % 14`): ordinary, a zero channel, black, slightly
-/// negative, HDR (×100), tiny (×1e-6), NaN, ±Inf, `s = R+G+B < 0`, −0, a single channel, mild
-/// highlight.
-pub fn awkward_pixel(rng: &mut Rng, flavour: usize) -> [f32; 3] {
-    let mut p = [rng.unit(), rng.unit(), rng.unit()];
-    let c = rng.below(3);
-    match flavour % 14 {
-        0 | 1 => {}                                              // ordinary 0..1
-        2 => p[c] = 0.0,                                         // a zero channel
-        3 => p = [0.0; 3],                                       // black
-        4 => p[c] = -0.02 * rng.unit(),                          // noise around black
-        5 => p.iter_mut().for_each(|v| *v *= 100.0),             // HDR highlight
-        6 => p.iter_mut().for_each(|v| *v *= 1e-6),              // tiny
-        7 => p[c] = f32::NAN,                                    // NaN
-        8 => p[c] = f32::INFINITY,                               // +Inf
-        9 => p[c] = f32::NEG_INFINITY,                           // −Inf
-        10 => p = [-0.01 * rng.unit(), -0.01 * rng.unit(), 0.0], // s < 0
-        11 => p[c] = -0.0,                                       // negative zero
-        12 => p = [1e-3 + rng.unit(), 0.0, 0.0],                 // a single channel
-        _ => p.iter_mut().for_each(|v| *v *= 4.0),               // mild highlight
-    }
-    p
-}
-
-/// A frame of [`awkward_pixel`]s of every flavour, from `seed`. Alpha (RGBA) is NaN, negative,
-/// positive or a random bit pattern: every path must pass it through bit for bit.
-pub fn awkward_frame(width: usize, height: usize, layout: Layout, seed: u64) -> Frame {
-    let mut rng = Rng(seed);
-    let ch = layout.channels();
-    let mut data = Vec::with_capacity(width * height * ch);
-    for _ in 0..width * height {
-        let flavour = rng.below(14);
-        data.extend_from_slice(&awkward_pixel(&mut rng, flavour));
-        if ch == 4 {
-            let a = match rng.below(4) {
-                0 => f32::NAN,
-                1 => -rng.unit(),
-                2 => f32::from_bits(rng.next_u32()),
-                _ => rng.unit(),
-            };
-            data.push(a);
-        }
-    }
-    Frame::from_data(width, height, layout, data).unwrap()
-}
-
-/// The relative part of the f32 bound.
-pub const F32_REL: f64 = 1e-5;
-
-/// `T_k = |s|·Σ_j |m_kj·p_j|` in f64 (`p` the pixel's terms, `s` NSRM's scale or 1): the size of
-/// the summands of output channel `k`. 0 where the model gives 0 (NSRM's `s ≤ 0`).
-pub fn summands(model: &Model, rgb: [f64; 3]) -> [f64; 3] {
-    let mut p = vec![0.0; model.terms().len()];
-    match model.features_of(rgb, &mut p) {
-        None => [0.0; 3],
-        Some(s) => [0, 1, 2].map(|k| {
-            s.abs()
-                * model
-                    .row(k)
-                    .iter()
-                    .zip(&p)
-                    .map(|(m, v)| (m * v).abs())
-                    .sum::<f64>()
-        }),
-    }
-}
-
-/// The one f32 error bound of every f32 path (fast CPU, GPU) against the f64 reference:
-/// `|got − ref| ≤ rel · max(|ref|, T_k, 1e-30)`. Where nothing cancels `T_k = |ref|` and this is
-/// a plain relative error; where the terms cancel to near 0, f32 summation cannot do better than
-/// the rounding of the summands, and that is what `T_k` allows.
-pub fn f32_bound(reference: f64, summands_k: f64, rel: f64) -> f64 {
-    rel * reference.abs().max(summands_k).max(1e-30)
-}
-
-/// The training patches most tests fit on: the Nikon D5100 and rawtoaces-190 under D65.
-pub fn training() -> &'static TrainingSet {
-    static DATA: OnceLock<TrainingSet> = OnceLock::new();
-    DATA.get_or_init(|| {
-        simulate_named("nikon-d5100", "D65", "rawtoaces-190", &Grid::default()).unwrap()
-    })
-}
-
-/// Every kind at every order (LRM once: it has only order 1), fitted on [`training`]: realistic
-/// coefficients, including PRM 4's large ones of both signs.
-pub fn fitted_models() -> Vec<Model> {
-    let mut v = Vec::new();
-    for kind in nsrm::model::Kind::ALL {
-        for order in 1..=nsrm::model::MAX_ORDER {
-            if kind == nsrm::model::Kind::Lrm && order > 1 {
-                continue;
-            }
-            v.push(nsrm::model::fit(kind, order, training()).unwrap());
-        }
-    }
-    v
-}
+pub use kit::*;
 
 /// The ColorChecker SG spectra in `../shared/data`, or `None` (after [`skip`]) when absent:
 /// they stay outside the repository.
@@ -297,7 +174,7 @@ pub fn no_crash(o: &Output, what: &str) {
 /// Writes an identity-like LRM model (`m.json`) into `dir`.
 pub fn model(dir: &Path) {
     let m = Model::from_matrix(
-        nsrm::model::Kind::Lrm,
+        nsrm::Kind::Lrm,
         1,
         vec![50.0, 30.0, 15.0, 25.0, 60.0, 10.0, 2.0, 12.0, 90.0],
     )
@@ -324,7 +201,7 @@ pub fn exr(path: &Path, w: usize, h: usize) {
         format: FileFormat::Exr,
         half: false,
         compression: ExrCompression::None,
-        space: nsrm::colorimetry::spaces::OutputSpace::Xyz,
+        space: nsrm::OutputSpace::Xyz,
         zip_level: nsrm::io::DEFAULT_ZIP_LEVEL,
     };
     committed(true, |u| nsrm::io::write_exr(&frame(w, h), path, &opts, u)).unwrap();
@@ -406,4 +283,36 @@ pub fn cc24_scene(dir: &Path, name: &str, extra: &[&str]) -> PathBuf {
     args.extend_from_slice(extra);
     nsrm_ok(dir, &args);
     dir.join(name)
+}
+
+/// 3×3 matrix helpers of the tests (the library keeps its own crate-private): `m · v`, `a · b`,
+/// the inverse, and XYZ (`Y = 1`) of a chromaticity.
+pub mod mat {
+    use nsrm::Mat3;
+
+    /// The identity matrix.
+    pub const IDENTITY: Mat3 = [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]];
+
+    /// `m · v`.
+    pub fn apply(m: &Mat3, v: [f64; 3]) -> [f64; 3] {
+        m.map(|r| r[0] * v[0] + r[1] * v[1] + r[2] * v[2])
+    }
+
+    /// `a · b`.
+    pub fn mul(a: &Mat3, b: &Mat3) -> Mat3 {
+        [0, 1, 2].map(|i| [0, 1, 2].map(|j| (0..3).map(|k| a[i][k] * b[k][j]).sum()))
+    }
+
+    /// The inverse (panics on a singular matrix: the tests invert only invertible ones).
+    pub fn invert(m: &Mat3) -> Mat3 {
+        let inv = nalgebra::Matrix3::from_fn(|i, j| m[i][j])
+            .try_inverse()
+            .unwrap_or_else(|| panic!("singular matrix {m:?}"));
+        [0, 1, 2].map(|i| [0, 1, 2].map(|j| inv[(i, j)]))
+    }
+
+    /// xy chromaticity → XYZ with `Y = 1`.
+    pub fn xy_to_xyz(xy: [f64; 2]) -> [f64; 3] {
+        [xy[0] / xy[1], 1.0, (1.0 - xy[0] - xy[1]) / xy[1]]
+    }
 }

@@ -5,10 +5,10 @@
 
 use crate::common;
 
-use nsrm::colorimetry::spaces::OutputSpace;
-use nsrm::model::fit::{fit_with, FitOptions, Normalise};
-use nsrm::model::{fit, Kind, Model};
-use nsrm::spectral::{simulate_named, Grid};
+use nsrm::OutputSpace;
+use nsrm::{fit, Kind, Model};
+use nsrm::{fit_with, FitOptions, Normalise};
+use nsrm::{simulate_named, Grid};
 use std::io::Write;
 use std::path::Path;
 use std::process::{Command, Stdio};
@@ -179,7 +179,7 @@ fn dctl_compiles_as_c_and_matches_the_f64_model() {
         for (suffix, model) in models {
             let (kind, order) = (model.kind(), model.order());
             for space in [OutputSpace::Xyz, OutputSpace::Acescg] {
-                let folded = nsrm::model::output_model(&model, space).unwrap();
+                let folded = nsrm::output_model(&model, space).unwrap();
                 let dctl = nsrm::export::generate_dctl(&folded, &["test".into()]).unwrap();
                 assert!(dctl.contains("__DEVICE__ float3 transform(int p_Width"));
                 let name = format!(
@@ -242,7 +242,7 @@ fn export_shader_writes_dctl_through_the_cli() {
         text.contains("acescg") && text.contains("cbrt(R*G^2)"),
         "{text}"
     );
-    let folded = nsrm::model::output_model(&model, OutputSpace::Acescg).unwrap();
+    let folded = nsrm::output_model(&model, OutputSpace::Acescg).unwrap();
     if let Some(cc) = cc() {
         let px = pixels(&data);
         let got = run_dctl(&cc, dir.path(), "cli", &text, &px);

@@ -9,12 +9,12 @@
 
 use crate::common;
 
-use nsrm::colorimetry::delta_e00_xyz;
-use nsrm::colorimetry::spaces::{self, OutputSpace};
+use nsrm::delta_e00_xyz;
 use nsrm::export::{dense_chromaticities, Format, LutExport, LutOptions};
 use nsrm::io::{read_frame, write_exr, ExrCompression, FileFormat, ReadOptions, WriteOptions};
-use nsrm::model::{fit, Kind};
-use nsrm::spectral::{simulate_named, Grid};
+use nsrm::OutputSpace;
+use nsrm::{fit, Kind};
+use nsrm::{simulate_named, Grid};
 use nsrm::{Frame, Layout, Model, TrainingSet};
 use std::path::{Path, PathBuf};
 use std::process::Command;
@@ -168,10 +168,10 @@ impl Case {
 
 /// ΔE00 between two output-space values, in the model's XYZ with its training white.
 fn de(model: &Model, space: OutputSpace, a: [f64; 3], b: [f64; 3]) -> f64 {
-    let back = spaces::invert(&nsrm::colorimetry::output_matrix(model.white_xyz(), space));
+    let back = crate::common::mat::invert(&nsrm::output_matrix(model.white_xyz(), space));
     delta_e00_xyz(
-        spaces::apply(&back, a),
-        spaces::apply(&back, b),
+        crate::common::mat::apply(&back, a),
+        crate::common::mat::apply(&back, b),
         model.white_xyz(),
     )
 }

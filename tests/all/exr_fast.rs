@@ -11,8 +11,8 @@ use exr::math::Vec2;
 use exr::meta::attribute::{AttributeValue, IntegerBounds, LineOrder, Text};
 use exr::meta::header::{ImageAttributes, LayerAttributes};
 use exr::prelude::{f16, SmallVec, WritableImage};
-use nsrm::colorimetry::spaces::OutputSpace;
 use nsrm::io::{Decoded, ExrCompression, FileFormat, ReadOptions, WriteOptions, DEFAULT_ZIP_LEVEL};
+use nsrm::OutputSpace;
 use std::path::Path;
 use std::process::Command;
 

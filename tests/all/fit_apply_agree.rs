@@ -5,11 +5,11 @@
 //! A fit that is refused (too few patches) must say why and write nothing.
 
 use crate::common::{self, Rng};
-use nsrm::colorimetry::{delta_e00_xyz, spaces::OutputSpace};
 use nsrm::io::{read_frame, write_tiff, ReadOptions};
-use nsrm::model::{Kind, Model};
-use nsrm::spectral::{simulate_named, Grid};
+use nsrm::{delta_e00_xyz, OutputSpace};
+use nsrm::{simulate_named, Grid};
 use nsrm::{Frame, Layout, TrainingSet};
+use nsrm::{Kind, Model};
 use std::fmt::Write as _;
 use std::path::Path;
 
@@ -122,7 +122,7 @@ fn agree_on(name: &str, d: &TrainingSet) -> Vec<String> {
     // adapt the white (it is D65 here).
     assert_eq!(
         OutputSpace::Xyz.from_xyz(d.white_xyz),
-        nsrm::colorimetry::spaces::IDENTITY
+        crate::common::mat::IDENTITY
     );
     let dir = common::tempdir(&format!("agree-{name}"));
     write_csv(d, &dir.join("t.csv"));
@@ -157,7 +157,7 @@ fn agree_on(name: &str, d: &TrainingSet) -> Vec<String> {
                     &model,
                 ],
             );
-            let terms = nsrm::model::terms(kind, order).len();
+            let terms = kind.term_names(order).unwrap().len();
             if terms > d.len() {
                 // Refused with the reason, nothing written.
                 assert_eq!(fit.status.code(), Some(1), "{}", common::stderr(&fit));
@@ -181,7 +181,7 @@ fn agree_on(name: &str, d: &TrainingSet) -> Vec<String> {
                 f64::NAN
             });
             assert!(
-                other_binary() || bound <= nsrm::model::fit::F32_TOLERANCE_DE00,
+                other_binary() || bound <= nsrm::F32_TOLERANCE_DE00,
                 "{kind}{order}: {bound}"
             );
             let mut line = format!(

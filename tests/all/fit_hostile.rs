@@ -2,9 +2,9 @@
 //! channel scaled by 1e-200 is refused before the SVD with a typed error naming the patch and the
 //! term; every solver is bounded (see `model::fit`).
 
-use nsrm::model::fit::{fit_with, FitOptions, Objective, Ridge};
-use nsrm::model::{fit, Kind, ModelError};
-use nsrm::spectral::{simulate_named, Grid};
+use nsrm::{fit, Kind, ModelError};
+use nsrm::{fit_with, FitOptions, Objective, Ridge};
+use nsrm::{simulate_named, Grid};
 
 fn data() -> nsrm::TrainingSet {
     simulate_named("nikon-d5100", "D65", "cc24", &Grid::default()).unwrap()

@@ -5,7 +5,7 @@
 //! Malformed requests are refused and write nothing.
 
 use crate::common::{nsrm_in, nsrm_ok, stderr, tempdir};
-use nsrm::model::dual_illuminant::Profile;
+use nsrm::Profile;
 
 #[test]
 fn two_illuminants_from_spectra_is_two_fits_combined() {

@@ -1,4 +1,5 @@
-//! The GPU path against the f64 CPU reference (`Model::apply_frame_f64`).
+//! The GPU path against the f64 CPU reference (`Model::apply_f64` on every pixel: the test kit's
+//! `apply_reference`).
 //!
 //! Without an adapter these tests print `SKIP: no GPU adapter ...` and pass, unless `CI=true`,
 //! where they fail with the driver message.
@@ -12,10 +13,10 @@
 //! an infinite reference needs a non-finite value (Inf of the same sign, or NaN); alpha must
 //! come back bit for bit; no value may be the engine's unwritten-output sentinel.
 
-use nsrm::gpu::{self, Corrector, DeviceChoice, Engine, GpuError, GpuOptions, Target, TexelFormat};
-use nsrm::model::fit::{fit_with, FitOptions, Normalise};
-use nsrm::model::{fit, Kind, Model, MAX_ORDER};
-use nsrm::spectral::{simulate_named, Grid};
+use nsrm::gpu::{self, Corrector, Engine, GpuError, GpuOptions, Target, TexelFormat};
+use nsrm::{fit, Kind, Model, MAX_ORDER};
+use nsrm::{fit_with, FitOptions, Normalise};
+use nsrm::{simulate_named, Grid};
 use nsrm::{Frame, Layout};
 
 /// The embedding example, for its functions (chart → Corrector pass → display pass → RGBA8).
@@ -171,7 +172,7 @@ fn check_models(kind: Kind, model: impl Fn(u8) -> Model) {
             {
                 let input = random_frame(w, h, layout, 1000 * order as u64 + i as u64);
                 let mut reference = input.clone();
-                m.apply_frame_f64(&mut reference);
+                common::apply_reference(&m, &mut reference);
                 let mut out = input.clone();
                 let engine = if w * h > 1000 {
                     &mut small_tiles
@@ -227,7 +228,7 @@ fn gains_swap_with_the_model() {
     for (round, m) in [&raw, &wb, &raw, &wb].into_iter().enumerate() {
         let input = random_frame(33, 40, Layout::Rgba, 90 + round as u64);
         let mut reference = input.clone();
-        m.apply_frame_f64(&mut reference);
+        common::apply_reference(m, &mut reference);
         let mut out = input.clone();
         e.apply(m, &mut out).unwrap();
         compare(
@@ -248,7 +249,7 @@ fn frames_larger_than_one_dispatch_row_and_many_tiles() {
     let m = model(Kind::Nsrm, 2);
     let input = random_frame(400, 300, Layout::Rgb, 7);
     let mut reference = input.clone();
-    m.apply_frame_f64(&mut reference);
+    common::apply_reference(&m, &mut reference);
     let mut out = input.clone();
     e.apply(&m, &mut out).unwrap();
     compare("NSRM 2 400×300", &m, &input, &out, &reference, REL_TOL);
@@ -258,7 +259,7 @@ fn frames_larger_than_one_dispatch_row_and_many_tiles() {
     };
     let input = random_frame(97, 61, Layout::Rgba, 8);
     let mut reference = input.clone();
-    m.apply_frame_f64(&mut reference);
+    common::apply_reference(&m, &mut reference);
     let mut out = input.clone();
     tiny.apply(&m, &mut out).unwrap();
     compare(
@@ -289,7 +290,7 @@ fn models_swap_and_pipelines_are_reused() {
     for (round, m) in [&a, &b, &a].into_iter().enumerate() {
         let input = random_frame(33, 40, Layout::Rgba, 50 + round as u64);
         let mut reference = input.clone();
-        m.apply_frame_f64(&mut reference);
+        common::apply_reference(m, &mut reference);
         let mut out = input.clone();
         e.apply(m, &mut out).unwrap();
         compare(
@@ -343,102 +344,6 @@ fn exposure_invariance_on_the_gpu() {
     }
 }
 
-#[test]
-fn timing_and_bandwidth_are_reported() {
-    let Some(mut e) = engine(None) else { return };
-    eprintln!("adapter: {}", e.adapter_name());
-    // 2 Mpixel RGBA by default (two tiles, so upload, compute and read-back overlap);
-    // NSRM_GPU_TEST_MPIXELS=16 for a longer run.
-    let mpx: usize = std::env::var("NSRM_GPU_TEST_MPIXELS")
-        .ok()
-        .and_then(|v| v.parse().ok())
-        .unwrap_or(2);
-    let mut frame = random_frame(1024, 1024 * mpx, Layout::Rgba, 3);
-    let n = frame.pixels() as f64 / 1e6;
-    for kind in [Kind::Nsrm, Kind::Rprm] {
-        let m = model(kind, 3);
-        e.apply(&m, &mut frame).unwrap(); // warm-up: pipeline and buffers
-        let t = e.timed_apply(&m, &mut frame).unwrap();
-        assert!(t.total_seconds > 0.0);
-        if e.has_timestamps() {
-            let k = t.kernel_seconds.expect("timestamps are supported");
-            assert!(k > 0.0 && k.is_finite());
-            eprintln!(
-                "{kind} 3, {n:.1} Mpixel RGBA: kernel {:.1} Mpixel/s, with upload and read-back {:.1} Mpixel/s",
-                n / k,
-                n / t.total_seconds
-            );
-        } else {
-            assert!(t.kernel_seconds.is_none());
-        }
-    }
-    match e.copy_bandwidth(64 << 20).unwrap() {
-        Some(bw) => {
-            assert!(bw > 0.0 && bw.is_finite());
-            eprintln!("buffer copy: {:.2} GB/s", bw / 1e9);
-        }
-        None => eprintln!("buffer copy: no timestamps inside encoders"),
-    }
-}
-
-#[test]
-fn open_follows_the_device_choice() {
-    assert!(gpu::open(DeviceChoice::Cpu, &GpuOptions::default())
-        .unwrap()
-        .is_none());
-    let Some(e) = engine(None) else { return };
-    // `Auto` takes a hardware adapter, never a software rasteriser (lavapipe) unless named, and
-    // says why it chose the CPU.
-    let software = e.context().adapter.get_info().device_type == wgpu::DeviceType::Cpu;
-    match gpu::open_device(DeviceChoice::Auto, &GpuOptions::default()).unwrap() {
-        gpu::Opened::Gpu(a) => {
-            assert!(
-                !software,
-                "auto took the software adapter {}",
-                a.adapter_name()
-            );
-            assert_eq!(a.adapter_name(), e.adapter_name());
-        }
-        gpu::Opened::Cpu(why) => {
-            assert!(
-                software,
-                "auto left the hardware adapter {}",
-                e.adapter_name()
-            );
-            assert!(
-                matches!(&why, gpu::CpuReason::SoftwareOnly { adapter } if *adapter == e.adapter_name()),
-                "{why}"
-            );
-        }
-    }
-    assert!(gpu::open(DeviceChoice::Gpu, &GpuOptions::default())
-        .unwrap()
-        .is_some());
-    // The adapter chosen by a name substring (case-insensitive).
-    let name = e.adapter_name();
-    let part = name.split_whitespace().next().unwrap().to_uppercase();
-    let opts = GpuOptions {
-        adapter: Some(part),
-        tile_pixels: None,
-    };
-    for choice in [DeviceChoice::Gpu, DeviceChoice::Auto] {
-        // Named, even a software adapter is taken by `Auto`.
-        assert_eq!(
-            gpu::open(choice, &opts).unwrap().unwrap().adapter_name(),
-            name
-        );
-    }
-    let opts = GpuOptions {
-        adapter: Some("no-such-adapter-xyz".into()),
-        tile_pixels: None,
-    };
-    for choice in [DeviceChoice::Auto, DeviceChoice::Gpu] {
-        let err = gpu::open(choice, &opts).unwrap_err();
-        assert!(matches!(err, GpuError::AdapterNotFound { .. }), "{err}");
-        assert!(err.to_string().contains(&name), "{err}");
-    }
-}
-
 /// Runs a corrector on the caller's own encoder and buffers, in place and src → dst, with a
 /// chunk smaller than the whole buffer (offsets into the middle of a buffer).
 #[test]
@@ -450,7 +355,7 @@ fn corrector_records_into_the_callers_encoder_on_buffers() {
     for layout in [Layout::Rgb, Layout::Rgba] {
         let input = random_frame(64, 10, layout, 11);
         let mut reference = input.clone();
-        m.apply_frame_f64(&mut reference);
+        common::apply_reference(&m, &mut reference);
         let bytes: &[u8] = bytemuck::cast_slice(&input.data);
         let size = bytes.len() as u64;
         use wgpu::BufferUsages as U;
@@ -550,7 +455,7 @@ fn corrector_on_textures() {
     let (w, h) = (37u32, 21u32);
     let input = random_frame(w as usize, h as usize, Layout::Rgba, 21);
     let mut reference = input.clone();
-    m.apply_frame_f64(&mut reference);
+    common::apply_reference(&m, &mut reference);
     let src = embed::upload_rgba32f(dev, queue, &input);
     for (format, tol) in [
         (TexelFormat::Rgba32Float, REL_TOL),
@@ -647,7 +552,13 @@ fn read_texture_rgba_f32(dev: &wgpu::Device, queue: &wgpu::Queue, tex: &wgpu::Te
 /// The display shader of the embedding example validates and has its two entry points.
 #[test]
 fn embed_display_shader_validates() {
-    let (module, _) = gpu::shader::validate(embed::DISPLAY_WGSL).unwrap();
+    let module = naga::front::wgsl::parse_str(embed::DISPLAY_WGSL).unwrap();
+    naga::valid::Validator::new(
+        naga::valid::ValidationFlags::all(),
+        naga::valid::Capabilities::default(),
+    )
+    .validate(&module)
+    .unwrap();
     let names: Vec<_> = module
         .entry_points
         .iter()
@@ -731,7 +642,7 @@ fn exported_wgsl_runs_and_matches_the_reference() {
         .unwrap();
         let input = random_frame(300, 5, layout, 77);
         let mut reference = input.clone();
-        m.apply_frame_f64(&mut reference);
+        common::apply_reference(&m, &mut reference);
         let buf = dev.create_buffer(&wgpu::BufferDescriptor {
             label: None,
             size: (input.data.len() * 4) as u64,

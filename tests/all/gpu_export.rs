@@ -9,8 +9,15 @@ fn nsrm(args: &[&str]) -> std::process::Output {
     common::nsrm().args(args).output().expect("run nsrm")
 }
 
+/// Validates with the flags every shader of nsrm is held to: all validation flags, default
+/// capabilities.
 fn validate(module: &naga::Module) {
-    nsrm::gpu::shader::validate_module(module).unwrap();
+    naga::valid::Validator::new(
+        naga::valid::ValidationFlags::all(),
+        naga::valid::Capabilities::default(),
+    )
+    .validate(module)
+    .unwrap();
 }
 
 fn fit(dir: &Path, kind: &str, order: &str) -> String {

@@ -87,7 +87,7 @@ fn many_measured_rows_load_with_a_duplicate_check() {
     for i in 0..n {
         text.push_str(&format!("p{i},0.{i},0.2,0.3,10,20,30\n"));
     }
-    let white = Some(nsrm::colorimetry::D65_WHITE_XYZ);
+    let white = Some(nsrm::D65_WHITE_XYZ);
     let ts = TrainingSet::parse_measured(&text, "big.csv", white).unwrap();
     assert_eq!(ts.len(), n);
     text.push_str("p7,0.1,0.2,0.3,10,20,30\n");

@@ -283,7 +283,7 @@ fn a_frame_being_written_at_sigterm_is_aborted_not_finished() {
         format: nsrm::io::FileFormat::Exr,
         half: false,
         compression: nsrm::io::ExrCompression::None,
-        space: nsrm::colorimetry::spaces::OutputSpace::Xyz,
+        space: nsrm::OutputSpace::Xyz,
         zip_level: nsrm::io::DEFAULT_ZIP_LEVEL,
     };
     crate::common::committed(true, |u| {

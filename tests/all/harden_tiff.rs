@@ -378,3 +378,150 @@ fn tifffile_layouts_are_read_sample_for_sample() {
         stderr(&o)
     );
 }
+
+/// A little-endian TIFF of `w`×`h` RGB 32-bit float samples, planar-separate (one plane per
+/// channel) and tiled `tile`×`tile`, uncompressed: sample `(x, y, c)` is `c + (y·w + x) / 1024`.
+/// Each tile is stored whole (edge tiles padded with zeros), planes one after the other, as
+/// TIFF 6.0 (section 15) and libtiff write them. The layout of `docs/upstream/tiff-planar-tiled-edge.md`.
+pub fn planar_tiled_f32(w: u32, h: u32, tile: u32) -> Vec<u8> {
+    let (across, down) = (w.div_ceil(tile), h.div_ceil(tile));
+    let tiles = 3 * across * down;
+    let tile_bytes = tile * tile * 4;
+    // Header, then the IFD (12 entries), then its arrays, then the tiles.
+    let entries: u32 = 12;
+    let ifd = 8u32;
+    let arrays = ifd + 2 + 12 * entries + 4;
+    let (bits_at, format_at) = (arrays, arrays + 6);
+    let (offsets_at, counts_at) = (arrays + 12, arrays + 12 + 4 * tiles);
+    let data_at = counts_at + 4 * tiles;
+    let mut b = b"II*\0".to_vec();
+    b.extend_from_slice(&ifd.to_le_bytes());
+    b.extend_from_slice(&(entries as u16).to_le_bytes());
+    let mut entry = |tag: u16, typ: u16, count: u32, value: u32| {
+        b.extend_from_slice(&tag.to_le_bytes());
+        b.extend_from_slice(&typ.to_le_bytes());
+        b.extend_from_slice(&count.to_le_bytes());
+        b.extend_from_slice(&value.to_le_bytes());
+    };
+    entry(256, 4, 1, w); // ImageWidth
+    entry(257, 4, 1, h); // ImageLength
+    entry(258, 3, 3, bits_at); // BitsPerSample 32, 32, 32
+    entry(259, 3, 1, 1); // Compression: none
+    entry(262, 3, 1, 2); // PhotometricInterpretation: RGB
+    entry(277, 3, 1, 3); // SamplesPerPixel
+    entry(284, 3, 1, 2); // PlanarConfiguration: separate
+    entry(322, 4, 1, tile); // TileWidth
+    entry(323, 4, 1, tile); // TileLength
+    entry(324, 4, tiles, offsets_at); // TileOffsets
+    entry(325, 4, tiles, counts_at); // TileByteCounts
+    entry(339, 3, 3, format_at); // SampleFormat: float, float, float
+    b.extend_from_slice(&0u32.to_le_bytes()); // no next IFD
+    for _ in 0..3 {
+        b.extend_from_slice(&32u16.to_le_bytes());
+    }
+    for _ in 0..3 {
+        b.extend_from_slice(&3u16.to_le_bytes());
+    }
+    for t in 0..tiles {
+        b.extend_from_slice(&(data_at + t * tile_bytes).to_le_bytes());
+    }
+    for _ in 0..tiles {
+        b.extend_from_slice(&tile_bytes.to_le_bytes());
+    }
+    assert_eq!(b.len() as u32, data_at);
+    for c in 0..3 {
+        for ty in 0..down {
+            for tx in 0..across {
+                for y in ty * tile..(ty + 1) * tile {
+                    for x in tx * tile..(tx + 1) * tile {
+                        let v = if x < w && y < h {
+                            c as f32 + (y * w + x) as f32 / 1024.0
+                        } else {
+                            0.0
+                        };
+                        b.extend_from_slice(&v.to_le_bytes());
+                    }
+                }
+            }
+        }
+    }
+    b
+}
+
+/// The upstream report `docs/upstream/tiff-planar-tiled-edge.md`: the tiff crate's whole-image
+/// read panics (an `assert!`, not an error) on a planar-separate tiled float TIFF whose edge
+/// tiles are partial. Reproduced on the crate alone, contained by `catch_unwind` as
+/// `Decoded::read` contains every decoder panic; nsrm reads the same bytes chunk by chunk,
+/// sample for sample. When this fails because the crate no longer panics, the report is
+/// resolved and the chunk-by-chunk path of `src/io/tif.rs` may serve only extra samples.
+#[test]
+fn the_tiff_crates_planar_edge_tile_panic_is_reproduced_and_contained() {
+    let (w, h) = (20u32, 18u32);
+    let bytes = planar_tiled_f32(w, h, 16);
+    let whole_image = std::panic::catch_unwind(|| {
+        let mut dec = tiff::decoder::Decoder::new(std::io::Cursor::new(bytes.clone())).unwrap();
+        let mut all_planes = tiff::decoder::DecodingResult::F32(Vec::new());
+        dec.read_image_to_buffer(&mut all_planes).map(|_| ())
+    });
+    let message = match whole_image {
+        Err(payload) => payload
+            .downcast_ref::<&str>()
+            .map(|s| s.to_string())
+            .or_else(|| payload.downcast_ref::<String>().cloned())
+            .unwrap_or_default(),
+        Ok(result) => panic!(
+            "the tiff crate's whole-image read no longer panics here ({result:?}): the upstream \
+             report is resolved (update docs/upstream/tiff-planar-tiled-edge.md)"
+        ),
+    };
+    assert!(
+        message.contains("assertion failed: buf.len() >= layout.row_stride"),
+        "{message}"
+    );
+    // The cause: for planes after the first, the crate sizes bottom-edge tiles as whole (its
+    // padding ignores the plane), where plane 0's are cut to the image.
+    let dec = tiff::decoder::Decoder::new(std::io::Cursor::new(bytes.clone())).unwrap();
+    assert_eq!(
+        dec.chunk_data_dimensions(2),
+        (16, 2),
+        "plane 0, bottom-left tile"
+    );
+    assert_eq!(
+        dec.chunk_data_dimensions(3),
+        (4, 2),
+        "plane 0, bottom-right tile"
+    );
+    assert_eq!(
+        dec.chunk_data_dimensions(6),
+        (16, 16),
+        "plane 1, bottom-left tile"
+    );
+    assert_eq!(
+        dec.chunk_data_dimensions(7),
+        (4, 16),
+        "plane 1, bottom-right tile"
+    );
+    let f = read(&bytes, Limits::default()).unwrap().frame;
+    assert_eq!((f.width, f.height, f.layout.channels()), (20, 18, 3));
+    for (i, px) in f.data.chunks_exact(3).enumerate() {
+        for (c, &v) in px.iter().enumerate() {
+            assert_eq!(v, c as f32 + i as f32 / 1024.0, "pixel {i} channel {c}");
+        }
+    }
+    // The even layout (no partial tile), which the crate reads whole (plane after plane),
+    // agrees with nsrm.
+    let even = planar_tiled_f32(32, 32, 16);
+    let mut dec = tiff::decoder::Decoder::new(std::io::Cursor::new(even.clone())).unwrap();
+    let mut planes = tiff::decoder::DecodingResult::F32(Vec::new());
+    dec.read_image_to_buffer(&mut planes).unwrap();
+    let tiff::decoder::DecodingResult::F32(planes) = planes else {
+        panic!("not f32");
+    };
+    let ours = read(&even, Limits::default()).unwrap().frame.data;
+    assert_eq!(planes.len(), ours.len());
+    for (i, px) in ours.chunks_exact(3).enumerate() {
+        for (c, &v) in px.iter().enumerate() {
+            assert_eq!(v, planes[c * 32 * 32 + i], "pixel {i} channel {c}");
+        }
+    }
+}

@@ -6,11 +6,11 @@
 //! SKIP, and a failure under `CI=true`.
 
 use crate::common::{self, nsrm_in, nsrm_ok, stderr, tempdir};
-use nsrm::colorimetry::spaces::{self, OutputSpace};
-use nsrm::colorimetry::{delta_e00_xyz, output_matrix};
 use nsrm::export::{icc_device_scale, icc_pcs_matrix, IccOptions, ICC_D50 as D50};
 use nsrm::io::{read_frame, write_tiff, ReadOptions};
-use nsrm::spectral::{simulate_named, Grid};
+use nsrm::OutputSpace;
+use nsrm::{delta_e00_xyz, output_matrix};
+use nsrm::{simulate_named, Grid};
 use nsrm::{Frame, Layout, Model};
 use std::path::Path;
 use std::process::{Command, Stdio};
@@ -155,12 +155,12 @@ fn apply_pcs(dir: &Path, model_file: &str, rgb: &[[f64; 3]]) -> Vec<[f64; 3]> {
     let m = Model::load(&dir.join(model_file)).unwrap();
     // apply writes XYZ D65-referred with the white at Y = 1; back to the model's XYZ, then the
     // PCS adaptation.
-    let back = spaces::invert(&output_matrix(m.white_xyz(), OutputSpace::Xyz));
+    let back = crate::common::mat::invert(&output_matrix(m.white_xyz(), OutputSpace::Xyz));
     let pcs = icc_pcs_matrix(&m).unwrap();
-    let to_pcs = spaces::mul(&pcs, &back);
+    let to_pcs = crate::common::mat::mul(&pcs, &back);
     f.data
         .chunks_exact(f.layout.channels())
-        .map(|p| spaces::apply(&to_pcs, [p[0] as f64, p[1] as f64, p[2] as f64]))
+        .map(|p| crate::common::mat::apply(&to_pcs, [p[0] as f64, p[1] as f64, p[2] as f64]))
         .collect()
 }
 

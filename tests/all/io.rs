@@ -11,9 +11,9 @@ use exr::math::{RoundingMode, Vec2};
 use exr::meta::attribute::{AttributeValue, Chromaticities, IntegerBounds, LineOrder, Text};
 use exr::meta::header::{ImageAttributes, LayerAttributes};
 use exr::prelude::{f16, SmallVec, WritableImage};
-use nsrm::colorimetry::spaces::OutputSpace;
 use nsrm::error::{Concern, Param};
 use nsrm::io::{read_frame, Decoded, FileFormat, IoError, ReadOptions, WriteOptions};
+use nsrm::OutputSpace;
 use nsrm::{Frame, Layout};
 use std::path::Path;
 
@@ -645,7 +645,7 @@ fn writes_are_atomic_and_never_clobber() {
 fn chart_layout_round_trips() {
     use nsrm::chart::{layout_path, render_chart as render, write_chart as write};
     use nsrm::chart::{ChartLayout, ChartOptions};
-    use nsrm::spectral::{simulate_named, Grid};
+    use nsrm::{simulate_named, Grid};
     let data = simulate_named("nikon-d5100", "D65", "cc24", &Grid::default()).unwrap();
     let (frame, layout) = render(
         &data,

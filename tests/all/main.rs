@@ -26,7 +26,6 @@ mod export_ocio;
 mod exr_fast;
 #[cfg(feature = "cli")]
 mod farm;
-mod fast;
 #[cfg(feature = "cli")]
 mod first_hour;
 #[cfg(feature = "cli")]

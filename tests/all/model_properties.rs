@@ -1,10 +1,10 @@
 //! Properties of the models: exposure invariance (LRM, RPRM, NSRM; not PRM), and agreement of
 //! leave-one-out with a direct refit.
 
-use nsrm::model::fit::{fit_with, Fit, FitOptions, Normalise, Objective, Ridge};
-use nsrm::model::{fit, Kind, Model};
-use nsrm::spectral::{simulate_named, Grid};
 use nsrm::TrainingSet;
+use nsrm::{fit, Kind, Model};
+use nsrm::{fit_with, Fit, FitOptions, Normalise, Objective, Ridge};
+use nsrm::{simulate_named, Grid};
 use proptest::prelude::*;
 use std::sync::OnceLock;
 

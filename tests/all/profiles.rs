@@ -4,12 +4,12 @@
 //! a missing one is a SKIP, and a failure under `CI=true`.
 
 use crate::common::{nsrm_in, nsrm_ok, stderr, tempdir};
-use nsrm::colorimetry::spaces::{self, Mat3};
-use nsrm::colorimetry::temperature::{cct, temperature_xy, D50_XY};
-use nsrm::model::dual_illuminant::{FrameWhite, Profile};
-use nsrm::model::fit::{fit_with, FitOptions};
-use nsrm::model::Kind;
-use nsrm::spectral::{simulate_named, Grid};
+use nsrm::Kind;
+use nsrm::Mat3;
+use nsrm::{cct, temperature_xy, D50_XY};
+use nsrm::{fit_with, FitOptions};
+use nsrm::{simulate_named, Grid};
+use nsrm::{FrameWhite, Profile};
 use std::path::Path;
 use std::process::{Command, Stdio};
 
@@ -87,13 +87,13 @@ fn colour_hdri_judges_the_white_balance_weighting() {
         return skip("python3 with colour-hdri and numpy is not installed");
     }
     let p = Profile::dual(model(Kind::Lrm, "A"), model(Kind::Lrm, "D65")).unwrap();
-    let d50 = spaces::xy_to_xyz(D50_XY);
+    let d50 = crate::common::mat::xy_to_xyz(D50_XY);
     let cms: Vec<Mat3> = p
         .models()
         .iter()
         .map(|m| {
-            let inv = spaces::invert(&mat(m));
-            let c = spaces::apply(&inv, d50.map(|v| v * m.white_xyz()[1]));
+            let inv = crate::common::mat::invert(&mat(m));
+            let c = crate::common::mat::apply(&inv, d50.map(|v| v * m.white_xyz()[1]));
             let k = 1.0 / c.iter().cloned().fold(f64::MIN, f64::max);
             inv.map(|r| r.map(|v| v * k))
         })
@@ -162,8 +162,8 @@ fn a_grey_under_a_real_light_between_comes_out_neutral() {
             .combine(FrameWhite::Neutral(d.white_rgb.unwrap()))
             .unwrap();
         for i in 18..24 {
-            let out = nsrm::colorimetry::xyz_to_lab(c.apply_f64(d.rgb[i]), c.white_xyz);
-            let want = nsrm::colorimetry::xyz_to_lab(d.xyz[i], d.white_xyz);
+            let out = nsrm::xyz_to_lab(c.apply_f64(d.rgb[i]), c.white_xyz);
+            let want = nsrm::xyz_to_lab(d.xyz[i], d.white_xyz);
             assert!(
                 (out[1] - want[1]).abs() < 0.5 && (out[2] - want[2]).abs() < 0.5,
                 "{light} patch {i}: {out:?} vs {want:?}"
@@ -376,9 +376,9 @@ fn two_illuminant_table() {
                 let out = c.apply_f64(t.rgb[i]);
                 // The output is relative to the white the camera's neutral names, the reference
                 // to the light's own white: each in Lab against its white.
-                let lab = nsrm::colorimetry::xyz_to_lab(out, c.white_xyz);
-                let want = nsrm::colorimetry::xyz_to_lab(t.xyz[i], t.white_xyz);
-                e.push(nsrm::colorimetry::ciede2000(lab, want));
+                let lab = nsrm::xyz_to_lab(out, c.white_xyz);
+                let want = nsrm::xyz_to_lab(t.xyz[i], t.white_xyz);
+                e.push(nsrm::ciede2000(lab, want));
             }
         }
         let cct = {

@@ -9,13 +9,13 @@
 //! RawTherapee at that weight. Installed by `.ci/install.d/40-profiles.sh`.
 
 use crate::common::{nsrm_ok, skip, tempdir};
-use nsrm::colorimetry::delta_e00_xyz;
-use nsrm::colorimetry::spaces;
-use nsrm::colorimetry::spaces::OutputSpace;
-use nsrm::colorimetry::temperature::D50_XY;
+use nsrm::delta_e00_xyz;
+
 use nsrm::export::{prophoto_to_xyz, Dcp};
-use nsrm::model::dual_illuminant::{FrameWhite, Profile};
-use nsrm::spectral::{simulate_named, Grid};
+use nsrm::OutputSpace;
+use nsrm::D50_XY;
+use nsrm::{simulate_named, Grid};
+use nsrm::{FrameWhite, Profile};
 use std::path::Path;
 use std::process::{Command, Stdio};
 
@@ -232,7 +232,7 @@ fn develop(
         serde_json::from_str(&python(READ_PATCHES, &read.to_string())).unwrap();
     let rows = |k: &str| -> Vec<[f64; 3]> { serde_json::from_value(v[k].clone()).unwrap() };
     let pp = prophoto_to_xyz();
-    let d50 = spaces::xy_to_xyz(D50_XY);
+    let d50 = crate::common::mat::xy_to_xyz(D50_XY);
     // nsrm's XYZ output is the frame white's XYZ adapted to D65 (unless that white is D65 to
     // within a tolerance), white Y = 1; the DCP's PCS is D50. Undo the one, adapt to the other.
     let white = Profile::load(&dir.join(model))
@@ -241,15 +241,18 @@ fn develop(
         .unwrap()
         .white_xyz;
     let written = OutputSpace::Xyz.from_xyz(white);
-    let to_d50 = spaces::mul(
-        &nsrm::colorimetry::temperature::bradford_between(white, d50),
-        &spaces::invert(&written),
+    let to_d50 = crate::common::mat::mul(
+        &nsrm::bradford_between(white, d50),
+        &crate::common::mat::invert(&written),
     );
     Developed {
-        rt: rows("rt").iter().map(|c| spaces::apply(&pp, *c)).collect(),
+        rt: rows("rt")
+            .iter()
+            .map(|c| crate::common::mat::apply(&pp, *c))
+            .collect(),
         nsrm: rows("nsrm")
             .iter()
-            .map(|c| spaces::apply(&to_d50, *c))
+            .map(|c| crate::common::mat::apply(&to_d50, *c))
             .collect(),
         camera,
     }
@@ -257,7 +260,7 @@ fn develop(
 
 /// ΔE00 per patch, the white at Y = `white_y` (the perfect white's level in the frame).
 fn errors(a: &[[f64; 3]], b: &[[f64; 3]], white_y: f64) -> Vec<f64> {
-    let w = spaces::xy_to_xyz(D50_XY).map(|v| v * white_y);
+    let w = crate::common::mat::xy_to_xyz(D50_XY).map(|v| v * white_y);
     a.iter()
         .zip(b)
         .map(|(x, y)| delta_e00_xyz(*x, *y, w))

@@ -230,6 +230,8 @@ pub(crate) struct NotFound(pub String);
 #[error("{0}")]
 pub(crate) struct TooLarge(pub String);
 
+/// The page's files and the API: what is not about one open frame here, the rest in
+/// [`route_frame`].
 fn route(studio: &Studio, req: &mut Request, t: &Target) -> Result<Reply> {
     let method = req.method().as_str().to_ascii_uppercase();
     let parts: Vec<&str> = t.path.trim_matches('/').split('/').collect();
@@ -267,15 +269,35 @@ fn route(studio: &Studio, req: &mut Request, t: &Target) -> Result<Reply> {
             let id = studio.new_id();
             Ok(json(200, &studio.open(id, path, false)?))
         }
-        ("GET", ["api", "frames", id]) => Ok(json(200, &studio.frame(id)?.lock_state().state())),
-        ("POST", ["api", "frames", id, "reading"]) => {
+        (m, ["api", "frames", id, rest @ ..]) => route_frame(studio, req, t, m, id, rest),
+        (_, ["api", ..]) => Err(NotFound(format!("no endpoint {method} {}", t.path)).into()),
+        _ => Err(NotFound(format!("no page {}", t.path)).into()),
+    }
+}
+
+/// The API of open frame `id`: `method` on `/api/frames/ID/REST…`.
+fn route_frame(
+    studio: &Studio,
+    req: &mut Request,
+    t: &Target,
+    method: &str,
+    id: &str,
+    rest: &[&str],
+) -> Result<Reply> {
+    match (method, rest) {
+        ("GET", []) => Ok(json(200, &studio.frame(id)?.lock_state().state())),
+        ("DELETE", []) => {
+            studio.close(id)?;
+            Ok(json(200, &serde_json::json!({ "closed": id })))
+        }
+        ("POST", ["reading"]) => {
             let body = read_json(req)?;
             let f = studio.frame(id)?;
             let mut s = f.lock_state();
             s.set_reading(studio, body)?;
             Ok(json(200, &s.state()))
         }
-        ("POST", ["api", "frames", id, "flat"]) => {
+        ("POST", ["flat"]) => {
             let f = studio.frame(id)?;
             let name = t.param("name").map(str::to_string);
             let dir = studio.new_flat_dir(id)?;
@@ -285,23 +307,23 @@ fn route(studio: &Studio, req: &mut Request, t: &Target) -> Result<Reply> {
             s.set_flat_upload(&saved)?;
             Ok(json(200, &s.state()))
         }
-        ("GET", ["api", "frames", id, "preview.png"]) => {
+        ("GET", ["preview.png"]) => {
             let f = studio.frame(id)?;
             let png = f.lock_state().preview_png.clone();
             Ok(Reply::new(200, "image/png", png))
         }
-        ("GET", ["api", "frames", id, "overlay.png"]) => {
+        ("GET", ["overlay.png"]) => {
             let f = studio.frame(id)?;
             let png = f.lock_state().overlay_png()?;
             Ok(Reply::new(200, "image/png", png))
         }
-        ("POST", ["api", "frames", id, "fit"]) => {
+        ("POST", ["fit"]) => {
             let body = read_json(req)?;
             let f = studio.frame(id)?;
             let mut s = f.lock_state();
             Ok(json(200, &s.fit(body)?))
         }
-        ("POST", ["api", "frames", id, "compare"]) => {
+        ("POST", ["compare"]) => {
             let body = read_json(req)?;
             let f = studio.frame(id)?;
             // The frame's lock is held only to take the patches: other requests on this frame
@@ -309,36 +331,24 @@ fn route(studio: &Studio, req: &mut Request, t: &Target) -> Result<Reply> {
             let plan = f.lock_state().compare_plan(body)?;
             Ok(json(200, &plan.run()?))
         }
-        ("GET", ["api", "frames", id, "corrected.png"]) => {
+        ("GET", ["corrected.png"]) => {
             let f = studio.frame(id)?;
             let s = f.lock_state();
             let (png, computed) =
                 s.corrected_png(studio, t.param("space").unwrap_or("linear-srgb"))?;
             let mut r = Reply::new(200, "image/png", png);
             r.extra.push(("X-Nsrm-Device", computed.device.to_string()));
-            // A header value: the adapter or the reason, in printable ASCII.
-            let detail: String = computed
-                .detail
-                .chars()
-                .map(|c| {
-                    if c.is_ascii_graphic() || c == ' ' {
-                        c
-                    } else {
-                        '?'
-                    }
-                })
-                .take(200)
-                .collect();
-            r.extra.push(("X-Nsrm-Device-Detail", detail));
+            r.extra
+                .push(("X-Nsrm-Device-Detail", header_text(&computed.detail)));
             Ok(r)
         }
-        ("GET", ["api", "frames", id, "export"]) => {
+        ("GET", ["export"]) => {
             let f = studio.frame(id)?;
             let s = f.lock_state();
             let (bytes, name) = s.export(studio, t)?;
             Ok(Reply::download("application/octet-stream", bytes, name))
         }
-        ("GET", ["api", "frames", id, "model.json"]) => {
+        ("GET", ["model.json"]) => {
             let f = studio.frame(id)?;
             let text = f.lock_state().model_json()?;
             Ok(Reply::download(
@@ -347,7 +357,7 @@ fn route(studio: &Studio, req: &mut Request, t: &Target) -> Result<Reply> {
                 "model.json".into(),
             ))
         }
-        ("GET", ["api", "frames", id, "patches.csv"]) => {
+        ("GET", ["patches.csv"]) => {
             let f = studio.frame(id)?;
             let text = f.lock_state().patches_csv()?;
             Ok(Reply::download(
@@ -356,7 +366,7 @@ fn route(studio: &Studio, req: &mut Request, t: &Target) -> Result<Reply> {
                 "patches.csv".into(),
             ))
         }
-        ("GET", ["api", "frames", id, "command"]) => {
+        ("GET", ["command"]) => {
             let f = studio.frame(id)?;
             let text = f.lock_state().command(t);
             Ok(Reply::new(
@@ -365,14 +375,14 @@ fn route(studio: &Studio, req: &mut Request, t: &Target) -> Result<Reply> {
                 text.into_bytes(),
             ))
         }
-        ("GET", ["api", "frames", id, "shader"]) => {
+        ("GET", ["shader"]) => {
             let f = studio.frame(id)?;
             let v = f
                 .lock_state()
                 .wgsl(t.param("space").unwrap_or("linear-srgb"))?;
             Ok(json(200, &v))
         }
-        ("GET", ["api", "frames", id, "pixels.f32"]) => {
+        ("GET", ["pixels.f32"]) => {
             let f = studio.frame(id)?;
             let (bytes, w, h) = f.lock_state().preview_pixels();
             let mut r = Reply::new(200, "application/octet-stream", bytes);
@@ -380,13 +390,22 @@ fn route(studio: &Studio, req: &mut Request, t: &Target) -> Result<Reply> {
             r.extra.push(("X-Nsrm-Height", h.to_string()));
             Ok(r)
         }
-        ("DELETE", ["api", "frames", id]) => {
-            studio.close(id)?;
-            Ok(json(200, &serde_json::json!({ "closed": id })))
-        }
-        (_, ["api", ..]) => Err(NotFound(format!("no endpoint {method} {}", t.path)).into()),
-        _ => Err(NotFound(format!("no page {}", t.path)).into()),
+        _ => Err(NotFound(format!("no endpoint {method} {}", t.path)).into()),
     }
+}
+
+/// `text` as a header value: printable ASCII (anything else `?`), at most 200 characters.
+fn header_text(text: &str) -> String {
+    text.chars()
+        .map(|c| {
+            if c.is_ascii_graphic() || c == ' ' {
+                c
+            } else {
+                '?'
+            }
+        })
+        .take(200)
+        .collect()
 }
 
 /// A JSON body (at most [`MAX_JSON`] bytes; an empty body is `{}`).
@@ -661,5 +680,12 @@ mod tests {
         let e = multipart_file(&mut &b"--XyZ\r\n\r\n"[..], "XyZ", &dir, 100);
         assert!(e.is_err());
         std::fs::remove_dir_all(&dir).unwrap();
+    }
+
+    #[test]
+    fn header_text_is_printable_ascii_of_bounded_length() {
+        assert_eq!(header_text("lavapipe (LLVM 17)"), "lavapipe (LLVM 17)");
+        assert_eq!(header_text("GPU\r\nX-Evil: 1 – é"), "GPU??X-Evil: 1 ? ?");
+        assert_eq!(header_text(&"a".repeat(300)).len(), 200);
     }
 }

@@ -190,7 +190,9 @@ impl Bits<'_> {
     }
 }
 
-/// OpenEXR's Huffman stream (`hufUncompress`) into exactly `out.len()` symbols.
+/// OpenEXR's Huffman stream (`hufUncompress`) into exactly `out.len()` symbols: the header
+/// (symbol range and stream length), the packed code lengths ([`read_code_lengths`]), the
+/// canonical code they define ([`Decoder::new`]), then the symbols ([`Decoder::decode`]).
 fn huffman_decode(data: &[u8], out: &mut [u16]) -> Result<(), Error> {
     if data.is_empty() {
         return if out.is_empty() {
@@ -209,13 +211,27 @@ fn huffman_decode(data: &[u8], out: &mut [u16]) -> Result<(), Error> {
         return Err("Huffman symbol range out of range".into());
     }
     let rest = r.0;
+    let (lens, table_bits) = read_code_lengths(rest, im, i_max)?;
+    let stream = &rest[table_bits.div_ceil(8)..];
+    if n_bits.div_ceil(8) > stream.len() {
+        return Err("the Huffman data ends early".into());
+    }
+    let stream = &stream[..n_bits.div_ceil(8)];
+    let decoder = Decoder::new(&lens, im, i_max)?;
+    decoder.decode(stream, n_bits, i_max as u32, out)
+}
 
-    // Code lengths, packed in 6 bits with runs of zeros.
+/// The code lengths of symbols `im..=i_max` (the others stay 0), packed MSB-first in 6 bits
+/// each with runs of zeros shortened, at the start of `table`; and how many bits they took.
+fn read_code_lengths(table: &[u8], im: usize, i_max: usize) -> Result<(Vec<u8>, usize), Error> {
     let mut lens = vec![0u8; ENC_SIZE];
-    let mut bits = Bits { data: rest, pos: 0 };
+    let mut bits = Bits {
+        data: table,
+        pos: 0,
+    };
     let mut i = im;
     while i <= i_max {
-        if bits.pos >= 8 * rest.len() {
+        if bits.pos >= 8 * table.len() {
             return Err("the Huffman code table ends early".into());
         }
         let l = bits.read(6);
@@ -236,123 +252,146 @@ fn huffman_decode(data: &[u8], out: &mut [u16]) -> Result<(), Error> {
             i += 1;
         }
     }
-    if bits.pos > 8 * rest.len() {
+    if bits.pos > 8 * table.len() {
         return Err("the Huffman code table ends early".into());
     }
-    let stream = &rest[bits.pos.div_ceil(8)..];
-    if n_bits.div_ceil(8) > stream.len() {
-        return Err("the Huffman data ends early".into());
-    }
-    let stream = &stream[..n_bits.div_ceil(8)];
+    Ok((lens, bits.pos))
+}
 
-    // Canonical codes (`hufCanonicalCodeTable`): per length, the first code; codes of one length
-    // go to the symbols in increasing order.
-    let mut count = [0u64; 59];
-    for &l in &lens[im..=i_max] {
-        count[usize::from(l)] += 1;
-    }
-    let mut first = [0u64; 59];
-    let mut c = 0u64;
-    for l in (1..=58).rev() {
-        first[l] = c;
-        c = (c + count[l]) >> 1;
-    }
-    let max_len = (1..=58).rev().find(|&l| count[l] > 0).unwrap_or(0) as u32;
-    if max_len > MAX_LEN {
-        return Err(format!("Huffman codes of {max_len} bits"));
-    }
-    for l in 1..=max_len as usize {
-        if first[l] + count[l] > 1u64 << l {
-            return Err("invalid Huffman code table".into());
+/// A canonical Huffman code (`hufCanonicalCodeTable`) ready to decode: per length, the first
+/// code and how many codes; codes of one length go to the symbols in increasing order.
+struct Decoder {
+    count: [u64; 59],
+    first: [u64; 59],
+    /// Symbols sorted by (length, value): those of length `l` start at `offset[l]`.
+    offset: [usize; 60],
+    sorted: Vec<u32>,
+    /// Direct table: (length << 24 | symbol) for codes up to TABLE_BITS, 0 where longer.
+    table: Vec<u32>,
+    max_len: u32,
+}
+
+impl Decoder {
+    /// The code of symbols `im..=i_max` with lengths `lens` (indexed by symbol).
+    fn new(lens: &[u8], im: usize, i_max: usize) -> Result<Decoder, Error> {
+        let mut count = [0u64; 59];
+        for &l in &lens[im..=i_max] {
+            count[usize::from(l)] += 1;
         }
-    }
-    // Symbols sorted by (length, value): those of length l start at `offset[l]`.
-    let mut offset = [0usize; 60];
-    for l in 1..=58 {
-        offset[l + 1] = offset[l] + count[l] as usize;
-    }
-    let mut sorted = vec![0u32; offset[59]];
-    let mut fill = offset;
-    for s in im..=i_max {
-        let l = usize::from(lens[s]);
-        if l > 0 {
-            sorted[fill[l]] = s as u32;
-            fill[l] += 1;
+        let mut first = [0u64; 59];
+        let mut c = 0u64;
+        for l in (1..=58).rev() {
+            first[l] = c;
+            c = (c + count[l]) >> 1;
         }
-    }
-    // Direct table: (length << 24 | symbol) for codes up to TABLE_BITS, 0 where longer.
-    let mut table = vec![0u32; 1 << TABLE_BITS];
-    for l in 1..=TABLE_BITS.min(max_len) as usize {
-        for k in 0..count[l] as usize {
-            let code = first[l] + k as u64;
-            let sym = sorted[offset[l] + k];
-            let span = 1usize << (TABLE_BITS as usize - l);
-            let start = (code as usize) << (TABLE_BITS as usize - l);
-            for e in &mut table[start..start + span] {
-                if *e != 0 {
-                    return Err("invalid Huffman code table".into());
-                }
-                *e = (l as u32) << 24 | sym;
+        let max_len = (1..=58).rev().find(|&l| count[l] > 0).unwrap_or(0) as u32;
+        if max_len > MAX_LEN {
+            return Err(format!("Huffman codes of {max_len} bits"));
+        }
+        for l in 1..=max_len as usize {
+            if first[l] + count[l] > 1u64 << l {
+                return Err("invalid Huffman code table".into());
             }
         }
-    }
-
-    let rlc = i_max as u32;
-    let mut bits = Bits {
-        data: stream,
-        pos: 0,
-    };
-    let mut n = 0usize;
-    while bits.pos < n_bits {
-        let window = bits.peek();
-        let e = table[(window >> (64 - TABLE_BITS)) as usize];
-        let (len, sym) = if e != 0 {
-            (e >> 24, e & 0xff_ffff)
-        } else {
-            let mut found = None;
-            for l in TABLE_BITS + 1..=max_len {
-                let v = window >> (64 - l);
-                let (f, c) = (first[l as usize], count[l as usize]);
-                if v >= f && v - f < c {
-                    found = Some((l, sorted[offset[l as usize] + (v - f) as usize]));
-                    break;
+        let mut offset = [0usize; 60];
+        for l in 1..=58 {
+            offset[l + 1] = offset[l] + count[l] as usize;
+        }
+        let mut sorted = vec![0u32; offset[59]];
+        let mut fill = offset;
+        for s in im..=i_max {
+            let l = usize::from(lens[s]);
+            if l > 0 {
+                sorted[fill[l]] = s as u32;
+                fill[l] += 1;
+            }
+        }
+        let mut table = vec![0u32; 1 << TABLE_BITS];
+        for l in 1..=TABLE_BITS.min(max_len) as usize {
+            for k in 0..count[l] as usize {
+                let code = first[l] + k as u64;
+                let sym = sorted[offset[l] + k];
+                let span = 1usize << (TABLE_BITS as usize - l);
+                let start = (code as usize) << (TABLE_BITS as usize - l);
+                for e in &mut table[start..start + span] {
+                    if *e != 0 {
+                        return Err("invalid Huffman code table".into());
+                    }
+                    *e = (l as u32) << 24 | sym;
                 }
             }
-            found.ok_or("invalid Huffman code")?
+        }
+        Ok(Decoder {
+            count,
+            first,
+            offset,
+            sorted,
+            table,
+            max_len,
+        })
+    }
+
+    /// The (length, symbol) of the code at the start of `window` (bit 63 first).
+    #[inline]
+    fn symbol(&self, window: u64) -> Option<(u32, u32)> {
+        let e = self.table[(window >> (64 - TABLE_BITS)) as usize];
+        if e != 0 {
+            return Some((e >> 24, e & 0xff_ffff));
+        }
+        for l in TABLE_BITS + 1..=self.max_len {
+            let v = window >> (64 - l);
+            let (f, c) = (self.first[l as usize], self.count[l as usize]);
+            if v >= f && v - f < c {
+                return Some((l, self.sorted[self.offset[l as usize] + (v - f) as usize]));
+            }
+        }
+        None
+    }
+
+    /// Decodes the `n_bits` of `stream` into exactly `out.len()` values; symbol `rlc` followed
+    /// by 8 bits repeats the previous value that many more times.
+    fn decode(&self, stream: &[u8], n_bits: usize, rlc: u32, out: &mut [u16]) -> Result<(), Error> {
+        let mut bits = Bits {
+            data: stream,
+            pos: 0,
         };
-        if bits.pos + len as usize > n_bits {
-            return Err("invalid Huffman code at the end of the data".into());
+        let mut n = 0usize;
+        while bits.pos < n_bits {
+            let (len, sym) = self.symbol(bits.peek()).ok_or("invalid Huffman code")?;
+            if bits.pos + len as usize > n_bits {
+                return Err("invalid Huffman code at the end of the data".into());
+            }
+            bits.pos += len as usize;
+            if sym == rlc {
+                if bits.pos + 8 > n_bits {
+                    return Err("a Huffman run without its length".into());
+                }
+                let run = bits.read(8) as usize;
+                if n == 0 {
+                    return Err("a Huffman run before any value".into());
+                }
+                if n + run > out.len() {
+                    return Err("the Huffman data decodes to too many values".into());
+                }
+                let v = out[n - 1];
+                out[n..n + run].fill(v);
+                n += run;
+            } else {
+                let Some(o) = out.get_mut(n) else {
+                    return Err("the Huffman data decodes to too many values".into());
+                };
+                *o = sym as u16;
+                n += 1;
+            }
         }
-        bits.pos += len as usize;
-        if sym == rlc {
-            if bits.pos + 8 > n_bits {
-                return Err("a Huffman run without its length".into());
-            }
-            let run = bits.read(8) as usize;
-            if n == 0 {
-                return Err("a Huffman run before any value".into());
-            }
-            if n + run > out.len() {
-                return Err("the Huffman data decodes to too many values".into());
-            }
-            let v = out[n - 1];
-            out[n..n + run].fill(v);
-            n += run;
-        } else {
-            let Some(o) = out.get_mut(n) else {
-                return Err("the Huffman data decodes to too many values".into());
-            };
-            *o = sym as u16;
-            n += 1;
+        if n != out.len() {
+            return Err(format!(
+                "the Huffman data decodes to {n} values, expected {}",
+                out.len()
+            ));
         }
+        Ok(())
     }
-    if n != out.len() {
-        return Err(format!(
-            "the Huffman data decodes to {n} values, expected {}",
-            out.len()
-        ));
-    }
-    Ok(())
 }
 
 /// OpenEXR's 14-bit inverse Haar step (`wdec14`).
@@ -911,5 +950,81 @@ mod tests {
                 .unwrap_or_else(|e| panic!("exr: {types:?} {w}x{h} kind {kind}: {e}"));
             assert_eq!(&theirs, raw, "exr: {types:?} {w}x{h} kind {kind}");
         }
+    }
+
+    /// Packs `(bits, value)` pairs MSB-first, zero-padded to a byte.
+    fn pack(fields: &[(u32, u64)]) -> Vec<u8> {
+        let mut out = Vec::new();
+        let mut w = BitWriter {
+            out: &mut out,
+            acc: 0,
+            n: 0,
+        };
+        for &(len, v) in fields {
+            w.put(len, v);
+        }
+        w.finish(0);
+        out
+    }
+
+    #[test]
+    fn code_lengths_unpack_with_their_zero_runs() {
+        // Symbols 10..=20: 1, a short run of 3 zeros, 2, a long run of 6 zeros (fills to 20)...
+        let t = pack(&[
+            (6, 1),
+            (6, SHORT_ZEROCODE_RUN + 1),
+            (6, 2),
+            (6, LONG_ZEROCODE_RUN),
+            (8, 0),
+        ]);
+        let (lens, used) = read_code_lengths(&t, 10, 20).unwrap();
+        assert_eq!(used, 32);
+        assert_eq!(&lens[9..22], &[0, 1, 0, 0, 0, 2, 0, 0, 0, 0, 0, 0, 0]);
+        // ...which is one too many for symbols 10..=19, and too few for 10..=22.
+        assert!(read_code_lengths(&t, 10, 19).is_err());
+        assert!(read_code_lengths(&t, 10, 22).is_err());
+    }
+
+    #[test]
+    fn the_canonical_code_gives_longer_codes_the_smaller_values() {
+        // Symbol 0: 1 bit, symbols 3 and 4: 2 bits → "1", "00", "01" (OpenEXR's order).
+        let mut lens = vec![0u8; 5];
+        lens[0] = 1;
+        lens[3] = 2;
+        lens[4] = 2;
+        let d = Decoder::new(&lens, 0, 4).unwrap();
+        assert_eq!(d.symbol(1 << 63), Some((1, 0)));
+        assert_eq!(d.symbol(0), Some((2, 3)));
+        assert_eq!(d.symbol(1 << 62), Some((2, 4)));
+        // Three 1-bit codes do not fit.
+        assert!(Decoder::new(&[1, 1, 1], 0, 2).is_err());
+        // A 20-bit code is found past the direct table.
+        let mut long = vec![0u8; 21];
+        for (s, l) in long.iter_mut().enumerate().skip(1) {
+            *l = s as u8;
+        }
+        long[0] = 20;
+        let d = Decoder::new(&long, 0, 20).unwrap();
+        assert_eq!(d.symbol(0).map(|(l, _)| l), Some(20));
+    }
+
+    #[test]
+    fn symbols_and_runs_decode_to_exactly_the_values_asked_for() {
+        let mut lens = vec![0u8; 5];
+        lens[0] = 1;
+        lens[3] = 2;
+        lens[4] = 2;
+        let d = Decoder::new(&lens, 0, 4).unwrap();
+        // 0, 3, then the run symbol (4) with a run of 3: 0 3 3 3 3.
+        let stream = pack(&[(1, 1), (2, 0), (2, 1), (8, 3)]);
+        let mut out = [9u16; 5];
+        d.decode(&stream, 13, 4, &mut out).unwrap();
+        assert_eq!(out, [0, 3, 3, 3, 3]);
+        assert!(d.decode(&stream, 13, 4, &mut [0u16; 4]).is_err());
+        assert!(d.decode(&stream, 13, 4, &mut [0u16; 6]).is_err());
+        // A run first, or without its length.
+        let first = pack(&[(2, 1), (8, 3)]);
+        assert!(d.decode(&first, 10, 4, &mut out).is_err());
+        assert!(d.decode(&stream, 7, 4, &mut out).is_err());
     }
 }

@@ -1,10 +1,12 @@
-//! The fast CPU path against the f64 reference (`Model::apply_frame_f64`), for every kind, order
-//! and layout, on frames full of awkward pixels.
+//! The fast CPU path ([`Model::apply_frame`] and the crate's own entry points into `super::fast`)
+//! against the f64 reference (`Model::apply_frame_f64`), for every kind, order and layout, on
+//! frames full of awkward pixels. (Once `tests/all/fast.rs`; here since the fast path's internals
+//! are crate-private. The frames and the bound are the shared test kit's, `tests/all/common/kit.rs`.)
 //!
 //! Accuracy criterion, per pixel and output channel `k` (`ref` = the f64 reference rounded to f32):
 //! * reference NaN ⇒ fast NaN; reference ±∞ ⇒ fast the same ±∞; reference finite ⇒ fast finite and
 //!   `|fast_k − ref_k| ≤ 1e-5·max(|ref_k|, T_k, 1e-30)` — the one f32 bound of the GPU tests too
-//!   (`tests/common`: `f32_bound`):
+//!   (the test kit's `f32_bound`):
 //!   - `T_k = |s|·Σ_j |m_kj·p_j|` (f64), the size of the summands of output `k`. Where the model
 //!     cancels (summands much larger than the result: PRM extrapolating HDR values, the fitted
 //!     RPRM 3/4 and PRM 3/4 whose coefficients run into the thousands), no f32 evaluation can be
@@ -13,20 +15,23 @@
 //!   - the floor 1e-30 only matters for pixels whose reference is exactly 0 (all-zero input;
 //!     NSRM with `s ≤ 0`).
 //!
-//!   `cargo test --test fast -- --nocapture` prints the worst `err/max|ref|` and `err/T_k` per model.
+//!   `cargo test --lib fast_tests -- --nocapture` prints the worst `err/max|ref|` and `err/T_k` per model.
 //! * Alpha is bit-for-bit unchanged.
 //! * One thread, all threads, in place and into a second frame give bit-identical results; the
 //!   baseline clone without FMA (`FastModel::apply_baseline`) meets the same bounds.
 
-use nsrm::model::fast::{apply_frame, apply_frame_single, FastModel, Threads};
-use nsrm::model::fit::{fit_with, FitOptions, Normalise};
-use nsrm::model::{fit, terms, Kind, Model, MAX_ORDER};
-use nsrm::{Frame, Layout};
-
-use crate::common;
+use super::fast::{apply_frame_single, FastModel, Threads};
+use super::terms;
+use crate::kit as common;
+use crate::{fit, fit_with, FitOptions, Frame, Kind, Layout, Model, Normalise, MAX_ORDER};
 use common::{
     awkward_frame as random_frame, f32_bound, summands as term_magnitude, training, Rng, F32_REL,
 };
+
+/// The public CPU frame path.
+fn apply_frame(model: &Model, frame: &mut Frame) {
+    model.apply_frame(frame)
+}
 
 /// Every kind at every order ([`common::fitted_models`]) and white-balanced NSRM (input gains) at
 /// every order.

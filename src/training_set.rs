@@ -1,0 +1,89 @@
+//! The training set's data: the patches (labels, camera RGB, XYZ, whites) and where they came
+//! from. `spectral` simulates it, `chart` reads it from a photographed chart, and `training`
+//! (which re-exports these types) reads and writes its CSV file and selects patches.
+
+use serde::{Deserialize, Serialize};
+
+/// Where a training set came from; written into model files.
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+pub struct Provenance {
+    /// `spectral` (simulated from spectra) or `measured` (a user's CSV).
+    pub source: String,
+    #[serde(skip_serializing_if = "Option::is_none", default)]
+    pub camera: Option<String>,
+    #[serde(skip_serializing_if = "Option::is_none", default)]
+    pub illuminant: Option<String>,
+    #[serde(skip_serializing_if = "Option::is_none", default)]
+    pub reflectances: Option<String>,
+    #[serde(skip_serializing_if = "Option::is_none", default)]
+    pub grid: Option<String>,
+    /// The `--patches` selection, if one was applied.
+    #[serde(skip_serializing_if = "Option::is_none", default)]
+    pub patches: Option<String>,
+    /// Patches read from a photographed chart (`--capture`).
+    #[serde(skip_serializing_if = "Option::is_none", default)]
+    pub capture: Option<CaptureProvenance>,
+}
+
+/// Where patches read from a chart capture came from.
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+pub struct CaptureProvenance {
+    /// The frame's file name.
+    pub frame: String,
+    /// SHA-256 of the frame file's bytes (hex).
+    pub sha256: String,
+    /// `cc24` or `sg`.
+    pub chart: String,
+    /// The reference values (a built-in name or a file).
+    pub reference: String,
+    /// `corners` or `detected`.
+    pub located: String,
+    /// Excluded patches with their flags, e.g. `19 white 9.5 (clipped)`.
+    pub excluded: Vec<String>,
+    /// How camera RGB was normalised before fitting.
+    pub exposure_normalisation: String,
+    /// Camera G of the perfect white implied by the neutral patches (median of 100 G / Y).
+    pub white_g: f64,
+    /// Flat-field compensation: `none`, `flat frame` or `neutral patches`, and the estimated
+    /// non-uniformity of the light (max/min over the chart).
+    pub flat: String,
+    pub light_nonuniformity: f64,
+    /// Median ΔE00 of the patches against the reference after the best 3×3 linear map.
+    pub reference_match_de00: f64,
+    /// How the frame's values were decoded: `linear`, or display-referred (sRGB decoded, the
+    /// camera's tone curve still in them). Empty in files written before it was recorded.
+    #[serde(default)]
+    pub encoding: String,
+    /// The camera (`make model`) of a camera raw frame, as the file records it; absent for
+    /// EXR / TIFF frames and in files written before it existed.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub camera: Option<String>,
+}
+
+/// Patches with camera RGB and reference XYZ, and the reference white (for Lab).
+#[derive(Debug, Clone, PartialEq)]
+pub struct TrainingSet {
+    pub labels: Vec<String>,
+    /// Linear camera RGB (perfect white: G = 1 for simulated data).
+    pub rgb: Vec<[f64; 3]>,
+    /// CIE XYZ (perfect white: Y = 100 for simulated data).
+    pub xyz: Vec<[f64; 3]>,
+    /// XYZ of the perfect white under the illuminant: the Lab reference white.
+    pub white_xyz: [f64; 3],
+    /// Camera RGB of the perfect white under the illuminant (same scale as `rgb`), when known:
+    /// simulated data always has it; measured data does not (name a neutral patch instead).
+    /// White-balanced NSRM and `--preserve-white` use it.
+    pub white_rgb: Option<[f64; 3]>,
+    pub provenance: Provenance,
+}
+
+impl TrainingSet {
+    /// Number of patches.
+    pub fn len(&self) -> usize {
+        self.labels.len()
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.labels.is_empty()
+    }
+}

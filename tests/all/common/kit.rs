@@ -1,0 +1,250 @@
+//! The test kit shared by the integration tests (through `common`) and the library's unit tests
+//! (`src/lib.rs` includes this file under `cfg(test)`, with `nsrm` naming the crate itself): one
+//! seeded RNG, one generator of frames full of awkward pixels, the f64 reference on a frame, one
+//! f32 error bound against it, the pixel policy's pixels and its check, one training fixture.
+//! Public API only, so both sides compile it alike.
+
+use nsrm::{simulate_named, Frame, Grid, Kind, Layout, Model, TrainingSet};
+use std::sync::OnceLock;
+
+/// SplitMix64: a fixed-seed generator (no extra dependency).
+pub struct Rng(pub u64);
+
+impl Rng {
+    pub fn next_u64(&mut self) -> u64 {
+        self.0 = self.0.wrapping_add(0x9e37_79b9_7f4a_7c15);
+        let mut z = self.0;
+        z = (z ^ (z >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
+        z = (z ^ (z >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
+        z ^ (z >> 31)
+    }
+    pub fn next_u32(&mut self) -> u32 {
+        (self.next_u64() >> 32) as u32
+    }
+    /// Uniform in [0, 1).
+    pub fn unit(&mut self) -> f32 {
+        (self.next_u64() >> 40) as f32 / (1u64 << 24) as f32
+    }
+    /// Uniform in [a, b).
+    pub fn range(&mut self, a: f32, b: f32) -> f32 {
+        a + (b - a) * self.unit()
+    }
+    /// Uniform in 0..n.
+    pub fn below(&mut self, n: u64) -> usize {
+        (self.next_u64() % n) as usize
+    }
+}
+
+/// One pixel of a given flavour (`flavour % 14`): ordinary, a zero channel, black, slightly
+/// negative, HDR (×100), tiny (×1e-6), NaN, ±Inf, `s = R+G+B < 0`, −0, a single channel, mild
+/// highlight.
+pub fn awkward_pixel(rng: &mut Rng, flavour: usize) -> [f32; 3] {
+    let mut p = [rng.unit(), rng.unit(), rng.unit()];
+    let c = rng.below(3);
+    match flavour % 14 {
+        0 | 1 => {}                                              // ordinary 0..1
+        2 => p[c] = 0.0,                                         // a zero channel
+        3 => p = [0.0; 3],                                       // black
+        4 => p[c] = -0.02 * rng.unit(),                          // noise around black
+        5 => p.iter_mut().for_each(|v| *v *= 100.0),             // HDR highlight
+        6 => p.iter_mut().for_each(|v| *v *= 1e-6),              // tiny
+        7 => p[c] = f32::NAN,                                    // NaN
+        8 => p[c] = f32::INFINITY,                               // +Inf
+        9 => p[c] = f32::NEG_INFINITY,                           // −Inf
+        10 => p = [-0.01 * rng.unit(), -0.01 * rng.unit(), 0.0], // s < 0
+        11 => p[c] = -0.0,                                       // negative zero
+        12 => p = [1e-3 + rng.unit(), 0.0, 0.0],                 // a single channel
+        _ => p.iter_mut().for_each(|v| *v *= 4.0),               // mild highlight
+    }
+    p
+}
+
+/// A frame of [`awkward_pixel`]s of every flavour, from `seed`. Alpha (RGBA) is NaN, negative,
+/// positive or a random bit pattern: every path must pass it through bit for bit.
+pub fn awkward_frame(width: usize, height: usize, layout: Layout, seed: u64) -> Frame {
+    let mut rng = Rng(seed);
+    let ch = layout.channels();
+    let mut data = Vec::with_capacity(width * height * ch);
+    for _ in 0..width * height {
+        let flavour = rng.below(14);
+        data.extend_from_slice(&awkward_pixel(&mut rng, flavour));
+        if ch == 4 {
+            let a = match rng.below(4) {
+                0 => f32::NAN,
+                1 => -rng.unit(),
+                2 => f32::from_bits(rng.next_u32()),
+                _ => rng.unit(),
+            };
+            data.push(a);
+        }
+    }
+    Frame::from_data(width, height, layout, data).unwrap()
+}
+
+/// The relative part of the f32 bound.
+pub const F32_REL: f64 = 1e-5;
+
+/// `T_k = |s|·Σ_j |m_kj·p_j|` in f64 (`p` the pixel's terms, `s` NSRM's scale or 1): the size of
+/// the summands of output channel `k`. 0 where the model gives 0 (NSRM's `s ≤ 0`).
+pub fn summands(model: &Model, rgb: [f64; 3]) -> [f64; 3] {
+    let l = model.matrix().len() / 3;
+    let mut p = vec![0.0; l];
+    match model.features_of(rgb, &mut p) {
+        None => [0.0; 3],
+        Some(s) => [0, 1, 2].map(|k| {
+            s.abs()
+                * model.matrix()[k * l..(k + 1) * l]
+                    .iter()
+                    .zip(&p)
+                    .map(|(m, v)| (m * v).abs())
+                    .sum::<f64>()
+        }),
+    }
+}
+
+/// The one f32 error bound of every f32 path (fast CPU, GPU) against the f64 reference:
+/// `|got − ref| ≤ rel · max(|ref|, T_k, 1e-30)`. Where nothing cancels `T_k = |ref|` and this is
+/// a plain relative error; where the terms cancel to near 0, f32 summation cannot do better than
+/// the rounding of the summands, and that is what `T_k` allows.
+pub fn f32_bound(reference: f64, summands_k: f64, rel: f64) -> f64 {
+    rel * reference.abs().max(summands_k).max(1e-30)
+}
+
+/// The training patches most tests fit on: the Nikon D5100 and rawtoaces-190 under D65.
+pub fn training() -> &'static TrainingSet {
+    static DATA: OnceLock<TrainingSet> = OnceLock::new();
+    DATA.get_or_init(|| {
+        simulate_named("nikon-d5100", "D65", "rawtoaces-190", &Grid::default()).unwrap()
+    })
+}
+
+/// Every kind at every order (LRM once: it has only order 1), fitted on [`training`]: realistic
+/// coefficients, including PRM 4's large ones of both signs.
+pub fn fitted_models() -> Vec<Model> {
+    let mut v = Vec::new();
+    for kind in nsrm::Kind::ALL {
+        for order in 1..=nsrm::MAX_ORDER {
+            if kind == nsrm::Kind::Lrm && order > 1 {
+                continue;
+            }
+            v.push(nsrm::fit(kind, order, training()).unwrap());
+        }
+    }
+    v
+}
+
+/// The f64 reference on a frame, in place (alpha untouched): each pixel widened to f64, corrected
+/// by [`Model::apply_f64`] and rounded once to f32: the oracle of the f32 paths.
+pub fn apply_reference(model: &Model, frame: &mut Frame) {
+    let ch = frame.layout.channels();
+    for px in frame.data.chunks_exact_mut(ch) {
+        let out = model.apply_f64([px[0], px[1], px[2]].map(f64::from));
+        for k in 0..3 {
+            px[k] = out[k] as f32;
+        }
+    }
+}
+
+/// The policy's pixels, by name. `huge` only where the model is exposure-invariant (PRM's cubes and
+/// fourth powers of 1e30 overflow f32 as they would in any f32 evaluation).
+pub fn policy_pixels(kind: Kind) -> Vec<(&'static str, [f32; 3])> {
+    let mut v = vec![
+        ("black", [0.0, 0.0, 0.0]),
+        ("negative zero", [-0.0, -0.0, -0.0]),
+        ("s < 0", [-0.01, -0.02, 0.0]),
+        ("s < 0, one positive", [0.1, -0.2, 0.05]),
+        ("s = 0, channels non-zero", [0.5, -0.5, 0.0]),
+        ("negative channel, s > 0", [0.4, -0.05, 0.3]),
+        ("two negative channels, s > 0", [-0.1, -0.05, 0.6]),
+        ("NaN R", [f32::NAN, 0.2, 0.3]),
+        ("NaN G", [0.2, f32::NAN, 0.3]),
+        ("NaN B", [0.2, 0.3, f32::NAN]),
+        ("+Inf", [f32::INFINITY, 0.2, 0.3]),
+        ("-Inf", [0.2, f32::NEG_INFINITY, 0.3]),
+        ("+Inf and -Inf", [f32::INFINITY, f32::NEG_INFINITY, 0.3]),
+        ("tiny", [1e-30, 2e-30, 3e-30]),
+        ("subnormal", [1e-40, 2e-40, 1e-40]),
+        ("single channel", [0.7, 0.0, 0.0]),
+        ("ordinary", [0.2, 0.3, 0.25]),
+        ("highlight ×1e4", [2e3, 3e3, 2.5e3]),
+    ];
+    if kind.exposure_invariant() {
+        v.push(("huge", [1e30, 2e30, 1.5e30]));
+        v.push(("huge, negative channel", [1e30, -1e29, 1.5e30]));
+    }
+    v
+}
+
+pub fn policy_frame(pixels: &[(&str, [f32; 3])]) -> Frame {
+    let data = pixels.iter().flat_map(|(_, p)| *p).collect();
+    Frame::from_data(pixels.len(), 1, Layout::Rgb, data).unwrap()
+}
+
+/// Checks `out` (one path's result on `policy_pixels`) against the policy and the reference.
+pub fn check_policy(model: &Model, path: &str, out: &Frame) {
+    let pixels = policy_pixels(model.kind());
+    let mut reference = policy_frame(&pixels);
+    apply_reference(model, &mut reference);
+    for (i, (name, x)) in pixels.iter().enumerate() {
+        let got = &out.data[3 * i..3 * i + 3];
+        let want = &reference.data[3 * i..3 * i + 3];
+        let ctx = format!(
+            "{} {} on {path}, pixel `{name}` {x:?}: got {got:?}, reference {want:?}",
+            model.kind(),
+            model.order()
+        );
+        let x64 = x.map(|v| v as f64);
+        // NSRM's `s = R+G+B` (the models here have unit input gains).
+        if model.kind() == Kind::Nsrm && x64[0] + x64[1] + x64[2] <= 0.0 {
+            assert!(got.iter().all(|v| *v == 0.0), "s ≤ 0 must give 0: {ctx}");
+            continue;
+        }
+        if x.iter().any(|v| v.is_nan()) {
+            assert!(got.iter().all(|v| v.is_nan()), "NaN must propagate: {ctx}");
+            continue;
+        }
+        if model.kind() == Kind::Rprm && x.iter().all(|v| v.is_finite()) {
+            assert!(
+                got.iter().all(|v| v.is_finite()),
+                "RPRM must stay finite: {ctx}"
+            );
+        }
+        let t = summands(model, x64);
+        let scale = want.iter().map(|v| (*v as f64).abs()).fold(0.0, f64::max);
+        for k in 0..3 {
+            let (g, w) = (got[k] as f64, want[k] as f64);
+            if w.is_nan() {
+                assert!(g.is_nan(), "expected NaN: {ctx}");
+            } else if w.is_infinite() {
+                assert!(!g.is_finite(), "expected non-finite: {ctx}");
+            } else {
+                let bound = 1e-5 * scale.max(t[k]) + 1e-30;
+                assert!(
+                    g.is_finite() && (g - w).abs() <= bound,
+                    "channel {k}: error {:e} > {bound:e}: {ctx}",
+                    (g - w).abs()
+                );
+            }
+        }
+    }
+}
+
+/// `base` with byte edits: each `(position, byte)` replaces, removes or inserts a byte at
+/// `position % len` (chosen by `byte % 3`), from the characters a CSV or JSON parser cares about.
+pub fn mutate(base: &str, edits: &[(usize, u8)]) -> String {
+    let mut bytes = base.as_bytes().to_vec();
+    for &(pos, b) in edits {
+        if bytes.is_empty() {
+            break;
+        }
+        let i = pos % bytes.len();
+        match b % 3 {
+            0 => bytes[i] = b" ,\n0123456789.-eNa#x"[(b as usize / 3) % 20],
+            1 => {
+                bytes.remove(i);
+            }
+            _ => bytes.insert(i, b",\n9-"[(b as usize / 3) % 4]),
+        }
+    }
+    String::from_utf8_lossy(&bytes).into_owned()
+}

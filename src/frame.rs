@@ -39,8 +39,11 @@ impl Layout {
 /// A linear frame: `width × height` pixels of interleaved f32, row-major, top row first.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Frame {
+    /// Width in pixels.
     pub width: usize,
+    /// Height in pixels.
     pub height: usize,
+    /// RGB or RGBA.
     pub layout: Layout,
     /// `width * height * layout.channels()` floats.
     pub data: Vec<f32>,

@@ -105,17 +105,22 @@ mod kit;
 pub use frame::{Frame, Layout};
 
 // Models: kinds, fitting, the model file, applying on the CPU.
-pub use model::output_model;
-pub use model::{fit, fit_with, Fit, FitOptions, FitReport, Kind, Model, ModelError};
-pub use model::{FitWhite, Normalise, Objective, Ridge, F32_TOLERANCE_DE00, MAX_ORDER};
+pub use model::fit::{fit_with, Fit, FitOptions, FitReport, F32_TOLERANCE_DE00};
+pub use model::fit::{Normalise, Objective, Ridge, White as FitWhite};
+pub use model::output::output_model;
+pub use model::terms::MAX_ORDER;
+pub use model::{fit, Kind, Model, ModelError};
 
 // Dual-illuminant profiles: two models interpolated by the frame's white, as DNG does.
-pub use model::{Combination, FrameWhite, Profile};
+pub use model::dual_illuminant::{Combination, FrameWhite, Profile};
 
 // Colorimetry: Lab, ΔE00, output spaces, colour temperature.
-pub use colorimetry::{bradford_between, cct, temperature_xy, TemperatureError, D50_XY};
+pub use colorimetry::output::{output_matrix, srgb8, srgb_oetf};
+pub use colorimetry::spaces::{Mat3, OutputSpace};
+pub use colorimetry::temperature::{
+    bradford_between, cct, temperature_xy, TemperatureError, D50_XY,
+};
 pub use colorimetry::{ciede2000, delta_e00_xyz, xyz_to_lab, D65_WHITE_XYZ};
-pub use colorimetry::{output_matrix, srgb8, srgb_oetf, Mat3, OutputSpace};
 
 // Spectral simulation: camera × illuminant × reflectances on a wavelength grid.
 pub use spectral::SpectralError;
@@ -125,6 +130,6 @@ pub use spectral::{simulate, simulate_named, Camera, Grid, Illuminant, Reflectan
 pub use training::{parse_white, CaptureProvenance, Provenance, TrainingError, TrainingSet};
 
 // Evaluation: leave-one-out and in-sample ΔE00 statistics.
-pub use eval::{evaluate, evaluate_with, EvalResult, PatchError, Protocol, Stats};
 #[cfg(feature = "plot")]
-pub use eval::{plot_histograms, PlotError};
+pub use eval::plot::{histograms as plot_histograms, PlotError};
+pub use eval::{evaluate, evaluate_with, EvalResult, PatchError, Protocol, Stats};

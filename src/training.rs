@@ -93,7 +93,7 @@ impl TrainingSet {
         }
     }
 
-    /// Keeps the patches chosen by `spec` (see [`select_patches`]).
+    /// Keeps the patches chosen by `spec` (see `select_patches`: labels, `A1,B2`, ranges `B2:M9`, `all`).
     pub fn select(&self, spec: &str) -> Result<TrainingSet, TrainingError> {
         let idx = select_patches(&self.labels, spec)?;
         let mut out = self.subset(&idx);
@@ -308,7 +308,7 @@ pub(crate) fn d50_white() -> [f64; 3] {
 /// Parses a white point, the one syntax every white of the crate takes:
 /// * `X,Y,Z` — three finite numbers, Y > 0 (e.g. `96.42,100,82.49`);
 /// * `x,y` — a chromaticity (0 < x, 0 < y, x + y < 1), at `Y = 100`;
-/// * `D50` — [`d50_white`];
+/// * `D50` — x 0.345703, y 0.358539, Y = 100;
 /// * a built-in illuminant name (`D65`, `FL7`, `TL865`, …) or an illuminant CSV file: the
 ///   perfect white under it on the default grid, `Y = 100`.
 pub fn parse_white(spec: &str) -> Result<[f64; 3], TrainingError> {

@@ -9,12 +9,16 @@ use serde::{Deserialize, Serialize};
 pub struct Provenance {
     /// `spectral` (simulated from spectra) or `measured` (a user's CSV).
     pub source: String,
+    /// The camera's sensitivities (simulated data: a built-in name or a file).
     #[serde(skip_serializing_if = "Option::is_none", default)]
     pub camera: Option<String>,
+    /// The illuminant (simulated data).
     #[serde(skip_serializing_if = "Option::is_none", default)]
     pub illuminant: Option<String>,
+    /// The reflectances (simulated data).
     #[serde(skip_serializing_if = "Option::is_none", default)]
     pub reflectances: Option<String>,
+    /// The wavelength grid, `start:end:step` nm (simulated data).
     #[serde(skip_serializing_if = "Option::is_none", default)]
     pub grid: Option<String>,
     /// The `--patches` selection, if one was applied.
@@ -47,6 +51,7 @@ pub struct CaptureProvenance {
     /// Flat-field compensation: `none`, `flat frame` or `neutral patches`, and the estimated
     /// non-uniformity of the light (max/min over the chart).
     pub flat: String,
+    /// The estimated non-uniformity of the light (max/min over the chart).
     pub light_nonuniformity: f64,
     /// Median ΔE00 of the patches against the reference after the best 3×3 linear map.
     pub reference_match_de00: f64,
@@ -63,6 +68,7 @@ pub struct CaptureProvenance {
 /// Patches with camera RGB and reference XYZ, and the reference white (for Lab).
 #[derive(Debug, Clone, PartialEq)]
 pub struct TrainingSet {
+    /// The patch labels, one per patch.
     pub labels: Vec<String>,
     /// Linear camera RGB (perfect white: G = 1 for simulated data).
     pub rgb: Vec<[f64; 3]>,
@@ -74,6 +80,7 @@ pub struct TrainingSet {
     /// simulated data always has it; measured data does not (name a neutral patch instead).
     /// White-balanced NSRM and `--preserve-white` use it.
     pub white_rgb: Option<[f64; 3]>,
+    /// Where the patches came from (written into model files).
     pub provenance: Provenance,
 }
 
@@ -83,6 +90,7 @@ impl TrainingSet {
         self.labels.len()
     }
 
+    /// Whether there are no patches.
     pub fn is_empty(&self) -> bool {
         self.labels.is_empty()
     }

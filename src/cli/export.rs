@@ -18,7 +18,7 @@ pub(crate) struct Args {
     #[arg(long, value_name = "FILE")]
     model: PathBuf,
     /// clf (Academy/SMPTE Common LUT Format v3), cube (Resolve/OCIO .cube: 1D shaper + 3D LUT) or
-    /// ocio (an OpenColorIO v2 config, with its CLF written beside it as <stem>.clf), dcp (a DNG
+    /// ocio (an OpenColorIO v2 config, with its CLF written beside it as `<stem>.clf`), dcp (a DNG
     /// camera profile for Lightroom/ACR and RawTherapee; one or two illuminants) or icc (an ICC v2
     /// input profile: camera RGB → PCS XYZ D50; matrix/TRC for LRM, shaper + CLUT otherwise).
     #[arg(long, value_enum, ignore_case = true)]

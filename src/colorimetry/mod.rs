@@ -11,9 +11,7 @@ pub(crate) mod temperature;
 
 pub(crate) use dual::{Dual, Real};
 pub(crate) use output::to_linear_srgb;
-pub use output::{output_matrix, srgb8, srgb_oetf};
-pub use spaces::{Mat3, OutputSpace};
-pub use temperature::{bradford_between, cct, temperature_xy, TemperatureError, D50_XY};
+pub(crate) use output::{output_matrix, srgb8};
 
 /// CIE D65 white point (2° observer), Y = 100; used when measured XYZ data names no white.
 pub const D65_WHITE_XYZ: [f64; 3] = [95.047, 100.0, 108.883];

@@ -67,7 +67,7 @@ impl OutputSpace {
     /// scene white to the space's white with Bradford.
     ///
     /// [`OutputSpace::Xyz`] is D65-referred XYZ (its interop ID says so): the identity when the scene
-    /// white is D65 to within [`D65_XY_TOLERANCE`] in xy (e.g. D65 integrated on a coarse grid),
+    /// white is D65 to within 1e-3 in xy (e.g. D65 integrated on a coarse grid),
     /// otherwise a Bradford adaptation from the scene white to D65.
     pub fn from_xyz(self, scene_white: [f64; 3]) -> Mat3 {
         match self.primaries() {

@@ -59,7 +59,7 @@ pub(crate) fn daylight_xy(t: f64) -> Result<[f64; 2], TemperatureError> {
     Ok([x, -3.0 * x * x + 2.870 * x - 0.275])
 }
 
-/// The chromaticity a bare temperature names: Planckian below [`DAYLIGHT_FROM`], CIE daylight from
+/// The chromaticity a bare temperature names: Planckian below 4000 K, CIE daylight from
 /// it up.
 pub fn temperature_xy(t: f64) -> Result<[f64; 2], TemperatureError> {
     check_t(t, MIN_CCT, MAX_CCT)?;

@@ -2,8 +2,6 @@
 
 #[cfg(feature = "plot")]
 pub(crate) mod plot;
-#[cfg(feature = "plot")]
-pub use plot::{histograms as plot_histograms, PlotError};
 
 use crate::colorimetry::delta_e00_xyz;
 use crate::model::fit::{fit_with, FitOptions};
@@ -24,7 +22,9 @@ pub enum Protocol {
 /// ΔE00 of one patch.
 #[derive(Debug, Clone, Serialize, PartialEq)]
 pub struct PatchError {
+    /// The patch's label.
     pub label: String,
+    /// Its ΔE00 (CIEDE2000) between prediction and reference.
     #[serde(rename = "dE00")]
     pub de00: f64,
 }
@@ -32,9 +32,13 @@ pub struct PatchError {
 /// Summary statistics of ΔE00 over the patches.
 #[derive(Debug, Clone, Copy, Serialize, PartialEq)]
 pub struct Stats {
+    /// Mean.
     pub mean: f64,
+    /// Median.
     pub median: f64,
+    /// 95th percentile (linear interpolation between order statistics).
     pub p95: f64,
+    /// Maximum.
     pub max: f64,
 }
 
@@ -63,12 +67,18 @@ impl Stats {
 /// The evaluation of one model kind and order on one training set.
 #[derive(Debug, Clone, Serialize, PartialEq)]
 pub struct EvalResult {
+    /// The label of the training set (its illuminant), as the caller gave it.
     pub illuminant: String,
+    /// The model kind (`LRM`, `PRM`, `RPRM`, `NSRM`).
     pub model: String,
+    /// The order evaluated (LRM: 1).
     pub order: u8,
+    /// The number of terms L.
     pub terms: usize,
+    /// ΔE00 statistics over the patches.
     #[serde(flatten)]
     pub stats: Stats,
+    /// ΔE00 of every patch, in the training set's order.
     pub per_patch: Vec<PatchError>,
 }
 

@@ -3,7 +3,7 @@
 //!
 //! # What is written
 //! For each calibration illuminant `i` (one or two) of a model set
-//! ([`Profile`](crate::model::dual_illuminant::Profile)), with `w_i` the camera response the model
+//! ([`Profile`]), with `w_i` the camera response the model
 //! maps to its white `W_i`, the target is the model in white-balanced camera coordinates, adapted
 //! to D50: `T_i(b) = Bradford(W_i → D50) · model_i(diag(w_i)·b) / Y(W_i)`, so `T_i(1, 1, 1) = D50`.
 //! - **ForwardMatrix** `F_i`: the least-squares 3×3 of `T_i` over the training patches, with
@@ -1120,7 +1120,7 @@ impl Pipeline {
 /// for the frame whites `whites`: the first model's training patches, white-balanced by its
 /// calibration white (`b = c / w`), are put under each frame white (`b · n`); the error at a
 /// sample is the worst over the whites. Measured on those patches and on the dense in-gamut set
-/// built from them ([`super::measure_fn`]).
+/// built from them (`measure_fn`).
 pub(crate) fn measure(
     dcp: &Dcp,
     profile: &Profile,

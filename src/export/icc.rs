@@ -38,7 +38,7 @@
 //! takes. A lut16 is evaluated by Little CMS in 16-bit steps (the input rounded to 1/65535 and
 //! the PCS XYZ to 1/32768), which is what limits the darkest exposures. The ΔE00 against the
 //! exact model is reported on the training patches and the dense in-gamut set
-//! ([`super::measure_fn`]) as for the other exports, each sample judged against the PCS white
+//! (`measure_fn`) as for the other exports, each sample judged against the PCS white
 //! scaled to its exposure.
 
 use super::nodes::LogCurve;

@@ -81,7 +81,7 @@ impl LogCurve {
         }
     }
 
-    /// Log → linear (the exact inverse of [`forward`](Self::forward)).
+    /// Log → linear (the exact inverse of `forward`).
     pub(crate) fn inverse(&self, y: f64) -> f64 {
         let yb = self.y_at_break();
         if y > yb {

@@ -5,9 +5,13 @@ use super::{GpuError, GpuOptions};
 /// An opened adapter with its device and queue.
 #[derive(Debug)]
 pub struct GpuContext {
+    /// The wgpu instance the adapter came from.
     pub instance: wgpu::Instance,
+    /// The adapter chosen (see the module docs for how).
     pub adapter: wgpu::Adapter,
+    /// The device opened on it, with the adapter's own limits.
     pub device: wgpu::Device,
+    /// The device's queue.
     pub queue: wgpu::Queue,
 }
 

@@ -248,7 +248,7 @@ impl Corrector {
     /// Records the correction of the packed pixels in `src` into `dst` (same size; alpha is
     /// copied). Slices must start at a multiple of `min_storage_buffer_offset_alignment`; any
     /// size is taken (it is split into bindings of at most
-    /// [`max_pixels_per_binding`](Self::max_pixels_per_binding) pixels, in one compute pass).
+    /// `max_pixels_per_binding` pixels, in one compute pass).
     /// `timestamps` go to that pass.
     pub fn record_buffers(
         &self,

@@ -165,7 +165,7 @@ impl Engine {
     }
 
     /// Corrects `frame` in place (alpha untouched) with `model`, following the pixel policy of
-    /// [`crate::model::pixel`].
+    /// `model::pixel` (the README's *Pixel policy*).
     pub fn apply(&mut self, model: &Model, frame: &mut Frame) -> Result<(), GpuError> {
         self.run(model, frame, false).map(|_| ())
     }

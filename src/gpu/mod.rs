@@ -1,10 +1,10 @@
 //! Applying models on the GPU with wgpu: adapter and device setup ([`GpuContext`]), the
 //! [`Corrector`] (one model's pipeline and uniform, recording into a caller's encoder), the
 //! frame [`Engine`] built on it (tiling, double-buffered upload / compute / read-back), shader
-//! generation ([`shader`]; the self-contained shaders other programs load are written by
+//! generation (`shader`; the self-contained shaders other programs load are written by
 //! `export::shader`).
 //!
-//! The shaders follow the pixel policy of [`crate::model::pixel`] exactly: NaN / Inf propagate, NSRM
+//! The shaders follow the pixel policy of `model::pixel` (the README's *Pixel policy*) exactly: NaN / Inf propagate, NSRM
 //! with `s = R+G+B ≤ 0` gives 0, negative channels are allowed (RPRM's roots keep the sign),
 //! nothing is clamped. They compute in f32; against the f64 reference the relative error per
 //! value stays within 1e-5 (see `tests/gpu.rs`).
@@ -212,7 +212,7 @@ pub(crate) fn open_device(choice: DeviceChoice, opts: &GpuOptions) -> Result<Ope
     }
 }
 
-/// Opens the engine the choice asks for ([`open_device`] without the reason).
+/// Opens the engine the choice asks for (`open_device` without the reason).
 ///
 /// * `Auto`: `Ok(Some(engine))` on a hardware adapter (or a software one that is named),
 ///   `Ok(None)` otherwise; other failures (an adapter name that matches nothing, a device that

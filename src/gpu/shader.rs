@@ -1,22 +1,25 @@
-//! WGSL generation: the hand-written sources in `shaders/` (bindings, indexing, pixel policy)
-//! plus the term expansion generated from [`crate::model::terms()`], the one definition of every
-//! model's terms.
+//! WGSL generation: the model's pixel program ([`crate::model::pixel`], the one description of
+//! what every apply path does with a pixel) printed as WGSL, between the hand-written sources in
+//! `shaders/` that are not per kind (bindings and indexing, the root helpers).
 //!
 //! A shader is assembled from
 //! 1. a generated header of constants (`CHANNELS`, `WORKGROUP_SIZE`, `ROW_GROUPS`, `TILE_SIZE`,
 //!    `N_TERMS`),
 //! 2. the model's coefficients: `shaders/model_uniform.wgsl` (a uniform the [`Corrector`]
-//!    rewrites to swap models) or, for exported shaders, a generated `const` array,
-//! 3. the kind's file (`shaders/{lrm,prm,rprm,nsrm}.wgsl`: `fn correct`, the pixel policy),
+//!    rewrites to swap models) or, for exported shaders, literals baked into the code,
+//! 3. `shaders/roots.wgsl` (sign-preserving roots) where a term takes a root,
 //! 4. the frame file (`shaders/frame_{buffer,in_place,texture}.wgsl`: bindings and `main`),
-//! 5. the generated `fn model_terms(x) -> vec3<f32>`: `Σ_j M[:, j] · term_j(x)`,
-//! 6. for NSRM, the generated `fn model_gain() -> vec3<f32>`: the input gains (from the uniform,
-//!    or baked), which `shaders/nsrm.wgsl` multiplies into R, G, B first.
+//! 5. the printed program: `fn correct(rgb) -> vec3<f32>`, one block per step of the program
+//!    (input gains, NSRM's signal and black rule, the combine, the rescale), and
+//! 6. the printed `fn model_terms(x) -> vec3<f32>`: `Σ_j M[:, j] · term_j(x)` over the term list,
+//!    and, where the program has a gain step, `fn model_gain() -> vec3<f32>` (from the uniform,
+//!    or baked).
 //!
 //! [`Corrector`]: super::Corrector
 
 use super::GpuError;
 use crate::frame::Layout;
+use crate::model::pixel::{Program, Step};
 use crate::model::{term_name, terms, Kind, Model, Term};
 use std::fmt::Write as _;
 
@@ -30,8 +33,8 @@ pub(crate) const TILE_SIZE: u32 = 16;
 /// The entry point of every shader.
 pub(crate) const ENTRY_POINT: &str = "main";
 
-/// The hand-written WGSL sources, by file name.
-pub(crate) const SOURCES: [(&str, &str); 8] = [
+/// The hand-written WGSL sources, by file name: none of them per kind.
+pub(crate) const SOURCES: [(&str, &str); 5] = [
     (
         "model_uniform.wgsl",
         include_str!("../../shaders/model_uniform.wgsl"),
@@ -48,10 +51,7 @@ pub(crate) const SOURCES: [(&str, &str); 8] = [
         "frame_texture.wgsl",
         include_str!("../../shaders/frame_texture.wgsl"),
     ),
-    ("lrm.wgsl", include_str!("../../shaders/lrm.wgsl")),
-    ("prm.wgsl", include_str!("../../shaders/prm.wgsl")),
-    ("rprm.wgsl", include_str!("../../shaders/rprm.wgsl")),
-    ("nsrm.wgsl", include_str!("../../shaders/nsrm.wgsl")),
+    ("roots.wgsl", include_str!("../../shaders/roots.wgsl")),
 ];
 
 fn source(name: &str) -> &'static str {
@@ -65,7 +65,9 @@ fn source(name: &str) -> &'static str {
 /// The format of the texture a texture-target [`Corrector`](super::Corrector) writes.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
 pub enum TexelFormat {
+    /// `rgba32float`.
     Rgba32Float,
+    /// `rgba16float`.
     Rgba16Float,
 }
 
@@ -101,9 +103,17 @@ impl TexelFormat {
 pub enum Target {
     /// Packed f32 storage buffers: `src` (read) → `dst` (written), or one buffer corrected in
     /// place (`in_place`).
-    Buffer { layout: Layout, in_place: bool },
+    Buffer {
+        /// RGB or RGBA packing of the buffers.
+        layout: Layout,
+        /// One buffer corrected in place (else `src` → `dst`).
+        in_place: bool,
+    },
     /// A float texture read with `textureLoad` → a write-only storage texture of `format`.
-    Texture { format: TexelFormat },
+    Texture {
+        /// The texel format of both textures.
+        format: TexelFormat,
+    },
 }
 
 impl Target {
@@ -182,16 +192,6 @@ pub(crate) enum Coefficients<'a> {
     Baked(&'a Model),
 }
 
-/// The kind's hand-written file.
-pub(crate) fn kind_file(kind: Kind) -> &'static str {
-    match kind {
-        Kind::Lrm => "lrm.wgsl",
-        Kind::Prm => "prm.wgsl",
-        Kind::Rprm => "rprm.wgsl",
-        Kind::Nsrm => "nsrm.wgsl",
-    }
-}
-
 /// The WGSL literal of an f32 that reads back as the same f32.
 fn f32_literal(v: f32) -> String {
     let s = format!("{v:?}");
@@ -251,15 +251,15 @@ pub(crate) fn model_gain_fn(coefficients: Coefficients<'_>) -> String {
     )
 }
 
-/// The generated term expansion: `fn model_terms(x: vec3<f32>) -> vec3<f32>` returning
-/// `Σ_j M[:, j] · term_j(x)`, with `x` = (R, G, B) (LRM, PRM, RPRM) or (r, g, 0) (NSRM).
+/// The printed term expansion: `fn model_terms(x: vec3<f32>) -> vec3<f32>` returning
+/// `Σ_j M[:, j] · term_j(x)` over the program's term list, with `x` the variables after the steps
+/// before [`Step::Combine`] ((R, G, B), or (r, g, 0) after [`Step::Normalise`]).
 ///
 /// Roots are computed once per channel (`q2 = sroot2(x)`, `q3 = sroot3(x)`, `q4 = sroot4(x)`,
-/// from `shaders/rprm.wgsl`) and shared by every term; each term is the product of its
-/// channels' factors, as [`crate::model::terms::expand`] computes it in f64.
-pub(crate) fn model_terms_fn(kind: Kind, order: u8, coefficients: Coefficients<'_>) -> String {
-    let order = kind.effective_order(order);
-    let list = terms(kind, order);
+/// from `shaders/roots.wgsl`) and shared by every term; each term is the product of its
+/// channels' factors, as the f64 evaluator ([`crate::model::terms::expand`]) computes it.
+pub(crate) fn model_terms_fn(program: &Program<'_>, coefficients: Coefficients<'_>) -> String {
+    let list = program.terms;
     let cols = match coefficients {
         Coefficients::Uniform => None,
         Coefficients::Baked(m) => Some(matrix_columns(m)),
@@ -267,7 +267,8 @@ pub(crate) fn model_terms_fn(kind: Kind, order: u8, coefficients: Coefficients<'
     let mut s = String::new();
     let _ = writeln!(
         s,
-        "// Generated from nsrm::model::terms({kind:?}, {order}): {} terms.",
+        "// Printed from the term list of nsrm::model::terms ({:?}): {} terms.",
+        program.kind,
         list.len()
     );
     let _ = writeln!(s, "fn model_terms(x: vec3<f32>) -> vec3<f32> {{");
@@ -291,10 +292,59 @@ pub(crate) fn model_terms_fn(kind: Kind, order: u8, coefficients: Coefficients<'
             s,
             "    acc += {coef} * {}; // {}",
             term_expr(t),
-            term_name(kind, t)
+            term_name(program.kind, t)
         );
     }
     let _ = writeln!(s, "    return acc;");
+    let _ = writeln!(s, "}}");
+    s
+}
+
+/// The printed pixel program: `fn correct(rgb: vec3<f32>) -> vec3<f32>`, one block per
+/// [`Step`], in the program's order (every step is spelled here; a new one does not compile
+/// until it is).
+pub(crate) fn correct_fn(program: &Program<'_>) -> String {
+    let mut s = String::new();
+    let _ = writeln!(
+        s,
+        "// The pixel program of nsrm::model::pixel ({:?}): {}.",
+        program.kind,
+        program
+            .steps
+            .iter()
+            .map(|st| format!("{st:?}"))
+            .collect::<Vec<_>>()
+            .join(" -> ")
+    );
+    let _ = writeln!(
+        s,
+        "// NaN / Inf propagate, negative channels are used as they are, nothing is clamped."
+    );
+    let _ = writeln!(s, "fn correct(rgb: vec3<f32>) -> vec3<f32> {{");
+    let _ = writeln!(s, "    var x = rgb;");
+    let _ = writeln!(s, "    var y = vec3<f32>(0.0);");
+    for step in program.steps {
+        let _ = writeln!(s, "    // {:?}: {}", step, step.describe());
+        match step {
+            Step::Gain => {
+                let _ = writeln!(s, "    x = x * model_gain();");
+            }
+            Step::Normalise => {
+                let _ = writeln!(s, "    let s = x.x + x.y + x.z;");
+                let _ = writeln!(s, "    if (s <= 0.0) {{");
+                let _ = writeln!(s, "        return vec3<f32>(0.0);");
+                let _ = writeln!(s, "    }}");
+                let _ = writeln!(s, "    x = vec3<f32>(x.x / s, x.y / s, 0.0);");
+            }
+            Step::Combine => {
+                let _ = writeln!(s, "    y = model_terms(x);");
+            }
+            Step::Rescale => {
+                let _ = writeln!(s, "    y = s * y;");
+            }
+        }
+    }
+    let _ = writeln!(s, "    return y;");
     let _ = writeln!(s, "}}");
     s
 }
@@ -328,7 +378,19 @@ pub(crate) fn wgsl(
     coefficients: Coefficients<'_>,
 ) -> String {
     let order = kind.effective_order(order);
-    let n_terms = terms(kind, order).len();
+    let list = terms(kind, order);
+    wgsl_program(&Program::new(kind, &list), order, target, coefficients)
+}
+
+/// [`wgsl`] for any pixel program (the printer itself): `order` is for the header comment only.
+pub(crate) fn wgsl_program(
+    program: &Program<'_>,
+    order: u8,
+    target: Target,
+    coefficients: Coefficients<'_>,
+) -> String {
+    let kind = program.kind;
+    let n_terms = program.terms.len();
     let mut s = String::new();
     let _ = writeln!(
         s,
@@ -337,7 +399,7 @@ pub(crate) fn wgsl(
     );
     let _ = writeln!(
         s,
-        "// Assembled by nsrm::gpu::shader from shaders/*.wgsl and the terms of nsrm::model::terms."
+        "// Assembled by nsrm::gpu::shader: the pixel program of nsrm::model::pixel printed as WGSL, with shaders/*.wgsl."
     );
     if let Coefficients::Baked(m) = coefficients {
         let _ = writeln!(
@@ -365,9 +427,11 @@ pub(crate) fn wgsl(
         s.push_str(source("model_uniform.wgsl"));
         let _ = writeln!(s);
     }
-    let _ = writeln!(s, "// ---- shaders/{}", kind_file(kind));
-    s.push_str(source(kind_file(kind)));
-    let _ = writeln!(s);
+    if !program.roots().is_empty() {
+        let _ = writeln!(s, "// ---- shaders/roots.wgsl");
+        s.push_str(source("roots.wgsl"));
+        let _ = writeln!(s);
+    }
     let _ = writeln!(s, "// ---- shaders/{}", target.frame_file());
     let frame = source(target.frame_file());
     match target {
@@ -375,8 +439,10 @@ pub(crate) fn wgsl(
         Target::Buffer { .. } => s.push_str(frame),
     }
     let _ = writeln!(s);
-    s.push_str(&model_terms_fn(kind, order, coefficients));
-    if kind == Kind::Nsrm {
+    s.push_str(&correct_fn(program));
+    let _ = writeln!(s);
+    s.push_str(&model_terms_fn(program, coefficients));
+    if program.has(Step::Gain) {
         s.push_str(&model_gain_fn(coefficients));
     }
     s
@@ -463,15 +529,20 @@ mod tests {
         assert_eq!(seen_files.len(), SOURCES.len(), "{seen_files:?}");
     }
 
+    fn terms_fn(kind: Kind, order: u8) -> String {
+        let list = terms(kind, order);
+        model_terms_fn(&Program::new(kind, &list), Coefficients::Uniform)
+    }
+
     #[test]
     fn generated_expansion_follows_the_term_table() {
-        let src = model_terms_fn(Kind::Rprm, 3, Coefficients::Uniform);
+        let src = terms_fn(Kind::Rprm, 3);
         assert!(src.contains("let q2 = sroot2(x);"));
         assert!(src.contains("let q3 = sroot3(x);"));
         assert!(!src.contains("sroot4"));
         assert!(src.contains("acc += model.m[6].xyz * (q3.x * q3.y * q3.y); // cbrt(R*G^2)"));
         assert_eq!(src.matches("acc +=").count(), 13);
-        let src = model_terms_fn(Kind::Nsrm, 2, Coefficients::Uniform);
+        let src = terms_fn(Kind::Nsrm, 2);
         assert!(src.contains("acc += model.m[0].xyz * 1.0; // 1"));
         assert!(src.contains("acc += model.m[5].xyz * (x.x * x.y); // r*g"));
         for (kind, counts) in [
@@ -480,9 +551,65 @@ mod tests {
             (Kind::Nsrm, [3, 6, 10, 15]),
         ] {
             for (o, n) in (1..=4).zip(counts) {
-                let src = model_terms_fn(kind, o, Coefficients::Uniform);
+                let src = terms_fn(kind, o);
                 assert_eq!(src.matches("acc +=").count(), n, "{kind} {o}");
             }
+        }
+    }
+
+    /// The printer follows the program it is given, not the kind: the steps of one kind over the
+    /// terms of another print (and validate) as those steps, in that order.
+    #[test]
+    fn the_printed_correct_follows_the_program_steps() {
+        let nsrm = terms(Kind::Nsrm, 3);
+        let prm = terms(Kind::Prm, 2);
+        let rprm = terms(Kind::Rprm, 4);
+        let cases: [(&Program, &[&str]); 4] = [
+            (
+                &Program::new(Kind::Nsrm, &nsrm),
+                &[
+                    "x = x * model_gain();",
+                    "if (s <= 0.0) {",
+                    "y = model_terms(x);",
+                    "y = s * y;",
+                ],
+            ),
+            (&Program::new(Kind::Prm, &prm), &["y = model_terms(x);"]),
+            (
+                // NSRM's terms without its gain and rescale.
+                &Program::custom(Kind::Nsrm, &[Step::Normalise, Step::Combine], &nsrm).unwrap(),
+                &["if (s <= 0.0) {", "y = model_terms(x);"],
+            ),
+            (
+                // RPRM's terms behind a gain step.
+                &Program::custom(Kind::Rprm, &[Step::Gain, Step::Combine], &rprm).unwrap(),
+                &["x = x * model_gain();", "y = model_terms(x);"],
+            ),
+        ];
+        let all = [
+            "x = x * model_gain();",
+            "if (s <= 0.0) {",
+            "y = model_terms(x);",
+            "y = s * y;",
+        ];
+        for (program, want) in cases {
+            let src = wgsl_program(program, 3, Target::ALL[0], Coefficients::Uniform);
+            validate(&src).unwrap_or_else(|e| panic!("{program:?}: {e}\n{src}"));
+            let correct = correct_fn(program);
+            let mut last = 0;
+            for line in want {
+                let at = correct
+                    .find(line)
+                    .unwrap_or_else(|| panic!("{line} missing: {correct}"));
+                assert!(at >= last, "{line} out of order: {correct}");
+                last = at;
+            }
+            for line in all.iter().filter(|l| !want.contains(l)) {
+                assert!(!correct.contains(line), "{line} printed: {correct}");
+            }
+            assert_eq!(src.contains("fn model_gain()"), program.has(Step::Gain));
+            assert_eq!(src.contains("fn sroot3("), !program.roots().is_empty());
+            assert_eq!(src.matches("acc +=").count(), program.terms.len());
         }
     }
 

@@ -33,7 +33,7 @@ fn take_entry(p: &Path) -> bool {
 ///
 /// An input that matches nothing is an error, naming it; one that exists but is neither a
 /// regular file nor a directory is an error saying what it is. Names need not be UTF-8, in a
-/// directory, a glob match (in any component) or the pattern itself (see [`glob_into`]). Files reached twice (two patterns, or `./a.exr` and `a.exr`)
+/// directory, a glob match (in any component) or the pattern itself (see `glob_into`). Files reached twice (two patterns, or `./a.exr` and `a.exr`)
 /// are listed once. The list is sorted by path, so every machine given the same inputs sees
 /// the same order (see [`Shard`]).
 pub(crate) fn expand_inputs<S: AsRef<std::ffi::OsStr>>(

@@ -240,10 +240,13 @@ pub struct Combination {
     pub parts: Vec<Model>,
     /// The weight of the lower-temperature model (1 for a single model).
     pub weight: f64,
-    /// The frame's white: chromaticity, CCT, camera neutral (G = 1) and XYZ (Y = 100).
+    /// The frame's white: its chromaticity,
     pub xy: [f64; 2],
+    /// its correlated colour temperature (K),
     pub cct: f64,
+    /// the camera's response to it (G = 1),
     pub neutral: [f64; 3],
+    /// and its XYZ (Y = 100).
     pub white_xyz: [f64; 3],
 }
 
@@ -318,6 +321,7 @@ impl Profile {
         Ok(out)
     }
 
+    /// The models, lower temperature first.
     pub fn models(&self) -> &[Model] {
         &self.models
     }
@@ -326,6 +330,7 @@ impl Profile {
         &self.calibrations
     }
 
+    /// Whether the profile holds two models (else one).
     pub fn is_dual(&self) -> bool {
         self.models.len() == 2
     }
@@ -436,7 +441,7 @@ impl Profile {
         })
     }
 
-    /// The models combined for a frame's white (see the [module docs](self)).
+    /// The models combined for a frame's white (DNG's interpolation by inverse temperature).
     pub fn combine(&self, white: FrameWhite) -> Result<Combination, ModelError> {
         let te = |e: TemperatureError| spec(e.to_string());
         let (xy, neutral) = match white {

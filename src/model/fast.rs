@@ -28,10 +28,14 @@
 //!   The generic kernel stops at AVX2: its lane arrays ran 20–30 % slower in the AVX-512 clone.
 //!   Only the FMA clones fuse multiply-adds (`madd`); the baseline never calls libm's software
 //!   `fmaf`.
-//! * One monomorphised kernel per model shape: LRM (also PRM 1 and RPRM 1, the same three terms),
-//!   PRM 3, RPRM 3 and NSRM 3 are written out by hand; every other kind/order (and any other term
-//!   list) runs a generic kernel driven by a product plan built once from the model's
-//!   [`Term`] list: every term is one multiplication of two earlier values, so it is as cheap in
+//! * What a kernel computes is read from the model's pixel program ([`super::pixel::Program`],
+//!   the one description of the per-pixel policy and terms). LRM (also PRM 1 and RPRM 1, the same
+//!   three terms), PRM 3, RPRM 3 and NSRM 3 have hand-written kernels; each declares the steps and
+//!   the terms (in its own column order) its arithmetic computes, runs only for a program with
+//!   those steps and terms, and takes its matrix columns through the index map from the program's
+//!   term order. Every other program runs a generic kernel whose policy flags (gains, normalise,
+//!   rescale) are the program's steps and whose product plan is built once from its [`Term`]
+//!   list: every term is one multiplication of two earlier values, so it is as cheap in
 //!   arithmetic as the hand-written kernels and still allocation-free per pixel.
 //! * RPRM: the sign-preserving square, cube and fourth roots are computed once per channel and the
 //!   terms are products of them (`∛(R G²) = ∛R·(∛G)²`, exactly how [`super::terms::expand`]
@@ -50,8 +54,9 @@
 //! layout against it.
 
 use crate::frame::{Frame, Layout};
-use crate::model::terms::{terms, Term};
-use crate::model::{Kind, Model};
+use crate::model::pixel::{Program, Step};
+use crate::model::terms::Term;
+use crate::model::Model;
 use rayon::prelude::*;
 use std::collections::HashMap;
 
@@ -137,37 +142,12 @@ pub(crate) struct FastModel {
 }
 
 impl FastModel {
-    /// Prepares `model`: a hand-written kernel when its terms are the standard list of LRM, PRM 3,
-    /// RPRM 3 or NSRM 3 (or of PRM / RPRM order 1), otherwise a product plan built from its terms.
+    /// Prepares `model`: a hand-written kernel where one declares the model's pixel program
+    /// (LRM, PRM 3, RPRM 3, NSRM 3, PRM / RPRM order 1), otherwise a product plan built from it.
     pub(crate) fn new(model: &Model) -> FastModel {
-        let standard =
-            |kind: Kind, order: u8| model.kind == kind && model.terms == terms(kind, order);
-        let linear = [Kind::Lrm, Kind::Prm, Kind::Rprm]
-            .into_iter()
-            .any(|k| standard(k, 1));
-        let kernel = if linear {
-            Kernel::Linear(Linear {
-                m: rows(&model.matrix),
-            })
-        } else if standard(Kind::Prm, 3) {
-            Kernel::Prm3(Prm3 {
-                m: rows(&model.matrix),
-            })
-        } else if standard(Kind::Rprm, 3) {
-            Kernel::Rprm3(Rprm3 {
-                m: rows(&model.matrix),
-            })
-        } else if standard(Kind::Nsrm, 3) {
-            Kernel::Nsrm3(Nsrm3 {
-                m: rows(&model.matrix),
-                gain: [1.0; 3],
-            })
-        } else {
-            Kernel::Plan(Box::new(Plan::new(model.kind, &model.terms, &model.matrix)))
-        };
-        let mut kernel = kernel;
-        set_nsrm_gains(&mut kernel, model.input_gains);
-        FastModel { kernel }
+        FastModel {
+            kernel: Kernel::choose(&model.program(), &model.matrix, model.input_gains),
+        }
     }
 
     /// The kernel's name: `linear`, `prm3`, `rprm3`, `nsrm3` or `plan` (the generic one).
@@ -262,16 +242,81 @@ impl FastModel {
     }
 }
 
-/// The row-major 3×L f64 matrix as three f32 rows of a fixed length.
-fn rows<const L: usize>(matrix: &[f64]) -> [[f32; L]; 3] {
-    debug_assert_eq!(matrix.len(), 3 * L);
+impl Kernel {
+    /// The kernel for a pixel program: the first hand-written kernel whose declaration
+    /// ([`Declared`]) is the program — the same steps, and the same terms in any order — with its
+    /// matrix columns taken through the index map from its term order to the program's; else the
+    /// generic plan, built from the program. `matrix` is row-major 3×L over the program's terms.
+    fn choose(program: &Program<'_>, matrix: &[f64], gains: [f64; 3]) -> Kernel {
+        if let Some(m) = columns::<Linear, 3>(program, matrix) {
+            Kernel::Linear(Linear { m })
+        } else if let Some(m) = columns::<Prm3, 19>(program, matrix) {
+            Kernel::Prm3(Prm3 { m })
+        } else if let Some(m) = columns::<Rprm3, 13>(program, matrix) {
+            Kernel::Rprm3(Rprm3 { m })
+        } else if let Some(m) = columns::<Nsrm3, 10>(program, matrix) {
+            // Nsrm3 declares the gain step, so the program has it.
+            Kernel::Nsrm3(Nsrm3 {
+                m,
+                gain: gains.map(|v| v as f32),
+            })
+        } else {
+            Kernel::Plan(Box::new(Plan::new(program, matrix, gains)))
+        }
+    }
+}
+
+/// What a hand-written kernel computes, declared beside its arithmetic: the program steps it
+/// spells and its terms in the order of its own matrix columns. [`Kernel::choose`] runs it only
+/// for a program with these steps and these terms (in any order); the unit test
+/// `hand_kernels_compute_what_they_declare` holds the arithmetic to the declaration.
+trait Declared {
+    const STEPS: &'static [Step];
+    const TERMS: &'static [Term];
+}
+
+/// A term of a declaration.
+const fn term(exps: [u8; 3], root: u8) -> Term {
+    Term { exps, root }
+}
+
+/// The index map from `K`'s declared term order to the program's, or `None` when `K` does not
+/// declare this program (other steps, or another set of terms).
+fn index_map<K: Declared>(program: &Program<'_>) -> Option<Vec<usize>> {
+    if program.steps != K::STEPS || program.terms.len() != K::TERMS.len() {
+        return None;
+    }
+    let map: Vec<usize> = K::TERMS
+        .iter()
+        .map(|t| program.terms.iter().position(|p| p == t))
+        .collect::<Option<_>>()?;
+    // A permutation: every program term is one column of the kernel.
+    let mut seen = vec![false; map.len()];
+    for &j in &map {
+        if std::mem::replace(&mut seen[j], true) {
+            return None;
+        }
+    }
+    Some(map)
+}
+
+/// `K`'s f32 matrix rows in its declared term order, from the row-major 3×L `matrix` over the
+/// program's terms, or `None` when `K` does not declare the program.
+fn columns<K: Declared, const L: usize>(
+    program: &Program<'_>,
+    matrix: &[f64],
+) -> Option<[[f32; L]; 3]> {
+    let map = index_map::<K>(program)?;
+    if map.len() != L || matrix.len() != 3 * L {
+        return None;
+    }
     let mut m = [[0.0; L]; 3];
     for (k, row) in m.iter_mut().enumerate() {
-        for (j, v) in row.iter_mut().enumerate() {
+        for (v, &j) in row.iter_mut().zip(&map) {
             *v = matrix[k * L + j] as f32;
         }
     }
-    m
+    Some(m)
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -737,17 +782,6 @@ fn cbrt_m<const PLAIN: bool>(x: f32, fma: bool) -> f32 {
     y.copysign(x)
 }
 
-/// Puts a white-balanced NSRM's input gains into its kernel (only NSRM kernels take gains: a
-/// model of another kind has unit gains by construction).
-fn set_nsrm_gains(kernel: &mut Kernel, gains: [f64; 3]) {
-    let g = gains.map(|v| v as f32);
-    match kernel {
-        Kernel::Nsrm3(k) => k.gain = g,
-        Kernel::Plan(p) if p.nsrm => p.gain = g,
-        _ => debug_assert_eq!(gains, crate::model::UNIT_GAINS),
-    }
-}
-
 /// The pixels of a block multiplied by NSRM's input gains (exact for a gain of 1).
 #[inline(always)]
 fn gained(x: &[Lanes; 3], gain: &[f32; 3]) -> [Lanes; 3] {
@@ -770,14 +804,20 @@ fn nsrm_signal(r: f32, g: f32, b: f32) -> (f32, f32, f32, bool) {
 }
 
 // ---------------------------------------------------------------------------------------------
-// Hand-written kernels. Term order is exactly `terms(kind, order)` (fast_tests.rs checks each
-// against the f64 reference).
+// Hand-written kernels. Each declares (`Declared`) the steps and the terms, in its own column
+// order, that its arithmetic computes; `Kernel::choose` maps the program's columns onto them
+// (fast_tests.rs checks every kernel against the f64 reference).
 // ---------------------------------------------------------------------------------------------
 
 /// LRM, PRM 1, RPRM 1: `(R, G, B)`.
 #[derive(Debug, Clone)]
 struct Linear {
     m: [[f32; 3]; 3],
+}
+
+impl Declared for Linear {
+    const STEPS: &'static [Step] = &[Step::Combine];
+    const TERMS: &'static [Term] = &[term([1, 0, 0], 1), term([0, 1, 0], 1), term([0, 0, 1], 1)];
 }
 
 impl PixelKernel for Linear {
@@ -795,6 +835,31 @@ impl PixelKernel for Linear {
 #[derive(Debug, Clone)]
 struct Prm3 {
     m: [[f32; 19]; 3],
+}
+
+impl Declared for Prm3 {
+    const STEPS: &'static [Step] = &[Step::Combine];
+    const TERMS: &'static [Term] = &[
+        term([1, 0, 0], 1),
+        term([0, 1, 0], 1),
+        term([0, 0, 1], 1),
+        term([2, 0, 0], 1),
+        term([0, 2, 0], 1),
+        term([0, 0, 2], 1),
+        term([1, 1, 0], 1),
+        term([0, 1, 1], 1),
+        term([1, 0, 1], 1),
+        term([3, 0, 0], 1),
+        term([0, 3, 0], 1),
+        term([0, 0, 3], 1),
+        term([1, 2, 0], 1),
+        term([1, 0, 2], 1),
+        term([0, 1, 2], 1),
+        term([2, 1, 0], 1),
+        term([2, 0, 1], 1),
+        term([0, 2, 1], 1),
+        term([1, 1, 1], 1),
+    ];
 }
 
 impl PixelKernel for Prm3 {
@@ -893,6 +958,25 @@ struct Rprm3 {
     m: [[f32; 13]; 3],
 }
 
+impl Declared for Rprm3 {
+    const STEPS: &'static [Step] = &[Step::Combine];
+    const TERMS: &'static [Term] = &[
+        term([1, 0, 0], 1),
+        term([0, 1, 0], 1),
+        term([0, 0, 1], 1),
+        term([1, 1, 0], 2),
+        term([0, 1, 1], 2),
+        term([1, 0, 1], 2),
+        term([1, 2, 0], 3),
+        term([1, 0, 2], 3),
+        term([0, 1, 2], 3),
+        term([2, 1, 0], 3),
+        term([0, 2, 1], 3),
+        term([2, 0, 1], 3),
+        term([1, 1, 1], 3),
+    ];
+}
+
 impl PixelKernel for Rprm3 {
     // Steps whose values are all 0 or finite magnitudes of at least CBRT_TINY skip the cube
     // root's rescaling of tiny values and its ±∞ select (the same result there).
@@ -948,6 +1032,22 @@ struct Nsrm3 {
     gain: [f32; 3],
 }
 
+impl Declared for Nsrm3 {
+    const STEPS: &'static [Step] = &[Step::Gain, Step::Normalise, Step::Combine, Step::Rescale];
+    const TERMS: &'static [Term] = &[
+        term([0, 0, 0], 1),
+        term([1, 0, 0], 1),
+        term([0, 1, 0], 1),
+        term([2, 0, 0], 1),
+        term([0, 2, 0], 1),
+        term([1, 1, 0], 1),
+        term([3, 0, 0], 1),
+        term([0, 3, 0], 1),
+        term([1, 2, 0], 1),
+        term([2, 1, 0], 1),
+    ];
+}
+
 impl PixelKernel for Nsrm3 {
     #[inline(always)]
     fn pixel<const STEP_OK: bool>(&self, x: [f32; 3], fma: bool) -> [f32; 3] {
@@ -987,9 +1087,12 @@ const ONE: usize = 0;
 /// Every term of any list as products of two earlier values, evaluated a block at a time.
 #[derive(Debug, Clone)]
 struct Plan {
-    nsrm: bool,
-    /// NSRM's input gains, multiplied into R, G, B first (1 unless white-balanced).
-    gain: [f32; 3],
+    /// The program's gain step: the input gains multiplied into R, G, B first.
+    gain: Option<[f32; 3]>,
+    /// The program's normalise step: `s = R+G+B`, the black rule, the variables `(r, g)`.
+    normalise: bool,
+    /// The program's rescale step: the output times `s`.
+    rescale: bool,
     /// `(channel, root, slot)`: the per-channel roots to compute first.
     bases: Vec<(usize, u8, usize)>,
     /// `(dst, a, b)`: `v[dst] = v[a]·v[b]`, in dependency order.
@@ -1003,26 +1106,28 @@ struct Plan {
 }
 
 impl Plan {
-    /// The plan of a standard term list (every root 1..=4; NSRM terms use `r, g` only).
-    fn new(kind: Kind, terms: &[Term], matrix: &[f64]) -> Plan {
-        let nsrm = kind == Kind::Nsrm;
+    /// The plan of a pixel program (a well-formed one: every root 1..=4, no `x₂` after the
+    /// normalise step): its policy flags read from its steps, its products from its terms.
+    fn new(program: &Program<'_>, matrix: &[f64], gains: [f64; 3]) -> Plan {
+        debug_assert_eq!(program.check(), Ok(()));
         let mut bases = Vec::new();
         let mut steps = Vec::new();
         // (exponents, root) → slot; the empty monomial is the constant 1 whatever the root.
         let mut known: HashMap<([u8; 3], u8), usize> = HashMap::new();
         let mut slots = 1;
-        let term_slots = terms
+        let term_slots = program
+            .terms
             .iter()
             .map(|t| {
-                debug_assert!((1..=4).contains(&t.root) && !(nsrm && t.exps[2] != 0));
                 plan_monomial(
                     t.exps, t.root, &mut known, &mut bases, &mut steps, &mut slots,
                 )
             })
             .collect();
         Plan {
-            nsrm,
-            gain: [1.0; 3],
+            gain: program.has(Step::Gain).then(|| gains.map(|v| v as f32)),
+            normalise: program.has(Step::Normalise),
+            rescale: program.has(Step::Rescale),
             bases,
             steps,
             term_slots,
@@ -1088,9 +1193,12 @@ impl BlockKernel for Plan {
     fn block(&self, x: &[Lanes; 3], v: &mut Vec<Lanes>, _fma: bool) -> [Lanes; 3] {
         let mut scale = [1.0f32; LANES];
         let mut black = [false; LANES];
-        let mut vars = *x;
-        if self.nsrm {
-            let x = &gained(x, &self.gain);
+        let mut vars = match &self.gain {
+            Some(g) => gained(x, g),
+            None => *x,
+        };
+        if self.normalise {
+            let x = vars;
             for i in 0..LANES {
                 let (s, r, g, k) = nsrm_signal(x[0][i], x[1][i], x[2][i]);
                 scale[i] = s;
@@ -1143,10 +1251,11 @@ impl BlockKernel for Plan {
                 y[2][i] += c2 * t[i];
             }
         }
-        if self.nsrm {
+        if self.normalise {
+            let rescale = self.rescale;
             for yk in &mut y {
                 for i in 0..LANES {
-                    let v = scale[i] * yk[i];
+                    let v = if rescale { scale[i] * yk[i] } else { yk[i] };
                     yk[i] = if black[i] { 0.0 } else { v };
                 }
             }
@@ -1158,7 +1267,8 @@ impl BlockKernel for Plan {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::model::MAX_ORDER;
+    use crate::model::terms::terms;
+    use crate::model::{Kind, MAX_ORDER};
 
     #[test]
     fn cbrt_is_accurate_and_keeps_special_values() {
@@ -1229,7 +1339,7 @@ mod tests {
                 };
                 assert_eq!(f.kernel_name(), expect, "{kind} {order}");
                 // The generic plan can also take every standard list (used by the tests).
-                let plan = Plan::new(kind, &t, &m.matrix);
+                let plan = Plan::new(&m.program(), &m.matrix, m.input_gains);
                 assert!(
                     plan.slots <= 2 * t.len() + 8,
                     "{kind} {order}: {}",
@@ -1242,6 +1352,163 @@ mod tests {
                     plan.steps.len()
                 );
             }
+        }
+    }
+
+    /// Pixels for the declaration tests: ordinary, negative channels, s ≤ 0, tiny, NaN, ±∞.
+    const PIXELS: [[f32; 3]; 9] = [
+        [0.2, 0.3, 0.25],
+        [0.7, 0.05, 0.4],
+        [0.4, -0.05, 0.3],
+        [-0.1, -0.05, 0.6],
+        [0.1, -0.2, 0.05],
+        [1e-30, 2e-30, 3e-30],
+        [2e3, 3e3, 2.5e3],
+        [f32::NAN, 0.2, 0.3],
+        [f32::INFINITY, 0.2, 0.3],
+    ];
+
+    /// `got` against the f64 evaluation of `program` (rounded once): NaN for NaN, the same ±∞,
+    /// else within 1e-5 relative to the summands' size.
+    fn assert_follows(
+        program: &Program<'_>,
+        matrix: &[f64],
+        gains: [f64; 3],
+        x: [f32; 3],
+        got: [f32; 3],
+        what: &str,
+    ) {
+        let x64 = x.map(|v| v as f64);
+        let mut p = vec![0.0; program.terms.len()];
+        let want = program.eval(matrix, gains, x64, &mut p);
+        let scale = program.features(gains, x64, &mut p).unwrap_or(0.0).abs();
+        let l = p.len();
+        for k in 0..3 {
+            let (g, w) = (got[k] as f64, want[k]);
+            let size: f64 = (0..l)
+                .map(|j| (matrix[k * l + j] * p[j]).abs())
+                .sum::<f64>()
+                * scale;
+            let ok = if w.is_nan() {
+                g.is_nan()
+            } else if w.is_infinite() {
+                !g.is_finite()
+            } else {
+                (g - w).abs() <= 1e-5 * w.abs().max(size) + 1e-30
+            };
+            assert!(ok, "{what}: pixel {x:?} channel {k}: got {g}, program {w}");
+        }
+    }
+
+    /// Each hand-written kernel's arithmetic is what it declares: with a matrix that picks one
+    /// column per output, its output is that declared term under the declared steps, as the f64
+    /// evaluator computes the declaration. (The kernels are chosen by their declaration, so this
+    /// and the index map tie them to the one description.)
+    #[test]
+    fn hand_kernels_compute_what_they_declare() {
+        fn check<K: Declared + PixelKernel, const L: usize>(make: impl Fn([[f32; L]; 3]) -> K) {
+            let kind = if K::STEPS.contains(&Step::Normalise) {
+                Kind::Nsrm
+            } else {
+                Kind::Rprm
+            };
+            let program = Program::custom(kind, K::STEPS, K::TERMS).unwrap();
+            assert_eq!(K::TERMS.len(), L);
+            for j in 0..L {
+                // Output k picks column (j + k) mod L, weighted 1, 2, 3.
+                let mut m = [[0.0f32; L]; 3];
+                let mut matrix = vec![0.0f64; 3 * L];
+                for k in 0..3 {
+                    let c = (j + k) % L;
+                    m[k][c] = (k + 1) as f32;
+                    matrix[k * L + c] = (k + 1) as f64;
+                }
+                let kernel = make(m);
+                // Finite pixels: a per-pixel kernel may leave non-finite ones to its chunk loop's
+                // fallback (PRM 3), which `kernels_follow_the_program_not_the_kind` runs.
+                for x in PIXELS
+                    .into_iter()
+                    .filter(|x| x.iter().all(|v| v.is_finite()))
+                {
+                    for fma in [false, true] {
+                        let got = kernel.pixel::<false>(x, fma);
+                        let what = format!("{} column {j} fma {fma}", std::any::type_name::<K>());
+                        assert_follows(&program, &matrix, [1.0; 3], x, got, &what);
+                    }
+                }
+            }
+        }
+        check::<Linear, 3>(|m| Linear { m });
+        check::<Prm3, 19>(|m| Prm3 { m });
+        check::<Rprm3, 13>(|m| Rprm3 { m });
+        check::<Nsrm3, 10>(|m| Nsrm3 { m, gain: [1.0; 3] });
+    }
+
+    /// Runs `kernel` (baseline and detected code) on [`PIXELS`] and holds it to `program`.
+    fn run_against(program: &Program<'_>, matrix: &[f64], gains: [f64; 3], name: &str) {
+        let kernel = Kernel::choose(program, matrix, gains);
+        let fast = FastModel { kernel };
+        assert_eq!(fast.kernel_name(), name, "{program:?}");
+        let data: Vec<f32> = PIXELS.iter().flatten().copied().collect();
+        for baseline in [false, true] {
+            let mut f = Frame::from_data(PIXELS.len(), 1, Layout::Rgb, data.clone()).unwrap();
+            if baseline {
+                fast.apply_baseline(&mut f, Threads::Single);
+            } else {
+                fast.apply(&mut f, Threads::Single);
+            }
+            for (x, got) in PIXELS.iter().zip(f.data.chunks_exact(3)) {
+                let what = format!("{name} (baseline {baseline}) on {program:?}");
+                assert_follows(program, matrix, gains, *x, [got[0], got[1], got[2]], &what);
+            }
+        }
+    }
+
+    /// The fast path follows the program it is given, not the kind: programs that are no kind's
+    /// (another policy over a kind's terms, a kind's terms in another order) run the generic plan
+    /// with the program's flags, or a hand-written kernel through the index map, and agree with
+    /// the f64 evaluator.
+    #[test]
+    fn kernels_follow_the_program_not_the_kind() {
+        let matrix = |l: usize| -> Vec<f64> {
+            (0..3 * l)
+                .map(|i| 0.3 + ((i * 7) % 11) as f64 * 0.1 - 0.4)
+                .collect()
+        };
+        let gains = [1.5, 1.0, 0.75];
+        // A kind's terms in reverse order: the hand-written kernels through their index maps.
+        for (kind, order, name) in [
+            (Kind::Prm, 3, "prm3"),
+            (Kind::Rprm, 3, "rprm3"),
+            (Kind::Nsrm, 3, "nsrm3"),
+            (Kind::Prm, 1, "linear"),
+        ] {
+            let mut t = terms(kind, order);
+            t.reverse();
+            let p = Program::custom(kind, Program::steps_of(kind), &t).unwrap();
+            let g = if kind == Kind::Nsrm { gains } else { [1.0; 3] };
+            run_against(&p, &matrix(t.len()), g, name);
+        }
+        // Another policy: the plan, with the program's flags.
+        let nsrm3 = terms(Kind::Nsrm, 3);
+        let nsrm2 = terms(Kind::Nsrm, 2);
+        let rprm2 = terms(Kind::Rprm, 2);
+        for p in [
+            Program::custom(
+                Kind::Nsrm,
+                &[Step::Normalise, Step::Combine, Step::Rescale],
+                &nsrm3,
+            ),
+            Program::custom(
+                Kind::Nsrm,
+                &[Step::Gain, Step::Normalise, Step::Combine],
+                &nsrm2,
+            ),
+            Program::custom(Kind::Nsrm, &[Step::Combine], &nsrm2),
+            Program::custom(Kind::Rprm, &[Step::Gain, Step::Combine], &rprm2),
+        ] {
+            let p = p.unwrap();
+            run_against(&p, &matrix(p.terms.len()), gains, "plan");
         }
     }
 

@@ -84,7 +84,7 @@ struct ModelFile {
 }
 
 impl Model {
-    /// The model as a JSON document (see the [module docs](self)).
+    /// The model as a JSON document (the `nsrm-model` format that `nsrm apply` reads).
     pub fn to_json(&self) -> String {
         let l = self.terms.len();
         let unit = self.has_unit_gains();

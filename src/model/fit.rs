@@ -43,7 +43,10 @@ pub enum Objective {
     LeastSquares,
     /// Σ ΔE00^power over the training patches (power ≥ 2; 2 is `de00`), starting from the
     /// least-squares solution.
-    De00 { power: f64 },
+    De00 {
+        /// The exponent P (2 ≤ P ≤ 64).
+        power: f64,
+    },
 }
 
 impl Objective {
@@ -95,6 +98,7 @@ pub enum White {
 /// Tikhonov regularisation of the matrix.
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
 pub enum Ridge {
+    /// No regularisation (the paper's fit).
     #[default]
     None,
     /// A fixed λ ≥ 0 (on standardised terms).
@@ -160,11 +164,15 @@ impl Normalise {
 /// Everything that defines a fit besides the kind and order. `Default` is the paper's fit.
 #[derive(Debug, Clone, PartialEq)]
 pub struct FitOptions {
+    /// What the fit minimises.
     pub objective: Objective,
     /// Map [`FitOptions::white`] exactly to its reference XYZ.
     pub preserve_white: bool,
+    /// The reference white that `preserve_white` keeps and white balance divides by.
     pub white: White,
+    /// Tikhonov regularisation of the matrix.
     pub ridge: Ridge,
+    /// NSRM's input normalisation.
     pub normalise: Normalise,
 }
 
@@ -192,6 +200,7 @@ pub struct FitReport {
     /// The ridge λ used (0: none), and whether it was chosen automatically (by GCV, or by exact
     /// leave-one-out: `ridge_criterion`).
     pub ridge_lambda: f64,
+    /// Whether λ was chosen automatically.
     pub ridge_auto: bool,
     /// `gcv` or `loo` when λ was chosen automatically (absent in older files: GCV).
     #[serde(skip_serializing_if = "Option::is_none", default)]
@@ -206,11 +215,12 @@ pub struct FitReport {
     #[serde(skip_serializing_if = "Option::is_none", default)]
     pub de00_start: Option<f64>,
     #[serde(skip_serializing_if = "Option::is_none", default)]
+    /// In-sample Σ ΔE00^P at the end (ΔE00 objective only).
     pub de00_end: Option<f64>,
     /// Levenberg–Marquardt iterations (Jacobian evaluations), 0 for least squares.
     pub iterations: usize,
     /// A bound on the ΔE00 that evaluating the model in f32 (the fast CPU kernels, the shaders)
-    /// can add to any training patch ([`f32_error_bound`]; absent in older files).
+    /// can add to any training patch (`f32_error_bound`; absent in older files).
     #[serde(skip_serializing_if = "Option::is_none", default)]
     pub f32_error_bound: Option<f64>,
     /// The λ the options asked for (0: none), when the fit raised it to `ridge_lambda` so that the
@@ -222,7 +232,9 @@ pub struct FitReport {
 /// A fitted model with its input gains and report.
 #[derive(Debug, Clone)]
 pub struct Fit {
+    /// The fitted model.
     pub model: Model,
+    /// What the fit did (also in [`Model::fit_report`]).
     pub report: FitReport,
 }
 
@@ -510,14 +522,14 @@ pub(crate) fn lambda_grid() -> impl Iterator<Item = f64> {
     (0..=52).map(|i| 10f64.powf(-12.0 + 0.25 * i as f64))
 }
 
-/// Fits `kind` at `order` with `opts` (see the [module docs](self)).
+/// Fits `kind` at `order` with `opts` (least squares by SVD, optionally ridge, white-preserving or ΔE00-refined).
 ///
-/// The steps: [`Problem::new`] checks the order and the patch count, takes the input gains and
-/// builds the design and the white constraint; [`Problem::solve`] picks λ and solves the
-/// (regularised) least squares; [`Problem::finish`] refines under the ΔE00 objective and builds
-/// the model; [`Problem::guard_f32`] then bounds the error of evaluating that model in f32 (the
+/// The steps: `Problem::new` checks the order and the patch count, takes the input gains and
+/// builds the design and the white constraint; `Problem::solve` picks λ and solves the
+/// (regularised) least squares; `Problem::finish` refines under the ΔE00 objective and builds
+/// the model; `Problem::guard_f32` then bounds the error of evaluating that model in f32 (the
 /// fast CPU kernels, the shaders) and, when the bound exceeds [`F32_TOLERANCE_DE00`], raises λ
-/// until it does not (see [`f32_error_bound`]).
+/// until it does not (see `f32_error_bound`).
 pub fn fit_with(
     kind: Kind,
     order: u8,
@@ -532,7 +544,7 @@ pub fn fit_with(
 }
 
 /// The ΔE00 the f32 evaluation of a fitted model (fast CPU kernels, shaders) may add to any
-/// training patch, at most: [`fit_with`] raises the ridge λ until [`f32_error_bound`] is below it,
+/// training patch, at most: [`fit_with`] raises the ridge λ until `f32_error_bound` is below it,
 /// so that `apply` reproduces the in-sample ΔE00 the fit reports to within 0.01.
 pub const F32_TOLERANCE_DE00: f64 = 0.01;
 

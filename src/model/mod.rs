@@ -2,7 +2,9 @@
 //! [`Model`] value with its JSON file ([`mod@file`]), and the f64 CPU reference apply path.
 //!
 //! Every apply path follows one pixel policy (NaN/Inf propagate, NSRM `s ≤ 0 → 0`, sign-preserving
-//! roots, nothing clamped), defined in [`pixel`].
+//! roots, nothing clamped), described once as a pixel program in [`pixel`] (`pixel::Program`:
+//! the steps of a kind over its term list), from which the f64 reference, the fast kernels, the
+//! WGSL and the DCTL are evaluated or printed.
 //! Input gains (white-balanced NSRM, [`Model::input_gains`]): every path multiplies R, G, B by the
 //! gains first; the policy then holds for the gained pixel (`s = g_R·R + g_G·G + g_B·B`). Gains
 //! are positive, so exposure invariance is kept.
@@ -13,20 +15,15 @@ pub(crate) mod fast;
 mod fast_tests;
 pub(crate) mod file;
 pub(crate) mod fit;
-mod output;
+pub(crate) mod output;
 pub(crate) mod pixel;
 #[cfg(test)]
 mod policy_tests;
 mod refine;
 pub(crate) mod terms;
 
-pub use dual_illuminant::{Combination, FrameWhite, Profile};
-pub use fit::{
-    fit_with, Fit, FitOptions, FitReport, Normalise, Objective, Ridge, White as FitWhite,
-    F32_TOLERANCE_DE00,
-};
-pub use output::output_model;
-pub use terms::MAX_ORDER;
+pub(crate) use output::output_model;
+pub(crate) use terms::MAX_ORDER;
 pub(crate) use terms::{term_name, terms, Term};
 
 use crate::training::{Provenance, TrainingSet};
@@ -128,6 +125,7 @@ pub enum Kind {
 }
 
 impl Kind {
+    /// The four kinds, in the paper's order.
     pub const ALL: [Kind; 4] = [Kind::Lrm, Kind::Prm, Kind::Rprm, Kind::Nsrm];
 
     /// Lower-case name: `lrm`, `prm`, `rprm`, `nsrm`.
@@ -306,17 +304,17 @@ impl Model {
         Ok(self)
     }
 
-    /// `rgb` multiplied by the input gains.
-    pub(crate) fn gained(&self, rgb: [f64; 3]) -> [f64; 3] {
-        let g = self.input_gains;
-        [rgb[0] * g[0], rgb[1] * g[1], rgb[2] * g[2]]
-    }
-
     /// The term values of `rgb` (input gains applied first) written into `p` (length L), and the
-    /// output scale (`s` for NSRM, 1 otherwise), or `None` when NSRM's `s ≤ 0`: [`features`] for
+    /// output scale (`s` for NSRM, 1 otherwise), or `None` when NSRM's `s ≤ 0`: `features` for
     /// this model.
     pub fn features_of(&self, rgb: [f64; 3], p: &mut [f64]) -> Option<f64> {
-        features(self.kind, &self.terms, self.gained(rgb), p)
+        self.program().features(self.input_gains, rgb, p)
+    }
+
+    /// The model's pixel program: its kind's steps over its terms (the one description every
+    /// apply path and printer follows, [`pixel::Program`]).
+    pub(crate) fn program(&self) -> pixel::Program<'_> {
+        pixel::Program::new(self.kind, &self.terms)
     }
 
     /// How the matrix was fitted, when known (see [`fit::FitReport`]).
@@ -363,7 +361,7 @@ impl Model {
     }
 
     /// Applies the model to one camera RGB in f64 (the input gains first, then the terms): the
-    /// reference every faster path is checked against. Follows the [pixel policy](pixel).
+    /// reference every faster path is checked against. Follows the pixel policy (the README's *Pixel policy*).
     pub fn apply_f64(&self, rgb: [f64; 3]) -> [f64; 3] {
         let mut p = vec![0.0; self.terms.len()];
         self.apply_f64_with(rgb, &mut p)
@@ -371,28 +369,14 @@ impl Model {
 
     /// [`apply_f64`](Self::apply_f64) with a caller-provided term buffer (length L).
     pub(crate) fn apply_f64_with(&self, rgb: [f64; 3], p: &mut [f64]) -> [f64; 3] {
-        let scale = match self.features_of(rgb, p) {
-            Some(s) => s,
-            None => return [0.0; 3],
-        };
-        let mut out = [0.0; 3];
-        for (i, o) in out.iter_mut().enumerate() {
-            *o = scale
-                * self
-                    .row(i)
-                    .iter()
-                    .zip(p.iter())
-                    .map(|(m, x)| m * x)
-                    .sum::<f64>();
-        }
-        out
+        self.program().eval(&self.matrix, self.input_gains, rgb, p)
     }
 
     /// Corrects a frame in place on the CPU (alpha untouched): the CPU frame back end.
     ///
     /// Computes in f32 with vectorised kernels, on every thread of rayon's current pool (the
     /// global pool; call it inside `rayon::ThreadPool::install` to choose the threads). Follows
-    /// the [pixel policy](pixel) and agrees with [`apply_f64`](Self::apply_f64) to f32 precision.
+    /// the pixel policy and agrees with [`apply_f64`](Self::apply_f64) to f32 precision.
     ///
     /// ```
     /// use nsrm::{fit, simulate_named, Frame, Grid, Kind, Layout};
@@ -468,15 +452,10 @@ fn finite_in_f32(v: f64) -> bool {
 
 /// Writes the term values of `rgb` into `p` and returns the output scale (`s` for NSRM, 1
 /// otherwise), or `None` when NSRM's `s ≤ 0` (the output is then 0 by the pixel policy).
+/// `rgb` is taken as already multiplied by any input gains: this is the kind's
+/// [`pixel::Program`] evaluated with unit gains.
 pub(crate) fn features(kind: Kind, terms: &[Term], rgb: [f64; 3], p: &mut [f64]) -> Option<f64> {
-    if kind == Kind::Nsrm {
-        let (s, r, g) = pixel::nsrm_signal(rgb)?;
-        terms::expand(terms, [r, g, 0.0], p);
-        Some(s)
-    } else {
-        terms::expand(terms, rgb, p);
-        Some(1.0)
-    }
+    pixel::Program::new(kind, terms).features(UNIT_GAINS, rgb, p)
 }
 
 /// Least-squares fit of `kind` at `order` to a training set, by SVD (never the normal equations).

@@ -82,8 +82,11 @@ impl SpectralError {
 /// A wavelength grid, `start..=end` in steps of `step` nm.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Grid {
+    /// The first wavelength, nm.
     pub start: f64,
+    /// The last wavelength, nm (included when on the grid).
     pub end: f64,
+    /// The spacing, nm.
     pub step: f64,
 }
 

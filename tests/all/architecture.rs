@@ -74,7 +74,11 @@ fn root_reexports(lib: &str) -> BTreeMap<String, String> {
         let Some((room, names)) = rest.split_once("::") else {
             continue;
         };
-        let names = names.trim_start_matches('{').trim_end_matches('}');
+        // `model::{A, B}`, `model::fit::{A, B}`: the names in the last braces.
+        let names = names
+            .rsplit_once('{')
+            .map_or(names, |(_, n)| n)
+            .trim_end_matches('}');
         for n in names.split(',') {
             let n = n.trim();
             let n = n.rsplit("::").next().unwrap_or(n);
@@ -268,11 +272,11 @@ fn crate_path_parser_reads_the_forms_used() {
     assert!(crate_paths("pub(crate) fn f() {}").is_empty());
     assert!(crate_paths("$crate::x; mycrate::y").is_empty());
     let map = root_reexports(
-        "pub use frame::{Frame, Layout};\npub use model::Model;\npub use model::{\n    fit, White as FitWhite,\n};",
+        "pub use frame::{Frame, Layout};\npub use model::Model;\npub use model::fit::{\n    fit_with, White as FitWhite,\n};",
     );
     assert_eq!(map["Layout"], "frame");
     assert_eq!(map["Model"], "model");
-    assert_eq!(map["fit"], "model");
+    assert_eq!(map["fit_with"], "model");
     assert_eq!(map["FitWhite"], "model");
     assert_eq!(
         room_of(Path::new("io/openexr/chunks.rs")).as_deref(),

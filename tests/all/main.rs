@@ -68,6 +68,8 @@ mod profiles;
 #[cfg(feature = "cli")]
 mod profiles_rawtherapee;
 mod raw;
+#[cfg(feature = "raw")]
+mod raw_xtrans;
 #[cfg(feature = "cli")]
 mod readme;
 #[cfg(feature = "studio")]

@@ -2,12 +2,14 @@
 """Synthetic CFA DNGs and LibRaw's reading of them, for tests/all/raw.rs and the raw benchmark.
 
   raw_judge.py dng OUT.dng --width W --height H --pattern RGGB --black B0,B1,B2,B3 --white W
-               [--seed N] [--smooth] [--make M --model M] [--bits 16]
+               [--seed N] [--smooth | --flat R,G,B] [--make M --model M] [--bits 16]
       Writes an uncompressed CFA DNG with tifffile (tags of the DNG 1.4 spec, written by hand),
       then checks with rawpy (LibRaw) that it reads back exactly the mosaic written, and writes
-      beside it: OUT.dng.half.f32 — the exact 2x2 block means of max(value - black, 0) /
-      (white - smallest black), LibRaw's scale (R, mean of the two G, B; row-major, float32 little-endian) — the truth `half`
-      must give.
+      beside it: OUT.dng.half.f32 — the exact block means of max(value - black, 0) /
+      (white - smallest black), LibRaw's scale (per colour, the mean of its sites in each 2x2
+      block, or 3x3 block for a 36-letter 6x6 X-Trans pattern; row-major, float32
+      little-endian) — the truth `half` must give. --flat writes each colour's sites as one
+      fraction of the range.
   raw_judge.py linear IN.dng OUT.f32
       LibRaw's LINEAR (bilinear) demosaic of IN, linear camera RGB without white balance or
       matrix, as float32 in [0, 1] (the 16-bit output / 65535), row-major RGB; prints W H.
@@ -26,13 +28,19 @@ import numpy as np
 COLOURS = {"R": 0, "G": 1, "B": 2}
 
 
-def write_dng(out, w, h, pattern, black, white, seed, smooth, make, model, bits):
+def write_dng(out, w, h, pattern, black, white, seed, smooth, make, model, bits, flat=None):
     import tifffile
 
     rng = np.random.default_rng(seed)
-    pat = np.array([COLOURS[c] for c in pattern], dtype=np.uint8).reshape(2, 2)
+    # A 2x2 Bayer pattern (4 letters) or a 6x6 X-Trans one (36 letters).
+    n = {4: 2, 36: 6}[len(pattern)]
+    pat = np.array([COLOURS[c] for c in pattern], dtype=np.uint8).reshape(n, n)
     black = np.array(black, dtype=np.float64).reshape(2, 2)
-    if smooth:
+    if flat is not None:
+        # A flat field: each colour's sites hold one value.
+        col = pat[np.arange(h)[:, None] % n, np.arange(w)[None, :] % n]
+        frac = np.array(flat, dtype=np.float64)[col]
+    elif smooth:
         # A smooth colour field (so the interior of a demosaic is well defined) plus noise.
         yy, xx = np.mgrid[0:h, 0:w].astype(np.float64)
         field = np.stack(
@@ -41,7 +49,7 @@ def write_dng(out, w, h, pattern, black, white, seed, smooth, make, model, bits)
                 for c in range(3)
             ]
         )
-        col = pat[np.arange(h)[:, None] % 2, np.arange(w)[None, :] % 2]
+        col = pat[np.arange(h)[:, None] % n, np.arange(w)[None, :] % n]
         frac = np.take_along_axis(field, col[None], 0)[0]
         frac += rng.normal(0, 0.01, size=frac.shape)
     else:
@@ -50,8 +58,8 @@ def write_dng(out, w, h, pattern, black, white, seed, smooth, make, model, bits)
     mosaic = np.clip(np.round(blk + frac * (white - blk)), 0, 2**bits - 1).astype(np.uint16)
     cfa_pattern = bytes(int(v) for v in pat.flatten())
     tags = [
-        (33421, "H", 2, (2, 2), True),  # CFARepeatPatternDim
-        (33422, "B", 4, cfa_pattern, True),  # CFAPattern
+        (33421, "H", 2, (n, n), True),  # CFARepeatPatternDim
+        (33422, "B", n * n, cfa_pattern, True),  # CFAPattern
         (50706, "B", 4, (1, 4, 0, 0), True),  # DNGVersion
         (50707, "B", 4, (1, 1, 0, 0), True),  # DNGBackwardVersion
         (50708, "s", 0, f"{make} {model}", True),  # UniqueCameraModel
@@ -92,15 +100,20 @@ def write_dng(out, w, h, pattern, black, white, seed, smooth, make, model, bits)
             sys.exit(f"LibRaw reads white {r.white_level}, written {white}")
     # LibRaw's scale: each position's black subtracted, divided by (white - the smallest black).
     scaled = np.maximum(mosaic.astype(np.float64) - blk, 0) / (white - black.min())
-    oh, ow = h // 2, w // 2
+    # `half`: one pixel per 2x2 (Bayer) or 3x3 (X-Trans) block, each colour the mean of its
+    # sites in the block.
+    b = 2 if n == 2 else 3
+    oh, ow = h // b, w // b
     half = np.zeros((oh, ow, 3))
-    count = np.zeros(3)
-    for dy in range(2):
-        for dx in range(2):
-            c = pat[dy, dx]
-            half[:, :, c] += scaled[dy : 2 * oh : 2, dx : 2 * ow : 2]
-    for c in range(3):
-        count[c] = np.count_nonzero(pat == c)
+    count = np.zeros((oh, ow, 3))
+    col = pat[np.arange(h)[:, None] % n, np.arange(w)[None, :] % n]
+    for dy in range(b):
+        for dx in range(b):
+            cs = col[dy : b * oh : b, dx : b * ow : b]
+            vs = scaled[dy : b * oh : b, dx : b * ow : b]
+            for c in range(3):
+                half[:, :, c] += np.where(cs == c, vs, 0)
+                count[:, :, c] += cs == c
     half /= count
     half.astype("<f4").tofile(out + ".half.f32")
 
@@ -209,12 +222,14 @@ def main():
         p.add_argument("--make", default="Acme")
         p.add_argument("--model", default="Synth 1")
         p.add_argument("--bits", type=int, default=16)
+        p.add_argument("--flat", default=None, help="R,G,B fractions of the range: a flat field")
         o = p.parse_args(a[1:])
+        flat = [float(v) for v in o.flat.split(",")] if o.flat else None
         black = [float(v) for v in o.black.split(",")]
         if len(black) == 1:
             black = black * 4
         write_dng(o.out, o.width, o.height, o.pattern, black, o.white, o.seed, o.smooth,
-                  o.make, o.model, o.bits)
+                  o.make, o.model, o.bits, flat)
     elif a[0] == "same":
         same(a[1], a[2])
     elif a[0] == "linear":

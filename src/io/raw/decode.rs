@@ -1,6 +1,8 @@
 //! Decoding with rawler and developing the mosaic (feature `raw`).
 
+use super::container::Declared;
 use super::demosaic::Mosaic;
+use super::xtrans::XTrans;
 use super::{sniff, CameraInfo, Demosaic, Sniff, MAX_RAW_BYTES};
 use crate::frame::Frame;
 use crate::io::{IoError, Limits};
@@ -40,7 +42,19 @@ pub(crate) fn read(path: &Path, limits: &Limits, demosaic: Demosaic) -> Result<R
         }
         Sniff::TiffBased(_, Some(why)) => return Err(corrupt(path, why)),
         Sniff::TiffBased(d, None) => d,
-        Sniff::Container => None,
+        Sniff::Container(_, Declared { bad: Some(why), .. }) => return Err(corrupt(path, why)),
+        Sniff::Container(kind, d) => match d.largest {
+            Some(dims) => Some(dims),
+            None => {
+                return Err(corrupt(
+                    path,
+                    format!(
+                        "its {kind} headers declare no image size (nothing to check against \
+                         --max-pixels before decoding)"
+                    ),
+                ))
+            }
+        },
     };
     if let Some((w, h)) = dims {
         limits.check_frame(path, w, h, 3, 4, None)?;
@@ -81,7 +95,11 @@ pub(crate) fn read(path: &Path, limits: &Limits, demosaic: Demosaic) -> Result<R
     };
     drop(source);
     limits.check_frame(path, image.width as u64, image.height as u64, 3, 4, None)?;
-    let info = camera_info(&image, meta.as_ref(), demosaic);
+    let mut info = camera_info(&image, meta.as_ref(), demosaic);
+    if info.cfa.len() == 36 && demosaic == Demosaic::Mhc {
+        // Malvar–He–Cutler is a Bayer method: X-Trans gets the bilinear interpolation.
+        info.demosaic = Demosaic::Bilinear.name().to_string();
+    }
     let developed = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
         develop(path, &image, demosaic)
     }));
@@ -238,8 +256,25 @@ fn develop(path: &Path, image: &rawler::RawImage, demosaic: Demosaic) -> Result<
     let bayer = match &image.photometric {
         P::Cfa(c) if image.cpp == 1 => {
             let cfa = &c.cfa;
-            if cfa.width == 2 && cfa.height == 2 && cfa.is_rgb() && cfa.unique_colors() == 3 {
+            let rgb = cfa.is_rgb() && cfa.unique_colors() == 3;
+            if cfa.width == 2 && cfa.height == 2 && rgb {
                 Some(cfa.clone())
+            } else if cfa.width == 6 && cfa.height == 6 && rgb {
+                let plane = scaled_plane(path, image, &sample, (x0, y0, w, h))?;
+                let mut pattern = [0u8; 36];
+                for (i, p) in pattern.iter_mut().enumerate() {
+                    *p = cfa.color_at(y0 + i / 6, x0 + i % 6) as u8;
+                }
+                let m = XTrans {
+                    plane: &plane,
+                    w,
+                    h,
+                    pattern,
+                };
+                return match demosaic {
+                    Demosaic::Half => m.half(path),
+                    Demosaic::Bilinear | Demosaic::Mhc => m.bilinear(path),
+                };
             } else {
                 return rawler_develop(path, image);
             }
@@ -286,17 +321,7 @@ fn develop(path: &Path, image: &rawler::RawImage, demosaic: Demosaic) -> Result<
         });
     };
     // Bayer: scale the kept rectangle into a plane of f32, with its 2×2 colour pattern.
-    let lv = levels(path, image, 0)?;
-    let mut plane = crate::io::try_zeroed::<f32>(path, w * h)?;
-    plane.par_chunks_mut(w).enumerate().for_each(|(r, row)| {
-        let y = y0 + r;
-        let base = y * iw + x0;
-        for (i, out) in row.iter_mut().enumerate() {
-            let x = x0 + i;
-            let (b, d) = lv[((y % bh) * bw + (x % bw)) % lv.len()];
-            *out = (sample(base + i) - b).max(0.0) / d;
-        }
-    });
+    let plane = scaled_plane(path, image, &sample, (x0, y0, w, h))?;
     let pattern = [
         cfa.color_at(y0, x0) as u8,
         cfa.color_at(y0, x0 + 1) as u8,
@@ -316,7 +341,32 @@ fn develop(path: &Path, image: &rawler::RawImage, demosaic: Demosaic) -> Result<
     }
 }
 
-/// X-Trans, four-colour and other patterns: rawler's development without white balance,
+/// The kept rectangle `(x0, y0, w, h)` of a one-sample CFA image as a plane of f32: each
+/// position's black subtracted (negatives clamped), divided by its range.
+fn scaled_plane(
+    path: &Path,
+    image: &rawler::RawImage,
+    sample: &(dyn Fn(usize) -> f32 + Sync),
+    (x0, y0, w, h): (usize, usize, usize, usize),
+) -> Result<Vec<f32>, IoError> {
+    let iw = image.width;
+    let bl = &image.blacklevel;
+    let (bw, bh) = (bl.width.max(1), bl.height.max(1));
+    let lv = levels(path, image, 0)?;
+    let mut plane = crate::io::try_zeroed::<f32>(path, w * h)?;
+    plane.par_chunks_mut(w).enumerate().for_each(|(r, row)| {
+        let y = y0 + r;
+        let base = y * iw + x0;
+        for (i, out) in row.iter_mut().enumerate() {
+            let x = x0 + i;
+            let (b, d) = lv[((y % bh) * bw + (x % bw)) % lv.len()];
+            *out = (sample(base + i) - b).max(0.0) / d;
+        }
+    });
+    Ok(plane)
+}
+
+/// Four-colour and other patterns: rawler's development without white balance,
 /// matrix or gamma.
 fn rawler_develop(path: &Path, image: &rawler::RawImage) -> Result<Frame, IoError> {
     use rawler::imgop::develop::{Intermediate, ProcessingStep as S, RawDevelop};

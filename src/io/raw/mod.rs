@@ -16,24 +16,32 @@
 //! two greens, B: no interpolation); `bilinear` is LibRaw's linear interpolation (neighbours of
 //! each colour in the 3×3 window, edge neighbours weighted 2, corners 1); `mhc` is the
 //! gradient-corrected linear interpolation of Malvar, He and Cutler (ICASSP 2004), with the
-//! bilinear rule on the outer two rows and columns. Fujifilm X-Trans and four-colour sensors go
-//! through rawler's own demosaic (bilinear) whatever is asked, and a monochrome or already-RGB
-//! (linear DNG) file is only scaled.
+//! bilinear rule on the outer two rows and columns. Fujifilm X-Trans (6×6 CFA): `half` makes
+//! one pixel of each 3×3 block (each colour the mean of its sites there), `bilinear` is
+//! LibRaw's linear interpolation on X-Trans, and `mhc` (a Bayer method) gives `bilinear`
+//! (see `xtrans`). Other patterns go through rawler's own development, four-colour sensors are
+//! refused, and a monochrome or already-RGB (linear DNG) file is only scaled.
 //!
-//! **Hostile files:** the file must be a regular file no larger than [`MAX_RAW_BYTES`]; in a
-//! TIFF-based raw (DNG, NEF, ARW, PEF, …) the image dimensions in every IFD are checked against
-//! [`Limits::max_pixels`] before the decoder runs; for other containers (CR3, RAF, …) the
-//! decoded mosaic is checked before anything of nsrm's is allocated. A panic inside the decoder
-//! is caught and reported as a corrupt file.
+//! **Hostile files:** the file must be a regular file no larger than [`MAX_RAW_BYTES`]. Before
+//! the decoder runs, the image sizes the headers declare are checked against
+//! `Limits::max_pixels`: in a TIFF-based raw (DNG, NEF, ARW,
+//! PEF, …, and ORF / RW2) those of every IFD; in CR3, RAF, MRW, CRW and X3F those their own
+//! headers declare (`container`); a structure that reaches past its end is refused as damaged,
+//! and a container declaring no image size is refused. The decoded mosaic is checked again
+//! before anything of nsrm's is allocated. A panic inside the decoder is caught and reported as
+//! a corrupt file.
 
 use super::IoError;
-use std::io::{Read, Seek, SeekFrom};
+use std::io::Read;
 use std::path::Path;
 
+mod container;
 #[cfg(feature = "raw")]
 mod decode;
 #[cfg(feature = "raw")]
 mod demosaic;
+#[cfg(feature = "raw")]
+mod xtrans;
 #[cfg(feature = "raw")]
 pub(crate) use decode::read;
 
@@ -136,7 +144,7 @@ pub(crate) fn is_raw_name(path: &Path) -> bool {
         .is_some_and(|e| RAW_EXTENSIONS.iter().any(|r| r.eq_ignore_ascii_case(e)))
 }
 
-/// What the first bytes and (for TIFF) the IFDs say.
+/// What the first bytes and the headers say.
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub(crate) enum Sniff {
     /// Not a raw file (maybe a plain TIFF, an EXR, or nothing nsrm reads).
@@ -145,12 +153,13 @@ pub(crate) enum Sniff {
     /// why its structure is damaged, if it is (an entry or IFD reaching past the end of the
     /// file: the decoder would allocate what the entry claims before finding out).
     TiffBased(Option<(u64, u64)>, Option<String>),
-    /// A raw container that is not TIFF (CR3, RAF, ORF, RW2, …).
-    Container,
+    /// A raw container that is not TIFF (CR3, RAF, ORF, RW2, …): its name and what its headers
+    /// declare ([`container`]).
+    Container(&'static str, container::Declared),
 }
 
-/// Looks at `path`'s content: a raw file or not. A plain TIFF (no CFA or linear-raw image, no
-/// DNG version, not a CR2) is not raw.
+/// Looks at `path`'s content: a raw file or not, and what its headers declare. A plain TIFF (no
+/// CFA or linear-raw image, no DNG version, not a CR2) is not raw.
 pub(crate) fn sniff(path: &Path) -> Result<Sniff, IoError> {
     let rd = |err| IoError::Read {
         path: path.to_path_buf(),
@@ -158,6 +167,7 @@ pub(crate) fn sniff(path: &Path) -> Result<Sniff, IoError> {
     };
     crate::limits::check_regular(path).map_err(rd)?;
     let mut f = std::fs::File::open(path).map_err(rd)?;
+    let len = f.metadata().map_err(rd)?.len();
     let mut head = [0u8; 32];
     let mut n = 0;
     while n < head.len() {
@@ -169,143 +179,46 @@ pub(crate) fn sniff(path: &Path) -> Result<Sniff, IoError> {
     let h = &head[..n];
     let starts = |s: &[u8]| h.starts_with(s);
     let at = |o: usize, s: &[u8]| h.len() >= o + s.len() && &h[o..o + s.len()] == s;
-    if at(4, b"ftypcrx ") || starts(b"FUJIFILMCCD-RAW") || starts(b"FOVb") || starts(b"\0MRM") {
-        return Ok(Sniff::Container);
+    let f = &mut f;
+    let found = |kind, d: std::io::Result<container::Declared>| {
+        d.map(|d| Sniff::Container(kind, d)).map_err(rd)
+    };
+    if at(4, b"ftypcrx ") {
+        return found("CR3", container::cr3(f, len));
     }
-    // ORF (IIRO, IIRS, MMOR), RW2 / RWL (IIU\0), CRW (II\x1a\0\0\0HEAPCCDR), IIQ (IIII).
+    if starts(b"FUJIFILMCCD-RAW") {
+        return found("RAF", container::raf(f, len));
+    }
+    if starts(b"FOVb") {
+        return found("X3F", container::x3f(f, len));
+    }
+    if starts(b"\0MRM") {
+        return found("MRW", container::mrw(f, len));
+    }
+    // CRW (II\x1a\0\0\0HEAPCCDR): CIFF heaps.
+    if at(6, b"HEAPCCDR") {
+        return found("CRW", container::crw(f, len));
+    }
+    // ORF (IIRO, IIRS, MMOR), RW2 / RWL (IIU\0): TIFF structures with their own magic.
     if starts(b"IIRO") || starts(b"IIRS") || starts(b"MMOR") || starts(b"IIU\0") {
-        return Ok(Sniff::Container);
+        let kind = if starts(b"IIU\0") { "RW2" } else { "ORF" };
+        return found(kind, container::tiff(f, 0, len));
     }
-    if at(6, b"HEAPCCDR") || (starts(b"IIII") && at(8, b"IIII")) {
-        return Ok(Sniff::Container);
+    // IIQ (IIII … IIII): a layout nsrm reads no size from.
+    if starts(b"IIII") && at(8, b"IIII") {
+        return Ok(Sniff::Container("IIQ", container::Declared::default()));
     }
     let tiff = starts(b"II*\0") || starts(b"MM\0*");
     if !tiff {
         return Ok(Sniff::Plain);
     }
     let cr2 = at(8, b"CR\x02\0");
-    let scan = scan_tiff(&mut f, h[0] == b'I').map_err(rd)?;
-    if cr2 || scan.raw {
+    let scan = container::tiff(f, 0, len).map_err(rd)?;
+    if cr2 || scan.raw_marker {
         Ok(Sniff::TiffBased(scan.largest, scan.bad))
     } else {
         Ok(Sniff::Plain)
     }
-}
-
-#[derive(Debug, Default)]
-struct TiffScan {
-    raw: bool,
-    largest: Option<(u64, u64)>,
-    /// The first entry or IFD found to reach past the end of the file.
-    bad: Option<String>,
-}
-
-/// Walks a TIFF's IFD chain and SubIFDs (bounded: 64 IFDs, 4096 entries each, depth 3) for the
-/// raw markers (DNGVersion, a CFA or LinearRaw photometric) and the largest declared image.
-/// Damaged structure ends the walk; it is the decoder's to report.
-fn scan_tiff(f: &mut std::fs::File, le: bool) -> std::io::Result<TiffScan> {
-    let len = f.metadata()?.len();
-    let u16_of = |b: &[u8]| {
-        if le {
-            u16::from_le_bytes([b[0], b[1]])
-        } else {
-            u16::from_be_bytes([b[0], b[1]])
-        }
-    };
-    let u32_of = |b: &[u8]| {
-        if le {
-            u32::from_le_bytes([b[0], b[1], b[2], b[3]])
-        } else {
-            u32::from_be_bytes([b[0], b[1], b[2], b[3]])
-        }
-    };
-    let mut hdr = [0u8; 8];
-    f.seek(SeekFrom::Start(0))?;
-    f.read_exact(&mut hdr)?;
-    if u16_of(&hdr[2..4]) != 42 {
-        // BigTIFF: not a raw layout rawler reads.
-        return Ok(TiffScan::default());
-    }
-    let mut scan = TiffScan::default();
-    let mut queue: Vec<(u64, u32)> = vec![(u64::from(u32_of(&hdr[4..8])), 0)];
-    let mut seen = std::collections::HashSet::new();
-    while let Some((off, depth)) = queue.pop() {
-        if off < 8 || off + 2 > len || seen.len() >= 64 || !seen.insert(off) {
-            continue;
-        }
-        f.seek(SeekFrom::Start(off))?;
-        let mut cnt = [0u8; 2];
-        f.read_exact(&mut cnt)?;
-        let count = u64::from(u16_of(&cnt)).min(4096);
-        if off + 2 + count * 12 + 4 > len {
-            scan.bad.get_or_insert_with(|| {
-                format!("an IFD at byte {off} runs past the end of the file")
-            });
-            continue;
-        }
-        let mut entries = vec![0u8; (count * 12 + 4) as usize];
-        f.read_exact(&mut entries)?;
-        let (mut w, mut h, mut photometric) = (0u64, 0u64, 0u32);
-        for e in entries[..(count * 12) as usize].chunks_exact(12) {
-            let tag = u16_of(&e[0..2]);
-            let typ = u16_of(&e[2..4]);
-            let n = u32_of(&e[4..8]);
-            let value = match typ {
-                3 => u32::from(u16_of(&e[8..10])),
-                _ => u32_of(&e[8..12]),
-            };
-            let size: u64 = match typ {
-                1 | 2 | 6 | 7 => 1,
-                3 | 8 => 2,
-                4 | 9 | 11 | 13 => 4,
-                5 | 10 | 12 => 8,
-                _ => 0,
-            };
-            let bytes = u64::from(n) * size;
-            if bytes > 4 && u64::from(u32_of(&e[8..12])) + bytes > len {
-                scan.bad.get_or_insert_with(|| {
-                    format!("tag {tag} claims {bytes} bytes, past the end of the file")
-                });
-            }
-            match tag {
-                256 => w = u64::from(value),
-                257 => h = u64::from(value),
-                262 => photometric = value,
-                50706 => scan.raw = true,
-                // EXIF, GPS and interoperability IFDs: the decoder parses them too.
-                34665 | 34853 | 40965 if depth < 3 && n == 1 && (typ == 4 || typ == 13) => {
-                    queue.push((u64::from(value), depth + 1));
-                }
-                330 if depth < 3 => {
-                    // SubIFDs: one offset inline, or an array of offsets.
-                    if n == 1 {
-                        queue.push((u64::from(value), depth + 1));
-                    } else if n > 1 && u64::from(value) + u64::from(n) * 4 <= len {
-                        let here = f.stream_position()?;
-                        f.seek(SeekFrom::Start(u64::from(value)))?;
-                        let mut offs = vec![0u8; n.min(64) as usize * 4];
-                        f.read_exact(&mut offs)?;
-                        for o in offs.chunks_exact(4) {
-                            queue.push((u64::from(u32_of(o)), depth + 1));
-                        }
-                        f.seek(SeekFrom::Start(here))?;
-                    }
-                }
-                _ => {}
-            }
-        }
-        if photometric == 32803 || photometric == 34892 {
-            scan.raw = true;
-        }
-        if w > 0 && h > 0 && scan.largest.is_none_or(|(a, b)| a * b < w * h) {
-            scan.largest = Some((w, h));
-        }
-        let next = u64::from(u32_of(&entries[(count * 12) as usize..]));
-        if next != 0 {
-            queue.push((next, depth));
-        }
-    }
-    Ok(scan)
 }
 
 #[cfg(test)]

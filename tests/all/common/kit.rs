@@ -194,8 +194,10 @@ pub fn check_policy(model: &Model, path: &str, out: &Frame) {
             model.order()
         );
         let x64 = x.map(|v| v as f64);
-        // NSRM's `s = R+G+B` (the models here have unit input gains).
-        if model.kind() == Kind::Nsrm && x64[0] + x64[1] + x64[2] <= 0.0 {
+        // NSRM's `s = R+G+B` of the pixel times the input gains (the program's gain step; 1, 1, 1
+        // unless white-balanced).
+        let g = model.input_gains();
+        if model.kind() == Kind::Nsrm && x64[0] * g[0] + x64[1] * g[1] + x64[2] * g[2] <= 0.0 {
             assert!(got.iter().all(|v| *v == 0.0), "s ≤ 0 must give 0: {ctx}");
             continue;
         }

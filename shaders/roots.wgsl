@@ -1,9 +1,7 @@
-// RPRM: XYZ = M·p(R, G, B), p = the root-polynomial terms (R^a G^b B^c)^(1/d).
-// Roots are sign-preserving, sign(x)·|x|^(1/d), and taken per channel: the generated
-// `model_terms` computes the 3 square roots, 3 cube roots and 3 fourth roots it needs once and
-// builds every term from them (cbrt(R·G²) = cbrt(R)·cbrt(G)²).
-// Pixel policy (as nsrm::model's f64 reference): NaN / Inf propagate, negative channels give
-// finite outputs, nothing is clamped.
+// Sign-preserving per-channel roots, sign(x)·|x|^(1/d), for the generated `model_terms` of
+// programs whose terms take roots (RPRM): it computes the roots it needs once per channel and
+// builds every term from them (cbrt(R·G²) = cbrt(R)·cbrt(G)²), as nsrm::model::pixel's f64
+// evaluator defines them. Not per kind: included wherever a term has a root.
 
 fn sroot2(x: vec3<f32>) -> vec3<f32> {
     return sign(x) * sqrt(abs(x));
@@ -23,8 +21,4 @@ fn sroot3(x: vec3<f32>) -> vec3<f32> {
 
 fn sroot4(x: vec3<f32>) -> vec3<f32> {
     return sign(x) * sqrt(sqrt(abs(x)));
-}
-
-fn correct(rgb: vec3<f32>) -> vec3<f32> {
-    return model_terms(rgb);
 }

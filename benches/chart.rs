@@ -1,18 +1,16 @@
 //! Criterion bench of chart detection + patch extraction on a 24-Mpixel frame (6000×4000, the
 //! size of a typical APS-C raw), the figure issue 10 asks for (≤ 2 s on the 2-core machine).
 //!
-//! The scenes are rendered once, in memory, with `nsrm::chart::scene::render` (the same renderer
+//! The scenes are rendered once, in memory, with `nsrm::chart::render_scene` (the same renderer
 //! as `nsrm render-scene --envelope`): a CC24 scene (seed 3: the chart covers 7.6 % of the frame,
 //! tilted 21°) and an SG scene (seed 5, spectra from `../shared/data/colorchecker_sg_140.csv`
 //! when that file is there; skipped otherwise). Reading the file is not timed (`nsrm bench` and
 //! the EXR benches measure it). `cargo bench --features chart --bench chart`.
 
 use criterion::{criterion_group, criterion_main, Criterion};
-use nsrm::chart::detect::{detect, DetectOptions};
-use nsrm::chart::extract::{extract, ExtractOptions};
-use nsrm::chart::reference::Reference;
-use nsrm::chart::scene::{render, ChartColours, SceneOptions};
-use nsrm::chart::ChartKind;
+use nsrm::chart::render_scene as render;
+use nsrm::chart::{detect, extract, ChartColours, ChartKind, DetectOptions, ExtractOptions};
+use nsrm::chart::{Reference, SceneOptions};
 use std::hint::black_box;
 use std::time::Duration;
 

@@ -4,7 +4,7 @@
 //! seconds per decode of each and the ratios (rawpy time / nsrm time: > 1 means nsrm is faster).
 //! Needs python3 with rawpy, tifffile and numpy (.ci/install.d/20-libraw.sh).
 
-use nsrm::io::raw::Demosaic;
+use nsrm::io::Demosaic;
 use nsrm::io::{read_frame, ReadOptions};
 use std::path::PathBuf;
 use std::process::Command;

@@ -1,5 +1,5 @@
 //! The one CSV reader of the crate: spectra, measured patches and chart references are all read
-//! through [`Table`] (on the `csv` crate), and fail with one error type, [`CsvError`].
+//! through `Table` (on the `csv` crate), and fail with one error type, [`CsvError`].
 //!
 //! The rules, the same for every file: a leading UTF-8 byte-order mark is dropped; lines end in
 //! `\n` or `\r\n`; blank lines and lines whose first non-blank character is `#` are skipped; cells
@@ -15,39 +15,54 @@ pub enum CsvError {
     /// Malformed CSV (an unclosed quote) or text that is not UTF-8.
     #[error("{source_name}: line {line}: {why}")]
     Syntax {
+        /// The file (or built-in table) read.
         source_name: String,
+        /// The 1-based line.
         line: usize,
+        /// What is wrong.
         why: String,
     },
     /// A row whose cell count differs from the header's.
     #[error("{source_name}: line {line}: {found} cells, expected {expected}")]
     Ragged {
+        /// The file (or built-in table) read.
         source_name: String,
+        /// The 1-based line.
         line: usize,
+        /// Cells in the row.
         found: usize,
+        /// Cells in the header.
         expected: usize,
     },
     /// A cell that should hold a number and does not.
     #[error("{source_name}: line {line}, column `{column}`: `{cell}` is not a number")]
     NotANumber {
+        /// The file (or built-in table) read.
         source_name: String,
+        /// The 1-based line.
         line: usize,
+        /// The column's header.
         column: String,
+        /// The cell as written.
         cell: String,
     },
     /// A number that is infinite or NaN.
     #[error("{source_name}: line {line}, column `{column}`: `{cell}` is not finite")]
     NonFinite {
+        /// The file (or built-in table) read.
         source_name: String,
+        /// The 1-based line.
         line: usize,
+        /// The column's header.
         column: String,
+        /// The cell as written.
         cell: String,
     },
 }
 
 /// A CSV text being read: its header, then its data rows one at a time (the row's storage is
 /// reused, so reading allocates nothing per row).
-pub struct Table<'a> {
+pub(crate) struct Table<'a> {
     source_name: &'a str,
     reader: csv::Reader<&'a [u8]>,
     /// The text read (after the byte-order mark), for line numbers: the `csv` crate counts
@@ -63,7 +78,7 @@ pub struct Table<'a> {
 }
 
 /// One data row of a [`Table`].
-pub struct Record<'r> {
+pub(crate) struct Record<'r> {
     source_name: &'r str,
     header: &'r [String],
     record: &'r csv::ByteRecord,
@@ -93,7 +108,7 @@ fn is_blank_or_comment(record: &csv::ByteRecord) -> bool {
 
 impl<'a> Table<'a> {
     /// Starts reading `text`; `None` when it holds no line with data (not even a header).
-    pub fn new(text: &'a str, source_name: &'a str) -> Result<Option<Self>, CsvError> {
+    pub(crate) fn new(text: &'a str, source_name: &'a str) -> Result<Option<Self>, CsvError> {
         let text = text.strip_prefix('\u{feff}').unwrap_or(text).as_bytes();
         let mut table = Table {
             source_name,
@@ -212,7 +227,7 @@ fn cell<'r>(
 }
 
 /// Parses a finite `f64` from a trimmed cell (std's parser on the bytes; `inf`/`NaN` refused).
-pub fn finite(bytes: &[u8]) -> Option<f64> {
+pub(crate) fn finite(bytes: &[u8]) -> Option<f64> {
     std::str::from_utf8(bytes)
         .ok()?
         .parse::<f64>()
@@ -222,13 +237,9 @@ pub fn finite(bytes: &[u8]) -> Option<f64> {
 
 impl<'r> Record<'r> {
     /// The number of cells.
-    pub fn len(&self) -> usize {
+    #[cfg(test)]
+    pub(crate) fn len(&self) -> usize {
         self.record.len()
-    }
-
-    /// True for a row without cells (never returned by `Table::next_record`).
-    pub fn is_empty(&self) -> bool {
-        self.record.is_empty()
     }
 
     /// Fails with [`CsvError::Ragged`] unless the row has `expected` cells.
@@ -246,17 +257,17 @@ impl<'r> Record<'r> {
     }
 
     /// Cell `k` as bytes, trimmed (empty past the end).
-    pub fn bytes(&self, k: usize) -> &'r [u8] {
+    pub(crate) fn bytes(&self, k: usize) -> &'r [u8] {
         self.record.get(k).unwrap_or_default().trim_ascii()
     }
 
     /// Cell `k` as text (empty past the end).
-    pub fn text(&self, k: usize) -> Result<&'r str, CsvError> {
+    pub(crate) fn text(&self, k: usize) -> Result<&'r str, CsvError> {
         cell(self.source_name, self.line, self.record, k)
     }
 
     /// Cell `k` as a finite number; the error names the header's column `k`.
-    pub fn number(&self, k: usize) -> Result<f64, CsvError> {
+    pub(crate) fn number(&self, k: usize) -> Result<f64, CsvError> {
         let bytes = self.bytes(k);
         if let Some(v) = finite(bytes) {
             return Ok(v);

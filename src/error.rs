@@ -15,23 +15,23 @@ pub enum Param {
     MaxPixels,
     /// The EXR layer holding the camera RGB (`io::ReadOptions::layer`).
     Layer,
-    /// A rendered chart's exposure (`chart::synthetic::ChartOptions::exposure`).
+    /// A rendered chart's exposure (`chart::ChartOptions::exposure`).
     Exposure,
-    /// A rendered chart's noise (`chart::synthetic::ChartOptions::noise`).
+    /// A rendered chart's noise (`chart::ChartOptions::noise`).
     Noise,
-    /// A rendered chart's patch size (`chart::synthetic::ChartOptions::patch_size`).
+    /// A rendered chart's patch size (`chart::ChartOptions::patch_size`).
     PatchSize,
-    /// A rendered chart's gap between patches (`chart::synthetic::ChartOptions::gap`).
+    /// A rendered chart's gap between patches (`chart::ChartOptions::gap`).
     Gap,
-    /// A rendered chart's columns (`chart::synthetic::ChartOptions::columns`).
+    /// A rendered chart's columns (`chart::ChartOptions::columns`).
     Columns,
-    /// The four corners of a photographed chart (`chart::parse_corners`).
+    /// The four corners of a photographed chart (`chart::ReadingOptions::corners`).
     Corners,
-    /// The flat-field frame of a chart capture (`chart::flat`).
+    /// The flat-field frame of a chart capture (`chart::FlatField::Frame`).
     Flat,
-    /// The reference white of Lab reference values (`chart::Reference::parse`).
+    /// The reference white of Lab reference values (`chart::Reference::load`).
     ReferenceWhite,
-    /// The reflectance spectra of a chart (`chart::scene::ChartColours::simulate`).
+    /// The reflectance spectra of a chart (`chart::ChartColours::simulate`).
     Reflectances,
     /// A capture's white (clipping) level (`chart::ExtractOptions::white_level`).
     WhiteLevel,

@@ -46,7 +46,7 @@ pub(crate) fn file_kind(meta: &std::fs::Metadata) -> &'static str {
 }
 
 /// An [`std::io::Error`] saying `path` is not a regular file (and what it is).
-pub fn not_regular(meta: &std::fs::Metadata) -> Error {
+pub(crate) fn not_regular(meta: &std::fs::Metadata) -> Error {
     Error::new(
         ErrorKind::InvalidInput,
         format!("not a regular file (it is {})", file_kind(meta)),
@@ -55,7 +55,7 @@ pub fn not_regular(meta: &std::fs::Metadata) -> Error {
 
 /// Checks that `path` is a regular file (following symlinks) without opening it, so a FIFO is
 /// never opened (which would block) and a device never read.
-pub fn check_regular(path: &Path) -> std::io::Result<std::fs::Metadata> {
+pub(crate) fn check_regular(path: &Path) -> std::io::Result<std::fs::Metadata> {
     let meta = std::fs::metadata(path)?;
     if !meta.is_file() {
         return Err(not_regular(&meta));

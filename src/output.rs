@@ -45,7 +45,7 @@
 //! * Temporary names are unguessable: `.NAME.nsrm-PID-RANDOM.tmp` with 64 random bits, created
 //!   with `O_EXCL`; a name that exists is never touched, another is drawn.
 //! * Only temporaries this session created are ever removed ([`AbortHandle::abort`],
-//!   [`Session::remove_temporaries`], a dropped [`Unit`]).
+//!   the session's clean-up, a dropped [`Unit`]).
 //! * Nothing but a regular file is ever replaced, even with `overwrite`.
 //! * After [`AbortHandle::abort`] (a signal), every write in progress fails at its next buffer
 //!   write, no temporary is created and nothing is committed ([`WriteError::Aborted`]); a unit
@@ -108,7 +108,7 @@ pub enum WriteError {
 impl WriteError {
     /// True for outputs that collide with an input or with each other, and for an output path
     /// that names no file: the request itself is wrong.
-    pub fn is_usage(&self) -> bool {
+    pub(crate) fn is_usage(&self) -> bool {
         matches!(
             self,
             WriteError::OutputIsInput { .. }
@@ -161,7 +161,7 @@ pub struct AbortHandle {
 impl AbortHandle {
     /// The abort flag, for `signal_hook::flag::register`: once set, writes fail at their next
     /// buffer write and nothing more is committed (temporaries are then removed by
-    /// [`Session::remove_temporaries`] or when their unit is dropped).
+    /// the session's clean-up or when their unit is dropped).
     pub fn flag(&self) -> Arc<AtomicBool> {
         Arc::clone(&self.shared.abort)
     }
@@ -248,11 +248,6 @@ impl Session {
         }
     }
 
-    /// Whether existing outputs are replaced.
-    pub fn overwrite(&self) -> bool {
-        self.overwrite
-    }
-
     /// The handle a signal handler holds to abort this session.
     pub fn abort_handle(&self) -> AbortHandle {
         AbortHandle {
@@ -261,7 +256,7 @@ impl Session {
     }
 
     /// Whether the session was aborted.
-    pub fn is_aborted(&self) -> bool {
+    pub(crate) fn is_aborted(&self) -> bool {
         self.shared.aborted()
     }
 
@@ -370,12 +365,13 @@ impl Session {
     }
 
     /// Removes every temporary this session still holds (after an abort); returns how many.
-    pub fn remove_temporaries(&self) -> usize {
+    pub(crate) fn remove_temporaries(&self) -> usize {
         remove_all(&mut self.shared.temps())
     }
 
     /// How many temporaries this session holds now.
-    pub fn temporaries_held(&self) -> usize {
+    #[cfg(test)]
+    pub(crate) fn temporaries_held(&self) -> usize {
         self.shared.temps().len()
     }
 }
@@ -540,13 +536,9 @@ impl Unit {
         check_clobber(dest, self.overwrite)
     }
 
-    /// How many files are staged in this unit.
-    pub fn len(&self) -> usize {
-        self.staged.len()
-    }
-
     /// Whether no file is staged.
-    pub fn is_empty(&self) -> bool {
+    #[cfg(test)]
+    pub(crate) fn is_empty(&self) -> bool {
         self.staged.is_empty()
     }
 
@@ -629,7 +621,9 @@ impl Unit {
         }
     }
 
-    /// Stages `bytes` for `dest` (see `write_with`).
+    /// Stages `bytes` for `dest`: writes them to a fresh temporary beside it (flushed and
+    /// synced), committed with the unit; on any error the temporary is removed and `dest` is
+    /// untouched.
     pub fn write_bytes(&mut self, dest: &Path, bytes: &[u8]) -> Result<(), WriteError> {
         self.write_with(dest, |w| {
             w.write_all(bytes).map_err(|err| WriteError::Io {

@@ -4,8 +4,7 @@
 #![no_main]
 
 use libfuzzer_sys::fuzz_target;
-use nsrm::chart::reference::{d50_white, Reference};
-use nsrm::chart::ChartKind;
+use nsrm::chart::{d50_white, ChartKind, Reference};
 
 fuzz_target!(|data: &[u8]| {
     let Some((&pick, body)) = data.split_first() else {

@@ -33,30 +33,40 @@ pub enum CaptureError {
     /// The frame's bytes could not be hashed.
     #[error("reading {}: {err}", path.display())]
     Hash {
+        /// The frame's file.
         path: PathBuf,
+        /// The system's error.
         #[source]
         err: std::io::Error,
     },
     /// No chart was found; `candidates` are the regions detection looked at (for an overlay).
     #[error("{}: looking for a {chart} chart", path.display())]
     NotFound {
+        /// The frame's file.
         path: PathBuf,
+        /// The chart looked for.
         chart: &'static str,
+        /// The cause.
         #[source]
         source: ChartError,
+        /// The regions detection looked at.
         candidates: Vec<Candidate>,
     },
     /// The chart was placed but its patches could not be read.
     #[error("{}: reading the patches", path.display())]
     Patches {
+        /// The frame's file.
         path: PathBuf,
+        /// The cause.
         #[source]
         source: ChartError,
     },
     /// The reading does not match the reference.
     #[error("{}", path.display())]
     Verify {
+        /// The frame's file.
         path: PathBuf,
+        /// The cause.
         #[source]
         source: ChartError,
     },
@@ -67,7 +77,7 @@ pub enum CaptureError {
 
 impl CaptureError {
     /// True for options or corners that are malformed or do not fit the frame.
-    pub fn is_usage(&self) -> bool {
+    pub(crate) fn is_usage(&self) -> bool {
         match self {
             CaptureError::Io(e) => e.is_usage(),
             CaptureError::Chart(e) => e.is_usage(),
@@ -76,7 +86,7 @@ impl CaptureError {
     }
 
     /// The parameter this error is about (see [`ChartError::concern`]).
-    pub fn concern(&self) -> Option<crate::error::Concern> {
+    pub(crate) fn concern(&self) -> Option<crate::error::Concern> {
         match self {
             CaptureError::Io(e) => e.concern(),
             CaptureError::Chart(e) => e.concern(),
@@ -92,7 +102,7 @@ impl CaptureError {
 #[derive(Debug, Clone)]
 pub struct CaptureFrame {
     /// The pixels and how they were decoded.
-    pub decoded: ChartFrame,
+    pub(crate) decoded: ChartFrame,
     /// The file read (for messages and the provenance).
     pub path: PathBuf,
     /// SHA-256 of the file's bytes (lowercase hex).
@@ -100,7 +110,8 @@ pub struct CaptureFrame {
 }
 
 impl CaptureFrame {
-    /// Reads `path` for chart reading (see [`read_chart_frame`]) and hashes its bytes.
+    /// Reads `path` for chart reading and hashes its bytes: JPEG, PNG and 8-bit TIFF as display
+    /// encodings (decoded per `encoding`), anything else through [`crate::io::read_frame`].
     ///
     /// For a camera raw file, chart readers want `opts.demosaic` = [`Demosaic::Half`] (one pixel
     /// per CFA block, no interpolation; what `nsrm chart extract` uses); [`ReadOptions`]'s
@@ -123,7 +134,8 @@ impl CaptureFrame {
     }
 
     /// An already decoded frame (`path` names it in messages and in the provenance).
-    pub fn from_decoded(decoded: ChartFrame, path: PathBuf, sha256: String) -> CaptureFrame {
+    #[cfg(test)]
+    pub(crate) fn from_decoded(decoded: ChartFrame, path: PathBuf, sha256: String) -> CaptureFrame {
         CaptureFrame {
             decoded,
             path,
@@ -131,13 +143,14 @@ impl CaptureFrame {
         }
     }
 
+    /// The decoded pixels.
     pub fn frame(&self) -> &Frame {
         &self.decoded.frame
     }
 }
 
 /// SHA-256 of a file's bytes, read in 1 MiB blocks (lowercase hex).
-pub fn sha256_file(path: &Path) -> Result<String, CaptureError> {
+pub(crate) fn sha256_file(path: &Path) -> Result<String, CaptureError> {
     use sha2::{Digest, Sha256};
     use std::io::Read;
     let err = |err| CaptureError::Hash {
@@ -183,10 +196,13 @@ pub struct ReadingOptions<'a> {
 pub struct Capture {
     /// The frame it was read from (shared with whoever decoded it).
     pub frame: Arc<CaptureFrame>,
+    /// The reference the patches were read against.
     pub reference: Reference,
+    /// The patches as read (after flat-field compensation when asked for).
     pub extraction: Extraction,
     /// How the chart was found; `None` when read at given corners.
     pub detection: Option<Detection>,
+    /// The light compensation applied; `None` when none was asked for.
     pub flat: Option<Flat>,
     /// Median ΔE00 of the reading against the reference (after a linear fit).
     pub score: f64,
@@ -261,7 +277,7 @@ pub fn read(
 
 impl Capture {
     /// How the frame's values were decoded.
-    pub fn transfer(&self) -> Transfer {
+    pub(crate) fn transfer(&self) -> Transfer {
         self.frame.decoded.transfer
     }
 
@@ -271,7 +287,7 @@ impl Capture {
     }
 
     /// Camera G of the perfect white implied by the usable neutral patches.
-    pub fn white_g(&self) -> f64 {
+    pub(crate) fn white_g(&self) -> f64 {
         let mut r: Vec<f64> = self
             .extraction
             .patches
@@ -288,7 +304,7 @@ impl Capture {
     }
 
     /// Where the training data came from, for the model's provenance.
-    pub fn provenance(&self) -> CaptureProvenance {
+    pub(crate) fn provenance(&self) -> CaptureProvenance {
         CaptureProvenance {
             frame: self
                 .frame
@@ -325,7 +341,7 @@ impl Capture {
 
     /// True when the detected lattice holds clearly more patches than the chart has: the frame
     /// probably shows the other chart (a CC24 read inside an SG's patches). The other chart.
-    pub fn other_chart(&self) -> Option<ChartKind> {
+    pub(crate) fn other_chart(&self) -> Option<ChartKind> {
         let d = self.detection.as_ref()?;
         let n = self.reference.chart.columns() * self.reference.chart.rows();
         (d.lattice > n + n / 4).then_some(match self.reference.chart {
@@ -362,7 +378,7 @@ impl Capture {
     }
 
     /// Swatches (reference vs the model's prediction) of the usable patches.
-    pub fn swatches(&self, model: &crate::Model) -> Vec<overlay::Swatch> {
+    pub(crate) fn swatches(&self, model: &crate::Model) -> Vec<overlay::Swatch> {
         self.extraction
             .patches
             .iter()
@@ -390,7 +406,6 @@ mod tests {
             ChartFrame {
                 frame,
                 transfer: Transfer::Linear,
-                format: "frame",
                 max_code: None,
                 camera: None,
             },

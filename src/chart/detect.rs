@@ -29,36 +29,36 @@ use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
 /// The best placement must score at most this fraction of the second best.
-pub const AMBIGUITY_RATIO: f64 = 0.7;
+pub(crate) const AMBIGUITY_RATIO: f64 = 0.7;
 
 /// A found chart must match its reference at least this well (median ΔE00 after the best 3×3
 /// map; stricter than [`MATCH_LIMIT`], which applies to `--corners`): correct detections of
 /// synthetic scenes score at most 2.5, a placement shifted by some cells on a partial lattice
 /// was seen at 7.6.
-pub const DETECT_MATCH_LIMIT: f64 = 5.0;
+pub(crate) const DETECT_MATCH_LIMIT: f64 = 5.0;
 
 /// With a complete lattice (every cell of the placement seen as a patch), a found chart may
 /// match up to [`MATCH_LIMIT`] when the next placement scores at least 1 / this times worse
 /// (stricter than [`AMBIGUITY_RATIO`]; the correct placements of the development photographs
 /// score 4× to 12× better than the next).
-pub const COMPLETE_AMBIGUITY_RATIO: f64 = 0.5;
+pub(crate) const COMPLETE_AMBIGUITY_RATIO: f64 = 0.5;
 
 /// Perspective strength above which a found chart is refused: the ratio of the largest to the
 /// smallest patch scale (square root of the local area) over the chart's cells. Beyond it the
 /// lattice's centroids are biased enough that cells extrapolated past the lattice can land a
 /// quarter pitch off (seen at 1.69, a 54° tilt). Scenes inside the envelope (tilt ≤ 30°) reach
 /// 1.51 (100 CC24 and 60 SG scenes).
-pub const PERSPECTIVE_LIMIT: f64 = 1.6;
+pub(crate) const PERSPECTIVE_LIMIT: f64 = 1.6;
 
 /// [`PERSPECTIVE_LIMIT`] for a complete placement (every cell of the chart seen as a patch and
 /// linked into the lattice): no cell is extrapolated past what was seen, so the bias of
 /// extrapolated cells does not arise; what remains is the centroid of a tilted patch lying
 /// off its projected centre, a small fraction of a pitch (measured with `--family tilt`).
-pub const COMPLETE_PERSPECTIVE_LIMIT: f64 = 2.2;
+pub(crate) const COMPLETE_PERSPECTIVE_LIMIT: f64 = 2.2;
 
 /// [`PERSPECTIVE_LIMIT`]'s measure: largest over smallest local patch scale, over the cells
 /// that `h` (chart → image) places.
-pub fn perspective(kind: super::ChartKind, h: &Homography) -> f64 {
+pub(crate) fn perspective(kind: super::ChartKind, h: &Homography) -> f64 {
     let scale = |c: [f64; 2]| {
         let p = h.apply(c);
         let a = h.apply([c[0] + 1.0, c[1]]);
@@ -100,6 +100,7 @@ impl Default for DetectOptions {
 /// A candidate patch region (frame pixels).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct Candidate {
+    /// Centre of the region.
     pub centre: [f64; 2],
     /// Radius of a circle of the region's area.
     pub radius: f64,
@@ -114,21 +115,26 @@ pub struct Detection {
     pub homography: Homography,
     /// Median ΔE00 of the best placement and of the next best.
     pub score: f64,
+    /// Median ΔE00 of the next best placement.
     pub runner_up: f64,
     /// Patches linked into the lattice.
     pub lattice: usize,
-    /// Perspective strength ([`perspective`]).
+    /// Perspective strength: the largest over the smallest local patch scale over the cells.
     pub perspective: f64,
     /// Mirrored (the frame shows the chart's mirror image) — unusual; reported for the user.
     pub mirrored: bool,
+    /// The factor the frame was box-downsampled by before the search.
     pub downsample: usize,
+    /// Every candidate patch region looked at.
     pub candidates: Vec<Candidate>,
 }
 
 /// Why no chart was found, and what was looked at.
 #[derive(Debug)]
 pub struct DetectFailure {
+    /// Why no chart was found.
     pub error: ChartError,
+    /// Every candidate patch region looked at.
     pub candidates: Vec<Candidate>,
 }
 

@@ -26,11 +26,17 @@ use serde::{Deserialize, Serialize};
 /// How patches are read.
 #[derive(Debug, Clone, PartialEq)]
 pub struct ExtractOptions {
+    /// Side of the sampled square as a fraction of the patch side (default 0.5).
     pub sample_fraction: f64,
+    /// Fraction of the sampled pixels dropped at each end per channel for the robust
+    /// mean (default 0.1).
     pub trim: f64,
     /// The sensor's clipping level; `None`: inferred from the frame.
     pub white_level: Option<f64>,
+    /// A patch is `dark` below this fraction of the white level (default 1e-3).
     pub dark_fraction: f64,
+    /// A patch is `nonuniform` when a quadrant's mean differs from the patch mean by more
+    /// than this fraction (default 0.04).
     pub nonuniform: f64,
     /// The integer encoding the frame was decoded from, if any: a quadrant must then differ by
     /// more than one code step of it to count as non-uniform (dark channels of an 8-bit JPEG
@@ -49,7 +55,7 @@ pub struct Quantisation {
 
 impl Quantisation {
     /// The difference between the decoded values of the codes around the (decoded) value `v`.
-    pub fn step(&self, v: f64) -> f64 {
+    pub(crate) fn step(&self, v: f64) -> f64 {
         if self.srgb {
             use crate::colorimetry::output::srgb_oetf;
             use crate::io::display::srgb_eotf;
@@ -64,7 +70,7 @@ impl Quantisation {
 impl ExtractOptions {
     /// Checks the options (before any frame is read, if the caller likes): a sample fraction in
     /// (0, 1] and a finite, positive white level.
-    pub fn validate(&self) -> Result<(), ChartError> {
+    pub(crate) fn validate(&self) -> Result<(), ChartError> {
         if !(self.sample_fraction > 0.0 && self.sample_fraction <= 1.0) {
             return Err(ChartError::Invalid(
                 "the sample fraction must be in (0, 1]".into(),
@@ -99,13 +105,16 @@ impl Default for ExtractOptions {
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "lowercase")]
 pub enum Flag {
+    /// A channel reaches the white level.
     Clipped,
+    /// Too dark to read (see [`ExtractOptions::dark_fraction`]).
     Dark,
+    /// Not evenly lit or not a uniform patch (see [`ExtractOptions::nonuniform`]).
     Nonuniform,
 }
 
 impl Flag {
-    pub fn name(self) -> &'static str {
+    pub(crate) fn name(self) -> &'static str {
         match self {
             Flag::Clipped => "clipped",
             Flag::Dark => "dark",
@@ -117,6 +126,7 @@ impl Flag {
 /// One patch as read.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct PatchReading {
+    /// The patch label (`01 dark skin`, `A1`, …).
     pub label: String,
     /// Robust mean camera RGB (after flat-field compensation when one was applied).
     pub rgb: [f64; 3],
@@ -124,6 +134,7 @@ pub struct PatchReading {
     pub std: [f64; 3],
     /// Pixels sampled.
     pub count: usize,
+    /// Why the patch is not used; empty when it is.
     pub flags: Vec<Flag>,
     /// Reference XYZ (perfect white Y = 100).
     pub xyz: [f64; 3],
@@ -136,6 +147,7 @@ pub struct PatchReading {
 }
 
 impl PatchReading {
+    /// True when no flag is set: the patch goes into the training data.
     pub fn usable(&self) -> bool {
         self.flags.is_empty()
     }
@@ -144,11 +156,15 @@ impl PatchReading {
 /// The patches of one chart in a frame.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct Extraction {
+    /// The chart read.
     pub chart: ChartKind,
     /// Chart coordinates → frame pixels.
     pub homography: Homography,
+    /// The clipping level used, if one was known or inferred.
     pub white_level: Option<f64>,
+    /// Whether the white level was inferred from the frame (not given).
     pub white_level_inferred: bool,
+    /// Every patch, in the chart's reading order.
     pub patches: Vec<PatchReading>,
 }
 
@@ -205,7 +221,7 @@ impl Extraction {
 /// The clipping level of a frame: its largest value when at least 0.01 % of the pixels (and at
 /// least 4) sit within 0.1 % of it — a pile-up that unclipped scenes do not have; `None`
 /// otherwise.
-pub fn infer_white_level(frame: &Frame) -> Option<f64> {
+pub(crate) fn infer_white_level(frame: &Frame) -> Option<f64> {
     let ch = frame.layout.channels();
     // Two parallel passes over the frame (the largest finite value, then the pixels near it),
     // in blocks of 64 Ki pixels.
@@ -300,7 +316,7 @@ fn gather(
 
 /// Mean of each channel over the sampled area of every cell (no trimming, no flags): for flat
 /// frames and detection scoring. `None` for cells outside the frame or without pixels.
-pub fn cell_means(
+pub(crate) fn cell_means(
     frame: &Frame,
     kind: ChartKind,
     h: &Homography,
@@ -321,7 +337,7 @@ pub fn cell_means(
 }
 
 /// Side of the sampled square in chart units.
-pub fn sample_side(kind: ChartKind, opts: &ExtractOptions) -> f64 {
+pub(crate) fn sample_side(kind: ChartKind, opts: &ExtractOptions) -> f64 {
     kind.patch_fraction() * opts.sample_fraction
 }
 
@@ -506,7 +522,7 @@ fn trimmed_mean(v: &[f32], cut: usize) -> f64 {
 }
 
 /// Least-squares 3×3 matrix taking `rgb` to `xyz` (weights `w`), or `None` when singular.
-pub fn linear_fit(rgb: &[[f64; 3]], xyz: &[[f64; 3]], w: &[f64]) -> Option<[[f64; 3]; 3]> {
+pub(crate) fn linear_fit(rgb: &[[f64; 3]], xyz: &[[f64; 3]], w: &[f64]) -> Option<[[f64; 3]; 3]> {
     use nalgebra::Matrix3;
     let mut rr = Matrix3::<f64>::zeros();
     let mut xr = Matrix3::<f64>::zeros();
@@ -530,7 +546,7 @@ pub fn linear_fit(rgb: &[[f64; 3]], xyz: &[[f64; 3]], w: &[f64]) -> Option<[[f64
 /// How well patch colours match a reference: the median ΔE00 after the best 3×3 linear map
 /// from camera RGB to the reference XYZ (`rgb[i]` is cell `i`; `None` cells are skipped).
 /// A right chart in the right orientation scores a few ΔE00; a wrong one scores far more.
-pub fn match_score(rgb: &[Option<[f64; 3]>], reference: &Reference) -> Option<f64> {
+pub(crate) fn match_score(rgb: &[Option<[f64; 3]>], reference: &Reference) -> Option<f64> {
     let idx: Vec<usize> = (0..rgb.len())
         .filter(|&i| rgb[i].is_some_and(|v| v.iter().all(|x| x.is_finite())))
         .collect();
@@ -555,16 +571,16 @@ pub fn match_score(rgb: &[Option<[f64; 3]>], reference: &Reference) -> Option<f6
 }
 
 /// The median ΔE00 above which patch colours are taken not to match the reference.
-pub const MATCH_LIMIT: f64 = 8.0;
+pub(crate) const MATCH_LIMIT: f64 = 8.0;
 
 /// Reference patches this close to neutral (CIELAB chroma) form the grey ramp that
 /// [`tone_score`] linearises through: the CC24's bottom row (chroma ≤ 1), the SG's greys.
-pub const NEUTRAL_CHROMA: f64 = 4.0;
+pub(crate) const NEUTRAL_CHROMA: f64 = 4.0;
 
 /// Two neutral patches whose reference luminances differ by more than this factor must keep
 /// their order in every channel (a tone curve is monotone); CC24's neighbouring greys differ
 /// by 1.5× to 2.9×.
-pub const RAMP_ORDER_RATIO: f64 = 1.25;
+pub(crate) const RAMP_ORDER_RATIO: f64 = 1.25;
 
 /// How well patch colours seen through an unknown camera tone curve match a reference: the
 /// per-channel curve is estimated from the chart's own grey ramp (the neutral patches,
@@ -576,14 +592,14 @@ pub const RAMP_ORDER_RATIO: f64 = 1.25;
 /// greys whose reference luminances differ by more than [`RAMP_ORDER_RATIO`] swap order in a
 /// channel by more than 1 % of the ramp's range — no tone curve does that, so such a placement
 /// is not this chart (or the greys are glared) and only the linear [`match_score`] may judge it.
-pub fn tone_score(rgb: &[Option<[f64; 3]>], reference: &Reference) -> Option<f64> {
+pub(crate) fn tone_score(rgb: &[Option<[f64; 3]>], reference: &Reference) -> Option<f64> {
     let lin = linearise(rgb, reference)?;
     match_score(&lin, reference)
 }
 
 /// The colour check used for found charts and `verify`: the better of the linear
 /// [`match_score`] and the tone-tolerant [`tone_score`].
-pub fn chart_score(rgb: &[Option<[f64; 3]>], reference: &Reference) -> Option<f64> {
+pub(crate) fn chart_score(rgb: &[Option<[f64; 3]>], reference: &Reference) -> Option<f64> {
     match (match_score(rgb, reference), tone_score(rgb, reference)) {
         (Some(a), Some(b)) => Some(a.min(b)),
         (a, b) => a.or(b),
@@ -592,7 +608,10 @@ pub fn chart_score(rgb: &[Option<[f64; 3]>], reference: &Reference) -> Option<f6
 
 /// The values of `rgb` through per-channel curves fitted to the chart's grey ramp (see
 /// [`tone_score`]); `None` when the ramp cannot be used.
-pub fn linearise(rgb: &[Option<[f64; 3]>], reference: &Reference) -> Option<Vec<Option<[f64; 3]>>> {
+pub(crate) fn linearise(
+    rgb: &[Option<[f64; 3]>],
+    reference: &Reference,
+) -> Option<Vec<Option<[f64; 3]>>> {
     let greys: Vec<(f64, [f64; 3])> = (0..rgb.len().min(reference.xyz.len()))
         .filter_map(|i| {
             let x = reference.xyz[i];
@@ -673,7 +692,8 @@ pub fn linearise(rgb: &[Option<[f64; 3]>], reference: &Reference) -> Option<Vec<
     )
 }
 
-/// Checks that the usable patches match the reference (see [`chart_score`]); the median ΔE00.
+/// Checks that the usable patches match the reference (the better of a linear fit and a
+/// tone-tolerant fit to it); the median ΔE00.
 pub fn verify(ex: &Extraction, reference: &Reference) -> Result<f64, ChartError> {
     let rgb: Vec<Option<[f64; 3]>> = ex
         .patches

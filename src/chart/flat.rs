@@ -24,6 +24,7 @@ use crate::frame::Frame;
 pub struct Flat {
     /// `flat` or `neutrals`.
     pub method: String,
+    /// The factor per patch and channel (mean 1 per channel).
     pub factors: Vec<[f64; 3]>,
     /// max / min of the (green) factor over the patches.
     pub nonuniformity: f64,

@@ -1,14 +1,16 @@
 //! Calibration from a photographed chart: the chart geometries ([`ChartKind`]), their reference
-//! values ([`mod@reference`]), reading the patches of a linear frame ([`extract`]) located by four
-//! corners or found automatically ([`detect`]), compensation of uneven light ([`flat`]),
-//! synthetic captures for tests and users ([`scene`]) and the overlay picture ([`overlay`]).
+//! values ([`Reference`]), reading the patches of a linear frame ([`extract`]) located by four
+//! corners ([`homography_from_corners`]) or found automatically ([`detect`]), compensation of
+//! uneven light ([`Flat`]), the whole workflow in one call ([`read`]: a decoded frame → its
+//! reading), synthetic chart frames ([`render_chart`]) and rendered photographs
+//! ([`render_scene`]) for tests and users. The overlay picture is the binary's.
 //!
 //! ## Geometry assumed
 //!
 //! Chart coordinates `(u, v)` are in units of the patch pitch (centre-to-centre distance), `u` to
 //! the right and `v` down with the chart upright; cell `(c, r)` spans `[c, c+1] × [r, r+1]` and its
-//! patch is the centred square of side [`ChartKind::patch_fraction`] (the rest of the cell is the
-//! black gap between patches). The chart body extends [`ChartKind::margin`] beyond the cells.
+//! patch is the centred square of side `ChartKind::patch_fraction` (the rest of the cell is the
+//! black gap between patches). The chart body extends `ChartKind::margin` beyond the cells.
 //!
 //! * **CC24** (ColorChecker Classic): 6 columns × 4 rows, patch side 0.84 of the pitch (≈ 40 mm
 //!   patches on a ≈ 47.6 mm pitch), body margin 0.4 pitch. Labels in reading order: row 1 `01 dark
@@ -24,14 +26,25 @@
 // `!(x > 0.0)` is meant: it is true for NaN too.
 #![allow(clippy::neg_cmp_op_on_partial_ord)]
 
-pub mod capture;
-pub mod detect;
-pub mod extract;
-pub mod flat;
-pub mod overlay;
-pub mod reference;
-pub mod scene;
-pub mod synthetic;
+pub(crate) mod capture;
+pub(crate) mod detect;
+pub(crate) mod extract;
+pub(crate) mod flat;
+pub(crate) mod overlay;
+pub(crate) mod reference;
+pub(crate) mod scene;
+pub(crate) mod synthetic;
+
+pub use capture::{read, Capture, CaptureError, CaptureFrame, FlatField, ReadingOptions};
+pub use detect::{detect, Candidate, DetectFailure, DetectOptions, Detection};
+pub use extract::{extract, verify, ExtractOptions, Extraction, Flag, PatchReading, Quantisation};
+pub use flat::from_neutrals as flat_from_neutrals;
+pub use flat::{apply as apply_flat, from_flat_frame as flat_from_frame, Flat};
+pub use reference::{d50_white, Reference};
+pub use scene::{render as render_scene, CameraLook, ChartColours, Family, SceneOptions};
+pub use scene::{SceneTruth, TruePatch};
+pub use synthetic::{layout_path, render as render_chart, write as write_chart};
+pub use synthetic::{ChartLayout, ChartOptions, PatchRect};
 
 use crate::error::Param;
 use serde::{Deserialize, Serialize};
@@ -39,19 +52,26 @@ use serde::{Deserialize, Serialize};
 /// Errors of chart reading.
 #[derive(Debug, thiserror::Error)]
 pub enum ChartError {
+    /// A chart name that is neither `cc24` nor `sg`.
     #[error("unknown chart `{0}` (known: cc24, sg)")]
     UnknownChart(String),
+    /// A reference file or table that cannot be used (its header, labels or values).
     #[error("{0}")]
     Reference(String),
     /// A reference CSV that cannot be read (a ragged row, a cell that is not a number).
     #[error(transparent)]
     Csv(#[from] crate::csv_table::CsvError),
+    /// Corners or a homography that do not describe a chart in the frame.
     #[error("{0}")]
     Geometry(String),
+    /// No chart was found in the frame.
     #[error("no chart found: {0}")]
     NotFound(String),
+    /// A reading that cannot be right (too few usable patches, a flat field that varies
+    /// too much, patches that do not match the reference).
     #[error("{0}")]
     Implausible(String),
+    /// A value or frame the reader cannot work with.
     #[error("{0}")]
     Invalid(String),
     /// Options out of range (named in words in the message): a usage error.
@@ -60,9 +80,12 @@ pub enum ChartError {
     /// About one parameter of the request (`concern` says which and how).
     #[error("{why}")]
     Param {
+        /// The parameter.
         concern: crate::error::Concern,
+        /// What is wrong with its value.
         why: String,
     },
+    /// A frame or file could not be read or written.
     #[error(transparent)]
     Io(#[from] crate::io::IoError),
 }
@@ -70,7 +93,7 @@ pub enum ChartError {
 impl ChartError {
     /// True for an unknown chart name, scene options out of range, and a parameter value that is
     /// malformed or does not fit the frame (corners, white level, flat frame).
-    pub fn is_usage(&self) -> bool {
+    pub(crate) fn is_usage(&self) -> bool {
         use ChartError;
         matches!(
             self,
@@ -85,7 +108,7 @@ impl ChartError {
 
     /// The parameter this error is about; a chart that was not found can always be read from
     /// its corners ([`crate::error::Param::Corners`]).
-    pub fn concern(&self) -> Option<crate::error::Concern> {
+    pub(crate) fn concern(&self) -> Option<crate::error::Concern> {
         use ChartError;
         match self {
             ChartError::Param { concern, .. } => Some(*concern),
@@ -112,7 +135,9 @@ impl ChartError {
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "lowercase")]
 pub enum ChartKind {
+    /// The ColorChecker Classic (24 patches, 6 × 4).
     Cc24,
+    /// The Digital ColorChecker SG (140 patches, 14 × 10).
     Sg,
 }
 
@@ -146,7 +171,8 @@ const CC24_NAMES: [&str; 24] = [
 
 impl ChartKind {
     /// `cc24` or `sg` (case-insensitive).
-    pub fn parse(s: &str) -> Result<ChartKind, ChartError> {
+    #[cfg(test)]
+    pub(crate) fn parse(s: &str) -> Result<ChartKind, ChartError> {
         match s.trim().to_ascii_lowercase().as_str() {
             "cc24" => Ok(ChartKind::Cc24),
             "sg" => Ok(ChartKind::Sg),
@@ -154,6 +180,7 @@ impl ChartKind {
         }
     }
 
+    /// The name `--chart` takes: `cc24` or `sg`.
     pub fn name(self) -> &'static str {
         match self {
             ChartKind::Cc24 => "cc24",
@@ -177,12 +204,12 @@ impl ChartKind {
         }
     }
 
-    pub fn cells(self) -> usize {
+    pub(crate) fn cells(self) -> usize {
         self.columns() * self.rows()
     }
 
     /// Side of a patch as a fraction of the pitch.
-    pub fn patch_fraction(self) -> f64 {
+    pub(crate) fn patch_fraction(self) -> f64 {
         match self {
             ChartKind::Cc24 => 0.84,
             ChartKind::Sg => 0.80,
@@ -190,7 +217,7 @@ impl ChartKind {
     }
 
     /// Chart body beyond the outer cells, in pitches.
-    pub fn margin(self) -> f64 {
+    pub(crate) fn margin(self) -> f64 {
         match self {
             ChartKind::Cc24 => 0.4,
             ChartKind::Sg => 0.6,
@@ -206,7 +233,7 @@ impl ChartKind {
     }
 
     /// The label of cell `(c, r)`.
-    pub fn label(self, c: usize, r: usize) -> String {
+    pub(crate) fn label(self, c: usize, r: usize) -> String {
         match self {
             ChartKind::Cc24 => {
                 let i = r * 6 + c;
@@ -217,32 +244,32 @@ impl ChartKind {
     }
 
     /// All labels, cell index `r * columns + c`.
-    pub fn labels(self) -> Vec<String> {
+    pub(crate) fn labels(self) -> Vec<String> {
         (0..self.cells())
             .map(|i| self.label(i % self.columns(), i / self.columns()))
             .collect()
     }
 
     /// The cell `(c, r)` of index `i`.
-    pub fn cell(self, i: usize) -> (usize, usize) {
+    pub(crate) fn cell(self, i: usize) -> (usize, usize) {
         (i % self.columns(), i / self.columns())
     }
 
     /// Centre of cell `i` in chart coordinates.
-    pub fn cell_centre(self, i: usize) -> [f64; 2] {
+    pub(crate) fn cell_centre(self, i: usize) -> [f64; 2] {
         let (c, r) = self.cell(i);
         [c as f64 + 0.5, r as f64 + 0.5]
     }
 
     /// The patch-grid corners (what `--corners` names) in chart coordinates.
-    pub fn grid_corners(self) -> [[f64; 2]; 4] {
+    pub(crate) fn grid_corners(self) -> [[f64; 2]; 4] {
         let g = (1.0 - self.patch_fraction()) / 2.0;
         let (c, r) = (self.columns() as f64, self.rows() as f64);
         [[g, g], [c - g, g], [c - g, r - g], [g, r - g]]
     }
 
     /// The chart body corners in chart coordinates (clockwise from top left).
-    pub fn body_corners(self) -> [[f64; 2]; 4] {
+    pub(crate) fn body_corners(self) -> [[f64; 2]; 4] {
         let m = self.margin();
         let (c, r) = (self.columns() as f64, self.rows() as f64);
         [[-m, -m], [c + m, -m], [c + m, r + m], [-m, r + m]]
@@ -251,7 +278,7 @@ impl ChartKind {
     /// The index of the patch a label names, accepting the full label (`01 dark skin`, `A1`),
     /// and for CC24 also its number (`1`, `01`) or its name (`dark skin`); case and spaces
     /// around are ignored, as is a parenthesised suffix (`white 9.5 (.05 D)`).
-    pub fn index_of(self, label: &str) -> Option<usize> {
+    pub(crate) fn index_of(self, label: &str) -> Option<usize> {
         let l = label.trim().trim_matches('"').trim().to_ascii_lowercase();
         let l = match l.find('(') {
             Some(p) => l[..p].trim().to_string(),
@@ -287,7 +314,10 @@ pub struct Homography(pub [f64; 9]);
 impl Homography {
     /// The transform taking each `src[i]` to `dst[i]` (least squares for more than four
     /// points; direct linear transform with Hartley normalisation, solved by SVD).
-    pub fn from_points(src: &[[f64; 2]], dst: &[[f64; 2]]) -> Result<Homography, ChartError> {
+    pub(crate) fn from_points(
+        src: &[[f64; 2]],
+        dst: &[[f64; 2]],
+    ) -> Result<Homography, ChartError> {
         use nalgebra::{DMatrix, Matrix3};
         if src.len() != dst.len() || src.len() < 4 {
             return Err(ChartError::Geometry(
@@ -385,12 +415,12 @@ impl Homography {
     }
 
     /// The denominator of [`apply`](Self::apply): positive where the plane is in front.
-    pub fn w(&self, p: [f64; 2]) -> f64 {
+    pub(crate) fn w(&self, p: [f64; 2]) -> f64 {
         self.0[6] * p[0] + self.0[7] * p[1] + self.0[8]
     }
 
     /// The inverse transform.
-    pub fn inverse(&self) -> Option<Homography> {
+    pub(crate) fn inverse(&self) -> Option<Homography> {
         let m = nalgebra::Matrix3::from_row_slice(&self.0).try_inverse()?;
         let s = if m[(2, 2)].abs() > 1e-300 {
             m[(2, 2)]
@@ -402,7 +432,7 @@ impl Homography {
     }
 
     /// `self ∘ other` (apply `other` first).
-    pub fn then_after(&self, other: &Homography) -> Homography {
+    pub(crate) fn then_after(&self, other: &Homography) -> Homography {
         let a = nalgebra::Matrix3::from_row_slice(&self.0);
         let b = nalgebra::Matrix3::from_row_slice(&other.0);
         let m = a * b;
@@ -416,7 +446,7 @@ impl Homography {
     }
 
     /// Scales image coordinates by `k` (a transform into a `k`-times larger image).
-    pub fn scaled(&self, k: f64) -> Homography {
+    pub(crate) fn scaled(&self, k: f64) -> Homography {
         let h = &self.0;
         Homography([
             h[0] * k,
@@ -433,7 +463,7 @@ impl Homography {
 }
 
 /// Parses a chart's corners: four `X,Y` pairs separated by spaces (or `;`).
-pub fn parse_corners(spec: &str) -> Result<[[f64; 2]; 4], ChartError> {
+pub(crate) fn parse_corners(spec: &str) -> Result<[[f64; 2]; 4], ChartError> {
     let bad = |why: &str| ChartError::value(Param::Corners, format!("corners `{spec}`: {why}"));
     let parts: Vec<&str> = spec
         .split(|c: char| c.is_whitespace() || c == ';')

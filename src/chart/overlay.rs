@@ -21,11 +21,11 @@ use imageproc::rect::Rect;
 const FONT: &[u8] = include_bytes!("../../assets/DejaVuSans.ttf");
 
 /// Long side of the picture (the frame is scaled down to it).
-pub const MAX_SIDE: usize = 1600;
+pub(crate) const MAX_SIDE: usize = 1600;
 
 /// One patch of the swatch panel.
 #[derive(Debug, Clone, PartialEq)]
-pub struct Swatch {
+pub(crate) struct Swatch {
     pub label: String,
     pub reference_xyz: [f64; 3],
     pub corrected_xyz: [f64; 3],
@@ -37,7 +37,7 @@ fn font() -> FontRef<'static> {
 }
 
 /// Smallest and largest label size on the picture, in pixels.
-pub const LABEL_PX: (f32, f32) = (15.0, 28.0);
+pub(crate) const LABEL_PX: (f32, f32) = (15.0, 28.0);
 
 /// Text in `colour` on an opaque dark box (a 2-pixel margin), readable on any part of the
 /// picture; `(x, y)` is the box's top-left corner.
@@ -54,7 +54,7 @@ fn label(img: &mut RgbImage, colour: Rgb<u8>, x: i32, y: i32, px: f32, font: &Fo
 /// Draws the overlay. `swatches`: (patches, reference white) after a fit. The steps: the
 /// white balance and exposure (`balance`), the frame scaled down (`preview`), the
 /// candidates (`draw_candidates`), the reading (`draw_reading`), the swatch panel.
-pub fn render(
+pub(crate) fn render(
     frame: &Frame,
     reading: Option<&Extraction>,
     candidates: &[Candidate],
@@ -213,7 +213,7 @@ fn draw_reading(img: &mut RgbImage, ex: &Extraction, sc: f32, font: &FontRef) {
 }
 
 /// The caption of the swatch panel: each swatch is split in two halves.
-pub const SWATCH_CAPTION: &str =
+pub(crate) const SWATCH_CAPTION: &str =
     "each swatch: upper half reference, lower half corrected by the model; label and its ΔE00";
 
 /// The panel of swatches below the picture.
@@ -265,7 +265,7 @@ fn append_swatches(img: RgbImage, sw: &[Swatch], white: [f64; 3], font: &FontRef
 }
 
 /// PNG bytes of an overlay.
-pub fn encode(img: &RgbImage) -> Result<Vec<u8>, crate::io::IoError> {
+pub(crate) fn encode(img: &RgbImage) -> Result<Vec<u8>, crate::io::IoError> {
     use image::codecs::png::PngEncoder;
     use image::{ExtendedColorType, ImageEncoder};
     let mut png = Vec::new();

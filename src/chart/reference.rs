@@ -8,13 +8,16 @@ use crate::error::{Concern, Param};
 use std::path::Path;
 
 /// Largest reference file read (bytes).
-pub const MAX_REFERENCE_BYTES: u64 = 1 << 20;
+pub(crate) const MAX_REFERENCE_BYTES: u64 = 1 << 20;
 
-/// D50 chromaticity (CIE 1931 2°) of the published chart values.
-pub const D50_XY: [f64; 2] = [0.345703, 0.358539];
+/// XYZ of the D50 white, `Y = 100` (the white of the built-in references and the default of
+/// Lab reference files).
+pub fn d50_white() -> [f64; 3] {
+    crate::training::d50_white()
+}
 
 /// Built-in references: (name, chart, CSV `label,x,y,Y,L,a,b`, D50, Y of the white = 1).
-pub const BUILTIN: &[(&str, ChartKind, &str)] = &[
+pub(crate) const BUILTIN: &[(&str, ChartKind, &str)] = &[
     (
         "cc24-after2014",
         ChartKind::Cc24,
@@ -37,16 +40,12 @@ pub const BUILTIN: &[(&str, ChartKind, &str)] = &[
     ),
 ];
 
-/// XYZ of the D50 white, `Y = 100`.
-pub fn d50_white() -> [f64; 3] {
-    crate::training::d50_white()
-}
-
 /// Reference colours of every patch of a chart.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Reference {
     /// The built-in name or the file's path.
     pub name: String,
+    /// The chart the values are for.
     pub chart: ChartKind,
     /// XYZ per cell (index `r * columns + c`), perfect white `Y = 100`.
     pub xyz: Vec<[f64; 3]>,

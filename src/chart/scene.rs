@@ -13,11 +13,12 @@ use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
 
 /// The `format` field of a scene truth file.
-pub const FORMAT: &str = "nsrm-scene";
+pub(crate) const FORMAT: &str = "nsrm-scene";
 
 /// Camera RGB of a chart's patches and of its surroundings, perfect white `G = 1`.
 #[derive(Debug, Clone, PartialEq)]
 pub struct ChartColours {
+    /// The chart simulated.
     pub chart: ChartKind,
     /// Camera RGB per cell (index `r * columns + c`).
     pub rgb: Vec<[f64; 3]>,
@@ -25,8 +26,11 @@ pub struct ChartColours {
     pub xyz: Vec<[f64; 3]>,
     /// Camera RGB of the perfect white.
     pub white_rgb: [f64; 3],
+    /// The camera's name or file.
     pub camera: String,
+    /// The illuminant's name or file.
     pub illuminant: String,
+    /// The reflectances' name or file.
     pub reflectances: String,
 }
 
@@ -95,10 +99,13 @@ impl ChartColours {
 /// How a scene is rendered.
 #[derive(Debug, Clone, PartialEq)]
 pub struct SceneOptions {
+    /// Frame width in pixels.
     pub width: usize,
+    /// Frame height in pixels.
     pub height: usize,
     /// The patch-grid corners in the frame (as `--corners`); `None`: a seeded random pose.
     pub corners: Option<[[f64; 2]; 4]>,
+    /// Seed of the pose, noise and clutter.
     pub seed: u64,
     /// Multiplies camera RGB (the perfect white, evenly lit, has `G = exposure`).
     pub exposure: f64,
@@ -120,7 +127,9 @@ pub struct SceneOptions {
     pub occlusion: bool,
     /// Random pose: chart body area as a fraction of the frame, and the largest tilt.
     pub min_area: f64,
+    /// Random pose: the largest chart body area as a fraction of the frame.
     pub max_area: f64,
+    /// Random pose: the largest tilt (degrees).
     pub max_tilt_deg: f64,
     /// Smallest tilt of a random pose (degrees; the tilt is drawn from `min..max`).
     pub min_tilt_deg: f64,
@@ -274,6 +283,7 @@ impl SceneOptions {
 /// One patch of a scene, as it truly is.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct TruePatch {
+    /// The patch label.
     pub label: String,
     /// Noise-free camera RGB × exposure (the light normalised to 1 on average over the patches).
     pub rgb: [f64; 3],
@@ -292,32 +302,53 @@ pub struct TruePatch {
 /// Ground truth of a rendered scene.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct SceneTruth {
+    /// `nsrm-scene`.
     pub format: String,
+    /// The file format's version.
     pub version: u32,
+    /// The chart drawn.
     pub chart: ChartKind,
+    /// Frame width in pixels.
     pub width: usize,
+    /// Frame height in pixels.
     pub height: usize,
+    /// The seed rendered with.
     pub seed: u64,
     /// Chart coordinates → frame pixels.
     pub homography: Homography,
     /// The patch-grid corners in the frame (what `--corners` takes).
     pub corners: [[f64; 2]; 4],
+    /// The chart body's corners in the frame.
     pub body_corners: [[f64; 2]; 4],
+    /// Chart body area as a fraction of the frame.
     pub area_fraction: f64,
+    /// In-plane rotation of the pose (degrees).
     pub rotation_deg: f64,
+    /// Tilt of the pose (degrees).
     pub tilt_deg: f64,
+    /// As [`SceneOptions::exposure`].
     pub exposure: f64,
+    /// As [`SceneOptions::white_level`].
     pub white_level: f64,
+    /// As [`SceneOptions::noise`].
     pub noise: f64,
+    /// As [`SceneOptions::shot_noise`].
     pub shot_noise: f64,
+    /// As [`SceneOptions::blur`].
     pub blur: f64,
+    /// As [`SceneOptions::vignetting`].
     pub vignetting: f64,
+    /// As [`SceneOptions::gradient`].
     pub gradient: f64,
     /// max/min of the light over the patch centres.
     pub light_nonuniformity: f64,
+    /// The camera simulated.
     pub camera: String,
+    /// The illuminant simulated.
     pub illuminant: String,
+    /// The reflectances simulated.
     pub reflectances: String,
+    /// Every patch as it truly is, in the chart's reading order.
     pub patches: Vec<TruePatch>,
     /// Set for a scene of a negative family (the name of the family): the chart drawn is not
     /// the one named by `chart`, and `patches` is empty — no reading of it is right.
@@ -326,7 +357,7 @@ pub struct SceneTruth {
 }
 
 /// The truth file written beside a scene frame: `NAME.scene.json` for `NAME.exr`.
-pub fn truth_path(frame: &Path) -> PathBuf {
+pub(crate) fn truth_path(frame: &Path) -> PathBuf {
     frame.with_extension("scene.json")
 }
 
@@ -1033,7 +1064,7 @@ pub enum Family {
 }
 
 impl Family {
-    pub const ALL: [Family; 10] = [
+    pub(crate) const ALL: [Family; 10] = [
         Family::Envelope,
         Family::Jpeg,
         Family::Fill,
@@ -1046,6 +1077,7 @@ impl Family {
         Family::Shuffled,
     ];
 
+    /// The family's name (`envelope`, `jpeg`, …), as `chart rate --family` takes it.
     pub fn name(self) -> &'static str {
         match self {
             Family::Envelope => "envelope",
@@ -1061,7 +1093,7 @@ impl Family {
         }
     }
 
-    pub fn parse(s: &str) -> Option<Family> {
+    pub(crate) fn parse(s: &str) -> Option<Family> {
         Family::ALL
             .into_iter()
             .find(|f| f.name().eq_ignore_ascii_case(s.trim()))
@@ -1230,25 +1262,6 @@ fn blur(frame: &mut Frame, sigma: f64) {
         image::ImageBuffer::from_raw(w, h, std::mem::take(&mut frame.data)).expect("sized");
     let out = imageproc::filter::gaussian_blur_f32(&img, sigma as f32);
     frame.data = out.into_raw();
-}
-
-impl SceneTruth {
-    /// Reads a truth file written beside a scene.
-    pub fn read(path: &Path) -> Result<SceneTruth, ChartError> {
-        let text = std::fs::read_to_string(path)
-            .map_err(|e| ChartError::Invalid(format!("{}: cannot read: {e}", path.display())))?;
-        let t: SceneTruth = serde_json::from_str(&text).map_err(|e| {
-            ChartError::Invalid(format!("{}: not a scene truth file: {e}", path.display()))
-        })?;
-        if t.format != FORMAT {
-            return Err(ChartError::Invalid(format!(
-                "{}: format `{}`, expected `{FORMAT}`",
-                path.display(),
-                t.format
-            )));
-        }
-        Ok(t)
-    }
 }
 
 #[cfg(test)]

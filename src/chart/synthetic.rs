@@ -12,7 +12,7 @@ use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
 
 /// The `format` field of a chart layout file.
-pub const FORMAT: &str = "nsrm-chart";
+pub(crate) const FORMAT: &str = "nsrm-chart";
 
 /// How a chart is drawn.
 #[derive(Debug, Clone, PartialEq)]
@@ -48,11 +48,15 @@ impl Default for ChartOptions {
 /// One patch of a rendered chart.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct PatchRect {
+    /// The patch label.
     pub label: String,
     /// Top-left pixel (x to the right, y down, from the frame's top-left).
     pub x: usize,
+    /// Top pixel row.
     pub y: usize,
+    /// Width in pixels.
     pub width: usize,
+    /// Height in pixels.
     pub height: usize,
     /// Noise-free camera RGB of the patch (after exposure).
     pub rgb: [f64; 3],
@@ -63,19 +67,31 @@ pub struct PatchRect {
 /// Where the patches of a rendered chart are, and how it was rendered.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct ChartLayout {
+    /// `nsrm-chart`.
     pub format: String,
+    /// The file format's version.
     pub version: u32,
+    /// Frame width in pixels.
     pub width: usize,
+    /// Frame height in pixels.
     pub height: usize,
+    /// Patches per row.
     pub columns: usize,
+    /// Patch side in pixels.
     pub patch_size: usize,
+    /// Gap between patches in pixels.
     pub gap: usize,
+    /// As [`ChartOptions::exposure`].
     pub exposure: f64,
+    /// As [`ChartOptions::noise`].
     pub noise: f64,
+    /// As [`ChartOptions::seed`].
     pub seed: u64,
     /// The reference white of the training data (XYZ, Y = 100).
     pub white_xyz: [f64; 3],
+    /// Where the training data came from.
     pub provenance: Provenance,
+    /// Every patch, in the training data's order.
     pub patches: Vec<PatchRect>,
 }
 
@@ -128,15 +144,15 @@ pub fn layout_path(chart: &Path) -> PathBuf {
 
 /// The range of [`ChartOptions::exposure`]: a camera RGB of 1 times it stays a normal f32 (≈ 1.2e-38 to
 /// 3.4e38) with room for the patch values and the noise.
-pub const EXPOSURE_RANGE: (f64, f64) = (1e-30, 1e30);
+pub(crate) const EXPOSURE_RANGE: (f64, f64) = (1e-30, 1e30);
 /// The largest [`ChartOptions::noise`] (a standard deviation): noise draws up to ~40σ stay finite in f32.
-pub const MAX_NOISE: f64 = 1e30;
+pub(crate) const MAX_NOISE: f64 = 1e30;
 /// The largest [`ChartOptions::patch_size`] and [`ChartOptions::gap`] in pixels.
-pub const MAX_PATCH_PIXELS: usize = 1 << 14;
+pub(crate) const MAX_PATCH_PIXELS: usize = 1 << 14;
 
 /// Checks an exposure and a noise level against [`EXPOSURE_RANGE`] and [`MAX_NOISE`]; the
 /// message names the limit, the error the parameter ([`Param::Exposure`], [`Param::Noise`]).
-pub fn check_exposure_noise(exposure: f64, noise: f64) -> Result<(), IoError> {
+pub(crate) fn check_exposure_noise(exposure: f64, noise: f64) -> Result<(), IoError> {
     let (lo, hi) = EXPOSURE_RANGE;
     if !(exposure.is_finite() && (lo..=hi).contains(&exposure)) {
         return Err(param(
@@ -171,7 +187,7 @@ impl ChartOptions {
     /// Checks each option on its own (whether they fit together depends on the patch count,
     /// which [`render`] checks): a patch size of 1 to [`MAX_PATCH_PIXELS`], a gap up to it, at
     /// least one column, and [`check_exposure_noise`].
-    pub fn validate(&self) -> Result<(), IoError> {
+    pub(crate) fn validate(&self) -> Result<(), IoError> {
         for (p, what, v, least) in [
             (Param::PatchSize, "patch size", self.patch_size, 1),
             (Param::Gap, "gap", self.gap, 0),
@@ -322,7 +338,7 @@ pub fn write(
 
 /// Writes a camera-RGB frame (no colour space attribute) as a float EXR, or a 32-bit float TIFF
 /// when `dest` ends in `.tif`/`.tiff`, with `comments` in the EXR header; staged in `unit`.
-pub fn write_camera_frame(
+pub(crate) fn write_camera_frame(
     frame: &Frame,
     dest: &Path,
     comments: &str,
@@ -434,5 +450,28 @@ mod tests {
         let sd = (d.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / d.len() as f64).sqrt();
         assert!(mean.abs() < 1e-3, "{mean}");
         assert!((sd - 0.01).abs() < 5e-4, "{sd}");
+    }
+
+    // Moved from `tests/all/harden_fuzz.rs` when the check became crate-private.
+    proptest::proptest! {
+        #![proptest_config(proptest::prelude::ProptestConfig {
+            cases: std::env::var("NSRM_FUZZ_CASES")
+                .ok()
+                .and_then(|v| v.parse().ok())
+                .unwrap_or(2000),
+            ..proptest::prelude::ProptestConfig::default()
+        })]
+
+        #[test]
+        fn exposure_and_noise_limits_keep_pixels_finite(
+            e in proptest::prelude::any::<f64>(),
+            n in proptest::prelude::any::<f64>(),
+        ) {
+            if check_exposure_noise(e, n).is_ok() {
+                // The brightest patch value (≤ 1) times the exposure plus 40σ of noise stays finite.
+                proptest::prop_assert!(((e + 40.0 * n) as f32).is_finite());
+                proptest::prop_assert!((e as f32) > 0.0);
+            }
+        }
     }
 }

@@ -1256,7 +1256,6 @@ mod tests {
                 .collect(),
             total_inputs: 2,
             shard: None,
-            dirs: Vec::new(),
             stale_temporaries: Vec::new(),
         }
     }

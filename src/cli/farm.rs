@@ -782,7 +782,6 @@ mod tests {
             jobs: vec![job(&dir, "a")],
             total_inputs: 2,
             shard: None,
-            dirs: vec![dir.clone()],
             stale_temporaries: vec![mine.clone(), theirs.clone()],
         };
         assert_eq!(remove_stale_temporaries(&plan), [".a.exr.nsrm-tmp-1"]);

@@ -72,7 +72,7 @@ fn log_params(s: &mut String, c: &LogCurve) {
 }
 
 /// The CLF document for `e`; `report` (the measured error) goes into the `Description`.
-pub fn write(e: &LutExport, report: Option<&ErrorReport>) -> String {
+pub(crate) fn write(e: &LutExport, report: Option<&ErrorReport>) -> String {
     let mut s = String::new();
     let _ = writeln!(s, r#"<?xml version="1.0" encoding="UTF-8"?>"#);
     let name = format!(

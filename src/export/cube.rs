@@ -8,7 +8,7 @@ use super::{provenance_line, ErrorReport, ExportError, LutExport};
 use std::fmt::Write as _;
 
 /// The `.cube` text of a [`LutExport::cube`] chain; `report` goes into the `#` header.
-pub fn write(e: &LutExport, report: Option<&ErrorReport>) -> Result<String, ExportError> {
+pub(crate) fn write(e: &LutExport, report: Option<&ErrorReport>) -> Result<String, ExportError> {
     let (shaper, lut) = match e.nodes.as_slice() {
         [Node::Lut1d(s), Node::Lut3d(l)] => (s, l),
         _ => {

@@ -52,14 +52,14 @@ use crate::model::Kind;
 /// bilinear interpolation converges only linearly there): on the D5100 NSRM 3 the dense-set
 /// maximum is 0.56 ΔE00 at 90×30, 0.24 at 360×92, 0.16 at 480×69 and 0.11 at 600×55. 600×55×3 =
 /// 99000 values stays under the 100000 per tag that exiftool lists without a warning.
-pub const DEFAULT_HUE_DIVISIONS: usize = 600;
-pub const DEFAULT_SAT_DIVISIONS: usize = 55;
+pub(crate) const DEFAULT_HUE_DIVISIONS: usize = 600;
+pub(crate) const DEFAULT_SAT_DIVISIONS: usize = 55;
 /// Bounds on the map's divisions (the table is read into memory by readers).
-pub const MAX_HUE_DIVISIONS: usize = 720;
-pub const MAX_SAT_DIVISIONS: usize = 256;
+pub(crate) const MAX_HUE_DIVISIONS: usize = 720;
+pub(crate) const MAX_SAT_DIVISIONS: usize = 256;
 
 /// The DNG `PCStoXYZ`: D50 at `Y = 1` from its chromaticity (0.3457, 0.3585).
-pub fn d50() -> [f64; 3] {
+pub(crate) fn d50() -> [f64; 3] {
     spaces::xy_to_xyz(D50_XY)
 }
 
@@ -73,7 +73,7 @@ pub fn prophoto_to_xyz() -> Mat3 {
 
 /// EXIF LightSource values a DCP can name, with the temperature DNG readers give them (the DNG
 /// SDK's `IlluminantToTemperature`, which RawTherapee copies).
-pub const LIGHT_SOURCES: [(u16, &str, f64); 6] = [
+pub(crate) const LIGHT_SOURCES: [(u16, &str, f64); 6] = [
     (17, "Standard light A", 2850.0),
     (24, "ISO studio tungsten", 3200.0),
     (23, "D50", 5000.0),
@@ -84,10 +84,10 @@ pub const LIGHT_SOURCES: [(u16, &str, f64); 6] = [
 
 /// How far (in mired) a model's calibration temperature may be from the light source that names
 /// it in the DCP.
-pub const NAME_TOLERANCE_MIRED: f64 = 6.0;
+pub(crate) const NAME_TOLERANCE_MIRED: f64 = 6.0;
 
 /// The light source naming a calibration temperature, or an error for one no DCP can name.
-pub fn light_source_for(cct: f64) -> Result<(u16, &'static str, f64), ExportError> {
+pub(crate) fn light_source_for(cct: f64) -> Result<(u16, &'static str, f64), ExportError> {
     let best = LIGHT_SOURCES
         .iter()
         .min_by(|a, b| {
@@ -106,14 +106,16 @@ pub fn light_source_for(cct: f64) -> Result<(u16, &'static str, f64), ExportErro
 }
 
 /// One entry of a hue/saturation map: hue shift (degrees), saturation scale, value scale.
-pub type HsmEntry = [f32; 3];
+pub(crate) type HsmEntry = [f32; 3];
 
 /// One calibration illuminant of a DCP, as written.
 #[derive(Debug, Clone, PartialEq)]
 pub struct DcpSide {
     /// EXIF LightSource.
     pub illuminant: u16,
+    /// ColorMatrix: XYZ → camera RGB (DNG convention).
     pub color_matrix: Mat3,
+    /// ForwardMatrix: white-balanced camera RGB → XYZ D50.
     pub forward_matrix: Mat3,
     /// `hue_divisions × sat_divisions` entries, hue outer, saturation inner.
     pub hue_sat_map: Vec<HsmEntry>,
@@ -122,10 +124,15 @@ pub struct DcpSide {
 /// A DNG Camera Profile.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Dcp {
+    /// UniqueCameraModel: the camera the profile is for.
     pub unique_camera_model: String,
+    /// ProfileName.
     pub profile_name: String,
+    /// ProfileCopyright.
     pub copyright: String,
+    /// Hue divisions of the hue/saturation maps.
     pub hue_divisions: usize,
+    /// Saturation divisions of the hue/saturation maps.
     pub sat_divisions: usize,
     /// One or two sides (two: ordered by temperature, as CalibrationIlluminant1/2).
     pub sides: Vec<DcpSide>,
@@ -136,7 +143,9 @@ pub struct Dcp {
 /// The map's size.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct DcpOptions {
+    /// Hue divisions (default 600).
     pub hue_divisions: usize,
+    /// Saturation divisions (default 55).
     pub sat_divisions: usize,
 }
 
@@ -150,7 +159,7 @@ impl Default for DcpOptions {
 }
 
 impl DcpOptions {
-    pub fn check(&self) -> Result<(), ExportError> {
+    pub(crate) fn check(&self) -> Result<(), ExportError> {
         if !(6..=MAX_HUE_DIVISIONS).contains(&self.hue_divisions)
             || !(2..=MAX_SAT_DIVISIONS).contains(&self.sat_divisions)
         {
@@ -164,7 +173,7 @@ impl DcpOptions {
 }
 
 /// The DNG SDK's RGB → HSV (`h` in `[0, 6)`, `v` = max).
-pub fn rgb_to_hsv(c: [f64; 3]) -> [f64; 3] {
+pub(crate) fn rgb_to_hsv(c: [f64; 3]) -> [f64; 3] {
     let [r, g, b] = c;
     let v = r.max(g).max(b);
     let gap = v - r.min(g).min(b);
@@ -191,7 +200,7 @@ pub fn rgb_to_hsv(c: [f64; 3]) -> [f64; 3] {
 }
 
 /// The DNG SDK's HSV → RGB.
-pub fn hsv_to_rgb(hsv: [f64; 3]) -> [f64; 3] {
+pub(crate) fn hsv_to_rgb(hsv: [f64; 3]) -> [f64; 3] {
     let [mut h, s, v] = hsv;
     if s > 0.0 {
         h = h.rem_euclid(6.0);
@@ -214,19 +223,9 @@ pub fn hsv_to_rgb(hsv: [f64; 3]) -> [f64; 3] {
 }
 
 /// Applies a hue/saturation map with one value division to linear ProPhoto RGB, as the DNG SDK's
-/// `RefBaselineHueSatMap` does (bilinear in hue, wrapping, and saturation; `s` clipped at 1).
-pub fn apply_hue_sat_map(
-    map: &[HsmEntry],
-    hue_div: usize,
-    sat_div: usize,
-    rgb: [f64; 3],
-) -> [f64; 3] {
-    apply_hue_sat_map_with(|i| map[i].map(|v| v as f64), hue_div, sat_div, rgb)
-}
-
-/// [`apply_hue_sat_map`] over entries given by index (`hue * sat_div + sat`), e.g. two maps
-/// mixed on the fly.
-pub fn apply_hue_sat_map_with(
+/// `RefBaselineHueSatMap` does (bilinear in hue, wrapping, and saturation; `s` clipped at 1), the
+/// entries given by index (`hue * sat_div + sat`), e.g. two maps mixed on the fly.
+pub(crate) fn apply_hue_sat_map_with(
     entry: impl Fn(usize) -> [f64; 3],
     hue_div: usize,
     sat_div: usize,
@@ -447,7 +446,7 @@ fn harmonic_fill(vals: &mut [[f64; 3]], known: &[bool], hd: usize, sd: usize) {
 /// serves both models of a pair when only one is given. The steps: each model's target and own
 /// matrices (`targets`, `matrices`), then per calibration a side (`side`) at the weights
 /// of its named light (`mix_weights`), then the names (`profile_names`).
-pub fn build(
+pub(crate) fn build(
     profile: &Profile,
     training: &[&[[f64; 3]]],
     opts: DcpOptions,
@@ -724,7 +723,7 @@ impl Dcp {
     }
 
     /// The white balance chromaticity of a camera neutral (DNG `NeutralToXY`).
-    pub fn neutral_to_xy(&self, neutral: [f64; 3]) -> Result<[f64; 2], ExportError> {
+    pub(crate) fn neutral_to_xy(&self, neutral: [f64; 3]) -> Result<[f64; 2], ExportError> {
         let t = self.temperatures();
         let temps = [t[0], *t.last().expect("a side")];
         temperature::neutral_to_xy(neutral, temps, |n, w| {
@@ -753,7 +752,7 @@ impl Dcp {
 
     /// The pipeline at a weight of side 1, its matrices and mixed map computed once (for
     /// evaluating many colours).
-    pub fn at_weight(&self, w: f64) -> Pipeline {
+    pub(crate) fn at_weight(&self, w: f64) -> Pipeline {
         let mut fm = self.mix(w, |s| s.forward_matrix);
         // The SDK normalises the ForwardMatrix so that (1, 1, 1) maps to D50.
         let one = spaces::apply(&fm, [1.0; 3]);
@@ -790,7 +789,7 @@ impl Dcp {
     }
 
     /// The DCP file: little-endian TIFF-like with the `RC` magic, one IFD.
-    pub fn to_bytes(&self) -> Vec<u8> {
+    pub(crate) fn to_bytes(&self) -> Vec<u8> {
         let mut entries: Vec<(u16, u16, u32, Vec<u8>)> = Vec::new();
         let ascii_v = |s: &str| {
             let mut v = s.as_bytes().to_vec();
@@ -1091,7 +1090,7 @@ impl<'a> DcpTags<'a> {
 
 /// A DCP's profile pipeline at one weight of its sides (see [`Dcp::at_weight`]).
 #[derive(Debug, Clone)]
-pub struct Pipeline {
+pub(crate) struct Pipeline {
     /// ProPhoto⁻¹ · the mixed, normalised ForwardMatrix.
     to_prophoto: Mat3,
     prophoto_to_xyz: Mat3,
@@ -1103,7 +1102,7 @@ pub struct Pipeline {
 impl Pipeline {
     /// White balance by the neutral (normalised to G = 1), the ForwardMatrix, the hue/saturation
     /// map in linear ProPhoto RGB; XYZ D50 with the neutral at `Y = 1`.
-    pub fn eval(&self, rgb: [f64; 3], neutral: [f64; 3]) -> [f64; 3] {
+    pub(crate) fn eval(&self, rgb: [f64; 3], neutral: [f64; 3]) -> [f64; 3] {
         let n = neutral.map(|v| v / neutral[1]);
         let b = [0, 1, 2].map(|k| rgb[k] / n[k]);
         let rgb_pp = spaces::apply(&self.to_prophoto, b);
@@ -1122,7 +1121,7 @@ impl Pipeline {
 /// calibration white (`b = c / w`), are put under each frame white (`b · n`); the error at a
 /// sample is the worst over the whites. Measured on those patches and on the dense in-gamut set
 /// built from them (`measure_fn`).
-pub fn measure(
+pub(crate) fn measure(
     dcp: &Dcp,
     profile: &Profile,
     whites: &[FrameWhite],
@@ -1163,6 +1162,7 @@ pub fn measure(
 /// What [`export_to`] wrote and measured.
 #[derive(Debug, Clone)]
 pub struct DcpWritten {
+    /// The error of the profile against the model set, over every white measured.
     pub report: super::ErrorReport,
     /// The frame whites the error was measured at (described).
     pub whites: Vec<String>,
@@ -1172,7 +1172,9 @@ pub struct DcpWritten {
     pub white_miss: Vec<Option<f64>>,
     /// The light source names written (CalibrationIlluminant1/2).
     pub illuminants: Vec<&'static str>,
+    /// Hue divisions of the maps written.
     pub hue_divisions: usize,
+    /// Saturation divisions of the maps written.
     pub sat_divisions: usize,
 }
 
@@ -1180,12 +1182,14 @@ pub struct DcpWritten {
 /// training white when known.
 #[derive(Debug, Clone)]
 pub struct DcpTraining {
+    /// Camera RGB of the training patches.
     pub rgb: Vec<[f64; 3]>,
+    /// The camera response of the training white, when known.
     pub white_rgb: Option<[f64; 3]>,
 }
 
 /// Builds, measures and writes the DCP of a model set. The error is measured with
-/// [`Dcp::eval`]'s pipeline against the combined model ([`measure`]) at each calibration white
+/// [`Dcp::eval`]'s pipeline against the combined model at each calibration white
 /// and, for two illuminants, at a white halfway between them in mired; `max_de00` is checked
 /// before anything is written, and the file is written into `unit` (committed by the caller).
 pub fn export_to(

@@ -53,16 +53,16 @@ use lcms2::{
 /// The ICC PCS illuminant (ICC.1, 7.2.16), as the header and `wtpt` carry it.
 pub const D50: [f64; 3] = [0.9642, 1.0, 0.8249];
 /// The largest XYZ a lut16 carries (u1Fixed15: `0xFFFF / 0x8000`).
-pub const PCS_MAX: f64 = 65535.0 / 32768.0;
+pub(crate) const PCS_MAX: f64 = 65535.0 / 32768.0;
 /// Entries of each input and output curve of the lut16 (the format's maximum).
-pub const CURVE_ENTRIES: usize = 4096;
+pub(crate) const CURVE_ENTRIES: usize = 4096;
 /// Stops below the bottom of the range at which the input shaper's logarithmic part starts.
-pub const TOE_STOPS: f64 = 2.0;
+pub(crate) const TOE_STOPS: f64 = 2.0;
 /// The default bottom of the exposure range, log2 of device units (the white's largest channel
 /// is device 1.0).
-pub const DEFAULT_LO: f64 = -6.0;
+pub(crate) const DEFAULT_LO: f64 = -6.0;
 /// The CLUT sizes accepted (lut16 allows up to 255; the file is `6·n³` bytes).
-pub const CLUT_SIZES: std::ops::RangeInclusive<usize> = 2..=129;
+pub(crate) const CLUT_SIZES: std::ops::RangeInclusive<usize> = 2..=129;
 
 /// How the profile of a nonlinear model is built.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -83,7 +83,7 @@ impl Default for IccOptions {
 }
 
 impl IccOptions {
-    pub fn check(&self) -> Result<(), ExportError> {
+    pub(crate) fn check(&self) -> Result<(), ExportError> {
         if !CLUT_SIZES.contains(&self.size) {
             return Err(ExportError::Usage(format!(
                 "CLUT size {} is out of range ({}..={})",
@@ -102,13 +102,13 @@ impl IccOptions {
     }
 
     /// The input shaper (device value → CLUT coordinate).
-    pub fn shaper(&self) -> LogCurve {
+    pub(crate) fn shaper(&self) -> LogCurve {
         LogCurve::zero_to_one((self.lo - TOE_STOPS).exp2(), 1.0)
     }
 
     /// The encoding of a PCS channel in the CLUT: the same log slope as [`shaper`](Self::shaper)
     /// up to [`PCS_MAX`].
-    pub fn encoding(&self) -> LogCurve {
+    pub(crate) fn encoding(&self) -> LogCurve {
         LogCurve::zero_to_one((self.lo - TOE_STOPS + 1.0).exp2(), PCS_MAX)
     }
 }
@@ -140,7 +140,7 @@ pub fn device_scale(model: &Model) -> Result<(f64, [f64; 3]), ExportError> {
 
 /// A built profile.
 #[derive(Debug, Clone)]
-pub struct IccProfile {
+pub(crate) struct IccProfile {
     /// The ICC file.
     pub bytes: Vec<u8>,
     /// Matrix/TRC (LRM) rather than a CLUT.
@@ -272,7 +272,7 @@ fn carrier(tag: &[u8]) -> Vec<u8> {
 /// Builds the profile of `model` (one illuminant): the header, the tags every profile has
 /// (`common_tags`), then for LRM the colorants and TRCs (`matrix_tags`), for the others the
 /// CLUT sampled from the model (`sample_clut`) written as a lut16 `A2B0` (`lut_tag`).
-pub fn build(model: &Model, opts: IccOptions) -> Result<IccProfile, ExportError> {
+pub(crate) fn build(model: &Model, opts: IccOptions) -> Result<IccProfile, ExportError> {
     opts.check()?;
     let a = pcs_matrix(model)?;
     let (s, device_white) = device_scale(model)?;
@@ -447,12 +447,12 @@ fn lut_tag(
 
 /// Evaluates an ICC input profile with Little CMS: device RGB (0..1) → PCS XYZ (D50, `Y = 1`
 /// at the white), relative colorimetric, as `transicc -t 1 -o '*XYZ'` does.
-pub struct Evaluator {
+pub(crate) struct Evaluator {
     transform: Transform<[f64; 3], [f64; 3]>,
 }
 
 impl Evaluator {
-    pub fn new(bytes: &[u8]) -> Result<Evaluator, ExportError> {
+    pub(crate) fn new(bytes: &[u8]) -> Result<Evaluator, ExportError> {
         let input = Profile::new_icc(bytes).map_err(lcms_err("reading the profile"))?;
         let transform = Transform::new(
             &input,
@@ -465,7 +465,7 @@ impl Evaluator {
         Ok(Evaluator { transform })
     }
 
-    pub fn eval(&self, device: [f64; 3]) -> [f64; 3] {
+    pub(crate) fn eval(&self, device: [f64; 3]) -> [f64; 3] {
         let mut out = [[0.0; 3]];
         self.transform.transform_pixels(&[device], &mut out);
         out[0]
@@ -473,14 +473,14 @@ impl Evaluator {
 }
 
 /// The camera-unit range a profile covers: `[lo + log2 s, log2 s]`.
-pub fn camera_stops(p: &IccProfile) -> [f64; 2] {
+pub(crate) fn camera_stops(p: &IccProfile) -> [f64; 2] {
     let top = p.scale.log2();
     [p.options.lo + top, top]
 }
 
 /// How far above [`PCS_MAX`] a model's output on the in-gamut samples may go before the model is
 /// taken to explode over the range (below that, such samples are only left out of the measure).
-pub const EXPLODE_FACTOR: f64 = 2.0;
+pub(crate) const EXPLODE_FACTOR: f64 = 2.0;
 
 /// The ΔE00 of the written profile (evaluated by Little CMS) against the exact model, on the
 /// training patches and the dense in-gamut set across the profile's range. Samples whose exact
@@ -488,7 +488,7 @@ pub const EXPLODE_FACTOR: f64 = 2.0;
 /// chromaticity at the white's exposure can be) are left out and counted in `out_of_range`
 /// with the samples outside the device range. Refuses a model whose output on those samples is
 /// not finite or passes [`EXPLODE_FACTOR`] × [`PCS_MAX`]: it explodes over the range.
-pub fn measure(
+pub(crate) fn measure(
     p: &IccProfile,
     model: &Model,
     training_rgb: &[[f64; 3]],
@@ -567,12 +567,19 @@ pub fn measure(
 /// What [`export_to`] wrote and measured.
 #[derive(Debug, Clone)]
 pub struct IccWritten {
+    /// The error of the profile against the model.
     pub report: ErrorReport,
+    /// Matrix/TRC (an LRM: exact) rather than a CLUT.
     pub exact: bool,
+    /// Device = camera RGB / `scale`.
     pub scale: f64,
+    /// The model's white in device values (largest channel 1).
     pub device_white: [f64; 3],
+    /// CLUT points per axis (nonlinear kinds).
     pub clut_size: Option<usize>,
+    /// log2 of the bottom of the exposure range in device units.
     pub lo: f64,
+    /// The profile's size in bytes.
     pub bytes: usize,
 }
 

@@ -1,6 +1,7 @@
-//! Files other tools read: the Academy/SMPTE Common LUT Format (CLF v3, [`clf`]), Resolve/OCIO
-//! `.cube` ([`cube`]), a minimal OpenColorIO v2 config ([`ocio`]) and DaVinci Resolve DCTL
-//! ([`dctl`]).
+//! Files other tools read: the Academy/SMPTE Common LUT Format (CLF v3), Resolve/OCIO `.cube`
+//! and a minimal OpenColorIO v2 config ([`export_to`] with a [`Format`]), DaVinci Resolve DCTL
+//! ([`generate_dctl`]), an Adobe DNG camera profile ([`export_dcp`]), an ICC input profile
+//! ([`export_icc`]) and, with the `gpu` feature, baked shaders (`export_shader`).
 //!
 //! # What is written
 //! Every export maps linear camera RGB (the training white at `G = 1`) to the output space exactly
@@ -30,25 +31,34 @@
 //!   the signal (black stays black).
 //!
 //! # Measured error
-//! [`LutExport::measure`] evaluates the written nodes ([`nodes`], with the declared interpolation)
+//! [`LutExport::measure`] evaluates the written nodes (with the declared interpolation)
 //! against the exact f64 model on the training patches and on a dense grid of chromaticities inside
 //! the training patches' convex hull (camera `r, g`) at several exposures across the range, and
 //! reports mean and max ΔE00. At exposure `k` the ΔE00 is taken against the training white × `k`
 //! (each sample is judged as if exposed normally), so the figure does not shrink for dark samples.
 
-pub mod clf;
-pub mod cube;
-pub mod dcp;
-pub mod dctl;
-pub mod icc;
-pub mod nodes;
-pub mod ocio;
+pub(crate) mod clf;
+pub(crate) mod cube;
+pub(crate) mod dcp;
+pub(crate) mod dctl;
+pub(crate) mod icc;
+pub(crate) mod nodes;
+pub(crate) mod ocio;
 #[cfg(feature = "gpu")]
-pub mod shader;
+pub(crate) mod shader;
+
+pub use dcp::DcpWritten;
+pub use dcp::{export_to as export_dcp, prophoto_to_xyz, Dcp, DcpOptions, DcpSide, DcpTraining};
+pub use dctl::generate as generate_dctl;
+pub use icc::{device_scale as icc_device_scale, pcs_matrix as icc_pcs_matrix, D50 as ICC_D50};
+pub use icc::{export_to as export_icc, IccOptions, IccWritten};
+pub use nodes::Interpolation;
+#[cfg(feature = "gpu")]
+pub use shader::{export as export_shader, ShaderLang};
 
 use crate::colorimetry::spaces::{self, Mat3, OutputSpace};
 use crate::model::{Kind, Model};
-use nodes::{eval_chain, Interpolation, LogCurve, Lut1d, Lut3d, Node};
+use nodes::{eval_chain, LogCurve, Lut1d, Lut3d, Node};
 
 /// Errors from building or writing an export.
 #[derive(Debug, thiserror::Error)]
@@ -56,23 +66,29 @@ pub enum ExportError {
     /// A request that cannot be honoured (the user's mistake).
     #[error("{0}")]
     Usage(String),
+    /// The model cannot be expressed in the format (a reference white that is not positive, …).
     #[error("the model cannot be exported: {0}")]
     Model(String),
     #[error(
         "the export's approximation error, max ΔE00 {max:.4} ({where_}), exceeds the limit {limit}"
     )]
+    /// The export is further from the model than the ΔE00 limit asked for.
     TooInaccurate {
+        /// The largest ΔE00 measured.
         max: f64,
+        /// The limit.
         limit: f64,
+        /// Where it was measured (training patches or the dense set).
         where_: String,
     },
+    /// Writing a file failed or was refused.
     #[error(transparent)]
     Write(#[from] crate::output::WriteError),
 }
 
 impl ExportError {
     /// True for export options out of range.
-    pub fn is_usage(&self) -> bool {
+    pub(crate) fn is_usage(&self) -> bool {
         match self {
             ExportError::Usage(_) => true,
             ExportError::Write(w) => w.is_usage(),
@@ -84,18 +100,21 @@ impl ExportError {
 /// File formats `nsrm export` writes.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Format {
+    /// Academy/SMPTE Common LUT Format v3 (`.clf`).
     Clf,
+    /// Resolve/OCIO `.cube` (1D shaper and 3D table).
     Cube,
+    /// A minimal OpenColorIO v2 config with its CLF beside it.
     Ocio,
-    /// A DNG Camera Profile ([`dcp`]), written from a model set by [`dcp::export_to`].
+    /// A DNG Camera Profile, written from a model set by [`export_dcp`].
     Dcp,
-    /// An ICC input profile ([`icc`]), written by [`icc::export_to`].
+    /// An ICC input profile, written by [`export_icc`].
     Icc,
 }
 
 impl Format {
     /// Parses `clf`, `cube` or `ocio`.
-    pub fn parse(s: &str) -> Option<Format> {
+    pub(crate) fn parse(s: &str) -> Option<Format> {
         match s.trim().to_ascii_lowercase().as_str() {
             "clf" => Some(Format::Clf),
             "cube" => Some(Format::Cube),
@@ -106,6 +125,7 @@ impl Format {
         }
     }
 
+    /// The name `export --format` takes (`clf`, `cube`, `ocio`, `dcp`, `icc`).
     pub fn name(self) -> &'static str {
         match self {
             Format::Clf => "clf",
@@ -155,7 +175,7 @@ impl Default for LutOptions {
 
 impl LutOptions {
     /// Checks the sizes and the range.
-    pub fn check(&self) -> Result<(), ExportError> {
+    pub(crate) fn check(&self) -> Result<(), ExportError> {
         if !LUT_SIZES.contains(&self.size) {
             return Err(ExportError::Usage(format!(
                 "LUT size {} is out of range ({}..={})",
@@ -186,7 +206,7 @@ impl LutOptions {
     }
 
     /// The shaper curve: `0 → 0`, log2 from `2^(lo − TOE_STOPS)` to `2^hi → 1`.
-    pub fn curve(&self) -> LogCurve {
+    pub(crate) fn curve(&self) -> LogCurve {
         LogCurve::zero_to_one((self.stops[0] - TOE_STOPS).exp2(), self.stops[1].exp2())
     }
 }
@@ -199,8 +219,11 @@ pub(crate) const EXPOSURE_STEP: f64 = 0.125;
 /// ΔE00 statistics over a sample set.
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
 pub struct ErrorStats {
+    /// Samples measured.
     pub count: usize,
+    /// Mean ΔE00.
     pub mean: f64,
+    /// Largest ΔE00.
     pub max: f64,
 }
 
@@ -243,7 +266,7 @@ pub struct ErrorReport {
 
 impl ErrorReport {
     /// The larger of the two maxima.
-    pub fn max(&self) -> f64 {
+    pub(crate) fn max(&self) -> f64 {
         self.training.max.max(self.dense.max)
     }
 
@@ -265,7 +288,7 @@ impl ErrorReport {
     }
 
     /// One line for the CLF `Description`, the .cube header and the terminal.
-    pub fn summary(&self) -> String {
+    pub(crate) fn summary(&self) -> String {
         format!(
             "training patches: {}; dense in-gamut set ({} exposures 2^{:.2}..2^{:.2} of the brightest patch): {}",
             self.training,
@@ -284,10 +307,12 @@ pub struct LutExport {
     pub folded: Model,
     /// The model as fitted (XYZ, white at `Y = white[1]`).
     pub model: Model,
+    /// The output space folded in.
     pub space: OutputSpace,
+    /// The options it was built with.
     pub options: LutOptions,
     /// The processing chain, in order.
-    pub nodes: Vec<Node>,
+    pub(crate) nodes: Vec<Node>,
     /// Whether the chain is the model itself (LRM) rather than an approximation.
     pub exact: bool,
 }
@@ -539,7 +564,7 @@ pub(crate) fn measure_fn(
 
 /// The file an export writes beside `out`: for OCIO the config's CLF, `<stem>.clf`; none for the
 /// other formats. A caller declares it as an output of its session with `out`.
-pub fn companion_path(
+pub(crate) fn companion_path(
     format: Format,
     out: &std::path::Path,
 ) -> Result<Option<std::path::PathBuf>, ExportError> {
@@ -567,6 +592,7 @@ pub fn companion_path(
 pub struct Written {
     /// The files, in the order written (for OCIO: the CLF, then the config).
     pub files: Vec<std::path::PathBuf>,
+    /// The error of the export against the model.
     pub report: ErrorReport,
     /// Whether the file is the model itself (an LRM as a CLF Matrix) rather than a LUT.
     pub exact: bool,
@@ -717,7 +743,7 @@ fn inside(hull: &[(f64, f64)], p: (f64, f64)) -> bool {
 }
 
 /// A one-line account of where the model came from, for file headers.
-pub fn provenance_line(model: &Model) -> String {
+pub(crate) fn provenance_line(model: &Model) -> String {
     let p = model.provenance();
     let mut parts = vec![format!(
         "{} order {} ({} terms) fitted on {} patches",

@@ -26,7 +26,8 @@ impl Interpolation {
     }
 
     /// Parses `trilinear` / `tetrahedral`.
-    pub fn parse(s: &str) -> Option<Interpolation> {
+    #[cfg(test)]
+    pub(crate) fn parse(s: &str) -> Option<Interpolation> {
         match s.trim().to_ascii_lowercase().as_str() {
             "trilinear" | "linear" => Some(Interpolation::Trilinear),
             "tetrahedral" => Some(Interpolation::Tetrahedral),
@@ -40,7 +41,7 @@ impl Interpolation {
 /// continues the curve with the same value and slope (so it is C¹ and defined for 0 and negative
 /// values).
 #[derive(Debug, Clone, Copy, PartialEq)]
-pub struct LogCurve {
+pub(crate) struct LogCurve {
     pub log_slope: f64,
     pub log_offset: f64,
     pub break_x: f64,
@@ -81,7 +82,7 @@ impl LogCurve {
     }
 
     /// Log → linear (the exact inverse of `forward`).
-    pub fn inverse(&self, y: f64) -> f64 {
+    pub(crate) fn inverse(&self, y: f64) -> f64 {
         let yb = self.y_at_break();
         if y > yb {
             ((y - self.log_offset) / self.log_slope).exp2()
@@ -94,14 +95,14 @@ impl LogCurve {
 /// A 1D LUT (the same table layout for every channel): `n` entries per channel over the input
 /// domain `[lo, hi]`, linearly interpolated; inputs outside the domain are clamped to it.
 #[derive(Debug, Clone, PartialEq)]
-pub struct Lut1d {
+pub(crate) struct Lut1d {
     pub domain: [f64; 2],
     pub values: Vec<[f32; 3]>,
 }
 
 impl Lut1d {
     /// Samples `f` (one curve for the three channels) at `n` points over `domain`.
-    pub fn sample(domain: [f64; 2], n: usize, f: impl Fn(f64) -> f64) -> Lut1d {
+    pub(crate) fn sample(domain: [f64; 2], n: usize, f: impl Fn(f64) -> f64) -> Lut1d {
         let values = (0..n)
             .map(|i| {
                 let x = domain[0] + (domain[1] - domain[0]) * i as f64 / (n - 1) as f64;
@@ -125,7 +126,7 @@ impl Lut1d {
 
     /// The input whose interpolated output on channel `c` is `y` (the table must be increasing):
     /// the exact inverse of the piecewise-linear function the file declares.
-    pub fn inverse(&self, c: usize, y: f64) -> f64 {
+    pub(crate) fn inverse(&self, c: usize, y: f64) -> f64 {
         let n = self.values.len();
         let v = |i: usize| self.values[i][c] as f64;
         let step = (self.domain[1] - self.domain[0]) / (n - 1) as f64;
@@ -155,7 +156,7 @@ impl Lut1d {
 /// (CLF's order): entry `(r, g, b)` is `values[(r·size + g)·size + b]`. Inputs are clamped to
 /// [0, 1].
 #[derive(Debug, Clone, PartialEq)]
-pub struct Lut3d {
+pub(crate) struct Lut3d {
     pub size: usize,
     pub values: Vec<[f32; 3]>,
     pub interpolation: Interpolation,
@@ -163,7 +164,7 @@ pub struct Lut3d {
 
 impl Lut3d {
     /// Samples `f` at the lattice points `(i, j, k) / (size − 1)`.
-    pub fn sample(
+    pub(crate) fn sample(
         size: usize,
         interpolation: Interpolation,
         f: impl Fn([f64; 3]) -> [f64; 3] + Sync,
@@ -190,7 +191,7 @@ impl Lut3d {
     }
 
     /// Interpolates the LUT at `x` (each channel clamped to [0, 1]).
-    pub fn eval(&self, x: [f64; 3]) -> [f64; 3] {
+    pub(crate) fn eval(&self, x: [f64; 3]) -> [f64; 3] {
         let n = self.size;
         let mut i = [0usize; 3];
         let mut f = [0f64; 3];
@@ -268,7 +269,7 @@ impl Lut3d {
 
 /// One processing step, as written into the files.
 #[derive(Debug, Clone, PartialEq)]
-pub enum Node {
+pub(crate) enum Node {
     /// `out = M · in`.
     Matrix(Mat3),
     /// Clamp every channel to `[lo, hi]` (a CLF `Range` whose in and out bounds are equal).
@@ -287,7 +288,7 @@ pub enum Node {
 
 impl Node {
     /// Applies the node to one RGB triple.
-    pub fn eval(&self, x: [f64; 3]) -> [f64; 3] {
+    pub(crate) fn eval(&self, x: [f64; 3]) -> [f64; 3] {
         match self {
             Node::Matrix(m) => crate::colorimetry::spaces::apply(m, x),
             Node::Clamp { lo, hi } => x.map(|v| v.clamp(*lo, *hi)),

@@ -32,7 +32,7 @@ fn matrix44(m: &spaces::Mat3) -> String {
 /// the header up to the colour spaces (`header`), the camera space (`camera_space`), the
 /// output spaces (`scene_linear_spaces`), and the display encoding and `Raw`
 /// (`display_spaces`).
-pub fn write(e: &LutExport, clf_file: &str) -> String {
+pub(crate) fn write(e: &LutExport, clf_file: &str) -> String {
     let w = e.model.white_xyz();
     let reference = e.space;
     let description = format!(

@@ -5,15 +5,6 @@
 //! `R G B` or `R G B A` (alpha untouched); the pixel count is the bound range's length.
 //! Entry point `main`, workgroup size 256. Dispatch G = ceil(pixels / 256) workgroups as
 //! `(G, 1, 1)` if G ≤ 256, else `(256, ceil(G / 256), 1)`.
-//!
-//! ```
-//! use nsrm::export::shader::{export, ShaderLang};
-//! use nsrm::{Kind, Layout, Model};
-//! let model = Model::from_matrix(Kind::Lrm, 1, vec![1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0])?;
-//! let glsl = export(&model, Layout::Rgba, ShaderLang::Glsl)?;
-//! assert!(String::from_utf8(glsl)?.starts_with("#version 450"));
-//! # Ok::<(), Box<dyn std::error::Error>>(())
-//! ```
 
 use crate::frame::Layout;
 use crate::gpu::shader::{self, Coefficients, Target, ENTRY_POINT};
@@ -23,15 +14,21 @@ use crate::model::Model;
 /// An output language.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
 pub enum ShaderLang {
+    /// WGSL, the generated source itself.
     Wgsl,
+    /// GLSL 450.
     Glsl,
+    /// HLSL shader model 5.1.
     Hlsl,
+    /// Metal Shading Language 2.0.
     Msl,
+    /// SPIR-V 1.0 words (little-endian).
     Spirv,
 }
 
 impl ShaderLang {
-    pub const ALL: [ShaderLang; 5] = [
+    #[cfg(test)]
+    pub(crate) const ALL: [ShaderLang; 5] = [
         ShaderLang::Wgsl,
         ShaderLang::Glsl,
         ShaderLang::Hlsl,
@@ -40,7 +37,7 @@ impl ShaderLang {
     ];
 
     /// `wgsl`, `glsl`, `hlsl`, `msl` or `spirv`.
-    pub fn name(self) -> &'static str {
+    pub(crate) fn name(self) -> &'static str {
         match self {
             ShaderLang::Wgsl => "wgsl",
             ShaderLang::Glsl => "glsl",
@@ -51,7 +48,8 @@ impl ShaderLang {
     }
 
     /// Parses a name (case-insensitive; `spv` for SPIR-V, `metal` for MSL also taken).
-    pub fn parse(s: &str) -> Option<ShaderLang> {
+    #[cfg(test)]
+    pub(crate) fn parse(s: &str) -> Option<ShaderLang> {
         match s.trim().to_ascii_lowercase().as_str() {
             "wgsl" => Some(ShaderLang::Wgsl),
             "glsl" => Some(ShaderLang::Glsl),
@@ -61,26 +59,10 @@ impl ShaderLang {
             _ => None,
         }
     }
-
-    /// The usual file extension.
-    pub fn extension(self) -> &'static str {
-        match self {
-            ShaderLang::Wgsl => "wgsl",
-            ShaderLang::Glsl => "comp",
-            ShaderLang::Hlsl => "hlsl",
-            ShaderLang::Msl => "metal",
-            ShaderLang::Spirv => "spv",
-        }
-    }
-
-    /// Whether the output is text.
-    pub fn is_text(self) -> bool {
-        self != ShaderLang::Spirv
-    }
 }
 
 /// The self-contained WGSL source (the matrix as constants) for `model` on `layout`.
-pub fn baked_wgsl(model: &Model, layout: Layout) -> Result<String, GpuError> {
+pub(crate) fn baked_wgsl(model: &Model, layout: Layout) -> Result<String, GpuError> {
     Ok(shader::wgsl(
         model.kind(),
         model.order(),
@@ -102,6 +84,20 @@ fn err(lang: ShaderLang, e: impl std::fmt::Display) -> GpuError {
 /// The shader for `model` on `layout` in `lang`: UTF-8 text, or SPIR-V words (little-endian).
 /// The WGSL is the generated source itself (comments kept); the others are naga's
 /// translations of it: GLSL 450 (`#version 450`), HLSL shader model 5.1, MSL 2.0, SPIR-V 1.0.
+///
+/// The shader corrects packed f32 pixels in place: one storage buffer, group 0 binding 1,
+/// `R G B` or `R G B A` (alpha untouched); the pixel count is the bound range's length.
+/// Entry point `main`, workgroup size 256. Dispatch G = ceil(pixels / 256) workgroups as
+/// `(G, 1, 1)` if G ≤ 256, else `(256, ceil(G / 256), 1)`.
+///
+/// ```
+/// use nsrm::export::{export_shader, ShaderLang};
+/// use nsrm::{Kind, Layout, Model};
+/// let model = Model::from_matrix(Kind::Lrm, 1, vec![1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0])?;
+/// let glsl = export_shader(&model, Layout::Rgba, ShaderLang::Glsl)?;
+/// assert!(String::from_utf8(glsl)?.starts_with("#version 450"));
+/// # Ok::<(), Box<dyn std::error::Error>>(())
+/// ```
 pub fn export(model: &Model, layout: Layout, lang: ShaderLang) -> Result<Vec<u8>, GpuError> {
     let src = baked_wgsl(model, layout)?;
     let (module, info) = shader::validate(&src)?;

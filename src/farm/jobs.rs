@@ -12,7 +12,7 @@ use super::FarmError;
 
 /// One word of a worker's command line.
 #[derive(Debug, Clone, PartialEq, Eq)]
-pub enum Arg {
+pub(crate) enum Arg {
     /// Passed as it is.
     Lit(String),
     /// `K/N`: this task's shard (1-based) and the shard count.
@@ -31,7 +31,7 @@ pub enum Arg {
 
 /// A batch to describe as a job.
 #[derive(Debug, Clone)]
-pub struct JobSpec {
+pub(crate) struct JobSpec {
     /// The job's name (letters, digits, `-`, `_`, `.`).
     pub name: String,
     pub shards: usize,
@@ -50,7 +50,7 @@ pub struct JobSpec {
 
 /// A generated file: its name in the job's directory, its text, and whether it is executable.
 #[derive(Debug, Clone, PartialEq, Eq)]
-pub struct JobFile {
+pub(crate) struct JobFile {
     pub name: String,
     pub text: String,
     pub executable: bool,
@@ -59,7 +59,7 @@ pub struct JobFile {
 impl JobSpec {
     /// Refuses what no job format can carry: no shards, no inputs, a line break or NUL in a path
     /// (the input list is one path per line), a name that is not a plain word.
-    pub fn check(&self) -> Result<(), FarmError> {
+    pub(crate) fn check(&self) -> Result<(), FarmError> {
         let usage = |s: String| Err(FarmError::Usage(s));
         if self.shards == 0 {
             return usage("the shard count must be at least 1".into());
@@ -127,7 +127,7 @@ fn openjd_arg(a: &Arg) -> Result<String, FarmError> {
 /// `1-{{Param.Shards}}` and whose embedded file `Inputs` lists the batch; a step `Verify`
 /// depending on it. `parameter_values.yaml` holds the values in Deadline Cloud's job-bundle
 /// form, and `parameter_values.json` the same for `openjd run`'s job parameters.
-pub fn openjd(spec: &JobSpec) -> Result<Vec<JobFile>, FarmError> {
+pub(crate) fn openjd(spec: &JobSpec) -> Result<Vec<JobFile>, FarmError> {
     spec.check()?;
     let template = Node::map([
         ("specificationVersion", Node::str("jobtemplate-2023-09")),
@@ -356,7 +356,7 @@ fn sh_command(
 /// the input list on its standard input), `verify.sbatch`, and `submit.sh`, which submits the
 /// array and then the verification with a dependency on every task of it (`afterany`, so the
 /// verification always reports, also on a failed task).
-pub fn slurm(spec: &JobSpec) -> Result<Vec<JobFile>, FarmError> {
+pub(crate) fn slurm(spec: &JobSpec) -> Result<Vec<JobFile>, FarmError> {
     spec.check()?;
     let list = spec.input_list();
     let end = heredoc_end(&list);
@@ -421,7 +421,7 @@ pub fn slurm(spec: &JobSpec) -> Result<Vec<JobFile>, FarmError> {
 /// the inputs, model and outputs, mounted at `mount_path` (the paths in the job are as the
 /// pods see them).
 #[derive(Debug, Clone)]
-pub struct Kube {
+pub(crate) struct Kube {
     pub image: String,
     pub claim: String,
     pub mount_path: String,
@@ -438,7 +438,7 @@ pub(crate) const KUBE_LIST_DIR: &str = "/etc/nsrm-batch";
 /// (`completionMode: Indexed`, `completions: N`) whose pod `JOB_COMPLETION_INDEX` (0-based) runs
 /// shard `index + 1`; `verify.yaml`, a Job to apply once the first has completed
 /// (Kubernetes orders no jobs).
-pub fn kube(spec: &JobSpec, k: &Kube) -> Result<Vec<JobFile>, FarmError> {
+pub(crate) fn kube(spec: &JobSpec, k: &Kube) -> Result<Vec<JobFile>, FarmError> {
     spec.check()?;
     if k.parallelism == 0 {
         return Err(FarmError::Usage("parallelism must be at least 1".into()));

@@ -5,12 +5,12 @@ use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
 
 /// The `format` of a shard manifest this version writes and reads.
-pub const FORMAT: &str = "nsrm-farm-shard/1";
+pub(crate) const FORMAT: &str = "nsrm-farm-shard/1";
 
 /// How a shard came by one of its outputs.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "kebab-case")]
-pub enum How {
+pub(crate) enum How {
     /// Written by this run.
     Converted,
     /// Finished by an earlier run of the shard: its size and hash matched that run's manifest.
@@ -24,7 +24,7 @@ pub enum How {
 
 /// One output of the shard.
 #[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize)]
-pub struct Entry {
+pub(crate) struct Entry {
     /// The input, as the worker named it.
     pub input: String,
     /// The output's file name in the output directory.
@@ -39,7 +39,7 @@ pub struct Entry {
 
 /// A preview written with an output.
 #[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize)]
-pub struct Preview {
+pub(crate) struct Preview {
     /// As the worker named it.
     pub path: String,
     pub bytes: u64,
@@ -48,7 +48,7 @@ pub struct Preview {
 
 /// An input the shard could not convert.
 #[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize)]
-pub struct Failure {
+pub(crate) struct Failure {
     pub input: String,
     pub output: String,
     pub why: String,
@@ -56,7 +56,7 @@ pub struct Failure {
 
 /// Seconds spent by the run.
 #[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
-pub struct Timings {
+pub(crate) struct Timings {
     /// Start, in seconds since the Unix epoch.
     pub started_unix: f64,
     /// Checking what earlier runs left (hashes, full reads).
@@ -71,14 +71,14 @@ pub struct Timings {
 /// What the whole batch is: its size and the SHA-256 of its outputs' names in batch order (the
 /// same on every worker, whatever their mount points).
 #[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize)]
-pub struct Batch {
+pub(crate) struct Batch {
     pub inputs: usize,
     pub outputs_sha256: String,
 }
 
 impl Batch {
     /// The identity of a batch whose outputs are named `names`, in batch order.
-    pub fn of<S: AsRef<str>>(names: &[S]) -> Batch {
+    pub(crate) fn of<S: AsRef<str>>(names: &[S]) -> Batch {
         let mut joined = String::new();
         for n in names {
             joined.push_str(n.as_ref());
@@ -93,7 +93,7 @@ impl Batch {
 
 /// The model a shard applied.
 #[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize)]
-pub struct ModelRecord {
+pub(crate) struct ModelRecord {
     /// As the worker named it.
     pub path: String,
     pub sha256: String,
@@ -101,7 +101,7 @@ pub struct ModelRecord {
 
 /// One shard's record.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-pub struct ShardManifest {
+pub(crate) struct ShardManifest {
     /// [`FORMAT`].
     pub format: String,
     pub nsrm_version: String,
@@ -121,7 +121,7 @@ pub struct ShardManifest {
 }
 
 /// The manifest's file name for shard `k` of `n`: `nsrm-farm.shard-0002-of-0008.json`.
-pub fn file_name(k: usize, n: usize) -> String {
+pub(crate) fn file_name(k: usize, n: usize) -> String {
     format!("nsrm-farm.shard-{k:04}-of-{n:04}.json")
 }
 
@@ -147,7 +147,7 @@ impl ShardManifest {
     /// Writes the manifest into `dir` atomically (a temporary, synced, then moved over the
     /// shard's previous manifest, which is this shard's own record) through `session`, which
     /// must replace existing outputs.
-    pub fn write(
+    pub(crate) fn write(
         &self,
         dir: &Path,
         session: &crate::output::Session,
@@ -163,7 +163,7 @@ impl ShardManifest {
     }
 
     /// Reads a manifest, checking its format.
-    pub fn read(path: &Path) -> Result<ShardManifest, FarmError> {
+    pub(crate) fn read(path: &Path) -> Result<ShardManifest, FarmError> {
         let bytes = read_bounded(path, MAX_RECORD_BYTES)?;
         let bad = |why: String| FarmError::Format {
             path: path.to_path_buf(),

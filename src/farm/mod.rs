@@ -1,27 +1,30 @@
 //! Batches on farm engines: per-shard manifests, their verification, path mapping between the
 //! submitting machine and the workers, and job descriptions in the engines' own formats.
 //!
-//! A batch of `N` shards is split as [`crate::io::batch::Shard`] says. Each shard, when it has
-//! run, writes a [`manifest::ShardManifest`] beside the outputs (atomically): its inputs, their
+//! A batch of `N` shards is split as `--shard` says. Each shard, when it has
+//! run, writes a manifest beside the outputs (atomically): its inputs, their
 //! outputs with sizes and SHA-256 hashes, the model's hash, the nsrm version, timings and
-//! failures. [`verify::verify`] reads every manifest of an output directory and checks the batch
+//! failures. `nsrm farm verify` reads every manifest of an output directory and checks the batch
 //! is whole: every shard present, each input with exactly one complete output from one model, the
 //! hashes matching the files, and no temporary left.
 //!
-//! The job descriptions ([`jobs`]) are built from the command line a worker runs, which the
+//! The job descriptions (`jobs`) are built from the command line a worker runs, which the
 //! caller supplies: this module knows the engines' formats, not the binary's flags.
+//!
+//! Everything here is crate-private: the binary's `nsrm farm` commands and `nsrm apply
+//! --shard` are its only users.
 
-pub mod jobs;
-pub mod manifest;
-pub mod pathmap;
-pub mod verify;
-pub mod yaml;
+pub(crate) mod jobs;
+pub(crate) mod manifest;
+pub(crate) mod pathmap;
+pub(crate) mod verify;
+pub(crate) mod yaml;
 
 use std::path::{Path, PathBuf};
 
 /// What can go wrong reading or writing a batch's farm records.
 #[derive(Debug, thiserror::Error)]
-pub enum FarmError {
+pub(crate) enum FarmError {
     /// A file cannot be read or written.
     #[error("{}: {err}", path.display())]
     Io { path: PathBuf, err: std::io::Error },
@@ -39,7 +42,7 @@ pub enum FarmError {
 
 impl FarmError {
     /// True for requests that cannot be carried out as given.
-    pub fn is_usage(&self) -> bool {
+    pub(crate) fn is_usage(&self) -> bool {
         matches!(self, FarmError::Usage(_))
     }
 }
@@ -52,10 +55,10 @@ fn io_err(path: &Path) -> impl FnOnce(std::io::Error) -> FarmError + '_ {
 }
 
 /// The most bytes of a manifest or rules file read (a batch of a million frames fits).
-pub const MAX_RECORD_BYTES: u64 = 1 << 30;
+pub(crate) const MAX_RECORD_BYTES: u64 = 1 << 30;
 
 /// Reads a whole small file, refusing one larger than `limit` bytes before allocating.
-pub fn read_bounded(path: &Path, limit: u64) -> Result<Vec<u8>, FarmError> {
+pub(crate) fn read_bounded(path: &Path, limit: u64) -> Result<Vec<u8>, FarmError> {
     use std::io::Read;
     let f = std::fs::File::open(path).map_err(io_err(path))?;
     let len = f.metadata().map_err(io_err(path))?.len();
@@ -79,7 +82,7 @@ pub fn read_bounded(path: &Path, limit: u64) -> Result<Vec<u8>, FarmError> {
 }
 
 /// A file's size and SHA-256 (lowercase hex), read in 1 MiB blocks.
-pub fn sha256_file(path: &Path) -> Result<(u64, String), FarmError> {
+pub(crate) fn sha256_file(path: &Path) -> Result<(u64, String), FarmError> {
     use sha2::{Digest, Sha256};
     use std::io::Read;
     let mut f = std::fs::File::open(path).map_err(io_err(path))?;

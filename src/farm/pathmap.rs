@@ -10,7 +10,7 @@ use serde::Deserialize;
 /// How the source paths of a rule are written.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize)]
 #[serde(rename_all = "UPPERCASE")]
-pub enum SourceFormat {
+pub(crate) enum SourceFormat {
     /// `/`-separated, case-sensitive.
     Posix,
     /// `\` or `/`-separated, case-insensitive, a drive letter or UNC prefix.
@@ -19,7 +19,7 @@ pub enum SourceFormat {
 
 /// One rule: paths under `source` go under `destination` (the worker's, `/`-separated).
 #[derive(Debug, Clone, PartialEq, Eq, Deserialize)]
-pub struct Rule {
+pub(crate) struct Rule {
     pub source_path_format: SourceFormat,
     pub source_path: String,
     pub destination_path: String,
@@ -27,7 +27,7 @@ pub struct Rule {
 
 /// A set of rules.
 #[derive(Debug, Clone, Default, PartialEq, Eq)]
-pub struct PathMap {
+pub(crate) struct PathMap {
     rules: Vec<Rule>,
 }
 
@@ -56,22 +56,17 @@ fn components(s: &str, format: SourceFormat) -> Vec<String> {
 
 impl PathMap {
     /// No rules: every path is kept.
-    pub fn new() -> PathMap {
+    pub(crate) fn new() -> PathMap {
         PathMap::default()
     }
 
     /// Whether there are no rules.
-    pub fn is_empty(&self) -> bool {
+    pub(crate) fn is_empty(&self) -> bool {
         self.rules.is_empty()
     }
 
-    /// The rules, in the order added.
-    pub fn rules(&self) -> &[Rule] {
-        &self.rules
-    }
-
     /// Adds a POSIX rule from `FROM=TO` (both absolute).
-    pub fn add_pair(&mut self, spec: &str) -> Result<(), FarmError> {
+    pub(crate) fn add_pair(&mut self, spec: &str) -> Result<(), FarmError> {
         let bad = |why: &str| FarmError::Usage(format!("path mapping `{spec}`: {why}"));
         let (from, to) = spec
             .split_once('=')
@@ -87,7 +82,7 @@ impl PathMap {
     }
 
     /// Adds a rule.
-    pub fn add(&mut self, rule: Rule) -> Result<(), FarmError> {
+    pub(crate) fn add(&mut self, rule: Rule) -> Result<(), FarmError> {
         if components(&rule.source_path, rule.source_path_format).is_empty() {
             return Err(FarmError::Usage(format!(
                 "path mapping from `{}`: the source path must name a directory below the root",
@@ -106,7 +101,7 @@ impl PathMap {
 
     /// Adds the rules of an Open Job Description path-mapping file (`pathmapping-1.0` JSON, as
     /// a session's `PathMappingRulesFile`). An empty file holds no rules.
-    pub fn add_openjd_file(&mut self, path: &std::path::Path) -> Result<(), FarmError> {
+    pub(crate) fn add_openjd_file(&mut self, path: &std::path::Path) -> Result<(), FarmError> {
         let bytes = read_bounded(path, 16 << 20)?;
         if bytes.iter().all(u8::is_ascii_whitespace) {
             return Ok(());
@@ -132,7 +127,7 @@ impl PathMap {
     }
 
     /// `p` as the worker names it.
-    pub fn map(&self, p: &str) -> String {
+    pub(crate) fn map(&self, p: &str) -> String {
         let mut best: Option<(usize, &Rule, Vec<&str>)> = None;
         for r in &self.rules {
             let src = components(&r.source_path, r.source_path_format);

@@ -7,7 +7,7 @@ use std::path::{Path, PathBuf};
 
 /// What to expect beyond what the manifests say.
 #[derive(Debug, Clone, Default)]
-pub struct Expect {
+pub(crate) struct Expect {
     /// The shard count the job was made with.
     pub shards: Option<usize>,
     /// The SHA-256 of the model the job applies.
@@ -16,7 +16,7 @@ pub struct Expect {
 
 /// What [`verify`] found.
 #[derive(Debug, Clone, Default)]
-pub struct Report {
+pub(crate) struct Report {
     /// Manifests read.
     pub manifests: usize,
     /// Shards of the batch (as the manifests say).
@@ -33,7 +33,7 @@ pub struct Report {
 
 impl Report {
     /// Whether the batch is whole.
-    pub fn ok(&self) -> bool {
+    pub(crate) fn ok(&self) -> bool {
         self.problems.is_empty()
     }
 }
@@ -47,7 +47,7 @@ impl Report {
 /// The steps: the manifests read (`read_manifests`), checked against each other
 /// (`agreeing_shards`), each shard's outputs checked on disk (`check_shard`), and the
 /// outputs' names against the batch's identity.
-pub fn verify(dir: &Path, expect: &Expect) -> Result<Report, FarmError> {
+pub(crate) fn verify(dir: &Path, expect: &Expect) -> Result<Report, FarmError> {
     let mut r = Report::default();
     let manifests = read_manifests(dir, &mut r.problems)?;
     r.manifests = manifests.len();

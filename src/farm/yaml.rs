@@ -4,7 +4,7 @@
 
 /// A YAML value.
 #[derive(Debug, Clone, PartialEq)]
-pub enum Node {
+pub(crate) enum Node {
     Str(String),
     Int(i64),
     Bool(bool),
@@ -14,12 +14,12 @@ pub enum Node {
 
 impl Node {
     /// A mapping from `(key, value)` pairs, in order.
-    pub fn map<K: Into<String>>(pairs: impl IntoIterator<Item = (K, Node)>) -> Node {
+    pub(crate) fn map<K: Into<String>>(pairs: impl IntoIterator<Item = (K, Node)>) -> Node {
         Node::Map(pairs.into_iter().map(|(k, v)| (k.into(), v)).collect())
     }
 
     /// A string.
-    pub fn str(s: impl Into<String>) -> Node {
+    pub(crate) fn str(s: impl Into<String>) -> Node {
         Node::Str(s.into())
     }
 
@@ -108,7 +108,7 @@ fn write(n: &Node, indent: usize, out: &mut String) {
 }
 
 /// The YAML text of `n` (one document, no `---`).
-pub fn to_string(n: &Node) -> String {
+pub(crate) fn to_string(n: &Node) -> String {
     let mut out = String::new();
     write(n, 0, &mut out);
     out

@@ -36,7 +36,9 @@ fn take_entry(p: &Path) -> bool {
 /// directory, a glob match (in any component) or the pattern itself (see `glob_into`). Files reached twice (two patterns, or `./a.exr` and `a.exr`)
 /// are listed once. The list is sorted by path, so every machine given the same inputs sees
 /// the same order (see [`Shard`]).
-pub fn expand_inputs<S: AsRef<std::ffi::OsStr>>(specs: &[S]) -> Result<Vec<PathBuf>, IoError> {
+pub(crate) fn expand_inputs<S: AsRef<std::ffi::OsStr>>(
+    specs: &[S],
+) -> Result<Vec<PathBuf>, IoError> {
     let mut found: Vec<PathBuf> = Vec::new();
     for spec in specs {
         let path = Path::new(spec.as_ref());
@@ -370,14 +372,14 @@ impl Pattern {
 /// passes `--shard $SLURM_ARRAY_TASK_ID/N`; a Kubernetes indexed Job (indices from 0) passes
 /// `--shard $((JOB_COMPLETION_INDEX + 1))/N`.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub struct Shard {
+pub(crate) struct Shard {
     pub index: usize,
     pub count: usize,
 }
 
 impl Shard {
     /// Parses `K/N` (1-based K).
-    pub fn parse(spec: &str) -> Result<Shard, IoError> {
+    pub(crate) fn parse(spec: &str) -> Result<Shard, IoError> {
         let bad = |why: &str| IoError::Shard {
             spec: spec.to_string(),
             why: why.to_string(),
@@ -406,12 +408,13 @@ impl Shard {
     }
 
     /// Whether the input at 0-based position `i` belongs to this shard.
-    pub fn contains(&self, i: usize) -> bool {
+    pub(crate) fn contains(&self, i: usize) -> bool {
         i % self.count == self.index - 1
     }
 
     /// This shard's part of `items`, in order.
-    pub fn select<T: Clone>(&self, items: &[T]) -> Vec<T> {
+    #[cfg(test)]
+    pub(crate) fn select<T: Clone>(&self, items: &[T]) -> Vec<T> {
         items
             .iter()
             .enumerate()
@@ -431,7 +434,7 @@ impl std::fmt::Display for Shard {
 /// frame number ending the stem stays at the end, so sequences stay sequences:
 /// `plate.0101.exr` → `plate_xyz.0101.exr`. Names are kept as they are (no lossy conversion:
 /// a non-UTF-8 stem gives a non-UTF-8 output name).
-pub fn output_path(
+pub(crate) fn output_path(
     input: &Path,
     out_dir: Option<&Path>,
     suffix: &str,
@@ -476,7 +479,7 @@ pub fn output_path(
 
 /// Checks that `--suffix` is a plain fragment of a file name: no path separator, no `..`, no
 /// NUL. (An empty suffix is allowed; the plan refuses it when an output would land on an input.)
-pub fn validate_suffix(suffix: &str) -> Result<(), PlanError> {
+pub(crate) fn validate_suffix(suffix: &str) -> Result<(), PlanError> {
     let bad = |why: &str| {
         Err(PlanError::Usage(format!(
             "output suffix `{suffix}`: {why}; it must be a plain part of a file name"
@@ -496,7 +499,7 @@ pub fn validate_suffix(suffix: &str) -> Result<(), PlanError> {
 
 /// What to do about an output that already exists.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
-pub enum Existing {
+pub(crate) enum Existing {
     /// The input fails (`--overwrite` or `--skip-existing` is needed).
     #[default]
     Refuse,
@@ -508,7 +511,7 @@ pub enum Existing {
 
 /// How a batch is planned.
 #[derive(Debug, Clone, Default)]
-pub struct PlanOptions<'a> {
+pub(crate) struct PlanOptions<'a> {
     /// Output directory; `None`: beside each input.
     pub out_dir: Option<&'a Path>,
     /// Appended to each output's stem (see [`output_path`], [`validate_suffix`]).
@@ -527,7 +530,7 @@ pub struct PlanOptions<'a> {
 
 /// What the plan says to do with one input.
 #[derive(Debug, Clone, PartialEq, Eq)]
-pub enum Action {
+pub(crate) enum Action {
     Convert,
     /// Nothing to do, with the reason (the output exists and existing outputs are skipped).
     Skip(String),
@@ -537,7 +540,7 @@ pub enum Action {
 
 /// Why the plan refuses one input before any work (the front end adds how to change that).
 #[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
-pub enum Refusal {
+pub(crate) enum Refusal {
     /// The output or preview path holds something that is not a regular file.
     #[error("{}: the {what} path is not a regular file (it is {kind}); nsrm never replaces one", path.display())]
     NotRegular {
@@ -555,7 +558,7 @@ pub enum Refusal {
 
 /// One input of the batch: where it goes and what to do.
 #[derive(Debug, Clone, PartialEq, Eq)]
-pub struct Job {
+pub(crate) struct Job {
     pub input: PathBuf,
     pub output: PathBuf,
     pub preview: Option<PathBuf>,
@@ -566,14 +569,12 @@ pub struct Job {
 /// after resolving symlinks and `..`, and by device and inode), no two sharing a destination,
 /// the policy for existing outputs applied, directories created.
 #[derive(Debug, Clone)]
-pub struct BatchPlan {
+pub(crate) struct BatchPlan {
     /// This run's jobs (this shard's), in input order.
     pub jobs: Vec<Job>,
     /// Inputs of the whole batch (all shards).
     pub total_inputs: usize,
     pub shard: Option<Shard>,
-    /// The output and preview directories.
-    pub dirs: Vec<PathBuf>,
     /// Temporaries of nsrm's form found in those directories (left by a killed run, or being
     /// written by another one): reported, never removed unless asked.
     pub stale_temporaries: Vec<PathBuf>,
@@ -581,14 +582,14 @@ pub struct BatchPlan {
 
 impl BatchPlan {
     /// Indices of the jobs to convert.
-    pub fn to_convert(&self) -> Vec<usize> {
+    pub(crate) fn to_convert(&self) -> Vec<usize> {
         (0..self.jobs.len())
             .filter(|&i| self.jobs[i].action == Action::Convert)
             .collect()
     }
 
     /// `12 inputs` or `shard 2/4: 3 of 12 inputs`.
-    pub fn scope(&self) -> String {
+    pub(crate) fn scope(&self) -> String {
         match self.shard {
             Some(s) => format!(
                 "shard {s}: {} of {} inputs",
@@ -602,7 +603,7 @@ impl BatchPlan {
 
 /// Why a batch cannot be planned.
 #[derive(Debug, thiserror::Error)]
-pub enum PlanError {
+pub(crate) enum PlanError {
     /// The options would lose data or contradict each other (exit status 2).
     #[error("{0}")]
     Usage(String),
@@ -614,7 +615,7 @@ pub enum PlanError {
 impl PlanError {
     /// True for a batch that cannot be planned as asked (collisions, existing outputs, a bad
     /// suffix); false for a directory that cannot be set up.
-    pub fn is_usage(&self) -> bool {
+    pub(crate) fn is_usage(&self) -> bool {
         matches!(self, PlanError::Usage(_))
     }
 }
@@ -688,7 +689,7 @@ pub(crate) fn ensure_writable_dir(dir: &Path) -> Result<(), PlanError> {
 /// preview that is an input of the batch (by resolved path or by device and inode, so also
 /// through symlinks, `..` and hard links), or two inputs sharing a destination. Existing
 /// destinations follow `existing`; one that is not a regular file always fails its input.
-pub fn plan_batch(inputs: &[PathBuf], o: &PlanOptions) -> Result<BatchPlan, PlanError> {
+pub(crate) fn plan_batch(inputs: &[PathBuf], o: &PlanOptions) -> Result<BatchPlan, PlanError> {
     validate_suffix(o.suffix)?;
     let format = o.format;
     let preview_of = |output: &Path| {
@@ -759,7 +760,6 @@ pub fn plan_batch(inputs: &[PathBuf], o: &PlanOptions) -> Result<BatchPlan, Plan
         jobs,
         total_inputs: inputs.len(),
         shard: o.shard,
-        dirs,
         stale_temporaries,
     })
 }
@@ -1131,5 +1131,40 @@ mod tests {
         let mut v = Vec::new();
         glob_into(rel.as_os_str(), &mut v).unwrap();
         assert!(v.is_empty(), "not frames: {v:?}");
+    }
+
+    /// Cases per property: `NSRM_FUZZ_CASES` when set (as in `tests/all/harden_fuzz.rs`).
+    fn fuzz_cases(default: u32) -> u32 {
+        std::env::var("NSRM_FUZZ_CASES")
+            .ok()
+            .and_then(|v| v.parse().ok())
+            .unwrap_or(default)
+    }
+
+    // Property-based fuzzing of the flag parsers (moved from `tests/all/harden_fuzz.rs` when the
+    // batch plan became crate-private): any string is parsed or refused, never a panic, and
+    // whatever is accepted is well formed.
+    proptest::proptest! {
+        #![proptest_config(proptest::prelude::ProptestConfig {
+            cases: fuzz_cases(2000),
+            ..proptest::prelude::ProptestConfig::default()
+        })]
+
+        #[test]
+        fn shard_specs_parse_or_refuse(spec in "[0-9/ x-]{0,30}|\\PC{0,20}") {
+            if let Ok(s) = Shard::parse(&spec) {
+                proptest::prop_assert!(s.index >= 1 && s.index <= s.count);
+                proptest::prop_assert!(s.contains(s.index - 1));
+            }
+        }
+
+        #[test]
+        fn suffixes_and_names_never_escape(suffix in "\\PC{0,12}", stem in "[a-z0-9.]{0,12}") {
+            if validate_suffix(&suffix).is_ok() {
+                let input = Path::new("dir").join(format!("{stem}.exr"));
+                let out = output_path(&input, None, &suffix, FileFormat::Exr);
+                proptest::prop_assert_eq!(out.parent(), Some(Path::new("dir")));
+            }
+        }
     }
 }

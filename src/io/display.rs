@@ -29,7 +29,8 @@ pub enum Encoding {
 
 impl Encoding {
     /// `auto`, `linear` or `srgb` (case-insensitive).
-    pub fn parse(s: &str) -> Option<Encoding> {
+    #[cfg(test)]
+    pub(crate) fn parse(s: &str) -> Option<Encoding> {
         match s.trim().to_ascii_lowercase().as_str() {
             "auto" => Some(Encoding::Auto),
             "linear" => Some(Encoding::Linear),
@@ -41,7 +42,7 @@ impl Encoding {
 
 /// What a read frame's values are.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum Transfer {
+pub(crate) enum Transfer {
     /// Linear as stored (scene-referred camera data).
     Linear,
     /// Display-referred values decoded with the sRGB transfer function.
@@ -52,12 +53,12 @@ pub enum Transfer {
 
 impl Transfer {
     /// True when the values went through a display encoding (a camera tone curve may remain).
-    pub fn display_referred(self) -> bool {
+    pub(crate) fn display_referred(self) -> bool {
         self == Transfer::SrgbDecoded
     }
 
     /// Words for messages and provenance.
-    pub fn describe(self) -> &'static str {
+    pub(crate) fn describe(self) -> &'static str {
         match self {
             Transfer::Linear => "linear",
             Transfer::SrgbDecoded => {
@@ -70,11 +71,9 @@ impl Transfer {
 
 /// A frame for chart reading and how its values were decoded.
 #[derive(Debug, Clone)]
-pub struct ChartFrame {
+pub(crate) struct ChartFrame {
     pub frame: Frame,
     pub transfer: Transfer,
-    /// `JPEG`, `PNG`, `TIFF`, `OpenEXR`, …
-    pub format: &'static str,
     /// The largest integer code of a display file decoded here (255, 65535); `None` for frames
     /// read by the linear readers.
     pub max_code: Option<f64>,
@@ -83,7 +82,7 @@ pub struct ChartFrame {
 }
 
 /// The sRGB electro-optical transfer function: an encoded value in `[0, 1]` to linear.
-pub fn srgb_eotf(v: f64) -> f64 {
+pub(crate) fn srgb_eotf(v: f64) -> f64 {
     if v <= 0.040_45 {
         v / 12.92
     } else {
@@ -145,7 +144,7 @@ fn tiff_is_8bit(path: &Path) -> bool {
 /// Reads a frame for chart reading: JPEG, PNG and 8-bit TIFF through `image` (display
 /// encodings), anything else through [`super::read_frame`] (EXR, 16-bit / float TIFF, and
 /// whatever else that dispatch reads), then decodes per `encoding`.
-pub fn read_chart_frame(
+pub(crate) fn read_chart_frame(
     path: &Path,
     opts: &ReadOptions,
     encoding: Encoding,
@@ -180,7 +179,6 @@ pub fn read_chart_frame(
     Ok(ChartFrame {
         frame,
         transfer,
-        format,
         max_code,
         camera,
     })

@@ -15,16 +15,20 @@
 //! Writers never leave a partial file: they write a temporary file beside the destination and
 //! move it into place only when complete ([`crate::output`]).
 //!
-//! [`batch`] expands command-line inputs (files, directories, globs), slices them for `--shard`
-//! and names outputs; `chart::synthetic` renders synthetic chart frames with [`write_camera_float`]; [`preview`] writes sRGB PNGs.
+//! Crate-private beside them: the batch plan (`batch`: command-line inputs expanded, sliced for
+//! `--shard`, outputs named), display-referred chart frames (`display`), camera raw decoding
+//! (`raw`), sRGB PNG previews (`preview`) and the frame pool.
 
-pub mod batch;
-pub mod display;
+pub(crate) mod batch;
+pub(crate) mod display;
 mod openexr;
-pub mod raw;
-pub use openexr::{DEFAULT_ZIP_LEVEL, MAX_ZIP_LEVEL};
-pub mod preview;
+pub(crate) mod preview;
+pub(crate) mod raw;
 mod tif;
+
+pub use display::Encoding;
+pub use openexr::{DEFAULT_ZIP_LEVEL, MAX_ZIP_LEVEL};
+pub use raw::{CameraInfo, Demosaic};
 
 use crate::colorimetry::spaces::OutputSpace;
 use crate::frame::Frame;
@@ -35,60 +39,122 @@ use std::path::{Path, PathBuf};
 /// the `source()`, so an `anyhow` chain (`{:#}`) never prints it twice.
 #[derive(Debug, thiserror::Error)]
 pub enum IoError {
+    /// The file could not be opened or read.
     #[error("{}: cannot read: {err}", path.display())]
-    Read { path: PathBuf, err: std::io::Error },
+    Read {
+        /// The file.
+        path: PathBuf,
+        /// The operating system's error.
+        err: std::io::Error,
+    },
+    /// The file's signature is none of the formats read.
     #[error("{}: not an OpenEXR, TIFF or camera raw file (its first bytes are none of their signatures)", path.display())]
-    UnknownFormat { path: PathBuf },
+    UnknownFormat {
+        /// The file.
+        path: PathBuf,
+    },
+    /// The `exr` crate refused the file.
     #[error("{}: unreadable OpenEXR file: {err}", path.display())]
     Exr {
+        /// The file.
         path: PathBuf,
+        /// The decoder's error.
         err: ::exr::error::Error,
     },
+    /// The `tiff` crate refused the file.
     #[error("{}: unreadable TIFF file: {err}", path.display())]
     Tiff {
+        /// The file.
         path: PathBuf,
+        /// The decoder's error.
         err: ::tiff::TiffError,
     },
+    /// A well-formed file of a kind nsrm does not read (8-bit or palette TIFF, lossy raw, …).
     #[error("{}: unsupported: {why}", path.display())]
-    Unsupported { path: PathBuf, why: String },
+    Unsupported {
+        /// The file.
+        path: PathBuf,
+        /// What is not supported.
+        why: String,
+    },
     /// The camera RGB cannot be found; `concern` says when the layer is the way out (several
     /// layers and none named) or the cause (a layer named that is not there).
     #[error("{}: {why}", path.display())]
     Channels {
+        /// The file.
         path: PathBuf,
+        /// Which channels were looked for and what the file has.
         why: String,
+        /// The parameter that is the cause or the way out, if one is.
         concern: Option<crate::error::Concern>,
     },
+    /// A frame could not be encoded into the output format.
     #[error("{}: cannot encode: {why}", path.display())]
-    Encode { path: PathBuf, why: String },
+    Encode {
+        /// The output file.
+        path: PathBuf,
+        /// What the encoder refused.
+        why: String,
+    },
+    /// Writing an output failed or was refused (see [`WriteError`]).
     #[error(transparent)]
     Write(#[from] WriteError),
+    /// An input (a file, directory or glob) names no frame.
     #[error("input `{spec}`: {why}")]
-    NoMatch { spec: String, why: String },
+    NoMatch {
+        /// The input as given.
+        spec: String,
+        /// Why nothing matched.
+        why: String,
+    },
+    /// A `--shard` value is malformed.
     #[error("shard `{spec}`: {why}")]
-    Shard { spec: String, why: String },
+    Shard {
+        /// The value as given.
+        spec: String,
+        /// What is wrong with it.
+        why: String,
+    },
+    /// A request that cannot be carried out (a frame that does not fit a writer, …).
     #[error("{0}")]
     Invalid(String),
     /// A parameter of the request is out of range (`concern` says which).
     #[error("{why}")]
     Param {
+        /// The parameter.
         concern: crate::error::Concern,
+        /// What is wrong with its value.
         why: String,
     },
     /// A header asks for more pixels than [`Limits::max_pixels`] allows.
     #[error("{}: {why}", path.display())]
-    OverLimit { path: PathBuf, why: String },
+    OverLimit {
+        /// The file.
+        path: PathBuf,
+        /// The size asked for and the limit.
+        why: String,
+    },
     /// A header asks for more than the file can hold or the machine can address.
     #[error("{}: {why}", path.display())]
-    TooLarge { path: PathBuf, why: String },
+    TooLarge {
+        /// The file.
+        path: PathBuf,
+        /// The size asked for and what bounds it.
+        why: String,
+    },
     /// The file is damaged: missing, repeated or out-of-file data blocks, and the like.
     #[error("{}: corrupt: {why}", path.display())]
-    Corrupt { path: PathBuf, why: String },
+    Corrupt {
+        /// The file.
+        path: PathBuf,
+        /// What is damaged.
+        why: String,
+    },
 }
 
 impl IoError {
     /// True for inputs that name no frame, a malformed shard, and a parameter value out of range.
-    pub fn is_usage(&self) -> bool {
+    pub(crate) fn is_usage(&self) -> bool {
         use IoError;
         matches!(
             self,
@@ -123,7 +189,7 @@ impl IoError {
 
 /// The default of [`Limits::max_pixels`] (and `--max-pixels`): 2²⁸ = 268 435 456 pixels
 /// (16384 × 16384, 32× an 8K UHD frame): 3 GiB of f32 RGB.
-pub const DEFAULT_MAX_PIXELS: u64 = 1 << 28;
+pub(crate) const DEFAULT_MAX_PIXELS: u64 = 1 << 28;
 
 /// Bounds on what a frame's header may make a reader allocate. Checked from the header, before
 /// any pixel buffer exists; buffers whose size comes from a file are then allocated fallibly
@@ -218,14 +284,14 @@ pub(crate) fn try_zeroed<T: bytemuck::Zeroable>(path: &Path, n: usize) -> Result
 /// each zeroing a page, and its release as much again). Holds at most `max` buffers; the
 /// decoding and encoding threads share it by reference.
 #[derive(Debug)]
-pub struct FramePool {
+pub(crate) struct FramePool {
     buffers: std::sync::Mutex<Vec<Vec<f32>>>,
     max: usize,
 }
 
 impl FramePool {
     /// A pool keeping at most `max` idle buffers.
-    pub fn new(max: usize) -> FramePool {
+    pub(crate) fn new(max: usize) -> FramePool {
         FramePool {
             buffers: Default::default(),
             max,
@@ -237,7 +303,7 @@ impl FramePool {
     }
 
     /// Keeps `buffer` for a later frame (dropped when the pool is full).
-    pub fn give(&self, buffer: Vec<f32>) {
+    pub(crate) fn give(&self, buffer: Vec<f32>) {
         if buffer.capacity() == 0 {
             return;
         }
@@ -248,7 +314,8 @@ impl FramePool {
     }
 
     /// Idle buffers held now.
-    pub fn idle(&self) -> usize {
+    #[cfg(test)]
+    pub(crate) fn idle(&self) -> usize {
         self.lock().len()
     }
 
@@ -292,14 +359,16 @@ pub(crate) fn try_with_capacity<T>(path: &Path, n: usize) -> Result<Vec<T>, IoEr
 /// File formats frames are read from and written to.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default)]
 pub enum FileFormat {
+    /// OpenEXR (`.exr`).
     #[default]
     Exr,
+    /// TIFF (`.tif`, `.tiff`).
     Tiff,
 }
 
 impl FileFormat {
     /// Parses `exr` / `tiff` (also `tif`).
-    pub fn parse(s: &str) -> Option<FileFormat> {
+    pub(crate) fn parse(s: &str) -> Option<FileFormat> {
         match s.trim().to_ascii_lowercase().as_str() {
             "exr" | "openexr" => Some(FileFormat::Exr),
             "tif" | "tiff" => Some(FileFormat::Tiff),
@@ -308,7 +377,7 @@ impl FileFormat {
     }
 
     /// The format a file name's extension names (`.exr`, `.tif`, `.tiff`, any case).
-    pub fn from_extension(path: &Path) -> Option<FileFormat> {
+    pub(crate) fn from_extension(path: &Path) -> Option<FileFormat> {
         FileFormat::parse(path.extension()?.to_str()?)
     }
 
@@ -343,7 +412,7 @@ impl FileFormat {
     }
 
     /// The extension written: `exr` or `tif`.
-    pub fn extension(self) -> &'static str {
+    pub(crate) fn extension(self) -> &'static str {
         match self {
             FileFormat::Exr => "exr",
             FileFormat::Tiff => "tif",
@@ -351,7 +420,7 @@ impl FileFormat {
     }
 
     /// `OpenEXR` / `TIFF`.
-    pub fn name(self) -> &'static str {
+    pub(crate) fn name(self) -> &'static str {
         match self {
             FileFormat::Exr => "OpenEXR",
             FileFormat::Tiff => "TIFF",
@@ -367,7 +436,7 @@ pub struct ReadOptions {
     pub layer: Option<String>,
     /// Bounds on the header's sizes, checked before allocating.
     pub limits: Limits,
-    /// How a camera raw file's CFA mosaic becomes RGB ([`raw`]).
+    /// How a camera raw file's CFA mosaic becomes RGB ([`Demosaic`]).
     pub demosaic: raw::Demosaic,
 }
 
@@ -377,18 +446,21 @@ pub enum ExrCompression {
     /// The input's compression when it is lossless (else ZIP); ZIP for TIFF inputs.
     #[default]
     Keep,
+    /// Uncompressed.
     None,
+    /// Run-length encoded.
     Rle,
     /// ZIP, one scanline per block.
     Zips,
     /// ZIP, 16 scanlines per block.
     Zip,
+    /// PIZ (wavelet and Huffman; 32 scanlines per block), the usual choice for noisy plates.
     Piz,
 }
 
 impl ExrCompression {
     /// Every choice with its command-line name.
-    pub const ALL: [(ExrCompression, &'static str); 6] = [
+    pub(crate) const ALL: [(ExrCompression, &'static str); 6] = [
         (ExrCompression::Keep, "keep"),
         (ExrCompression::None, "none"),
         (ExrCompression::Rle, "rle"),
@@ -409,6 +481,7 @@ impl ExrCompression {
 /// How outputs are written.
 #[derive(Debug, Clone, Copy)]
 pub struct WriteOptions {
+    /// The file format written.
     pub format: FileFormat,
     /// EXR only: write the corrected `R`, `G`, `B` as half floats instead of 32-bit floats.
     pub half: bool,
@@ -494,7 +567,7 @@ impl Decoded {
 
     /// [`read`](Self::read), taking the frame's buffer from `pool` where one fits (the
     /// chunk-level EXR path, which overwrites every sample).
-    pub fn read_pooled(
+    pub(crate) fn read_pooled(
         path: &Path,
         opts: &ReadOptions,
         pool: &FramePool,
@@ -584,7 +657,7 @@ impl Decoded {
 
     /// [`write`](Self::write), then gives the frame's buffer to `pool` (whether or not the
     /// write succeeded) for a later [`read_pooled`](Self::read_pooled).
-    pub fn write_recycling(
+    pub(crate) fn write_recycling(
         self,
         dest: &Path,
         opts: &WriteOptions,
@@ -696,7 +769,7 @@ pub fn write_tiff(frame: &Frame, dest: &Path, unit: &mut Unit) -> Result<(), IoE
 /// Writes a frame of camera RGB (no colour space attribute): a 32-bit float TIFF when `dest`
 /// ends in `.tif`/`.tiff`, else a float EXR carrying the `text` attributes (name, value) in its
 /// header; staged in `unit`.
-pub fn write_camera_float(
+pub(crate) fn write_camera_float(
     frame: &Frame,
     dest: &Path,
     text: &[(&str, &str)],

@@ -7,15 +7,13 @@ use crate::colorimetry::{
     spaces::{apply, Mat3},
 };
 use crate::frame::Frame;
-use crate::output::Unit;
 use image::codecs::png::{CompressionType, FilterType, PngEncoder};
 use image::{ExtendedColorType, ImageEncoder};
 use rayon::prelude::*;
-use std::path::Path;
 
 /// 8-bit sRGB bytes (`R G B`, row-major) of `frame`, whose pixels `to_linear_srgb` takes to linear
 /// sRGB with white = 1. Values are clipped; NaN becomes 0.
-pub fn srgb8(frame: &Frame, to_linear_srgb: &Mat3) -> Vec<u8> {
+pub(crate) fn srgb8(frame: &Frame, to_linear_srgb: &Mat3) -> Vec<u8> {
     let ch = frame.layout.channels();
     let mut out = vec![0u8; frame.pixels() * 3];
     out.par_chunks_mut(3 * 1024)
@@ -32,7 +30,7 @@ pub fn srgb8(frame: &Frame, to_linear_srgb: &Mat3) -> Vec<u8> {
 }
 
 /// The preview of `frame` as PNG file bytes (8-bit sRGB, fast compression).
-pub fn encode_png(frame: &Frame, to_linear_srgb: &Mat3) -> Result<Vec<u8>, IoError> {
+pub(crate) fn encode_png(frame: &Frame, to_linear_srgb: &Mat3) -> Result<Vec<u8>, IoError> {
     let (Ok(w), Ok(h)) = (u32::try_from(frame.width), u32::try_from(frame.height)) else {
         return Err(IoError::Invalid(format!(
             "a {}×{} frame is too big for a PNG preview",
@@ -45,19 +43,6 @@ pub fn encode_png(frame: &Frame, to_linear_srgb: &Mat3) -> Result<Vec<u8>, IoErr
         .write_image(&bytes, w, h, ExtendedColorType::Rgb8)
         .map_err(|e| IoError::Invalid(format!("encoding a PNG preview: {e}")))?;
     Ok(png)
-}
-
-/// Writes the preview PNG of `frame` to `dest`, staged in `unit`.
-pub fn write_png(
-    frame: &Frame,
-    to_linear_srgb: &Mat3,
-    dest: &Path,
-    unit: &mut Unit,
-) -> Result<(), IoError> {
-    unit.check_clobber(dest)?;
-    let png = encode_png(frame, to_linear_srgb)?;
-    unit.write_bytes(dest, &png)?;
-    Ok(())
 }
 
 #[cfg(test)]

@@ -1,7 +1,7 @@
 //! End-to-end tests of `nsrm render-chart` + `nsrm fit` + `nsrm apply`, running the built binary.
 
 use crate::common::mat::apply as mat_apply;
-use nsrm::chart::synthetic::{layout_path, ChartLayout};
+use nsrm::chart::{layout_path, ChartLayout};
 use nsrm::delta_e00_xyz;
 use nsrm::io::{read_frame, ReadOptions};
 use nsrm::OutputSpace;

@@ -4,10 +4,8 @@
 //! reading taken again from the decoded frame equals a fresh one.
 
 use crate::common::{nsrm_ok, skip, tempdir};
-use nsrm::chart::capture::{read, CaptureFrame, FlatField, ReadingOptions};
-use nsrm::chart::reference::Reference;
-use nsrm::chart::ChartKind;
-use nsrm::io::display::Encoding;
+use nsrm::chart::{read, CaptureFrame, ChartKind, FlatField, ReadingOptions, Reference};
+use nsrm::io::Encoding;
 use nsrm::io::ReadOptions;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
@@ -29,7 +27,7 @@ fn open(path: &Path) -> Arc<CaptureFrame> {
         CaptureFrame::open(
             path,
             &ReadOptions {
-                demosaic: nsrm::io::raw::Demosaic::Half,
+                demosaic: nsrm::io::Demosaic::Half,
                 ..Default::default()
             },
             Encoding::Auto,
@@ -61,7 +59,7 @@ fn cli(dir: &Path, frame: &Path, kind: &str, extra: &[&str]) -> (Vec<u8>, Vec<u8
     )
 }
 
-fn lib_bytes(c: &nsrm::chart::capture::Capture) -> (Vec<u8>, Vec<u8>) {
+fn lib_bytes(c: &nsrm::chart::Capture) -> (Vec<u8>, Vec<u8>) {
     (
         c.extraction.to_csv(&c.reference).into_bytes(),
         serde_json::to_string_pretty(&c.report())

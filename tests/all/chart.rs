@@ -1,11 +1,9 @@
 //! Chart capture: synthetic scenes with known truth, read back by corners and by detection.
 
-use nsrm::chart::detect::{detect, DetectOptions};
-use nsrm::chart::extract::{extract, verify, ExtractOptions};
-use nsrm::chart::flat;
-use nsrm::chart::reference::Reference;
-use nsrm::chart::scene::{render, ChartColours, SceneOptions};
-use nsrm::chart::{homography_from_corners, ChartKind};
+use nsrm::chart::render_scene as render;
+use nsrm::chart::{apply_flat, flat_from_frame, flat_from_neutrals};
+use nsrm::chart::{detect, extract, verify, DetectOptions, ExtractOptions, Reference};
+use nsrm::chart::{homography_from_corners, ChartColours, ChartKind, SceneOptions};
 use nsrm::Kind;
 use nsrm::TrainingSet;
 use nsrm::{evaluate, Protocol};
@@ -25,11 +23,7 @@ fn sg() -> Option<ChartColours> {
 }
 
 /// Largest |measured / truth − 1| over patches brighter than `min_g`.
-fn worst_ratio(
-    ex: &nsrm::chart::extract::Extraction,
-    truth: &nsrm::chart::scene::SceneTruth,
-    min_g: f64,
-) -> f64 {
+fn worst_ratio(ex: &nsrm::chart::Extraction, truth: &nsrm::chart::SceneTruth, min_g: f64) -> f64 {
     ex.patches
         .iter()
         .zip(&truth.patches)
@@ -67,14 +61,14 @@ fn corners_and_flat_frame_give_means_within_half_a_percent() {
     // Uneven light is visible before compensation …
     let before = worst_ratio(&ex, &truth, 0.01);
     assert!(before > 0.05, "the light should be uneven: {before}");
-    let f = flat::from_flat_frame(&flat_frame, (900, 600), &ex, &eo).unwrap();
+    let f = flat_from_frame(&flat_frame, (900, 600), &ex, &eo).unwrap();
     assert!(
         (f.nonuniformity / truth.light_nonuniformity - 1.0).abs() < 0.01,
         "{} vs {}",
         f.nonuniformity,
         truth.light_nonuniformity
     );
-    flat::apply(&mut ex, &f);
+    apply_flat(&mut ex, &f);
     // … and gone after it: every patch within 0.5 % of the noise-free truth.
     let after = worst_ratio(&ex, &truth, 0.01);
     assert!(after < 0.005, "worst patch off by {:.3} %", 100.0 * after);
@@ -100,9 +94,9 @@ fn neutral_patches_estimate_the_light_on_an_sg() {
     let h = homography_from_corners(ChartKind::Sg, &truth.corners, 900, 640).unwrap();
     let mut ex = extract(&frame, &reference, &h, &ExtractOptions::default()).unwrap();
     let before = worst_ratio(&ex, &truth, 0.02);
-    let f = flat::from_neutrals(&ex, &reference).unwrap();
+    let f = flat_from_neutrals(&ex, &reference).unwrap();
     assert!(f.fitted_on >= 30, "{}", f.fitted_on);
-    flat::apply(&mut ex, &f);
+    apply_flat(&mut ex, &f);
     let after = worst_ratio(&ex, &truth, 0.02);
     // The SG's neutrals are not perfectly neutral to the camera (G/Y varies a little between
     // them), so the surface is a few per cent from the light, against over 20 % uncompensated.
@@ -220,8 +214,8 @@ fn model_from_extraction_matches_model_from_truth() {
     let d = detect(&frame, &reference, &DetectOptions::default()).unwrap();
     let eo = ExtractOptions::default();
     let mut ex = extract(&frame, &reference, &d.homography, &eo).unwrap();
-    let f = flat::from_flat_frame(&flat_frame, (960, 640), &ex, &eo).unwrap();
-    flat::apply(&mut ex, &f);
+    let f = flat_from_frame(&flat_frame, (960, 640), &ex, &eo).unwrap();
+    apply_flat(&mut ex, &f);
     let measured = ex.training_set(&reference);
     let keep: Vec<usize> = measured
         .labels
@@ -318,7 +312,7 @@ fn bad_scenes_fail_clearly() {
 
 /// Scenes of one family (`chart rate --family`): (found correctly, refused); panics on a wrong
 /// answer — a label off its true cell, or any chart reported in a negative scene.
-fn family_outcomes(family: nsrm::chart::scene::Family, seeds: std::ops::Range<u64>) -> (u32, u32) {
+fn family_outcomes(family: nsrm::chart::Family, seeds: std::ops::Range<u64>) -> (u32, u32) {
     let colours = cc24();
     let reference = Reference::load("cc24-after2014", ChartKind::Cc24, None).unwrap();
     let (mut ok, mut refused) = (0, 0);
@@ -365,7 +359,7 @@ fn family_outcomes(family: nsrm::chart::scene::Family, seeds: std::ops::Range<u6
 
 #[test]
 fn real_photo_families_are_found_or_refused_never_wrong() {
-    use nsrm::chart::scene::Family;
+    use nsrm::chart::Family;
     // A handful per family here; `nsrm chart rate --family F` measures the rates (README).
     for f in [
         Family::Jpeg,
@@ -382,7 +376,7 @@ fn real_photo_families_are_found_or_refused_never_wrong() {
 
 #[test]
 fn other_charts_and_random_grids_are_refused() {
-    use nsrm::chart::scene::Family;
+    use nsrm::chart::Family;
     for f in [Family::Spyder, Family::Random, Family::Shuffled] {
         let (ok, _) = family_outcomes(f, 1..5);
         assert_eq!(ok, 0, "{}", f.name());

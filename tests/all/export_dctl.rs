@@ -186,7 +186,7 @@ fn dctl_compiles_as_c_and_matches_the_f64_model() {
             let (kind, order) = (model.kind(), model.order());
             for space in [OutputSpace::Xyz, OutputSpace::Acescg] {
                 let folded = nsrm::output_model(&model, space).unwrap();
-                let dctl = nsrm::export::dctl::generate(&folded, &["test".into()]).unwrap();
+                let dctl = nsrm::export::generate_dctl(&folded, &["test".into()]).unwrap();
                 assert!(dctl.contains("__DEVICE__ float3 transform(int p_Width"));
                 let name = format!(
                     "{}{order}{suffix}_{}",

@@ -637,8 +637,7 @@ fn exported_wgsl_runs_and_matches_the_reference() {
             model(kind, order)
         };
         let src = String::from_utf8(
-            nsrm::export::shader::export(&m, layout, nsrm::export::shader::ShaderLang::Wgsl)
-                .unwrap(),
+            nsrm::export::export_shader(&m, layout, nsrm::export::ShaderLang::Wgsl).unwrap(),
         )
         .unwrap();
         let input = random_frame(300, 5, layout, 77);

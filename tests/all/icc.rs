@@ -6,7 +6,7 @@
 //! SKIP, and a failure under `CI=true`.
 
 use crate::common::{self, nsrm_in, nsrm_ok, stderr, tempdir};
-use nsrm::export::icc::{self, D50};
+use nsrm::export::{icc_device_scale, icc_pcs_matrix, IccOptions, ICC_D50 as D50};
 use nsrm::io::{read_frame, write_tiff, ReadOptions};
 use nsrm::OutputSpace;
 use nsrm::{delta_e00_xyz, output_matrix};
@@ -156,7 +156,7 @@ fn apply_pcs(dir: &Path, model_file: &str, rgb: &[[f64; 3]]) -> Vec<[f64; 3]> {
     // apply writes XYZ D65-referred with the white at Y = 1; back to the model's XYZ, then the
     // PCS adaptation.
     let back = crate::common::mat::invert(&output_matrix(m.white_xyz(), OutputSpace::Xyz));
-    let pcs = icc::pcs_matrix(&m).unwrap();
+    let pcs = icc_pcs_matrix(&m).unwrap();
     let to_pcs = crate::common::mat::mul(&pcs, &back);
     f.data
         .chunks_exact(f.layout.channels())
@@ -220,10 +220,10 @@ fn transicc_and_xicclu_reproduce_apply() {
             assert!(max < 0.01, "LRM matrix/TRC is not exact: {text}");
         }
         let m = Model::load(&dir.join(&mf)).unwrap();
-        let (s, _) = icc::device_scale(&m).unwrap();
+        let (s, _) = icc_device_scale(&m).unwrap();
         // The samples inside the range the export measured (every channel within 2^lo..1 of the
         // device scale), as its report counts them.
-        let lo = icc::DEFAULT_LO.exp2();
+        let lo = IccOptions::default().lo.exp2();
         let inside: Vec<usize> = (0..rgb.len())
             .filter(|&i| rgb[i].iter().all(|v| (lo..=1.0).contains(&(v / s))))
             .collect();

@@ -643,7 +643,8 @@ fn writes_are_atomic_and_never_clobber() {
 #[cfg(feature = "chart")]
 #[test]
 fn chart_layout_round_trips() {
-    use nsrm::chart::synthetic::{layout_path, render, write, ChartLayout, ChartOptions};
+    use nsrm::chart::{layout_path, render_chart as render, write_chart as write};
+    use nsrm::chart::{ChartLayout, ChartOptions};
     use nsrm::{simulate_named, Grid};
     let data = simulate_named("nikon-d5100", "D65", "cc24", &Grid::default()).unwrap();
     let (frame, layout) = render(

@@ -75,7 +75,7 @@ fn printed_dctl_follows_the_policy() {
     let dir = tempfile::tempdir().unwrap();
     for (i, model) in models().into_iter().enumerate() {
         let pixels = policy_pixels(model.kind());
-        let dctl = nsrm::export::dctl::generate(&model, &[]).unwrap();
+        let dctl = nsrm::export::generate_dctl(&model, &[]).unwrap();
         let px: Vec<[f64; 3]> = pixels.iter().map(|(_, p)| p.map(|v| v as f64)).collect();
         let name = format!("policy{i}_{}{}", model.kind().name(), model.order());
         let got = crate::export_dctl::run_dctl(&cc, dir.path(), &name, &dctl, &px);

@@ -11,7 +11,7 @@
 use crate::common::{nsrm_ok, skip, tempdir};
 use nsrm::delta_e00_xyz;
 
-use nsrm::export::dcp::{prophoto_to_xyz, Dcp};
+use nsrm::export::{prophoto_to_xyz, Dcp};
 use nsrm::OutputSpace;
 use nsrm::D50_XY;
 use nsrm::{simulate_named, Grid};

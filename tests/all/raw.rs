@@ -6,7 +6,7 @@
 //! errors, write nothing and never end a `--continue-on-error` batch.
 
 use crate::common::{self, no_crash, nsrm_in, stderr};
-use nsrm::io::raw::Demosaic;
+use nsrm::io::Demosaic;
 use nsrm::io::{read_frame, Limits, ReadOptions};
 use std::path::{Path, PathBuf};
 use std::process::Command;

@@ -46,11 +46,7 @@ fn both_routes_from_one_frame_give_the_same_model() {
         .split(',')
         .map(|v| v.parse().unwrap())
         .collect();
-    assert_close(
-        &w,
-        &nsrm::chart::reference::d50_white(),
-        "the CSV's white is D50",
-    );
+    assert_close(&w, &nsrm::chart::d50_white(), "the CSV's white is D50");
     for kind in ["nsrm", "prm", "lrm"] {
         let a = format!("a_{kind}.json");
         let b = format!("b_{kind}.json");

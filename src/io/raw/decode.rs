@@ -12,7 +12,7 @@ use std::path::Path;
 
 /// A decoded raw file: its RGB frame and what it says about the camera.
 #[derive(Debug)]
-pub struct RawFrame {
+pub(crate) struct RawFrame {
     pub frame: Frame,
     pub info: CameraInfo,
 }
@@ -32,7 +32,7 @@ fn panic_text(p: &(dyn std::any::Any + Send)) -> String {
 }
 
 /// Decodes the raw file `path` into linear camera RGB (see the module documentation).
-pub fn read(path: &Path, limits: &Limits, demosaic: Demosaic) -> Result<RawFrame, IoError> {
+pub(crate) fn read(path: &Path, limits: &Limits, demosaic: Demosaic) -> Result<RawFrame, IoError> {
     let dims = match sniff(path)? {
         Sniff::Plain => {
             return Err(IoError::Unsupported {

@@ -43,10 +43,10 @@ mod demosaic;
 #[cfg(feature = "raw")]
 mod xtrans;
 #[cfg(feature = "raw")]
-pub use decode::{read, RawFrame};
+pub(crate) use decode::read;
 
 /// The largest raw file read: 2 GiB (real raw files are 10–200 MB).
-pub const MAX_RAW_BYTES: u64 = 2 << 30;
+pub(crate) const MAX_RAW_BYTES: u64 = 2 << 30;
 
 /// How a CFA mosaic becomes RGB pixels.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default)]
@@ -62,14 +62,15 @@ pub enum Demosaic {
 
 impl Demosaic {
     /// Every choice with its name.
-    pub const ALL: [(Demosaic, &'static str); 3] = [
+    pub(crate) const ALL: [(Demosaic, &'static str); 3] = [
         (Demosaic::Half, "half"),
         (Demosaic::Bilinear, "bilinear"),
         (Demosaic::Mhc, "mhc"),
     ];
 
     /// Parses `half`, `bilinear` or `mhc` (also `malvar`).
-    pub fn parse(s: &str) -> Option<Demosaic> {
+    #[cfg(test)]
+    pub(crate) fn parse(s: &str) -> Option<Demosaic> {
         let s = s.trim();
         if s.eq_ignore_ascii_case("malvar") {
             return Some(Demosaic::Mhc);
@@ -80,7 +81,7 @@ impl Demosaic {
             .map(|(d, _)| *d)
     }
 
-    /// The name [`parse`](Self::parse) takes.
+    /// The name `--demosaic` takes (`half`, `bilinear`, `mhc`).
     pub fn name(self) -> &'static str {
         Self::ALL
             .iter()
@@ -130,14 +131,14 @@ impl CameraInfo {
 }
 
 /// Names raw files commonly have (lower case, without the dot).
-pub const RAW_EXTENSIONS: [&str; 24] = [
+pub(crate) const RAW_EXTENSIONS: [&str; 24] = [
     "dng", "cr2", "cr3", "crw", "nef", "nrw", "arw", "srf", "sr2", "raf", "orf", "rw2", "rwl",
     "pef", "srw", "erf", "kdc", "dcr", "dcs", "mef", "mos", "mrw", "iiq", "x3f",
 ];
 
 /// Whether a file name has a raw file's extension (for listing directories and globs; the
 /// content decides how a file is read).
-pub fn is_raw_name(path: &Path) -> bool {
+pub(crate) fn is_raw_name(path: &Path) -> bool {
     path.extension()
         .and_then(|e| e.to_str())
         .is_some_and(|e| RAW_EXTENSIONS.iter().any(|r| r.eq_ignore_ascii_case(e)))

@@ -18,6 +18,7 @@ fuzz_target!(|data: &[u8]| {
         limits: Limits {
             max_pixels: 1 << 22,
         },
+        ..ReadOptions::default()
     };
     let _ = Decoded::read(&path, &opts);
 });

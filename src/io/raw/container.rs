@@ -243,130 +243,192 @@ fn bmff_boxes(
             return Ok(());
         }
         *budget -= 1;
-        let mut h = [0u8; 8];
-        read_at(f, at, end, &mut h)?;
-        let typ: [u8; 4] = [h[4], h[5], h[6], h[7]];
-        let name = String::from_utf8_lossy(&typ).into_owned();
-        let mut header = 8u64;
-        let size = match be32(&h[..4]) {
-            1 => {
-                let mut big = [0u8; 8];
-                if !read_at(f, at + 8, end, &mut big)? {
-                    d.damage(|| format!("box `{name}` at byte {at} is cut off"));
-                    return Ok(());
-                }
-                header = 16;
-                u64::from_be_bytes(big)
-            }
-            // Size 0 ("to the end of the file" in ISO-BMFF): the decoder would seek back to
-            // the box's start and read it again, for ever.
-            0 => {
-                d.damage(|| format!("box `{name}` at byte {at} has size 0"));
-                return Ok(());
-            }
-            s => u64::from(s),
-        };
-        let mut uuid = [0u8; 16];
-        if &typ == b"uuid" {
-            if !read_at(f, at + header, end, &mut uuid)? {
-                d.damage(|| format!("box `uuid` at byte {at} is cut off"));
-                return Ok(());
-            }
-            header += 16;
-        }
-        let box_end = at.checked_add(size).filter(|&e| size >= header && e <= end);
-        let Some(box_end) = box_end else {
-            d.damage(|| {
-                format!("box `{name}` at byte {at} claims {size} bytes, past the end of its parent (byte {end})")
-            });
+        let Some(b) = bmff_header(f, at, end, d)? else {
             return Ok(());
         };
-        let body = at + header;
-        let body_len = box_end - body;
-        // A table of `count` entries of `each` bytes after `skip` bytes must fit in its box.
-        let mut table = |skip: u64, count_at: u64, each: u64| -> std::io::Result<()> {
-            let mut c = [0u8; 4];
-            if !read_at(f, body + count_at, box_end, &mut c)? {
-                d.damage(|| format!("box `{name}` at byte {at} is too short for its table"));
-                return Ok(());
+        bmff_box(f, &b, file_len, depth, d, budget)?;
+        at = b.end;
+    }
+    Ok(())
+}
+
+/// One ISO-BMFF box: its type, where it starts, where its body starts and where it ends.
+struct BmffBox {
+    typ: [u8; 4],
+    name: String,
+    at: u64,
+    body: u64,
+    end: u64,
+    uuid: [u8; 16],
+}
+
+impl BmffBox {
+    fn body_len(&self) -> u64 {
+        self.end - self.body
+    }
+}
+
+/// The header of the box at `at` inside a parent ending at `end`, or `None` (the damage noted
+/// in `d`) when it is cut off, has size 0, or reaches past its parent.
+fn bmff_header(
+    f: &mut File,
+    at: u64,
+    end: u64,
+    d: &mut Declared,
+) -> std::io::Result<Option<BmffBox>> {
+    let mut h = [0u8; 8];
+    read_at(f, at, end, &mut h)?;
+    let typ: [u8; 4] = [h[4], h[5], h[6], h[7]];
+    let name = String::from_utf8_lossy(&typ).into_owned();
+    let mut header = 8u64;
+    let size = match be32(&h[..4]) {
+        1 => {
+            let mut big = [0u8; 8];
+            if !read_at(f, at + 8, end, &mut big)? {
+                d.damage(|| format!("box `{name}` at byte {at} is cut off"));
+                return Ok(None);
             }
-            let count = u64::from(be32(&c));
-            if skip.saturating_add(count.saturating_mul(each)) > body_len {
-                d.damage(|| {
-                    format!(
-                        "box `{name}` at byte {at} announces {count} entries, more than it holds"
-                    )
-                });
-            }
-            Ok(())
-        };
-        match &typ {
-            b"moov" | b"trak" | b"mdia" | b"minf" | b"stbl" if depth < 8 => {
-                bmff_boxes(f, body, box_end, file_len, depth + 1, d, budget)?;
-            }
-            b"uuid" if uuid == CANON_UUID && depth < 8 => {
-                bmff_boxes(f, body, box_end, file_len, depth + 1, d, budget)?;
-            }
-            // Version and flags, entry count, then the sample entries.
-            b"stsd" if depth < 8 => {
-                bmff_boxes(f, body + 8, box_end, file_len, depth + 1, d, budget)?;
-            }
-            // Canon's raw sample entry: 24 bytes, width, height (u16), 54 more, then boxes.
-            b"CRAW" => {
-                let mut wh = [0u8; 4];
-                if read_at(f, body + 24, box_end, &mut wh)? {
-                    d.take(u64::from(be16(&wh[..2])), u64::from(be16(&wh[2..])));
-                }
-                if depth < 8 {
-                    bmff_boxes(f, body + 82, box_end, file_len, depth + 1, d, budget)?;
-                }
-            }
-            // Image width, height and tile width, height (u32) after 8 bytes.
-            b"CMP1" => {
-                let mut v = [0u8; 16];
-                if read_at(f, body + 8, box_end, &mut v)? {
-                    d.take(u64::from(be32(&v[..4])), u64::from(be32(&v[4..8])));
-                    d.take(u64::from(be32(&v[8..12])), u64::from(be32(&v[12..])));
-                } else {
-                    d.damage(|| format!("box `CMP1` at byte {at} is too short"));
-                }
-            }
-            b"CMT1" | b"CMT2" | b"CMT3" | b"CMT4" => {
-                let t = tiff(f, body, box_end)?;
-                d.merge(Declared {
-                    raw_marker: false,
-                    ..t
-                });
-            }
-            // Version/flags, count, entries of 8 (stts, co64), 12 (stsc) or 4 (stco) bytes.
-            b"stts" | b"co64" => table(8, 4, 8)?,
-            b"stsc" => table(8, 4, 12)?,
-            b"stco" => table(8, 4, 4)?,
-            b"stsz" => {
-                // Version/flags, sample size, sample count; the sizes follow only when the
-                // sample size is 0, but the decoder reserves room for the count either way.
-                let mut v = [0u8; 8];
-                if read_at(f, body + 4, box_end, &mut v)? {
-                    let count = u64::from(be32(&v[4..]));
-                    let held = if be32(&v[..4]) == 0 {
-                        body_len.saturating_sub(12)
-                    } else {
-                        file_len
-                    };
-                    if count.saturating_mul(4) > held {
-                        d.damage(|| {
-                            format!("box `stsz` at byte {at} announces {count} samples, more than it holds")
-                        });
-                    }
-                } else {
-                    d.damage(|| format!("box `stsz` at byte {at} is too short"));
-                }
-            }
-            // Canon's timed-metadata entry: 8 bytes, a record count, records of 8 bytes.
-            b"CTMD" => table(12, 8, 8)?,
-            _ => {}
+            header = 16;
+            u64::from_be_bytes(big)
         }
-        at = box_end;
+        // Size 0 ("to the end of the file" in ISO-BMFF): the decoder would seek back to
+        // the box's start and read it again, for ever.
+        0 => {
+            d.damage(|| format!("box `{name}` at byte {at} has size 0"));
+            return Ok(None);
+        }
+        s => u64::from(s),
+    };
+    let mut uuid = [0u8; 16];
+    if &typ == b"uuid" {
+        if !read_at(f, at + header, end, &mut uuid)? {
+            d.damage(|| format!("box `uuid` at byte {at} is cut off"));
+            return Ok(None);
+        }
+        header += 16;
+    }
+    let box_end = at.checked_add(size).filter(|&e| size >= header && e <= end);
+    let Some(box_end) = box_end else {
+        d.damage(|| {
+            format!("box `{name}` at byte {at} claims {size} bytes, past the end of its parent (byte {end})")
+        });
+        return Ok(None);
+    };
+    Ok(Some(BmffBox {
+        typ,
+        name,
+        at,
+        body: at + header,
+        end: box_end,
+        uuid,
+    }))
+}
+
+/// What one box declares: the containers walked into, Canon's sizes read, and every sample
+/// table checked to fit in its box.
+fn bmff_box(
+    f: &mut File,
+    b: &BmffBox,
+    file_len: u64,
+    depth: u32,
+    d: &mut Declared,
+    budget: &mut usize,
+) -> std::io::Result<()> {
+    let (at, body, box_end) = (b.at, b.body, b.end);
+    match &b.typ {
+        b"moov" | b"trak" | b"mdia" | b"minf" | b"stbl" if depth < 8 => {
+            bmff_boxes(f, body, box_end, file_len, depth + 1, d, budget)?;
+        }
+        b"uuid" if b.uuid == CANON_UUID && depth < 8 => {
+            bmff_boxes(f, body, box_end, file_len, depth + 1, d, budget)?;
+        }
+        // Version and flags, entry count, then the sample entries.
+        b"stsd" if depth < 8 => {
+            bmff_boxes(f, body + 8, box_end, file_len, depth + 1, d, budget)?;
+        }
+        // Canon's raw sample entry: 24 bytes, width, height (u16), 54 more, then boxes.
+        b"CRAW" => {
+            let mut wh = [0u8; 4];
+            if read_at(f, body + 24, box_end, &mut wh)? {
+                d.take(u64::from(be16(&wh[..2])), u64::from(be16(&wh[2..])));
+            }
+            if depth < 8 {
+                bmff_boxes(f, body + 82, box_end, file_len, depth + 1, d, budget)?;
+            }
+        }
+        // Image width, height and tile width, height (u32) after 8 bytes.
+        b"CMP1" => {
+            let mut v = [0u8; 16];
+            if read_at(f, body + 8, box_end, &mut v)? {
+                d.take(u64::from(be32(&v[..4])), u64::from(be32(&v[4..8])));
+                d.take(u64::from(be32(&v[8..12])), u64::from(be32(&v[12..])));
+            } else {
+                d.damage(|| format!("box `CMP1` at byte {at} is too short"));
+            }
+        }
+        b"CMT1" | b"CMT2" | b"CMT3" | b"CMT4" => {
+            let t = tiff(f, body, box_end)?;
+            d.merge(Declared {
+                raw_marker: false,
+                ..t
+            });
+        }
+        // Version/flags, count, entries of 8 (stts, co64), 12 (stsc) or 4 (stco) bytes.
+        b"stts" | b"co64" => bmff_table(f, b, 8, 4, 8, d)?,
+        b"stsc" => bmff_table(f, b, 8, 4, 12, d)?,
+        b"stco" => bmff_table(f, b, 8, 4, 4, d)?,
+        b"stsz" => bmff_stsz(f, b, file_len, d)?,
+        // Canon's timed-metadata entry: 8 bytes, a record count, records of 8 bytes.
+        b"CTMD" => bmff_table(f, b, 12, 8, 8, d)?,
+        _ => {}
+    }
+    Ok(())
+}
+
+/// A table of `count` entries of `each` bytes after `skip` bytes (the count read at `count_at`
+/// in the body) must fit in its box.
+fn bmff_table(
+    f: &mut File,
+    b: &BmffBox,
+    skip: u64,
+    count_at: u64,
+    each: u64,
+    d: &mut Declared,
+) -> std::io::Result<()> {
+    let (name, at) = (&b.name, b.at);
+    let mut c = [0u8; 4];
+    if !read_at(f, b.body + count_at, b.end, &mut c)? {
+        d.damage(|| format!("box `{name}` at byte {at} is too short for its table"));
+        return Ok(());
+    }
+    let count = u64::from(be32(&c));
+    if skip.saturating_add(count.saturating_mul(each)) > b.body_len() {
+        d.damage(|| {
+            format!("box `{name}` at byte {at} announces {count} entries, more than it holds")
+        });
+    }
+    Ok(())
+}
+
+/// `stsz`: version/flags, sample size, sample count; the sizes follow only when the sample size
+/// is 0, but the decoder reserves room for the count either way.
+fn bmff_stsz(f: &mut File, b: &BmffBox, file_len: u64, d: &mut Declared) -> std::io::Result<()> {
+    let at = b.at;
+    let mut v = [0u8; 8];
+    if read_at(f, b.body + 4, b.end, &mut v)? {
+        let count = u64::from(be32(&v[4..]));
+        let held = if be32(&v[..4]) == 0 {
+            b.body_len().saturating_sub(12)
+        } else {
+            file_len
+        };
+        if count.saturating_mul(4) > held {
+            d.damage(|| {
+                format!("box `stsz` at byte {at} announces {count} samples, more than it holds")
+            });
+        }
+    } else {
+        d.damage(|| format!("box `stsz` at byte {at} is too short"));
     }
     Ok(())
 }

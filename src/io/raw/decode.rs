@@ -251,8 +251,6 @@ fn develop(path: &Path, image: &rawler::RawImage, demosaic: Demosaic) -> Result<
     if w == 0 || h == 0 {
         return Err(corrupt(path, "its crop leaves no pixels"));
     }
-    let bl = &image.blacklevel;
-    let (bw, bh) = (bl.width.max(1), bl.height.max(1));
     let bayer = match &image.photometric {
         P::Cfa(c) if image.cpp == 1 => {
             let cfa = &c.cfa;
@@ -289,36 +287,7 @@ fn develop(path: &Path, image: &rawler::RawImage, demosaic: Demosaic) -> Result<
     };
     let Some(cfa) = bayer else {
         // Linear raw (already RGB) or monochrome: scale only.
-        let cpp = image.cpp;
-        if cpp != 3 && cpp != 1 {
-            return Err(IoError::Unsupported {
-                path: path.to_path_buf(),
-                why: format!("a linear raw image with {cpp} samples per pixel"),
-            });
-        }
-        let lv = (0..cpp)
-            .map(|c| levels(path, image, c))
-            .collect::<Result<Vec<_>, _>>()?;
-        let mut data = crate::io::try_zeroed::<f32>(path, w * h * 3)?;
-        data.par_chunks_mut(w * 3).enumerate().for_each(|(r, row)| {
-            let y = y0 + r;
-            for (i, px) in row.chunks_exact_mut(3).enumerate() {
-                let x = x0 + i;
-                let li = (y % bh) * bw + (x % bw);
-                for (ch, out) in px.iter_mut().enumerate() {
-                    let c = ch.min(cpp - 1);
-                    let (b, d) = lv[c].get(li).copied().unwrap_or(lv[c][0]);
-                    let v = sample((y * iw + x) * cpp + c);
-                    *out = (v - b).max(0.0) / d;
-                }
-            }
-        });
-        return Ok(Frame {
-            width: w,
-            height: h,
-            layout: crate::Layout::Rgb,
-            data,
-        });
+        return scale_linear(path, image, &sample, (x0, y0, w, h));
     };
     // Bayer: scale the kept rectangle into a plane of f32, with its 2×2 colour pattern.
     let plane = scaled_plane(path, image, &sample, (x0, y0, w, h))?;
@@ -339,6 +308,49 @@ fn develop(path: &Path, image: &rawler::RawImage, demosaic: Demosaic) -> Result<
         Demosaic::Bilinear => mosaic.bilinear(path),
         Demosaic::Mhc => mosaic.mhc(path),
     }
+}
+
+/// A linear raw (already RGB, 3 samples per pixel) or monochrome (1) image's kept rectangle
+/// `(x0, y0, w, h)` as an RGB frame: each sample's black subtracted (negatives clamped), divided
+/// by its range; no demosaic.
+fn scale_linear(
+    path: &Path,
+    image: &rawler::RawImage,
+    sample: &(dyn Fn(usize) -> f32 + Sync),
+    (x0, y0, w, h): (usize, usize, usize, usize),
+) -> Result<Frame, IoError> {
+    let (iw, cpp) = (image.width, image.cpp);
+    if cpp != 3 && cpp != 1 {
+        return Err(IoError::Unsupported {
+            path: path.to_path_buf(),
+            why: format!("a linear raw image with {cpp} samples per pixel"),
+        });
+    }
+    let bl = &image.blacklevel;
+    let (bw, bh) = (bl.width.max(1), bl.height.max(1));
+    let lv = (0..cpp)
+        .map(|c| levels(path, image, c))
+        .collect::<Result<Vec<_>, _>>()?;
+    let mut data = crate::io::try_zeroed::<f32>(path, w * h * 3)?;
+    data.par_chunks_mut(w * 3).enumerate().for_each(|(r, row)| {
+        let y = y0 + r;
+        for (i, px) in row.chunks_exact_mut(3).enumerate() {
+            let x = x0 + i;
+            let li = (y % bh) * bw + (x % bw);
+            for (ch, out) in px.iter_mut().enumerate() {
+                let c = ch.min(cpp - 1);
+                let (b, d) = lv[c].get(li).copied().unwrap_or(lv[c][0]);
+                let v = sample((y * iw + x) * cpp + c);
+                *out = (v - b).max(0.0) / d;
+            }
+        }
+    });
+    Ok(Frame {
+        width: w,
+        height: h,
+        layout: crate::Layout::Rgb,
+        data,
+    })
 }
 
 /// The kept rectangle `(x0, y0, w, h)` of a one-sample CFA image as a plane of f32: each

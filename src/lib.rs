@@ -62,6 +62,7 @@
 //! `nsrm = { version = "0.1", default-features = false, features = ["gpu"] }`.
 #![forbid(unsafe_code)]
 #![deny(unreachable_pub)]
+#![warn(missing_docs)]
 #![cfg_attr(docsrs, feature(doc_auto_cfg))]
 
 #[cfg(feature = "chart")]

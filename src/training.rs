@@ -8,56 +8,101 @@ use std::path::Path;
 /// Errors from reading measured training data or selecting patches.
 #[derive(Debug, thiserror::Error)]
 pub enum TrainingError {
+    /// A training data file could not be read.
     #[error("{source_name}: cannot read: {err}")]
     Io {
+        /// The file the training data came from.
         source_name: String,
+        /// The I/O error.
         err: std::io::Error,
     },
+    /// A training data file is empty.
     #[error("{source_name}: the file is empty")]
-    Empty { source_name: String },
+    Empty {
+        /// The file the training data came from.
+        source_name: String,
+    },
+    /// A training data file's header is not one of the accepted forms.
     #[error(
         "{source_name}: header must be `label,R,G,B,X,Y,Z` or `label,R,G,B,L,a,b`, found `{found}`"
     )]
-    Header { source_name: String, found: String },
+    Header {
+        /// The file the training data came from.
+        source_name: String,
+        /// The header line found.
+        found: String,
+    },
     /// The file names no white (no `# white:` line) and none was given: X,Y,Z relative to an
     /// unknown white cannot be compared in Lab, nor adapted to an output space.
     #[error(
         "{source_name}: the file does not say which white its values are relative to (no `# white:` line); give the white (X,Y,Z, x,y, D50 or an illuminant name)"
     )]
-    NeedsWhite { source_name: String },
+    NeedsWhite {
+        /// The file the training data came from.
+        source_name: String,
+    },
     /// The file's `# white:` line and the white given by the caller disagree.
     #[error(
         "{source_name}: the file says its white is {} but {} was given; drop one or make them agree",
         fmt_white(*file), fmt_white(*given)
     )]
     WhiteConflict {
+        /// The file the training data came from.
         source_name: String,
+        /// The white (XYZ) named by the file's `# white:` line.
         file: [f64; 3],
+        /// The white (XYZ) given by the caller.
         given: [f64; 3],
     },
     /// A malformed CSV: a ragged row, a cell that is not a finite number.
     #[error(transparent)]
     Csv(#[from] crate::csv_table::CsvError),
+    /// Two patches of a training data file have the same label.
     #[error("{source_name}: line {line}: duplicate label `{label}`")]
     DuplicateLabel {
+        /// The file the training data came from.
         source_name: String,
+        /// The line number of the second occurrence.
         line: usize,
+        /// The repeated label.
         label: String,
     },
+    /// A training data file has a header but no patches.
     #[error("{source_name}: has no patches")]
-    NoRows { source_name: String },
+    NoRows {
+        /// The file the training data came from.
+        source_name: String,
+    },
     /// The selection does not match the data (a label it lacks, a rectangle partly missing).
     #[error("invalid patch selection `{spec}`: {why}")]
-    Patches { spec: String, why: String },
+    Patches {
+        /// The selection as given.
+        spec: String,
+        /// Why it does not match the data.
+        why: String,
+    },
     /// The selection is malformed whatever the data (a usage error).
     #[error("invalid patch selection `{spec}`: {why}")]
-    PatchSpec { spec: String, why: String },
+    PatchSpec {
+        /// The selection as given.
+        spec: String,
+        /// What is wrong with it.
+        why: String,
+    },
+    /// A malformed white (given, or on a `# white:` line), or a second `# white:` line.
     #[error("invalid white `{spec}`: {why}")]
-    White { spec: String, why: String },
+    White {
+        /// The white as given.
+        spec: String,
+        /// What is wrong with it.
+        why: String,
+    },
     /// A white named by an illuminant file that cannot be read or used.
     #[error("white `{spec}`: {err}")]
     WhiteIlluminant {
+        /// The white as given (an illuminant name or file).
         spec: String,
+        /// Why the illuminant could not be read or used.
         err: crate::spectral::SpectralError,
     },
 }

@@ -17,7 +17,12 @@ pub enum TemperatureError {
     Range(String),
     /// The fixed-point iteration of a neutral's chromaticity left the valid range.
     #[error("the chromaticity of the camera neutral {neutral:?} could not be found: {why}")]
-    Neutral { neutral: [f64; 3], why: String },
+    Neutral {
+        /// The camera neutral (RGB) whose chromaticity was sought.
+        neutral: [f64; 3],
+        /// Why the iteration failed.
+        why: String,
+    },
 }
 
 /// The range of temperatures handled, in kelvin (Robertson's table spans 1667 K to infinity; CIE

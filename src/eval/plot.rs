@@ -13,12 +13,16 @@ use std::path::Path;
 /// Errors from drawing a plot.
 #[derive(Debug, thiserror::Error)]
 pub enum PlotError {
+    /// The plot path (held here) has an extension other than `.png` or `.svg`.
     #[error("{0}: the plot file must end in .png or .svg")]
     Format(String),
+    /// There was no data to draw.
     #[error("nothing to plot")]
     Empty,
+    /// Writing the plot file failed.
     #[error(transparent)]
     Write(#[from] crate::output::WriteError),
+    /// Encoding the PNG failed (the encoder's message).
     #[error("encoding the PNG: {0}")]
     Png(String),
     /// The embedded font did not parse, or plotters failed to draw.

@@ -53,46 +53,72 @@ pub(crate) const NO_ADAPTER_HINT: &str =
 pub enum GpuError {
     /// No adapter on the enabled backends.
     #[error("{NO_ADAPTER_HINT} ({detail})")]
-    NoAdapter { detail: String },
+    NoAdapter {
+        /// The backends tried, or wgpu's reason.
+        detail: String,
+    },
     /// Adapters exist, but none matches the requested name.
     #[error("no GPU adapter matches `{wanted}`; available: {}", available.join("; "))]
     AdapterNotFound {
+        /// The adapter name asked for.
         wanted: String,
+        /// The names of the adapters present.
         available: Vec<String>,
     },
     /// Only a software rasteriser (device type `Cpu`, e.g. Mesa's lavapipe) is there, and the
     /// caller asked for hardware (the `Auto` policy).
     #[error("only a software adapter is present ({adapter}); the CPU path is faster than it")]
-    SoftwareOnly { adapter: String },
+    SoftwareOnly {
+        /// The software adapter's name.
+        adapter: String,
+    },
+    /// The adapter refused to open a device.
     #[error("cannot open the GPU device: {0}")]
     RequestDevice(#[from] wgpu::RequestDeviceError),
     /// naga rejected a shader (a bug in the generated source, or an unsupported target).
     #[error("shader error ({stage}): {message}")]
     Shader {
+        /// The step that failed (WGSL parse or validation).
         stage: &'static str,
+        /// naga's diagnostic.
         message: String,
     },
     /// A shader could not be translated to another language.
     #[error("cannot translate the shader to {lang}: {message}")]
-    Export { lang: String, message: String },
+    Export {
+        /// The target shading language.
+        lang: String,
+        /// Why the translation failed.
+        message: String,
+    },
     /// `set_model` with a model of another kind or order than the corrector was built for.
     #[error("this corrector is for {expected}; {got} needs a new one")]
-    ModelMismatch { expected: String, got: String },
+    ModelMismatch {
+        /// The model kind and order the corrector was built for.
+        expected: String,
+        /// The kind and order of the model given.
+        got: String,
+    },
     /// Buffers, textures or sizes that the corrector cannot take.
     #[error("{0}")]
     Usage(String),
     /// wgpu reported a validation or out-of-memory error.
     #[error("wgpu error: {0}")]
     Wgpu(String),
+    /// Mapping a buffer for read-back failed.
     #[error("GPU read-back failed: {0}")]
     Map(#[from] wgpu::BufferAsyncError),
+    /// Reading a range of a mapped buffer failed.
     #[error("GPU read-back failed: {0}")]
     MapRange(#[from] wgpu::MapRangeError),
+    /// Waiting for submitted GPU work failed.
     #[error("waiting for the GPU failed: {0}")]
     Poll(#[from] wgpu::PollError),
     #[cfg(feature = "io")]
+    /// Encoding an image failed.
     #[error("cannot encode the image: {0}")]
     Image(#[from] image::ImageError),
+    /// Writing an output file failed.
     #[error(transparent)]
     Write(#[from] crate::output::WriteError),
 }

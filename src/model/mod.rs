@@ -31,47 +31,77 @@ use crate::training::{Provenance, TrainingSet};
 /// Errors from fitting, loading or validating a model.
 #[derive(Debug, thiserror::Error)]
 pub enum ModelError {
+    /// A model kind name (held here) that is not lrm, prm, rprm or nsrm.
     #[error("unknown model kind `{0}` (expected lrm, prm, rprm or nsrm)")]
     UnknownKind(String),
+    /// A model order (held here) outside 1..=4.
     #[error("order {0} is out of range (1..=4)")]
     Order(u8),
+    /// Fewer training patches than the model has terms.
     #[error("{kind} order {order} has {terms} terms but only {patches} patches were given: a least-squares fit needs at least as many patches as terms")]
     TooFewPatches {
+        /// The model kind.
         kind: Kind,
+        /// The model order.
         order: u8,
+        /// The number of terms of that kind and order.
         terms: usize,
+        /// The number of training patches given.
         patches: usize,
     },
+    /// A training patch with a NaN or infinite RGB or XYZ value.
     #[error("training patch `{label}` has non-finite data (RGB {rgb:?}, XYZ {xyz:?})")]
     NonFinite {
+        /// The patch's label.
         label: String,
+        /// The patch's camera RGB.
         rgb: [f64; 3],
+        /// The patch's reference XYZ.
         xyz: [f64; 3],
     },
+    /// A training patch whose R+G+B is not positive (NSRM cannot use it).
     #[error("training patch `{label}`: R+G+B = {sum} ≤ 0, so NSRM's chromaticities are undefined")]
-    NonPositiveSignal { label: String, sum: f64 },
+    NonPositiveSignal {
+        /// The patch's label.
+        label: String,
+        /// The patch's R+G+B.
+        sum: f64,
+    },
+    /// The fit produced a non-finite matrix (degenerate training data).
     #[error("the fit produced a non-finite matrix (the training data is degenerate)")]
     Degenerate,
     /// No ridge λ makes the model's f32 evaluation (fast CPU path, shaders) reproduce its f64
     /// in-sample ΔE00: the terms are too nearly collinear on this data.
     #[error("{kind} order {order}: evaluating the fitted model in f32 (as apply does) could change a training patch's ΔE00 by up to {bound:.3}, more than {tolerance}, and no ridge λ up to 100 brings it within: the terms are too nearly collinear on this data (choose a lower order)")]
     F32Unstable {
+        /// The model kind.
         kind: Kind,
+        /// The model order.
         order: u8,
+        /// The largest change in a training patch's ΔE00 that f32 evaluation could cause.
         bound: f64,
+        /// The largest change accepted.
         tolerance: f64,
     },
+    /// A training value too large or too small (but not 0) for a fit.
     #[error("training patch `{label}`: {what} = {value:.3e} is outside the range a fit accepts (0, or 1e-100 ≤ |v| ≤ 1e100): check the data's scale")]
     OutOfRange {
+        /// The patch's label.
         label: String,
+        /// Which of the patch's values is out of range.
         what: String,
+        /// The value.
         value: f64,
     },
+    /// An iterative computation (e.g. an SVD) did not converge.
     #[error("the {what} did not converge within {iterations} iterations")]
     NotConverged {
+        /// The computation that did not converge.
         what: &'static str,
+        /// The iteration limit reached.
         iterations: usize,
     },
+    /// Training data, a fit option or a model (file) that cannot be used (the message says why).
     #[error("{0}")]
     Invalid(String),
     /// A malformed fit option (objective, ridge, normalisation): a usage error.
@@ -81,11 +111,20 @@ pub enum ModelError {
     /// name a neutral patch ([`White::Patch`](fit::White::Patch)).
     #[error("the training data has no camera response of its white (measured data): name a neutral patch to take it from")]
     NoWhite,
+    /// A model file could not be read.
     #[error("{path}: cannot read: {err}")]
-    Io { path: String, err: std::io::Error },
+    Io {
+        /// Where the model came from (its file's path).
+        path: String,
+        /// The I/O error.
+        err: std::io::Error,
+    },
+    /// A model file is not valid model JSON.
     #[error("{path}: not a model file: {err}")]
     Parse {
+        /// Where the model came from (its file's path).
         path: String,
+        /// The JSON error.
         err: serde_json::Error,
     },
 }

@@ -25,49 +25,108 @@ use std::path::Path;
 /// Errors from reading spectral data or simulating a camera.
 #[derive(Debug, thiserror::Error)]
 pub enum SpectralError {
+    /// A spectral CSV could not be read.
     #[error("{source_name}: cannot read: {err}")]
     Io {
+        /// The file, or built-in name, the spectra came from.
         source_name: String,
+        /// The I/O error.
         err: std::io::Error,
     },
+    /// A spectral CSV is empty.
     #[error(
         "{source_name}: the file is empty (expected a header `wavelength_nm,NAME,...` and rows)"
     )]
-    Empty { source_name: String },
+    Empty {
+        /// The file, or built-in name, the spectra came from.
+        source_name: String,
+    },
+    /// A spectral CSV's header has only the wavelength column.
     #[error("{source_name}: the header has no spectrum columns after the wavelength column")]
-    NoColumns { source_name: String },
+    NoColumns {
+        /// The file, or built-in name, the spectra came from.
+        source_name: String,
+    },
     /// A malformed CSV: a ragged row, a cell that is not a finite number.
     #[error(transparent)]
     Csv(#[from] crate::csv_table::CsvError),
+    /// The wavelengths of a spectral CSV do not strictly increase.
     #[error("{source_name}: line {line}: wavelength {wavelength} nm does not increase (previous {previous} nm)")]
     NonIncreasing {
+        /// The file, or built-in name, the spectra came from.
         source_name: String,
+        /// The line number of the offending row.
         line: usize,
+        /// The wavelength on that line, in nm.
         wavelength: f64,
+        /// The wavelength of the row before, in nm.
         previous: f64,
     },
+    /// A spectral CSV has a header but no data rows.
     #[error("{source_name}: has no data rows")]
-    NoRows { source_name: String },
+    NoRows {
+        /// The file, or built-in name, the spectra came from.
+        source_name: String,
+    },
+    /// Two spectrum columns of a CSV have the same name.
     #[error("{source_name}: duplicate column name `{column}`")]
-    DuplicateColumn { source_name: String, column: String },
+    DuplicateColumn {
+        /// The file, or built-in name, the spectra came from.
+        source_name: String,
+        /// The repeated column name.
+        column: String,
+    },
+    /// A camera sensitivity file without exactly 3 spectrum columns.
     #[error(
         "{source_name}: a camera file needs exactly 3 spectrum columns (R, G, B), found {found}"
     )]
-    CameraColumns { source_name: String, found: usize },
+    CameraColumns {
+        /// The file, or built-in name, the spectra came from.
+        source_name: String,
+        /// The number of spectrum columns found.
+        found: usize,
+    },
+    /// An illuminant file without exactly 1 spectrum column.
     #[error("{source_name}: an illuminant file needs exactly 1 spectrum column, found {found}")]
-    IlluminantColumns { source_name: String, found: usize },
+    IlluminantColumns {
+        /// The file, or built-in name, the spectra came from.
+        source_name: String,
+        /// The number of spectrum columns found.
+        found: usize,
+    },
+    /// A malformed wavelength grid (`START:END:STEP`).
     #[error("invalid grid `{spec}`: {why} (expected START:END:STEP in nm, e.g. 400:700:10)")]
-    Grid { spec: String, why: String },
+    Grid {
+        /// The grid as given.
+        spec: String,
+        /// What is wrong with it.
+        why: String,
+    },
+    /// The perfect white integrates to zero (or a non-finite value) on the grid.
     #[error("{what}: the perfect white integrates to {value} (no overlap between the spectra and the grid?)")]
-    DegenerateWhite { what: String, value: f64 },
+    DegenerateWhite {
+        /// The spectra and channel integrated (e.g. an illuminant's Y).
+        what: String,
+        /// The integral found.
+        value: f64,
+    },
     /// A name that looks like a file path (a directory part or a file extension), and no such
     /// file exists.
     #[error("{path}: no such file (a {what} CSV was expected there)")]
-    MissingFile { what: &'static str, path: String },
+    MissingFile {
+        /// The kind of spectrum expected (camera, illuminant, ...).
+        what: &'static str,
+        /// The path given.
+        path: String,
+    },
+    /// A name that is neither a built-in spectrum nor an existing file.
     #[error("unknown {what} `{name}` (built-in: {known}); to read a file, give a path to an existing CSV")]
     UnknownName {
+        /// The kind of spectrum asked for (camera, illuminant, ...).
         what: &'static str,
+        /// The name given.
         name: String,
+        /// The built-in names of that kind, comma-separated.
         known: String,
     },
 }

@@ -114,10 +114,6 @@ pub enum GpuError {
     /// Waiting for submitted GPU work failed.
     #[error("waiting for the GPU failed: {0}")]
     Poll(#[from] wgpu::PollError),
-    #[cfg(feature = "io")]
-    /// Encoding an image failed.
-    #[error("cannot encode the image: {0}")]
-    Image(#[from] image::ImageError),
     /// Writing an output file failed.
     #[error(transparent)]
     Write(#[from] crate::output::WriteError),

@@ -7,7 +7,7 @@
 //! The shaders follow the pixel policy of `model::pixel` (the README's *Pixel policy*) exactly: NaN / Inf propagate, NSRM
 //! with `s = R+G+B ≤ 0` gives 0, negative channels are allowed (RPRM's roots keep the sign),
 //! nothing is clamped. They compute in f32; against the f64 reference the relative error per
-//! value stays within 1e-5 (see `tests/gpu.rs`).
+//! value stays within 1e-5 (see `tests/all/gpu.rs`).
 //!
 //! # Adapter selection
 //! * Backends: `WGPU_BACKEND` (e.g. `vulkan`, `gl`, `metal`, `dx12`) if set, else the primary

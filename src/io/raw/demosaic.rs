@@ -31,31 +31,9 @@ impl Mosaic<'_> {
     }
 
     pub(crate) fn half(&self, path: &Path) -> Result<Frame, IoError> {
-        let (ow, oh) = (self.w / 2, self.h / 2);
-        if ow == 0 || oh == 0 {
-            return Err(corrupt(path, "the image is smaller than one 2×2 block"));
-        }
-        let mut data = crate::io::try_zeroed::<f32>(path, ow * oh * 3)?;
-        data.par_chunks_mut(ow * 3)
-            .enumerate()
-            .for_each(|(by, row)| {
-                for (bx, px) in row.chunks_exact_mut(3).enumerate() {
-                    let mut sum = [0f32; 3];
-                    let mut n = [0u8; 3];
-                    for dy in 0..2 {
-                        for dx in 0..2 {
-                            let (y, x) = (by * 2 + dy, bx * 2 + dx);
-                            let c = self.colour(y, x);
-                            sum[c] += self.plane[y * self.w + x];
-                            n[c] += 1;
-                        }
-                    }
-                    for c in 0..3 {
-                        px[c] = sum[c] / f32::from(n[c].max(1));
-                    }
-                }
-            });
-        Ok(Self::frame(ow, oh, data))
+        block_means(path, self.plane, self.w, self.h, 2, |y, x| {
+            self.colour(y, x)
+        })
     }
 
     /// LibRaw's border rule at (y, x): every colour but the pixel's own is the plain mean of
@@ -194,6 +172,51 @@ impl Mosaic<'_> {
         });
         Ok(Self::frame(w, h, data))
     }
+}
+
+/// One pixel of each `block`×`block` block of a CFA `plane` (`w`×`h`, the colour of each site
+/// from `colour`): each colour the mean of its sites in the block (`half`, for Bayer and X-Trans).
+pub(super) fn block_means(
+    path: &Path,
+    plane: &[f32],
+    w: usize,
+    h: usize,
+    block: usize,
+    colour: impl Fn(usize, usize) -> usize + Sync,
+) -> Result<Frame, IoError> {
+    let (ow, oh) = (w / block, h / block);
+    if ow == 0 || oh == 0 {
+        return Err(corrupt(
+            path,
+            format!("the image is smaller than one {block}×{block} block"),
+        ));
+    }
+    let mut data = crate::io::try_zeroed::<f32>(path, ow * oh * 3)?;
+    data.par_chunks_mut(ow * 3)
+        .enumerate()
+        .for_each(|(by, row)| {
+            for (bx, px) in row.chunks_exact_mut(3).enumerate() {
+                let mut sum = [0f32; 3];
+                let mut n = [0u8; 3];
+                for dy in 0..block {
+                    for dx in 0..block {
+                        let (y, x) = (by * block + dy, bx * block + dx);
+                        let c = colour(y, x);
+                        sum[c] += plane[y * w + x];
+                        n[c] += 1;
+                    }
+                }
+                for c in 0..3 {
+                    px[c] = sum[c] / f32::from(n[c].max(1));
+                }
+            }
+        });
+    Ok(Frame {
+        width: ow,
+        height: oh,
+        layout: crate::Layout::Rgb,
+        data,
+    })
 }
 
 #[cfg(test)]

@@ -16,7 +16,6 @@
 //!   flat field stays flat.
 //! * Malvar–He–Cutler is a Bayer method: an X-Trans frame asked for `mhc` gets `bilinear`.
 
-use super::decode::corrupt;
 use crate::frame::Frame;
 use crate::io::IoError;
 use rayon::prelude::*;
@@ -70,31 +69,9 @@ impl XTrans<'_> {
 
     pub(crate) fn half(&self, path: &Path) -> Result<Frame, IoError> {
         self.complete(path)?;
-        let (ow, oh) = (self.w / 3, self.h / 3);
-        if ow == 0 || oh == 0 {
-            return Err(corrupt(path, "the image is smaller than one 3×3 block"));
-        }
-        let mut data = crate::io::try_zeroed::<f32>(path, ow * oh * 3)?;
-        data.par_chunks_mut(ow * 3)
-            .enumerate()
-            .for_each(|(by, row)| {
-                for (bx, px) in row.chunks_exact_mut(3).enumerate() {
-                    let mut sum = [0f32; 3];
-                    let mut n = [0u8; 3];
-                    for dy in 0..3 {
-                        for dx in 0..3 {
-                            let (y, x) = (by * 3 + dy, bx * 3 + dx);
-                            let c = self.colour(y, x);
-                            sum[c] += self.plane[y * self.w + x];
-                            n[c] += 1;
-                        }
-                    }
-                    for c in 0..3 {
-                        px[c] = sum[c] / f32::from(n[c].max(1));
-                    }
-                }
-            });
-        Ok(Self::frame(ow, oh, data))
+        super::demosaic::block_means(path, self.plane, self.w, self.h, 3, |y, x| {
+            self.colour(y, x)
+        })
     }
 
     /// At (y, x): the pixel's own sample, and each other colour's mean over the 3×3 window

@@ -150,7 +150,7 @@ fn apply_on_the_fitted_frame_reproduces_the_reference() {
     let model = nsrm::Model::load(&model_path).unwrap();
     let white = model.white_xyz();
     // The output is XYZ with white Y = 1, adapted from the reference white (D50) to D65.
-    let to_out = nsrm::output_matrix(white, nsrm::OutputSpace::Xyz);
+    let to_out = crate::common::mat::output_matrix(white, nsrm::OutputSpace::Xyz);
     let d65 = nsrm::D65_WHITE_XYZ;
     for p in reading["patches"].as_array().unwrap() {
         let v = |k: &str| -> Vec<f64> {
@@ -377,7 +377,7 @@ fn a_display_referred_flat_frame_is_decoded_as_the_chart_frame_is() {
         .chunks_exact(ch)
         .flat_map(|p| {
             (0..3).map(move |k| {
-                (nsrm::srgb_oetf(f64::from(p[k] / peak)).clamp(0.0, 1.0) * 255.0).round() as u8
+                (srgb_oetf(f64::from(p[k] / peak)).clamp(0.0, 1.0) * 255.0).round() as u8
             })
         })
         .collect();
@@ -426,4 +426,13 @@ fn a_display_referred_flat_frame_is_decoded_as_the_chart_frame_is() {
         w_lin > 5.0 * w_auto.max(1e-3),
         "a PNG flat read as linear should differ: {w_lin} vs {w_auto}"
     );
+}
+
+/// The sRGB opto-electronic transfer function (IEC 61966-2-1) of a linear value in `[0, 1]`.
+fn srgb_oetf(v: f64) -> f64 {
+    if v <= 0.003_130_8 {
+        12.92 * v
+    } else {
+        1.055 * v.powf(1.0 / 2.4) - 0.055
+    }
 }

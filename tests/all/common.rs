@@ -33,37 +33,24 @@ pub fn sg_path() -> Option<PathBuf> {
     }
 }
 
-/// The tests skipped in this run, `test name: reason`.
-static SKIPS: std::sync::Mutex<Vec<String>> = std::sync::Mutex::new(Vec::new());
-
-/// A test whose prerequisite (an external tool, a driver, `../shared` data) is absent: under
-/// `CI=true` this fails the test; otherwise it prints `SKIP: reason` and records the test, and
-/// the run ends with one summary line counting the skipped tests (after libtest's own result
-/// line, which counts them as passed). The caller returns after it.
+/// [`kit::skip`], the one skip rule (fails under `CI=true`), plus one summary line at exit counting
+/// the skipped tests (after libtest's own result line, which counts them as passed).
 pub fn skip(reason: &str) {
-    if std::env::var("CI").as_deref() == Ok("true") {
-        panic!("{reason} (a prerequisite of this test, required under CI=true; the README's Tests section lists them)");
-    }
-    eprintln!("SKIP: {reason}");
-    let name = std::thread::current()
-        .name()
-        .unwrap_or("(unnamed test)")
-        .to_string();
-    let mut skips = SKIPS.lock().unwrap_or_else(|e| e.into_inner());
-    if skips.is_empty() {
+    static AT_EXIT: std::sync::Once = std::sync::Once::new();
+    kit::skip(reason);
+    AT_EXIT.call_once(|| {
         // SAFETY: `print_skips` takes no arguments, cannot unwind (it ignores write errors and
         // a poisoned lock) and is registered once per process.
         unsafe {
             libc::atexit(print_skips);
         }
-    }
-    skips.push(format!("{name}: {reason}"));
+    });
 }
 
 /// Prints the skipped tests at exit, after libtest's summary.
 extern "C" fn print_skips() {
     use std::io::Write;
-    let skips = SKIPS.lock().unwrap_or_else(|e| e.into_inner());
+    let skips = kit::SKIPS.lock().unwrap_or_else(|e| e.into_inner());
     let mut err = std::io::stderr().lock();
     let _ = writeln!(
         err,
@@ -288,7 +275,8 @@ pub fn cc24_scene(dir: &Path, name: &str, extra: &[&str]) -> PathBuf {
 /// 3×3 matrix helpers of the tests (the library keeps its own crate-private): `m · v`, `a · b`,
 /// the inverse, and XYZ (`Y = 1`) of a chromaticity.
 pub mod mat {
-    use nsrm::Mat3;
+    /// A 3×3 matrix, row-major.
+    pub type Mat3 = [[f64; 3]; 3];
 
     /// The identity matrix.
     pub const IDENTITY: Mat3 = [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]];
@@ -309,6 +297,12 @@ pub mod mat {
             .try_inverse()
             .unwrap_or_else(|| panic!("singular matrix {m:?}"));
         [0, 1, 2].map(|i| [0, 1, 2].map(|j| inv[(i, j)]))
+    }
+
+    /// The model's XYZ (white at `Y = white[1]`) → the frames `nsrm apply` writes in `space`
+    /// (white at `Y = 1`): [`nsrm::OutputSpace::from_xyz`] scaled by `1 / white[1]`.
+    pub fn output_matrix(white: [f64; 3], space: nsrm::OutputSpace) -> Mat3 {
+        space.from_xyz(white).map(|row| row.map(|v| v / white[1]))
     }
 
     /// xy chromaticity → XYZ with `Y = 1`.

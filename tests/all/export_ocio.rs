@@ -168,7 +168,8 @@ impl Case {
 
 /// ΔE00 between two output-space values, in the model's XYZ with its training white.
 fn de(model: &Model, space: OutputSpace, a: [f64; 3], b: [f64; 3]) -> f64 {
-    let back = crate::common::mat::invert(&nsrm::output_matrix(model.white_xyz(), space));
+    let back =
+        crate::common::mat::invert(&crate::common::mat::output_matrix(model.white_xyz(), space));
     delta_e00_xyz(
         crate::common::mat::apply(&back, a),
         crate::common::mat::apply(&back, b),

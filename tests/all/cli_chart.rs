@@ -57,7 +57,9 @@ fn extract_fit_apply_reproduces_the_reference() {
     assert!(ok, "{err}");
     let text = std::fs::read_to_string(&csv).unwrap();
     // A comment line, the white line (D50, the reference's), then the header and the patches.
-    let w = nsrm::chart::d50_white();
+    let w = nsrm::chart::Reference::load("cc24-after2014", nsrm::chart::ChartKind::Cc24, None)
+        .unwrap()
+        .white;
     let white = format!("# white: {},{},{}\n", w[0], w[1], w[2]);
     assert!(
         text.starts_with("# nsrm chart patches:")

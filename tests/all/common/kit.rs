@@ -1,11 +1,22 @@
 //! The test kit shared by the integration tests (through `common`) and the library's unit tests
 //! (`src/lib.rs` includes this file under `cfg(test)`, with `nsrm` naming the crate itself): one
 //! seeded RNG, one generator of frames full of awkward pixels, the f64 reference on a frame, one
-//! f32 error bound against it, the pixel policy's pixels and its check, one training fixture.
+//! f32 error bound against it, the pixel policy's pixels and its check, one training fixture, the
+//! skip rule.
 //! Public API only, so both sides compile it alike.
 
 use nsrm::{simulate_named, Frame, Grid, Kind, Layout, Model, TrainingSet};
 use std::sync::OnceLock;
+
+/// The skip rule for a test whose prerequisite (an external tool, a driver, `../shared` data) is
+/// absent: under `CI=true` it fails the test; otherwise it prints `SKIP: reason` and the caller
+/// returns. (The integration tests' `common::skip` also counts the skipped tests.)
+pub fn skip_or_fail(reason: &str) {
+    if std::env::var("CI").as_deref() == Ok("true") {
+        panic!("{reason} (a prerequisite of this test, required under CI=true; the README's Tests section lists them)");
+    }
+    eprintln!("SKIP: {reason}");
+}
 
 /// SplitMix64: a fixed-seed generator (no extra dependency).
 pub struct Rng(pub u64);

@@ -1,12 +1,17 @@
-//! Chart capture: synthetic scenes with known truth, read back by corners and by detection.
+//! Chart capture, step by step: synthetic scenes with known truth, read back by corners and by
+//! detection, with the flat-field estimates. (Once `tests/all/chart.rs`; here since detection,
+//! extraction and the flat field are crate-private steps behind [`super::read`].)
 
-use nsrm::chart::render_scene as render;
-use nsrm::chart::{apply_flat, flat_from_frame, flat_from_neutrals};
-use nsrm::chart::{detect, extract, verify, DetectOptions, ExtractOptions, Reference};
-use nsrm::chart::{homography_from_corners, ChartColours, ChartKind, SceneOptions};
-use nsrm::Kind;
-use nsrm::TrainingSet;
-use nsrm::{evaluate, Protocol};
+use super::detect::{detect, DetectOptions};
+use super::extract::{extract, verify, ExtractOptions, Extraction};
+use super::flat::from_neutrals as flat_from_neutrals;
+use super::flat::{apply as apply_flat, from_flat_frame as flat_from_frame};
+use super::scene::{render, ChartColours, Family, SceneOptions, SceneTruth};
+use super::{homography_from_corners, ChartKind, Reference};
+use crate::kit::skip_or_fail;
+use crate::Kind;
+use crate::TrainingSet;
+use crate::{evaluate, Protocol};
 
 const SG_SPECTRA: &str = "../shared/data/colorchecker_sg_140.csv";
 
@@ -16,14 +21,14 @@ fn cc24() -> ChartColours {
 
 fn sg() -> Option<ChartColours> {
     if !std::path::Path::new(SG_SPECTRA).exists() {
-        crate::common::skip(&format!("{SG_SPECTRA} not found"));
+        skip_or_fail(&format!("{SG_SPECTRA} not found"));
         return None;
     }
     Some(ChartColours::simulate(ChartKind::Sg, "nikon-d5100", "D65", Some(SG_SPECTRA)).unwrap())
 }
 
 /// Largest |measured / truth − 1| over patches brighter than `min_g`.
-fn worst_ratio(ex: &nsrm::chart::Extraction, truth: &nsrm::chart::SceneTruth, min_g: f64) -> f64 {
+fn worst_ratio(ex: &Extraction, truth: &SceneTruth, min_g: f64) -> f64 {
     ex.patches
         .iter()
         .zip(&truth.patches)
@@ -312,7 +317,7 @@ fn bad_scenes_fail_clearly() {
 
 /// Scenes of one family (`chart rate --family`): (found correctly, refused); panics on a wrong
 /// answer — a label off its true cell, or any chart reported in a negative scene.
-fn family_outcomes(family: nsrm::chart::Family, seeds: std::ops::Range<u64>) -> (u32, u32) {
+fn family_outcomes(family: Family, seeds: std::ops::Range<u64>) -> (u32, u32) {
     let colours = cc24();
     let reference = Reference::load("cc24-after2014", ChartKind::Cc24, None).unwrap();
     let (mut ok, mut refused) = (0, 0);
@@ -359,7 +364,6 @@ fn family_outcomes(family: nsrm::chart::Family, seeds: std::ops::Range<u64>) -> 
 
 #[test]
 fn real_photo_families_are_found_or_refused_never_wrong() {
-    use nsrm::chart::Family;
     // A handful per family here; `nsrm chart rate --family F` measures the rates (README).
     for f in [
         Family::Jpeg,
@@ -376,7 +380,6 @@ fn real_photo_families_are_found_or_refused_never_wrong() {
 
 #[test]
 fn other_charts_and_random_grids_are_refused() {
-    use nsrm::chart::Family;
     for f in [Family::Spyder, Family::Random, Family::Shuffled] {
         let (ok, _) = family_outcomes(f, 1..5);
         assert_eq!(ok, 0, "{}", f.name());

@@ -6,8 +6,9 @@
 //! SKIP, and a failure under `CI=true`.
 
 use crate::common::{self, nsrm_in, nsrm_ok, stderr, tempdir};
+use crate::common::{read_frame, write_tiff};
 use nsrm::export::{icc_device_scale, icc_pcs_matrix, IccOptions, ICC_D50 as D50};
-use nsrm::io::{read_frame, write_tiff, ReadOptions};
+use nsrm::io::ReadOptions;
 use nsrm::OutputSpace;
 use nsrm::{delta_e00_xyz, output_matrix};
 use nsrm::{simulate_named, Grid};

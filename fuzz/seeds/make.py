@@ -102,7 +102,7 @@ write(f"{M}/non_finite.csv", D50 + "label,R,G,B,X,Y,Z\nA1,nan,0.08,0.05,11.1,10.
 write(f"{M}/white_conflict.csv",
       "# white: 95.04,100,108.88\nlabel,R,G,B,X,Y,Z\nA1,0.12,0.08,0.05,11.1,10.0,5.2\n")
 
-# Chart references: the first byte picks (bit 0 CGATS, bit 1 SG, bit 2 a D50 white given).
+# Chart references: the first byte picks (bit 0 CGATS, bit 1 SG, bit 2 a white given).
 R = f"{S}/chart_reference"
 ref = open("assets/chart_cc24_after2014_d50.csv").read()
 rows = ref.strip().split("\n")[1:]

@@ -34,6 +34,8 @@ mod corrector;
 mod engine;
 #[cfg(test)]
 mod engine_tests;
+#[cfg(test)]
+mod program_tests;
 pub(crate) mod shader;
 
 pub use context::GpuContext;

@@ -30,7 +30,8 @@
 //! The colour-science core is one flat list of items at the crate root (below, grouped as the
 //! documentation lists them): frames, models (fit, file, apply), dual-illuminant profiles,
 //! colorimetry, spectral simulation, training sets and evaluation. The rooms behind optional
-//! features are modules, each with its own flat list: [`gpu`], `io`, `chart`, `export`, `farm`.
+//! features are modules, each with its own flat list: [`gpu`], `io`, `chart`, `export` (`farm`
+//! adds commands to the binary, no library API).
 //!
 //! # Applying a model: one way per back end
 //! | back end | the way | notes |
@@ -55,7 +56,7 @@
 //! | `export` | `export`: LUTs and profiles other tools read (CLF, `.cube`, OCIO, DCTL, DCP); with `gpu` also the baked shaders in WGSL, SPIR-V, GLSL, HLSL and MSL (naga's back ends) |
 //! | `plot` | `plot_histograms`: the paper's Fig. 1 as SVG or PNG |
 //! | `chart` | chart detection in captured frames, synthetic chart frames and scenes; implies `io` |
-//! | `farm` | `farm`: per-shard manifests, their verification, path mapping, farm job files; implies `io` |
+//! | `farm` | for the binary: per-shard manifests, their verification, path mapping, farm job files; implies `io` |
 //! | `cli` (default) | the `nsrm` binary; implies all of the above |
 //!
 //! A renderer embeds the correction pass with
@@ -78,18 +79,21 @@ pub mod chart;
 pub mod cli;
 mod colorimetry;
 pub mod csv_table;
-pub mod error;
+// `Param` and `Concern` are public through the `io` and `chart` errors (re-exported by `io`);
+// a build without `io` only uses them inside the crate.
+#[cfg_attr(not(feature = "io"), allow(unreachable_pub))]
+mod error;
 mod eval;
 #[cfg(feature = "export")]
 pub mod export;
 #[cfg(feature = "farm")]
-pub mod farm;
+mod farm;
 mod frame;
 #[cfg(feature = "gpu")]
 pub mod gpu;
 #[cfg(feature = "io")]
 pub mod io;
-pub mod limits;
+mod limits;
 mod model;
 pub mod output;
 mod spectral;

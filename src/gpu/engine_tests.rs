@@ -8,7 +8,7 @@ use crate::{fit, Kind, Layout, Model};
 
 /// The engine, or `None` (after one loud line) when there is no adapter; with `CI=true` a
 /// missing adapter fails the test.
-fn engine(tile_pixels: Option<usize>) -> Option<Engine> {
+pub(super) fn engine(tile_pixels: Option<usize>) -> Option<Engine> {
     let opts = GpuOptions {
         adapter: None,
         tile_pixels,

@@ -39,7 +39,7 @@ fn engine(tile_pixels: Option<usize>) -> Option<Engine> {
         // Debug builds (the tests) fill every output tile with the sentinel NaN first.
         Ok(e) => Some(e),
         Err(e @ GpuError::NoAdapter { .. }) => {
-            crate::kit::skip(&format!("{SKIP}: {e}"));
+            crate::kit::skip_or_fail(&format!("{SKIP}: {e}"));
             None
         }
         Err(e) => panic!("cannot open the GPU engine: {e}"),

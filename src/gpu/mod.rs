@@ -36,6 +36,8 @@ mod engine;
 mod engine_tests;
 #[cfg(all(test, feature = "io"))]
 mod gpu_tests;
+#[cfg(test)]
+mod program_tests;
 pub(crate) mod shader;
 
 pub use self::{

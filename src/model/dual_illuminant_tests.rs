@@ -7,7 +7,7 @@
 //! `.ci/install.d/40-profiles.sh`.
 
 use crate::colorimetry::temperature::{cct, temperature_xy, D50_XY};
-use crate::kit::skip;
+use crate::kit::skip_or_fail as skip;
 use crate::{fit_with, simulate_named, FitOptions, FrameWhite, Grid, Kind, Profile};
 use std::process::{Command, Stdio};
 

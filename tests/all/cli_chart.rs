@@ -57,7 +57,9 @@ fn extract_fit_apply_reproduces_the_reference() {
     assert!(ok, "{err}");
     let text = std::fs::read_to_string(&csv).unwrap();
     // A comment line, the white line (D50, the reference's), then the header and the patches.
-    let w = nsrm::chart::d50_white();
+    let w = nsrm::chart::Reference::load("cc24-after2014", nsrm::chart::ChartKind::Cc24, None)
+        .unwrap()
+        .white;
     let white = format!("# white: {},{},{}\n", w[0], w[1], w[2]);
     assert!(
         text.starts_with("# nsrm chart patches:")
@@ -144,7 +146,8 @@ fn apply_on_the_fitted_frame_reproduces_the_reference() {
         s(&frame),
     ]);
     assert!(ok, "{err}");
-    let produced = nsrm::io::read_frame(&out.join("chart_xyz.exr"), &Default::default()).unwrap();
+    let produced =
+        crate::common::read_frame(&out.join("chart_xyz.exr"), &Default::default()).unwrap();
     let reading: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
     let model = nsrm::Model::load(&model_path).unwrap();
@@ -369,7 +372,7 @@ fn a_display_referred_flat_frame_is_decoded_as_the_chart_frame_is() {
         "chart.exr",
         &["--vignetting", "0.3", "--flat-output", s(&flat)],
     );
-    let f = nsrm::io::read_frame(&flat, &Default::default()).unwrap();
+    let f = crate::common::read_frame(&flat, &Default::default()).unwrap();
     let ch = f.layout.channels();
     let peak = f.data.iter().cloned().fold(0f32, f32::max).max(1e-6);
     let bytes: Vec<u8> = f

@@ -33,24 +33,34 @@ pub fn sg_path() -> Option<PathBuf> {
     }
 }
 
-/// [`kit::skip`], the one skip rule (fails under `CI=true`), plus one summary line at exit counting
-/// the skipped tests (after libtest's own result line, which counts them as passed).
+/// The tests skipped in this run, `test name: reason`.
+static SKIPS: std::sync::Mutex<Vec<String>> = std::sync::Mutex::new(Vec::new());
+
+/// A test whose prerequisite (an external tool, a driver, `../shared` data) is absent: under
+/// `CI=true` this fails the test; otherwise it prints `SKIP: reason` and records the test, and
+/// the run ends with one summary line counting the skipped tests (after libtest's own result
+/// line, which counts them as passed). The caller returns after it.
 pub fn skip(reason: &str) {
-    static AT_EXIT: std::sync::Once = std::sync::Once::new();
-    kit::skip(reason);
-    AT_EXIT.call_once(|| {
+    kit::skip_or_fail(reason);
+    let name = std::thread::current()
+        .name()
+        .unwrap_or("(unnamed test)")
+        .to_string();
+    let mut skips = SKIPS.lock().unwrap_or_else(|e| e.into_inner());
+    if skips.is_empty() {
         // SAFETY: `print_skips` takes no arguments, cannot unwind (it ignores write errors and
         // a poisoned lock) and is registered once per process.
         unsafe {
             libc::atexit(print_skips);
         }
-    });
+    }
+    skips.push(format!("{name}: {reason}"));
 }
 
 /// Prints the skipped tests at exit, after libtest's summary.
 extern "C" fn print_skips() {
     use std::io::Write;
-    let skips = kit::SKIPS.lock().unwrap_or_else(|e| e.into_inner());
+    let skips = SKIPS.lock().unwrap_or_else(|e| e.into_inner());
     let mut err = std::io::stderr().lock();
     let _ = writeln!(
         err,
@@ -191,7 +201,45 @@ pub fn exr(path: &Path, w: usize, h: usize) {
         space: nsrm::OutputSpace::Xyz,
         zip_level: nsrm::io::DEFAULT_ZIP_LEVEL,
     };
-    committed(true, |u| nsrm::io::write_exr(&frame(w, h), path, &opts, u)).unwrap();
+    committed(true, |u| write_exr(&frame(w, h), path, &opts, u)).unwrap();
+}
+
+/// Reads an EXR, TIFF or raw file into one frame with its alpha (`Decoded::into_frame`).
+#[cfg(feature = "io")]
+pub fn read_frame(path: &Path, opts: &nsrm::io::ReadOptions) -> Result<Frame, nsrm::io::IoError> {
+    nsrm::io::Decoded::read(path, opts).map(nsrm::io::Decoded::into_frame)
+}
+
+/// Stages a new EXR holding `frame` in `unit` (a frame made in memory, written by `Decoded`).
+#[cfg(feature = "io")]
+pub fn write_exr(
+    frame: &Frame,
+    dest: &Path,
+    opts: &nsrm::io::WriteOptions,
+    unit: &mut nsrm::output::Unit,
+) -> Result<(), nsrm::io::IoError> {
+    let opts = nsrm::io::WriteOptions {
+        format: nsrm::io::FileFormat::Exr,
+        ..*opts
+    };
+    nsrm::io::Decoded::from(frame.clone()).write(dest, &opts, unit)
+}
+
+/// Stages a 32-bit float TIFF holding `frame` in `unit`.
+#[cfg(feature = "io")]
+pub fn write_tiff(
+    frame: &Frame,
+    dest: &Path,
+    unit: &mut nsrm::output::Unit,
+) -> Result<(), nsrm::io::IoError> {
+    let opts = nsrm::io::WriteOptions {
+        format: nsrm::io::FileFormat::Tiff,
+        half: false,
+        compression: nsrm::io::ExrCompression::Keep,
+        space: nsrm::OutputSpace::Xyz,
+        zip_level: nsrm::io::DEFAULT_ZIP_LEVEL,
+    };
+    nsrm::io::Decoded::from(frame.clone()).write(dest, &opts, unit)
 }
 
 /// Runs library writers on one unit of a fresh output session (replacing existing files when
@@ -210,7 +258,7 @@ pub fn committed<E: From<nsrm::output::WriteError>>(
 /// Writes a small 32-bit float TIFF frame at `path`.
 #[cfg(feature = "io")]
 pub fn tiff(path: &Path, w: usize, h: usize) {
-    committed(true, |u| nsrm::io::write_tiff(&frame(w, h), path, u)).unwrap();
+    committed(true, |u| write_tiff(&frame(w, h), path, u)).unwrap();
 }
 
 /// Bytes of a file, for checking inputs are never written.

@@ -9,9 +9,10 @@
 
 use crate::common;
 
+use crate::common::{read_frame, write_exr};
 use nsrm::delta_e00_xyz;
 use nsrm::export::{dense_chromaticities, Format, LutExport, LutOptions};
-use nsrm::io::{read_frame, write_exr, ExrCompression, FileFormat, ReadOptions, WriteOptions};
+use nsrm::io::{ExrCompression, FileFormat, ReadOptions, WriteOptions};
 use nsrm::OutputSpace;
 use nsrm::{fit, Kind};
 use nsrm::{simulate_named, Grid};

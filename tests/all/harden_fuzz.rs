@@ -50,7 +50,7 @@ fn seeds() -> &'static [Vec<u8>] {
         v.push(c.into_inner());
         for ch in [3, 4] {
             let p = dir.path().join(format!("f{ch}.tif"));
-            crate::common::committed(true, |u| nsrm::io::write_tiff(&frame(9, 7, ch), &p, u))
+            crate::common::committed(true, |u| crate::common::write_tiff(&frame(9, 7, ch), &p, u))
                 .unwrap();
             v.push(std::fs::read(&p).unwrap());
         }

@@ -7,9 +7,10 @@
 
 use crate::common::mat::output_matrix;
 use crate::common::{self, nsrm_in, nsrm_ok, stderr, tempdir};
+use crate::common::{read_frame, write_tiff};
 use nsrm::delta_e00_xyz;
 use nsrm::export::{icc_device_scale, icc_pcs_matrix, IccOptions, ICC_D50 as D50};
-use nsrm::io::{read_frame, write_tiff, ReadOptions};
+use nsrm::io::ReadOptions;
 use nsrm::OutputSpace;
 use nsrm::{simulate_named, Grid};
 use nsrm::{Frame, Layout, Model};

@@ -6,8 +6,6 @@ mod apply;
 mod architecture;
 #[cfg(feature = "cli")]
 mod capture_lib;
-#[cfg(feature = "chart")]
-mod chart;
 #[cfg(feature = "cli")]
 mod chart_real;
 mod ciede2000_sharma;

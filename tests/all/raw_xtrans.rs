@@ -4,8 +4,9 @@
 //! of its sites there (exact, 1e-6 relative); flat fields decode to the values written in every
 //! demosaic; `bilinear` matches LibRaw's LINEAR demosaic (`lin_interpolate`) in the interior.
 
+use crate::common::read_frame;
 use nsrm::io::Demosaic;
-use nsrm::io::{read_frame, ReadOptions};
+use nsrm::io::ReadOptions;
 use std::path::{Path, PathBuf};
 use std::process::Command;
 

@@ -2,7 +2,8 @@
 //! (`src/lib.rs` includes this file under `cfg(test)`, with `nsrm` naming the crate itself): one
 //! seeded RNG, one generator of frames full of awkward pixels, the f64 reference on a frame, one
 //! f32 error bound against it, the pixel policy's pixels and its check, one training fixture, the
-//! one skip rule for a missing prerequisite (fails under `CI=true`) and the one DCTL harness.
+//! one skip rule for a missing prerequisite ([`skip_or_fail`]: fails under `CI=true`) and the one
+//! DCTL harness.
 //! Public API only, so both sides compile it alike.
 
 use nsrm::{simulate_named, Frame, Grid, Kind, Layout, Model, TrainingSet};
@@ -10,6 +11,16 @@ use std::io::Write as _;
 use std::path::Path;
 use std::process::{Command, Stdio};
 use std::sync::OnceLock;
+
+/// The skip rule for a test whose prerequisite (an external tool, a driver, `../shared` data) is
+/// absent: under `CI=true` it fails the test; otherwise it prints `SKIP: reason` and the caller
+/// returns. (The integration tests' `common::skip` also counts the skipped tests.)
+pub fn skip_or_fail(reason: &str) {
+    if std::env::var("CI").as_deref() == Ok("true") {
+        panic!("{reason} (a prerequisite of this test, required under CI=true; the README's Tests section lists them)");
+    }
+    eprintln!("SKIP: {reason}");
+}
 
 /// SplitMix64: a fixed-seed generator (no extra dependency).
 pub struct Rng(pub u64);
@@ -274,29 +285,6 @@ pub fn mutate(base: &str, edits: &[(usize, u8)]) -> String {
     String::from_utf8_lossy(&bytes).into_owned()
 }
 
-/// The tests skipped in this run, `test name: reason` (the integration tests print them at exit:
-/// `common::skip`).
-pub static SKIPS: std::sync::Mutex<Vec<String>> = std::sync::Mutex::new(Vec::new());
-
-/// The one skip rule, for a test whose prerequisite (an external tool, a driver, `../shared`
-/// data) is absent: under `CI=true` this fails the test; otherwise it prints `SKIP: reason` and
-/// records the test in [`SKIPS`]. The caller returns after it. (The integration tests' `skip`
-/// wraps this and adds a summary at exit.)
-pub fn skip(reason: &str) {
-    if std::env::var("CI").as_deref() == Ok("true") {
-        panic!("{reason} (a prerequisite of this test, required under CI=true; the README's Tests section lists them)");
-    }
-    eprintln!("SKIP: {reason}");
-    let name = std::thread::current()
-        .name()
-        .unwrap_or("(unnamed test)")
-        .to_string();
-    SKIPS
-        .lock()
-        .unwrap_or_else(|e| e.into_inner())
-        .push(format!("{name}: {reason}"));
-}
-
 // The one DCTL harness (the unit tests of `src/export/dctl.rs` and `dctl_tests.rs`, and the CLI
 // test in `tests/all/gpu_export.rs`): Resolve is not available here, so a DCTL is compiled as C
 // with a shim for its built-ins and run on test pixels.
@@ -327,7 +315,7 @@ int main(void) {
 }
 "#;
 
-/// A C compiler for [`run_dctl`], or `None` after [`skip`] (a failure under `CI=true`).
+/// A C compiler for [`run_dctl`], or `None` after [`skip_or_fail`] (a failure under `CI=true`).
 pub fn cc() -> Option<String> {
     for c in ["cc", "gcc", "clang"] {
         if Command::new(c)
@@ -339,7 +327,7 @@ pub fn cc() -> Option<String> {
         }
     }
     let msg = "no C compiler (cc, gcc or clang) to compile the DCTL with";
-    skip(msg);
+    skip_or_fail(msg);
     None
 }
 

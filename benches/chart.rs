@@ -15,7 +15,7 @@ use criterion::{criterion_group, criterion_main, Criterion};
 use nsrm::chart::render_scene as render;
 use nsrm::chart::SceneOptions;
 use nsrm::chart::{read, CaptureFrame, ChartColours, ChartKind, ReadingOptions, Reference};
-use nsrm::io::{write_exr, Encoding, FileFormat, ReadOptions, WriteOptions, DEFAULT_ZIP_LEVEL};
+use nsrm::io::{Decoded, Encoding, FileFormat, ReadOptions, WriteOptions, DEFAULT_ZIP_LEVEL};
 use std::hint::black_box;
 use std::sync::Arc;
 use std::time::Duration;
@@ -30,16 +30,16 @@ fn chart(c: &mut Criterion) {
     g.warm_up_time(Duration::from_millis(500));
     g.measurement_time(Duration::from_secs(10));
     let dir = tempfile::tempdir().unwrap();
-    for (kind, refl, seed) in [
-        (ChartKind::Cc24, None, 3u64),
-        (ChartKind::Sg, Some(SG_SPECTRA), 5),
+    for (kind, reference, refl, seed) in [
+        (ChartKind::Cc24, "cc24-after2014", None, 3u64),
+        (ChartKind::Sg, "sg-after2014", Some(SG_SPECTRA), 5),
     ] {
         if refl.is_some_and(|p| !std::path::Path::new(p).exists()) {
             eprintln!("{SG_SPECTRA} not found: the SG bench is skipped");
             continue;
         }
         let colours = ChartColours::simulate(kind, "nikon-d5100", "D65", refl).unwrap();
-        let reference = Reference::load(kind.default_reference(), kind, None).unwrap();
+        let reference = Reference::load(reference, kind, None).unwrap();
         let opts = SceneOptions::envelope(&colours, WIDTH, HEIGHT, seed);
         let (frame, _, truth) = render(&colours, &opts).unwrap();
         let path = dir.path().join(format!("{}.exr", kind.name()));
@@ -52,9 +52,10 @@ fn chart(c: &mut Criterion) {
         };
         let session = nsrm::output::Session::new(true);
         let mut unit = session.unit();
-        write_exr(&frame, &path, &write, &mut unit).unwrap();
+        Decoded::from(frame)
+            .write(&path, &write, &mut unit)
+            .unwrap();
         unit.commit().unwrap();
-        drop(frame);
         let frame =
             Arc::new(CaptureFrame::open(&path, &ReadOptions::default(), Encoding::Linear).unwrap());
         let detected = ReadingOptions::default();

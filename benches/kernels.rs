@@ -63,21 +63,20 @@ fn kernels(c: &mut Criterion) {
         ..FitOptions::default()
     };
     let cases = [
-        ("hand", Kind::Lrm, 1, &plain),
-        ("hand", Kind::Prm, 3, &plain),
-        ("hand", Kind::Rprm, 3, &plain),
-        ("hand", Kind::Nsrm, 3, &plain),
-        ("plan", Kind::Prm, 2, &plain),
-        ("plan", Kind::Prm, 4, &plain),
-        ("plan", Kind::Rprm, 2, &plain),
-        ("plan", Kind::Rprm, 4, &plain),
-        ("plan", Kind::Nsrm, 2, &plain),
-        ("plan", Kind::Nsrm, 4, &plain),
-        ("plan", Kind::Nsrm, 2, &balanced),
+        ("hand", Kind::Lrm, 1, &plain, ""),
+        ("hand", Kind::Prm, 3, &plain, ""),
+        ("hand", Kind::Rprm, 3, &plain, ""),
+        ("hand", Kind::Nsrm, 3, &plain, ""),
+        ("plan", Kind::Prm, 2, &plain, ""),
+        ("plan", Kind::Prm, 4, &plain, ""),
+        ("plan", Kind::Rprm, 2, &plain, ""),
+        ("plan", Kind::Rprm, 4, &plain, ""),
+        ("plan", Kind::Nsrm, 2, &plain, ""),
+        ("plan", Kind::Nsrm, 4, &plain, ""),
+        ("plan", Kind::Nsrm, 2, &balanced, "wb"),
     ];
-    for (family, kind, order, opts) in cases {
+    for (family, kind, order, opts, wb) in cases {
         let model = fit_with(kind, order, &data, opts).unwrap().model;
-        let wb = if model.has_unit_gains() { "" } else { "wb" };
         for (name, pool) in pools {
             g.bench_function(format!("{family}/{}{order}{wb}/{name}", kind.name()), |b| {
                 b.iter_batched_ref(

@@ -1,6 +1,7 @@
 //! Chart capture, step by step: synthetic scenes with known truth, read back by corners and by
-//! detection, with the flat-field estimates. (Once `tests/all/chart.rs`; here since detection,
-//! extraction and the flat field are crate-private steps behind [`super::read`].)
+//! detection, with the flat-field estimates; the synthetic chart's layout file. (Once
+//! `tests/all/chart.rs` and a test of `tests/all/io.rs`; here since detection, extraction, the
+//! flat field and the layout file's reader are crate-private.)
 
 use super::detect::{detect, DetectOptions};
 use super::extract::{extract, verify, ExtractOptions, Extraction};
@@ -383,5 +384,71 @@ fn other_charts_and_random_grids_are_refused() {
     for f in [Family::Spyder, Family::Random, Family::Shuffled] {
         let (ok, _) = family_outcomes(f, 1..5);
         assert_eq!(ok, 0, "{}", f.name());
+    }
+}
+
+/// Runs writers on one unit of a fresh output session and commits it.
+fn committed(
+    overwrite: bool,
+    write: impl FnOnce(&mut crate::output::Unit) -> Result<(), crate::io::IoError>,
+) -> Result<(), crate::io::IoError> {
+    let session = crate::output::Session::new(overwrite);
+    let mut unit = session.unit();
+    write(&mut unit)?;
+    unit.commit()?;
+    Ok(())
+}
+
+/// The synthetic chart's frame and layout file (`render-chart`) read back as written.
+#[test]
+fn chart_layout_round_trips() {
+    use super::synthetic::{layout_path, render, write, ChartLayout, ChartOptions};
+    use crate::{simulate_named, Grid};
+    let data = simulate_named("nikon-d5100", "D65", "cc24", &Grid::default()).unwrap();
+    let (frame, layout) = render(
+        &data,
+        &ChartOptions {
+            patch_size: 10,
+            columns: Some(6),
+            noise: 0.001,
+            seed: 3,
+            ..Default::default()
+        },
+    )
+    .unwrap();
+    assert_eq!(layout.columns, 6);
+    let dir = tempfile::tempdir().unwrap();
+    for name in ["cc24.exr", "cc24_tiff.tif"] {
+        let path = dir.path().join(name);
+        committed(false, |u| write(&frame, &layout, &path, u)).unwrap();
+        let back = ChartLayout::read(&layout_path(&path)).unwrap();
+        // serde_json (without its float_roundtrip feature) may be 1 ulp off.
+        let close = |a: &[f64], b: &[f64]| {
+            a.iter()
+                .zip(b)
+                .all(|(x, y)| (x - y).abs() <= 1e-12 * x.abs().max(1.0))
+        };
+        assert_eq!(
+            (back.width, back.height, back.columns),
+            (layout.width, layout.height, 6)
+        );
+        assert!(close(&back.white_xyz, &layout.white_xyz));
+        assert_eq!(back.patches.len(), layout.patches.len());
+        for (b, l) in back.patches.iter().zip(&layout.patches) {
+            assert_eq!(
+                (&b.label, b.x, b.y, b.width, b.height),
+                (&l.label, l.x, l.y, l.width, l.height)
+            );
+            assert!(close(&b.rgb, &l.rgb) && close(&b.xyz, &l.xyz));
+        }
+        let f = crate::io::read_frame(&path, &crate::io::ReadOptions::default()).unwrap();
+        assert_eq!(f, frame);
+        for i in 0..layout.patches.len() {
+            let m = layout.patch_mean(&f, i);
+            for k in 0..3 {
+                assert!((m[k] - layout.patches[i].rgb[k]).abs() < 1e-3);
+            }
+        }
+        assert!(committed(false, |u| write(&frame, &layout, &path, u)).is_err());
     }
 }

@@ -3,7 +3,7 @@
 //! ([`CaptureFrame`]) → its [`Capture`]: the chart placed at given corners or found
 //! automatically, its patches read, uneven light compensated ([`FlatField`]), the result checked
 //! against the reference, then [`Capture::training_set`] for [`fit`](crate::fit)). Beside it,
-//! synthetic chart frames ([`render_chart`], [`write_chart`]) and rendered photographs
+//! synthetic chart frames ([`render_chart`]) and rendered photographs
 //! ([`render_scene`]) for tests and users. Detection, patch extraction, the flat-field estimate
 //! and the overlay picture are the crate's own steps behind [`read`].
 //!
@@ -37,14 +37,14 @@ pub(crate) mod reference;
 pub(crate) mod scene;
 pub(crate) mod synthetic;
 
-pub use capture::{read, Capture, CaptureError, CaptureFrame, FlatField, ReadingOptions};
-pub use detect::Candidate;
-pub use reference::Reference;
-pub use scene::{
-    render as render_scene, CameraLook, ChartColours, SceneOptions, SceneTruth, TruePatch,
-};
-pub use synthetic::{
-    layout_path, render as render_chart, write as write_chart, ChartLayout, ChartOptions, PatchRect,
+pub use self::{
+    capture::{read, Capture, CaptureError, CaptureFrame, FlatField, ReadingOptions},
+    detect::Candidate,
+    reference::Reference,
+    scene::{
+        render as render_scene, CameraLook, ChartColours, SceneOptions, SceneTruth, TruePatch,
+    },
+    synthetic::{render as render_chart, ChartLayout, ChartOptions, PatchRect},
 };
 
 #[cfg(test)]
@@ -229,7 +229,7 @@ impl ChartKind {
     }
 
     /// The built-in reference used when `--reference` is not given.
-    pub fn default_reference(self) -> &'static str {
+    pub(crate) fn default_reference(self) -> &'static str {
         match self {
             ChartKind::Cc24 => "cc24-after2014",
             ChartKind::Sg => "sg-after2014",

@@ -1,5 +1,5 @@
 //! The engine's crate-private parts (bench timing, the device choice with its reason), once in
-//! `tests/all/gpu.rs`. Without an adapter these tests print `SKIP: no GPU adapter ...` and pass,
+//! `gpu_tests.rs`. Without an adapter these tests print `SKIP: no GPU adapter ...` and pass,
 //! unless `CI=true`, where they fail.
 
 use super::{open, open_device, CpuReason, DeviceChoice, Engine, GpuError, GpuOptions, Opened};

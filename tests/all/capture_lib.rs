@@ -96,7 +96,7 @@ fn chart_extract_writes_what_the_library_reads() {
     let plain = read(&frame, &reference, &ReadingOptions::default()).unwrap();
     assert_eq!(lib_bytes(&plain), cli(&dir, &frame_path, "cc24", &[]));
     // The flat frame, decoded by the caller.
-    let flat = nsrm::io::read_frame(&dir.join("flat.exr"), &ReadOptions::default()).unwrap();
+    let flat = crate::common::read_frame(&dir.join("flat.exr"), &ReadOptions::default()).unwrap();
     let flat_read = read(
         &frame,
         &reference,

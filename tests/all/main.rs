@@ -17,8 +17,6 @@ mod cli_eval_fit;
 mod cli_fit_variants;
 mod common;
 #[cfg(feature = "cli")]
-mod export_dctl;
-#[cfg(feature = "cli")]
 mod export_ocio;
 #[cfg(feature = "io")]
 mod exr_fast;
@@ -32,8 +30,6 @@ mod fit_hostile;
 #[cfg(feature = "cli")]
 mod fit_two_illuminants;
 mod fit_variants;
-#[cfg(all(feature = "gpu", feature = "io"))]
-mod gpu;
 #[cfg(feature = "cli")]
 mod gpu_export;
 #[cfg(feature = "cli")]

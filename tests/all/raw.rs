@@ -5,9 +5,10 @@
 //! DNG in `../shared/data` must give LibRaw's half-size chart reading. Bad raw files give clear
 //! errors, write nothing and never end a `--continue-on-error` batch.
 
+use crate::common::read_frame;
 use crate::common::{self, no_crash, nsrm_in, stderr};
 use nsrm::io::Demosaic;
-use nsrm::io::{read_frame, Limits, ReadOptions};
+use nsrm::io::{Limits, ReadOptions};
 use std::ffi::{OsStr, OsString};
 use std::path::{Path, PathBuf};
 use std::process::Command;
@@ -367,7 +368,7 @@ fn apply_on_a_raw_file_writes_exr_with_the_camera_in_its_header() {
         }
         v => panic!("nsrmAsShotNeutral: {v:?}"),
     }
-    let ours = nsrm::io::read_frame(&exr, &ReadOptions::default()).unwrap();
+    let ours = crate::common::read_frame(&exr, &ReadOptions::default()).unwrap();
     assert!(ours.data.iter().all(|v| v.is_finite()));
 }
 

@@ -159,7 +159,7 @@ pub(crate) fn region_moments(mask: &[u8], w: usize, h: usize) -> Vec<[f64; 6]> {
         let n = b - a;
         // Σ over x in a..b of (2x + 1) = b² − a²; of (2x + 1)² = F(b) − F(a), F(m) = m(4m² − 1)/3.
         let odd = b * b - a * a;
-        let f = |m: u64| m * (4 * m * m - 1) / 3;
+        let f = |m: u64| m * (4 * m * m).saturating_sub(1) / 3;
         let s = &mut sums[label[r]];
         s[0] += n;
         s[1] += odd;

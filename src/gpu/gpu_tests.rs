@@ -17,7 +17,6 @@
 use crate::gpu::{self, Corrector, Engine, GpuError, GpuOptions, Target, TexelFormat};
 use crate::{fit, Kind, Model, MAX_ORDER};
 use crate::{fit_with, FitOptions, Normalise};
-use crate::{simulate_named, Grid};
 use crate::{Frame, Layout};
 
 /// The embedding example, for its functions (chart → Corrector pass → display pass → RGBA8).
@@ -592,7 +591,7 @@ fn read_buffer(dev: &wgpu::Device, queue: &wgpu::Queue, buf: &wgpu::Buffer) -> V
 fn embed_demo_png_matches_the_cpu_path() {
     let Some(e) = engine(None) else { return };
     let ctx = e.context();
-    let data = simulate_named("nikon-d5100", "D65", "cc24", &Grid::default()).unwrap();
+    let data = crate::kit::simulated("D65", "cc24");
     let m = fit(Kind::Nsrm, 3, &data).unwrap();
     let frame = embed::chart_frame(&data, 6, 8);
     assert_eq!((frame.width, frame.height), (48, 32));

@@ -30,7 +30,7 @@ const REL_TOL: f64 = 1e-5;
 
 /// The engine, or `None` (after one loud line) when there is no adapter; with `CI=true` a
 /// missing adapter fails the test.
-fn engine(tile_pixels: Option<usize>) -> Option<Engine> {
+pub(super) fn engine(tile_pixels: Option<usize>) -> Option<Engine> {
     let opts = GpuOptions {
         adapter: None,
         tile_pixels,

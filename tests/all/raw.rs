@@ -196,6 +196,95 @@ fn bilinear_matches_libraw_linear_in_the_interior() {
     }
 }
 
+/// LibRaw's decode of `dng` with its orientation applied (`raw_judge.py linear --flip`,
+/// `--half` for the half-size decode): (width, height, RGB in [0, 1]).
+fn libraw_oriented(dng: &Path, out: &Path, half: bool) -> (usize, usize, Vec<f32>) {
+    let mut cmd = Command::new("python3");
+    cmd.arg(JUDGE).arg("linear").arg(dng).arg(out).arg("--flip");
+    if half {
+        cmd.arg("--half");
+    }
+    let o = cmd.output().expect("running python3");
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let dims: Vec<usize> = String::from_utf8_lossy(&o.stdout)
+        .split_whitespace()
+        .map(|v| v.parse().unwrap())
+        .collect();
+    (dims[0], dims[1], f32s(out))
+}
+
+/// The file's orientation is applied as LibRaw applies it by default (`dcraw_emu`, rawpy's
+/// `postprocess`), in every demosaic: one mosaic written with each TIFF Orientation 1–8 reads
+/// as LibRaw reads it — size, and pixels (bilinear in the interior, half everywhere) — and the
+/// real Canon DNG keeps LibRaw's size.
+#[test]
+fn orientation_is_applied_as_libraw_applies_it() {
+    if !judge_available() {
+        return;
+    }
+    let dir = common::tempdir("raw-orientation");
+    for o in 1..=8u16 {
+        let p = dir.join(format!("o{o}.dng"));
+        let os = o.to_string();
+        write_dng(
+            &p,
+            &[
+                "--width",
+                "40",
+                "--height",
+                "30",
+                "--pattern",
+                "GRBG",
+                "--black",
+                "256,260,250,262",
+                "--white",
+                "16383",
+                "--seed",
+                "5",
+                "--smooth",
+                "--orientation",
+                &os,
+            ],
+        );
+        for (demosaic, half, margin) in [(Demosaic::Bilinear, false, 2), (Demosaic::Half, true, 0)]
+        {
+            let (w, h, libraw) = libraw_oriented(&p, &dir.join(format!("o{o}-{half}.f32")), half);
+            let f = read(&p, demosaic);
+            assert_eq!(
+                (f.width, f.height),
+                (w, h),
+                "orientation {o}, {demosaic:?}: size"
+            );
+            if o >= 5 {
+                assert_eq!(
+                    (w, h),
+                    if half { (15, 20) } else { (30, 40) },
+                    "LibRaw turned it"
+                );
+            }
+            let mut worst = 0f32;
+            for y in margin..h - margin {
+                for x in margin..w - margin {
+                    for c in 0..3 {
+                        let k = (y * w + x) * 3 + c;
+                        worst = worst.max((f.data[k] - libraw[k]).abs());
+                    }
+                }
+            }
+            assert!(
+                worst <= 2.5 / 65535.0,
+                "orientation {o}, {demosaic:?}: largest difference {worst}"
+            );
+        }
+    }
+    let dng = chart_dng();
+    if dng.exists() {
+        let (w, h, _) = libraw_oriented(&dng, &dir.join("chart.f32"), true);
+        let f = read(&dng, Demosaic::Half);
+        assert_eq!((f.width, f.height), (w, h), "colorchart.dng, half");
+    }
+}
+
 /// Patch readings of `nsrm chart extract` (label → RGB).
 fn extract(dir: &Path, frame: &Path, extra: &[&str]) -> Vec<(String, [f64; 3])> {
     let csv = dir.join(format!(

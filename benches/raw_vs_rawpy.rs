@@ -5,7 +5,7 @@
 //! Needs python3 with rawpy, tifffile and numpy (.ci/install.d/20-libraw.sh).
 
 use nsrm::io::Demosaic;
-use nsrm::io::{read_frame, ReadOptions};
+use nsrm::io::{Decoded, ReadOptions};
 use std::path::PathBuf;
 use std::process::Command;
 use std::time::Instant;
@@ -51,13 +51,17 @@ fn main() {
             demosaic: d,
             ..Default::default()
         };
-        let f = read_frame(&path, &opts).expect("decoding");
+        let f = Decoded::read(&path, &opts)
+            .map(Decoded::into_frame)
+            .expect("decoding");
         let px = f.pixels();
         drop(f);
         let ts: Vec<f64> = (0..repeat)
             .map(|_| {
                 let t = Instant::now();
-                let f = read_frame(&path, &opts).unwrap();
+                let f = Decoded::read(&path, &opts)
+                    .map(Decoded::into_frame)
+                    .unwrap();
                 let s = t.elapsed().as_secs_f64();
                 drop(f);
                 s

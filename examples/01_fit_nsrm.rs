@@ -15,8 +15,12 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         model.order(),
         model.term_names()
     );
-    for i in 0..3 {
-        println!("  {}: {:?}", ["α", "β", "γ"][i], model.row(i));
+    let terms = model.matrix().len() / 3;
+    for (name, row) in ["α", "β", "γ"]
+        .iter()
+        .zip(model.matrix().chunks_exact(terms))
+    {
+        println!("  {name}: {row:?}");
     }
     // Correct the first patch, and the same patch one stop brighter (NSRM scales exactly).
     let rgb = data.rgb[0];

@@ -115,7 +115,22 @@ pub fn chart_frame(data: &TrainingSet, cols: usize, patch: usize) -> Frame {
 /// The model's XYZ (its white at `Y = white_xyz[1]`) → linear sRGB with the white at 1, the white
 /// adapted to D65: the display matrix, on the CPU and in the display shader's uniform.
 fn xyz_to_display(model: &Model) -> [[f64; 3]; 3] {
-    nsrm::output_matrix(model.white_xyz(), OutputSpace::LinearSrgb)
+    let white = model.white_xyz();
+    OutputSpace::LinearSrgb
+        .from_xyz(white)
+        .map(|row| row.map(|v| v / white[1]))
+}
+
+/// A linear value as an 8-bit sRGB code (IEC 61966-2-1): clipped to `[0, 1]`, encoded, rounded;
+/// NaN is 0.
+fn srgb8(v: f64) -> u8 {
+    let v = if v.is_nan() { 0.0 } else { v.clamp(0.0, 1.0) };
+    let e = if v <= 0.003_130_8 {
+        12.92 * v
+    } else {
+        1.055 * v.powf(1.0 / 2.4) - 0.055
+    };
+    (e * 255.0).round() as u8
 }
 
 /// The same picture on the CPU: the f64 reference (rounded to f32, as the GPU's XYZ texture
@@ -128,7 +143,7 @@ pub fn cpu_srgb8(model: &Model, frame: &Frame) -> Vec<u8> {
         let xyz = model.apply_f64([px[0], px[1], px[2]].map(f64::from));
         let xyz = xyz.map(|v| f64::from(v as f32));
         let rgb = m.map(|row| row[0] * xyz[0] + row[1] * xyz[1] + row[2] * xyz[2]);
-        out.extend(rgb.map(nsrm::srgb8));
+        out.extend(rgb.map(srgb8));
         out.push(255);
     }
     out

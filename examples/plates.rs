@@ -12,7 +12,7 @@
 //! 24-Mpixel float plates take about 1.1 GB.
 
 use anyhow::{bail, Context, Result};
-use nsrm::io::{write_exr, ExrCompression, FileFormat, WriteOptions, DEFAULT_ZIP_LEVEL};
+use nsrm::io::{Decoded, ExrCompression, FileFormat, WriteOptions, DEFAULT_ZIP_LEVEL};
 use nsrm::OutputSpace;
 use nsrm::{Frame, Layout};
 use std::path::PathBuf;
@@ -29,8 +29,13 @@ fn main() -> Result<()> {
         .and_then(|(w, h)| Some((w.parse::<usize>().ok()?, h.parse::<usize>().ok()?)))
         .context("WxH")?;
     let compression = args.get(3).map_or("zip", String::as_str);
-    let Some(compression) = ExrCompression::parse(compression) else {
-        bail!("unknown compression `{compression}`");
+    let compression = match compression {
+        "none" => ExrCompression::None,
+        "rle" => ExrCompression::Rle,
+        "zips" => ExrCompression::Zips,
+        "zip" => ExrCompression::Zip,
+        "piz" => ExrCompression::Piz,
+        other => bail!("unknown compression `{other}`"),
     };
     std::fs::create_dir_all(&dir).with_context(|| format!("creating {}", dir.display()))?;
     let session = nsrm::output::Session::new(true);
@@ -45,7 +50,8 @@ fn main() -> Result<()> {
             zip_level: DEFAULT_ZIP_LEVEL,
         };
         let mut unit = session.unit();
-        write_exr(&frame, &path, &opts, &mut unit)
+        Decoded::from(frame)
+            .write(&path, &opts, &mut unit)
             .with_context(|| format!("writing {}", path.display()))?;
         unit.commit()?;
         println!("{}", path.display());

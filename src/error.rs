@@ -33,7 +33,7 @@ pub enum Param {
     ReferenceWhite,
     /// The reflectance spectra of a chart (`chart::ChartColours::simulate`).
     Reflectances,
-    /// A capture's white (clipping) level (`chart::ExtractOptions::white_level`).
+    /// A capture's white (clipping) level (`chart::ReadingOptions::white_level`).
     WhiteLevel,
     /// The neutral patch a fit takes its white from (`model::White::Patch`).
     WhitePatch,

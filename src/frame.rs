@@ -18,20 +18,22 @@ impl Layout {
         }
     }
 
-    /// `rgb` or `rgba`.
-    pub fn name(self) -> &'static str {
-        match self {
-            Layout::Rgb => "rgb",
-            Layout::Rgba => "rgba",
-        }
-    }
-
-    /// Parses `rgb` / `rgba`.
-    pub fn parse(s: &str) -> Option<Layout> {
+    /// Parses `rgb` / `rgba` (the unit test of the command line's `--layout` values holds them
+    /// to it).
+    #[cfg(test)]
+    pub(crate) fn parse(s: &str) -> Option<Layout> {
         match s.to_ascii_lowercase().as_str() {
             "rgb" => Some(Layout::Rgb),
             "rgba" => Some(Layout::Rgba),
             _ => None,
+        }
+    }
+
+    /// `rgb` or `rgba`.
+    pub(crate) fn name(self) -> &'static str {
+        match self {
+            Layout::Rgb => "rgb",
+            Layout::Rgba => "rgba",
         }
     }
 }

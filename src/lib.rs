@@ -30,7 +30,8 @@
 //! The colour-science core is one flat list of items at the crate root (below, grouped as the
 //! documentation lists them): frames, models (fit, file, apply), dual-illuminant profiles,
 //! colorimetry, spectral simulation, training sets and evaluation. The rooms behind optional
-//! features are modules, each with its own flat list: [`gpu`], `io`, `chart`, `export`, `farm`.
+//! features are modules, each with its own flat list: [`gpu`], `io`, `chart`, `export` (`farm`
+//! adds commands to the binary, no library API).
 //!
 //! # Applying a model: one way per back end
 //! | back end | the way | notes |
@@ -55,7 +56,7 @@
 //! | `export` | `export`: LUTs and profiles other tools read (CLF, `.cube`, OCIO, DCTL, DCP); with `gpu` also the baked shaders in WGSL, SPIR-V, GLSL, HLSL and MSL (naga's back ends) |
 //! | `plot` | `plot_histograms`: the paper's Fig. 1 as SVG or PNG |
 //! | `chart` | chart detection in captured frames, synthetic chart frames and scenes; implies `io` |
-//! | `farm` | `farm`: per-shard manifests, their verification, path mapping, farm job files; implies `io` |
+//! | `farm` | for the binary: per-shard manifests, their verification, path mapping, farm job files; implies `io` |
 //! | `cli` (default) | the `nsrm` binary; implies all of the above |
 //!
 //! A renderer embeds the correction pass with
@@ -78,18 +79,21 @@ pub mod chart;
 pub mod cli;
 mod colorimetry;
 pub mod csv_table;
-pub mod error;
+// `Param` and `Concern` are public through the `io` and `chart` errors (re-exported by `io`);
+// a build without `io` only uses them inside the crate.
+#[cfg_attr(not(feature = "io"), allow(unreachable_pub))]
+mod error;
 mod eval;
 #[cfg(feature = "export")]
 pub mod export;
 #[cfg(feature = "farm")]
-pub mod farm;
+mod farm;
 mod frame;
 #[cfg(feature = "gpu")]
 pub mod gpu;
 #[cfg(feature = "io")]
 pub mod io;
-pub mod limits;
+mod limits;
 mod model;
 pub mod output;
 mod spectral;
@@ -105,34 +109,36 @@ extern crate self as nsrm;
 #[allow(unreachable_pub, dead_code)]
 mod kit;
 
+// The colour-science core, one line per room (the names grouped as the documentation lists them).
 // Frames: the pixels every apply path takes.
 pub use frame::{Frame, Layout};
-
-// Models: kinds, fitting, the model file, applying on the CPU.
-pub use model::fit::{fit_with, Fit, FitOptions, FitReport, F32_TOLERANCE_DE00};
-pub use model::fit::{Normalise, Objective, Ridge, White as FitWhite};
-pub use model::output::output_model;
-pub use model::terms::MAX_ORDER;
-pub use model::{fit, Kind, Model, ModelError};
-
-// Dual-illuminant profiles: two models interpolated by the frame's white, as DNG does.
-pub use model::dual_illuminant::{Combination, FrameWhite, Profile};
-
-// Colorimetry: Lab, ΔE00, output spaces, colour temperature.
-pub use colorimetry::output::{output_matrix, srgb8, srgb_oetf};
-pub use colorimetry::spaces::{Mat3, OutputSpace};
-pub use colorimetry::temperature::{
-    bradford_between, cct, temperature_xy, TemperatureError, D50_XY,
+// Models: kinds, fitting, the model file, applying on the CPU, the output space folded in; and
+// dual-illuminant profiles (two models interpolated by the frame's white, as DNG does).
+pub use model::{
+    dual_illuminant::{Combination, FrameWhite, Profile},
+    fit,
+    fit::F32_TOLERANCE_DE00,
+    fit::{fit_with, Fit, FitOptions, FitReport, Normalise, Objective, Ridge, White as FitWhite},
+    output::output_model,
+    terms::MAX_ORDER,
+    Kind, Model, ModelError,
 };
-pub use colorimetry::{ciede2000, delta_e00_xyz, xyz_to_lab, D65_WHITE_XYZ};
-
+// Colorimetry: Lab, ΔE00, output spaces.
+pub use colorimetry::{
+    ciede2000, delta_e00_xyz,
+    spaces::OutputSpace,
+    temperature::{bradford_between, D50_XY},
+    xyz_to_lab, D65_WHITE_XYZ,
+};
 // Spectral simulation: camera × illuminant × reflectances on a wavelength grid.
-pub use spectral::SpectralError;
-pub use spectral::{simulate, simulate_named, Camera, Grid, Illuminant, Reflectances};
-
+pub use spectral::{
+    simulate, simulate_named, Camera, Grid, Illuminant, Reflectances, SpectralError,
+};
 // Training sets: patches with camera RGB and reference XYZ, and their white.
-pub use training::{parse_white, CaptureProvenance, Provenance, TrainingError, TrainingSet};
-
+pub use crate::{
+    training::{parse_white, TrainingError},
+    training_set::{CaptureProvenance, Provenance, TrainingSet},
+};
 // Evaluation: leave-one-out and in-sample ΔE00 statistics.
 #[cfg(feature = "plot")]
 pub use eval::plot::{histograms as plot_histograms, PlotError};

@@ -23,10 +23,9 @@
 //! session.output(&lut)?;
 //! session.output(&report)?;
 //! assert!(session.output(&model).is_err()); // would replace an input
-//! // 3. The binary lets its signal handler hold the session's abort handle
-//! //    (`signal_hook::flag::register(SIGTERM, handle.flag())`, or a thread calling
-//! //    `handle.abort()`, which also removes the run's temporaries).
-//! let handle = session.abort_handle();
+//! // 3. The signal handler holds the session's abort handle: a thread waiting for the signal
+//! //    calls `handle.abort()`, which stops every write and removes the run's temporaries.
+//! let _handle = session.abort_handle();
 //! // 4. The work; then the outputs that belong together are written into one unit (each into a
 //! //    fresh temporary beside its destination) and committed together: all appear or none,
 //! //    and a file that `overwrite` replaced is put back if a later one fails.
@@ -34,7 +33,7 @@
 //! unit.write_bytes(&lut, b"LUT_3D_SIZE 2\n")?;
 //! unit.write_bytes(&report, b"{}")?;
 //! unit.commit()?;
-//! assert!(lut.exists() && report.exists() && !handle.is_aborted());
+//! assert!(lut.exists() && report.exists());
 //! # Ok(()) }
 //! ```
 //!
@@ -162,7 +161,7 @@ impl AbortHandle {
     /// The abort flag, for `signal_hook::flag::register`: once set, writes fail at their next
     /// buffer write and nothing more is committed (temporaries are then removed by
     /// the session's clean-up or when their unit is dropped).
-    pub fn flag(&self) -> Arc<AtomicBool> {
+    pub(crate) fn flag(&self) -> Arc<AtomicBool> {
         Arc::clone(&self.shared.abort)
     }
 
@@ -175,11 +174,6 @@ impl AbortHandle {
         let n = remove_all(&mut temps);
         self.shared.unmake_dirs();
         n
-    }
-
-    /// Whether the session was aborted.
-    pub fn is_aborted(&self) -> bool {
-        self.shared.aborted()
     }
 }
 
@@ -358,7 +352,7 @@ impl Session {
     }
 
     /// Writes one output on its own: a unit holding just `dest`, committed.
-    pub fn write_bytes(&self, dest: &Path, bytes: &[u8]) -> Result<(), WriteError> {
+    pub(crate) fn write_bytes(&self, dest: &Path, bytes: &[u8]) -> Result<(), WriteError> {
         let mut unit = self.unit();
         unit.write_bytes(dest, bytes)?;
         unit.commit()
@@ -443,7 +437,7 @@ pub(crate) fn is_temp_name(name: &OsStr) -> bool {
 /// The temporaries of this crate's form in `dir` (not recursive), sorted. Left behind by a run
 /// that was killed (SIGKILL, power loss); a running `nsrm` elsewhere may also own some, so they
 /// are reported, never removed.
-pub fn stale_temporaries(dir: &Path) -> Vec<PathBuf> {
+pub(crate) fn stale_temporaries(dir: &Path) -> Vec<PathBuf> {
     let mut found: Vec<PathBuf> = std::fs::read_dir(dir)
         .into_iter()
         .flatten()

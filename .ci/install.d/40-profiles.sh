@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
-# Judges of the camera-profile exports (tests/all/profiles.rs): RawTherapee develops a DNG with a
-# DCP, lcms' transicc and ArgyllCMS' xicclu apply ICC profiles, exiftool lists DCP tags,
-# colour-hdri (with tifffile and numpy) judges the two-illuminant weighting and writes test DNGs.
+# Judges of the camera-profile exports (tests/all/profiles*.rs, icc.rs and
+# src/model/dual_illuminant_tests.rs): RawTherapee develops a DNG with a DCP, lcms' transicc and
+# ArgyllCMS' xicclu apply ICC profiles, exiftool lists DCP tags, colour-hdri (with tifffile and
+# numpy) judges the two-illuminant weighting and writes test DNGs.
 set -euo pipefail
 need=()
 command -v rawtherapee-cli >/dev/null || need+=(rawtherapee)

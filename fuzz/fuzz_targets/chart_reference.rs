@@ -4,7 +4,7 @@
 #![no_main]
 
 use libfuzzer_sys::fuzz_target;
-use nsrm::chart::{d50_white, ChartKind, Reference};
+use nsrm::chart::{ChartKind, Reference};
 
 fuzz_target!(|data: &[u8]| {
     let Some((&pick, body)) = data.split_first() else {
@@ -16,7 +16,8 @@ fuzz_target!(|data: &[u8]| {
     } else {
         ChartKind::Sg
     };
-    let white = (pick & 4 != 0).then(d50_white);
+    // A white given (any plausible one: D65) or the files' default (D50).
+    let white = (pick & 4 != 0).then_some(nsrm::D65_WHITE_XYZ);
     let path = std::env::temp_dir().join(format!("nsrm-fuzz-{}.{ext}", std::process::id()));
     if std::fs::write(&path, body).is_err() {
         return;

@@ -111,13 +111,13 @@ pub struct CaptureFrame {
 
 impl CaptureFrame {
     /// Reads `path` for chart reading and hashes its bytes: JPEG, PNG and 8-bit TIFF as display
-    /// encodings (decoded per `encoding`), anything else through [`crate::io::read_frame`].
+    /// encodings (decoded per `encoding`), anything else through [`crate::io::Decoded::read`].
     ///
     /// For a camera raw file, chart readers want `opts.demosaic` = [`Demosaic::Half`] (one pixel
     /// per CFA block, no interpolation; what `nsrm chart extract` uses); [`ReadOptions`]'s
     /// default is the full-resolution demosaic that correcting frames uses.
     ///
-    /// [`Demosaic::Half`]: crate::io::raw::Demosaic::Half
+    /// [`Demosaic::Half`]: crate::io::Demosaic::Half
     /// [`ReadOptions`]: crate::io::ReadOptions
     pub fn open(
         path: &Path,
@@ -144,7 +144,7 @@ impl CaptureFrame {
     }
 
     /// The decoded pixels.
-    pub fn frame(&self) -> &Frame {
+    pub(crate) fn frame(&self) -> &Frame {
         &self.decoded.frame
     }
 }
@@ -198,12 +198,13 @@ pub struct Capture {
     pub frame: Arc<CaptureFrame>,
     /// The reference the patches were read against.
     pub reference: Reference,
-    /// The patches as read (after flat-field compensation when asked for).
-    pub extraction: Extraction,
+    /// The patches as read (after flat-field compensation when asked for): in
+    /// [`report`](Self::report), the usable ones in [`to_csv`](Self::to_csv).
+    pub(crate) extraction: Extraction,
     /// How the chart was found; `None` when read at given corners.
-    pub detection: Option<Detection>,
+    pub(crate) detection: Option<Detection>,
     /// The light compensation applied; `None` when none was asked for.
-    pub flat: Option<Flat>,
+    pub(crate) flat: Option<Flat>,
     /// Median ΔE00 of the reading against the reference (after a linear fit).
     pub score: f64,
 }
@@ -282,7 +283,7 @@ impl Capture {
     }
 
     /// `make model` of a camera raw frame.
-    pub fn camera(&self) -> Option<String> {
+    pub(crate) fn camera(&self) -> Option<String> {
         self.frame.decoded.camera.as_ref().map(|c| c.camera())
     }
 
@@ -348,6 +349,13 @@ impl Capture {
             ChartKind::Cc24 => ChartKind::Sg,
             ChartKind::Sg => ChartKind::Cc24,
         })
+    }
+
+    /// The training CSV of the reading (what `nsrm chart extract -o` writes and `--training`
+    /// reads): the unflagged patches' camera RGB and reference XYZ, after two comment lines (what
+    /// the file is, and `# white: X,Y,Z`, the reference's white).
+    pub fn to_csv(&self) -> String {
+        self.extraction.to_csv(&self.reference)
     }
 
     /// The full report (`nsrm-chart-reading` version 1).

@@ -81,11 +81,11 @@ pub(crate) fn perspective(kind: super::ChartKind, h: &Homography) -> f64 {
 
 /// How detection works.
 #[derive(Debug, Clone, PartialEq)]
-pub struct DetectOptions {
+pub(crate) struct DetectOptions {
     /// Long side of the downsampled image searched.
-    pub max_side: usize,
+    pub(crate) max_side: usize,
     /// Largest gradient (log units per pixel) of a flat pixel.
-    pub flat_threshold: f32,
+    pub(crate) flat_threshold: f32,
 }
 
 impl Default for DetectOptions {
@@ -110,32 +110,32 @@ pub struct Candidate {
 
 /// A found chart.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-pub struct Detection {
+pub(crate) struct Detection {
     /// Chart coordinates → frame pixels.
-    pub homography: Homography,
+    pub(crate) homography: Homography,
     /// Median ΔE00 of the best placement and of the next best.
-    pub score: f64,
+    pub(crate) score: f64,
     /// Median ΔE00 of the next best placement.
-    pub runner_up: f64,
+    pub(crate) runner_up: f64,
     /// Patches linked into the lattice.
-    pub lattice: usize,
+    pub(crate) lattice: usize,
     /// Perspective strength: the largest over the smallest local patch scale over the cells.
-    pub perspective: f64,
+    pub(crate) perspective: f64,
     /// Mirrored (the frame shows the chart's mirror image) — unusual; reported for the user.
-    pub mirrored: bool,
+    pub(crate) mirrored: bool,
     /// The factor the frame was box-downsampled by before the search.
-    pub downsample: usize,
+    pub(crate) downsample: usize,
     /// Every candidate patch region looked at.
-    pub candidates: Vec<Candidate>,
+    pub(crate) candidates: Vec<Candidate>,
 }
 
 /// Why no chart was found, and what was looked at.
 #[derive(Debug)]
-pub struct DetectFailure {
+pub(crate) struct DetectFailure {
     /// Why no chart was found.
-    pub error: ChartError,
+    pub(crate) error: ChartError,
     /// Every candidate patch region looked at.
-    pub candidates: Vec<Candidate>,
+    pub(crate) candidates: Vec<Candidate>,
 }
 
 struct Blob {
@@ -654,7 +654,7 @@ fn judge(
 }
 
 /// Finds the chart of `reference` in `frame`.
-pub fn detect(
+pub(crate) fn detect(
     frame: &Frame,
     reference: &Reference,
     opts: &DetectOptions,

@@ -25,32 +25,32 @@ use serde::{Deserialize, Serialize};
 
 /// How patches are read.
 #[derive(Debug, Clone, PartialEq)]
-pub struct ExtractOptions {
+pub(crate) struct ExtractOptions {
     /// Side of the sampled square as a fraction of the patch side (default 0.5).
-    pub sample_fraction: f64,
+    pub(crate) sample_fraction: f64,
     /// Fraction of the sampled pixels dropped at each end per channel for the robust
     /// mean (default 0.1).
-    pub trim: f64,
+    pub(crate) trim: f64,
     /// The sensor's clipping level; `None`: inferred from the frame.
-    pub white_level: Option<f64>,
+    pub(crate) white_level: Option<f64>,
     /// A patch is `dark` below this fraction of the white level (default 1e-3).
-    pub dark_fraction: f64,
+    pub(crate) dark_fraction: f64,
     /// A patch is `nonuniform` when a quadrant's mean differs from the patch mean by more
     /// than this fraction (default 0.04).
-    pub nonuniform: f64,
+    pub(crate) nonuniform: f64,
     /// The integer encoding the frame was decoded from, if any: a quadrant must then differ by
     /// more than one code step of it to count as non-uniform (dark channels of an 8-bit JPEG
     /// are a few codes, whose steps are tens of percent of their value).
-    pub quantisation: Option<Quantisation>,
+    pub(crate) quantisation: Option<Quantisation>,
 }
 
 /// An integer encoding that values were decoded from.
 #[derive(Debug, Clone, Copy, PartialEq)]
-pub struct Quantisation {
+pub(crate) struct Quantisation {
     /// The largest code (255 for 8 bits).
-    pub max_code: f64,
+    pub(crate) max_code: f64,
     /// Codes are sRGB-encoded (else linear).
-    pub srgb: bool,
+    pub(crate) srgb: bool,
 }
 
 impl Quantisation {
@@ -104,7 +104,7 @@ impl Default for ExtractOptions {
 /// Why a patch is not used.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "lowercase")]
-pub enum Flag {
+pub(crate) enum Flag {
     /// A channel reaches the white level.
     Clipped,
     /// Too dark to read (see [`ExtractOptions::dark_fraction`]).
@@ -125,52 +125,52 @@ impl Flag {
 
 /// One patch as read.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-pub struct PatchReading {
+pub(crate) struct PatchReading {
     /// The patch label (`01 dark skin`, `A1`, …).
-    pub label: String,
+    pub(crate) label: String,
     /// Robust mean camera RGB (after flat-field compensation when one was applied).
-    pub rgb: [f64; 3],
+    pub(crate) rgb: [f64; 3],
     /// Standard deviation of the sampled pixels, per channel.
-    pub std: [f64; 3],
+    pub(crate) std: [f64; 3],
     /// Pixels sampled.
-    pub count: usize,
+    pub(crate) count: usize,
     /// Why the patch is not used; empty when it is.
-    pub flags: Vec<Flag>,
+    pub(crate) flags: Vec<Flag>,
     /// Reference XYZ (perfect white Y = 100).
-    pub xyz: [f64; 3],
+    pub(crate) xyz: [f64; 3],
     /// Centre of the sampled area in the frame (pixels).
-    pub centre: [f64; 2],
+    pub(crate) centre: [f64; 2],
     /// Corners of the sampled area in the frame (pixels).
-    pub outline: [[f64; 2]; 4],
+    pub(crate) outline: [[f64; 2]; 4],
     /// Flat-field factor divided out (1 without compensation).
-    pub flat: f64,
+    pub(crate) flat: f64,
 }
 
 impl PatchReading {
     /// True when no flag is set: the patch goes into the training data.
-    pub fn usable(&self) -> bool {
+    pub(crate) fn usable(&self) -> bool {
         self.flags.is_empty()
     }
 }
 
 /// The patches of one chart in a frame.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-pub struct Extraction {
+pub(crate) struct Extraction {
     /// The chart read.
-    pub chart: ChartKind,
+    pub(crate) chart: ChartKind,
     /// Chart coordinates → frame pixels.
-    pub homography: Homography,
+    pub(crate) homography: Homography,
     /// The clipping level used, if one was known or inferred.
-    pub white_level: Option<f64>,
+    pub(crate) white_level: Option<f64>,
     /// Whether the white level was inferred from the frame (not given).
-    pub white_level_inferred: bool,
+    pub(crate) white_level_inferred: bool,
     /// Every patch, in the chart's reading order.
-    pub patches: Vec<PatchReading>,
+    pub(crate) patches: Vec<PatchReading>,
 }
 
 impl Extraction {
     /// Labels of the flagged patches, with their flags.
-    pub fn flagged(&self) -> Vec<String> {
+    pub(crate) fn flagged(&self) -> Vec<String> {
         self.patches
             .iter()
             .filter(|p| !p.usable())
@@ -182,7 +182,7 @@ impl Extraction {
     }
 
     /// The unflagged patches as training data (`label,R,G,B,X,Y,Z`).
-    pub fn training_set(&self, reference: &Reference) -> crate::training::TrainingSet {
+    pub(crate) fn training_set(&self, reference: &Reference) -> crate::training::TrainingSet {
         let ok: Vec<&PatchReading> = self.patches.iter().filter(|p| p.usable()).collect();
         crate::training::TrainingSet {
             labels: ok.iter().map(|p| p.label.clone()).collect(),
@@ -202,7 +202,7 @@ impl Extraction {
     /// The CSV that `--training` reads: unflagged patches only, after two comment lines: what
     /// the file is, and `# white: X,Y,Z` — the reference's white, which its X,Y,Z are relative
     /// to (read back by [`crate::training::TrainingSet::read_measured`], exactly).
-    pub fn to_csv(&self, reference: &Reference) -> String {
+    pub(crate) fn to_csv(&self, reference: &Reference) -> String {
         let mut s = format!(
             "# nsrm chart patches: linear camera R,G,B and reference X,Y,Z ({}; perfect white Y = 100)\n{}label,R,G,B,X,Y,Z\n",
             reference.name.replace(|c: char| c.is_control(), "?"),
@@ -342,7 +342,7 @@ pub(crate) fn sample_side(kind: ChartKind, opts: &ExtractOptions) -> f64 {
 }
 
 /// Reads every patch of the chart that `h` (chart → frame pixels) places in `frame`.
-pub fn extract(
+pub(crate) fn extract(
     frame: &Frame,
     reference: &Reference,
     h: &Homography,
@@ -694,7 +694,7 @@ pub(crate) fn linearise(
 
 /// Checks that the usable patches match the reference (the better of a linear fit and a
 /// tone-tolerant fit to it); the median ΔE00.
-pub fn verify(ex: &Extraction, reference: &Reference) -> Result<f64, ChartError> {
+pub(crate) fn verify(ex: &Extraction, reference: &Reference) -> Result<f64, ChartError> {
     let rgb: Vec<Option<[f64; 3]>> = ex
         .patches
         .iter()

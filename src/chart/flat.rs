@@ -21,15 +21,15 @@ use crate::frame::Frame;
 
 /// Light factors per patch (per channel), to divide the readings by.
 #[derive(Debug, Clone, PartialEq)]
-pub struct Flat {
+pub(crate) struct Flat {
     /// `flat` or `neutrals`.
-    pub method: String,
+    pub(crate) method: String,
     /// The factor per patch and channel (mean 1 per channel).
-    pub factors: Vec<[f64; 3]>,
+    pub(crate) factors: Vec<[f64; 3]>,
     /// max / min of the (green) factor over the patches.
-    pub nonuniformity: f64,
+    pub(crate) nonuniformity: f64,
     /// Patches the surface was fitted on (`neutrals`).
-    pub fitted_on: usize,
+    pub(crate) fitted_on: usize,
 }
 
 fn finish(method: &str, mut factors: Vec<[f64; 3]>, fitted_on: usize) -> Result<Flat, ChartError> {
@@ -66,7 +66,7 @@ fn finish(method: &str, mut factors: Vec<[f64; 3]>, fitted_on: usize) -> Result<
 }
 
 /// Light factors from a flat frame of the same size as the chart frame.
-pub fn from_flat_frame(
+pub(crate) fn from_flat_frame(
     flat: &Frame,
     frame_size: (usize, usize),
     ex: &Extraction,
@@ -92,7 +92,7 @@ pub fn from_flat_frame(
 }
 
 /// Light factors from the neutral patches (reference chroma C*ab < 4, unflagged).
-pub fn from_neutrals(ex: &Extraction, reference: &Reference) -> Result<Flat, ChartError> {
+pub(crate) fn from_neutrals(ex: &Extraction, reference: &Reference) -> Result<Flat, ChartError> {
     let kind = ex.chart;
     let mut pts = Vec::new();
     for (i, p) in ex.patches.iter().enumerate() {
@@ -158,7 +158,7 @@ pub fn from_neutrals(ex: &Extraction, reference: &Reference) -> Result<Flat, Cha
 }
 
 /// Divides the readings by the light factors.
-pub fn apply(ex: &mut Extraction, flat: &Flat) {
+pub(crate) fn apply(ex: &mut Extraction, flat: &Flat) {
     for (p, f) in ex.patches.iter_mut().zip(&flat.factors) {
         for k in 0..3 {
             p.rgb[k] /= f[k];

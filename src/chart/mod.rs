@@ -1,9 +1,11 @@
 //! Calibration from a photographed chart: the chart geometries ([`ChartKind`]), their reference
-//! values ([`Reference`]), reading the patches of a linear frame ([`extract`]) located by four
-//! corners ([`homography_from_corners`]) or found automatically ([`detect`]), compensation of
-//! uneven light ([`Flat`]), the whole workflow in one call ([`read`]: a decoded frame → its
-//! reading), synthetic chart frames ([`render_chart`]) and rendered photographs
-//! ([`render_scene`]) for tests and users. The overlay picture is the binary's.
+//! values ([`Reference`]), and the whole reading in one call ([`read`]: a decoded frame
+//! ([`CaptureFrame`]) → its [`Capture`]: the chart placed at given corners or found
+//! automatically, its patches read, uneven light compensated ([`FlatField`]), the result checked
+//! against the reference, then [`Capture::training_set`] for [`fit`](crate::fit)). Beside it,
+//! synthetic chart frames ([`render_chart`]) and rendered photographs
+//! ([`render_scene`]) for tests and users. Detection, patch extraction, the flat-field estimate
+//! and the overlay picture are the crate's own steps behind [`read`].
 //!
 //! ## Geometry assumed
 //!
@@ -35,16 +37,18 @@ pub(crate) mod reference;
 pub(crate) mod scene;
 pub(crate) mod synthetic;
 
-pub use capture::{read, Capture, CaptureError, CaptureFrame, FlatField, ReadingOptions};
-pub use detect::{detect, Candidate, DetectFailure, DetectOptions, Detection};
-pub use extract::{extract, verify, ExtractOptions, Extraction, Flag, PatchReading, Quantisation};
-pub use flat::from_neutrals as flat_from_neutrals;
-pub use flat::{apply as apply_flat, from_flat_frame as flat_from_frame, Flat};
-pub use reference::{d50_white, Reference};
-pub use scene::{render as render_scene, CameraLook, ChartColours, Family, SceneOptions};
-pub use scene::{SceneTruth, TruePatch};
-pub use synthetic::{layout_path, render as render_chart, write as write_chart};
-pub use synthetic::{ChartLayout, ChartOptions, PatchRect};
+pub use self::{
+    capture::{read, Capture, CaptureError, CaptureFrame, FlatField, ReadingOptions},
+    detect::Candidate,
+    reference::Reference,
+    scene::{
+        render as render_scene, CameraLook, ChartColours, SceneOptions, SceneTruth, TruePatch,
+    },
+    synthetic::{render as render_chart, ChartLayout, ChartOptions, PatchRect},
+};
+
+#[cfg(test)]
+mod chart_tests;
 
 use crate::error::Param;
 use serde::{Deserialize, Serialize};
@@ -189,7 +193,7 @@ impl ChartKind {
     }
 
     /// Columns of the patch grid (chart upright).
-    pub fn columns(self) -> usize {
+    pub(crate) fn columns(self) -> usize {
         match self {
             ChartKind::Cc24 => 6,
             ChartKind::Sg => 14,
@@ -197,7 +201,7 @@ impl ChartKind {
     }
 
     /// Rows of the patch grid.
-    pub fn rows(self) -> usize {
+    pub(crate) fn rows(self) -> usize {
         match self {
             ChartKind::Cc24 => 4,
             ChartKind::Sg => 10,
@@ -225,7 +229,7 @@ impl ChartKind {
     }
 
     /// The built-in reference used when `--reference` is not given.
-    pub fn default_reference(self) -> &'static str {
+    pub(crate) fn default_reference(self) -> &'static str {
         match self {
             ChartKind::Cc24 => "cc24-after2014",
             ChartKind::Sg => "sg-after2014",
@@ -309,7 +313,7 @@ impl ChartKind {
 
 /// A plane projective transform (3×3, row-major, `h[8]` normalised to 1 where possible).
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
-pub struct Homography(pub [f64; 9]);
+pub(crate) struct Homography(pub(crate) [f64; 9]);
 
 impl Homography {
     /// The transform taking each `src[i]` to `dst[i]` (least squares for more than four
@@ -405,7 +409,7 @@ impl Homography {
     }
 
     /// Maps a point.
-    pub fn apply(&self, p: [f64; 2]) -> [f64; 2] {
+    pub(crate) fn apply(&self, p: [f64; 2]) -> [f64; 2] {
         let h = &self.0;
         let w = h[6] * p[0] + h[7] * p[1] + h[8];
         [
@@ -491,7 +495,7 @@ pub(crate) fn parse_corners(spec: &str) -> Result<[[f64; 2]; 4], ChartError> {
 
 /// The chart → image transform from the chart's four corners in the frame (pixel coordinates: pixel `(x, y)` covers
 /// `[x, x+1) × [y, y+1)`, so its centre is `(x + 0.5, y + 0.5)`).
-pub fn homography_from_corners(
+pub(crate) fn homography_from_corners(
     kind: ChartKind,
     corners: &[[f64; 2]; 4],
     width: usize,

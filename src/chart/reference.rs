@@ -12,7 +12,7 @@ pub(crate) const MAX_REFERENCE_BYTES: u64 = 1 << 20;
 
 /// XYZ of the D50 white, `Y = 100` (the white of the built-in references and the default of
 /// Lab reference files).
-pub fn d50_white() -> [f64; 3] {
+pub(crate) fn d50_white() -> [f64; 3] {
     crate::training::d50_white()
 }
 

@@ -328,8 +328,8 @@ pub struct SceneTruth {
     pub height: usize,
     /// The seed rendered with.
     pub seed: u64,
-    /// Chart coordinates → frame pixels.
-    pub homography: Homography,
+    /// Chart coordinates → frame pixels (in the truth file; crate-private in the API).
+    pub(crate) homography: Homography,
     /// The patch-grid corners in the frame (what `--corners` takes).
     pub corners: [[f64; 2]; 4],
     /// The chart body's corners in the frame.
@@ -1085,7 +1085,7 @@ fn apply_look(frame: &mut Frame, look: CameraLook, white_level: f64) -> Result<(
 /// plain scenes: the difficulties of real photographs, and charts that are not the one asked
 /// for (every one of which must be refused).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum Family {
+pub(crate) enum Family {
     /// The envelope's scenes (linear camera RGB).
     Envelope,
     /// The envelope's scenes through a camera JPEG rendering ([`CameraLook`]).
@@ -1134,7 +1134,7 @@ impl Family {
     ];
 
     /// The family's name (`envelope`, `jpeg`, …), as `chart rate --family` takes it.
-    pub fn name(self) -> &'static str {
+    pub(crate) fn name(self) -> &'static str {
         match self {
             Family::Envelope => "envelope",
             Family::Jpeg => "jpeg",
@@ -1157,13 +1157,13 @@ impl Family {
     }
 
     /// True for the charts that are not the one asked for: any detection is wrong.
-    pub fn negative(self) -> bool {
+    pub(crate) fn negative(self) -> bool {
         matches!(self, Family::Spyder | Family::Random | Family::Shuffled)
     }
 
     /// The colours and options of scene `seed` of this family (CC24 layouts for the negatives;
     /// the truth of a negative scene names the cells of the impostor, not a CC24).
-    pub fn scene(
+    pub(crate) fn scene(
         self,
         colours: &ChartColours,
         width: usize,

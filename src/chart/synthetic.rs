@@ -97,7 +97,8 @@ pub struct ChartLayout {
 
 impl ChartLayout {
     /// Reads a layout file written by [`write()`].
-    pub fn read(path: &Path) -> Result<ChartLayout, IoError> {
+    #[cfg(test)]
+    pub(crate) fn read(path: &Path) -> Result<ChartLayout, IoError> {
         let text = crate::limits::read_text(path).map_err(|err| IoError::Read {
             path: path.to_path_buf(),
             err,
@@ -118,7 +119,8 @@ impl ChartLayout {
     /// The mean of each channel of `frame` over the inner part of patch `i` (a margin of a
     /// quarter of the patch is left out on each side, so blur or misregistration at edges does
     /// not count).
-    pub fn patch_mean(&self, frame: &Frame, i: usize) -> [f64; 3] {
+    #[cfg(test)]
+    pub(crate) fn patch_mean(&self, frame: &Frame, i: usize) -> [f64; 3] {
         let p = &self.patches[i];
         let (mx, my) = (p.width / 4, p.height / 4);
         let ch = frame.layout.channels();
@@ -138,7 +140,7 @@ impl ChartLayout {
 }
 
 /// The layout file written beside `chart`: `NAME.patches.json` for `NAME.exr`.
-pub fn layout_path(chart: &Path) -> PathBuf {
+pub(crate) fn layout_path(chart: &Path) -> PathBuf {
     chart.with_extension("patches.json")
 }
 
@@ -304,7 +306,7 @@ pub fn render(data: &TrainingSet, opts: &ChartOptions) -> Result<(Frame, ChartLa
 /// Writes a rendered chart: the frame at `dest` (camera RGB, so no `colorInteropID`) as a
 /// float EXR, or a 32-bit float TIFF when `dest` ends in `.tif`/`.tiff`, and its layout as JSON
 /// at [`layout_path`]. Both are staged in `unit` (committed together by its owner).
-pub fn write(
+pub(crate) fn write(
     frame: &Frame,
     layout: &ChartLayout,
     dest: &Path,

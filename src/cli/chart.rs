@@ -240,7 +240,7 @@ fn run_extract(a: ExtractArgs) -> Result<ExitCode> {
         .read(&a.frame, a.overlay.as_deref().map(|p| (p, &session)))?;
     // Everything is computed; now write, all together.
     let mut unit = session.unit();
-    unit.write_bytes(&a.output, cap.extraction.to_csv(&cap.reference).as_bytes())
+    unit.write_bytes(&a.output, cap.to_csv().as_bytes())
         .with_context(|| format!("writing {}", a.output.display()))?;
     if let Some(j) = &a.json {
         let text = serde_json::to_string_pretty(&cap.report())?;

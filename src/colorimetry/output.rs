@@ -8,7 +8,7 @@ use super::spaces::{self, Mat3, OutputSpace};
 /// frames written: scene-linear with the perfect white at `Y = 1`, in `space`, Bradford-adapted
 /// from the training white to the space's white (D65 for XYZ; see [`OutputSpace::from_xyz`]).
 /// With [`OutputSpace::LinearSrgb`] this is XYZ → display (linear sRGB, white = 1).
-pub fn output_matrix(white_xyz: [f64; 3], space: OutputSpace) -> Mat3 {
+pub(crate) fn output_matrix(white_xyz: [f64; 3], space: OutputSpace) -> Mat3 {
     let m = space.from_xyz(white_xyz);
     let k = 1.0 / white_xyz[1];
     m.map(|row| row.map(|v| v * k))
@@ -22,7 +22,7 @@ pub(crate) fn to_linear_srgb(white_xyz: [f64; 3], space: OutputSpace) -> Mat3 {
 }
 
 /// The sRGB opto-electronic transfer function (IEC 61966-2-1) of a linear value in `[0, 1]`.
-pub fn srgb_oetf(v: f64) -> f64 {
+pub(crate) fn srgb_oetf(v: f64) -> f64 {
     if v <= 0.003_130_8 {
         12.92 * v
     } else {
@@ -31,7 +31,7 @@ pub fn srgb_oetf(v: f64) -> f64 {
 }
 
 /// A linear value as an 8-bit sRGB code: clipped to `[0, 1]`, [`srgb_oetf`], rounded; NaN is 0.
-pub fn srgb8(v: f64) -> u8 {
+pub(crate) fn srgb8(v: f64) -> u8 {
     let v = if v.is_nan() { 0.0 } else { v.clamp(0.0, 1.0) };
     (srgb_oetf(v) * 255.0).round() as u8
 }

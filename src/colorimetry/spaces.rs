@@ -2,7 +2,7 @@
 //! adaptation from the scene's white to the space's white where they differ.
 
 /// A 3×3 matrix, row-major: `out[i] = Σ_j m[i][j] · in[j]`.
-pub type Mat3 = [[f64; 3]; 3];
+pub(crate) type Mat3 = [[f64; 3]; 3];
 
 /// Where corrected pixels are written.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -19,7 +19,7 @@ pub enum OutputSpace {
 
 impl OutputSpace {
     /// Every space with its command-line name.
-    pub const ALL: [(OutputSpace, &'static str); 4] = [
+    pub(crate) const ALL: [(OutputSpace, &'static str); 4] = [
         (OutputSpace::Xyz, "xyz"),
         (OutputSpace::LinearSrgb, "linear-srgb"),
         (OutputSpace::Acescg, "acescg"),
@@ -69,7 +69,7 @@ impl OutputSpace {
     /// [`OutputSpace::Xyz`] is D65-referred XYZ (its interop ID says so): the identity when the scene
     /// white is D65 to within 1e-3 in xy (e.g. D65 integrated on a coarse grid),
     /// otherwise a Bradford adaptation from the scene white to D65.
-    pub fn from_xyz(self, scene_white: [f64; 3]) -> Mat3 {
+    pub fn from_xyz(self, scene_white: [f64; 3]) -> [[f64; 3]; 3] {
         match self.primaries() {
             None => {
                 let sum: f64 = scene_white.iter().sum();

@@ -11,7 +11,7 @@ use super::spaces::Mat3;
 
 /// Errors from temperatures and chromaticities.
 #[derive(Debug, thiserror::Error)]
-pub enum TemperatureError {
+pub(crate) enum TemperatureError {
     /// A temperature or chromaticity out of the range handled (the caller's mistake).
     #[error("{0}")]
     Range(String),
@@ -66,7 +66,7 @@ pub(crate) fn daylight_xy(t: f64) -> Result<[f64; 2], TemperatureError> {
 
 /// The chromaticity a bare temperature names: Planckian below 4000 K, CIE daylight from
 /// it up.
-pub fn temperature_xy(t: f64) -> Result<[f64; 2], TemperatureError> {
+pub(crate) fn temperature_xy(t: f64) -> Result<[f64; 2], TemperatureError> {
     check_t(t, MIN_CCT, MAX_CCT)?;
     if t < DAYLIGHT_FROM {
         planckian_xy(t)
@@ -125,7 +125,7 @@ const ROBERTSON: [[f64; 4]; 31] = [
 /// the DNG SDK's `dng_temperature::Set_xy` (so a DCP reader and nsrm weight a white the same).
 /// Chromaticities beyond the table's hottest line give its end (≈ 1667 K); an `x, y` that is not
 /// a chromaticity is refused.
-pub fn cct(xy: [f64; 2]) -> Result<f64, TemperatureError> {
+pub(crate) fn cct(xy: [f64; 2]) -> Result<f64, TemperatureError> {
     let [x, y] = xy;
     let den = 1.5 - x + 6.0 * y;
     if !(x.is_finite() && y.is_finite() && x > 0.0 && y > 0.0 && x + y < 1.0 && den > 0.0) {

@@ -26,7 +26,7 @@ fn lit(v: f64) -> String {
 
 /// The DCTL source for `folded` (a model whose matrix already maps to the output space);
 /// `header` lines are written as comments at the top.
-pub fn generate(folded: &Model, header: &[String]) -> Result<String, super::ExportError> {
+pub(crate) fn generate(folded: &Model, header: &[String]) -> Result<String, super::ExportError> {
     if folded.matrix().iter().any(|v| !(*v as f32).is_finite()) {
         return Err(super::ExportError::Model(
             "the matrix holds a value that is not finite in f32".into(),
@@ -155,99 +155,25 @@ mod tests {
     use crate::model::pixel::{Program, Step};
     use crate::model::terms::terms;
     use crate::model::Kind;
-    use std::io::Write as _;
-    use std::process::{Command, Stdio};
 
-    /// The DCTL built-ins as C (as `tests/all/export_dctl.rs` compiles whole exports).
-    const SHIM: &str = "#include <math.h>\n#include <stdio.h>\n#define __DEVICE__ static\n\
-        typedef struct { float x, y, z; } float3;\n\
-        static float3 make_float3(float x, float y, float z) { float3 v; v.x = x; v.y = y; v.z = z; return v; }\n\
-        #define _fabs fabsf\n#define _sqrtf sqrtf\n#define _cbrtf cbrtf\n#define _copysignf copysignf\n";
-    const MAIN: &str = "int main(void) { float r, g, b; while (scanf(\"%f %f %f\", &r, &g, &b) == 3) { \
-        float3 o = transform(1, 1, 0, 0, r, g, b); printf(\"%.9g %.9g %.9g\\n\", o.x, o.y, o.z); } return 0; }\n";
-
-    /// Compiles the printed `transform` of each program and runs it on `px`; `None` without a C
-    /// compiler (a failure under `CI=true`).
+    /// Compiles the printed `transform` of each program and runs it on `px` with the kit's one
+    /// DCTL harness; `None` without a C compiler (a failure under `CI=true`).
     fn run(
         programs: &[(Program<'_>, Vec<f64>)],
         gains: [f64; 3],
         px: &[[f32; 3]],
     ) -> Option<Vec<Vec<[f64; 3]>>> {
-        if !Command::new("cc")
-            .arg("--version")
-            .output()
-            .is_ok_and(|o| o.status.success())
-        {
-            assert_ne!(
-                std::env::var("CI").as_deref(),
-                Ok("true"),
-                "no C compiler (cc)"
-            );
-            eprintln!("SKIP: no C compiler (cc) to compile the DCTL with");
-            return None;
-        }
+        let cc = crate::kit::cc()?;
         let dir = tempfile::tempdir().unwrap();
-        let input: String = px
+        let px: Vec<[f64; 3]> = px.iter().map(|p| p.map(f64::from)).collect();
+        let all = programs
             .iter()
-            .map(|p| format!("{:e} {:e} {:e}\n", p[0], p[1], p[2]))
+            .enumerate()
+            .map(|(i, (program, matrix))| {
+                let code = transform(program, matrix, gains);
+                crate::kit::run_dctl(&cc, dir.path(), &format!("p{i}"), &code, &px)
+            })
             .collect();
-        let mut all = Vec::new();
-        for (i, (program, matrix)) in programs.iter().enumerate() {
-            let src = dir.path().join(format!("p{i}.c"));
-            let exe = dir.path().join(format!("p{i}"));
-            let code = transform(program, matrix, gains);
-            std::fs::write(&src, format!("{SHIM}\n{code}\n{MAIN}")).unwrap();
-            let out = Command::new("cc")
-                .args([
-                    "-std=c99",
-                    "-O1",
-                    "-Wall",
-                    "-Werror",
-                    "-Wno-unused-parameter",
-                    "-Wno-unused-function",
-                ])
-                .arg(&src)
-                .arg("-o")
-                .arg(&exe)
-                .arg("-lm")
-                .output()
-                .unwrap();
-            assert!(
-                out.status.success(),
-                "{}\n{code}",
-                String::from_utf8_lossy(&out.stderr)
-            );
-            let mut child = Command::new(&exe)
-                .stdin(Stdio::piped())
-                .stdout(Stdio::piped())
-                .spawn()
-                .unwrap();
-            child
-                .stdin
-                .take()
-                .unwrap()
-                .write_all(input.as_bytes())
-                .unwrap();
-            let out = child.wait_with_output().unwrap();
-            let rows = String::from_utf8(out.stdout)
-                .unwrap()
-                .lines()
-                .map(|l| {
-                    let v: Vec<f64> = l
-                        .split_whitespace()
-                        .map(|t| {
-                            if t.ends_with("nan") {
-                                f64::NAN
-                            } else {
-                                t.parse().unwrap()
-                            }
-                        })
-                        .collect();
-                    [v[0], v[1], v[2]]
-                })
-                .collect();
-            all.push(rows);
-        }
         Some(all)
     }
 

@@ -41,18 +41,24 @@ pub(crate) mod clf;
 pub(crate) mod cube;
 pub(crate) mod dcp;
 pub(crate) mod dctl;
+#[cfg(test)]
+mod dctl_tests;
 pub(crate) mod icc;
 pub(crate) mod nodes;
 pub(crate) mod ocio;
 #[cfg(feature = "gpu")]
 pub(crate) mod shader;
 
-pub use dcp::DcpWritten;
-pub use dcp::{export_to as export_dcp, prophoto_to_xyz, Dcp, DcpOptions, DcpSide, DcpTraining};
-pub use dctl::generate as generate_dctl;
-pub use icc::{device_scale as icc_device_scale, pcs_matrix as icc_pcs_matrix, D50 as ICC_D50};
-pub use icc::{export_to as export_icc, IccOptions, IccWritten};
-pub use nodes::Interpolation;
+pub use self::{
+    dcp::{export_to as export_dcp, DcpOptions, DcpTraining, DcpWritten},
+    icc::{export_to as export_icc, IccOptions, IccWritten},
+    nodes::Interpolation,
+};
+// Read by the profile judges (`tests/all/icc.rs`, `profiles*.rs`), which also run the binary.
+pub use self::{
+    dcp::{prophoto_to_xyz, Dcp, DcpSide},
+    icc::{device_scale as icc_device_scale, pcs_matrix as icc_pcs_matrix, D50 as ICC_D50},
+};
 #[cfg(feature = "gpu")]
 pub use shader::{export as export_shader, ShaderLang};
 

@@ -80,10 +80,44 @@ impl Corrector {
     ) -> Result<Corrector, GpuError> {
         let (kind, order) = (model.kind(), model.order());
         let src = shader::wgsl(kind, order, target, Coefficients::Uniform);
-        shader::validate(&src)?;
+        Corrector::build(
+            device,
+            (kind, order),
+            &src,
+            &shader::uniform_data(model),
+            target,
+        )
+    }
+
+    /// A corrector for any well-formed pixel program, a kind's or not (the printer's numeric
+    /// tests): `matrix` is 3×L row-major over the program's terms, `gains` its input gains. Its
+    /// order is 0, so [`set_model`](Self::set_model) refuses every model.
+    #[cfg(test)]
+    pub(crate) fn for_program(
+        device: &wgpu::Device,
+        program: &crate::model::pixel::Program<'_>,
+        matrix: &[f64],
+        gains: [f64; 3],
+        target: Target,
+    ) -> Result<Corrector, GpuError> {
+        let src = shader::wgsl_program(program, 0, target, Coefficients::Uniform);
+        let uniform = shader::uniform_data_of(matrix, program.terms.len(), gains);
+        Corrector::build(device, (program.kind, 0), &src, &uniform, target)
+    }
+
+    /// The pipeline of the WGSL `src` (for `kind` at `order`) on `target`, its uniform holding
+    /// `uniform` ([`shader::uniform_data`]'s layout).
+    fn build(
+        device: &wgpu::Device,
+        (kind, order): (Kind, u8),
+        src: &str,
+        uniform: &[[f32; 4]],
+        target: Target,
+    ) -> Result<Corrector, GpuError> {
+        shader::validate(src)?;
         let limits = device.limits();
         let label = format!("nsrm {kind} {order} {target:?}");
-        let uniform_bytes = shader::uniform_bytes(kind, order);
+        let uniform_bytes = 16 * uniform.len() as u64;
         let storage = |read_only| wgpu::BindingType::Buffer {
             ty: wgpu::BufferBindingType::Storage { read_only },
             has_dynamic_offset: false,
@@ -144,7 +178,7 @@ impl Corrector {
             });
             let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
                 label: Some(&label),
-                source: wgpu::ShaderSource::Wgsl(src.as_str().into()),
+                source: wgpu::ShaderSource::Wgsl(src.into()),
             });
             let pipeline = device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
                 label: Some(&label),
@@ -156,7 +190,7 @@ impl Corrector {
             });
             let uniform = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
                 label: Some("nsrm model matrix"),
-                contents: bytemuck::cast_slice(&shader::uniform_data(model)),
+                contents: bytemuck::cast_slice(uniform),
                 usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
             });
             (pipeline, layout, uniform)

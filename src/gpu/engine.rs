@@ -24,7 +24,7 @@ pub(crate) const DEFAULT_TILE_PIXELS: usize = 1 << 20;
 /// builds with debug assertions (the tests): a pixel the shader failed to write comes back as
 /// exactly this value (the shader itself never produces this payload). Release builds skip the
 /// fill.
-pub const OUTPUT_SENTINEL_BITS: u32 = 0x7FC0_BAD5;
+pub(crate) const OUTPUT_SENTINEL_BITS: u32 = 0x7FC0_BAD5;
 
 /// Timing of one [`Engine::timed_apply`].
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -150,7 +150,7 @@ impl Engine {
     }
 
     /// `name (Backend, DeviceType)`, e.g. `llvmpipe (LLVM 15.0.6, 256 bits) (Vulkan, Cpu)`.
-    pub fn adapter_name(&self) -> String {
+    pub(crate) fn adapter_name(&self) -> String {
         self.ctx.adapter_name()
     }
 

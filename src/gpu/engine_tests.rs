@@ -1,5 +1,5 @@
 //! The engine's crate-private parts (bench timing, the device choice with its reason), once in
-//! `tests/all/gpu.rs`. Without an adapter these tests print `SKIP: no GPU adapter ...` and pass,
+//! `gpu_tests.rs`. Without an adapter these tests print `SKIP: no GPU adapter ...` and pass,
 //! unless `CI=true`, where they fail.
 
 use super::{open, open_device, CpuReason, DeviceChoice, Engine, GpuError, GpuOptions, Opened};
@@ -8,7 +8,7 @@ use crate::{fit, Kind, Layout, Model};
 
 /// The engine, or `None` (after one loud line) when there is no adapter; with `CI=true` a
 /// missing adapter fails the test.
-fn engine(tile_pixels: Option<usize>) -> Option<Engine> {
+pub(super) fn engine(tile_pixels: Option<usize>) -> Option<Engine> {
     let opts = GpuOptions {
         adapter: None,
         tile_pixels,

@@ -7,7 +7,7 @@
 //! The shaders follow the pixel policy of `model::pixel` (the README's *Pixel policy*) exactly: NaN / Inf propagate, NSRM
 //! with `s = R+G+B ≤ 0` gives 0, negative channels are allowed (RPRM's roots keep the sign),
 //! nothing is clamped. They compute in f32; against the f64 reference the relative error per
-//! value stays within 1e-5 (see `tests/all/gpu.rs`).
+//! value stays within 1e-5 (see `gpu_tests.rs`).
 //!
 //! # Adapter selection
 //! * Backends: `WGPU_BACKEND` (e.g. `vulkan`, `gl`, `metal`, `dx12`) if set, else the primary
@@ -34,12 +34,15 @@ mod corrector;
 mod engine;
 #[cfg(test)]
 mod engine_tests;
+#[cfg(all(test, feature = "io"))]
+mod gpu_tests;
+#[cfg(test)]
+mod program_tests;
 pub(crate) mod shader;
 
-pub use context::GpuContext;
-pub use corrector::Corrector;
-pub use engine::{Engine, OUTPUT_SENTINEL_BITS};
-pub use shader::{Target, TexelFormat};
+pub use self::{
+    context::GpuContext, corrector::Corrector, engine::Engine, shader::Target, shader::TexelFormat,
+};
 /// The wgpu this crate is built against: a renderer embedding a [`Corrector`] records into
 /// this version's encoders and textures.
 pub use wgpu;
@@ -151,14 +154,10 @@ pub enum DeviceChoice {
 }
 
 impl DeviceChoice {
-    /// Parses `auto`, `gpu` or `cpu` (case-insensitive).
-    ///
-    /// ```
-    /// use nsrm::gpu::DeviceChoice;
-    /// assert_eq!(DeviceChoice::parse("GPU"), Some(DeviceChoice::Gpu));
-    /// assert_eq!(DeviceChoice::parse("tpu"), None);
-    /// ```
-    pub fn parse(s: &str) -> Option<DeviceChoice> {
+    /// Parses `auto`, `gpu` or `cpu` (case-insensitive; the unit tests hold the command line's
+    /// `--device` values to it).
+    #[cfg(test)]
+    pub(crate) fn parse(s: &str) -> Option<DeviceChoice> {
         match s.trim().to_ascii_lowercase().as_str() {
             "auto" => Some(DeviceChoice::Auto),
             "gpu" => Some(DeviceChoice::Gpu),

@@ -204,13 +204,17 @@ fn f32_literal(v: f32) -> String {
 
 /// The matrix as `L` columns `(m[0][j], m[1][j], m[2][j], 0)` in f32, the layout of the uniform.
 pub(crate) fn matrix_columns(model: &Model) -> Vec<[f32; 4]> {
-    let l = model.terms().len();
+    columns(model.matrix(), model.terms().len())
+}
+
+/// The columns of a row-major 3×`l` matrix, as [`matrix_columns`].
+fn columns(matrix: &[f64], l: usize) -> Vec<[f32; 4]> {
     (0..l)
         .map(|j| {
             [
-                model.matrix()[j] as f32,
-                model.matrix()[l + j] as f32,
-                model.matrix()[2 * l + j] as f32,
+                matrix[j] as f32,
+                matrix[l + j] as f32,
+                matrix[2 * l + j] as f32,
                 0.0,
             ]
         })
@@ -220,15 +224,14 @@ pub(crate) fn matrix_columns(model: &Model) -> Vec<[f32; 4]> {
 /// The uniform's contents: the [`matrix_columns`], then the input gains `(g_R, g_G, g_B, 0)`
 /// (`shaders/model_uniform.wgsl`'s `gain`): `L + 1` × `vec4<f32>`.
 pub(crate) fn uniform_data(model: &Model) -> Vec<[f32; 4]> {
-    let g = model.input_gains();
-    let mut v = matrix_columns(model);
-    v.push([g[0] as f32, g[1] as f32, g[2] as f32, 0.0]);
-    v
+    uniform_data_of(model.matrix(), model.terms().len(), model.input_gains())
 }
 
-/// The uniform's size in bytes for a model of `kind` at `order`: `16 · (L + 1)`.
-pub(crate) fn uniform_bytes(kind: Kind, order: u8) -> u64 {
-    16 * (terms(kind, kind.effective_order(order)).len() as u64 + 1)
+/// [`uniform_data`] of a row-major 3×`l` matrix and input gains (any pixel program's).
+pub(crate) fn uniform_data_of(matrix: &[f64], l: usize, gains: [f64; 3]) -> Vec<[f32; 4]> {
+    let mut v = columns(matrix, l);
+    v.push([gains[0] as f32, gains[1] as f32, gains[2] as f32, 0.0]);
+    v
 }
 
 /// The generated `fn model_gain() -> vec3<f32>` of NSRM shaders: the input gains, read from the
@@ -642,9 +645,5 @@ mod tests {
         assert!(src.contains("return model.gain.xyz;"), "{src}");
         assert_eq!(uniform_data(&m).len(), m.len_terms() + 1);
         assert_eq!(uniform_data(&m)[m.len_terms()], [1.5, 1.0, 0.75, 0.0]);
-        assert_eq!(
-            uniform_bytes(Kind::Nsrm, 2),
-            16 * uniform_data(&m).len() as u64
-        );
     }
 }

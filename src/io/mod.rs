@@ -26,9 +26,19 @@ pub(crate) mod preview;
 pub(crate) mod raw;
 mod tif;
 
-pub use display::Encoding;
-pub use openexr::{DEFAULT_ZIP_LEVEL, MAX_ZIP_LEVEL};
-pub use raw::{CameraInfo, Demosaic};
+pub use {
+    crate::error::{Concern, Param},
+    display::Encoding,
+    raw::{CameraInfo, Demosaic},
+};
+
+/// The ZIP level written when none is asked for (libdeflate's levels, 0-12): 1, the fastest,
+/// which still compresses noisy float plates about as much as the higher levels. See
+/// BENCHMARKS.md.
+pub const DEFAULT_ZIP_LEVEL: u8 = 1;
+
+/// The highest deflate level libdeflate has (`--zip-level` accepts 0 to this).
+pub const MAX_ZIP_LEVEL: u8 = 12;
 
 use crate::colorimetry::spaces::OutputSpace;
 use crate::frame::Frame;
@@ -460,6 +470,7 @@ pub enum ExrCompression {
 
 impl ExrCompression {
     /// Every choice with its command-line name.
+    #[cfg(test)]
     pub(crate) const ALL: [(ExrCompression, &'static str); 6] = [
         (ExrCompression::Keep, "keep"),
         (ExrCompression::None, "none"),
@@ -469,8 +480,10 @@ impl ExrCompression {
         (ExrCompression::Piz, "piz"),
     ];
 
-    /// Parses `keep`, `none`, `rle`, `zips`, `zip` or `piz`.
-    pub fn parse(s: &str) -> Option<ExrCompression> {
+    /// Parses `keep`, `none`, `rle`, `zips`, `zip` or `piz` (the command line's names, checked
+    /// against its parser).
+    #[cfg(test)]
+    pub(crate) fn parse(s: &str) -> Option<ExrCompression> {
         Self::ALL
             .iter()
             .find(|(_, n)| n.eq_ignore_ascii_case(s.trim()))
@@ -529,7 +542,7 @@ impl Decoded {
     }
 
     /// Total pixels over the frame and its levels.
-    pub fn pixels(&self) -> usize {
+    pub(crate) fn pixels(&self) -> usize {
         self.frame.pixels() + self.levels.iter().map(Frame::pixels).sum::<usize>()
     }
 
@@ -559,8 +572,33 @@ impl Decoded {
         }
     }
 
+    /// The full-resolution frame with its alpha (RGB, or RGBA when the input has alpha); the
+    /// levels and everything else passed through are dropped.
+    pub fn into_frame(self) -> Frame {
+        let alpha = match &self.container {
+            Container::Exr(c) => c.alpha_f32(),
+            Container::Tiff(c) => c.alpha.clone(),
+            Container::Raw(_) => None,
+        };
+        let Some(a) = alpha else {
+            return self.frame;
+        };
+        let mut data = Vec::with_capacity(self.frame.pixels() * 4);
+        for (px, a) in self.frame.data.chunks_exact(3).zip(a) {
+            data.extend_from_slice(px);
+            data.push(a);
+        }
+        Frame {
+            width: self.frame.width,
+            height: self.frame.height,
+            layout: crate::Layout::Rgba,
+            data,
+        }
+    }
+
     /// Decodes `path` (EXR, TIFF or, with the `raw` feature, a camera raw file; told by its
-    /// content, not its name).
+    /// content, not its name). [`into_frame`](Self::into_frame) gives one frame of it;
+    /// [`write`](Self::write) writes it back with everything passed through.
     pub fn read(path: &Path, opts: &ReadOptions) -> Result<Decoded, IoError> {
         Decoded::read_from(path, opts, None)
     }
@@ -739,31 +777,24 @@ impl Decoded {
     }
 }
 
-/// Writes a new EXR holding `frame` (RGB or RGBA, f32 channels, or half with `opts.half`), with
-/// `colorInteropID` and `chromaticities` for `opts.space`, staged in `unit` (which refuses to
-/// replace `dest` unless its session overwrites).
-pub fn write_exr(
-    frame: &Frame,
-    dest: &Path,
-    opts: &WriteOptions,
-    unit: &mut Unit,
-) -> Result<(), IoError> {
-    unit.check_clobber(dest)?;
-    let (rgb, alpha) = split_alpha(frame);
-    openexr::write_new(
-        &rgb,
-        alpha.as_deref(),
-        dest,
-        &openexr::NewExr::output(opts),
-        unit,
-    )
-}
-
-/// Writes a 32-bit float TIFF holding `frame` (RGB or RGBA), staged in `unit`.
-pub fn write_tiff(frame: &Frame, dest: &Path, unit: &mut Unit) -> Result<(), IoError> {
-    unit.check_clobber(dest)?;
-    let (rgb, alpha) = split_alpha(frame);
-    tif::write(&rgb, alpha.as_deref(), dest, unit)
+/// A frame made in memory (RGB, or RGBA: the alpha is kept aside and written back), with nothing
+/// else to pass through: [`Decoded::write`] writes it as a new EXR (f32 channels, or half with
+/// `half`; `colorInteropID` and `chromaticities` for its `space`) or a 32-bit float TIFF.
+/// [`Decoded::path`] is empty and [`Decoded::format`] [`FileFormat::Exr`].
+impl From<Frame> for Decoded {
+    fn from(frame: Frame) -> Decoded {
+        let (frame, alpha) = match frame.layout {
+            crate::Layout::Rgb => (frame, None),
+            crate::Layout::Rgba => split_alpha(&frame),
+        };
+        Decoded {
+            path: PathBuf::new(),
+            format: FileFormat::Exr,
+            frame,
+            levels: Vec::new(),
+            container: Container::Tiff(tif::TiffContainer { alpha }),
+        }
+    }
 }
 
 /// Writes a frame of camera RGB (no colour space attribute): a 32-bit float TIFF when `dest`
@@ -796,8 +827,8 @@ pub(crate) fn write_camera_float(
 }
 
 /// Reads an EXR or TIFF into one frame (RGB, or RGBA when the file has alpha); pass-through
-/// data is dropped. For tests and quick looks; batch conversion uses [`Decoded`].
-pub fn read_frame(path: &Path, opts: &ReadOptions) -> Result<Frame, IoError> {
+/// data is dropped ([`Decoded::into_frame`] of [`Decoded::read`]).
+pub(crate) fn read_frame(path: &Path, opts: &ReadOptions) -> Result<Frame, IoError> {
     read_frame_and_camera(path, opts).map(|(f, _)| f)
 }
 
@@ -808,28 +839,7 @@ pub(crate) fn read_frame_and_camera(
 ) -> Result<(Frame, Option<raw::CameraInfo>), IoError> {
     let d = Decoded::read(path, opts)?;
     let camera = d.camera().cloned();
-    let alpha = match &d.container {
-        Container::Exr(c) => c.alpha_f32(),
-        Container::Tiff(c) => c.alpha.clone(),
-        Container::Raw(_) => None,
-    };
-    let frame = match alpha {
-        None => d.frame,
-        Some(a) => {
-            let mut data = Vec::with_capacity(d.frame.pixels() * 4);
-            for (px, a) in d.frame.data.chunks_exact(3).zip(a) {
-                data.extend_from_slice(px);
-                data.push(a);
-            }
-            Frame {
-                width: d.frame.width,
-                height: d.frame.height,
-                layout: crate::Layout::Rgba,
-                data,
-            }
-        }
-    };
-    Ok((frame, camera))
+    Ok((d.into_frame(), camera))
 }
 
 fn split_alpha(frame: &Frame) -> (Frame, Option<Vec<f32>>) {

@@ -12,7 +12,6 @@ mod chunks;
 mod piz;
 
 use crate::error::{Concern, Param};
-pub use chunks::{DEFAULT_ZIP_LEVEL, MAX_ZIP_LEVEL};
 
 use super::{Container, Decoded, ExrCompression, FileFormat, IoError, ReadOptions, WriteOptions};
 use crate::colorimetry::spaces::OutputSpace;

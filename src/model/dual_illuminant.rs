@@ -331,7 +331,7 @@ impl Profile {
     }
 
     /// Whether the profile holds two models (else one).
-    pub fn is_dual(&self) -> bool {
+    pub(crate) fn is_dual(&self) -> bool {
         self.models.len() == 2
     }
 
@@ -342,7 +342,7 @@ impl Profile {
     }
 
     /// The weight of the first model at temperature `t`.
-    pub fn weight(&self, t: f64) -> f64 {
+    pub(crate) fn weight(&self, t: f64) -> f64 {
         if self.is_dual() {
             let [t1, t2] = self.temperatures();
             dng_weight(t, t1, t2)
@@ -419,7 +419,7 @@ impl Profile {
 
     /// The camera neutral (G = 1) of a light of chromaticity `xy`: the models' inverse at that
     /// light's XYZ, mixed for its temperature.
-    pub fn neutral_for_xy(&self, xy: [f64; 2]) -> Result<[f64; 3], TemperatureError> {
+    pub(crate) fn neutral_for_xy(&self, xy: [f64; 2]) -> Result<[f64; 3], TemperatureError> {
         let t = cct(xy)?;
         let w = self.weight(t);
         let n = self
@@ -435,7 +435,7 @@ impl Profile {
     }
 
     /// The chromaticity of a camera neutral, by the DNG fixed-point iteration.
-    pub fn xy_for_neutral(&self, neutral: [f64; 3]) -> Result<[f64; 2], TemperatureError> {
+    pub(crate) fn xy_for_neutral(&self, neutral: [f64; 3]) -> Result<[f64; 2], TemperatureError> {
         neutral_to_xy(neutral, self.temperatures(), |n, w| {
             self.camera_to_xyz(n, w)
         })
@@ -518,7 +518,7 @@ impl Profile {
     }
 
     /// Parses a model file holding one or two models.
-    pub fn from_json(text: &str, origin: &str) -> Result<Profile, ModelError> {
+    pub(crate) fn from_json(text: &str, origin: &str) -> Result<Profile, ModelError> {
         let text = text.strip_prefix('\u{feff}').unwrap_or(text);
         let mut doc: serde_json::Value =
             serde_json::from_str(text).map_err(|err| ModelError::Parse {

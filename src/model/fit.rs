@@ -240,7 +240,7 @@ pub struct Fit {
 
 impl Fit {
     /// Applies the model, input gains included (f64 reference): [`Model::apply_f64`].
-    pub fn apply_f64(&self, rgb: [f64; 3]) -> [f64; 3] {
+    pub(crate) fn apply_f64(&self, rgb: [f64; 3]) -> [f64; 3] {
         self.model.apply_f64(rgb)
     }
 }

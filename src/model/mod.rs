@@ -10,6 +10,8 @@
 //! are positive, so exposure invariance is kept.
 
 pub(crate) mod dual_illuminant;
+#[cfg(test)]
+mod dual_illuminant_tests;
 pub(crate) mod fast;
 #[cfg(test)]
 mod fast_tests;
@@ -167,7 +169,7 @@ impl Kind {
     /// The four kinds, in the paper's order.
     pub const ALL: [Kind; 4] = [Kind::Lrm, Kind::Prm, Kind::Rprm, Kind::Nsrm];
 
-    /// Lower-case name: `lrm`, `prm`, `rprm`, `nsrm`.
+    /// Lower-case name: `lrm`, `prm`, `rprm`, `nsrm` (what `fit --kind` takes).
     pub fn name(self) -> &'static str {
         match self {
             Kind::Lrm => "lrm",
@@ -178,7 +180,7 @@ impl Kind {
     }
 
     /// Parses a name, case-insensitively.
-    pub fn parse(s: &str) -> Result<Kind, ModelError> {
+    pub(crate) fn parse(s: &str) -> Result<Kind, ModelError> {
         Kind::ALL
             .into_iter()
             .find(|k| k.name().eq_ignore_ascii_case(s.trim()))
@@ -192,11 +194,6 @@ impl Kind {
         } else {
             order
         }
-    }
-
-    /// Whether `f(kS) = k·f(S)` for every `k > 0`.
-    pub fn exposure_invariant(self) -> bool {
-        self != Kind::Prm
     }
 
     /// The names of this kind's terms at `order` (1..=[`MAX_ORDER`]; LRM has its three at any
@@ -217,6 +214,21 @@ impl Kind {
             .iter()
             .map(|t| term_name(self, t))
             .collect())
+    }
+}
+
+/// Parses `lrm`, `prm`, `rprm` or `nsrm`, case-insensitively.
+///
+/// ```
+/// let kind: nsrm::Kind = "NSRM".parse()?;
+/// assert_eq!(kind, nsrm::Kind::Nsrm);
+/// assert!("ccm".parse::<nsrm::Kind>().is_err());
+/// # Ok::<(), nsrm::ModelError>(())
+/// ```
+impl std::str::FromStr for Kind {
+    type Err = ModelError;
+    fn from_str(s: &str) -> Result<Kind, ModelError> {
+        Kind::parse(s)
     }
 }
 
@@ -330,14 +342,14 @@ impl Model {
     }
 
     /// Whether the input gains are all 1 (every model but a white-balanced NSRM).
-    pub fn has_unit_gains(&self) -> bool {
+    pub(crate) fn has_unit_gains(&self) -> bool {
         self.input_gains == UNIT_GAINS
     }
 
     /// The model with per-channel input gains: only NSRM may have gains other than `[1, 1, 1]`
     /// (for LRM and RPRM they fold into the matrix; PRM's are not defined), and each must be
     /// finite, `> 0` and finite in f32 (the fast CPU path and the shaders take them in f32).
-    pub fn with_input_gains(mut self, gains: [f64; 3]) -> Result<Model, ModelError> {
+    pub(crate) fn with_input_gains(mut self, gains: [f64; 3]) -> Result<Model, ModelError> {
         check_gains(self.kind, gains)?;
         self.input_gains = gains;
         Ok(self)
@@ -377,7 +389,7 @@ impl Model {
     }
 
     /// Number of terms L.
-    pub fn len_terms(&self) -> usize {
+    pub(crate) fn len_terms(&self) -> usize {
         self.terms.len()
     }
 
@@ -387,7 +399,7 @@ impl Model {
     }
 
     /// Row `i` (output channel) of the matrix.
-    pub fn row(&self, i: usize) -> &[f64] {
+    pub(crate) fn row(&self, i: usize) -> &[f64] {
         let l = self.terms.len();
         &self.matrix[i * l..(i + 1) * l]
     }

@@ -26,4 +26,13 @@ proptest! {
             prop_assert!(t.values.iter().flatten().all(|v| v.is_finite()));
         }
     }
+
+    /// (From `tests/all/harden_fuzz.rs`: `Grid::parse`, `len` and `wavelengths` are crate-private.)
+    #[test]
+    fn grids_parse_or_refuse(spec in "[0-9.e:+-]{0,30}|\\PC{0,20}") {
+        if let Ok(g) = super::Grid::parse(&spec) {
+            prop_assert!(g.len() <= 100_000);
+            prop_assert_eq!(g.wavelengths().len(), g.len());
+        }
+    }
 }

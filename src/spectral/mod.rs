@@ -162,7 +162,7 @@ impl Default for Grid {
 
 impl Grid {
     /// Parses `START:END:STEP` (nm).
-    pub fn parse(spec: &str) -> Result<Grid, SpectralError> {
+    pub(crate) fn parse(spec: &str) -> Result<Grid, SpectralError> {
         let err = |why: &str| SpectralError::Grid {
             spec: spec.to_string(),
             why: why.to_string(),
@@ -202,18 +202,13 @@ impl Grid {
     }
 
     /// Number of samples.
-    pub fn len(&self) -> usize {
+    pub(crate) fn len(&self) -> usize {
         // `as` saturates (NaN → 0); the addition must too for hand-made grids.
         (((self.end - self.start) / self.step + 1e-9).floor() as usize).saturating_add(1)
     }
 
-    /// Always false: a grid has at least one sample.
-    pub fn is_empty(&self) -> bool {
-        false
-    }
-
     /// The sample wavelengths.
-    pub fn wavelengths(&self) -> Vec<f64> {
+    pub(crate) fn wavelengths(&self) -> Vec<f64> {
         (0..self.len())
             .map(|i| self.start + i as f64 * self.step)
             .collect()

@@ -57,7 +57,9 @@ fn extract_fit_apply_reproduces_the_reference() {
     assert!(ok, "{err}");
     let text = std::fs::read_to_string(&csv).unwrap();
     // A comment line, the white line (D50, the reference's), then the header and the patches.
-    let w = nsrm::chart::d50_white();
+    let w = nsrm::chart::Reference::load("cc24-after2014", nsrm::chart::ChartKind::Cc24, None)
+        .unwrap()
+        .white;
     let white = format!("# white: {},{},{}\n", w[0], w[1], w[2]);
     assert!(
         text.starts_with("# nsrm chart patches:")
@@ -144,13 +146,14 @@ fn apply_on_the_fitted_frame_reproduces_the_reference() {
         s(&frame),
     ]);
     assert!(ok, "{err}");
-    let produced = nsrm::io::read_frame(&out.join("chart_xyz.exr"), &Default::default()).unwrap();
+    let produced =
+        crate::common::read_frame(&out.join("chart_xyz.exr"), &Default::default()).unwrap();
     let reading: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
     let model = nsrm::Model::load(&model_path).unwrap();
     let white = model.white_xyz();
     // The output is XYZ with white Y = 1, adapted from the reference white (D50) to D65.
-    let to_out = nsrm::output_matrix(white, nsrm::OutputSpace::Xyz);
+    let to_out = crate::common::mat::output_matrix(white, nsrm::OutputSpace::Xyz);
     let d65 = nsrm::D65_WHITE_XYZ;
     for p in reading["patches"].as_array().unwrap() {
         let v = |k: &str| -> Vec<f64> {
@@ -369,7 +372,7 @@ fn a_display_referred_flat_frame_is_decoded_as_the_chart_frame_is() {
         "chart.exr",
         &["--vignetting", "0.3", "--flat-output", s(&flat)],
     );
-    let f = nsrm::io::read_frame(&flat, &Default::default()).unwrap();
+    let f = crate::common::read_frame(&flat, &Default::default()).unwrap();
     let ch = f.layout.channels();
     let peak = f.data.iter().cloned().fold(0f32, f32::max).max(1e-6);
     let bytes: Vec<u8> = f
@@ -377,7 +380,7 @@ fn a_display_referred_flat_frame_is_decoded_as_the_chart_frame_is() {
         .chunks_exact(ch)
         .flat_map(|p| {
             (0..3).map(move |k| {
-                (nsrm::srgb_oetf(f64::from(p[k] / peak)).clamp(0.0, 1.0) * 255.0).round() as u8
+                (srgb_oetf(f64::from(p[k] / peak)).clamp(0.0, 1.0) * 255.0).round() as u8
             })
         })
         .collect();
@@ -426,4 +429,13 @@ fn a_display_referred_flat_frame_is_decoded_as_the_chart_frame_is() {
         w_lin > 5.0 * w_auto.max(1e-3),
         "a PNG flat read as linear should differ: {w_lin} vs {w_auto}"
     );
+}
+
+/// The sRGB opto-electronic transfer function (IEC 61966-2-1) of a linear value in `[0, 1]`.
+fn srgb_oetf(v: f64) -> f64 {
+    if v <= 0.003_130_8 {
+        12.92 * v
+    } else {
+        1.055 * v.powf(1.0 / 2.4) - 0.055
+    }
 }

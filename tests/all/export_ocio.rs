@@ -9,9 +9,10 @@
 
 use crate::common;
 
+use crate::common::{read_frame, write_exr};
 use nsrm::delta_e00_xyz;
 use nsrm::export::{dense_chromaticities, Format, LutExport, LutOptions};
-use nsrm::io::{read_frame, write_exr, ExrCompression, FileFormat, ReadOptions, WriteOptions};
+use nsrm::io::{ExrCompression, FileFormat, ReadOptions, WriteOptions};
 use nsrm::OutputSpace;
 use nsrm::{fit, Kind};
 use nsrm::{simulate_named, Grid};
@@ -168,7 +169,8 @@ impl Case {
 
 /// ΔE00 between two output-space values, in the model's XYZ with its training white.
 fn de(model: &Model, space: OutputSpace, a: [f64; 3], b: [f64; 3]) -> f64 {
-    let back = crate::common::mat::invert(&nsrm::output_matrix(model.white_xyz(), space));
+    let back =
+        crate::common::mat::invert(&crate::common::mat::output_matrix(model.white_xyz(), space));
     delta_e00_xyz(
         crate::common::mat::apply(&back, a),
         crate::common::mat::apply(&back, b),

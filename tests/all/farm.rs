@@ -835,7 +835,7 @@ fn slurm_runs_the_array_and_a_killed_task_resumes() {
         "{task_log}"
     );
     let before: Vec<_> = finished.iter().map(|p| identity(p)).collect();
-    let stale = nsrm::output::stale_temporaries(&dir.join("out"));
+    let stale = temporaries(&dir.join("out"));
 
     // The whole job: the array (both shards) and the verification after it.
     let t = Instant::now();
@@ -914,4 +914,21 @@ fn slurm_runs_the_array_and_a_killed_task_resumes() {
     ));
     drop(d);
     let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// The output temporaries in `dir` (`.NAME.nsrm-PID-RANDOM.tmp`, the form the output session
+/// creates), sorted.
+fn temporaries(dir: &Path) -> Vec<PathBuf> {
+    let mut found: Vec<PathBuf> = std::fs::read_dir(dir)
+        .into_iter()
+        .flatten()
+        .flatten()
+        .map(|e| e.path())
+        .filter(|p| {
+            let name = p.file_name().unwrap_or_default().to_string_lossy();
+            name.starts_with('.') && name.contains(".nsrm-") && name.ends_with(".tmp")
+        })
+        .collect();
+    found.sort();
+    found
 }

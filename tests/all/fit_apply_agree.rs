@@ -5,7 +5,8 @@
 //! A fit that is refused (too few patches) must say why and write nothing.
 
 use crate::common::{self, Rng};
-use nsrm::io::{read_frame, write_tiff, ReadOptions};
+use crate::common::{read_frame, write_tiff};
+use nsrm::io::ReadOptions;
 use nsrm::{delta_e00_xyz, OutputSpace};
 use nsrm::{simulate_named, Grid};
 use nsrm::{Frame, Layout, TrainingSet};

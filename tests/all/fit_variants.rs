@@ -26,7 +26,7 @@ fn in_sample(f: &Fit, data: &TrainingSet) -> Vec<f64> {
     data.rgb
         .iter()
         .zip(&data.xyz)
-        .map(|(c, x)| delta_e00_xyz(f.apply_f64(*c), *x, data.white_xyz))
+        .map(|(c, x)| delta_e00_xyz(f.model.apply_f64(*c), *x, data.white_xyz))
         .collect()
 }
 
@@ -139,20 +139,24 @@ fn preserve_white_maps_the_white_exactly() {
                     ..Default::default()
                 };
                 let f = fit_with(kind, 3, &data, &opts).unwrap();
-                let d = delta_e00_xyz(f.apply_f64(w_rgb), data.white_xyz, data.white_xyz);
+                let d = delta_e00_xyz(f.model.apply_f64(w_rgb), data.white_xyz, data.white_xyz);
                 assert!(d <= 1e-6, "{kind} {objective:?} {ridge:?}: white ΔE00 {d}");
                 let opts = FitOptions {
                     white: FitWhite::Patch(neutral.into()),
                     ..opts
                 };
                 let f = fit_with(kind, 3, &data, &opts).unwrap();
-                let d = delta_e00_xyz(f.apply_f64(data.rgb[ni]), data.xyz[ni], data.white_xyz);
+                let d = delta_e00_xyz(
+                    f.model.apply_f64(data.rgb[ni]),
+                    data.xyz[ni],
+                    data.white_xyz,
+                );
                 assert!(d <= 1e-6, "{kind} {objective:?}: patch {neutral} ΔE00 {d}");
             }
         }
         // Without the constraint the white is not exact: the test above can fail.
         let f = fit_with(kind, 3, &data, &FitOptions::default()).unwrap();
-        let d = delta_e00_xyz(f.apply_f64(w_rgb), data.white_xyz, data.white_xyz);
+        let d = delta_e00_xyz(f.model.apply_f64(w_rgb), data.white_xyz, data.white_xyz);
         assert!(d > 1e-4, "{kind}: unconstrained white ΔE00 {d}");
     }
     let e = fit_with(

@@ -168,3 +168,73 @@ fn export_shader_usage_errors_exit_2() {
     assert_eq!(missing.status.code(), Some(1));
     assert!(!out_path.exists());
 }
+
+/// `nsrm export-shader --lang dctl` writes the DCTL of the model with its output space folded in
+/// (compiled as C by the kit's DCTL harness and checked against the f64 model), refuses to
+/// overwrite, and refuses an unknown space with exit 2 leaving no file. (From
+/// `tests/all/export_dctl.rs`, whose library test moved to `src/export/dctl_tests.rs`.)
+#[test]
+fn export_shader_writes_dctl_through_the_cli() {
+    let dir = tempfile::tempdir().unwrap();
+    let data = nsrm::simulate_named("nikon-d5100", "D65", "cc24", &nsrm::Grid::default()).unwrap();
+    let model = nsrm::fit(nsrm::Kind::Rprm, 3, &data).unwrap();
+    std::fs::write(dir.path().join("m.json"), model.to_json()).unwrap();
+    let run = |args: &[&str]| {
+        common::nsrm()
+            .current_dir(dir.path())
+            .args(args)
+            .output()
+            .unwrap()
+    };
+    let out = run(&[
+        "export-shader",
+        "--model",
+        "m.json",
+        "--lang",
+        "dctl",
+        "--output-space",
+        "acescg",
+        "-o",
+        "m.dctl",
+    ]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let text = std::fs::read_to_string(dir.path().join("m.dctl")).unwrap();
+    assert!(
+        text.contains("acescg") && text.contains("cbrt(R*G^2)"),
+        "{text}"
+    );
+    let folded = nsrm::output_model(&model, nsrm::OutputSpace::Acescg).unwrap();
+    if let Some(cc) = common::cc() {
+        let px = common::dctl_pixels(&data);
+        let got = common::run_dctl(&cc, dir.path(), "cli", &text, &px);
+        common::check_dctl(&folded, &px, &got, "cli");
+    }
+    let again = run(&[
+        "export-shader",
+        "--model",
+        "m.json",
+        "--lang",
+        "dctl",
+        "-o",
+        "m.dctl",
+    ]);
+    assert!(!again.status.success());
+    assert!(String::from_utf8_lossy(&again.stderr).contains("already exists"));
+    let bad = run(&[
+        "export-shader",
+        "--model",
+        "m.json",
+        "--lang",
+        "dctl",
+        "--output-space",
+        "p3",
+        "-o",
+        "n.dctl",
+    ]);
+    assert_eq!(bad.status.code(), Some(2));
+    assert!(!dir.path().join("n.dctl").exists());
+}

@@ -677,7 +677,7 @@ fn family5_numbers_out_of_range_are_refused() {
             "hot.exr",
         ],
     );
-    let f = nsrm::io::read_frame(&d.join("hot.exr"), &Default::default()).unwrap();
+    let f = crate::common::read_frame(&d.join("hot.exr"), &Default::default()).unwrap();
     assert!(f.data.iter().all(|v| v.is_finite()));
     // A degenerate chart reference (all zero, constant) is refused, not "matched".
     let labels: Vec<String> = std::fs::read_to_string(d.join("p.csv"))

@@ -60,24 +60,6 @@ fn dev_zero_as_any_text_input_fails_fast() {
 }
 
 #[test]
-fn oversized_text_inputs_are_refused_by_the_cap() {
-    let dir = tempfile::tempdir().unwrap();
-    let big = dir.path().join("big.csv");
-    let f = std::fs::File::create(&big).unwrap();
-    // Sparse: 65 MiB without writing them.
-    f.set_len(nsrm::limits::MAX_TEXT_BYTES + (1 << 20)).unwrap();
-    let e = TrainingSet::read_measured(&big, None).unwrap_err();
-    assert!(
-        e.to_string()
-            .contains("larger than the 64 MiB limit for text inputs"),
-        "{e}"
-    );
-    assert!(e.to_string().contains("big.csv"), "{e}");
-    let e = nsrm::Model::load(&big).unwrap_err();
-    assert!(e.to_string().contains("64 MiB"), "{e}");
-}
-
-#[test]
 fn many_measured_rows_load_with_a_duplicate_check() {
     // 2·10⁵ rows here (a debug build); `nsrm fit --training` on 10⁶ rows is measured in the
     // README. A quadratic duplicate check would take minutes at this size.

@@ -153,7 +153,7 @@ fn render_chart_flags_are_bounded() {
         ],
     );
     assert!(o.status.success(), "{}", stderr(&o));
-    let f = nsrm::io::read_frame(&d.join("c.exr"), &Default::default()).unwrap();
+    let f = crate::common::read_frame(&d.join("c.exr"), &Default::default()).unwrap();
     assert!(f.data.iter().all(|v| v.is_finite()), "non-finite pixels");
     // Sizes that fit each flag but not together.
     usage_error(

@@ -79,7 +79,7 @@ fn interrupt_run(signal: &str, status: i32) {
     assert!(names.len() < n, "the batch was not stopped: {err}");
     // Every output that exists is complete.
     for name in &names {
-        let f = nsrm::io::read_frame(&d.join("out").join(name), &Default::default()).unwrap();
+        let f = crate::common::read_frame(&d.join("out").join(name), &Default::default()).unwrap();
         assert_eq!((f.width, f.height), (256, 256));
     }
     let converted: usize = err
@@ -287,7 +287,7 @@ fn a_frame_being_written_at_sigterm_is_aborted_not_finished() {
         zip_level: nsrm::io::DEFAULT_ZIP_LEVEL,
     };
     crate::common::committed(true, |u| {
-        nsrm::io::write_exr(&big, &d.join("in/f.0001.exr"), &opts, u)
+        crate::common::write_exr(&big, &d.join("in/f.0001.exr"), &opts, u)
     })
     .unwrap();
     drop(big);
@@ -336,6 +336,6 @@ fn a_frame_being_written_at_sigterm_is_aborted_not_finished() {
     assert!(err.contains("1 converted"), "{err}");
     assert!(err.contains("1 aborted while being written"), "{err}");
     assert_eq!(names(&d.join("out")), ["f_xyz.0000.exr"], "{err}");
-    let f = nsrm::io::read_frame(&d.join("out/f_xyz.0000.exr"), &Default::default()).unwrap();
+    let f = crate::common::read_frame(&d.join("out/f_xyz.0000.exr"), &Default::default()).unwrap();
     assert_eq!((f.width, f.height), (64, 64));
 }

@@ -329,7 +329,7 @@ fn tifffile_layouts_are_read_sample_for_sample() {
             .map(|b| f32::from_le_bytes(b.try_into().unwrap()))
             .collect();
         std::fs::remove_file(d.join(format!("in/{name}.bin"))).unwrap();
-        let f = nsrm::io::read_frame(&path, &ReadOptions::default())
+        let f = crate::common::read_frame(&path, &ReadOptions::default())
             .unwrap_or_else(|e| panic!("{name}: {e}"));
         assert_eq!(f.layout.channels(), channels, "{name}");
         assert_eq!(f.data.len(), want.len(), "{name}");

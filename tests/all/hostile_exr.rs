@@ -147,7 +147,7 @@ fn a_huge_header_costs_an_error() {
     assert!(e.to_string().contains("limit of 268435456 pixels"), "{e}");
     assert_eq!(
         e.concern(),
-        Some(nsrm::error::Concern::Remedy(nsrm::error::Param::MaxPixels))
+        Some(nsrm::io::Concern::Remedy(nsrm::io::Param::MaxPixels))
     );
     // Even with no pixel limit, the file is too small for its own offset table.
     let opts = ReadOptions {

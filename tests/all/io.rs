@@ -3,6 +3,7 @@
 
 use crate::common;
 
+use crate::common::read_frame;
 use exr::compression::Compression;
 use exr::image::{
     AnyChannel, AnyChannels, AnyImage, Blocks, Encoding, FlatSamples, Image, Layer, Levels,
@@ -11,8 +12,8 @@ use exr::math::{RoundingMode, Vec2};
 use exr::meta::attribute::{AttributeValue, Chromaticities, IntegerBounds, LineOrder, Text};
 use exr::meta::header::{ImageAttributes, LayerAttributes};
 use exr::prelude::{f16, SmallVec, WritableImage};
-use nsrm::error::{Concern, Param};
-use nsrm::io::{read_frame, Decoded, FileFormat, IoError, ReadOptions, WriteOptions};
+use nsrm::io::{Concern, Param};
+use nsrm::io::{Decoded, FileFormat, IoError, ReadOptions, WriteOptions};
 use nsrm::OutputSpace;
 use nsrm::{Frame, Layout};
 use std::path::Path;
@@ -419,7 +420,10 @@ fn mip_levels_are_corrected_too() {
     image.write().to_file(&src).unwrap();
     let mut d = Decoded::read(&src, &ReadOptions::default()).unwrap();
     assert_eq!(d.levels.len(), sizes.len() - 1);
-    assert_eq!(d.pixels(), sizes.iter().map(|s| s.0 * s.1).sum::<usize>());
+    assert_eq!(
+        d.frame.pixels() + d.levels.iter().map(Frame::pixels).sum::<usize>(),
+        sizes.iter().map(|s| s.0 * s.1).sum::<usize>()
+    );
     for f in d.frames_mut() {
         f.data.iter_mut().for_each(|v| *v = -*v);
     }
@@ -593,7 +597,7 @@ fn exr_to_tiff_refuses_channels_tiff_cannot_hold() {
     let plain = dir.path().join("plain.exr");
     let frame = Frame::from_data(2, 2, Layout::Rgb, floats(12, 0.5)).unwrap();
     common::committed(false, |u| {
-        nsrm::io::write_exr(
+        crate::common::write_exr(
             &frame,
             &plain,
             &opts(FileFormat::Exr, false, OutputSpace::Xyz),
@@ -617,19 +621,20 @@ fn writes_are_atomic_and_never_clobber() {
     let o = opts(FileFormat::Exr, false, OutputSpace::Xyz);
     let dest = d.join("a.exr");
     std::fs::write(&dest, b"keep me").unwrap();
-    let e = common::committed(false, |u| nsrm::io::write_exr(&frame, &dest, &o, u)).unwrap_err();
+    let e =
+        common::committed(false, |u| crate::common::write_exr(&frame, &dest, &o, u)).unwrap_err();
     assert!(e.to_string().contains("already exists"), "{e}");
     assert_eq!(std::fs::read(&dest).unwrap(), b"keep me");
-    common::committed(true, |u| nsrm::io::write_exr(&frame, &dest, &o, u)).unwrap();
+    common::committed(true, |u| crate::common::write_exr(&frame, &dest, &o, u)).unwrap();
     assert_eq!(read_frame(&dest, &ReadOptions::default()).unwrap(), frame);
     // A destination under a regular file cannot be written; nothing is left behind.
     let e = common::committed(false, |u| {
-        nsrm::io::write_exr(&frame, &dest.join("x.exr"), &o, u)
+        crate::common::write_exr(&frame, &dest.join("x.exr"), &o, u)
     })
     .unwrap_err();
     assert!(e.to_string().contains("cannot write"), "{e}");
     let e = common::committed(false, |u| {
-        nsrm::io::write_tiff(&frame, &d.join("no/such/dir/x.tif"), u)
+        crate::common::write_tiff(&frame, &d.join("no/such/dir/x.tif"), u)
     })
     .unwrap_err();
     assert!(e.to_string().contains("cannot write"), "{e}");
@@ -638,61 +643,6 @@ fn writes_are_atomic_and_never_clobber() {
         .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
         .collect();
     assert_eq!(names, ["a.exr"]);
-}
-
-#[cfg(feature = "chart")]
-#[test]
-fn chart_layout_round_trips() {
-    use nsrm::chart::{layout_path, render_chart as render, write_chart as write};
-    use nsrm::chart::{ChartLayout, ChartOptions};
-    use nsrm::{simulate_named, Grid};
-    let data = simulate_named("nikon-d5100", "D65", "cc24", &Grid::default()).unwrap();
-    let (frame, layout) = render(
-        &data,
-        &ChartOptions {
-            patch_size: 10,
-            columns: Some(6),
-            noise: 0.001,
-            seed: 3,
-            ..Default::default()
-        },
-    )
-    .unwrap();
-    assert_eq!(layout.columns, 6);
-    let dir = tempfile::tempdir().unwrap();
-    for name in ["cc24.exr", "cc24_tiff.tif"] {
-        let path = dir.path().join(name);
-        common::committed(false, |u| write(&frame, &layout, &path, u)).unwrap();
-        let back = ChartLayout::read(&layout_path(&path)).unwrap();
-        // serde_json (without its float_roundtrip feature) may be 1 ulp off.
-        let close = |a: &[f64], b: &[f64]| {
-            a.iter()
-                .zip(b)
-                .all(|(x, y)| (x - y).abs() <= 1e-12 * x.abs().max(1.0))
-        };
-        assert_eq!(
-            (back.width, back.height, back.columns),
-            (layout.width, layout.height, 6)
-        );
-        assert!(close(&back.white_xyz, &layout.white_xyz));
-        assert_eq!(back.patches.len(), layout.patches.len());
-        for (b, l) in back.patches.iter().zip(&layout.patches) {
-            assert_eq!(
-                (&b.label, b.x, b.y, b.width, b.height),
-                (&l.label, l.x, l.y, l.width, l.height)
-            );
-            assert!(close(&b.rgb, &l.rgb) && close(&b.xyz, &l.xyz));
-        }
-        let f = read_frame(&path, &ReadOptions::default()).unwrap();
-        assert_eq!(f, frame);
-        for i in 0..layout.patches.len() {
-            let m = layout.patch_mean(&f, i);
-            for k in 0..3 {
-                assert!((m[k] - layout.patches[i].rgb[k]).abs() < 1e-3);
-            }
-        }
-        assert!(common::committed(false, |u| write(&frame, &layout, &path, u)).is_err());
-    }
 }
 
 #[test]

@@ -6,8 +6,6 @@ mod apply;
 mod architecture;
 #[cfg(feature = "cli")]
 mod capture_lib;
-#[cfg(feature = "chart")]
-mod chart;
 #[cfg(feature = "cli")]
 mod chart_real;
 mod ciede2000_sharma;
@@ -18,8 +16,6 @@ mod cli_eval_fit;
 #[cfg(feature = "cli")]
 mod cli_fit_variants;
 mod common;
-#[cfg(feature = "cli")]
-mod export_dctl;
 #[cfg(feature = "cli")]
 mod export_ocio;
 #[cfg(feature = "io")]
@@ -34,8 +30,6 @@ mod fit_hostile;
 #[cfg(feature = "cli")]
 mod fit_two_illuminants;
 mod fit_variants;
-#[cfg(all(feature = "gpu", feature = "io"))]
-mod gpu;
 #[cfg(feature = "cli")]
 mod gpu_export;
 #[cfg(feature = "cli")]

@@ -4,7 +4,7 @@
 //!
 //! Every path is a printer or evaluator of the one pixel program (`src/model/pixel.rs`). Paths
 //! here: the GPU's printed WGSL (lavapipe; skipped with a loud line when there is no adapter,
-//! failed under `CI=true`) and the printed DCTL (compiled as C by `cc`, as `export_dctl` does),
+//! failed under `CI=true`) and, in `src/export/dctl_tests.rs`, the printed DCTL (compiled as C by the kit's harness),
 //! on every kind at every order 1–4 and white-balanced NSRM (non-unit input gains) at every order;
 //! the f64 reference and the fast CPU kernels (the clone detected for this CPU and the baseline
 //! clone without FMA, the hand-written kernel at order 3 and the generic plan at the other orders)
@@ -22,26 +22,9 @@
 use nsrm::gpu::{Engine, GpuError, GpuOptions};
 
 use crate::common;
-use common::{check_policy as check, policy_frame as frame_of, policy_pixels};
-use nsrm::{fit_with, FitOptions, Kind, Model, Normalise};
-
-/// Every kind at every order ([`common::fitted_models`]) and white-balanced NSRM (the program's
-/// gain step with gains other than 1) at every order.
-fn models() -> Vec<Model> {
-    let mut v = common::fitted_models();
-    let opts = FitOptions {
-        normalise: Normalise::WhiteBalanced,
-        ..Default::default()
-    };
-    for order in 1..=nsrm::MAX_ORDER {
-        let m = fit_with(Kind::Nsrm, order, common::training(), &opts)
-            .unwrap()
-            .model;
-        assert!(!m.has_unit_gains(), "{:?}", m.input_gains());
-        v.push(m);
-    }
-    v
-}
+use common::{
+    check_policy as check, policy_frame as frame_of, policy_models as models, policy_pixels,
+};
 
 #[test]
 fn gpu_shaders_follow_the_policy_including_negative_signal() {
@@ -62,30 +45,10 @@ fn gpu_shaders_follow_the_policy_including_negative_signal() {
     for model in models() {
         let mut f = frame_of(&policy_pixels(model.kind()));
         engine.apply(&model, &mut f).unwrap();
-        check(&model, &format!("GPU {}", engine.adapter_name()), &f);
-    }
-}
-
-#[cfg(feature = "cli")]
-#[test]
-fn printed_dctl_follows_the_policy() {
-    let Some(cc) = crate::export_dctl::cc() else {
-        return;
-    };
-    let dir = tempfile::tempdir().unwrap();
-    for (i, model) in models().into_iter().enumerate() {
-        let pixels = policy_pixels(model.kind());
-        let dctl = nsrm::export::generate_dctl(&model, &[]).unwrap();
-        let px: Vec<[f64; 3]> = pixels.iter().map(|(_, p)| p.map(|v| v as f64)).collect();
-        let name = format!("policy{i}_{}{}", model.kind().name(), model.order());
-        let got = crate::export_dctl::run_dctl(&cc, dir.path(), &name, &dctl, &px);
-        let out = nsrm::Frame::from_data(
-            got.len(),
-            1,
-            nsrm::Layout::Rgb,
-            got.iter().flat_map(|p| p.map(|v| v as f32)).collect(),
-        )
-        .unwrap();
-        check(&model, "printed DCTL (cc)", &out);
+        check(
+            &model,
+            &format!("GPU {}", engine.context().adapter_name()),
+            &f,
+        );
     }
 }

@@ -5,9 +5,11 @@
 //! DNG in `../shared/data` must give LibRaw's half-size chart reading. Bad raw files give clear
 //! errors, write nothing and never end a `--continue-on-error` batch.
 
+use crate::common::read_frame;
 use crate::common::{self, no_crash, nsrm_in, stderr};
 use nsrm::io::Demosaic;
-use nsrm::io::{read_frame, Limits, ReadOptions};
+use nsrm::io::{Limits, ReadOptions};
+use std::ffi::{OsStr, OsString};
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
@@ -29,7 +31,7 @@ fn on_ci() -> bool {
 }
 
 /// Whether python3 with rawpy, tifffile and numpy is here (prints SKIP, fails on CI, if not).
-fn judge_available() -> bool {
+pub(crate) fn judge_available() -> bool {
     let ok = Command::new("python3")
         .args(["-c", "import rawpy, tifffile, numpy"])
         .output()
@@ -44,23 +46,31 @@ fn judge_available() -> bool {
     ok
 }
 
-/// Writes a synthetic DNG with the judge; `args` after the output name.
-fn write_dng(out: &Path, args: &[&str]) {
+/// Runs `tests/tools/raw_judge.py` with `args` and returns its standard output; the test fails
+/// if the judge does.
+pub(crate) fn judge<S: AsRef<OsStr>>(args: impl IntoIterator<Item = S>) -> String {
+    let args: Vec<OsString> = args.into_iter().map(|a| a.as_ref().to_owned()).collect();
     let o = Command::new("python3")
         .arg(JUDGE)
-        .arg("dng")
-        .arg(out)
-        .args(args)
+        .args(&args)
         .output()
         .expect("running python3");
     assert!(
         o.status.success(),
-        "raw_judge.py dng {args:?}: {}",
+        "raw_judge.py {args:?}: {}",
         String::from_utf8_lossy(&o.stderr)
     );
+    String::from_utf8_lossy(&o.stdout).into_owned()
 }
 
-fn f32s(path: &Path) -> Vec<f32> {
+/// Writes a synthetic DNG with the judge; `args` after the output name.
+pub(crate) fn write_dng(out: &Path, args: &[&str]) {
+    let head = [OsStr::new("dng"), out.as_os_str()];
+    judge(head.into_iter().chain(args.iter().map(OsStr::new)));
+}
+
+/// The little-endian f32s of a file the judge wrote.
+pub(crate) fn f32s(path: &Path) -> Vec<f32> {
     std::fs::read(path)
         .unwrap()
         .chunks_exact(4)
@@ -68,7 +78,8 @@ fn f32s(path: &Path) -> Vec<f32> {
         .collect()
 }
 
-fn read(path: &Path, demosaic: Demosaic) -> nsrm::Frame {
+/// `path` read as a frame with `demosaic` (the test fails on an error).
+pub(crate) fn read(path: &Path, demosaic: Demosaic) -> nsrm::Frame {
     read_frame(
         path,
         &ReadOptions {
@@ -155,14 +166,7 @@ fn bilinear_matches_libraw_linear_in_the_interior() {
             ],
         );
         let lin = dir.join(format!("b{i}.lin.f32"));
-        let o = Command::new("python3")
-            .arg(JUDGE)
-            .arg("linear")
-            .arg(&p)
-            .arg(&lin)
-            .output()
-            .unwrap();
-        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        judge([OsStr::new("linear"), p.as_os_str(), lin.as_os_str()]);
         let libraw = f32s(&lin);
         let f = read(&p, Demosaic::Bilinear);
         assert_eq!((f.width, f.height), (80, 60));
@@ -364,7 +368,7 @@ fn apply_on_a_raw_file_writes_exr_with_the_camera_in_its_header() {
         }
         v => panic!("nsrmAsShotNeutral: {v:?}"),
     }
-    let ours = nsrm::io::read_frame(&exr, &ReadOptions::default()).unwrap();
+    let ours = crate::common::read_frame(&exr, &ReadOptions::default()).unwrap();
     assert!(ours.data.iter().all(|v| v.is_finite()));
 }
 
@@ -701,14 +705,8 @@ fn to_lossless_dng(src: &Path, dst: &Path) {
 
 #[cfg(feature = "raw")]
 fn libraw_same(a: &Path, b: &Path) -> serde_json::Value {
-    let o = Command::new("python3")
-        .arg(JUDGE)
-        .arg("same")
-        .args([a, b])
-        .output()
-        .expect("running python3");
-    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-    serde_json::from_slice(&o.stdout).unwrap()
+    let out = judge([OsStr::new("same"), a.as_os_str(), b.as_os_str()]);
+    serde_json::from_str(&out).unwrap()
 }
 
 #[cfg(feature = "raw")]

@@ -46,7 +46,11 @@ fn both_routes_from_one_frame_give_the_same_model() {
         .split(',')
         .map(|v| v.parse().unwrap())
         .collect();
-    assert_close(&w, &nsrm::chart::d50_white(), "the CSV's white is D50");
+    // The built-in reference's white: D50.
+    let d50 = nsrm::chart::Reference::load("cc24-after2014", nsrm::chart::ChartKind::Cc24, None)
+        .unwrap()
+        .white;
+    assert_close(&w, &d50, "the CSV's white is D50");
     for kind in ["nsrm", "prm", "lrm"] {
         let a = format!("a_{kind}.json");
         let b = format!("b_{kind}.json");

@@ -3,8 +3,9 @@
 //! with a clear message and writes nothing. On `../shared/data/colorchart.dng` (AsShotNeutral
 //! 1, 2.477, 1.462, as exiftool prints it).
 
+use crate::common::read_frame;
 use crate::common::{nsrm_in, nsrm_ok, skip, stderr, tempdir};
-use nsrm::io::{read_frame, ReadOptions};
+use nsrm::io::ReadOptions;
 use std::path::PathBuf;
 
 const CHART_DNG: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/../shared/data/colorchart.dng");

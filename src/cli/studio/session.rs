@@ -1020,7 +1020,7 @@ impl FrameState {
 
     pub(crate) fn patches_csv(&self) -> Result<String> {
         let c = self.capture()?;
-        Ok(c.extraction.to_csv(&c.reference))
+        Ok(c.to_csv())
     }
 
     /// Exports the last fit as `export --model model.json --training patches.csv` does: the

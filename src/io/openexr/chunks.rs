@@ -30,6 +30,7 @@
 
 use super::super::{IoError, Limits};
 use crate::frame::{Frame, Layout};
+use crate::io::MAX_ZIP_LEVEL;
 use ::exr::compression::Compression;
 use ::exr::math::Vec2;
 use ::exr::meta::attribute::{ChannelList, IntegerBounds, LineOrder, SampleType};
@@ -40,11 +41,6 @@ use rayon::prelude::*;
 use std::fs::File;
 use std::io::{BufReader, Read};
 use std::path::Path;
-
-/// The ZIP level written when none is asked for (libdeflate's levels, 0-12): 1, the fastest,
-/// which still compresses noisy float plates about as much as the higher levels. See
-/// BENCHMARKS.md.
-pub const DEFAULT_ZIP_LEVEL: u8 = 1;
 
 /// The most a deflate stream expands: 1032:1 (a 258-byte match coded in 2 bits); a margin in
 /// [`max_decoded`] covers the stream's header and the last block.
@@ -714,9 +710,6 @@ struct Codec {
     /// PIZ's 16-bit words.
     words: Vec<u16>,
 }
-
-/// The highest deflate level libdeflate has (`--zip-level` accepts 0 to this).
-pub const MAX_ZIP_LEVEL: u8 = 12;
 
 impl Codec {
     /// No codecs made and no buffers held yet.

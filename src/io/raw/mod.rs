@@ -123,7 +123,7 @@ pub struct CameraInfo {
 
 impl CameraInfo {
     /// `make model`, for messages and comparisons.
-    pub fn camera(&self) -> String {
+    pub(crate) fn camera(&self) -> String {
         format!("{} {}", self.make.trim(), self.model.trim())
             .trim()
             .to_string()

@@ -1,11 +1,26 @@
 //! The test kit shared by the integration tests (through `common`) and the library's unit tests
 //! (`src/lib.rs` includes this file under `cfg(test)`, with `nsrm` naming the crate itself): one
 //! seeded RNG, one generator of frames full of awkward pixels, the f64 reference on a frame, one
-//! f32 error bound against it, the pixel policy's pixels and its check, one training fixture.
+//! f32 error bound against it, the pixel policy's pixels and its check, one training fixture, the
+//! one skip rule for a missing prerequisite ([`skip_or_fail`]: fails under `CI=true`) and the one
+//! DCTL harness.
 //! Public API only, so both sides compile it alike.
 
 use nsrm::{simulate_named, Frame, Grid, Kind, Layout, Model, TrainingSet};
+use std::io::Write as _;
+use std::path::Path;
+use std::process::{Command, Stdio};
 use std::sync::OnceLock;
+
+/// The skip rule for a test whose prerequisite (an external tool, a driver, `../shared` data) is
+/// absent: under `CI=true` it fails the test; otherwise it prints `SKIP: reason` and the caller
+/// returns. (The integration tests' `common::skip` also counts the skipped tests.)
+pub fn skip_or_fail(reason: &str) {
+    if std::env::var("CI").as_deref() == Ok("true") {
+        panic!("{reason} (a prerequisite of this test, required under CI=true; the README's Tests section lists them)");
+    }
+    eprintln!("SKIP: {reason}");
+}
 
 /// SplitMix64: a fixed-seed generator (no extra dependency).
 pub struct Rng(pub u64);
@@ -133,6 +148,24 @@ pub fn fitted_models() -> Vec<Model> {
     v
 }
 
+/// Every kind at every order ([`fitted_models`]) and white-balanced NSRM (the pixel program's
+/// gain step with gains other than 1) at every order: the models the pixel policy is checked on.
+pub fn policy_models() -> Vec<Model> {
+    let mut v = fitted_models();
+    let opts = nsrm::FitOptions {
+        normalise: nsrm::Normalise::WhiteBalanced,
+        ..Default::default()
+    };
+    for order in 1..=nsrm::MAX_ORDER {
+        let m = nsrm::fit_with(Kind::Nsrm, order, training(), &opts)
+            .unwrap()
+            .model;
+        assert_ne!(m.input_gains(), [1.0; 3]);
+        v.push(m);
+    }
+    v
+}
+
 /// The f64 reference on a frame, in place (alpha untouched): each pixel widened to f64, corrected
 /// by [`Model::apply_f64`] and rounded once to f32: the oracle of the f32 paths.
 pub fn apply_reference(model: &Model, frame: &mut Frame) {
@@ -168,7 +201,8 @@ pub fn policy_pixels(kind: Kind) -> Vec<(&'static str, [f32; 3])> {
         ("ordinary", [0.2, 0.3, 0.25]),
         ("highlight ×1e4", [2e3, 3e3, 2.5e3]),
     ];
-    if kind.exposure_invariant() {
+    // PRM is the one kind that is not exposure-invariant (`f(kS) = k·f(S)` fails for it).
+    if kind != Kind::Prm {
         v.push(("huge", [1e30, 2e30, 1.5e30]));
         v.push(("huge, negative channel", [1e30, -1e29, 1.5e30]));
     }
@@ -249,4 +283,143 @@ pub fn mutate(base: &str, edits: &[(usize, u8)]) -> String {
         }
     }
     String::from_utf8_lossy(&bytes).into_owned()
+}
+
+// The one DCTL harness (the unit tests of `src/export/dctl.rs` and `dctl_tests.rs`, and the CLI
+// test in `tests/all/gpu_export.rs`): Resolve is not available here, so a DCTL is compiled as C
+// with a shim for its built-ins and run on test pixels.
+
+/// DaVinci Resolve's DCTL built-ins as C: a DCTL compiles as C with this before it.
+const SHIM: &str = r#"
+#include <math.h>
+#include <stdio.h>
+#define __DEVICE__ static
+#define DEVICE static
+typedef struct { float x, y, z; } float3;
+static float3 make_float3(float x, float y, float z) { float3 v; v.x = x; v.y = y; v.z = z; return v; }
+#define _fabs fabsf
+#define _sqrtf sqrtf
+#define _cbrtf cbrtf
+#define _copysignf copysignf
+"#;
+
+/// The C `main` that runs a DCTL's `transform` on `r g b` lines.
+const MAIN: &str = r#"
+int main(void) {
+    float r, g, b;
+    while (scanf("%f %f %f", &r, &g, &b) == 3) {
+        float3 o = transform(1, 1, 0, 0, r, g, b);
+        printf("%.9g %.9g %.9g\n", o.x, o.y, o.z);
+    }
+    return 0;
+}
+"#;
+
+/// A C compiler for [`run_dctl`], or `None` after [`skip_or_fail`] (a failure under `CI=true`).
+pub fn cc() -> Option<String> {
+    for c in ["cc", "gcc", "clang"] {
+        if Command::new(c)
+            .arg("--version")
+            .output()
+            .is_ok_and(|o| o.status.success())
+        {
+            return Some(c.to_string());
+        }
+    }
+    let msg = "no C compiler (cc, gcc or clang) to compile the DCTL with";
+    skip_or_fail(msg);
+    None
+}
+
+/// Compiles `dctl` with the shim and runs it on `px` (also used by `pixel_policy`).
+pub fn run_dctl(cc: &str, dir: &Path, name: &str, dctl: &str, px: &[[f64; 3]]) -> Vec<[f64; 3]> {
+    let src = dir.join(format!("{name}.c"));
+    let exe = dir.join(name);
+    std::fs::write(&src, format!("{SHIM}\n{dctl}\n{MAIN}")).unwrap();
+    let out = Command::new(cc)
+        .args([
+            "-std=c99",
+            "-O1",
+            "-Wall",
+            "-Werror",
+            "-Wno-unused-parameter",
+            "-Wno-unused-function",
+        ])
+        .arg(&src)
+        .arg("-o")
+        .arg(&exe)
+        .arg("-lm")
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{name}: the DCTL does not compile as C:\n{}\n{dctl}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let mut child = Command::new(&exe)
+        .stdin(Stdio::piped())
+        .stdout(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let input: String = px
+        .iter()
+        .map(|p| format!("{:e} {:e} {:e}\n", p[0] as f32, p[1] as f32, p[2] as f32))
+        .collect();
+    child
+        .stdin
+        .take()
+        .unwrap()
+        .write_all(input.as_bytes())
+        .unwrap();
+    let out = child.wait_with_output().unwrap();
+    String::from_utf8(out.stdout)
+        .unwrap()
+        .lines()
+        .map(|l| {
+            let v: Vec<f64> = l
+                .split_whitespace()
+                .map(|t| match t {
+                    "nan" | "-nan" => f64::NAN,
+                    t => t.parse().unwrap(),
+                })
+                .collect();
+            [v[0], v[1], v[2]]
+        })
+        .collect()
+}
+
+/// Test pixels for a DCTL: training patches, 37× brighter and 1e-4× darker ones, black, `s < 0`
+/// and grey, rounded to f32 (the C program reads f32).
+pub fn dctl_pixels(data: &TrainingSet) -> Vec<[f64; 3]> {
+    let mut px: Vec<[f64; 3]> = data.rgb.iter().take(60).cloned().collect();
+    px.extend(data.rgb.iter().take(20).map(|c| c.map(|v| v * 37.0)));
+    px.extend(data.rgb.iter().take(20).map(|c| c.map(|v| v * 1e-4)));
+    px.extend([
+        [0.0, 0.0, 0.0],
+        [-0.01, 0.2, 0.3],
+        [0.1, -0.2, 0.05],
+        [0.1, -0.3, 0.05],
+        [0.5, 0.5, 0.5],
+    ]);
+    // Round to f32 first: the C program reads f32.
+    px.iter().map(|p| p.map(|v| v as f32 as f64)).collect()
+}
+
+/// A DCTL's output `got` on `px` against `model`: `|dctl − f64| ≤ 1e-5 · max(|ref|, T_k)` (`T_k` the size of the summands): the f32 bound of
+/// the shaders (the kit's [`f32_bound`]).
+pub fn check_dctl(model: &Model, px: &[[f64; 3]], got: &[[f64; 3]], what: &str) {
+    assert_eq!(got.len(), px.len(), "{what}");
+    for (x, g) in px.iter().zip(got) {
+        let want = model.apply_f64(*x);
+        let mag = summands(model, *x);
+        for i in 0..3 {
+            let tol = f32_bound(want[i], mag[i], 1e-5);
+            assert!(
+                (g[i] - want[i]).abs() <= tol,
+                "{what}: pixel {x:?} channel {i}: DCTL {} vs f64 {} (tol {tol:e})",
+                g[i],
+                want[i]
+            );
+        }
+    }
 }

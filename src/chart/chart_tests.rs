@@ -1,12 +1,18 @@
-//! Chart capture: synthetic scenes with known truth, read back by corners and by detection.
+//! Chart capture, step by step: synthetic scenes with known truth, read back by corners and by
+//! detection, with the flat-field estimates; the synthetic chart's layout file. (Once
+//! `tests/all/chart.rs` and a test of `tests/all/io.rs`; here since detection, extraction, the
+//! flat field and the layout file's reader are crate-private.)
 
-use nsrm::chart::render_scene as render;
-use nsrm::chart::{apply_flat, flat_from_frame, flat_from_neutrals};
-use nsrm::chart::{detect, extract, verify, DetectOptions, ExtractOptions, Reference};
-use nsrm::chart::{homography_from_corners, ChartColours, ChartKind, SceneOptions};
-use nsrm::Kind;
-use nsrm::TrainingSet;
-use nsrm::{evaluate, Protocol};
+use super::detect::{detect, DetectOptions};
+use super::extract::{extract, verify, ExtractOptions, Extraction};
+use super::flat::from_neutrals as flat_from_neutrals;
+use super::flat::{apply as apply_flat, from_flat_frame as flat_from_frame};
+use super::scene::{render, ChartColours, Family, SceneOptions, SceneTruth};
+use super::{homography_from_corners, ChartKind, Reference};
+use crate::kit::skip_or_fail;
+use crate::Kind;
+use crate::TrainingSet;
+use crate::{evaluate, Protocol};
 
 const SG_SPECTRA: &str = "../shared/data/colorchecker_sg_140.csv";
 
@@ -16,14 +22,14 @@ fn cc24() -> ChartColours {
 
 fn sg() -> Option<ChartColours> {
     if !std::path::Path::new(SG_SPECTRA).exists() {
-        crate::common::skip(&format!("{SG_SPECTRA} not found"));
+        skip_or_fail(&format!("{SG_SPECTRA} not found"));
         return None;
     }
     Some(ChartColours::simulate(ChartKind::Sg, "nikon-d5100", "D65", Some(SG_SPECTRA)).unwrap())
 }
 
 /// Largest |measured / truth − 1| over patches brighter than `min_g`.
-fn worst_ratio(ex: &nsrm::chart::Extraction, truth: &nsrm::chart::SceneTruth, min_g: f64) -> f64 {
+fn worst_ratio(ex: &Extraction, truth: &SceneTruth, min_g: f64) -> f64 {
     ex.patches
         .iter()
         .zip(&truth.patches)
@@ -312,7 +318,7 @@ fn bad_scenes_fail_clearly() {
 
 /// Scenes of one family (`chart rate --family`): (found correctly, refused); panics on a wrong
 /// answer — a label off its true cell, or any chart reported in a negative scene.
-fn family_outcomes(family: nsrm::chart::Family, seeds: std::ops::Range<u64>) -> (u32, u32) {
+fn family_outcomes(family: Family, seeds: std::ops::Range<u64>) -> (u32, u32) {
     let colours = cc24();
     let reference = Reference::load("cc24-after2014", ChartKind::Cc24, None).unwrap();
     let (mut ok, mut refused) = (0, 0);
@@ -359,7 +365,6 @@ fn family_outcomes(family: nsrm::chart::Family, seeds: std::ops::Range<u64>) -> 
 
 #[test]
 fn real_photo_families_are_found_or_refused_never_wrong() {
-    use nsrm::chart::Family;
     // A handful per family here; `nsrm chart rate --family F` measures the rates (README).
     for f in [
         Family::Jpeg,
@@ -376,9 +381,74 @@ fn real_photo_families_are_found_or_refused_never_wrong() {
 
 #[test]
 fn other_charts_and_random_grids_are_refused() {
-    use nsrm::chart::Family;
     for f in [Family::Spyder, Family::Random, Family::Shuffled] {
         let (ok, _) = family_outcomes(f, 1..5);
         assert_eq!(ok, 0, "{}", f.name());
+    }
+}
+
+/// Runs writers on one unit of a fresh output session and commits it.
+fn committed(
+    overwrite: bool,
+    write: impl FnOnce(&mut crate::output::Unit) -> Result<(), crate::io::IoError>,
+) -> Result<(), crate::io::IoError> {
+    let session = crate::output::Session::new(overwrite);
+    let mut unit = session.unit();
+    write(&mut unit)?;
+    unit.commit()?;
+    Ok(())
+}
+
+/// The synthetic chart's frame and layout file (`render-chart`) read back as written.
+#[test]
+fn chart_layout_round_trips() {
+    use super::synthetic::{layout_path, render, write, ChartLayout, ChartOptions};
+    use crate::{simulate_named, Grid};
+    let data = simulate_named("nikon-d5100", "D65", "cc24", &Grid::default()).unwrap();
+    let (frame, layout) = render(
+        &data,
+        &ChartOptions {
+            patch_size: 10,
+            columns: Some(6),
+            noise: 0.001,
+            seed: 3,
+            ..Default::default()
+        },
+    )
+    .unwrap();
+    assert_eq!(layout.columns, 6);
+    let dir = tempfile::tempdir().unwrap();
+    for name in ["cc24.exr", "cc24_tiff.tif"] {
+        let path = dir.path().join(name);
+        committed(false, |u| write(&frame, &layout, &path, u)).unwrap();
+        let back = ChartLayout::read(&layout_path(&path)).unwrap();
+        // serde_json (without its float_roundtrip feature) may be 1 ulp off.
+        let close = |a: &[f64], b: &[f64]| {
+            a.iter()
+                .zip(b)
+                .all(|(x, y)| (x - y).abs() <= 1e-12 * x.abs().max(1.0))
+        };
+        assert_eq!(
+            (back.width, back.height, back.columns),
+            (layout.width, layout.height, 6)
+        );
+        assert!(close(&back.white_xyz, &layout.white_xyz));
+        assert_eq!(back.patches.len(), layout.patches.len());
+        for (b, l) in back.patches.iter().zip(&layout.patches) {
+            assert_eq!(
+                (&b.label, b.x, b.y, b.width, b.height),
+                (&l.label, l.x, l.y, l.width, l.height)
+            );
+            assert!(close(&b.rgb, &l.rgb) && close(&b.xyz, &l.xyz));
+        }
+        let f = crate::io::read_frame(&path, &crate::io::ReadOptions::default()).unwrap();
+        assert_eq!(f, frame);
+        for i in 0..layout.patches.len() {
+            let m = layout.patch_mean(&f, i);
+            for k in 0..3 {
+                assert!((m[k] - layout.patches[i].rgb[k]).abs() < 1e-3);
+            }
+        }
+        assert!(committed(false, |u| write(&frame, &layout, &path, u)).is_err());
     }
 }

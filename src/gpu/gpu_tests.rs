@@ -1,5 +1,6 @@
 //! The GPU path against the f64 CPU reference (`Model::apply_f64` on every pixel: the test kit's
-//! `apply_reference`).
+//! `apply_reference`). (Moved from `tests/all/gpu.rs`: it reads the engine's crate-private
+//! unwritten-output sentinel.)
 //!
 //! Without an adapter these tests print `SKIP: no GPU adapter ...` and pass, unless `CI=true`,
 //! where they fail with the driver message.
@@ -13,15 +14,15 @@
 //! an infinite reference needs a non-finite value (Inf of the same sign, or NaN); alpha must
 //! come back bit for bit; no value may be the engine's unwritten-output sentinel.
 
-use nsrm::gpu::{self, Corrector, Engine, GpuError, GpuOptions, Target, TexelFormat};
-use nsrm::{fit, Kind, Model, MAX_ORDER};
-use nsrm::{fit_with, FitOptions, Normalise};
-use nsrm::{simulate_named, Grid};
-use nsrm::{Frame, Layout};
+use crate::gpu::{self, Corrector, Engine, GpuError, GpuOptions, Target, TexelFormat};
+use crate::{fit, Kind, Model, MAX_ORDER};
+use crate::{fit_with, FitOptions, Normalise};
+use crate::{simulate_named, Grid};
+use crate::{Frame, Layout};
 
 /// The embedding example, for its functions (chart → Corrector pass → display pass → RGBA8).
 #[path = "../../examples/embed.rs"]
-#[allow(dead_code)]
+#[allow(dead_code, unreachable_pub)]
 mod embed;
 
 const SKIP: &str = "no GPU adapter (install mesa-vulkan-drivers libvulkan1)";
@@ -38,14 +39,14 @@ fn engine(tile_pixels: Option<usize>) -> Option<Engine> {
         // Debug builds (the tests) fill every output tile with the sentinel NaN first.
         Ok(e) => Some(e),
         Err(e @ GpuError::NoAdapter { .. }) => {
-            crate::common::skip(&format!("{SKIP}: {e}"));
+            crate::kit::skip_or_fail(&format!("{SKIP}: {e}"));
             None
         }
         Err(e) => panic!("cannot open the GPU engine: {e}"),
     }
 }
 
-use crate::common;
+use crate::kit as common;
 use common::{awkward_frame as random_frame, f32_bound, summands, training, Rng};
 
 fn model(kind: Kind, order: u8) -> Model {
@@ -61,7 +62,7 @@ fn white_balanced(order: u8) -> Model {
     let m = fit_with(Kind::Nsrm, order, training(), &opts)
         .unwrap()
         .model;
-    assert!(!m.has_unit_gains());
+    assert_ne!(m.input_gains(), [1.0; 3]);
     m
 }
 
@@ -94,7 +95,7 @@ fn compare_stats(
             };
             assert_ne!(
                 gv.to_bits(),
-                gpu::OUTPUT_SENTINEL_BITS,
+                gpu::engine::OUTPUT_SENTINEL_BITS,
                 "{}: not written",
                 at()
             );
@@ -159,7 +160,7 @@ fn check_models(kind: Kind, model: impl Fn(u8) -> Model) {
     };
     for order in orders {
         let m = model(order);
-        let wb = if m.has_unit_gains() {
+        let wb = if m.input_gains() == [1.0; 3] {
             ""
         } else {
             " white-balanced"
@@ -180,7 +181,7 @@ fn check_models(kind: Kind, model: impl Fn(u8) -> Model) {
                     &mut big_tiles
                 };
                 engine.apply(&m, &mut out).unwrap();
-                let what = format!("{kind} order {order}{wb} {} {w}×{h}", layout.name());
+                let what = format!("{kind} order {order}{wb} {layout:?} {w}×{h}");
                 let (w, p) = compare_stats(&what, &m, &input, &out, &reference, REL_TOL);
                 worst = worst.max(w);
                 worst_plain = worst_plain.max(p);

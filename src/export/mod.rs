@@ -1,6 +1,6 @@
 //! Files other tools read: the Academy/SMPTE Common LUT Format (CLF v3), Resolve/OCIO `.cube`
 //! and a minimal OpenColorIO v2 config ([`export_to`] with a [`Format`]), DaVinci Resolve DCTL
-//! ([`generate_dctl`]), an Adobe DNG camera profile ([`export_dcp`]), an ICC input profile
+//! (`nsrm export-shader --lang dctl`), an Adobe DNG camera profile ([`export_dcp`]), an ICC input profile
 //! ([`export_icc`]) and, with the `gpu` feature, baked shaders (`export_shader`).
 //!
 //! # What is written

@@ -216,7 +216,7 @@ impl Calibration {
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub enum FrameWhite {
     /// A chromaticity (a bare temperature is turned into one by
-    /// [`temperature_xy`](crate::colorimetry::temperature::temperature_xy)).
+    /// the CIE daylight / Planckian locus).
     Xy([f64; 2]),
     /// The camera response to the frame's white (e.g. a raw file's as-shot neutral), any scale.
     Neutral([f64; 3]),

@@ -242,7 +242,7 @@ impl std::fmt::Display for Kind {
 ///
 /// Valid by construction: a `Model` is made only by [`fit`], [`Model::load`] /
 /// [`Model::from_json`] or [`Model::from_matrix`], each of which checks the order, the matrix
-/// shape and that every coefficient is finite; [`Model::with_input_gains`] checks the gains. The term list is derived from (kind, order), never
+/// shape and that every coefficient is finite, and the input gains wherever they are set. The term list is derived from (kind, order), never
 /// given, so every apply path (f64, fast CPU, shaders) can rely on it without re-checking.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Model {
@@ -263,7 +263,7 @@ pub struct Model {
     fit_report: Option<fit::FitReport>,
     /// Per-channel gains multiplied into camera RGB before the terms: `[1, 1, 1]` except for a
     /// white-balanced NSRM (the training white's response becomes `(1, 1, 1)`). Finite, `> 0`
-    /// and finite in f32 (checked by [`with_input_gains`](Self::with_input_gains)).
+    /// and finite in f32 (checked wherever they are set: the fit, the model file, a combination).
     input_gains: [f64; 3],
 }
 

@@ -4,7 +4,7 @@
 use super::{Model, ModelError};
 use crate::colorimetry::{output_matrix, spaces::OutputSpace};
 
-/// The model with [`output_matrix`](crate::colorimetry::output_matrix) folded into its matrix: it maps camera RGB straight to the
+/// The model with the output-space matrix ([`OutputSpace::from_xyz`], white at `Y = 1`) folded into its matrix: it maps camera RGB straight to the
 /// output space (white `Y = 1`), on every apply path, with no extra pass over the pixels. This
 /// is exact for all four kinds (each output is a linear combination of the same terms).
 pub fn output_model(model: &Model, space: OutputSpace) -> Result<Model, ModelError> {

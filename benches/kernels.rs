@@ -1,7 +1,12 @@
 //! Criterion benches of the CPU frame path (`Model::apply_frame`, the fast f32 kernels of
-//! `src/model/fast.rs`): LRM, PRM 3, RPRM 3 and NSRM 3 on one thread (a one-thread rayon pool)
-//! and on rayon's global pool, beside a memcpy of the same bytes (the ceiling a per-pixel kernel
-//! can reach). Throughput is in pixels (`elem/s`).
+//! `src/model/fast.rs`) on one thread (a one-thread rayon pool) and on rayon's global pool,
+//! beside a memcpy of the same bytes (the ceiling a per-pixel kernel can reach). Throughput is in
+//! pixels (`elem/s`). Two families:
+//! * `hand/…`: the programs a hand-written kernel declares (LRM, PRM 3, RPRM 3, NSRM 3);
+//! * `plan/…`: programs no hand-written kernel matches, run by the generic product plan
+//!   (`BlockKernel for Plan`): PRM, RPRM and NSRM at orders 2 and 4, and white-balanced NSRM 2
+//!   (its gain step). Which kernel each model gets is pinned by the unit test
+//!   `every_standard_model_gets_a_kernel_and_plans_fit` in `src/model/fast.rs`.
 //!
 //! The frame (2048×2048 packed RGB f32, 48 MiB) is larger than the caches. Each kernel run
 //! corrects a fresh copy of it in place (the copy is made, and its pages faulted, outside the
@@ -10,7 +15,7 @@
 //! `nsrm bench` measures the crate's kernels (into a second frame) in one run and prints ratios.
 
 use criterion::{criterion_group, criterion_main, BatchSize, Criterion, Throughput};
-use nsrm::{fit, simulate_named, Grid, Kind};
+use nsrm::{fit_with, simulate_named, FitOptions, Grid, Kind, Normalise};
 use nsrm::{Frame, Layout};
 use std::hint::black_box;
 use std::time::Duration;
@@ -52,15 +57,28 @@ fn kernels(c: &mut Criterion) {
             })
         });
     }
-    for (kind, order) in [
-        (Kind::Lrm, 1),
-        (Kind::Prm, 3),
-        (Kind::Rprm, 3),
-        (Kind::Nsrm, 3),
-    ] {
-        let model = fit(kind, order, &data).unwrap();
+    let plain = FitOptions::default();
+    let balanced = FitOptions {
+        normalise: Normalise::WhiteBalanced,
+        ..FitOptions::default()
+    };
+    let cases = [
+        ("hand", Kind::Lrm, 1, &plain, ""),
+        ("hand", Kind::Prm, 3, &plain, ""),
+        ("hand", Kind::Rprm, 3, &plain, ""),
+        ("hand", Kind::Nsrm, 3, &plain, ""),
+        ("plan", Kind::Prm, 2, &plain, ""),
+        ("plan", Kind::Prm, 4, &plain, ""),
+        ("plan", Kind::Rprm, 2, &plain, ""),
+        ("plan", Kind::Rprm, 4, &plain, ""),
+        ("plan", Kind::Nsrm, 2, &plain, ""),
+        ("plan", Kind::Nsrm, 4, &plain, ""),
+        ("plan", Kind::Nsrm, 2, &balanced, "wb"),
+    ];
+    for (family, kind, order, opts, wb) in cases {
+        let model = fit_with(kind, order, &data, opts).unwrap().model;
         for (name, pool) in pools {
-            g.bench_function(format!("{}{order}/{name}", kind.name()), |b| {
+            g.bench_function(format!("{family}/{}{order}{wb}/{name}", kind.name()), |b| {
                 b.iter_batched_ref(
                     || src.clone(),
                     |frame| pool.install(|| model.apply_frame(black_box(frame))),

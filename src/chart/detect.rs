@@ -1,11 +1,13 @@
 //! Finding a chart in a linear frame without `--corners`.
 //!
 //! 1. The frame is box-downsampled so its long side is at most [`DetectOptions::max_side`]
-//!    pixels, smoothed (imageproc's Gaussian filter, σ = 1) and turned into log-luminance and
-//!    chromaticity — so the exposure does not matter and dark patches count as much as bright ones.
+//!    pixels, smoothed (a Gaussian filter, σ = 1: imageproc's to the bit, [`super::raster`]) and
+//!    turned into log-luminance and chromaticity — so the exposure does not matter and dark
+//!    patches count as much as bright ones.
 //! 2. *Flat* pixels (log-luminance and chromaticity gradients below a threshold) are labelled into
-//!    connected regions (imageproc's `connected_components`); regions of patch-like size and
-//!    shape (second moments of a filled convex quadrilateral, not elongated) are candidate patches.
+//!    connected regions (numbered as imageproc's `connected_components` does); regions of
+//!    patch-like size and shape (second moments of a filled convex quadrilateral, not elongated)
+//!    are candidate patches.
 //! 3. Candidates are linked into a lattice: from a seed, each neighbour is looked for one step
 //!    (or two, over a missed dark patch) along the two local lattice directions, which are updated
 //!    as the walk goes, so perspective is followed. The largest lattice wins; a homography from
@@ -24,7 +26,6 @@ use super::extract::{cell_means, chart_score, MATCH_LIMIT};
 use super::reference::Reference;
 use super::{ChartError, Homography};
 use crate::frame::Frame;
-use imageproc::region_labelling::{connected_components, Connectivity};
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
@@ -194,9 +195,7 @@ fn prepare(frame: &Frame, max_side: usize) -> Result<Prepared, String> {
             frame.width, frame.height
         ));
     }
-    let img: image::ImageBuffer<image::Rgb<f32>, Vec<f32>> =
-        image::ImageBuffer::from_raw(ws as u32, hs as u32, small.clone()).expect("sized");
-    let smooth = imageproc::filter::gaussian_blur_f32(&img, 1.0).into_raw();
+    let smooth = super::raster::gaussian_blur_rgb(&small, ws, hs, 1.0);
     let (logl, cr, cb) = log_chroma(&smooth).ok_or_else(|| "the frame is black".to_string())?;
     Ok(Prepared {
         f,
@@ -257,26 +256,8 @@ fn flat_mask(p: &Prepared, t: f32) -> image::GrayImage {
 /// Step 2b: the connected flat regions' moments `[n, Σx, Σy, Σx², Σxy, Σy²]` (pixel centres),
 /// indexed by label (0, the background, is unused).
 fn region_moments(mask: &image::GrayImage) -> Vec<[f64; 6]> {
-    let labels = connected_components(mask, Connectivity::Four, image::Luma([0u8]));
-    let mut stats: Vec<[f64; 6]> = Vec::new();
-    for (x, y, l) in labels.enumerate_pixels() {
-        let l = l.0[0] as usize;
-        if l == 0 {
-            continue;
-        }
-        if stats.len() <= l {
-            stats.resize(l + 1, [0.0; 6]);
-        }
-        let (x, y) = (x as f64 + 0.5, y as f64 + 0.5);
-        let s = &mut stats[l];
-        s[0] += 1.0;
-        s[1] += x;
-        s[2] += y;
-        s[3] += x * x;
-        s[4] += x * y;
-        s[5] += y * y;
-    }
-    stats
+    let (w, h) = mask.dimensions();
+    super::raster::region_moments(mask.as_raw(), w as usize, h as usize)
 }
 
 /// A region's centroid and whether its shape is that of a patch: a filled convex

@@ -33,6 +33,7 @@ pub(crate) mod detect;
 pub(crate) mod extract;
 pub(crate) mod flat;
 pub(crate) mod overlay;
+mod raster;
 pub(crate) mod reference;
 pub(crate) mod scene;
 pub(crate) mod synthetic;

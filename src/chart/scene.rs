@@ -133,6 +133,12 @@ pub struct SceneOptions {
     pub max_tilt_deg: f64,
     /// Smallest tilt of a random pose (degrees; the tilt is drawn from `min..max`).
     pub min_tilt_deg: f64,
+    /// Random pose: `None` puts the camera 1.6 chart diagonals from the chart's centre;
+    /// `Some(P)` brings it as close as needed (a wide-angle camera) for the patch scale to vary
+    /// by `P` across the chart (1..=4; the measure of `chart::detect`'s perspective limit), but
+    /// no closer than a tenth of a diagonal in front of the chart's nearest corner: the pose's
+    /// tilt must allow `P` (from 30° on, that camera shows at least 2.2 whatever the tilt's axis).
+    pub perspective: Option<f64>,
     /// Reflectance of the chart body (neutral).
     pub body_reflectance: f64,
     /// A camera's display rendering on top: tone curve, saturation, 8-bit sRGB and JPEG, then
@@ -175,6 +181,7 @@ impl Default for SceneOptions {
             max_area: 0.4,
             max_tilt_deg: 30.0,
             min_tilt_deg: 0.0,
+            perspective: None,
             body_reflectance: 0.035,
             look: None,
             second_page: false,
@@ -209,6 +216,7 @@ impl SceneOptions {
             max_area: 0.4,
             max_tilt_deg: 30.0,
             min_tilt_deg: 0.0,
+            perspective: None,
             body_reflectance: 0.035,
             look: None,
             second_page: false,
@@ -261,6 +269,12 @@ impl SceneOptions {
             && self.max_tilt_deg <= 60.0)
         {
             return bad("the tilt must be 0..60° (and the smallest at most the largest)");
+        }
+        if self
+            .perspective
+            .is_some_and(|p| !(p.is_finite() && (1.0..=4.0).contains(&p)))
+        {
+            return bad("the perspective must be 1..4");
         }
         if self.clutter > 10_000 {
             return bad("at most 10000 clutter shapes");
@@ -370,6 +384,35 @@ fn quad_area(q: &[[f64; 2]; 4]) -> f64 {
     (a / 2.0).abs()
 }
 
+/// Camera distance of a random pose, in chart body diagonals (unless a perspective is asked for).
+const CAMERA_DISTANCE: f64 = 1.6;
+
+/// The camera distance (chart units) at which the pose `at(distance)` (chart → image) shows
+/// perspective `target` ([`super::detect::perspective`], which falls as the camera moves
+/// away), found by bisection between `closest` and 64 × `closest`; `closest` when even that
+/// shows less.
+fn camera_distance(
+    kind: ChartKind,
+    target: f64,
+    closest: f64,
+    at: impl Fn(f64) -> Result<Homography, ChartError>,
+) -> Result<f64, ChartError> {
+    let persp = |d: f64| at(d).map(|h| super::detect::perspective(kind, &h));
+    let (mut near, mut far) = (closest, 64.0 * closest);
+    if persp(near)? <= target {
+        return Ok(near);
+    }
+    for _ in 0..60 {
+        let mid = 0.5 * (near + far);
+        if persp(mid)? > target {
+            near = mid;
+        } else {
+            far = mid;
+        }
+    }
+    Ok(far)
+}
+
 /// A random pose: (homography chart → frame, rotation°, tilt°).
 fn random_pose(
     kind: ChartKind,
@@ -386,7 +429,6 @@ fn random_pose(
     let phi = std::f64::consts::TAU * g.uniform();
     let area = opts.min_area + (opts.max_area - opts.min_area) * g.uniform();
     let diag = (2.0 * (cc + kind.margin())).hypot(2.0 * (rr + kind.margin()));
-    let dist = 1.6 * diag;
     // Rotation by `tilt` about the in-plane axis (cos φ, sin φ, 0), then by θ about the view axis.
     let (ax, ay) = (phi.cos(), phi.sin());
     let (ct, st) = (tilt.cos(), tilt.sin());
@@ -395,7 +437,8 @@ fn random_pose(
         [ax * ay * (1.0 - ct), ct + ay * ay * (1.0 - ct), -ax * st],
         [-ay * st, ax * st, ct],
     ];
-    let project = |p: [f64; 2]| -> [f64; 2] {
+    // Seen by a pinhole camera at `dist` from the chart's centre (chart units).
+    let project = |p: [f64; 2], dist: f64| -> [f64; 2] {
         let v = [p[0] - cc, p[1] - rr, 0.0];
         let t: Vec<f64> = (0..3)
             .map(|i| (0..3).map(|j| rot_tilt[i][j] * v[j]).sum())
@@ -407,7 +450,14 @@ fn random_pose(
         let z = dist + t[2];
         [dist * x / z, dist * y / z]
     };
-    let mut q = body.map(project);
+    let dist = match opts.perspective {
+        None => CAMERA_DISTANCE * diag,
+        // The closest camera: a tenth of a diagonal in front of the nearest body corner.
+        Some(target) => camera_distance(kind, target, (0.5 * st + 0.1) * diag, |d| {
+            Homography::from_points(&body, &body.map(|p| project(p, d)))
+        })?,
+    };
+    let mut q = body.map(|p| project(p, dist));
     let s0 = (area * w * h / quad_area(&q)).sqrt();
     let (mut x0, mut y0, mut x1, mut y1) = (f64::MAX, f64::MAX, f64::MIN, f64::MIN);
     for p in &q {
@@ -1061,10 +1111,15 @@ pub(crate) enum Family {
     /// The chart's body as dark as its black patch (0.8–1.2×), 2–5 stops under clipping and
     /// blurred (σ 0.8–2 px): the dark patches merge with the frame around them.
     BlackFrame,
+    /// A wide-angle camera close to the chart: tilt 30–40°, the camera as close as it takes
+    /// for the patch scale to vary 1.6–2.2× across the chart ([`SceneOptions::perspective`],
+    /// drawn uniformly), the whole chart in the frame (15–45 % of it), nothing over it, the
+    /// body darker than the black patch (0.35–0.6×) so that every cell can be seen.
+    Wide,
 }
 
 impl Family {
-    pub(crate) const ALL: [Family; 10] = [
+    pub(crate) const ALL: [Family; 11] = [
         Family::Envelope,
         Family::Jpeg,
         Family::Fill,
@@ -1072,6 +1127,7 @@ impl Family {
         Family::Passport,
         Family::Tilt,
         Family::BlackFrame,
+        Family::Wide,
         Family::Spyder,
         Family::Random,
         Family::Shuffled,
@@ -1087,6 +1143,7 @@ impl Family {
             Family::Passport => "passport",
             Family::Tilt => "tilt",
             Family::BlackFrame => "black-frame",
+            Family::Wide => "wide",
             Family::Spyder => "spyder",
             Family::Random => "random",
             Family::Shuffled => "shuffled",
@@ -1147,13 +1204,19 @@ impl Family {
                 o.max_tilt_deg = 50.0;
                 o.min_area = 0.1;
             }
+            Family::Wide => {
+                o.min_tilt_deg = 30.0;
+                o.max_tilt_deg = 40.0;
+                o.min_area = 0.15;
+                o.max_area = 0.45;
+                o.perspective = Some(1.6 + 0.6 * g.uniform());
+                // A body darker than the black patch (a Classic's frame is), so that every
+                // cell can be seen as a patch: the envelope's body (0.035) is the black
+                // patch's own reflectance, which hides it.
+                o.body_reflectance = black_patch(colours) * (0.35 + 0.25 * g.uniform());
+            }
             Family::BlackFrame => {
-                let black = colours
-                    .rgb
-                    .iter()
-                    .map(|p| p[1] / colours.white_rgb[1])
-                    .fold(f64::INFINITY, f64::min);
-                o.body_reflectance = black * (0.8 + 0.4 * g.uniform());
+                o.body_reflectance = black_patch(colours) * (0.8 + 0.4 * g.uniform());
                 let brightest = colours.rgb.iter().flatten().copied().fold(0.0, f64::max);
                 o.exposure = 2f64.powf(-2.0 - 3.0 * g.uniform()) / brightest;
                 o.blur = 0.8 + 1.2 * g.uniform();
@@ -1170,6 +1233,15 @@ impl Family {
         }
         (c, o)
     }
+}
+
+/// The darkest patch's G relative to the white's: the black patch's reflectance.
+fn black_patch(colours: &ChartColours) -> f64 {
+    colours
+        .rgb
+        .iter()
+        .map(|p| p[1] / colours.white_rgb[1])
+        .fold(f64::INFINITY, f64::min)
 }
 
 /// Grid corners (first patch first, clockwise) that fill a `width × height` frame to within
@@ -1458,5 +1530,52 @@ mod tests {
         assert_eq!((truth.rotation_deg, truth.tilt_deg), (1.0, 2.0));
         assert_eq!(truth.light_nonuniformity, 1.0);
         assert_eq!(truth.patches[0].label, ChartKind::Cc24.label(0, 0));
+    }
+
+    #[test]
+    fn a_close_camera_shows_the_perspective_asked_for() {
+        let kind = ChartKind::Cc24;
+        let seen = |o: &SceneOptions, seed| {
+            let (h, _, _) = random_pose(kind, o, &mut Gaussian::new(seed)).unwrap();
+            super::super::detect::perspective(kind, &h)
+        };
+        let far = SceneOptions {
+            min_tilt_deg: 35.0,
+            max_tilt_deg: 35.0,
+            ..opts(1200, 800)
+        };
+        for seed in 1..6 {
+            let p_far = seen(&far, seed);
+            assert!(p_far > 1.0 && p_far < 1.6, "seed {seed}: {p_far}");
+            for target in [1.6, 1.9, 2.2] {
+                let close = SceneOptions {
+                    perspective: Some(target),
+                    ..far.clone()
+                };
+                let p = seen(&close, seed);
+                assert!((p - target).abs() < 1e-9, "seed {seed}: {p} for {target}");
+            }
+        }
+        // Beyond what the closest camera shows (a tilt of 5°), it is that camera.
+        let flat = SceneOptions {
+            max_tilt_deg: 5.0,
+            perspective: Some(3.0),
+            ..opts(1200, 800)
+        };
+        let p = seen(&flat, 1);
+        assert!(p > 1.0 && p < 1.5, "{p}");
+        for bad in [0.9, 4.5, f64::NAN] {
+            let o = SceneOptions {
+                perspective: Some(bad),
+                ..opts(100, 100)
+            };
+            assert!(render(&colours(), &o).is_err(), "{bad}");
+        }
+        // The wide family draws its perspective within 1.6..2.2.
+        for seed in 1..20 {
+            let (_, o) = Family::Wide.scene(&colours(), 1200, 800, seed);
+            let p = o.perspective.unwrap();
+            assert!((1.6..=2.2).contains(&p) && o.min_tilt_deg == 30.0, "{p}");
+        }
     }
 }

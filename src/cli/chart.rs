@@ -128,9 +128,11 @@ pub(crate) struct RateArgs {
     occlusion: bool,
     /// The family of scenes: envelope (plain linear scenes), jpeg (through a camera's tone
     /// curve, saturation and JPEG), fill (the chart filling the frame), small (small, a corner
-    /// covered), passport (the Passport's second page beside the chart); negatives, which must
-    /// all be refused (cc24 only): spyder (a SpyderCHECKR-24-like chart), random (random patch
-    /// grids), shuffled (the classic colours in another order).
+    /// covered), passport (the Passport's second page beside the chart), tilt (tilted 30–50°),
+    /// black-frame (the chart body as dark as its black patch), wide (a wide-angle camera close
+    /// to the chart: perspective 1.6–2.2); negatives, which must all be refused (cc24 only):
+    /// spyder (a SpyderCHECKR-24-like chart), random (random patch grids), shuffled (the
+    /// classic colours in another order).
     #[arg(long, default_value = "envelope", value_parser = parse_family)]
     family: Family,
 }
@@ -437,20 +439,22 @@ fn misplaced(patches: &[PatchReading], truth: &[TruePatch], pitch: f64) -> (usiz
 /// centre within a quarter pitch of the true one), wrong (and said) otherwise; a refusal is
 /// said with `--verbose`.
 fn judge_positive(a: &RateArgs, seed: u64, truth: &SceneTruth, result: RateResult) -> Verdict {
+    // The perspective of the true pose, as the detector's limit measures it.
+    let true_persp = crate::chart::detect::perspective(truth.chart, &truth.homography);
     match result {
         Ok((d, Ok(ex))) => {
             let (bad, worst) = misplaced(&ex.patches, &truth.patches, pitch_px(truth));
             if bad == 0 {
                 if a.verbose {
                     eprintln!(
-                        "seed {seed}: ok (score {:.2}, runner-up {:.2}, lattice {}, worst centre {worst:.2} pitch, perspective {:.3})",
+                        "seed {seed}: ok (score {:.2}, runner-up {:.2}, lattice {}, worst centre {worst:.2} pitch, perspective {:.3}, true {true_persp:.3})",
                         d.score, d.runner_up, d.lattice, d.perspective
                     );
                 }
                 Verdict::Ok
             } else {
                 eprintln!(
-                    "seed {seed}: WRONG: {bad} patches in the wrong cell (score {:.2}, runner-up {:.2}, lattice {}, worst centre {worst:.2} pitch, perspective {:.3}; area {:.3}, tilt {:.0}°, blur {:.2})",
+                    "seed {seed}: WRONG: {bad} patches in the wrong cell (score {:.2}, runner-up {:.2}, lattice {}, worst centre {worst:.2} pitch, perspective {:.3}, true {true_persp:.3}; area {:.3}, tilt {:.0}°, blur {:.2})",
                     d.score, d.runner_up, d.lattice, d.perspective, truth.area_fraction, truth.tilt_deg, truth.blur
                 );
                 Verdict::Wrong
@@ -458,14 +462,14 @@ fn judge_positive(a: &RateArgs, seed: u64, truth: &SceneTruth, result: RateResul
         }
         Ok((_, Err(e))) => {
             if a.verbose {
-                eprintln!("seed {seed}: refused: {e}");
+                eprintln!("seed {seed}: refused: {e} (true perspective {true_persp:.3})");
             }
             Verdict::Refused
         }
         Err(f) => {
             if a.verbose {
                 eprintln!(
-                    "seed {seed}: refused: {} (area {:.3}, tilt {:.0}°, exposure {:.3})",
+                    "seed {seed}: refused: {} (area {:.3}, tilt {:.0}°, exposure {:.3}, true perspective {true_persp:.3})",
                     f.error, truth.area_fraction, truth.tilt_deg, truth.exposure
                 );
             }

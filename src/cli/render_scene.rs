@@ -39,7 +39,7 @@ pub(crate) struct Args {
     #[arg(long)]
     envelope: bool,
     /// A scene of one of `chart rate`'s families (implies --envelope's draws): jpeg, fill, small,
-    /// passport, or the negatives spyder, random, shuffled (cc24). A jpeg-look scene is written
+    /// passport, tilt, black-frame, wide, or the negatives spyder, random, shuffled (cc24). A jpeg-look scene is written
     /// as the values nsrm decodes from the camera JPEG (sRGB decoded, tone curve kept).
     #[arg(long, value_parser = super::chart::parse_family, conflicts_with = "envelope")]
     family: Option<crate::chart::scene::Family>,

@@ -29,7 +29,7 @@ const REL_TOL: f64 = 1e-5;
 
 /// The engine, or `None` (after one loud line) when there is no adapter; with `CI=true` a
 /// missing adapter fails the test.
-fn engine(tile_pixels: Option<usize>) -> Option<Engine> {
+pub(super) fn engine(tile_pixels: Option<usize>) -> Option<Engine> {
     let opts = GpuOptions {
         adapter: None,
         tile_pixels,
@@ -46,7 +46,7 @@ fn engine(tile_pixels: Option<usize>) -> Option<Engine> {
 }
 
 use crate::kit as common;
-use common::{awkward_frame as random_frame, f32_bound, summands, training, Rng};
+use common::{awkward_frame as random_frame, f32_bound, read_buffer, summands, training, Rng};
 
 fn model(kind: Kind, order: u8) -> Model {
     fit(kind, order, training()).unwrap()
@@ -565,23 +565,6 @@ fn embed_display_shader_validates() {
         .map(|e| e.name.as_str())
         .collect();
     assert_eq!(names, ["vs_main", "fs_main"]);
-}
-
-fn read_buffer(dev: &wgpu::Device, queue: &wgpu::Queue, buf: &wgpu::Buffer) -> Vec<f32> {
-    let rb = dev.create_buffer(&wgpu::BufferDescriptor {
-        label: None,
-        size: buf.size(),
-        usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
-        mapped_at_creation: false,
-    });
-    let mut enc = dev.create_command_encoder(&Default::default());
-    enc.copy_buffer_to_buffer(buf, 0, &rb, 0, buf.size());
-    queue.submit([enc.finish()]);
-    rb.map_async(wgpu::MapMode::Read, .., |r| r.unwrap());
-    dev.poll(wgpu::PollType::wait_indefinitely()).unwrap();
-    let v = bytemuck::cast_slice(&rb.get_mapped_range(..).unwrap()).to_vec();
-    rb.unmap();
-    v
 }
 
 /// The embedding example (`examples/embed.rs`, the same functions): chart → texture → Corrector

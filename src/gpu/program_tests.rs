@@ -18,9 +18,9 @@
 //!
 //! Without an adapter the test prints `SKIP: …` and passes, unless `CI=true`, where it fails.
 
-use super::engine_tests::engine;
+use super::gpu_tests::engine;
 use super::{Corrector, Target};
-use crate::kit::{awkward_frame, f32_bound, Rng, F32_REL};
+use crate::kit::{awkward_frame, f32_bound, read_buffer, Rng, F32_REL};
 use crate::model::pixel::{Program, Step};
 use crate::model::terms::{terms, Term};
 use crate::{Frame, Kind, Layout};
@@ -118,24 +118,6 @@ fn matrix(l: usize, seed: u64) -> Vec<f64> {
         .collect()
 }
 
-/// Reads a buffer back (blocking).
-fn read(device: &wgpu::Device, queue: &wgpu::Queue, buf: &wgpu::Buffer) -> Vec<f32> {
-    let rb = device.create_buffer(&wgpu::BufferDescriptor {
-        label: None,
-        size: buf.size(),
-        usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
-        mapped_at_creation: false,
-    });
-    let mut enc = device.create_command_encoder(&Default::default());
-    enc.copy_buffer_to_buffer(buf, 0, &rb, 0, buf.size());
-    queue.submit([enc.finish()]);
-    rb.map_async(wgpu::MapMode::Read, .., |r| r.unwrap());
-    device.poll(wgpu::PollType::wait_indefinitely()).unwrap();
-    let v = bytemuck::cast_slice(&rb.get_mapped_range(..).unwrap()).to_vec();
-    rb.unmap();
-    v
-}
-
 /// `program` on the GPU over `input` (RGB in place, RGBA source → destination).
 fn run(
     device: &wgpu::Device,
@@ -166,13 +148,13 @@ fn run(
         c.record_in_place(device, &mut enc, a.slice(..), None)
             .unwrap();
         queue.submit([enc.finish()]);
-        read(device, queue, &a)
+        read_buffer(device, queue, &a)
     } else {
         let b = make(U::STORAGE | U::COPY_SRC);
         c.record_buffers(device, &mut enc, a.slice(..), b.slice(..), None)
             .unwrap();
         queue.submit([enc.finish()]);
-        read(device, queue, &b)
+        read_buffer(device, queue, &b)
     }
 }
 

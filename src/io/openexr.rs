@@ -674,6 +674,15 @@ fn camera_attributes(attributes: &mut LayerAttributes, c: &super::raw::CameraInf
     };
     text("cameraMake", &c.make);
     text("cameraModel", &c.model);
+    // What was done to the sensor's frame: the file's orientation, applied as LibRaw does.
+    text(
+        "nsrmOrientation",
+        &format!(
+            "{}: {}",
+            c.orientation,
+            super::raw::describe_orientation(c.orientation)
+        ),
+    );
     attributes.iso_speed = c.iso;
     attributes.exposure = c.exposure_time;
     attributes.aperture = c.aperture;

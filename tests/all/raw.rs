@@ -9,6 +9,7 @@ use crate::common::read_frame;
 use crate::common::{self, no_crash, nsrm_in, stderr};
 use nsrm::io::Demosaic;
 use nsrm::io::{Limits, ReadOptions};
+use std::ffi::{OsStr, OsString};
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
@@ -30,7 +31,7 @@ fn on_ci() -> bool {
 }
 
 /// Whether python3 with rawpy, tifffile and numpy is here (prints SKIP, fails on CI, if not).
-fn judge_available() -> bool {
+pub(crate) fn judge_available() -> bool {
     let ok = Command::new("python3")
         .args(["-c", "import rawpy, tifffile, numpy"])
         .output()
@@ -45,23 +46,31 @@ fn judge_available() -> bool {
     ok
 }
 
-/// Writes a synthetic DNG with the judge; `args` after the output name.
-fn write_dng(out: &Path, args: &[&str]) {
+/// Runs `tests/tools/raw_judge.py` with `args` and returns its standard output; the test fails
+/// if the judge does.
+pub(crate) fn judge<S: AsRef<OsStr>>(args: impl IntoIterator<Item = S>) -> String {
+    let args: Vec<OsString> = args.into_iter().map(|a| a.as_ref().to_owned()).collect();
     let o = Command::new("python3")
         .arg(JUDGE)
-        .arg("dng")
-        .arg(out)
-        .args(args)
+        .args(&args)
         .output()
         .expect("running python3");
     assert!(
         o.status.success(),
-        "raw_judge.py dng {args:?}: {}",
+        "raw_judge.py {args:?}: {}",
         String::from_utf8_lossy(&o.stderr)
     );
+    String::from_utf8_lossy(&o.stdout).into_owned()
 }
 
-fn f32s(path: &Path) -> Vec<f32> {
+/// Writes a synthetic DNG with the judge; `args` after the output name.
+pub(crate) fn write_dng(out: &Path, args: &[&str]) {
+    let head = [OsStr::new("dng"), out.as_os_str()];
+    judge(head.into_iter().chain(args.iter().map(OsStr::new)));
+}
+
+/// The little-endian f32s of a file the judge wrote.
+pub(crate) fn f32s(path: &Path) -> Vec<f32> {
     std::fs::read(path)
         .unwrap()
         .chunks_exact(4)
@@ -69,7 +78,8 @@ fn f32s(path: &Path) -> Vec<f32> {
         .collect()
 }
 
-fn read(path: &Path, demosaic: Demosaic) -> nsrm::Frame {
+/// `path` read as a frame with `demosaic` (the test fails on an error).
+pub(crate) fn read(path: &Path, demosaic: Demosaic) -> nsrm::Frame {
     read_frame(
         path,
         &ReadOptions {
@@ -156,14 +166,7 @@ fn bilinear_matches_libraw_linear_in_the_interior() {
             ],
         );
         let lin = dir.join(format!("b{i}.lin.f32"));
-        let o = Command::new("python3")
-            .arg(JUDGE)
-            .arg("linear")
-            .arg(&p)
-            .arg(&lin)
-            .output()
-            .unwrap();
-        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        judge([OsStr::new("linear"), p.as_os_str(), lin.as_os_str()]);
         let libraw = f32s(&lin);
         let f = read(&p, Demosaic::Bilinear);
         assert_eq!((f.width, f.height), (80, 60));
@@ -190,6 +193,95 @@ fn bilinear_matches_libraw_linear_in_the_interior() {
             worst_mhc = worst_mhc.max((m.data[k] - f.data[k]).abs());
         }
         assert!(worst_mhc < 0.05, "{pattern}: mhc vs bilinear {worst_mhc}");
+    }
+}
+
+/// LibRaw's decode of `dng` with its orientation applied (`raw_judge.py linear --flip`,
+/// `--half` for the half-size decode): (width, height, RGB in [0, 1]).
+fn libraw_oriented(dng: &Path, out: &Path, half: bool) -> (usize, usize, Vec<f32>) {
+    let mut cmd = Command::new("python3");
+    cmd.arg(JUDGE).arg("linear").arg(dng).arg(out).arg("--flip");
+    if half {
+        cmd.arg("--half");
+    }
+    let o = cmd.output().expect("running python3");
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let dims: Vec<usize> = String::from_utf8_lossy(&o.stdout)
+        .split_whitespace()
+        .map(|v| v.parse().unwrap())
+        .collect();
+    (dims[0], dims[1], f32s(out))
+}
+
+/// The file's orientation is applied as LibRaw applies it by default (`dcraw_emu`, rawpy's
+/// `postprocess`), in every demosaic: one mosaic written with each TIFF Orientation 1–8 reads
+/// as LibRaw reads it — size, and pixels (bilinear in the interior, half everywhere) — and the
+/// real Canon DNG keeps LibRaw's size.
+#[test]
+fn orientation_is_applied_as_libraw_applies_it() {
+    if !judge_available() {
+        return;
+    }
+    let dir = common::tempdir("raw-orientation");
+    for o in 1..=8u16 {
+        let p = dir.join(format!("o{o}.dng"));
+        let os = o.to_string();
+        write_dng(
+            &p,
+            &[
+                "--width",
+                "40",
+                "--height",
+                "30",
+                "--pattern",
+                "GRBG",
+                "--black",
+                "256,260,250,262",
+                "--white",
+                "16383",
+                "--seed",
+                "5",
+                "--smooth",
+                "--orientation",
+                &os,
+            ],
+        );
+        for (demosaic, half, margin) in [(Demosaic::Bilinear, false, 2), (Demosaic::Half, true, 0)]
+        {
+            let (w, h, libraw) = libraw_oriented(&p, &dir.join(format!("o{o}-{half}.f32")), half);
+            let f = read(&p, demosaic);
+            assert_eq!(
+                (f.width, f.height),
+                (w, h),
+                "orientation {o}, {demosaic:?}: size"
+            );
+            if o >= 5 {
+                assert_eq!(
+                    (w, h),
+                    if half { (15, 20) } else { (30, 40) },
+                    "LibRaw turned it"
+                );
+            }
+            let mut worst = 0f32;
+            for y in margin..h - margin {
+                for x in margin..w - margin {
+                    for c in 0..3 {
+                        let k = (y * w + x) * 3 + c;
+                        worst = worst.max((f.data[k] - libraw[k]).abs());
+                    }
+                }
+            }
+            assert!(
+                worst <= 2.5 / 65535.0,
+                "orientation {o}, {demosaic:?}: largest difference {worst}"
+            );
+        }
+    }
+    let dng = chart_dng();
+    if dng.exists() {
+        let (w, h, _) = libraw_oriented(&dng, &dir.join("chart.f32"), true);
+        let f = read(&dng, Demosaic::Half);
+        assert_eq!((f.width, f.height), (w, h), "colorchart.dng, half");
     }
 }
 
@@ -702,14 +794,8 @@ fn to_lossless_dng(src: &Path, dst: &Path) {
 
 #[cfg(feature = "raw")]
 fn libraw_same(a: &Path, b: &Path) -> serde_json::Value {
-    let o = Command::new("python3")
-        .arg(JUDGE)
-        .arg("same")
-        .args([a, b])
-        .output()
-        .expect("running python3");
-    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-    serde_json::from_slice(&o.stdout).unwrap()
+    let out = judge([OsStr::new("same"), a.as_os_str(), b.as_os_str()]);
+    serde_json::from_str(&out).unwrap()
 }
 
 #[cfg(feature = "raw")]

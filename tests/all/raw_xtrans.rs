@@ -4,51 +4,17 @@
 //! of its sites there (exact, 1e-6 relative); flat fields decode to the values written in every
 //! demosaic; `bilinear` matches LibRaw's LINEAR demosaic (`lin_interpolate`) in the interior.
 
-use crate::common::read_frame;
+use crate::raw::{f32s, judge, judge_available, read, write_dng};
 use nsrm::io::Demosaic;
-use nsrm::io::ReadOptions;
+use std::ffi::OsStr;
 use std::path::{Path, PathBuf};
-use std::process::Command;
-
-const JUDGE: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/tests/tools/raw_judge.py");
 
 /// Fujifilm's X-Trans layout (X-Pro1 … X-T5), row-major.
 const XTRANS: &str = "GGRGGBGGBGGRBRGRBGGGBGGRGGRGGBRBGBRG";
 
-fn judge_available() -> bool {
-    let ok = Command::new("python3")
-        .args(["-c", "import rawpy, tifffile, numpy"])
-        .output()
-        .is_ok_and(|o| o.status.success());
-    if !ok {
-        assert!(
-            std::env::var("CI").as_deref() != Ok("true"),
-            "python3 with rawpy, tifffile and numpy is needed on CI (.ci/install.d/20-libraw.sh)"
-        );
-        eprintln!("SKIP: python3 with rawpy, tifffile and numpy is not installed");
-    }
-    ok
-}
-
-fn judge(args: &[&str]) -> String {
-    let o = Command::new("python3")
-        .arg(JUDGE)
-        .args(args)
-        .output()
-        .expect("running python3");
-    assert!(
-        o.status.success(),
-        "raw_judge.py {args:?}: {}",
-        String::from_utf8_lossy(&o.stderr)
-    );
-    String::from_utf8_lossy(&o.stdout).into_owned()
-}
-
 fn xtrans_dng(out: &Path, w: usize, h: usize, extra: &[&str]) {
     let (w, h) = (w.to_string(), h.to_string());
     let mut args = vec![
-        "dng",
-        out.to_str().unwrap(),
         "--width",
         &w,
         "--height",
@@ -61,26 +27,7 @@ fn xtrans_dng(out: &Path, w: usize, h: usize, extra: &[&str]) {
         "16383",
     ];
     args.extend_from_slice(extra);
-    judge(&args);
-}
-
-fn f32s(path: &Path) -> Vec<f32> {
-    std::fs::read(path)
-        .unwrap()
-        .chunks_exact(4)
-        .map(|b| f32::from_le_bytes([b[0], b[1], b[2], b[3]]))
-        .collect()
-}
-
-fn read(path: &Path, demosaic: Demosaic) -> nsrm::Frame {
-    read_frame(
-        path,
-        &ReadOptions {
-            demosaic,
-            ..Default::default()
-        },
-    )
-    .unwrap_or_else(|e| panic!("{}: {e}", path.display()))
+    write_dng(out, &args);
 }
 
 fn half_truth(dng: &Path) -> Vec<f32> {
@@ -154,7 +101,7 @@ fn xtrans_half_gives_the_block_means_and_bilinear_matches_libraw_linear() {
     }
     // bilinear against LibRaw's LINEAR demosaic.
     let lin = dir.join("smooth.lin.f32");
-    judge(&["linear", p.to_str().unwrap(), lin.to_str().unwrap()]);
+    judge([OsStr::new("linear"), p.as_os_str(), lin.as_os_str()]);
     let libraw = f32s(&lin);
     let ours = read(&p, Demosaic::Bilinear);
     assert_eq!((ours.width, ours.height), (w, h));

@@ -3,16 +3,19 @@
 
   raw_judge.py dng OUT.dng --width W --height H --pattern RGGB --black B0,B1,B2,B3 --white W
                [--seed N] [--smooth | --flat R,G,B] [--make M --model M] [--bits 16]
+               [--orientation 1..8]
       Writes an uncompressed CFA DNG with tifffile (tags of the DNG 1.4 spec, written by hand),
       then checks with rawpy (LibRaw) that it reads back exactly the mosaic written, and writes
       beside it: OUT.dng.half.f32 — the exact block means of max(value - black, 0) /
       (white - smallest black), LibRaw's scale (per colour, the mean of its sites in each 2x2
       block, or 3x3 block for a 36-letter 6x6 X-Trans pattern; row-major, float32
       little-endian) — the truth `half` must give. --flat writes each colour's sites as one
-      fraction of the range.
-  raw_judge.py linear IN.dng OUT.f32
+      fraction of the range. --orientation writes the TIFF Orientation tag (274).
+  raw_judge.py linear IN.dng OUT.f32 [--flip] [--half]
       LibRaw's LINEAR (bilinear) demosaic of IN, linear camera RGB without white balance or
       matrix, as float32 in [0, 1] (the 16-bit output / 65535), row-major RGB; prints W H.
+      Without --flip the sensor's orientation (user_flip=0); with it, the file's orientation
+      applied as LibRaw applies it by default. --half: LibRaw's half-size decode instead.
   raw_judge.py same A.dng B.dng
       Whether LibRaw reads the same mosaic, black levels, white level and CFA pattern from both
       files, and the TIFF Compression of each file's CFA image (7: lossless JPEG); prints JSON.
@@ -28,7 +31,8 @@ import numpy as np
 COLOURS = {"R": 0, "G": 1, "B": 2}
 
 
-def write_dng(out, w, h, pattern, black, white, seed, smooth, make, model, bits, flat=None):
+def write_dng(out, w, h, pattern, black, white, seed, smooth, make, model, bits, flat=None,
+              orientation=None):
     import tifffile
 
     rng = np.random.default_rng(seed)
@@ -75,6 +79,8 @@ def write_dng(out, w, h, pattern, black, white, seed, smooth, make, model, bits,
         (33434, "2I", 1, (1, 125), True),  # ExposureTime
         (34855, "H", 1, 400, True),  # ISOSpeedRatings
     ]
+    if orientation is not None:
+        tags.append((274, "H", 1, int(orientation), True))  # Orientation
     tifffile.imwrite(
         out,
         mosaic,
@@ -118,7 +124,7 @@ def write_dng(out, w, h, pattern, black, white, seed, smooth, make, model, bits,
     half.astype("<f4").tofile(out + ".half.f32")
 
 
-def libraw_params(rawpy, **kw):
+def libraw_params(rawpy, flip=False, **kw):
     return dict(
         gamma=(1, 1),
         no_auto_bright=True,
@@ -128,18 +134,17 @@ def libraw_params(rawpy, **kw):
         user_wb=[1.0, 1.0, 1.0, 1.0],
         output_color=rawpy.ColorSpace.raw,
         adjust_maximum_thr=0.0,
-        user_flip=0,
+        user_flip=None if flip else 0,
         **kw,
     )
 
 
-def linear(inp, out):
+def linear(inp, out, flip=False, half=False):
     import rawpy
 
+    kw = dict(half_size=True) if half else dict(demosaic_algorithm=rawpy.DemosaicAlgorithm.LINEAR)
     with rawpy.imread(inp) as r:
-        rgb = r.postprocess(
-            **libraw_params(rawpy, demosaic_algorithm=rawpy.DemosaicAlgorithm.LINEAR)
-        )
+        rgb = r.postprocess(**libraw_params(rawpy, flip=flip, **kw))
     (rgb.astype(np.float64) / 65535.0).astype("<f4").tofile(out)
     print(rgb.shape[1], rgb.shape[0])
 
@@ -223,17 +228,18 @@ def main():
         p.add_argument("--model", default="Synth 1")
         p.add_argument("--bits", type=int, default=16)
         p.add_argument("--flat", default=None, help="R,G,B fractions of the range: a flat field")
+        p.add_argument("--orientation", type=int, default=None)
         o = p.parse_args(a[1:])
         flat = [float(v) for v in o.flat.split(",")] if o.flat else None
         black = [float(v) for v in o.black.split(",")]
         if len(black) == 1:
             black = black * 4
         write_dng(o.out, o.width, o.height, o.pattern, black, o.white, o.seed, o.smooth,
-                  o.make, o.model, o.bits, flat)
+                  o.make, o.model, o.bits, flat, o.orientation)
     elif a[0] == "same":
         same(a[1], a[2])
     elif a[0] == "linear":
-        linear(a[1], a[2])
+        linear(a[1], a[2], flip="--flip" in a[3:], half="--half" in a[3:])
     elif a[0] == "bench":
         bench(a[1], int(a[2]))
     else:

@@ -13,7 +13,9 @@
 //!   (`stts`, `stsc`, `stsz`, `stco`, `co64`, Canon's `CTMD`) against their boxes; the TIFF
 //!   structures in the `CMT1`–`CMT4` boxes as TIFF-based raws are checked.
 //! * **RAF**: the header's three pointers; the RAF directory's full and raw image sizes
-//!   (tags 0x100, 0x121); the TIFF structure of the CFA record (with the Fuji IFD 0xF000 and its
+//!   (tags 0x100, 0x121) and sensor layout (0x130: a SuperCCD sensor, whose mosaic the decoder
+//!   turns by 45° into a second image of about (w + h/2)² pixels, declares that image too); the
+//!   TIFF structure of the CFA record (with the Fuji IFD 0xF000 and its
 //!   raw width / height 0xF001 / 0xF002) and the embedded JPEG's EXIF TIFF, as TIFF-based raws.
 //! * **MRW**: the PRD block's sensor height and width (blocks bounded by the data offset).
 //! * **CRW** (CIFF heaps, depth ≤ 8): every SensorInfo record's width and height.
@@ -36,6 +38,8 @@ pub(crate) struct Declared {
     pub(crate) bad: Option<String>,
     /// Whether the file's TIFF structures mark it as raw (DNG version, CFA or linear-raw image).
     pub(crate) raw_marker: bool,
+    /// The largest width and the largest height declared (of any images).
+    pub(crate) sides: (u64, u64),
 }
 
 impl Declared {
@@ -43,6 +47,9 @@ impl Declared {
         let px = |(a, b): (u64, u64)| a.saturating_mul(b);
         if w > 0 && h > 0 && self.largest.is_none_or(|d| px(d) < px((w, h))) {
             self.largest = Some((w, h));
+        }
+        if w > 0 && h > 0 {
+            self.sides = (self.sides.0.max(w), self.sides.1.max(h));
         }
     }
 
@@ -56,6 +63,7 @@ impl Declared {
         if let Some((w, h)) = other.largest {
             self.take(w, h);
         }
+        self.take(other.sides.0, other.sides.1);
         if let Some(b) = other.bad {
             self.damage(|| b);
         }
@@ -443,6 +451,8 @@ pub(crate) fn raf(f: &mut File, len: u64) -> std::io::Result<Declared> {
     }
     let jpeg = u64::from(be32(&ptrs[0..4]));
     let dir = u64::from(be32(&ptrs[8..12]));
+    // The sensor layout of tag 0x130: Some(true) for SuperCCD (45° turned), None if absent.
+    let mut layout = None;
     let cfa = u64::from(be32(&ptrs[16..20]));
     // The embedded JPEG's EXIF TIFF (12 bytes in: SOI, APP1 marker and length, "Exif\0\0").
     let mut t = tiff(f, jpeg + 12, len)?;
@@ -470,8 +480,23 @@ pub(crate) fn raf(f: &mut File, len: u64) -> std::io::Result<Declared> {
                     d.take(u64::from(be16(&v[2..])), u64::from(be16(&v[..2])));
                 }
             }
+            if tag == 0x130 && size >= 2 {
+                let mut v = [0u8; 2];
+                if read_at(f, at + 4, len, &mut v)? {
+                    // LibRaw's `fuji_width`: bit 3 of the second byte clear.
+                    layout = Some(v[1] & 8 == 0);
+                }
+            }
             at += 4 + size;
         }
+    }
+    // A SuperCCD sensor (layout flag set, or no layout recorded): the decoder turns the
+    // mosaic by 45° into a second image of (w + h/2) × (w + h/2 − 1) pixels (or h + w/2 for
+    // the other layout), so that is what is declared, from the largest sides declared.
+    if layout != Some(false) {
+        let (w, h) = d.sides;
+        let side = (w + h / 2).max(h + w / 2);
+        d.take(side, side);
     }
     Ok(d)
 }
@@ -680,8 +705,13 @@ pub(crate) mod tests {
 
     /// A RAF skeleton: the 108-byte header, an embedded "JPEG" with an EXIF TIFF, a CFA record
     /// that is a TIFF with the Fuji IFD declaring `fw`×`fh`, and a RAF directory declaring
-    /// `w`×`h` (tag 0x100, height first).
+    /// `w`×`h` (tag 0x100, height first) and a sensor layout that is not SuperCCD (0x130).
     pub(crate) fn raf(w: u16, h: u16, fw: u32, fh: u32) -> Vec<u8> {
+        raf_layout(w, h, fw, fh, 8)
+    }
+
+    /// The same with tag 0x130's second byte `layout` (bit 3 clear: SuperCCD).
+    pub(crate) fn raf_layout(w: u16, h: u16, fw: u32, fh: u32, layout: u8) -> Vec<u8> {
         let mut v = b"FUJIFILMCCD-RAW 0201FF383501".to_vec();
         v.resize(108, 0);
         let jpeg_at = v.len() as u32;
@@ -696,7 +726,7 @@ pub(crate) mod tests {
         v.extend_from_slice(&w.to_be_bytes());
         v.extend_from_slice(&0x130u16.to_be_bytes());
         v.extend_from_slice(&2u16.to_be_bytes());
-        v.extend_from_slice(&[0, 0]);
+        v.extend_from_slice(&[0, layout]);
         let cfa_at = v.len() as u32;
         // Root IFD: one entry, the Fuji IFD (0xF000) at byte 26 of the record.
         let mut t = tiff_le(42, &[(0xF000, 13, 1, 26)]);
@@ -833,6 +863,34 @@ pub(crate) mod tests {
         }
     }
 
+    /// A SuperCCD RAF (tag 0x130 says so, or says nothing) declares the 45°-turned image the
+    /// decoder allocates beside the mosaic: (w + h/2)², from the largest sides declared.
+    #[test]
+    fn a_superccd_raf_declares_its_turned_image() {
+        let dir = tempfile::tempdir().unwrap();
+        let (_, d) = declared(&write(
+            dir.path(),
+            "s.raf",
+            &raf_layout(3000, 2000, 0, 0, 0),
+        ));
+        assert_eq!(d.largest, Some((4000, 4000)), "3000 + 2000/2");
+        // The Fuji IFD's sides count too (the decoder takes its size from there).
+        let (_, d) = declared(&write(
+            dir.path(),
+            "t.raf",
+            &raf_layout(100, 100, 1000, 3000, 0x80),
+        ));
+        assert_eq!(d.largest, Some((3500, 3500)), "3000 + 1000/2");
+        // No layout tag at all: taken as SuperCCD (the bound that is safe).
+        let mut b = raf(3000, 2000, 0, 0);
+        // The directory (pointer at byte 92): its count, the 0x100 entry, then 0x130's tag.
+        let at = u32::from_be_bytes([b[92], b[93], b[94], b[95]]) as usize + 12;
+        assert_eq!(b[at..at + 2], [0x01, 0x30]);
+        b[at] = 0x7f;
+        let (_, d) = declared(&write(dir.path(), "u.raf", &b));
+        assert_eq!(d.largest, Some((4000, 4000)));
+    }
+
     #[test]
     fn damaged_structure_is_found() {
         let dir = tempfile::tempdir().unwrap();
@@ -877,7 +935,7 @@ pub(crate) mod tests {
     fn huge_declared_sizes_are_refused_before_decoding() {
         use crate::io::IoError;
         let dir = tempfile::tempdir().unwrap();
-        let cases: [(&str, Vec<u8>, &str); 7] = [
+        let cases: [(&str, Vec<u8>, &str); 8] = [
             ("a.cr3", cr3(1 << 20, 1 << 20, 1), "1048576×1048576"),
             ("b.raf", raf(60000, 60000, 100, 100), "60000×60000"),
             ("c.raf", raf(100, 100, 1 << 20, 1 << 19), "1048576×524288"),
@@ -885,6 +943,8 @@ pub(crate) mod tests {
             ("e.crw", crw(65535, 65535), "65535×65535"),
             ("f.x3f", x3f(1 << 30, 1 << 30), "1073741824×1073741824"),
             ("g.rw2", rw2(1 << 20, 1 << 20), "1048576×1048576"),
+            // SuperCCD: 15000² is within 2²⁸, the turned image 22500² is not.
+            ("h.raf", raf_layout(15000, 15000, 0, 0, 0), "22500×22500"),
         ];
         for (name, bytes, dims) in cases {
             let p = write(dir.path(), name, &bytes);

@@ -112,6 +112,8 @@ pub(crate) fn read(path: &Path, limits: &Limits, demosaic: Demosaic) -> Result<R
             ))
         }
     };
+    // As LibRaw: the frame turned to the orientation the file records.
+    let frame = super::orient::orient(path, frame, info.orientation)?;
     Ok(RawFrame { frame, info })
 }
 

@@ -7,10 +7,10 @@
 //! smallest, as LibRaw does); no white balance and no colour matrix. The
 //! sensor's active area and the file's default crop are applied.
 //!
-//! **Orientation** is not applied: the frame stays in the sensor's orientation (like
-//! `dcraw_emu -t 0` or rawpy's `user_flip=0`); the file's orientation is reported in
-//! [`CameraInfo::orientation`]. A colour correction is per pixel, so this changes nothing in its
-//! values, and chart detection finds charts at any rotation.
+//! **Orientation** is applied as LibRaw applies it by default (`dcraw_emu`, rawpy's
+//! `postprocess`): the developed frame, in every demosaic (`half` included), is turned from the
+//! sensor's orientation to the one the file records (TIFF Orientation 1–8, [`CameraInfo::orientation`];
+//! in a DNG its `Orientation` tag), so 5–8 swap width and height (`orient`).
 //!
 //! **Demosaic** ([`Demosaic`]): `half` makes one pixel of each 2×2 CFA block (R, the mean of the
 //! two greens, B: no interpolation); `bilinear` is LibRaw's linear interpolation (neighbours of
@@ -36,6 +36,8 @@ use std::io::Read;
 use std::path::Path;
 
 mod container;
+mod orient;
+pub(crate) use orient::describe as describe_orientation;
 #[cfg(feature = "raw")]
 mod decode;
 #[cfg(feature = "raw")]
@@ -110,7 +112,8 @@ pub struct CameraInfo {
     /// The as-shot neutral in camera RGB (green = 1), when recorded.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub as_shot_neutral: Option<[f32; 3]>,
-    /// The file's orientation (TIFF Orientation 1–8; 0 unknown). Not applied to the pixels.
+    /// The file's orientation (TIFF Orientation 1–8; 0 unknown), applied to the pixels (the
+    /// frame is in this orientation, as LibRaw's).
     #[serde(default)]
     pub orientation: u16,
     /// The CFA pattern as rawler names it (`RGGB`, a 36-letter X-Trans pattern, or empty).

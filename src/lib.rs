@@ -109,36 +109,33 @@ extern crate self as nsrm;
 #[allow(unreachable_pub, dead_code)]
 mod kit;
 
-// The colour-science core, one line per room (the names grouped as the documentation lists them).
+// The colour-science core (the names grouped as the documentation lists them).
 // Frames: the pixels every apply path takes.
 pub use frame::{Frame, Layout};
-// Models: kinds, fitting, the model file, applying on the CPU, the output space folded in; and
-// dual-illuminant profiles (two models interpolated by the frame's white, as DNG does).
-pub use model::{
-    dual_illuminant::{Combination, FrameWhite, Profile},
-    fit,
-    fit::F32_TOLERANCE_DE00,
-    fit::{fit_with, Fit, FitOptions, FitReport, Normalise, Objective, Ridge, White as FitWhite},
-    output::output_model,
-    terms::MAX_ORDER,
-    Kind, Model, ModelError,
-};
-// Colorimetry: Lab, ΔE00, output spaces.
-pub use colorimetry::{
-    ciede2000, delta_e00_xyz,
-    spaces::OutputSpace,
-    temperature::{bradford_between, D50_XY},
-    xyz_to_lab, D65_WHITE_XYZ,
-};
+
+// Models: kinds, fitting, the model file, applying on the CPU, the output space folded in.
+pub use model::fit::{fit_with, Fit, FitOptions, FitReport, F32_TOLERANCE_DE00};
+pub use model::fit::{Normalise, Objective, Ridge, White as FitWhite};
+pub use model::output::output_model;
+pub use model::terms::MAX_ORDER;
+pub use model::{fit, Kind, Model, ModelError};
+
+// Dual-illuminant profiles: two models interpolated by the frame's white, as DNG does.
+pub use model::dual_illuminant::{Combination, FrameWhite, Profile};
+
+// Colorimetry: Lab, ΔE00, output spaces; the D50 white and Bradford the profile judges read.
+pub use colorimetry::spaces::OutputSpace;
+pub use colorimetry::temperature::{bradford_between, D50_XY};
+pub use colorimetry::{ciede2000, delta_e00_xyz, xyz_to_lab, D65_WHITE_XYZ};
+
 // Spectral simulation: camera × illuminant × reflectances on a wavelength grid.
 pub use spectral::{
     simulate, simulate_named, Camera, Grid, Illuminant, Reflectances, SpectralError,
 };
+
 // Training sets: patches with camera RGB and reference XYZ, and their white.
-pub use crate::{
-    training::{parse_white, TrainingError},
-    training_set::{CaptureProvenance, Provenance, TrainingSet},
-};
+pub use training::{parse_white, CaptureProvenance, Provenance, TrainingError, TrainingSet};
+
 // Evaluation: leave-one-out and in-sample ΔE00 statistics.
 #[cfg(feature = "plot")]
 pub use eval::plot::{histograms as plot_histograms, PlotError};

@@ -179,23 +179,4 @@ mod tests {
             assert!(e.to_string().contains("character device"), "{e}");
         }
     }
-
-    /// Once in `tests/all/harden_inputs.rs`; here since the cap is crate-private.
-    #[test]
-    fn oversized_text_inputs_are_refused_by_the_cap() {
-        let dir = tempfile::tempdir().unwrap();
-        let big = dir.path().join("big.csv");
-        let f = std::fs::File::create(&big).unwrap();
-        // Sparse: 65 MiB without writing them.
-        f.set_len(MAX_TEXT_BYTES + (1 << 20)).unwrap();
-        let e = crate::TrainingSet::read_measured(&big, None).unwrap_err();
-        assert!(
-            e.to_string()
-                .contains("larger than the 64 MiB limit for text inputs"),
-            "{e}"
-        );
-        assert!(e.to_string().contains("big.csv"), "{e}");
-        let e = crate::Model::load(&big).unwrap_err();
-        assert!(e.to_string().contains("64 MiB"), "{e}");
-    }
 }

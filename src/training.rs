@@ -2,7 +2,7 @@
 //! or measured by a user ([`TrainingSet::read_measured`]), and patch selection (`--patches`).
 
 use crate::colorimetry::lab_to_xyz;
-pub(crate) use crate::training_set::{CaptureProvenance, Provenance, TrainingSet};
+pub use crate::training_set::{CaptureProvenance, Provenance, TrainingSet};
 use std::path::Path;
 
 /// Errors from reading measured training data or selecting patches.

@@ -12,7 +12,8 @@ use super::{homography_from_corners, ChartKind, Reference};
 use crate::kit::skip_or_fail;
 use crate::Kind;
 use crate::TrainingSet;
-use crate::{evaluate, Protocol};
+// Evaluation sits above `chart`: through the public API, as an integration test would.
+use nsrm::{evaluate, Protocol};
 
 const SG_SPECTRA: &str = "../shared/data/colorchecker_sg_140.csv";
 

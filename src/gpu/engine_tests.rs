@@ -2,28 +2,10 @@
 //! `gpu_tests.rs`. Without an adapter these tests print `SKIP: no GPU adapter ...` and pass,
 //! unless `CI=true`, where they fail.
 
-use super::{open, open_device, CpuReason, DeviceChoice, Engine, GpuError, GpuOptions, Opened};
+use super::gpu_tests::engine;
+use super::{open, open_device, CpuReason, DeviceChoice, GpuError, GpuOptions, Opened};
 use crate::kit::{awkward_frame as random_frame, training};
 use crate::{fit, Kind, Layout, Model};
-
-/// The engine, or `None` (after one loud line) when there is no adapter; with `CI=true` a
-/// missing adapter fails the test.
-pub(super) fn engine(tile_pixels: Option<usize>) -> Option<Engine> {
-    let opts = GpuOptions {
-        adapter: None,
-        tile_pixels,
-    };
-    match Engine::new(&opts) {
-        Ok(e) => Some(e),
-        Err(e @ GpuError::NoAdapter { .. }) => {
-            let reason = format!("no GPU adapter (install mesa-vulkan-drivers libvulkan1): {e}");
-            assert!(std::env::var("CI").as_deref() != Ok("true"), "{reason}");
-            eprintln!("SKIP: {reason}");
-            None
-        }
-        Err(e) => panic!("cannot open the GPU engine: {e}"),
-    }
-}
 
 fn model(kind: Kind, order: u8) -> Model {
     fit(kind, order, training()).unwrap()

@@ -17,7 +17,6 @@
 use crate::gpu::{self, Corrector, Engine, GpuError, GpuOptions, Target, TexelFormat};
 use crate::{fit, Kind, Model, MAX_ORDER};
 use crate::{fit_with, FitOptions, Normalise};
-use crate::{simulate_named, Grid};
 use crate::{Frame, Layout};
 
 /// The embedding example, for its functions (chart → Corrector pass → display pass → RGBA8).
@@ -30,7 +29,7 @@ const REL_TOL: f64 = 1e-5;
 
 /// The engine, or `None` (after one loud line) when there is no adapter; with `CI=true` a
 /// missing adapter fails the test.
-fn engine(tile_pixels: Option<usize>) -> Option<Engine> {
+pub(super) fn engine(tile_pixels: Option<usize>) -> Option<Engine> {
     let opts = GpuOptions {
         adapter: None,
         tile_pixels,
@@ -575,7 +574,7 @@ fn embed_display_shader_validates() {
 fn embed_demo_png_matches_the_cpu_path() {
     let Some(e) = engine(None) else { return };
     let ctx = e.context();
-    let data = simulate_named("nikon-d5100", "D65", "cc24", &Grid::default()).unwrap();
+    let data = crate::kit::simulated("D65", "cc24");
     let m = fit(Kind::Nsrm, 3, &data).unwrap();
     let frame = embed::chart_frame(&data, 6, 8);
     assert_eq!((frame.width, frame.height), (48, 32));

@@ -18,7 +18,7 @@
 //!
 //! Without an adapter the test prints `SKIP: …` and passes, unless `CI=true`, where it fails.
 
-use super::engine_tests::engine;
+use super::gpu_tests::engine;
 use super::{Corrector, Target};
 use crate::kit::{awkward_frame, f32_bound, read_buffer, Rng, F32_REL};
 use crate::model::pixel::{Program, Step};

@@ -7,8 +7,9 @@
 //! `.ci/install.d/40-profiles.sh`.
 
 use crate::colorimetry::temperature::{cct, temperature_xy, D50_XY};
+use crate::kit::simulated;
 use crate::kit::skip_or_fail as skip;
-use crate::{fit_with, simulate_named, FitOptions, FrameWhite, Grid, Kind, Profile};
+use crate::{fit_with, FitOptions, FrameWhite, Kind, Profile};
 use std::process::{Command, Stdio};
 
 /// A 3×3 matrix, row-major.
@@ -74,7 +75,7 @@ fn python(code: &str, input: &str) -> String {
 }
 
 fn model(kind: Kind, ill: &str) -> crate::Model {
-    let d = simulate_named("nikon-d5100", ill, "rawtoaces-190", &Grid::default()).unwrap();
+    let d = simulated(ill, "rawtoaces-190");
     let o = FitOptions {
         preserve_white: true,
         ..Default::default()
@@ -168,8 +169,7 @@ for n in d["n"]:
 #[ignore]
 fn two_illuminant_table() {
     use crate::TrainingSet;
-    let grid = Grid::default();
-    let sim = |ill: &str| simulate_named("nikon-d5100", ill, "rawtoaces-190", &grid).unwrap();
+    let sim = |ill: &str| simulated(ill, "rawtoaces-190");
     let (a, d65) = (sim("A"), sim("D65"));
     let fit = |kind: Kind, d: &TrainingSet| {
         let o = FitOptions {

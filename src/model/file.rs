@@ -402,4 +402,25 @@ mod tests {
             .to_string();
         assert!(e.contains("cannot read"), "{e}");
     }
+
+    /// Once in `tests/all/harden_inputs.rs`; in `model` (not `limits`, the bottom room) since
+    /// it reads through the training and model files, which sit above the cap.
+    #[test]
+    fn oversized_text_inputs_are_refused_by_the_cap() {
+        let dir = tempfile::tempdir().unwrap();
+        let big = dir.path().join("big.csv");
+        let f = std::fs::File::create(&big).unwrap();
+        // Sparse: 65 MiB without writing them.
+        f.set_len(crate::limits::MAX_TEXT_BYTES + (1 << 20))
+            .unwrap();
+        let e = crate::TrainingSet::read_measured(&big, None).unwrap_err();
+        assert!(
+            e.to_string()
+                .contains("larger than the 64 MiB limit for text inputs"),
+            "{e}"
+        );
+        assert!(e.to_string().contains("big.csv"), "{e}");
+        let e = crate::Model::load(&big).unwrap_err();
+        assert!(e.to_string().contains("64 MiB"), "{e}");
+    }
 }

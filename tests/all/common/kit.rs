@@ -157,6 +157,12 @@ pub fn training() -> &'static TrainingSet {
     })
 }
 
+/// The Nikon D5100 under `illuminant` on `reflectances`, on the default grid (unit tests of rooms
+/// below `spectral` simulate through the kit).
+pub fn simulated(illuminant: &str, reflectances: &str) -> TrainingSet {
+    simulate_named("nikon-d5100", illuminant, reflectances, &Grid::default()).unwrap()
+}
+
 /// Every kind at every order (LRM once: it has only order 1), fitted on [`training`]: realistic
 /// coefficients, including PRM 4's large ones of both signs.
 pub fn fitted_models() -> Vec<Model> {

@@ -142,7 +142,11 @@ pub fn stderr(o: &Output) -> String {
 
 /// A fresh directory under the system's temporary directory, named for the test.
 pub fn tempdir(name: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!("nsrm-{name}-{}", std::process::id()));
+    // Unique per call: tests run in parallel in one process, and two of them giving the same
+    // name once removed each other's files (`cli_chart` and `cli_eval_fit` both said "bad").
+    static NEXT: std::sync::atomic::AtomicUsize = std::sync::atomic::AtomicUsize::new(0);
+    let n = NEXT.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+    let d = std::env::temp_dir().join(format!("nsrm-{name}-{}-{n}", std::process::id()));
     let _ = std::fs::remove_dir_all(&d);
     std::fs::create_dir_all(&d).unwrap();
     d

@@ -7,10 +7,10 @@
 //! `.ci/install.d/40-profiles.sh`.
 
 use crate::colorimetry::temperature::{cct, temperature_xy, D50_XY};
-use crate::kit::simulated;
 use crate::kit::skip_or_fail as skip;
+use crate::kit::{python, simulated};
 use crate::{fit_with, FitOptions, FrameWhite, Kind, Profile};
-use std::process::{Command, Stdio};
+use std::process::Command;
 
 /// A 3×3 matrix, row-major.
 type Mat3 = [[f64; 3]; 3];
@@ -48,30 +48,6 @@ fn python_with(mods: &[&str]) -> bool {
         .args(["-W", "ignore", "-c", &code])
         .output()
         .is_ok_and(|o| o.status.success())
-}
-
-fn python(code: &str, input: &str) -> String {
-    let mut child = Command::new("python3")
-        .args(["-W", "ignore", "-c", code])
-        .stdin(Stdio::piped())
-        .stdout(Stdio::piped())
-        .stderr(Stdio::piped())
-        .spawn()
-        .expect("python3 runs");
-    use std::io::Write;
-    child
-        .stdin
-        .take()
-        .unwrap()
-        .write_all(input.as_bytes())
-        .unwrap();
-    let out = child.wait_with_output().unwrap();
-    assert!(
-        out.status.success(),
-        "python failed: {}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    String::from_utf8_lossy(&out.stdout).into_owned()
 }
 
 fn model(kind: Kind, ill: &str) -> crate::Model {

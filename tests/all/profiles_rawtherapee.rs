@@ -8,7 +8,7 @@
 //! weights by its own white-balance temperature) and checks nsrm's DNG evaluator reproduces
 //! RawTherapee at that weight. Installed by `.ci/install.d/40-profiles.sh`.
 
-use crate::common::{nsrm_ok, skip, tempdir};
+use crate::common::{nsrm_ok, python, skip, tempdir};
 use nsrm::delta_e00_xyz;
 
 use nsrm::export::{prophoto_to_xyz, Dcp};
@@ -17,7 +17,7 @@ use nsrm::D50_XY;
 use nsrm::{simulate_named, Grid};
 use nsrm::{FrameWhite, Profile};
 use std::path::Path;
-use std::process::{Command, Stdio};
+use std::process::Command;
 
 const LINEAR_PROPHOTO: &str = "/usr/share/color/argyll/ref/ProPhotoLin.icm";
 /// Patch side in pixels and patches per row of the synthetic DNG (RawTherapee refuses very small
@@ -89,30 +89,6 @@ for i in range(n):
     vals.append(rt[y+q:y+size-q, x+q:x+size-q, :3].reshape(-1, 3).mean(0).tolist())
 print(json.dumps({"rt": vals, "nsrm": ns[:n].tolist(), "crop": [oy, ox]}))
 "#;
-
-fn python(code: &str, input: &str) -> String {
-    let mut child = Command::new("python3")
-        .args(["-W", "ignore", "-c", code])
-        .stdin(Stdio::piped())
-        .stdout(Stdio::piped())
-        .stderr(Stdio::piped())
-        .spawn()
-        .expect("python3 runs");
-    use std::io::Write;
-    child
-        .stdin
-        .take()
-        .expect("stdin")
-        .write_all(input.as_bytes())
-        .expect("writes");
-    let out = child.wait_with_output().expect("python3 ends");
-    assert!(
-        out.status.success(),
-        "python failed: {}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    String::from_utf8_lossy(&out.stdout).into_owned()
-}
 
 fn prerequisites() -> Result<(), String> {
     let ok = |c: &mut Command| c.output().is_ok_and(|o| o.status.success());

@@ -361,6 +361,37 @@ pub fn cc() -> Option<String> {
     None
 }
 
+/// Runs `cmd` with `input` on its standard input, collecting its standard output and error.
+pub fn piped(cmd: &mut Command, input: &str) -> std::process::Output {
+    let mut child = cmd
+        .stdin(Stdio::piped())
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap_or_else(|e| panic!("{cmd:?} does not start: {e}"));
+    child
+        .stdin
+        .take()
+        .expect("stdin")
+        .write_all(input.as_bytes())
+        .expect("writes");
+    child.wait_with_output().expect("ends")
+}
+
+/// Runs a Python program (`python3 -c`) on `input`; its standard output (it must succeed).
+pub fn python(code: &str, input: &str) -> String {
+    let out = piped(
+        Command::new("python3").args(["-W", "ignore", "-c", code]),
+        input,
+    );
+    assert!(
+        out.status.success(),
+        "python failed: {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    String::from_utf8_lossy(&out.stdout).into_owned()
+}
+
 /// Compiles `dctl` with the shim and runs it on `px` (also used by `pixel_policy`).
 pub fn run_dctl(cc: &str, dir: &Path, name: &str, dctl: &str, px: &[[f64; 3]]) -> Vec<[f64; 3]> {
     let src = dir.join(format!("{name}.c"));
@@ -386,22 +417,11 @@ pub fn run_dctl(cc: &str, dir: &Path, name: &str, dctl: &str, px: &[[f64; 3]]) -
         "{name}: the DCTL does not compile as C:\n{}\n{dctl}",
         String::from_utf8_lossy(&out.stderr)
     );
-    let mut child = Command::new(&exe)
-        .stdin(Stdio::piped())
-        .stdout(Stdio::piped())
-        .spawn()
-        .unwrap();
     let input: String = px
         .iter()
         .map(|p| format!("{:e} {:e} {:e}\n", p[0] as f32, p[1] as f32, p[2] as f32))
         .collect();
-    child
-        .stdin
-        .take()
-        .unwrap()
-        .write_all(input.as_bytes())
-        .unwrap();
-    let out = child.wait_with_output().unwrap();
+    let out = piped(&mut Command::new(&exe), &input);
     String::from_utf8(out.stdout)
         .unwrap()
         .lines()

@@ -15,7 +15,7 @@ use criterion::{criterion_group, criterion_main, Criterion};
 use nsrm::chart::render_scene as render;
 use nsrm::chart::SceneOptions;
 use nsrm::chart::{read, CaptureFrame, ChartColours, ChartKind, ReadingOptions, Reference};
-use nsrm::io::{Decoded, Encoding, FileFormat, ReadOptions, WriteOptions, DEFAULT_ZIP_LEVEL};
+use nsrm::io::{Decoded, Encoding, FileFormat, ReadOptions, WriteOptions};
 use std::hint::black_box;
 use std::sync::Arc;
 use std::time::Duration;
@@ -42,13 +42,13 @@ fn chart(c: &mut Criterion) {
         let reference = Reference::load(reference, kind, None).unwrap();
         let opts = SceneOptions::envelope(&colours, WIDTH, HEIGHT, seed);
         let (frame, _, truth) = render(&colours, &opts).unwrap();
-        let path = dir.path().join(format!("{}.exr", kind.name()));
+        let path = dir.path().join(format!("{kind:?}.exr"));
         let write = WriteOptions {
             format: FileFormat::Exr,
             half: false,
             compression: nsrm::io::ExrCompression::None,
             space: nsrm::OutputSpace::Xyz,
-            zip_level: DEFAULT_ZIP_LEVEL,
+            ..Default::default()
         };
         let session = nsrm::output::Session::new(true);
         let mut unit = session.unit();
@@ -63,10 +63,10 @@ fn chart(c: &mut Criterion) {
             corners: Some(truth.corners),
             ..Default::default()
         };
-        g.bench_function(format!("{}/read", kind.name()), |b| {
+        g.bench_function(format!("{kind:?}/read"), |b| {
             b.iter(|| read(black_box(&frame), &reference, &detected).unwrap())
         });
-        g.bench_function(format!("{}/read_at_corners", kind.name()), |b| {
+        g.bench_function(format!("{kind:?}/read_at_corners"), |b| {
             b.iter(|| read(black_box(&frame), &reference, &at_corners).unwrap())
         });
     }

@@ -12,7 +12,7 @@
 //! 24-Mpixel float plates take about 1.1 GB.
 
 use anyhow::{bail, Context, Result};
-use nsrm::io::{Decoded, ExrCompression, FileFormat, WriteOptions, DEFAULT_ZIP_LEVEL};
+use nsrm::io::{Decoded, ExrCompression, FileFormat, WriteOptions};
 use nsrm::OutputSpace;
 use nsrm::{Frame, Layout};
 use std::path::PathBuf;
@@ -47,7 +47,7 @@ fn main() -> Result<()> {
             half: false,
             compression,
             space: OutputSpace::Acescg,
-            zip_level: DEFAULT_ZIP_LEVEL,
+            ..Default::default()
         };
         let mut unit = session.unit();
         Decoded::from(frame)

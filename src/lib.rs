@@ -13,13 +13,9 @@
 //! ```
 //!
 //! ```
-//! use nsrm::{fit, simulate, Camera, Grid, Illuminant, Kind, Reflectances};
-//! let data = simulate(
-//!     &Camera::from_name_or_path("nikon-d5100")?,
-//!     &Illuminant::from_name_or_path("D65")?,
-//!     &Reflectances::from_name_or_path("cc24")?,
-//!     &Grid::default(),
-//! )?;
+//! use nsrm::{fit, simulate_named, Grid, Kind};
+//! // Built-in names, or paths of CSV files with the same columns.
+//! let data = simulate_named("nikon-d5100", "D65", "cc24", &Grid::default())?;
 //! let model = fit(Kind::Nsrm, 3, &data)?;
 //! let xyz = model.apply_f64(data.rgb[0]);
 //! assert!((xyz[1] - data.xyz[0][1]).abs() < 1.0);
@@ -54,7 +50,7 @@
 //! | `gpu` | `gpu`: wgpu, the frame `gpu::Engine` and the embeddable `gpu::Corrector` |
 //! | `io` | `io`: OpenEXR / TIFF frames and batches, PNG previews |
 //! | `export` | `export`: LUTs and profiles other tools read (CLF, `.cube`, OCIO, DCTL, DCP); with `gpu` also the baked shaders in WGSL, SPIR-V, GLSL, HLSL and MSL (naga's back ends) |
-//! | `plot` | `plot_histograms`: the paper's Fig. 1 as SVG or PNG |
+//! | `plot` | for the binary: `nsrm eval --plot`, the paper's Fig. 1 as SVG or PNG |
 //! | `chart` | chart detection in captured frames, synthetic chart frames and scenes; implies `io` |
 //! | `farm` | for the binary: per-shard manifests, their verification, path mapping, farm job files; implies `io` |
 //! | `cli` (default) | the `nsrm` binary; implies all of the above |
@@ -129,14 +125,10 @@ pub use colorimetry::temperature::{bradford_between, D50_XY};
 pub use colorimetry::{ciede2000, delta_e00_xyz, xyz_to_lab, D65_WHITE_XYZ};
 
 // Spectral simulation: camera × illuminant × reflectances on a wavelength grid.
-pub use spectral::{
-    simulate, simulate_named, Camera, Grid, Illuminant, Reflectances, SpectralError,
-};
+pub use spectral::{simulate_named, Grid, SpectralError};
 
 // Training sets: patches with camera RGB and reference XYZ, and their white.
 pub use training::{parse_white, CaptureProvenance, Provenance, TrainingError, TrainingSet};
 
 // Evaluation: leave-one-out and in-sample ΔE00 statistics.
-#[cfg(feature = "plot")]
-pub use eval::plot::{histograms as plot_histograms, PlotError};
 pub use eval::{evaluate, evaluate_with, EvalResult, PatchError, Protocol, Stats};

@@ -41,8 +41,9 @@
 //! ([`Session`] is `Sync`; a [`Unit`] is `Send`): each frame's outputs commit together.
 //!
 //! # Guarantees
-//! * Temporary names are unguessable: `.NAME.nsrm-PID-RANDOM.tmp` with 64 random bits, created
-//!   with `O_EXCL`; a name that exists is never touched, another is drawn.
+//! * Temporaries are `.NAME.nsrm-PID-RANDOM.tmp` beside their destination (16 random letters and
+//!   digits, drawn by the `tempfile` crate), created with `O_EXCL`; a name that exists is never
+//!   touched, another is drawn.
 //! * Only temporaries this session created are ever removed ([`AbortHandle::abort`],
 //!   the session's clean-up, a dropped [`Unit`]).
 //! * Nothing but a regular file is ever replaced, even with `overwrite`.
@@ -380,38 +381,36 @@ impl Drop for Session {
 /// The part of a temporary's name that marks it as this crate's: `.NAME.nsrm-PID-RANDOM.tmp`.
 const TEMP_MARK: &str = ".nsrm-";
 const TEMP_END: &str = ".tmp";
+/// What a temporary's creation fails with once the session is aborted.
+const ABORTED: &str = "the session was aborted";
 
-/// 64 unpredictable bits: from the operating system, else (no entropy source) from std's
-/// randomly keyed hasher over the time.
-fn random_u64() -> u64 {
-    use std::hash::{BuildHasher, Hasher};
-    if let Ok(v) = getrandom::u64() {
-        return v;
-    }
-    let mut h = std::collections::hash_map::RandomState::new().build_hasher();
-    if let Ok(t) = std::time::SystemTime::now().duration_since(std::time::UNIX_EPOCH) {
-        h.write_u128(t.as_nanos());
-    }
-    h.finish()
+/// Random characters in a temporary's name (ASCII letters and digits, about 95 bits).
+const TEMP_RANDOM: usize = 16;
+
+/// Makes something new at a fresh temporary path beside `dest` (same directory, so the final
+/// rename is atomic), `.NAME.nsrm-PID-RANDOM.tmp`: `make` creates it and must fail with
+/// `AlreadyExists` when the path is taken (`File::create_new`, `hard_link`), and then another
+/// name is drawn (the `tempfile` crate's names and retries). Returns what `make` returned and the
+/// (absolute) path, which the caller then owns: nothing removes it on drop.
+pub(crate) fn make_temp<R>(
+    dest: &Path,
+    make: impl FnMut(&Path) -> std::io::Result<R>,
+) -> std::io::Result<(R, PathBuf)> {
+    let mut make = make;
+    let mut prefix = std::ffi::OsString::from(".");
+    prefix.push(dest.file_name().unwrap_or(OsStr::new("out")));
+    prefix.push(format!("{TEMP_MARK}{}-", std::process::id()));
+    let dir = dest.parent().unwrap_or(Path::new(""));
+    let made = tempfile::Builder::new()
+        .prefix(&prefix)
+        .suffix(TEMP_END)
+        .rand_bytes(TEMP_RANDOM)
+        .make_in(dir, |p| make(p))?;
+    made.keep().map_err(|e| e.error)
 }
 
-/// A fresh temporary path beside `dest` (same directory, so the final rename is atomic):
-/// `.NAME.nsrm-PID-RANDOM.tmp`. Nothing is created.
-pub(crate) fn temp_path_for(dest: &Path) -> PathBuf {
-    let mut name = std::ffi::OsString::from(".");
-    name.push(dest.file_name().unwrap_or(OsStr::new("out")));
-    name.push(format!(
-        "{TEMP_MARK}{}-{:016x}{TEMP_END}",
-        std::process::id(),
-        random_u64()
-    ));
-    match dest.parent() {
-        Some(p) if !p.as_os_str().is_empty() => p.join(name),
-        _ => PathBuf::from(name),
-    }
-}
-
-/// Whether a file name has the form of this crate's temporaries (`.NAME.nsrm-PID-HEX16.tmp`).
+/// Whether a file name has the form of this crate's temporaries (`.NAME.nsrm-PID-RANDOM.tmp`,
+/// [`TEMP_RANDOM`] letters and digits).
 pub(crate) fn is_temp_name(name: &OsStr) -> bool {
     let b = name.as_encoded_bytes();
     let Some(rest) = b.strip_suffix(TEMP_END.as_bytes()) else {
@@ -425,13 +424,13 @@ pub(crate) fn is_temp_name(name: &OsStr) -> bool {
     let Some(dash) = tail.iter().position(|&c| c == b'-') else {
         return false;
     };
-    let (pid, hex) = (&tail[..dash], &tail[dash + 1..]);
+    let (pid, random) = (&tail[..dash], &tail[dash + 1..]);
     b[0] == b'.'
         && pos > 1
         && !pid.is_empty()
         && pid.iter().all(u8::is_ascii_digit)
-        && hex.len() == 16
-        && hex.iter().all(u8::is_ascii_hexdigit)
+        && random.len() == TEMP_RANDOM
+        && random.iter().all(u8::is_ascii_alphanumeric)
 }
 
 /// The temporaries of this crate's form in `dir` (not recursive), sorted. Left behind by a run
@@ -539,36 +538,30 @@ impl Unit {
     /// Creates a fresh temporary beside `dest` (never opening an existing file), registered
     /// with the session; refused once the session is aborted.
     fn create_temp(&self, dest: &Path) -> Result<(OutFile, PathBuf), WriteError> {
-        let mut last = None;
-        for _ in 0..16 {
-            let tmp = temp_path_for(dest);
+        let made = make_temp(dest, |tmp| {
+            // Created and registered under the lock, so an abort sees every temporary.
             let mut temps = self.shared.temps();
             if self.shared.aborted() {
-                return Err(WriteError::Aborted(dest.to_path_buf()));
+                return Err(std::io::Error::other(ABORTED));
             }
-            match File::create_new(&tmp) {
-                Ok(file) => {
-                    temps.insert(tmp.clone());
-                    let f = OutFile {
-                        file,
-                        abort: Arc::clone(&self.shared.abort),
-                    };
-                    return Ok((f, tmp));
-                }
-                // Someone else's file: leave it alone, draw another name.
-                Err(e) if e.kind() == std::io::ErrorKind::AlreadyExists => last = Some(e),
-                Err(err) => {
-                    return Err(WriteError::Io {
-                        path: dest.to_path_buf(),
-                        err,
-                    })
-                }
+            let file = File::create_new(tmp)?;
+            temps.insert(tmp.to_path_buf());
+            Ok(file)
+        });
+        match made {
+            Ok((file, tmp)) => {
+                let f = OutFile {
+                    file,
+                    abort: Arc::clone(&self.shared.abort),
+                };
+                Ok((f, tmp))
             }
+            Err(_) if self.shared.aborted() => Err(WriteError::Aborted(dest.to_path_buf())),
+            Err(err) => Err(WriteError::Io {
+                path: dest.to_path_buf(),
+                err,
+            }),
         }
-        Err(WriteError::Io {
-            path: dest.to_path_buf(),
-            err: last.unwrap_or_else(|| std::io::Error::other("no free temporary name")),
-        })
     }
 
     fn forget(&self, tmp: &Path) {
@@ -659,11 +652,12 @@ impl Unit {
         let mut placed: Vec<(PathBuf, Option<PathBuf>)> = Vec::new();
         for (k, s) in staged.iter().enumerate() {
             let backup = if self.overwrite && std::fs::symlink_metadata(&s.dest).is_ok() {
-                let b = temp_path_for(&s.dest);
-                std::fs::hard_link(&s.dest, &b).ok().map(|()| {
-                    temps.insert(b.clone());
-                    b
-                })
+                make_temp(&s.dest, |b| std::fs::hard_link(&s.dest, b))
+                    .ok()
+                    .map(|((), b)| {
+                        temps.insert(b.clone());
+                        b
+                    })
             } else {
                 None
             };
@@ -784,15 +778,38 @@ mod tests {
 
     #[test]
     fn temp_names_are_unique_and_recognised() {
-        let a = temp_path_for(Path::new("out/x.exr"));
-        let b = temp_path_for(Path::new("out/x.exr"));
+        let dir = tempfile::tempdir().unwrap();
+        let dest = dir.path().join("x.exr");
+        let (_, a) = make_temp(&dest, |p| File::create_new(p)).unwrap();
+        let (_, b) = make_temp(&dest, |p| File::create_new(p)).unwrap();
         assert_ne!(a, b);
+        assert!(a.exists() && b.exists());
         assert!(is_temp_name(a.file_name().unwrap()), "{a:?}");
-        assert!(a.to_string_lossy().starts_with("out/.x.exr.nsrm-"), "{a:?}");
+        assert!(a.starts_with(dir.path()), "{a:?}");
+        assert!(
+            a.file_name()
+                .unwrap()
+                .to_string_lossy()
+                .starts_with(".x.exr.nsrm-"),
+            "{a:?}"
+        );
+        // A taken name is never opened: `make` sees AlreadyExists and another name is drawn.
+        let mut tries = 0;
+        let (_, c) = make_temp(&dest, |p| {
+            tries += 1;
+            if tries == 1 {
+                File::create_new(&a)
+            } else {
+                File::create_new(p)
+            }
+        })
+        .unwrap();
+        assert!(tries == 2 && c != a);
         for bad in [
             "x.tmp",
             ".x.nsrm-1-abc.tmp",
             ".x.nsrm--0123456789abcdef.tmp",
+            ".x.nsrm-1-0123456789abcde_.tmp",
             ".nsrm-1-0123456789abcdef.tmp",
         ] {
             assert!(!is_temp_name(OsStr::new(bad)), "{bad}");

@@ -186,7 +186,7 @@ impl ChartKind {
     }
 
     /// The name `--chart` takes: `cc24` or `sg`.
-    pub fn name(self) -> &'static str {
+    pub(crate) fn name(self) -> &'static str {
         match self {
             ChartKind::Cc24 => "cc24",
             ChartKind::Sg => "sg",

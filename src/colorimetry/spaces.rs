@@ -27,7 +27,7 @@ impl OutputSpace {
     ];
 
     /// Parses a command-line name (`xyz`, `linear-srgb`, `acescg`, `aces2065-1`).
-    pub fn parse(name: &str) -> Option<OutputSpace> {
+    pub(crate) fn parse(name: &str) -> Option<OutputSpace> {
         Self::ALL
             .iter()
             .find(|(_, n)| n.eq_ignore_ascii_case(name))

@@ -45,7 +45,7 @@ pub struct Stats {
 impl Stats {
     /// Mean, median, 95th percentile (linear interpolation between order statistics, as numpy's
     /// default) and maximum. `values` must not be empty.
-    pub fn of(values: &[f64]) -> Stats {
+    pub(crate) fn of(values: &[f64]) -> Stats {
         assert!(!values.is_empty());
         let mut v = values.to_vec();
         v.sort_by(|a, b| a.total_cmp(b));

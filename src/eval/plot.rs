@@ -12,7 +12,7 @@ use std::path::Path;
 
 /// Errors from drawing a plot.
 #[derive(Debug, thiserror::Error)]
-pub enum PlotError {
+pub(crate) enum PlotError {
     /// The plot path (held here) has an extension other than `.png` or `.svg`.
     #[error("{0}: the plot file must end in .png or .svg")]
     Format(String),
@@ -348,7 +348,7 @@ pub(crate) fn to_image(
 
 /// Draws the histograms of `results` into `path` (.svg or .png), staged in `unit`, with `title`
 /// (what was evaluated: data set, camera, protocol) above the panels.
-pub fn histograms(
+pub(crate) fn histograms(
     results: &[EvalResult],
     title: Option<&str>,
     path: &Path,

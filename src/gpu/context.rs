@@ -121,7 +121,7 @@ impl GpuContext {
     }
 
     /// `name (Backend, DeviceType)`, e.g. `llvmpipe (LLVM 15.0.6, 256 bits) (Vulkan, Cpu)`.
-    pub fn adapter_name(&self) -> String {
+    pub(crate) fn adapter_name(&self) -> String {
         describe(&self.adapter.get_info())
     }
 }

@@ -154,8 +154,9 @@ impl Engine {
         self.ctx.adapter_name()
     }
 
-    /// The adapter, device and queue (to build [`Corrector`]s on the same device).
-    pub fn context(&self) -> &GpuContext {
+    /// The adapter, device and queue (the unit tests build [`Corrector`]s on them).
+    #[cfg(test)]
+    pub(crate) fn context(&self) -> &GpuContext {
         &self.ctx
     }
 

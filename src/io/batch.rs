@@ -673,8 +673,10 @@ pub(crate) fn ensure_writable_dir(dir: &Path) -> Result<(), PlanError> {
             dir.display()
         ))
     })?;
-    let probe = crate::output::temp_path_for(&dir.join("nsrm-write-probe"));
-    std::fs::File::create_new(&probe).map_err(|e| {
+    let (_, probe) = crate::output::make_temp(&dir.join("nsrm-write-probe"), |p| {
+        std::fs::File::create_new(p)
+    })
+    .map_err(|e| {
         PlanError::Setup(format!(
             "cannot write in the output directory {}: {e}",
             dir.display()

@@ -29,16 +29,16 @@ mod tif;
 pub use {
     crate::error::{Concern, Param},
     display::Encoding,
-    raw::{CameraInfo, Demosaic},
+    raw::Demosaic,
 };
 
 /// The ZIP level written when none is asked for (libdeflate's levels, 0-12): 1, the fastest,
 /// which still compresses noisy float plates about as much as the higher levels. See
 /// BENCHMARKS.md.
-pub const DEFAULT_ZIP_LEVEL: u8 = 1;
+pub(crate) const DEFAULT_ZIP_LEVEL: u8 = 1;
 
 /// The highest deflate level libdeflate has (`--zip-level` accepts 0 to this).
-pub const MAX_ZIP_LEVEL: u8 = 12;
+pub(crate) const MAX_ZIP_LEVEL: u8 = 12;
 
 use crate::colorimetry::spaces::OutputSpace;
 use crate::frame::Frame;
@@ -505,10 +505,23 @@ pub struct WriteOptions {
     /// attribute `colorInteropID` to [`OutputSpace::interop_id`] and the `chromaticities`
     /// attribute to the space's primaries and white (removed for XYZ).
     pub space: OutputSpace,
-    /// EXR only: the deflate level (libdeflate's, 0–12: [`MAX_ZIP_LEVEL`]) of ZIP and ZIPS
-    /// outputs written by the chunk-level path; [`DEFAULT_ZIP_LEVEL`] (`--zip-level`) is chosen
-    /// for speed.
+    /// EXR only: the deflate level (libdeflate's, 0–12; higher is taken as 12) of ZIP and ZIPS
+    /// outputs written by the chunk-level path; the default, 1 (`--zip-level`), is chosen for
+    /// speed.
     pub zip_level: u8,
+}
+
+/// EXR, 32-bit floats, the input's compression when lossless, CIE XYZ, ZIP level 1.
+impl Default for WriteOptions {
+    fn default() -> WriteOptions {
+        WriteOptions {
+            format: FileFormat::Exr,
+            half: false,
+            compression: ExrCompression::Keep,
+            space: OutputSpace::Xyz,
+            zip_level: DEFAULT_ZIP_LEVEL,
+        }
+    }
 }
 
 /// A decoded input: the camera RGB to correct, and everything needed to write the file back.
@@ -537,7 +550,7 @@ enum Container {
 
 impl Decoded {
     /// The frame and every lower resolution level: what a corrector must process.
-    pub fn frames_mut(&mut self) -> impl Iterator<Item = &mut Frame> {
+    pub(crate) fn frames_mut(&mut self) -> impl Iterator<Item = &mut Frame> {
         std::iter::once(&mut self.frame).chain(self.levels.iter_mut())
     }
 
@@ -546,26 +559,8 @@ impl Decoded {
         self.frame.pixels() + self.levels.iter().map(Frame::pixels).sum::<usize>()
     }
 
-    /// Whether the input has an alpha channel (passed through unchanged).
-    pub fn has_alpha(&self) -> bool {
-        match &self.container {
-            Container::Exr(c) => c.has_alpha(),
-            Container::Tiff(c) => c.alpha.is_some(),
-            Container::Raw(_) => false,
-        }
-    }
-
-    /// Names of the EXR channels passed through untouched besides alpha (other layers, depth,
-    /// normals, …), `part/name` for parts other than the corrected one. Empty for TIFF.
-    pub fn extra_channels(&self) -> Vec<String> {
-        match &self.container {
-            Container::Exr(c) => c.extra_channels(),
-            Container::Tiff(_) | Container::Raw(_) => Vec::new(),
-        }
-    }
-
     /// What a camera raw input says about the camera and the shot (`None` for EXR and TIFF).
-    pub fn camera(&self) -> Option<&raw::CameraInfo> {
+    pub(crate) fn camera(&self) -> Option<&raw::CameraInfo> {
         match &self.container {
             Container::Raw(c) => Some(c),
             _ => None,

@@ -146,13 +146,6 @@ fn part_names(image: &AnyImage) -> Vec<PartNames> {
 }
 
 impl ExrContainer {
-    pub(super) fn has_alpha(&self) -> bool {
-        match self {
-            ExrContainer::Image(c) => c.alpha.is_some(),
-            ExrContainer::Chunked(c) => c.alpha.is_some(),
-        }
-    }
-
     /// The alpha channel's full-resolution samples as f32.
     pub(super) fn alpha_f32(&self) -> Option<Vec<f32>> {
         match self {

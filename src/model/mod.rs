@@ -195,26 +195,6 @@ impl Kind {
             order
         }
     }
-
-    /// The names of this kind's terms at `order` (1..=[`MAX_ORDER`]; LRM has its three at any
-    /// order), in the order of a model's matrix columns: `R`, `G*B`, `sqrt(R*G)`, `r*g^2`, ….
-    ///
-    /// ```
-    /// use nsrm::Kind;
-    /// assert_eq!(Kind::Prm.term_names(2)?.len(), 9);
-    /// assert_eq!(Kind::Nsrm.term_names(1)?, ["1", "r", "g"]);
-    /// assert!(Kind::Rprm.term_names(5).is_err());
-    /// # Ok::<(), nsrm::ModelError>(())
-    /// ```
-    pub fn term_names(self, order: u8) -> Result<Vec<String>, ModelError> {
-        if !(1..=MAX_ORDER).contains(&order) {
-            return Err(ModelError::Order(order));
-        }
-        Ok(terms(self, self.effective_order(order))
-            .iter()
-            .map(|t| term_name(self, t))
-            .collect())
-    }
 }
 
 /// Parses `lrm`, `prm`, `rprm` or `nsrm`, case-insensitively.

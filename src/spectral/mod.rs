@@ -274,7 +274,7 @@ impl SpectralTable {
 
 /// A camera: three spectral sensitivities (R, G, B), in that column order.
 #[derive(Debug, Clone)]
-pub struct Camera(pub(crate) SpectralTable);
+pub(crate) struct Camera(pub(crate) SpectralTable);
 
 impl Camera {
     pub(crate) fn new(table: SpectralTable) -> Result<Camera, SpectralError> {
@@ -288,7 +288,7 @@ impl Camera {
     }
 
     /// A built-in name (`nikon-d5100`) or a path to a CSV file.
-    pub fn from_name_or_path(spec: &str) -> Result<Camera, SpectralError> {
+    pub(crate) fn from_name_or_path(spec: &str) -> Result<Camera, SpectralError> {
         let table = match builtin_camera(spec) {
             Some(t) => t,
             None => table_from_path(spec, "camera", CAMERAS)?,
@@ -299,7 +299,7 @@ impl Camera {
 
 /// An illuminant: one spectral power distribution.
 #[derive(Debug, Clone)]
-pub struct Illuminant(pub(crate) SpectralTable);
+pub(crate) struct Illuminant(pub(crate) SpectralTable);
 
 impl Illuminant {
     pub(crate) fn new(table: SpectralTable) -> Result<Illuminant, SpectralError> {
@@ -313,7 +313,7 @@ impl Illuminant {
     }
 
     /// A built-in name (`D65`, `FL3.15`, `FL7`, `TL865`, `LED-B5`, `LED-YAG`) or a CSV path.
-    pub fn from_name_or_path(spec: &str) -> Result<Illuminant, SpectralError> {
+    pub(crate) fn from_name_or_path(spec: &str) -> Result<Illuminant, SpectralError> {
         let table = match builtin_illuminant(spec).or_else(|| computed::computed_illuminant(spec)) {
             Some(t) => t,
             None => table_from_path(spec, "illuminant", ILLUMINANTS)?,
@@ -324,11 +324,11 @@ impl Illuminant {
 
 /// Reflectances, one spectrum per patch (column names are the patch labels).
 #[derive(Debug, Clone)]
-pub struct Reflectances(pub(crate) SpectralTable);
+pub(crate) struct Reflectances(pub(crate) SpectralTable);
 
 impl Reflectances {
     /// A built-in name (`rawtoaces-190`, `cc24`) or a CSV path.
-    pub fn from_name_or_path(spec: &str) -> Result<Reflectances, SpectralError> {
+    pub(crate) fn from_name_or_path(spec: &str) -> Result<Reflectances, SpectralError> {
         let table = match builtin_reflectances(spec) {
             Some(t) => t,
             None => table_from_path(spec, "reflectance set", REFLECTANCES)?,
@@ -428,7 +428,7 @@ pub fn simulate_named(
 /// `XYZ_k = Σ_λ E(λ) ρ(λ) x̄_k(λ) Δλ`, scaled so the perfect white (ρ = 1) has `Y = 100`.
 /// `RGB_k = Σ_λ E(λ) ρ(λ) c_k(λ) Δλ`, scaled so the perfect white has `G = 1` (one factor for all
 /// three channels: the camera's raw channel ratios are kept).
-pub fn simulate(
+pub(crate) fn simulate(
     camera: &Camera,
     illuminant: &Illuminant,
     reflectances: &Reflectances,

@@ -6,7 +6,6 @@ use nsrm::chart::ChartLayout;
 use nsrm::delta_e00_xyz;
 use nsrm::io::ReadOptions;
 use nsrm::OutputSpace;
-use nsrm::Stats;
 use std::path::{Path, PathBuf};
 
 use crate::common;
@@ -103,14 +102,12 @@ fn check_against_eval(errors: &[(String, f64)], eval: &serde_json::Value, tol: f
             "patch {label}: ΔE00 {de} from the frame, {want} from eval"
         );
     }
-    let values: Vec<f64> = errors.iter().map(|e| e.1).collect();
-    let s = Stats::of(&values);
-    for (name, got) in [
-        ("mean", s.mean),
-        ("median", s.median),
-        ("p95", s.p95),
-        ("max", s.max),
-    ] {
+    // Per-patch agreement carries the order statistics; the mean and the maximum are checked
+    // as eval reports them.
+    let n = errors.len() as f64;
+    let mean = errors.iter().map(|e| e.1).sum::<f64>() / n;
+    let max = errors.iter().map(|e| e.1).fold(0.0, f64::max);
+    for (name, got) in [("mean", mean), ("max", max)] {
         let want = r[name].as_f64().unwrap();
         assert!(
             (want - got).abs() < tol,
@@ -118,9 +115,8 @@ fn check_against_eval(errors: &[(String, f64)], eval: &serde_json::Value, tol: f
         );
     }
     eprintln!(
-        "in-sample NSRM3 D65 from the corrected frame: mean {:.4} median {:.4} p95 {:.4} max {:.4}; \
-         largest per-patch difference from eval {worst:.2e}",
-        s.mean, s.median, s.p95, s.max
+        "in-sample NSRM3 D65 from the corrected frame: mean {mean:.4} max {max:.4}; \
+         largest per-patch difference from eval {worst:.2e}"
     );
 }
 

@@ -492,3 +492,79 @@ trait T {
         "{found:?}"
     );
 }
+
+/// The public surface stays curated: the lines outside `src/cli` that declare an item with plain
+/// `pub` (`docs/ARCHITECTURE.md`, "The public surface, counted": the same rule as its `grep`).
+const MAX_PUBLIC_DECLARATIONS: usize = 219;
+
+/// Whether `line` declares an item with plain `pub` visibility, as the documented `grep -E
+/// '^\s*pub (async |unsafe |const )?(fn|struct|enum|trait|type|const|static|mod|use) '` reads it.
+fn declares_public_item(line: &str) -> bool {
+    let Some(rest) = line.trim_start().strip_prefix("pub ") else {
+        return false;
+    };
+    let rest = ["async ", "unsafe ", "const "]
+        .iter()
+        .find_map(|q| rest.strip_prefix(q))
+        .unwrap_or(rest);
+    [
+        "fn ", "struct ", "enum ", "trait ", "type ", "const ", "static ", "mod ", "use ",
+    ]
+    .iter()
+    .any(|k| rest.starts_with(k))
+}
+
+#[test]
+fn public_declarations_stay_under_the_aim() {
+    assert!(declares_public_item("    pub fn f() {}"));
+    assert!(declares_public_item("pub const fn f() {}"));
+    assert!(declares_public_item("pub use self::{a, b};"));
+    assert!(!declares_public_item("pub(crate) fn f() {}"));
+    assert!(!declares_public_item("    pub field: u8,"));
+    let src = Path::new(ROOT).join("src");
+    let mut files = Vec::new();
+    rust_files(&src, &mut files);
+    let mut count = 0;
+    for f in files.iter().filter(|f| !f.starts_with(src.join("cli"))) {
+        let text = std::fs::read_to_string(f).unwrap();
+        count += text.lines().filter(|l| declares_public_item(l)).count();
+    }
+    eprintln!("{count} public declarations outside src/cli");
+    assert!(
+        count <= MAX_PUBLIC_DECLARATIONS,
+        "{count} public declarations outside src/cli (aim: at most {MAX_PUBLIC_DECLARATIONS}): \
+         make what only the crate uses pub(crate), or move the test that needs it beside the code"
+    );
+}
+
+/// No process-wide mutable state in the library: no `static mut`, no `thread_local!`, no static
+/// lock, cell or atomic (a command's state lives in its values: the output session, the batch
+/// plan). Caches of constant data built once (`OnceLock` of the colour-matching functions) are
+/// not state.
+#[test]
+fn the_library_keeps_no_process_wide_mutable_state() {
+    let src = Path::new(ROOT).join("src");
+    let mut files = Vec::new();
+    rust_files(&src, &mut files);
+    files.sort();
+    let mut found = Vec::new();
+    for f in files.iter().filter(|f| !f.starts_with(src.join("cli"))) {
+        let text = blank_comments_and_literals(&std::fs::read_to_string(f).unwrap());
+        for (i, line) in text.lines().enumerate() {
+            let t = line.trim_start();
+            let is_static = t.starts_with("static ") || t.contains(" static ");
+            let mutable = ["Mutex", "RwLock", "RefCell", "Cell<", "Atomic"]
+                .iter()
+                .any(|k| t.contains(k));
+            if t.contains("static mut ") || t.contains("thread_local!") || (is_static && mutable) {
+                let rel = f.strip_prefix(ROOT).unwrap().display().to_string();
+                found.push(format!("{rel}:{}: {}", i + 1, t));
+            }
+        }
+    }
+    assert!(
+        found.is_empty(),
+        "process-wide state:\n{}",
+        found.join("\n")
+    );
+}

@@ -203,7 +203,7 @@ pub fn exr(path: &Path, w: usize, h: usize) {
         half: false,
         compression: ExrCompression::None,
         space: nsrm::OutputSpace::Xyz,
-        zip_level: nsrm::io::DEFAULT_ZIP_LEVEL,
+        ..Default::default()
     };
     committed(true, |u| write_exr(&frame(w, h), path, &opts, u)).unwrap();
 }
@@ -241,7 +241,7 @@ pub fn write_tiff(
         half: false,
         compression: nsrm::io::ExrCompression::Keep,
         space: nsrm::OutputSpace::Xyz,
-        zip_level: nsrm::io::DEFAULT_ZIP_LEVEL,
+        ..Default::default()
     };
     nsrm::io::Decoded::from(frame.clone()).write(dest, &opts, unit)
 }

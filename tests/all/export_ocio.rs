@@ -80,7 +80,7 @@ fn write_frame(frame: &Frame, path: &Path) {
         half: false,
         compression: ExrCompression::None,
         space: OutputSpace::Xyz,
-        zip_level: nsrm::io::DEFAULT_ZIP_LEVEL,
+        ..Default::default()
     };
     crate::common::committed(true, |u| write_exr(frame, path, &opts, u)).unwrap();
 }

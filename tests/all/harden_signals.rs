@@ -284,7 +284,7 @@ fn a_frame_being_written_at_sigterm_is_aborted_not_finished() {
         half: false,
         compression: nsrm::io::ExrCompression::None,
         space: nsrm::OutputSpace::Xyz,
-        zip_level: nsrm::io::DEFAULT_ZIP_LEVEL,
+        ..Default::default()
     };
     crate::common::committed(true, |u| {
         crate::common::write_exr(&big, &d.join("in/f.0001.exr"), &opts, u)

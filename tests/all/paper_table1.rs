@@ -4,7 +4,7 @@
 
 use nsrm::Kind;
 use nsrm::{evaluate, Protocol};
-use nsrm::{simulate, Camera, Grid, Illuminant, Reflectances};
+use nsrm::{simulate_named, Grid};
 
 use crate::common;
 use common::sg_path;
@@ -12,11 +12,10 @@ use common::sg_path;
 #[test]
 fn sg_inner_96_d65_order_3_leave_one_out() {
     let Some(path) = sg_path() else { return };
-    let refl = Reflectances::from_name_or_path(path.to_str().unwrap()).unwrap();
-    let all = simulate(
-        &Camera::from_name_or_path("nikon-d5100").unwrap(),
-        &Illuminant::from_name_or_path("D65").unwrap(),
-        &refl,
+    let all = simulate_named(
+        "nikon-d5100",
+        "D65",
+        path.to_str().unwrap(),
         &Grid::default(),
     )
     .unwrap();
@@ -78,16 +77,8 @@ fn builtin_rawtoaces_190_table_is_pinned() {
         ("LED-B5", Kind::Rprm, 0.5873, 0.4352, 3.3209),
         ("LED-B5", Kind::Nsrm, 0.6214, 0.5049, 2.5208),
     ];
-    let camera = Camera::from_name_or_path("nikon-d5100").unwrap();
-    let refl = Reflectances::from_name_or_path("rawtoaces-190").unwrap();
     for ill in ["D65", "TL865", "LED-B5"] {
-        let data = simulate(
-            &camera,
-            &Illuminant::from_name_or_path(ill).unwrap(),
-            &refl,
-            &Grid::default(),
-        )
-        .unwrap();
+        let data = simulate_named("nikon-d5100", ill, "rawtoaces-190", &Grid::default()).unwrap();
         assert_eq!(data.len(), 190);
         for &(_, kind, mean, median, max) in want.iter().filter(|w| w.0 == ill) {
             let r = evaluate(kind, 3, &data, Protocol::LeaveOneOut, ill).unwrap();

@@ -19,9 +19,10 @@
 //!   mantissa bytes) does not compress gets that half stored, only the second half deflated
 //!   ([`zlib_storing_noise`]: half the deflate time, the same size within 0.001 %). PIZ blocks
 //!   are decoded and encoded natively ([`super::piz`]), RLE blocks by the `exr` crate's codec,
-//!   block by block, in parallel. Each thread keeps its codecs and block buffers across chunks and frames, and a
-//!   decoded frame may reuse a written frame's buffer ([`super::super::FramePool`]): no buffer is
-//!   allocated, zero-filled or faulted in per chunk.
+//!   block by block, in parallel. Each worker of a call keeps its codecs and block buffers across
+//!   the call's chunks ([`Codecs`], owned by the call: no state outlives it), and a decoded frame
+//!   may reuse a written frame's buffer ([`super::super::FramePool`]): no buffer is allocated,
+//!   zero-filled or faulted in per chunk once a worker's have grown.
 //! * [`write_chunks`]: the output file's offset table and chunks are written here, not by the
 //!   `exr` crate's chunk writer: blocks are encoded a round of a few MB at a time, each straight
 //!   into its place in one buffer beside its chunk header, and written with as few writes as
@@ -698,8 +699,8 @@ fn interleave_predict(raw: &[u8], d: &mut Vec<u8>) {
     }
 }
 
-/// One thread's codecs (made on first use) and buffers, kept for its later chunks and frames
-/// ([`with_codec`]): no allocation, zero-filling or page fault per chunk.
+/// One worker's codecs (made on first use) and buffers, kept for the call's later chunks
+/// ([`Codecs`]): no allocation, zero-filling or page fault per chunk once it has grown.
 struct Codec {
     inflate: Option<libdeflater::Decompressor>,
     /// The compressor and its level.
@@ -725,22 +726,24 @@ impl Codec {
     }
 }
 
-thread_local! {
-    /// Process-wide state, kept on purpose: scratch only (every use overwrites what it reads, so
-    /// nothing carries from one chunk or frame to the next but capacity), one per rayon worker,
-    /// as large as the largest chunk seen (a few MiB at most). Passing it explicitly would need
-    /// rayon's `*_init` hooks, which make a fresh one per split of the work: an allocation and
-    /// its page faults per split and frame. Not measured against that alternative.
-    static CODEC: std::cell::RefCell<Codec> = const { std::cell::RefCell::new(Codec::empty()) };
-}
+/// The codecs of one read or write call, shared by its workers: a chunk takes an idle one (or
+/// makes one) and hands it back, so the call holds at most one per worker and a chunk allocates
+/// nothing once the codecs have grown. Owned by the call and dropped with it: no state outlives a
+/// frame, none is shared between calls (scratch only; every use overwrites what it reads).
+#[derive(Default)]
+struct Codecs(std::sync::Mutex<Vec<Codec>>);
 
-/// Runs `f` with this thread's [`Codec`].
-fn with_codec<R>(f: impl FnOnce(&mut Codec) -> R) -> R {
-    CODEC.with(|c| match c.try_borrow_mut() {
-        Ok(mut codec) => f(&mut codec),
-        // Not reached (no codec call nests another); a fresh one keeps it correct anyway.
-        Err(_) => f(&mut Codec::empty()),
-    })
+impl Codecs {
+    /// Runs `f` with an idle codec of this call.
+    fn with<R>(&self, f: impl FnOnce(&mut Codec) -> R) -> R {
+        let idle = self.0.lock().ok().and_then(|mut v| v.pop());
+        let mut codec = idle.unwrap_or_else(Codec::empty);
+        let r = f(&mut codec);
+        if let Ok(mut v) = self.0.lock() {
+            v.push(codec);
+        }
+        r
+    }
 }
 
 /// `v` resized to `n` bytes; only growth is zero-filled (callers overwrite what they use).
@@ -1033,12 +1036,13 @@ pub(super) fn decode(
         rest.chunks_mut(lines * layout.rest_line).collect()
     };
     if width > 0 && height > 0 {
+        let codecs = Codecs::default();
         data.par_chunks_mut(lines * width * 3)
             .zip(rest_parts)
             .enumerate()
             .try_for_each(|(b, (rows, rest))| -> Result<(), IoError> {
                 let (bounds, raw_len) = block(&header, b).map_err(exr)?;
-                with_codec(|codec| {
+                codecs.with(|codec| {
                     codec.decode(path, file, &header, chunks[b], bounds, raw_len)?;
                     layout.scatter(&codec.a, rows, rest, width);
                     Ok(())
@@ -1156,6 +1160,7 @@ impl Chunked {
         let lines = compression.scan_lines_per_block();
         let y0 = header.own_attributes.layer_position.1;
         let headers = ::exr::prelude::SmallVec::from_vec(vec![header]);
+        let codecs = Codecs::default();
         write_chunks(w, headers, |header, b, bounds, out| {
             let h = bounds.size.1;
             let y = b * lines;
@@ -1167,7 +1172,7 @@ impl Chunked {
                 .and_then(|y| y.checked_add(y0))
                 .ok_or("line number out of range")?;
             let raw_len = out.len();
-            with_codec(|codec| {
+            codecs.with(|codec| {
                 let n = if header.compression == Compression::Uncompressed {
                     layout.gather(rows, rest, width, out);
                     raw_len
@@ -1187,12 +1192,6 @@ impl Chunked {
 /// Bytes of raw block data each round of [`write_chunks`] aims at: enough blocks for every core,
 /// and few large writes.
 const BATCH_BYTES: usize = 4 << 20;
-
-thread_local! {
-    /// The writing thread's round buffer, kept for its later frames: scratch only, about
-    /// [`BATCH_BYTES`] (process-wide state kept on purpose, as [`CODEC`]).
-    static ROUND: std::cell::RefCell<Vec<u8>> = const { std::cell::RefCell::new(Vec::new()) };
-}
 
 /// Writes a single-part scanline EXR with `headers` (one): the header and offset table as the
 /// `exr` crate writes them, then every block, encoded in parallel by `encode(header, index,
@@ -1229,53 +1228,49 @@ fn write_chunks<W: std::io::Write + std::io::Seek>(
     }
     let most = blocks.iter().map(|&(_, len)| len).max().unwrap_or(0).max(1);
     let per_round = (BATCH_BYTES / most).max(4 * rayon::current_num_threads().max(1));
-    ROUND.with(|round| -> Result<(), ::exr::error::Error> {
-        // Not nested on one thread; a fresh buffer keeps it correct anyway.
-        let (mut guard, mut fresh) = (round.try_borrow_mut().ok(), Vec::new());
-        let round = guard.as_deref_mut().unwrap_or(&mut fresh);
-        for start in (0..n).step_by(per_round) {
-            let end = (start + per_round).min(n);
-            let size: usize = blocks[start..end].iter().map(|&(_, len)| 8 + len).sum();
-            let buf = sized(round, size);
-            let mut slots = Vec::with_capacity(end - start);
-            let mut left = &mut buf[..];
-            for &(_, len) in &blocks[start..end] {
-                let (slot, more) = left.split_at_mut(8 + len);
-                slots.push(slot);
-                left = more;
-            }
-            let lens: Vec<Result<usize, String>> = slots
-                .into_par_iter()
-                .enumerate()
-                .map(|(k, slot)| {
-                    let b = start + k;
-                    let (head, out) = slot.split_at_mut(8);
-                    let (y, len) = encode(header, b, blocks[b].0, out)?;
-                    let len32 = i32::try_from(len).map_err(|_| "chunk too large".to_string())?;
-                    head[..4].copy_from_slice(&y.to_le_bytes());
-                    head[4..].copy_from_slice(&len32.to_le_bytes());
-                    Ok(len)
-                })
-                .collect();
-            // Consecutive chunks that filled their slots lie back to back: one write for them.
-            let (mut from, mut to) = (0, 0);
-            let mut slot_at = 0;
-            for (k, len) in lens.into_iter().enumerate() {
-                let len = len.map_err(|e| ::exr::error::Error::Invalid(e.into()))?;
-                let b = start + k;
-                table[b] = pos;
-                pos += 8 + len as u64;
-                if slot_at != to {
-                    w.write_all(&buf[from..to])?;
-                    from = slot_at;
-                }
-                to = slot_at + 8 + len;
-                slot_at += 8 + blocks[b].1;
-            }
-            w.write_all(&buf[from..to])?;
+    // One round buffer for the call (about BATCH_BYTES), reused round after round.
+    let mut round = Vec::new();
+    for start in (0..n).step_by(per_round) {
+        let end = (start + per_round).min(n);
+        let size: usize = blocks[start..end].iter().map(|&(_, len)| 8 + len).sum();
+        let buf = sized(&mut round, size);
+        let mut slots = Vec::with_capacity(end - start);
+        let mut left = &mut buf[..];
+        for &(_, len) in &blocks[start..end] {
+            let (slot, more) = left.split_at_mut(8 + len);
+            slots.push(slot);
+            left = more;
         }
-        Ok(())
-    })?;
+        let lens: Vec<Result<usize, String>> = slots
+            .into_par_iter()
+            .enumerate()
+            .map(|(k, slot)| {
+                let b = start + k;
+                let (head, out) = slot.split_at_mut(8);
+                let (y, len) = encode(header, b, blocks[b].0, out)?;
+                let len32 = i32::try_from(len).map_err(|_| "chunk too large".to_string())?;
+                head[..4].copy_from_slice(&y.to_le_bytes());
+                head[4..].copy_from_slice(&len32.to_le_bytes());
+                Ok(len)
+            })
+            .collect();
+        // Consecutive chunks that filled their slots lie back to back: one write for them.
+        let (mut from, mut to) = (0, 0);
+        let mut slot_at = 0;
+        for (k, len) in lens.into_iter().enumerate() {
+            let len = len.map_err(|e| ::exr::error::Error::Invalid(e.into()))?;
+            let b = start + k;
+            table[b] = pos;
+            pos += 8 + len as u64;
+            if slot_at != to {
+                w.write_all(&buf[from..to])?;
+                from = slot_at;
+            }
+            to = slot_at + 8 + len;
+            slot_at += 8 + blocks[b].1;
+        }
+        w.write_all(&buf[from..to])?;
+    }
     w.seek(std::io::SeekFrom::Start(table_at))?;
     let mut bytes = Vec::with_capacity(n * 8);
     for off in table {

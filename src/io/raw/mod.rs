@@ -95,7 +95,7 @@ impl Demosaic {
 /// What a raw file says about the camera and the shot (carried into EXR outputs and into a
 /// model's capture provenance).
 #[derive(Debug, Clone, PartialEq, Default, serde::Serialize, serde::Deserialize)]
-pub struct CameraInfo {
+pub(crate) struct CameraInfo {
     /// Camera maker (normalised by rawler, e.g. `Canon`).
     pub make: String,
     /// Camera model (normalised by rawler, e.g. `EOS 550D`).

@@ -5,13 +5,16 @@
 //! uses. (Moved from `tests/all/export_ocio.rs`, where OCIO still judges the files `nsrm export`
 //! writes against `nsrm apply`, and those files are checked to be these, byte for byte.)
 //!
+//! The EXRs are written and read with the `exr` crate itself (the `io` room is not one `export`
+//! may use, tests included: docs/ARCHITECTURE.md), so the test is built with the `io` feature
+//! that brings the crate.
+//!
 //! Needs `ocioconvert` (Debian: `apt-get install opencolorio-tools`); without it the test prints
 //! `SKIP: …` and passes, except under `CI=true`, where it fails (`kit::skip_or_fail`).
 
 use super::{dense_chromaticities, export_to, Format, LutExport, LutOptions};
-use crate::io::{Decoded, ExrCompression, FileFormat, ReadOptions, WriteOptions};
 use crate::kit::skip_or_fail;
-use crate::{fit, simulate_named, Frame, Grid, Kind, Layout, OutputSpace, TrainingSet};
+use crate::{fit, simulate_named, Grid, Kind, OutputSpace, TrainingSet};
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
@@ -31,9 +34,10 @@ fn tool(name: &str) -> Option<PathBuf> {
     found
 }
 
-/// A test frame: the training patches, the dense in-gamut chromaticities at several exposures
-/// (all inside the LUT range) and black (as `tests/all/export_ocio.rs` builds it).
-fn test_frame(d: &TrainingSet) -> Frame {
+/// A test frame, 64 pixels wide: the training patches, the dense in-gamut chromaticities at
+/// several exposures (all inside the LUT range) and black (as `tests/all/export_ocio.rs` builds
+/// it).
+fn test_frame(d: &TrainingSet) -> Vec<[f64; 3]> {
     let mut px: Vec<[f64; 3]> = d.rgb.clone();
     let s_ref = d.rgb.iter().map(|c| c[0] + c[1] + c[2]).fold(0.0, f64::max);
     for e in [-5.3, -2.9, -0.2, 2.3] {
@@ -43,22 +47,33 @@ fn test_frame(d: &TrainingSet) -> Frame {
         }
     }
     px.push([0.0; 3]);
-    let width = 64;
-    let height = px.len().div_ceil(width);
-    px.resize(width * height, [0.0; 3]);
-    let data = px.iter().flat_map(|p| p.map(|v| v as f32)).collect();
-    Frame::from_data(width, height, Layout::Rgb, data).unwrap()
+    px.resize(px.len().div_ceil(WIDTH) * WIDTH, [0.0; 3]);
+    px
 }
 
+const WIDTH: usize = 64;
+
+/// Writes `px` (rows of [`WIDTH`]) as a 32-bit float RGB EXR.
+fn write(path: &Path, px: &[[f64; 3]]) {
+    exr::prelude::write_rgb_file(path, WIDTH, px.len() / WIDTH, |x, y| {
+        let p = px[y * WIDTH + x].map(|v| v as f32);
+        (p[0], p[1], p[2])
+    })
+    .unwrap();
+}
+
+/// The RGB of an EXR's first layer, row by row.
 fn read(path: &Path) -> Vec<[f64; 3]> {
-    let f = Decoded::read(path, &ReadOptions::default())
-        .unwrap()
-        .into_frame();
-    let ch = f.layout.channels();
-    f.data
-        .chunks_exact(ch)
-        .map(|p| [p[0] as f64, p[1] as f64, p[2] as f64])
-        .collect()
+    type Pixels = (usize, Vec<[f64; 3]>);
+    let image = exr::prelude::read_first_rgba_layer_from_file(
+        path,
+        |size, _| -> Pixels { (size.width(), vec![[0.0; 3]; size.area()]) },
+        |p: &mut Pixels, at, (r, g, b, _): (f32, f32, f32, f32)| {
+            p.1[at.y() * p.0 + at.x()] = [r, g, b].map(f64::from);
+        },
+    )
+    .unwrap();
+    image.layer_data.channel_data.pixels.1
 }
 
 #[test]
@@ -68,20 +83,9 @@ fn ocio_applies_the_written_nodes_as_nsrms_evaluator_does() {
     };
     let dir = tempfile::tempdir().unwrap();
     let data = simulate_named("nikon-d5100", "D65", "rawtoaces-190", &Grid::default()).unwrap();
-    let session = crate::output::Session::new(false);
-    let mut unit = session.unit();
-    let exr = WriteOptions {
-        format: FileFormat::Exr,
-        half: false,
-        compression: ExrCompression::None,
-        space: OutputSpace::Xyz,
-        zip_level: crate::io::DEFAULT_ZIP_LEVEL,
-    };
-    Decoded::from(test_frame(&data))
-        .write(&dir.path().join("in.exr"), &exr, &mut unit)
-        .unwrap();
-    unit.commit().unwrap();
+    write(&dir.path().join("in.exr"), &test_frame(&data));
     let input = read(&dir.path().join("in.exr"));
+    let session = crate::output::Session::new(false);
     let opts = LutOptions::default();
     let (lo, hi) = (opts.stops[0].exp2(), opts.stops[1].exp2());
     for (kind, order, format, space) in [

@@ -119,9 +119,8 @@ pub use model::{fit, Kind, Model, ModelError};
 // Dual-illuminant profiles: two models interpolated by the frame's white, as DNG does.
 pub use model::dual_illuminant::{Combination, FrameWhite, Profile};
 
-// Colorimetry: Lab, ΔE00, output spaces; the D50 white and Bradford the profile judges read.
+// Colorimetry: Lab, ΔE00, output spaces.
 pub use colorimetry::spaces::OutputSpace;
-pub use colorimetry::temperature::{bradford_between, D50_XY};
 pub use colorimetry::{ciede2000, delta_e00_xyz, xyz_to_lab, D65_WHITE_XYZ};
 
 // Spectral simulation: camera × illuminant × reflectances on a wavelength grid.

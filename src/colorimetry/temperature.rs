@@ -180,7 +180,7 @@ pub(crate) fn xyz_to_xy(xyz: [f64; 3]) -> Option<[f64; 2]> {
 }
 
 /// D50 as the DNG SDK names it (`D50_xy`), where its neutral iteration starts.
-pub const D50_XY: [f64; 2] = [0.3457, 0.3585];
+pub(crate) const D50_XY: [f64; 2] = [0.3457, 0.3585];
 
 /// The chromaticity of a camera neutral by the DNG fixed-point iteration (`NeutralToXY`): start at
 /// D50, map the neutral to XYZ with the camera model interpolated for the current guess's
@@ -219,7 +219,7 @@ pub(crate) fn neutral_to_xy(
 
 /// Bradford adaptation from the white `src` to the white `dst` (XYZ, any scale: the matrix maps
 /// `src` to `dst` scaled to `src`'s Y).
-pub fn bradford_between(src: [f64; 3], dst: [f64; 3]) -> Mat3 {
+pub(crate) fn bradford_between(src: [f64; 3], dst: [f64; 3]) -> Mat3 {
     let s = [src[0] / src[1], 1.0, src[2] / src[1]];
     let d = [dst[0] / dst[1], 1.0, dst[2] / dst[1]];
     super::spaces::bradford(s, d)

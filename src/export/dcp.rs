@@ -64,7 +64,7 @@ pub(crate) fn d50() -> [f64; 3] {
 }
 
 /// Linear ProPhoto (ROMM) RGB → XYZ (D50 white, `Y = 1`).
-pub fn prophoto_to_xyz() -> Mat3 {
+pub(crate) fn prophoto_to_xyz() -> Mat3 {
     spaces::rgb_to_xyz(
         [[0.7347, 0.2653], [0.1596, 0.8404], [0.0366, 0.0001]],
         D50_XY,
@@ -110,7 +110,7 @@ pub(crate) type HsmEntry = [f32; 3];
 
 /// One calibration illuminant of a DCP, as written.
 #[derive(Debug, Clone, PartialEq)]
-pub struct DcpSide {
+pub(crate) struct DcpSide {
     /// EXIF LightSource.
     pub illuminant: u16,
     /// ColorMatrix: XYZ → camera RGB (DNG convention).
@@ -123,7 +123,7 @@ pub struct DcpSide {
 
 /// A DNG Camera Profile.
 #[derive(Debug, Clone, PartialEq)]
-pub struct Dcp {
+pub(crate) struct Dcp {
     /// UniqueCameraModel: the camera the profile is for.
     pub unique_camera_model: String,
     /// ProfileName.
@@ -683,7 +683,7 @@ fn ascii(s: &str) -> String {
 
 impl Dcp {
     /// The temperatures of the sides' light sources.
-    pub fn temperatures(&self) -> Vec<f64> {
+    pub(crate) fn temperatures(&self) -> Vec<f64> {
         self.sides
             .iter()
             .map(|s| {
@@ -739,14 +739,22 @@ impl Dcp {
     /// by the neutral (normalised to G = 1), the interpolated ForwardMatrix (normalised to D50),
     /// the interpolated hue/saturation map in linear ProPhoto RGB; XYZ D50 with the neutral at
     /// `Y = 1`. Returns the XYZ and the weight of side 1.
-    pub fn eval(&self, rgb: [f64; 3], neutral: [f64; 3]) -> Result<([f64; 3], f64), ExportError> {
+    // Only the judges beside the code read and evaluate a written DCP (`dcp_tests.rs`, the tests here).
+    #[cfg_attr(not(test), allow(dead_code))]
+    pub(crate) fn eval(
+        &self,
+        rgb: [f64; 3],
+        neutral: [f64; 3],
+    ) -> Result<([f64; 3], f64), ExportError> {
         let xy = self.neutral_to_xy(neutral)?;
         let w = self.weight_at(xy);
         Ok((self.eval_weighted(rgb, neutral, w), w))
     }
 
     /// [`eval`](Self::eval) at a given weight of side 1.
-    pub fn eval_weighted(&self, rgb: [f64; 3], neutral: [f64; 3], w: f64) -> [f64; 3] {
+    // Only the judges beside the code read and evaluate a written DCP (`dcp_tests.rs`, the tests here).
+    #[cfg_attr(not(test), allow(dead_code))]
+    pub(crate) fn eval_weighted(&self, rgb: [f64; 3], neutral: [f64; 3], w: f64) -> [f64; 3] {
         self.at_weight(w).eval(rgb, neutral)
     }
 
@@ -896,7 +904,9 @@ impl Dcp {
 
     /// Reads a DCP (or the profile tags of a DNG-like IFD): every size is checked against the
     /// file before it is read.
-    pub fn parse(bytes: &[u8]) -> Result<Dcp, ExportError> {
+    // Only the judges beside the code read and evaluate a written DCP (`dcp_tests.rs`, the tests here).
+    #[cfg_attr(not(test), allow(dead_code))]
+    pub(crate) fn parse(bytes: &[u8]) -> Result<Dcp, ExportError> {
         let tags = DcpTags::read(bytes)?;
         let (hd, sd) = tags.map_dimensions()?;
         let mut sides = Vec::new();

@@ -51,7 +51,7 @@ use lcms2::{
 };
 
 /// The ICC PCS illuminant (ICC.1, 7.2.16), as the header and `wtpt` carry it.
-pub const D50: [f64; 3] = [0.9642, 1.0, 0.8249];
+pub(crate) const D50: [f64; 3] = [0.9642, 1.0, 0.8249];
 /// The largest XYZ a lut16 carries (u1Fixed15: `0xFFFF / 0x8000`).
 pub(crate) const PCS_MAX: f64 = 65535.0 / 32768.0;
 /// Entries of each input and output curve of the lut16 (the format's maximum).
@@ -114,7 +114,7 @@ impl IccOptions {
 }
 
 /// The model's PCS: `Bradford(W → D50) / Y(W)`, applied to the model's XYZ output.
-pub fn pcs_matrix(model: &Model) -> Result<Mat3, ExportError> {
+pub(crate) fn pcs_matrix(model: &Model) -> Result<Mat3, ExportError> {
     let w = model.white_xyz();
     if !(w.iter().all(|v| v.is_finite() && *v > 0.0)) {
         return Err(ExportError::Model(format!(
@@ -126,7 +126,7 @@ pub fn pcs_matrix(model: &Model) -> Result<Mat3, ExportError> {
 }
 
 /// The camera RGB scale `s` (device = camera / s) and the device white `w / s`.
-pub fn device_scale(model: &Model) -> Result<(f64, [f64; 3]), ExportError> {
+pub(crate) fn device_scale(model: &Model) -> Result<(f64, [f64; 3]), ExportError> {
     let w = crate::model::dual_illuminant::invert(model, model.white_xyz())
         .filter(|c| c.iter().all(|v| v.is_finite() && *v > 0.0))
         .ok_or_else(|| {

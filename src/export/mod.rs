@@ -40,12 +40,16 @@
 pub(crate) mod clf;
 pub(crate) mod cube;
 pub(crate) mod dcp;
+#[cfg(test)]
+mod dcp_tests;
 pub(crate) mod dctl;
 #[cfg(test)]
 mod dctl_tests;
 pub(crate) mod icc;
 pub(crate) mod nodes;
 pub(crate) mod ocio;
+#[cfg(all(test, feature = "io"))]
+mod ocio_tests;
 #[cfg(feature = "gpu")]
 pub(crate) mod shader;
 
@@ -53,11 +57,6 @@ pub use self::{
     dcp::{export_to as export_dcp, DcpOptions, DcpTraining, DcpWritten},
     icc::{export_to as export_icc, IccOptions, IccWritten},
     nodes::Interpolation,
-};
-// Read by the profile judges (`tests/all/icc.rs`, `profiles*.rs`), which also run the binary.
-pub use self::{
-    dcp::{prophoto_to_xyz, Dcp, DcpSide},
-    icc::{device_scale as icc_device_scale, pcs_matrix as icc_pcs_matrix, D50 as ICC_D50},
 };
 #[cfg(feature = "gpu")]
 pub use shader::{export as export_shader, ShaderLang};
@@ -308,7 +307,7 @@ impl ErrorReport {
 
 /// A model turned into the nodes of a file, with what is needed to describe it.
 #[derive(Debug, Clone)]
-pub struct LutExport {
+pub(crate) struct LutExport {
     /// The model with the output space folded in (what `nsrm apply` evaluates).
     pub folded: Model,
     /// The model as fitted (XYZ, white at `Y = white[1]`).
@@ -401,7 +400,7 @@ fn check_finite(lut: &Lut3d, options: LutOptions) -> Result<(), ExportError> {
 
 impl LutExport {
     /// The CLF chain: a Matrix for LRM, else clamp + log shaper + LUT3D (tetrahedral).
-    pub fn clf(
+    pub(crate) fn clf(
         model: &Model,
         space: OutputSpace,
         options: LutOptions,
@@ -458,7 +457,7 @@ impl LutExport {
 
     /// The .cube chain: a 1D shaper over `[0, 2^hi]` and a 3D LUT, for every kind
     /// (the format has no matrix).
-    pub fn cube(
+    pub(crate) fn cube(
         model: &Model,
         space: OutputSpace,
         options: LutOptions,
@@ -487,7 +486,7 @@ impl LutExport {
     }
 
     /// Applies the chain to one camera RGB (output space, white `Y = 1`).
-    pub fn eval(&self, rgb: [f64; 3]) -> [f64; 3] {
+    pub(crate) fn eval(&self, rgb: [f64; 3]) -> [f64; 3] {
         eval_chain(&self.nodes, rgb)
     }
 
@@ -501,7 +500,7 @@ impl LutExport {
 
     /// The ΔE00 of the chain against the exact model (see the [module docs](self)), on the
     /// training camera RGBs and the dense set built from them.
-    pub fn measure(&self, training_rgb: &[[f64; 3]]) -> Result<ErrorReport, ExportError> {
+    pub(crate) fn measure(&self, training_rgb: &[[f64; 3]]) -> Result<ErrorReport, ExportError> {
         if training_rgb.is_empty() {
             return Err(ExportError::Usage(
                 "measuring the export's error needs the training patches' camera RGB".into(),
@@ -684,7 +683,7 @@ pub fn export_to(
 
 /// A grid of camera chromaticities `(r, g)` (step `step`) inside the convex hull of the training
 /// patches' chromaticities.
-pub fn dense_chromaticities(rgb: &[[f64; 3]], step: f64) -> Vec<(f64, f64)> {
+pub(crate) fn dense_chromaticities(rgb: &[[f64; 3]], step: f64) -> Vec<(f64, f64)> {
     let mut pts: Vec<(f64, f64)> = rgb
         .iter()
         .filter_map(|c| {
@@ -784,7 +783,7 @@ pub(crate) fn provenance_line(model: &Model) -> String {
 }
 
 /// A name for the camera colour space, from the provenance: `nsrm NSRM3 nikon-d5100 D65`.
-pub fn camera_space_name(model: &Model) -> String {
+pub(crate) fn camera_space_name(model: &Model) -> String {
     let p = model.provenance();
     let mut name = format!("nsrm {}{}", model.kind(), model.order());
     for v in [&p.camera, &p.illuminant].into_iter().flatten() {

@@ -336,7 +336,7 @@ impl Profile {
     }
 
     /// The calibration temperatures (the same twice for one model).
-    pub fn temperatures(&self) -> [f64; 2] {
+    pub(crate) fn temperatures(&self) -> [f64; 2] {
         let t = |i: usize| self.calibrations[i.min(self.models.len() - 1)].cct;
         [t(0), t(1)]
     }

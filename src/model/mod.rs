@@ -385,7 +385,7 @@ impl Model {
     }
 
     /// Replaces the matrix (same kind and order), e.g. to swap a model at run time.
-    pub fn set_matrix(&mut self, matrix: Vec<f64>) -> Result<(), ModelError> {
+    pub(crate) fn set_matrix(&mut self, matrix: Vec<f64>) -> Result<(), ModelError> {
         let m = Model::from_matrix(self.kind, self.order, matrix)?;
         self.matrix = m.matrix;
         Ok(())

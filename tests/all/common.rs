@@ -325,7 +325,9 @@ pub fn cc24_scene(dir: &Path, name: &str, extra: &[&str]) -> PathBuf {
 }
 
 /// 3×3 matrix helpers of the tests (the library keeps its own crate-private): `m · v`, `a · b`,
-/// the inverse, and XYZ (`Y = 1`) of a chromaticity.
+/// the inverse, XYZ (`Y = 1`) of a chromaticity, the D50 whites, Bradford adaptation and an RGB
+/// space's matrix from its primaries (the profile judges' own colorimetry, written from the
+/// standards, not read from the library).
 pub mod mat {
     /// A 3×3 matrix, row-major.
     pub type Mat3 = [[f64; 3]; 3];
@@ -360,5 +362,46 @@ pub mod mat {
     /// xy chromaticity → XYZ with `Y = 1`.
     pub fn xy_to_xyz(xy: [f64; 2]) -> [f64; 3] {
         [xy[0] / xy[1], 1.0, (1.0 - xy[0] - xy[1]) / xy[1]]
+    }
+
+    /// The D50 white's chromaticity (the DNG `PCStoXYZ`; ICC's PCS white is its XYZ rounded to
+    /// four places, [`ICC_D50`]).
+    pub const D50_XY: [f64; 2] = [0.3457, 0.3585];
+
+    /// The ICC PCS illuminant (ICC.1, 7.2.16).
+    pub const ICC_D50: [f64; 3] = [0.9642, 1.0, 0.8249];
+
+    /// Bradford chromatic adaptation from the white `src` to the white `dst` (XYZ, any scale: the
+    /// matrix maps `src` to `dst` scaled to `src`'s Y).
+    pub fn bradford(src: [f64; 3], dst: [f64; 3]) -> Mat3 {
+        const B: Mat3 = [
+            [0.8951, 0.2664, -0.1614],
+            [-0.7502, 1.7135, 0.0367],
+            [0.0389, -0.0685, 1.0296],
+        ];
+        let s = apply(&B, src.map(|v| v / src[1]));
+        let d = apply(&B, dst.map(|v| v / dst[1]));
+        let diag = [
+            [d[0] / s[0], 0.0, 0.0],
+            [0.0, d[1] / s[1], 0.0],
+            [0.0, 0.0, d[2] / s[2]],
+        ];
+        mul(&invert(&B), &mul(&diag, &B))
+    }
+
+    /// RGB → XYZ (`Y = 1` at the white) of the RGB space with primaries `prim` (xy) and white
+    /// `white` (xy).
+    pub fn rgb_to_xyz(prim: [[f64; 2]; 3], white: [f64; 2]) -> Mat3 {
+        let p = [0, 1, 2].map(|i| prim.map(|c| xy_to_xyz(c)[i]));
+        let s = apply(&invert(&p), xy_to_xyz(white));
+        p.map(|row| [0, 1, 2].map(|j| row[j] * s[j]))
+    }
+
+    /// Linear ProPhoto (ROMM, ISO 22028-2) RGB → XYZ D50 (`Y = 1` at the white).
+    pub fn prophoto_to_xyz() -> Mat3 {
+        rgb_to_xyz(
+            [[0.7347, 0.2653], [0.1596, 0.8404], [0.0366, 0.0001]],
+            D50_XY,
+        )
     }
 }

@@ -1,18 +1,20 @@
 //! `nsrm export --format icc`, judged by programs nobody here wrote: Little CMS's `transicc`
 //! (Debian `liblcms2-utils`) and ArgyllCMS's `xicclu` (Debian `argyll`) apply the exported ICC
 //! profile to camera RGB values, and their PCS XYZ must match `nsrm apply`'s output (converted
-//! from its D65-referred XYZ to the PCS's D50 with the matrices nsrm has) within the error the
-//! export reported. Both are installed by `.ci/install.d/40-profiles.sh`; a missing one is a
-//! SKIP, and a failure under `CI=true`.
+//! from its D65-referred XYZ to the PCS's D50 with the tests' own Bradford, `common::mat`, as
+//! the profile's PCS is defined: `Bradford(W → D50) · XYZ / Y(W)`) within the error the export
+//! reported. The device values are camera RGB over the scale the library reports for the same
+//! model (`export::export_icc`), whose profile the binary's is, byte for byte but the creation
+//! date. Both are installed by `.ci/install.d/40-profiles.sh`; a missing one is a SKIP, and a
+//! failure under `CI=true`.
 
-use crate::common::mat::output_matrix;
+use crate::common::mat::{bradford, output_matrix, ICC_D50 as D50};
 use crate::common::{self, nsrm_in, nsrm_ok, stderr, tempdir};
 use crate::common::{read_frame, write_tiff};
 use nsrm::delta_e00_xyz;
-use nsrm::export::{icc_device_scale, icc_pcs_matrix, IccOptions, ICC_D50 as D50};
+use nsrm::export::{export_icc, IccOptions};
 use nsrm::io::ReadOptions;
 use nsrm::OutputSpace;
-use nsrm::{simulate_named, Grid};
 use nsrm::{Frame, Layout, Model};
 use std::path::Path;
 use std::process::{Command, Stdio};
@@ -129,7 +131,7 @@ fn reported_max(stdout: &str) -> f64 {
 /// Camera RGB samples: the 190 training patches at exposures 1, 1/4 and 1/16 of the training
 /// white; the exposure of each (the white they are judged against is D50 × it).
 fn samples() -> Vec<([f64; 3], f64)> {
-    let d = simulate_named("nikon-d5100", "D65", "rawtoaces-190", &Grid::default()).unwrap();
+    let d = common::training();
     let mut v = Vec::new();
     for e in [0.0f64, -2.0, -4.0] {
         let k = e.exp2();
@@ -158,7 +160,8 @@ fn apply_pcs(dir: &Path, model_file: &str, rgb: &[[f64; 3]]) -> Vec<[f64; 3]> {
     // apply writes XYZ D65-referred with the white at Y = 1; back to the model's XYZ, then the
     // PCS adaptation.
     let back = crate::common::mat::invert(&output_matrix(m.white_xyz(), OutputSpace::Xyz));
-    let pcs = icc_pcs_matrix(&m).unwrap();
+    let w = m.white_xyz();
+    let pcs = bradford(w, D50).map(|r| r.map(|v| v / w[1]));
     let to_pcs = crate::common::mat::mul(&pcs, &back);
     f.data
         .chunks_exact(f.layout.channels())
@@ -222,7 +225,34 @@ fn transicc_and_xicclu_reproduce_apply() {
             assert!(max < 0.01, "LRM matrix/TRC is not exact: {text}");
         }
         let m = Model::load(&dir.join(&mf)).unwrap();
-        let (s, _) = icc_device_scale(&m).unwrap();
+        // The library's profile of the same model, from the same training patches (the binary
+        // re-simulates them from the model's provenance): the binary's file, and its scale.
+        let library = dir.join(format!("library-{icc_file}"));
+        let mut written = None;
+        common::committed(false, |u| {
+            export_icc(
+                &m,
+                IccOptions::default(),
+                &common::training().rgb,
+                None,
+                &library,
+                u,
+            )
+            .map(|w| written = Some(w))
+        })
+        .unwrap();
+        let (mut ours, mut theirs) = (
+            std::fs::read(dir.join(&icc_file)).unwrap(),
+            std::fs::read(&library).unwrap(),
+        );
+        // The header's creation date (ICC.1, 7.2.1: bytes 24..36) is the time of writing.
+        ours[24..36].fill(0);
+        theirs[24..36].fill(0);
+        assert!(
+            ours == theirs,
+            "{name}: `nsrm export` wrote another profile than `export::export_icc`"
+        );
+        let s = written.expect("exported").scale;
         // The samples inside the range the export measured (every channel within 2^lo..1 of the
         // device scale), as its report counts them.
         let lo = IccOptions::default().lo.exp2();
@@ -271,16 +301,18 @@ fn icc_refusals_write_nothing() {
     let dir = tempdir("icc-refusals");
     fit(&dir, "nsrm", "3", "nsrm.json");
     fit(&dir, "prm", "3", "prm.json");
-    // A PRM whose cubic terms blow up over the profile's range.
-    let m = Model::load(&dir.join("prm.json")).unwrap();
-    let l = m.matrix().len() / 3;
-    let mut mat = m.matrix().to_vec();
-    for i in 0..3 {
-        mat[i * l + l - 1] = 1e6;
+    // A PRM whose cubic terms blow up over the profile's range: the model file with the last
+    // term of each output row set to 1e6.
+    let mut doc: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(dir.join("prm.json")).unwrap()).unwrap();
+    for row in doc["matrix"].as_array_mut().unwrap() {
+        let row = row.as_array_mut().unwrap();
+        *row.last_mut().unwrap() = 1e6.into();
     }
-    let mut bad = m.clone();
-    bad.set_matrix(mat).unwrap();
-    std::fs::write(dir.join("boom.json"), bad.to_json()).unwrap();
+    std::fs::write(dir.join("boom.json"), doc.to_string()).unwrap();
+    let bad = Model::load(&dir.join("boom.json")).unwrap();
+    let l = bad.matrix().len() / 3;
+    assert!((0..3).all(|i| bad.matrix()[i * l + l - 1] == 1e6));
     nsrm_ok(
         &dir,
         &["fit", "--kind", "nsrm", "--illuminant", "A", "-o", "a.json"],

@@ -163,10 +163,11 @@ fn in_sample_fit_is_a_least_squares_minimum() {
         };
         let r0 = resid(m);
         for j in [0, m.matrix().len() / 2, m.matrix().len() - 1] {
-            let mut p = m.clone();
             let mut perturbed = m.matrix().to_vec();
             perturbed[j] += 1e-4 * (1.0 + perturbed[j].abs());
-            p.set_matrix(perturbed).unwrap();
+            // The same kind and order with the perturbed matrix (plain fits: unit input gains).
+            assert_eq!(m.input_gains(), [1.0; 3]);
+            let p = Model::from_matrix(m.kind(), m.order(), perturbed).unwrap();
             assert!(
                 resid(&p) >= r0 * (1.0 - 1e-12),
                 "{} order {}",

@@ -473,3 +473,219 @@ pub fn check_dctl(model: &Model, px: &[[f64; 3]], got: &[[f64; 3]], what: &str) 
         }
     }
 }
+
+// The one RawTherapee harness (the DCP judges: `tests/all/profiles_rawtherapee.rs` develops the
+// DCPs the binary writes and compares with `nsrm apply`; `src/export/dcp_tests.rs` finds the
+// weight RawTherapee gave the two sides of a DCP the library writes and compares with nsrm's DNG
+// evaluator): a synthetic chart DNG (written with tifffile: a Bayer mosaic of flat patches whose
+// camera RGB is known, AsShotNeutral set, and the DCP's own ColorMatrix and
+// CalibrationIlluminant tags, read from the DCP's IFD by the script) is developed by
+// `rawtherapee-cli` with the DCP as input profile and Argyll's linear ProPhoto as output profile.
+// Installed by `.ci/install.d/40-profiles.sh`.
+
+/// Argyll's linear ProPhoto profile, RawTherapee's output profile here.
+pub const LINEAR_PROPHOTO: &str = "/usr/share/color/argyll/ref/ProPhotoLin.icm";
+/// Patch side in pixels and patches per row of the synthetic DNG (RawTherapee refuses very small
+/// raw images: 160×80 is "Error loading file", 448×256 loads).
+const RT_PATCH: usize = 64;
+const RT_COLS: usize = 7;
+
+/// Writes `dng` (Bayer RGGB, 16-bit, white level 65535, the ColorMatrix and CalibrationIlluminant
+/// tags of the DCP `dcp`, copied as they are) and `tif` (the same camera RGB, one float pixel per
+/// patch) from JSON on stdin; prints the camera RGB the mosaic holds.
+const WRITE_DNG: &str = r#"
+import json, struct, sys, numpy as np, tifffile
+d = json.load(sys.stdin)
+def dcp_tags(path):
+    b = open(path, "rb").read()
+    if b[:4] not in (b"IIRC", b"II*\x00"):
+        sys.exit("not a little-endian DCP: %r" % b[:4])
+    off, = struct.unpack_from("<I", b, 4)
+    n, = struct.unpack_from("<H", b, off)
+    tags = {}
+    for i in range(n):
+        e = off + 2 + 12 * i
+        tag, typ, cnt = struct.unpack_from("<HHI", b, e)
+        tags[tag] = (typ, cnt, b, e + 8)
+    cm, ill = [], []
+    for k in range(2):
+        if 50721 + k not in tags:
+            break
+        typ, cnt, _, at = tags[50721 + k]
+        if (typ, cnt) != (10, 9):
+            sys.exit("ColorMatrix%d is not 9 SRATIONALs" % (k + 1))
+        cm.append(list(struct.unpack_from("<18i", b, struct.unpack_from("<I", b, at)[0])))
+        typ, cnt, _, at = tags[50778 + k]
+        if (typ, cnt) != (3, 1):
+            sys.exit("CalibrationIlluminant%d is not one SHORT" % (k + 1))
+        ill.append(struct.unpack_from("<H", b, at)[0])
+    if not cm:
+        sys.exit("no ColorMatrix1")
+    return cm, ill
+p = np.array(d["patches"], dtype=np.float64)
+size, cols = d["size"], d["cols"]
+rows = (len(p) + cols - 1) // cols
+img = np.zeros((rows * size, cols * size, 3))
+for i, c in enumerate(p):
+    r, q = divmod(i, cols)
+    img[r*size:(r+1)*size, q*size:(q+1)*size] = c
+raw = np.clip(np.round(img * 65535), 0, 65535).astype(np.uint16)
+def rationals(m):
+    out = []
+    for v in np.asarray(m, dtype=np.float64).ravel():
+        out += [int(round(v * 1e6)), 1000000]
+    return out
+tags = [
+    (50706, 1, 4, (1, 4, 0, 0), True),
+    (50707, 1, 4, (1, 1, 0, 0), True),
+    (50708, 2, 0, "nsrm synthetic", True),
+    (271, 2, 0, "nsrm", True),
+    (272, 2, 0, "synthetic", True),
+    (50717, 3, 1, 65535, True),
+    (50714, 3, 1, 0, True),
+    (50728, 5, 3, rationals(d["neutral"]), True),
+    (33421, 3, 2, (2, 2), True),
+    (33422, 1, 4, (0, 1, 1, 2), True),
+]
+for k, (cm, ill) in enumerate(zip(*dcp_tags(d["dcp"]))):
+    tags += [(50721 + k, 10, 9, cm, True), (50778 + k, 3, 1, ill, True)]
+mosaic = np.zeros(raw.shape[:2], dtype=np.uint16)
+mosaic[0::2, 0::2] = raw[0::2, 0::2, 0]
+mosaic[0::2, 1::2] = raw[0::2, 1::2, 1]
+mosaic[1::2, 0::2] = raw[1::2, 0::2, 1]
+mosaic[1::2, 1::2] = raw[1::2, 1::2, 2]
+tifffile.imwrite(d["dng"], mosaic, photometric=32803, subfiletype=0, extratags=tags,
+                 description=None, metadata=None, software=False)
+# What the mosaic holds, exactly (16-bit quantised), for nsrm apply.
+q = (np.round(np.clip(p, 0, 1) * 65535) / 65535).astype(np.float32)
+tifffile.imwrite(d["tif"], q.reshape(1, -1, 3), photometric="rgb")
+print(json.dumps(q.astype(np.float64).tolist()))
+"#;
+
+/// Prints the mean of the inner half of each patch of RawTherapee's TIFF (which crops the
+/// mosaic's border), as JSON.
+const READ_PATCHES: &str = r#"
+import json, sys, numpy as np, tifffile
+d = json.load(sys.stdin)
+rt = tifffile.imread(d["rt"]).astype(np.float64)
+size, cols, n = d["size"], d["cols"], d["n"]
+rows = (n + cols - 1) // cols
+oy = (rows * size - rt.shape[0]) // 2
+ox = (cols * size - rt.shape[1]) // 2
+q = size // 4
+vals = []
+for i in range(n):
+    r, c = divmod(i, cols)
+    y, x = r * size - oy, c * size - ox
+    vals.append(rt[y+q:y+size-q, x+q:x+size-q, :3].reshape(-1, 3).mean(0).tolist())
+print(json.dumps(vals))
+"#;
+
+/// Whether the RawTherapee harness can run: `Err(why)` names what is missing.
+pub fn rawtherapee() -> Result<(), String> {
+    let ok = |c: &mut Command| c.output().is_ok_and(|o| o.status.success());
+    if !ok(Command::new("sh").args(["-c", "command -v rawtherapee-cli"])) {
+        return Err("rawtherapee-cli is not installed (Debian rawtherapee)".into());
+    }
+    if !Path::new(LINEAR_PROPHOTO).exists() {
+        return Err(format!("{LINEAR_PROPHOTO} is missing (Debian argyll)"));
+    }
+    if !ok(Command::new("python3").args(["-c", "import tifffile, numpy"])) {
+        return Err("python3 with tifffile and numpy is not installed".into());
+    }
+    Ok(())
+}
+
+/// A processing profile: the DCP as input profile (its hue/sat map, no look table, no tone
+/// curve, no baseline exposure), camera white balance, no auto exposure, ProPhoto working space,
+/// Argyll's linear ProPhoto as output profile (`file:` prefix, or RawTherapee silently falls back
+/// to a gamma-encoded output).
+fn pp3(dcp: &Path) -> String {
+    format!(
+        "[Exposure]\nAuto=false\nCompensation=0\nClip=0\nBrightness=0\nContrast=0\nSaturation=0\nHistogramMatching=false\nCurveMode=Standard\nCurve=0;\nCurve2=0;\n\n\
+         [White Balance]\nEnabled=true\nSetting=Camera\n\n\
+         [Color Management]\nInputProfile=file:{}\nToneCurve=false\nApplyLookTable=false\nApplyBaselineExposureOffset=false\nApplyHueSatMap=true\nDCPIlluminant=0\nWorkingProfile=ProPhoto\nOutputProfile=file:{LINEAR_PROPHOTO}\n",
+        dcp.display()
+    )
+}
+
+/// A chart developed by RawTherapee.
+pub struct RtDeveloped {
+    /// RawTherapee's patches in linear ProPhoto RGB (D50; the white's level is the camera
+    /// white's G).
+    pub prophoto: Vec<[f64; 3]>,
+    /// The camera RGB in the mosaic (16-bit quantised).
+    pub camera: Vec<[f64; 3]>,
+    /// `camera` as a float TIFF, one pixel per patch (`dir/<tag>-patches.tif`).
+    pub patches_tif: std::path::PathBuf,
+}
+
+/// Develops `patches` (camera RGB, 0..1, shot with the camera neutral `neutral`) with
+/// RawTherapee and the DCP `dcp`, in `dir` (files named after `tag`).
+pub fn rt_develop(
+    dir: &Path,
+    tag: &str,
+    dcp: &Path,
+    patches: &[[f64; 3]],
+    neutral: [f64; 3],
+) -> RtDeveloped {
+    let dng = dir.join(format!("{tag}.dng"));
+    let patches_tif = dir.join(format!("{tag}-patches.tif"));
+    let req = serde_json::json!({
+        "patches": patches,
+        "neutral": neutral,
+        "dcp": dcp,
+        "size": RT_PATCH,
+        "cols": RT_COLS,
+        "dng": dng,
+        "tif": patches_tif,
+    });
+    let camera: Vec<[f64; 3]> = serde_json::from_str(&python(WRITE_DNG, &req.to_string())).unwrap();
+    let profile = dir.join(format!("{tag}.pp3"));
+    std::fs::write(&profile, pp3(dcp)).unwrap();
+    let rt_out = dir.join(format!("{tag}-rt.tif"));
+    let o = Command::new("rawtherapee-cli")
+        .args(["-q", "-Y", "-o"])
+        .arg(&rt_out)
+        .arg("-p")
+        .arg(&profile)
+        .args(["-t", "-b32", "-c"])
+        .arg(&dng)
+        .output()
+        .expect("rawtherapee-cli runs");
+    assert!(
+        o.status.success() && rt_out.exists(),
+        "rawtherapee-cli: {}{}",
+        String::from_utf8_lossy(&o.stdout),
+        String::from_utf8_lossy(&o.stderr)
+    );
+    let read = serde_json::json!({
+        "rt": rt_out,
+        "size": RT_PATCH,
+        "cols": RT_COLS,
+        "n": patches.len(),
+    });
+    let prophoto = serde_json::from_str(&python(READ_PATCHES, &read.to_string())).unwrap();
+    RtDeveloped {
+        prophoto,
+        camera,
+        patches_tif,
+    }
+}
+
+/// The CC24 under `light` as the Nikon D5100's camera RGB, the perfect white first (scaled so the
+/// brightest channel of any patch is 0.8 of the white level); the camera's neutral for the light
+/// (G = 1); and the perfect white's level (its G).
+pub fn rt_chart(light: &str) -> (Vec<[f64; 3]>, [f64; 3], f64) {
+    let d = simulate_named("nikon-d5100", light, "cc24", &Grid::default()).unwrap();
+    let n = d.white_rgb.unwrap();
+    let mut v = vec![n];
+    v.extend(d.rgb.iter().copied());
+    let top = v.iter().flatten().cloned().fold(0.0, f64::max);
+    let k = 0.8 / top;
+    (
+        v.iter().map(|c| c.map(|x| x * k)).collect(),
+        n.map(|x| x / n[1]),
+        n[1] * k,
+    )
+}

@@ -495,7 +495,7 @@ trait T {
 
 /// The public surface stays curated: the lines outside `src/cli` that declare an item with plain
 /// `pub` (`docs/ARCHITECTURE.md`, "The public surface, counted": the same rule as its `grep`).
-const MAX_PUBLIC_DECLARATIONS: usize = 219;
+const MAX_PUBLIC_DECLARATIONS: usize = 199;
 
 /// Whether `line` declares an item with plain `pub` visibility, as the documented `grep -E
 /// '^\s*pub (async |unsafe |const )?(fn|struct|enum|trait|type|const|static|mod|use) '` reads it.

@@ -1098,12 +1098,14 @@ pub(crate) enum Family {
     /// A ColorChecker Passport with its second page open beside the classic page.
     Passport,
     /// Negative: a SpyderCHECKR-24-like chart (greys in two columns, the colours in another
-    /// order).
+    /// order); for an SG, another make's 14 × 10 chart (no grey border, a twenty-step ramp in
+    /// two columns, the SG's colours in another order).
     Spyder,
     /// Negative: a grid of random patch colours.
     Random,
     /// Negative: the classic page's greys in place but its colours in another order (another
-    /// chart made of the same materials).
+    /// chart made of the same materials); for an SG, its near-neutrals in place, its colours
+    /// deranged.
     Shuffled,
     // (New families go last: the discriminant seeds each family's draws.)
     /// Stronger perspective than the envelope: tilt 30–50°, the chart covering 10–40 %.
@@ -1161,8 +1163,9 @@ impl Family {
         matches!(self, Family::Spyder | Family::Random | Family::Shuffled)
     }
 
-    /// The colours and options of scene `seed` of this family (CC24 layouts for the negatives;
-    /// the truth of a negative scene names the cells of the impostor, not a CC24).
+    /// The colours and options of scene `seed` of this family (a negative's impostor in the
+    /// layout of `colours`' chart; the truth of a negative scene names the cells of the
+    /// impostor, not that chart's).
     pub(crate) fn scene(
         self,
         colours: &ChartColours,
@@ -1269,8 +1272,103 @@ fn fill_corners(kind: ChartKind, width: usize, height: usize, g: &mut Gaussian) 
     q
 }
 
-/// The colours of a chart that is not a CC24 (see [`Family`]), in a CC24 layout.
+/// The colours of a chart that is not the one simulated (see [`Family`]), in its layout: for a
+/// CC24 ([`cc24_impostor`]) or an SG ([`sg_impostor`]).
 fn impostor(colours: &ChartColours, family: Family, g: &mut Gaussian) -> ChartColours {
+    match colours.chart {
+        ChartKind::Cc24 => cc24_impostor(colours, family, g),
+        ChartKind::Sg => sg_impostor(colours, family, g),
+    }
+}
+
+/// Shuffles `v` in place (Fisher–Yates on the seeded generator).
+fn shuffle(v: &mut [usize], g: &mut Gaussian) {
+    for i in (1..v.len()).rev() {
+        let j = (g.uniform() * (i + 1) as f64) as usize % (i + 1);
+        v.swap(i, j);
+    }
+}
+
+/// Reorders `v` so that no element stays where it was (a derangement, by shuffling until none
+/// does; `v` needs two elements).
+fn derange(v: &mut [usize], g: &mut Gaussian) {
+    let orig = v.to_vec();
+    loop {
+        shuffle(v, g);
+        if v.iter().zip(&orig).all(|(a, b)| a != b) {
+            break;
+        }
+    }
+}
+
+/// Whether camera RGB `rgb` is near-neutral: its channels, each relative to the white's, differ
+/// by less than [`NEUTRAL_SPREAD`] of the largest. (The SG under D65 seen by the D5100: its 59
+/// greys, Lab chroma ≤ 2.2, spread at most 0.070; K4, chroma 7.9, 0.073 — near-neutral too;
+/// the other colours, chroma ≥ 8.5, at least 0.14.)
+fn near_neutral(rgb: [f64; 3], white: [f64; 3]) -> bool {
+    let v = [0, 1, 2].map(|k| rgb[k] / white[k]);
+    let hi = v.iter().copied().fold(f64::MIN, f64::max);
+    let lo = v.iter().copied().fold(f64::MAX, f64::min);
+    hi > 0.0 && (hi - lo) < NEUTRAL_SPREAD * hi
+}
+
+/// See [`near_neutral`].
+const NEUTRAL_SPREAD: f64 = 0.1;
+
+/// An impostor in the SG's 14 × 10 layout (`Random` is [`cc24_impostor`]'s, which fills any
+/// layout):
+/// * `Spyder`: another make's 140-patch chart — no alternating grey border; the two right
+///   columns a twenty-step grey ramp (white at the top of the first, black at the bottom of
+///   the second); the other 120 cells the SG's chromatic colours in a random order (each once
+///   before any repeats);
+/// * `Shuffled`: the SG's own cells, its near-neutrals ([`near_neutral`]: the border, the
+///   central ramp) in place and its chromatic cells deranged — another chart of the same
+///   materials; 60 of the 140 cells are right, so a reading by the median colour difference
+///   alone could take it for an SG.
+fn sg_impostor(colours: &ChartColours, family: Family, g: &mut Gaussian) -> ChartColours {
+    let kind = colours.chart;
+    let w = colours.white_rgb;
+    let mut c = colours.clone();
+    let chromatic: Vec<usize> = (0..kind.cells())
+        .filter(|&i| !near_neutral(colours.rgb[i], w))
+        .collect();
+    match family {
+        Family::Spyder => {
+            let (cols, rows) = (kind.columns(), kind.rows());
+            let steps = 2 * rows;
+            let mut pick = chromatic.clone();
+            shuffle(&mut pick, g);
+            let mut k = 0;
+            for r in 0..rows {
+                for col in 0..cols {
+                    let i = r * cols + col;
+                    c.rgb[i] = if col >= cols - 2 {
+                        // Geometric from 0.9 down to 0.03.
+                        let step = (col - (cols - 2)) * rows + r;
+                        let t = step as f64 / (steps - 1) as f64;
+                        w.map(|v| v * 0.9 * (0.03f64 / 0.9).powf(t))
+                    } else {
+                        k += 1;
+                        colours.rgb[pick[(k - 1) % pick.len()]]
+                    };
+                }
+            }
+        }
+        Family::Shuffled => {
+            let mut pick = chromatic.clone();
+            derange(&mut pick, g);
+            for (&i, &p) in chromatic.iter().zip(&pick) {
+                c.rgb[i] = colours.rgb[p];
+            }
+        }
+        _ => return cc24_impostor(colours, family, g),
+    }
+    c
+}
+
+/// The colours of a chart that is not a CC24 (see [`Family`]), in a CC24 layout (`Random`:
+/// in any layout).
+fn cc24_impostor(colours: &ChartColours, family: Family, g: &mut Gaussian) -> ChartColours {
     let kind = colours.chart;
     let n = kind.cells();
     let w = colours.white_rgb;
@@ -1576,6 +1674,68 @@ mod tests {
             let (_, o) = Family::Wide.scene(&colours(), 1200, 800, seed);
             let p = o.perspective.unwrap();
             assert!((1.6..=2.2).contains(&p) && o.min_tilt_deg == 30.0, "{p}");
+        }
+    }
+
+    /// An SG of greys in its even columns and reds in its odd ones, cell `i` at level
+    /// `0.05 + i / 200`.
+    fn sg_colours() -> ChartColours {
+        let kind = ChartKind::Sg;
+        let rgb = (0..kind.cells())
+            .map(|i| {
+                let v = 0.05 + i as f64 / 200.0;
+                if kind.cell(i).0.is_multiple_of(2) {
+                    [v; 3]
+                } else {
+                    [v, 0.5 * v, 0.3 * v]
+                }
+            })
+            .collect();
+        ChartColours {
+            chart: kind,
+            rgb,
+            xyz: vec![[0.0; 3]; kind.cells()],
+            ..colours()
+        }
+    }
+
+    #[test]
+    fn sg_impostors_keep_the_layout_and_change_the_chart() {
+        let sg = sg_colours();
+        let kind = ChartKind::Sg;
+        let grey = |i: usize| near_neutral(sg.rgb[i], sg.white_rgb);
+        assert_eq!((0..kind.cells()).filter(|&i| grey(i)).count(), 70);
+        for seed in 1..6 {
+            // Shuffled: every grey in place, every colour moved (to another colour's cell).
+            let (c, _) = Family::Shuffled.scene(&sg, 720, 480, seed);
+            assert_eq!((c.chart, c.rgb.len()), (kind, kind.cells()));
+            for i in 0..kind.cells() {
+                if grey(i) {
+                    assert_eq!(c.rgb[i], sg.rgb[i], "seed {seed}: grey {i} moved");
+                } else {
+                    assert_ne!(c.rgb[i], sg.rgb[i], "seed {seed}: colour {i} stayed");
+                    assert!(!near_neutral(c.rgb[i], sg.white_rgb));
+                }
+            }
+            // Spyder: a falling grey ramp down the two right columns, the SG's colours elsewhere.
+            let (c, _) = Family::Spyder.scene(&sg, 720, 480, seed);
+            let ramp: Vec<f64> = (12..14)
+                .flat_map(|col| (0..10).map(move |r| r * 14 + col))
+                .map(|i| c.rgb[i][1])
+                .collect();
+            assert!(ramp.windows(2).all(|w| w[1] < w[0]), "{ramp:?}");
+            assert!((ramp[0] - 0.9).abs() < 1e-12 && (ramp[19] - 0.03).abs() < 1e-12);
+            for i in (0..kind.cells()).filter(|&i| kind.cell(i).0 < 12) {
+                assert!(
+                    !near_neutral(c.rgb[i], sg.white_rgb),
+                    "seed {seed}: cell {i}"
+                );
+                assert!(sg.rgb.contains(&c.rgb[i]));
+            }
+            // Random: its own colours in every cell.
+            let (c, _) = Family::Random.scene(&sg, 720, 480, seed);
+            assert_eq!(c.rgb.len(), kind.cells());
+            assert!(c.rgb.iter().zip(&sg.rgb).all(|(a, b)| a != b));
         }
     }
 }

@@ -130,9 +130,10 @@ pub(crate) struct RateArgs {
     /// curve, saturation and JPEG), fill (the chart filling the frame), small (small, a corner
     /// covered), passport (the Passport's second page beside the chart), tilt (tilted 30–50°),
     /// black-frame (the chart body as dark as its black patch), wide (a wide-angle camera close
-    /// to the chart: perspective 1.6–2.2); negatives, which must all be refused (cc24 only):
-    /// spyder (a SpyderCHECKR-24-like chart), random (random patch grids), shuffled (the
-    /// classic colours in another order).
+    /// to the chart: perspective 1.6–2.2); negatives, which must all be refused, in the
+    /// chart's layout: spyder (another make's chart: a SpyderCHECKR-24-like one, for sg a
+    /// 14×10 one with a grey ramp in two columns), random (random patch grids), shuffled (the
+    /// chart's greys in place, its colours in another order).
     #[arg(long, default_value = "envelope", value_parser = parse_family)]
     family: Family,
 }
@@ -274,7 +275,7 @@ fn run_extract(a: ExtractArgs) -> Result<ExitCode> {
 /// against its truth ([`judge_negative`], [`judge_positive`]); last the tally.
 fn run_rate(a: RateArgs) -> Result<ExitCode> {
     let kind = ChartKind::from(a.chart);
-    check_rate_args(&a, kind)?;
+    check_rate_args(&a)?;
     let colours =
         ChartColours::simulate(kind, &a.camera, &a.illuminant, a.reflectances.as_deref())?;
     let reference = Reference::load(kind.default_reference(), kind, None)?;
@@ -340,9 +341,9 @@ enum Verdict {
 type RateResult =
     std::result::Result<(Detection, std::result::Result<Extraction, ChartError>), DetectFailure>;
 
-/// The usage checks of `chart rate`: the scene count, the seed range, the ranges
-/// ([`check_rate_ranges`]), and the negative families' layout.
-fn check_rate_args(a: &RateArgs, kind: ChartKind) -> Result<()> {
+/// The usage checks of `chart rate`: the scene count, the seed range and the ranges
+/// ([`check_rate_ranges`]).
+fn check_rate_args(a: &RateArgs) -> Result<()> {
     if a.scenes == 0 || a.scenes > 100_000 {
         return Err(UsageError("--scenes must be 1..100000".into()).into());
     }
@@ -355,15 +356,7 @@ fn check_rate_args(a: &RateArgs, kind: ChartKind) -> Result<()> {
         ))
         .into());
     }
-    check_rate_ranges(a)?;
-    if a.family.negative() && kind != ChartKind::Cc24 {
-        return Err(UsageError(format!(
-            "--family {}: the negative families are cc24 layouts (use --chart cc24)",
-            a.family.name()
-        ))
-        .into());
-    }
-    Ok(())
+    check_rate_ranges(a)
 }
 
 /// A scene's options with the ranges `chart rate` was given: the area, tilt, exposure (stops
@@ -610,19 +603,21 @@ mod tests {
 
     #[test]
     fn rate_arguments_outside_their_ranges_are_usage_errors() {
-        let kind = ChartKind::Cc24;
-        assert!(check_rate_args(&args(&[]), kind).is_ok());
+        assert!(check_rate_args(&args(&[])).is_ok());
         for bad in [
             &["--scenes", "0"][..],
             &["--seed", "18446744073709551615", "--scenes", "2"],
             &["--min-tilt", "40", "--max-tilt", "20"],
         ] {
-            let e = check_rate_args(&args(bad), kind).unwrap_err();
+            let e = check_rate_args(&args(bad)).unwrap_err();
             assert!(e.downcast_ref::<UsageError>().is_some(), "{bad:?}: {e}");
         }
-        let spyder = args(&["--family", "spyder"]);
-        assert!(check_rate_args(&spyder, kind).is_ok());
-        assert!(check_rate_args(&spyder, ChartKind::Sg).is_err());
+        // The negatives come in either chart's layout.
+        for f in ["spyder", "random", "shuffled"] {
+            assert!(check_rate_args(&args(&["--family", f])).is_ok());
+            let sg = ["rate", "--chart", "sg", "--family", f];
+            assert!(check_rate_args(&Rate::try_parse_from(sg).unwrap().a).is_ok());
+        }
     }
 
     #[test]

@@ -39,8 +39,9 @@ pub(crate) struct Args {
     #[arg(long)]
     envelope: bool,
     /// A scene of one of `chart rate`'s families (implies --envelope's draws): jpeg, fill, small,
-    /// passport, tilt, black-frame, wide, or the negatives spyder, random, shuffled (cc24). A jpeg-look scene is written
-    /// as the values nsrm decodes from the camera JPEG (sRGB decoded, tone curve kept).
+    /// passport, tilt, black-frame, wide, or the negatives spyder, random, shuffled (in the
+    /// chart's layout). A jpeg-look scene is written as the values nsrm decodes from the camera
+    /// JPEG (sRGB decoded, tone curve kept).
     #[arg(long, value_parser = super::chart::parse_family, conflicts_with = "envelope")]
     family: Option<crate::chart::scene::Family>,
     /// Seed of the random pose, clutter and noise (and, with --envelope, of everything).
@@ -120,13 +121,6 @@ pub(crate) fn run(a: Args) -> Result<ExitCode> {
     let colours =
         ChartColours::simulate(kind, &a.camera, &a.illuminant, a.reflectances.as_deref())?;
     let (colours, opts) = if let Some(f) = a.family {
-        if f.negative() && kind != ChartKind::Cc24 {
-            return Err(UsageError(format!(
-                "--family {}: the negative families are cc24 layouts",
-                f.name()
-            ))
-            .into());
-        }
         let (c, mut o) = f.scene(&colours, a.width, a.height, a.seed);
         o.corners = corners.or(o.corners);
         (c, o)
@@ -161,7 +155,7 @@ pub(crate) fn run(a: Args) -> Result<ExitCode> {
     };
     let (frame, flat, mut truth) = render(&colours, &opts)?;
     if let Some(f) = a.family.filter(|f| f.negative()) {
-        // The chart drawn is not a CC24: its cells carry no CC24 label or colour.
+        // The chart drawn is not the one named: its cells carry none of that chart's labels.
         truth.patches.clear();
         truth.impostor = Some(f.name().to_string());
     }

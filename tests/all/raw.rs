@@ -858,3 +858,125 @@ fn lossless_jpeg_dngs_read_as_libraw_reads_them() {
         }
     }
 }
+
+/// A RAF as rawler reads it, from the published layout (LibRaw's and rawler's notes): the
+/// 108-byte header's pointers; an embedded "JPEG" whose EXIF TIFF names `make` / `model` and
+/// holds a Fujifilm maker note (an empty IFD after "FUJIFILM" and its offset); a CFA record
+/// that is no TIFF (the raw data would start there); and the RAF directory declaring `w`×`h`
+/// (tag 0x100, height first) and the sensor layout (tag 0x130, bytes `layout`). No pixel data.
+fn raf_naming(make: &str, model: &str, w: u16, h: u16, layout: [u8; 2]) -> Vec<u8> {
+    // The EXIF TIFF (little-endian): IFD0 with Make, Model and the EXIF IFD pointer; the EXIF
+    // IFD with the maker note; then the strings and the note.
+    let (make, model) = (format!("{make}\0"), format!("{model}\0"));
+    let note: Vec<u8> = [&b"FUJIFILM"[..], &12u32.to_le_bytes(), &[0; 6]].concat();
+    let ifd0_len = 2 + 3 * 12 + 4;
+    let exif_at = 8 + ifd0_len;
+    let strings_at = exif_at + 2 + 12 + 4;
+    let model_at = strings_at + make.len();
+    let note_at = model_at + model.len();
+    let mut t = b"II*\0".to_vec();
+    t.extend(8u32.to_le_bytes());
+    let entry = |t: &mut Vec<u8>, tag: u16, typ: u16, count: usize, value: usize| {
+        t.extend(tag.to_le_bytes());
+        t.extend(typ.to_le_bytes());
+        t.extend((count as u32).to_le_bytes());
+        t.extend((value as u32).to_le_bytes());
+    };
+    t.extend(3u16.to_le_bytes());
+    entry(&mut t, 0x10f, 2, make.len(), strings_at);
+    entry(&mut t, 0x110, 2, model.len(), model_at);
+    entry(&mut t, 0x8769, 4, 1, exif_at);
+    t.extend(0u32.to_le_bytes());
+    t.extend(1u16.to_le_bytes());
+    entry(&mut t, 0x927c, 7, note.len(), note_at);
+    t.extend(0u32.to_le_bytes());
+    t.extend(make.as_bytes());
+    t.extend(model.as_bytes());
+    t.extend(&note);
+    let mut jpeg = vec![0xFF, 0xD8, 0xFF, 0xE1];
+    jpeg.extend(((t.len() + 8) as u16).to_be_bytes());
+    jpeg.extend(b"Exif\0\0");
+    jpeg.extend(&t);
+    jpeg.extend([0xFF, 0xD9]);
+    // The RAF directory: a count, then tag, length, data (big-endian).
+    let mut dir = 2u32.to_be_bytes().to_vec();
+    dir.extend([0x01, 0x00, 0, 4]);
+    dir.extend(h.to_be_bytes());
+    dir.extend(w.to_be_bytes());
+    dir.extend([0x01, 0x30, 0, 2]);
+    dir.extend(layout);
+    let cfa = vec![0u8; 64];
+    let jpeg_at = 108u32;
+    let dir_at = jpeg_at + jpeg.len() as u32;
+    let cfa_at = dir_at + dir.len() as u32;
+    let mut b = b"FUJIFILMCCD-RAW 0201FF383501".to_vec();
+    b.resize(84, 0);
+    for (at, len) in [
+        (jpeg_at, jpeg.len()),
+        (dir_at, dir.len()),
+        (cfa_at, cfa.len()),
+    ] {
+        b.extend(at.to_be_bytes());
+        b.extend((len as u32).to_be_bytes());
+    }
+    b.extend(&jpeg);
+    b.extend(&dir);
+    b.extend(&cfa);
+    b
+}
+
+/// rawler turns a SuperCCD mosaic by 45° into a square image of about (w + h/2)² pixels
+/// because of the camera the file names, whatever its sensor-layout tag (0x130) says. A crafted
+/// RAF naming a SuperCCD camera (the FinePix E900) whose tag claims another layout, with a
+/// 3000×3000 mosaic (within `--max-pixels` 2^24), must be refused over the limit for its
+/// 4500×4500 turned image before rawler allocates it; the same file naming a camera whose
+/// mosaic is not turned (the X-T2) gets past the limit to the decoder, which finds no data.
+#[test]
+fn a_raf_naming_a_superccd_camera_is_bounded_whatever_its_layout_tag_says() {
+    let dir = common::tempdir("raw-raf-layout");
+    let limits = ReadOptions {
+        limits: Limits {
+            max_pixels: 1 << 24,
+        },
+        ..Default::default()
+    };
+    let read = |name: &str, bytes: &[u8]| {
+        let p = dir.join(name);
+        std::fs::write(&p, bytes).unwrap();
+        (p.clone(), read_frame(&p, &limits))
+    };
+    // Byte 1, bit 3 set: not SuperCCD as LibRaw reads the tag; byte 0, bit 7: rawler's layout.
+    let not_superccd = [0x80, 0x08];
+    let (p, r) = read(
+        "e900.raf",
+        &raf_naming("FUJIFILM", "FinePix E900", 3000, 3000, not_superccd),
+    );
+    match r {
+        Err(nsrm::io::IoError::OverLimit { why, .. }) => {
+            assert!(why.contains("4500×4500"), "{why}")
+        }
+        r => panic!("{r:?}"),
+    }
+    // The command line says so too, naming the limit.
+    let o = nsrm_in(
+        &dir,
+        &[
+            "chart",
+            "extract",
+            p.to_str().unwrap(),
+            "--chart",
+            "cc24",
+            "--max-pixels",
+            "16777216",
+        ],
+    );
+    no_crash(&o, "e900.raf");
+    assert!(!o.status.success());
+    assert!(stderr(&o).contains("--max-pixels"), "{}", stderr(&o));
+    // Not a SuperCCD camera: the mosaic's own size is within the limit, and the decoder runs.
+    let (_, r) = read(
+        "xt2.raf",
+        &raf_naming("FUJIFILM", "X-T2", 3000, 3000, not_superccd),
+    );
+    assert!(matches!(r, Err(nsrm::io::IoError::Corrupt { .. })), "{r:?}");
+}

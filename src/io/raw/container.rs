@@ -14,7 +14,9 @@
 //!   structures in the `CMT1`–`CMT4` boxes as TIFF-based raws are checked.
 //! * **RAF**: the header's three pointers; the RAF directory's full and raw image sizes
 //!   (tags 0x100, 0x121) and sensor layout (0x130: a SuperCCD sensor, whose mosaic the decoder
-//!   turns by 45° into a second image of about (w + h/2)² pixels, declares that image too); the
+//!   turns by 45° into a second image of about (w + h/2)² pixels, declares that image too; as
+//!   rawler turns by the camera the file names, whatever the tag says, `decode` checks that
+//!   image again once rawler has named the camera, [`Declared::turned`]); the
 //!   TIFF structure of the CFA record (with the Fuji IFD 0xF000 and its
 //!   raw width / height 0xF001 / 0xF002) and the embedded JPEG's EXIF TIFF, as TIFF-based raws.
 //! * **MRW**: the PRD block's sensor height and width (blocks bounded by the data offset).
@@ -40,6 +42,10 @@ pub(crate) struct Declared {
     pub(crate) raw_marker: bool,
     /// The largest width and the largest height declared (of any images).
     pub(crate) sides: (u64, u64),
+    /// A RAF: the side of the square image its mosaic becomes when the decoder turns it by 45°
+    /// (a SuperCCD sensor). Declared in `largest` when the sensor-layout tag says SuperCCD; the
+    /// decoder turns by the camera named, so `decode` checks it again once it knows that camera.
+    pub(crate) turned: Option<u64>,
 }
 
 impl Declared {
@@ -493,9 +499,10 @@ pub(crate) fn raf(f: &mut File, len: u64) -> std::io::Result<Declared> {
     // A SuperCCD sensor (layout flag set, or no layout recorded): the decoder turns the
     // mosaic by 45° into a second image of (w + h/2) × (w + h/2 − 1) pixels (or h + w/2 for
     // the other layout), so that is what is declared, from the largest sides declared.
+    let (w, h) = d.sides;
+    let side = (w + h / 2).max(h + w / 2);
+    d.turned = Some(side);
     if layout != Some(false) {
-        let (w, h) = d.sides;
-        let side = (w + h / 2).max(h + w / 2);
         d.take(side, side);
     }
     Ok(d)
@@ -889,6 +896,10 @@ pub(crate) mod tests {
         b[at] = 0x7f;
         let (_, d) = declared(&write(dir.path(), "u.raf", &b));
         assert_eq!(d.largest, Some((4000, 4000)));
+        // A layout tag that says otherwise: only the mosaic is declared, and the turned image
+        // is kept for the decoder's check by camera.
+        let (_, d) = declared(&write(dir.path(), "v.raf", &raf(3000, 2000, 0, 0)));
+        assert_eq!((d.largest, d.turned), (Some((3000, 2000)), Some(4000)));
     }
 
     #[test]

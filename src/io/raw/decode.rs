@@ -33,7 +33,13 @@ fn panic_text(p: &(dyn std::any::Any + Send)) -> String {
 
 /// Decodes the raw file `path` into linear camera RGB (see the module documentation).
 pub(crate) fn read(path: &Path, limits: &Limits, demosaic: Demosaic) -> Result<RawFrame, IoError> {
-    let dims = match sniff(path)? {
+    let sniffed = sniff(path)?;
+    // A RAF's turned image, were the decoder to turn its mosaic (see `check_turned`).
+    let turned = match &sniffed {
+        Sniff::Container("RAF", d) => d.turned,
+        _ => None,
+    };
+    let dims = match sniffed {
         Sniff::Plain => {
             return Err(IoError::Unsupported {
                 path: path.to_path_buf(),
@@ -79,12 +85,16 @@ pub(crate) fn read(path: &Path, limits: &Limits, demosaic: Demosaic) -> Result<R
     let decoded = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
         let params = rawler::decoders::RawDecodeParams::default();
         let decoder = rawler::get_decoder(&source)?;
-        let image = decoder.raw_image(&source, &params, false)?;
         let meta = decoder.raw_metadata(&source, &params).ok();
-        Ok::<_, rawler::RawlerError>((image, meta))
+        if let Err(e) = check_turned(path, limits, turned, meta.as_ref()) {
+            return Ok(Err(e));
+        }
+        let image = decoder.raw_image(&source, &params, false)?;
+        Ok::<_, rawler::RawlerError>(Ok((image, meta)))
     }));
     let (image, meta) = match decoded {
-        Ok(Ok(v)) => v,
+        Ok(Ok(Ok(v))) => v,
+        Ok(Ok(Err(e))) => return Err(e),
         Ok(Err(e)) => return Err(corrupt(path, format!("the raw decoder refused it: {e}"))),
         Err(p) => {
             return Err(corrupt(
@@ -115,6 +125,41 @@ pub(crate) fn read(path: &Path, limits: &Limits, demosaic: Demosaic) -> Result<R
     // As LibRaw: the frame turned to the orientation the file records.
     let frame = super::orient::orient(path, frame, info.orientation)?;
     Ok(RawFrame { frame, info })
+}
+
+/// The cameras whose RAF mosaic rawler turns by 45° (SuperCCD sensors: its camera hints
+/// `fuji_rotation` and `fuji_rotation_alt`), by the make and model its metadata reports.
+fn turns_mosaic(make: &str, model: &str) -> bool {
+    static TURNED: std::sync::OnceLock<std::collections::HashSet<(String, String)>> =
+        std::sync::OnceLock::new();
+    TURNED
+        .get_or_init(|| {
+            rawler::decoders::RawLoader::new()
+                .get_cameras()
+                .values()
+                .filter(|c| c.find_hint("fuji_rotation") || c.find_hint("fuji_rotation_alt"))
+                .map(|c| (c.clean_make.clone(), c.clean_model.clone()))
+                .collect()
+        })
+        .contains(&(make.to_string(), model.to_string()))
+}
+
+/// rawler turns a RAF's mosaic by the camera the file names, whatever its sensor-layout tag
+/// (0x130) says: a file that names a SuperCCD camera but whose tag says otherwise (so that
+/// `container::raf` declared no turned image) has the turned image of `turned` pixels a side
+/// checked against the limit here, before the decoder allocates it.
+fn check_turned(
+    path: &Path,
+    limits: &Limits,
+    turned: Option<u64>,
+    meta: Option<&rawler::decoders::RawMetadata>,
+) -> Result<(), IoError> {
+    match (turned, meta) {
+        (Some(side), Some(m)) if turns_mosaic(&m.make, &m.model) => {
+            limits.check_frame(path, side, side, 3, 4, None).map(drop)
+        }
+        _ => Ok(()),
+    }
 }
 
 fn camera_info(

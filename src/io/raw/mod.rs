@@ -27,7 +27,8 @@
 //! `Limits::max_pixels`: in a TIFF-based raw (DNG, NEF, ARW,
 //! PEF, …, and ORF / RW2) those of every IFD; in CR3, RAF, MRW, CRW and X3F those their own
 //! headers declare (`container`); a structure that reaches past its end is refused as damaged,
-//! and a container declaring no image size is refused. The decoded mosaic is checked again
+//! and a container declaring no image size is refused. A RAF naming a camera whose mosaic rawler
+//! turns by 45° (SuperCCD) has the turned image checked too, whatever its layout tag says. The decoded mosaic is checked again
 //! before anything of nsrm's is allocated. A panic inside the decoder is caught and reported as
 //! a corrupt file.
 

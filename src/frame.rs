@@ -20,7 +20,7 @@ impl Layout {
 
     /// Parses `rgb` / `rgba` (the unit test of the command line's `--layout` values holds them
     /// to it).
-    #[cfg(test)]
+    #[cfg(all(test, feature = "cli"))]
     pub(crate) fn parse(s: &str) -> Option<Layout> {
         match s.to_ascii_lowercase().as_str() {
             "rgb" => Some(Layout::Rgb),
@@ -30,6 +30,7 @@ impl Layout {
     }
 
     /// `rgb` or `rgba`.
+    #[cfg(any(feature = "gpu", feature = "io", test))]
     pub(crate) fn name(self) -> &'static str {
         match self {
             Layout::Rgb => "rgb",

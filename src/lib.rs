@@ -60,9 +60,6 @@
 #![forbid(unsafe_code)]
 #![deny(unreachable_pub)]
 #![warn(missing_docs)]
-// Crate-private machinery that only the command line uses (the batch plan, the bench paths,
-// usage classification) is unused in a build without it: not dead code, a smaller build.
-#![cfg_attr(not(feature = "cli"), allow(dead_code, unused_imports))]
 #![cfg_attr(docsrs, feature(doc_auto_cfg))]
 
 #[cfg(feature = "chart")]
@@ -76,8 +73,7 @@ pub mod cli;
 mod colorimetry;
 pub mod csv_table;
 // `Param` and `Concern` are public through the `io` and `chart` errors (re-exported by `io`);
-// a build without `io` only uses them inside the crate.
-#[cfg_attr(not(feature = "io"), allow(unreachable_pub))]
+// a build without `io` has neither.
 mod error;
 mod eval;
 #[cfg(feature = "export")]

@@ -46,6 +46,7 @@ pub(crate) fn file_kind(meta: &std::fs::Metadata) -> &'static str {
 }
 
 /// An [`std::io::Error`] saying `path` is not a regular file (and what it is).
+#[cfg(feature = "io")]
 pub(crate) fn not_regular(meta: &std::fs::Metadata) -> Error {
     Error::new(
         ErrorKind::InvalidInput,
@@ -55,6 +56,7 @@ pub(crate) fn not_regular(meta: &std::fs::Metadata) -> Error {
 
 /// Checks that `path` is a regular file (following symlinks) without opening it, so a FIFO is
 /// never opened (which would block) and a device never read.
+#[cfg(feature = "io")]
 pub(crate) fn check_regular(path: &Path) -> std::io::Result<std::fs::Metadata> {
     let meta = std::fs::metadata(path)?;
     if !meta.is_file() {

@@ -108,6 +108,7 @@ pub enum WriteError {
 impl WriteError {
     /// True for outputs that collide with an input or with each other, and for an output path
     /// that names no file: the request itself is wrong.
+    #[cfg(any(feature = "cli", test))]
     pub(crate) fn is_usage(&self) -> bool {
         matches!(
             self,
@@ -162,6 +163,7 @@ impl AbortHandle {
     /// The abort flag, for `signal_hook::flag::register`: once set, writes fail at their next
     /// buffer write and nothing more is committed (temporaries are then removed by
     /// the session's clean-up or when their unit is dropped).
+    #[cfg(feature = "cli")]
     pub(crate) fn flag(&self) -> Arc<AtomicBool> {
         Arc::clone(&self.shared.abort)
     }
@@ -251,6 +253,7 @@ impl Session {
     }
 
     /// Whether the session was aborted.
+    #[cfg(feature = "cli")]
     pub(crate) fn is_aborted(&self) -> bool {
         self.shared.aborted()
     }
@@ -353,6 +356,7 @@ impl Session {
     }
 
     /// Writes one output on its own: a unit holding just `dest`, committed.
+    #[cfg(any(feature = "cli", test))]
     pub(crate) fn write_bytes(&self, dest: &Path, bytes: &[u8]) -> Result<(), WriteError> {
         let mut unit = self.unit();
         unit.write_bytes(dest, bytes)?;
@@ -360,6 +364,7 @@ impl Session {
     }
 
     /// Removes every temporary this session still holds (after an abort); returns how many.
+    #[cfg(feature = "cli")]
     pub(crate) fn remove_temporaries(&self) -> usize {
         remove_all(&mut self.shared.temps())
     }
@@ -411,6 +416,7 @@ pub(crate) fn make_temp<R>(
 
 /// Whether a file name has the form of this crate's temporaries (`.NAME.nsrm-PID-RANDOM.tmp`,
 /// [`TEMP_RANDOM`] letters and digits).
+#[cfg(any(feature = "io", test))]
 pub(crate) fn is_temp_name(name: &OsStr) -> bool {
     let b = name.as_encoded_bytes();
     let Some(rest) = b.strip_suffix(TEMP_END.as_bytes()) else {
@@ -436,6 +442,7 @@ pub(crate) fn is_temp_name(name: &OsStr) -> bool {
 /// The temporaries of this crate's form in `dir` (not recursive), sorted. Left behind by a run
 /// that was killed (SIGKILL, power loss); a running `nsrm` elsewhere may also own some, so they
 /// are reported, never removed.
+#[cfg(any(feature = "io", test))]
 pub(crate) fn stale_temporaries(dir: &Path) -> Vec<PathBuf> {
     let mut found: Vec<PathBuf> = std::fs::read_dir(dir)
         .into_iter()

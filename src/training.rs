@@ -110,6 +110,7 @@ pub enum TrainingError {
 impl TrainingError {
     /// True for a malformed patch selection or white point, a white that is missing or that
     /// contradicts the file's.
+    #[cfg(feature = "cli")]
     pub(crate) fn is_usage(&self) -> bool {
         matches!(
             self,
@@ -295,6 +296,7 @@ pub(crate) fn fmt_white(w: [f64; 3]) -> String {
 }
 
 /// The comment line that names a patch CSV's white, e.g. `# white: 96.42,100,82.49\n`.
+#[cfg(any(feature = "chart", test))]
 pub(crate) fn white_line(w: [f64; 3]) -> String {
     format!("# white: {}\n", fmt_white(w))
 }

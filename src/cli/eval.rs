@@ -3,7 +3,7 @@
 use super::capture::CaptureText;
 use super::common::{parse_models, parse_orders, TrainingArgs};
 use super::fit_args::FitVariantArgs;
-use crate::eval::{evaluate_with, plot, variants, EvalResult, Protocol};
+use crate::eval::{evaluate_with, plot, EvalResult, Protocol};
 use crate::model::fit::{FitOptions, Normalise, Ridge, White};
 use crate::model::Kind;
 use crate::spectral::display_name;
@@ -235,6 +235,58 @@ fn illuminant_names(
     } else {
         named.to_vec()
     }
+}
+
+/// A named fit variant of `eval --variants`.
+#[derive(Debug, Clone, PartialEq)]
+struct Variant {
+    /// `ls`, `de00`, `de00+preserve-white`, `ridge-auto`, `white-balanced`.
+    name: &'static str,
+    opts: FitOptions,
+}
+
+/// The variants compared by `eval --variants` for `kind`: least squares, ΔE00, ΔE00 with the
+/// perfect white preserved, ridge with λ by GCV, and for NSRM white-balanced least squares.
+fn variants(kind: Kind) -> Vec<Variant> {
+    use crate::model::fit::Objective;
+    let de00 = FitOptions {
+        objective: Objective::De00 { power: 2.0 },
+        ..Default::default()
+    };
+    let mut v = vec![
+        Variant {
+            name: "ls",
+            opts: FitOptions::default(),
+        },
+        Variant {
+            name: "de00",
+            opts: de00.clone(),
+        },
+        Variant {
+            name: "de00+preserve-white",
+            opts: FitOptions {
+                preserve_white: true,
+                ..de00
+            },
+        },
+        Variant {
+            name: "ridge-auto",
+            opts: FitOptions {
+                ridge: Ridge::Auto,
+                ..Default::default()
+            },
+        },
+    ];
+    if kind == Kind::Nsrm {
+        v.push(Variant {
+            name: "white-balanced",
+            opts: FitOptions {
+                normalise: Normalise::WhiteBalanced,
+                ..Default::default()
+            },
+        });
+    }
+    v
 }
 
 /// `--variants`: the paper's fitting variants of `kind`, each with the named white patch when

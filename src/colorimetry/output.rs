@@ -2,7 +2,9 @@
 //! the perfect white at `Y = 1`; `model::output_model` folds it into a model), the preview matrix to
 //! linear sRGB, and the sRGB transfer function.
 
-use super::spaces::{self, Mat3, OutputSpace};
+#[cfg(any(feature = "cli", test))]
+use super::spaces;
+use super::spaces::{Mat3, OutputSpace};
 
 /// The 3×3 matrix from the model's XYZ (perfect white at `Y = white[1]`, usually 100) to the
 /// frames written: scene-linear with the perfect white at `Y = 1`, in `space`, Bradford-adapted
@@ -16,12 +18,14 @@ pub(crate) fn output_matrix(white_xyz: [f64; 3], space: OutputSpace) -> Mat3 {
 
 /// The matrix from pixels in `space` (as written by `nsrm apply`, white `Y = 1`, scene white
 /// `white_xyz`) to linear sRGB (D65, white = 1): for previews.
+#[cfg(any(feature = "cli", test))]
 pub(crate) fn to_linear_srgb(white_xyz: [f64; 3], space: OutputSpace) -> Mat3 {
     let srgb = OutputSpace::LinearSrgb.from_xyz(white_xyz);
     spaces::mul(&srgb, &spaces::invert(&space.from_xyz(white_xyz)))
 }
 
 /// The sRGB opto-electronic transfer function (IEC 61966-2-1) of a linear value in `[0, 1]`.
+#[cfg(any(feature = "io", test))]
 pub(crate) fn srgb_oetf(v: f64) -> f64 {
     if v <= 0.003_130_8 {
         12.92 * v
@@ -31,6 +35,7 @@ pub(crate) fn srgb_oetf(v: f64) -> f64 {
 }
 
 /// A linear value as an 8-bit sRGB code: clipped to `[0, 1]`, [`srgb_oetf`], rounded; NaN is 0.
+#[cfg(any(feature = "io", test))]
 pub(crate) fn srgb8(v: f64) -> u8 {
     let v = if v.is_nan() { 0.0 } else { v.clamp(0.0, 1.0) };
     (srgb_oetf(v) * 255.0).round() as u8

@@ -27,6 +27,7 @@ impl OutputSpace {
     ];
 
     /// Parses a command-line name (`xyz`, `linear-srgb`, `acescg`, `aces2065-1`).
+    #[cfg(feature = "cli")]
     pub(crate) fn parse(name: &str) -> Option<OutputSpace> {
         Self::ALL
             .iter()

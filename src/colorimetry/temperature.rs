@@ -27,16 +27,19 @@ pub(crate) enum TemperatureError {
 
 /// The range of temperatures handled, in kelvin (Robertson's table spans 1667 K to infinity; CIE
 /// daylight is defined from 4000 K to 25000 K).
+#[cfg(any(feature = "export", test))]
 pub(crate) const MIN_CCT: f64 = 1000.0;
 pub(crate) const MAX_CCT: f64 = 25000.0;
 /// Below this a bare temperature names a Planckian light, from it up CIE daylight.
 pub(crate) const DAYLIGHT_FROM: f64 = 4000.0;
 
 /// Second radiation constant c2 = hc/k (m·K), CODATA 2018 (what CIE 15:2018 uses).
+#[cfg(any(feature = "export", test))]
 const C2: f64 = 1.438_776_877e-2;
 
 /// CIE 1931 chromaticity `(x, y)` of a Planckian radiator at `t` kelvin, integrated over the
 /// built-in CIE 1931 2° colour-matching functions ([`super::observer`], 360–830 nm, 1 nm).
+#[cfg(any(feature = "export", test))]
 pub(crate) fn planckian_xy(t: f64) -> Result<[f64; 2], TemperatureError> {
     check_t(t, MIN_CCT, 100_000.0)?;
     let cmf = super::observer::cie1931();
@@ -66,6 +69,7 @@ pub(crate) fn daylight_xy(t: f64) -> Result<[f64; 2], TemperatureError> {
 
 /// The chromaticity a bare temperature names: Planckian below 4000 K, CIE daylight from
 /// it up.
+#[cfg(any(feature = "export", test))]
 pub(crate) fn temperature_xy(t: f64) -> Result<[f64; 2], TemperatureError> {
     check_t(t, MIN_CCT, MAX_CCT)?;
     if t < DAYLIGHT_FROM {

@@ -82,58 +82,6 @@ pub struct EvalResult {
     pub per_patch: Vec<PatchError>,
 }
 
-/// A named fit variant of `eval --variants`.
-#[derive(Debug, Clone, PartialEq)]
-pub(crate) struct Variant {
-    /// `ls`, `de00`, `de00+preserve-white`, `ridge-auto`, `white-balanced`.
-    pub name: &'static str,
-    pub opts: FitOptions,
-}
-
-/// The variants compared by `eval --variants` for `kind`: least squares, ΔE00, ΔE00 with the
-/// perfect white preserved, ridge with λ by GCV, and for NSRM white-balanced least squares.
-pub(crate) fn variants(kind: Kind) -> Vec<Variant> {
-    use crate::model::fit::{Normalise, Objective, Ridge};
-    let de00 = FitOptions {
-        objective: Objective::De00 { power: 2.0 },
-        ..Default::default()
-    };
-    let mut v = vec![
-        Variant {
-            name: "ls",
-            opts: FitOptions::default(),
-        },
-        Variant {
-            name: "de00",
-            opts: de00.clone(),
-        },
-        Variant {
-            name: "de00+preserve-white",
-            opts: FitOptions {
-                preserve_white: true,
-                ..de00
-            },
-        },
-        Variant {
-            name: "ridge-auto",
-            opts: FitOptions {
-                ridge: Ridge::Auto,
-                ..Default::default()
-            },
-        },
-    ];
-    if kind == Kind::Nsrm {
-        v.push(Variant {
-            name: "white-balanced",
-            opts: FitOptions {
-                normalise: Normalise::WhiteBalanced,
-                ..Default::default()
-            },
-        });
-    }
-    v
-}
-
 /// Predicted XYZ for every patch under `protocol`, fitting with `opts`. Leave-one-out runs the
 /// whole procedure (objective, white constraint, λ choice, white balance) inside every fold, folds
 /// in parallel.

@@ -42,6 +42,8 @@ pub(crate) mod cube;
 pub(crate) mod dcp;
 #[cfg(test)]
 mod dcp_tests;
+// Only `nsrm export-shader --lang dctl` prints DCTL.
+#[cfg(any(feature = "cli", test))]
 pub(crate) mod dctl;
 #[cfg(test)]
 mod dctl_tests;
@@ -93,6 +95,7 @@ pub enum ExportError {
 
 impl ExportError {
     /// True for export options out of range.
+    #[cfg(feature = "cli")]
     pub(crate) fn is_usage(&self) -> bool {
         match self {
             ExportError::Usage(_) => true,
@@ -119,6 +122,7 @@ pub enum Format {
 
 impl Format {
     /// Parses `clf`, `cube` or `ocio`.
+    #[cfg(feature = "cli")]
     pub(crate) fn parse(s: &str) -> Option<Format> {
         match s.trim().to_ascii_lowercase().as_str() {
             "clf" => Some(Format::Clf),

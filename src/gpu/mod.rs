@@ -124,6 +124,7 @@ pub enum GpuError {
 
 impl GpuError {
     /// True for buffers, textures or models the caller passed that a corrector cannot take.
+    #[cfg(feature = "cli")]
     pub(crate) fn is_usage(&self) -> bool {
         matches!(self, GpuError::Usage(_) | GpuError::ModelMismatch { .. })
     }
@@ -167,6 +168,7 @@ impl DeviceChoice {
     }
 
     /// `auto`, `gpu` or `cpu`.
+    #[cfg(any(feature = "cli", test))]
     pub(crate) fn name(self) -> &'static str {
         match self {
             DeviceChoice::Auto => "auto",
@@ -207,7 +209,9 @@ impl std::fmt::Display for CpuReason {
 #[derive(Debug)]
 pub(crate) enum Opened {
     Gpu(Box<Engine>),
-    Cpu(CpuReason),
+    // Only the binary and the tests read the reason (`open` drops it); gating it would gate
+    // `CpuReason` and its three constructions in `open_device` with it.
+    Cpu(#[cfg_attr(not(any(feature = "cli", test)), allow(dead_code))] CpuReason),
 }
 
 /// Opens the engine the choice asks for, saying why when it is the CPU.

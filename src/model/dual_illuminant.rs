@@ -326,6 +326,7 @@ impl Profile {
         &self.models
     }
 
+    #[cfg(feature = "export")]
     pub(crate) fn calibrations(&self) -> &[Calibration] {
         &self.calibrations
     }

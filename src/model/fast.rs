@@ -69,6 +69,7 @@ pub(crate) const CHUNK_PIXELS: usize = 1 << 16;
 type Lanes = [f32; LANES];
 
 /// Errors of the fast path: only frames of the wrong shape (every [`Model`] has a kernel).
+#[cfg(any(feature = "cli", test))]
 #[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
 pub(crate) enum FastError {
     /// Source and destination frames differ in size or layout.
@@ -96,6 +97,7 @@ pub(crate) enum FastError {
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub(crate) enum Threads {
     /// The calling thread only.
+    #[cfg(any(feature = "cli", test))]
     Single,
     /// Every thread of rayon's current pool (the global pool unless called inside `install`).
     All,
@@ -151,6 +153,7 @@ impl FastModel {
     }
 
     /// The kernel's name: `linear`, `prm3`, `rprm3`, `nsrm3` or `plan` (the generic one).
+    #[cfg(any(feature = "cli", test))]
     pub(crate) fn kernel_name(&self) -> &'static str {
         match self.kernel {
             Kernel::Linear(_) => "linear",
@@ -186,6 +189,7 @@ impl FastModel {
     }
 
     /// Corrects `src` into `dst` (same size and layout; alpha copied), leaving `src` unchanged.
+    #[cfg(any(feature = "cli", test))]
     pub(crate) fn apply_into(
         &self,
         src: &Frame,
@@ -231,6 +235,7 @@ impl FastModel {
         }
     }
 
+    #[cfg(any(feature = "cli", test))]
     fn dispatch_into<const C: usize>(&self, src: &[f32], dst: &mut [f32], threads: Threads) {
         match &self.kernel {
             Kernel::Linear(k) => into::<_, C>(k, src, dst, threads),
@@ -331,6 +336,7 @@ trait Chunks: Sync {
     /// AVX2 clone, so they stop at AVX2.
     const AVX512: bool;
     fn run_in_place<const C: usize>(&self, data: &mut [f32], fma: bool);
+    #[cfg(any(feature = "cli", test))]
     fn run_into<const C: usize>(&self, src: &[f32], dst: &mut [f32], fma: bool);
 }
 
@@ -432,6 +438,7 @@ fn rgb_of<const C: usize>(x: &[Lanes; C]) -> [Lanes; 3] {
 
 /// `dst = f(src)` pixel by pixel (alpha copied): the loop the vectoriser turns into interleaved
 /// loads, packed arithmetic and interleaved stores.
+#[cfg(any(feature = "cli", test))]
 #[inline(always)]
 fn map_into<K: PixelKernel, const C: usize, const STEP_OK: bool>(
     k: &K,
@@ -502,6 +509,7 @@ impl<K: PixelKernel> Chunks for K {
         self.slow_in_place::<C>(steps.into_remainder(), fma);
     }
 
+    #[cfg(any(feature = "cli", test))]
     #[inline(always)]
     fn run_into<const C: usize>(&self, src: &[f32], dst: &mut [f32], fma: bool) {
         if !K::STEPPED {
@@ -553,6 +561,7 @@ impl<K: BlockKernel> Chunks for Blocks<'_, K> {
         }
     }
 
+    #[cfg(any(feature = "cli", test))]
     #[inline(always)]
     fn run_into<const C: usize>(&self, src: &[f32], dst: &mut [f32], fma: bool) {
         let k = self.0;
@@ -586,10 +595,12 @@ fn in_place<K: Chunks, const C: usize>(k: &K, data: &mut [f32], threads: Threads
     };
     match threads {
         Threads::All => data.par_chunks_mut(n).for_each(run),
+        #[cfg(any(feature = "cli", test))]
         Threads::Single => data.chunks_mut(n).for_each(run),
     }
 }
 
+#[cfg(any(feature = "cli", test))]
 fn into<K: Chunks, const C: usize>(k: &K, src: &[f32], dst: &mut [f32], threads: Threads) {
     let n = CHUNK_PIXELS * C;
     let run = |(s, d): (&[f32], &mut [f32])| {
@@ -617,6 +628,7 @@ fn chunk_in_place<K: Chunks, const C: usize>(k: &K, data: &mut [f32]) {
 }
 
 /// [`chunk_in_place`] into a second chunk (the same clones).
+#[cfg(any(feature = "cli", test))]
 #[multiversion::multiversion(targets("x86_64+avx2+fma+avx512f+avx512vl", "x86_64+avx2+fma"))]
 fn chunk_into<K: Chunks, const C: usize>(k: &K, src: &[f32], dst: &mut [f32]) {
     const FMA: bool = multiversion::target::selected_target!().supports_feature_str("fma");
@@ -631,6 +643,7 @@ fn chunk_in_place_avx2<K: Chunks, const C: usize>(k: &K, data: &mut [f32]) {
 }
 
 /// [`chunk_into`] without the AVX-512 clone.
+#[cfg(any(feature = "cli", test))]
 #[multiversion::multiversion(targets("x86_64+avx2+fma"))]
 fn chunk_into_avx2<K: Chunks, const C: usize>(k: &K, src: &[f32], dst: &mut [f32]) {
     const FMA: bool = multiversion::target::selected_target!().supports_feature_str("fma");

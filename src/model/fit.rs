@@ -51,6 +51,7 @@ pub enum Objective {
 
 impl Objective {
     /// Parses `ls`, `de00` or `de00:P` (P ≥ 2, at most 64).
+    #[cfg(any(feature = "cli", test))]
     pub(crate) fn parse(s: &str) -> Result<Objective, ModelError> {
         let s = s.trim();
         let bad = || {
@@ -111,6 +112,7 @@ pub enum Ridge {
 
 impl Ridge {
     /// Parses `auto` or a number ≥ 0 (`0` is no regularisation).
+    #[cfg(any(feature = "cli", test))]
     pub(crate) fn parse(s: &str) -> Result<Ridge, ModelError> {
         let s = s.trim();
         if s.eq_ignore_ascii_case("auto") || s.eq_ignore_ascii_case("auto-gcv") {
@@ -917,6 +919,7 @@ pub(crate) fn f32_error_bound(model: &Model, rgb: &[[f64; 3]], xyz: &[[f64; 3]])
 /// How much the fast CPU path (f32, this machine's kernels) moves the ΔE00 of the patches `rgb`
 /// against their references `xyz`, measured: the largest `|ΔE00(f32) − ΔE00(f64)|`, the camera RGB
 /// rounded to f32 as a frame holds it. [`f32_error_bound`] bounds it on every back end.
+#[cfg(any(feature = "cli", test))]
 pub(crate) fn f32_error_measured(model: &Model, rgb: &[[f64; 3]], xyz: &[[f64; 3]]) -> f64 {
     use crate::frame::{Frame, Layout};
     let data: Vec<f32> = rgb.iter().flat_map(|c| c.map(|v| v as f32)).collect();

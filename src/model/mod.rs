@@ -24,6 +24,7 @@ mod policy_tests;
 mod refine;
 pub(crate) mod terms;
 
+#[cfg(feature = "export")]
 pub(crate) use output::output_model;
 pub(crate) use terms::MAX_ORDER;
 pub(crate) use terms::{term_name, terms, Term};
@@ -133,6 +134,7 @@ pub enum ModelError {
 
 impl ModelError {
     /// True for an unknown model kind, an order outside 1..=4 and a malformed fit option.
+    #[cfg(any(feature = "cli", test))]
     pub(crate) fn is_usage(&self) -> bool {
         matches!(
             self,
@@ -142,6 +144,7 @@ impl ModelError {
 
     /// A fit that needs the camera response of a white the data lacks: naming a neutral patch
     /// ([`crate::error::Param::WhitePatch`]) is the way out.
+    #[cfg(feature = "cli")]
     pub(crate) fn concern(&self) -> Option<crate::error::Concern> {
         match self {
             ModelError::NoWhite => Some(crate::error::Concern::Remedy(

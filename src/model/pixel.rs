@@ -70,7 +70,7 @@ pub(crate) enum Step {
 
 impl Step {
     /// One line saying what the step does, for the comments of printed code.
-    #[cfg_attr(not(any(feature = "gpu", feature = "export")), allow(dead_code))]
+    #[cfg(any(feature = "gpu", all(test, feature = "export")))]
     pub(crate) fn describe(self) -> &'static str {
         match self {
             Step::Gain => "multiply R, G, B by the input gains (1, 1, 1 unless white-balanced)",
@@ -213,7 +213,7 @@ impl<'a> Program<'a> {
 
     /// The distinct per-channel roots `(channel, degree > 1)` the terms use, sorted: what a printer
     /// computes once before the terms.
-    #[cfg_attr(not(any(feature = "gpu", feature = "export")), allow(dead_code))]
+    #[cfg(any(feature = "gpu", test))]
     pub(crate) fn roots(&self) -> Vec<(usize, u8)> {
         let mut v: Vec<(usize, u8)> = self
             .terms

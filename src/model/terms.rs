@@ -195,6 +195,7 @@ pub(crate) use super::pixel::signed_root;
 /// of `signed_root(x[variable], root)` over them (1 for none), which is what [`expand`] computes.
 /// Code generators (the WGSL of `crate::gpu::shader`, the DCTL of `crate::export::dctl`) spell
 /// each factor in their language, so every back end follows this one definition.
+#[cfg(any(feature = "gpu", test))]
 pub(crate) fn term_factors(t: &Term) -> Vec<(usize, u8)> {
     t.exps
         .iter()

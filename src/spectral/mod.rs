@@ -133,6 +133,7 @@ pub enum SpectralError {
 
 impl SpectralError {
     /// True for a malformed wavelength grid.
+    #[cfg(feature = "cli")]
     pub(crate) fn is_usage(&self) -> bool {
         matches!(self, SpectralError::Grid { .. })
     }
@@ -162,6 +163,7 @@ impl Default for Grid {
 
 impl Grid {
     /// Parses `START:END:STEP` (nm).
+    #[cfg(any(feature = "cli", test))]
     pub(crate) fn parse(spec: &str) -> Result<Grid, SpectralError> {
         let err = |why: &str| SpectralError::Grid {
             spec: spec.to_string(),
@@ -338,6 +340,7 @@ impl Reflectances {
 }
 
 /// The name shown for a table: `D65` for `builtin:D65`, the file stem for a path.
+#[cfg(feature = "export")]
 pub(crate) fn display_name(source_name: &str) -> String {
     if let Some(n) = source_name.strip_prefix("builtin:") {
         return n.to_string();

@@ -31,7 +31,7 @@ impl GpuContext {
     ///
     /// ```no_run
     /// let ctx = nsrm::gpu::GpuContext::new(&nsrm::gpu::GpuOptions::default())?;
-    /// println!("{}", ctx.adapter_name());
+    /// println!("{}", ctx.adapter.get_info().name);
     /// # Ok::<(), nsrm::gpu::GpuError>(())
     /// ```
     pub fn new(opts: &GpuOptions) -> Result<GpuContext, GpuError> {

@@ -150,22 +150,27 @@ fn downsample(frame: &Frame, f: usize) -> (usize, usize, Vec<f32>) {
     let ch = frame.layout.channels();
     let mut out = vec![0.0f32; ws * hs * 3];
     let norm = 1.0 / (f * f) as f32;
+    // Each output pixel is summed in a local and written once: the output's pages come fresh
+    // from the allocator, and reading one before writing it maps the shared zero page, whose
+    // copy-on-write fault then flushes every CPU's TLB (40 % of a 1-Mpixel photo's detection
+    // time, by `perf`). Same sums in the same order as a row-at-a-time accumulation.
     out.par_chunks_mut(ws * 3)
         .enumerate()
         .for_each(|(ys, row)| {
-            for yy in ys * f..(ys + 1) * f {
-                let src = &frame.data[yy * frame.width * ch..][..ws * f * ch];
-                for (xs, px) in row.chunks_exact_mut(3).enumerate() {
-                    for p in src[xs * f * ch..(xs + 1) * f * ch].chunks_exact(ch) {
+            for (xs, px) in row.chunks_exact_mut(3).enumerate() {
+                let mut acc = [0.0f32; 3];
+                for yy in ys * f..(ys + 1) * f {
+                    let src = &frame.data[(yy * frame.width + xs * f) * ch..][..f * ch];
+                    for p in src.chunks_exact(ch) {
                         for k in 0..3 {
                             let v = p[k];
-                            px[k] += if v.is_finite() { v } else { 0.0 };
+                            acc[k] += if v.is_finite() { v } else { 0.0 };
                         }
                     }
                 }
-            }
-            for v in row.iter_mut() {
-                *v *= norm;
+                for k in 0..3 {
+                    px[k] = acc[k] * norm;
+                }
             }
         });
     (ws, hs, out)

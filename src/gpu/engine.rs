@@ -155,13 +155,13 @@ impl Engine {
     }
 
     /// The adapter, device and queue (the unit tests build [`Corrector`]s on them).
-    #[cfg(test)]
+    #[cfg(all(test, feature = "io"))]
     pub(crate) fn context(&self) -> &GpuContext {
         &self.ctx
     }
 
     /// Whether [`timed_apply`](Self::timed_apply) can report kernel time.
-    #[cfg(any(feature = "cli", test))]
+    #[cfg(any(feature = "cli", all(test, feature = "io")))]
     pub(crate) fn has_timestamps(&self) -> bool {
         self.timestamps.is_some()
     }
@@ -174,7 +174,7 @@ impl Engine {
 
     /// [`apply`](Self::apply), timed: kernel time from timestamp queries (if the adapter has
     /// them) and the wall time of upload + compute + read-back.
-    #[cfg(any(feature = "cli", test))]
+    #[cfg(any(feature = "cli", all(test, feature = "io")))]
     pub(crate) fn timed_apply(
         &mut self,
         model: &Model,
@@ -403,7 +403,7 @@ impl Engine {
     /// Bytes per second of a `bytes`-byte buffer-to-buffer copy on the device, timed with
     /// timestamp queries (best of three after a warm-up); `None` if the device cannot write
     /// timestamps between commands. `bytes` is capped at the device's buffer size limit.
-    #[cfg(any(feature = "cli", test))]
+    #[cfg(any(feature = "cli", all(test, feature = "io")))]
     pub(crate) fn copy_bandwidth(&mut self, bytes: u64) -> Result<Option<f64>, GpuError> {
         let dev = &self.ctx.device;
         let needed =

@@ -32,11 +32,12 @@
 mod context;
 mod corrector;
 mod engine;
-#[cfg(test)]
+// The engine's and the program's tests share `gpu_tests`' adapter and frames, which need `io`.
+#[cfg(all(test, feature = "io"))]
 mod engine_tests;
 #[cfg(all(test, feature = "io"))]
 mod gpu_tests;
-#[cfg(test)]
+#[cfg(all(test, feature = "io"))]
 mod program_tests;
 pub(crate) mod shader;
 
@@ -211,7 +212,10 @@ pub(crate) enum Opened {
     Gpu(Box<Engine>),
     // Only the binary and the tests read the reason (`open` drops it); gating it would gate
     // `CpuReason` and its three constructions in `open_device` with it.
-    Cpu(#[cfg_attr(not(any(feature = "cli", test)), allow(dead_code))] CpuReason),
+    Cpu(
+        #[cfg_attr(not(any(feature = "cli", all(test, feature = "io"))), allow(dead_code))]
+        CpuReason,
+    ),
 }
 
 /// Opens the engine the choice asks for, saying why when it is the CPU.

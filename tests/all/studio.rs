@@ -387,7 +387,7 @@ fn the_api_gives_the_cli_numbers_and_bytes() {
     let cmp = srv.json(
         "POST",
         &format!("/api/frames/{id}/compare"),
-        r#"{"objective": "de00"}"#,
+        r#"{"objective": "ls"}"#,
     );
     for (key, extra) in [("leave_one_out", ""), ("in_sample", " --in-sample")] {
         let ours: Vec<&Value> = cmp[key]

@@ -19,8 +19,11 @@
 //!    [`super::extract::chart_score`]). The best must be plausible (below
 //!    [`DETECT_MATCH_LIMIT`], or [`MATCH_LIMIT`] when every cell of the chart was seen as a patch
 //!    and the next placement is [`COMPLETE_AMBIGUITY_RATIO`] worse), clearly better than the next
-//!    (ratio [`AMBIGUITY_RATIO`]) and seen under moderate perspective ([`PERSPECTIVE_LIMIT`]);
-//!    otherwise detection fails with a message and the candidates, never a guess.
+//!    (ratio [`AMBIGUITY_RATIO`]) and seen under moderate perspective ([`PERSPECTIVE_LIMIT`], or
+//!    [`ENCLOSED_PERSPECTIVE_LIMIT`] when the chart's outer ring of cells was all seen); where
+//!    cells of that ring were not seen, their placement must survive fitting the lattice without
+//!    any one of its points ([`EXTRAPOLATION_LIMIT`]); otherwise detection fails with a message
+//!    and the candidates, never a guess.
 
 use super::extract::{cell_means, chart_score, MATCH_LIMIT};
 use super::reference::Reference;
@@ -51,11 +54,16 @@ pub(crate) const COMPLETE_AMBIGUITY_RATIO: f64 = 0.5;
 /// 1.51 (100 CC24 and 60 SG scenes).
 pub(crate) const PERSPECTIVE_LIMIT: f64 = 1.6;
 
-/// [`PERSPECTIVE_LIMIT`] for a complete placement (every cell of the chart seen as a patch and
-/// linked into the lattice): no cell is extrapolated past what was seen, so the bias of
-/// extrapolated cells does not arise; what remains is the centroid of a tilted patch lying
-/// off its projected centre, a small fraction of a pitch (measured with `--family tilt`).
-pub(crate) const COMPLETE_PERSPECTIVE_LIMIT: f64 = 2.2;
+/// [`PERSPECTIVE_LIMIT`] for an enclosed placement (every cell of the chart's outer ring seen
+/// as a patch and linked into the lattice, so a cell not seen, if any, has seen cells all
+/// round it): no cell is extrapolated past what was seen, so the bias of extrapolated cells
+/// does not arise; what remains is the centroid of a tilted patch lying off its projected
+/// centre, a small fraction of a pitch (measured with `--family tilt` and `--family wide`).
+pub(crate) const ENCLOSED_PERSPECTIVE_LIMIT: f64 = 2.2;
+
+/// Where cells of the chart's outer ring were not seen, the most a cell not seen may move when
+/// the lattice is fitted without one of its points, in pitches ([`extrapolation`]).
+pub(crate) const EXTRAPOLATION_LIMIT: f64 = 0.25;
 
 /// [`PERSPECTIVE_LIMIT`]'s measure: largest over smallest local patch scale, over the cells
 /// that `h` (chart → image) places.
@@ -286,6 +294,12 @@ fn patch_shape(s: &[f64; 6], min: f64, max: f64) -> ([f64; 2], bool) {
     ([mx, my], ok)
 }
 
+/// The smallest part of the frame a chart's patch grid may cover for its patches to be
+/// candidates: a candidate region must hold 8 % of a cell of such a chart (and 10 pixels of the
+/// searched image). Phone photographs show charts held at arm's length covering 1–2 % of the
+/// frame; below that, a patch is a few pixels of the searched image.
+const MIN_CHART_FRACTION: f64 = 0.01;
+
 /// Step 2's result: the candidate patches and every region large enough to report.
 struct Regions {
     blobs: Vec<Blob>,
@@ -297,7 +311,7 @@ impl Regions {
     /// Step 2b: the regions of `stats` in a `ws × hs` image, for a chart of `cells` cells.
     fn new(stats: &[[f64; 6]], cells: usize, ws: usize, hs: usize) -> Regions {
         let frame_area = (ws * hs) as f64;
-        let min_area = 10.0f64.max(frame_area * 0.05 / cells as f64 * 0.08);
+        let min_area = 10.0f64.max(frame_area * MIN_CHART_FRACTION / cells as f64 * 0.08);
         // A patch is at most a cell of a chart whose patch grid fills the whole frame (a
         // chart cropped tight, no surround): frame area / cells.
         let max_area = frame_area / cells as f64;
@@ -458,6 +472,13 @@ struct Placement {
     outside: usize,
     /// Every cell holds a lattice patch: nothing extrapolated past what was seen.
     complete: bool,
+    /// Every cell of the chart's outer ring holds a lattice patch: the cells not seen, if any,
+    /// are enclosed by seen ones, so they are interpolated, never extrapolated.
+    enclosed: bool,
+    /// How far apart (in local pitches, the most over the cells not seen) the projective fit
+    /// and an affine fit of the same lattice points place the cells not seen
+    /// ([`extrapolation`]); 0 until measured for the best placement.
+    extrapolation: f64,
     /// Chart → lattice ([`placement_map`]).
     map: Homography,
     /// The lattice window the chart covers: first `[i, j]` and sizes.
@@ -520,11 +541,16 @@ fn placements(
                         continue;
                     };
                     let det = if swap { -sxf * syf } else { sxf * syf };
-                    let covered = lattice
+                    let in_window = |ij: &[i32; 2]| {
+                        ij[0] >= si && ij[0] < si + ai && ij[1] >= sj && ij[1] < sj + aj
+                    };
+                    let ring = |ij: &[i32; 2]| {
+                        ij[0] == si || ij[0] == si + ai - 1 || ij[1] == sj || ij[1] == sj + aj - 1
+                    };
+                    let covered = lattice.iter().filter(|(_, ij)| in_window(ij)).count();
+                    let ring_seen = lattice
                         .iter()
-                        .filter(|(_, ij)| {
-                            ij[0] >= si && ij[0] < si + ai && ij[1] >= sj && ij[1] < sj + aj
-                        })
+                        .filter(|(_, ij)| in_window(ij) && ring(ij))
                         .count();
                     scored.push(Placement {
                         score,
@@ -532,6 +558,8 @@ fn placements(
                         mirrored: det * obs_det < 0.0,
                         outside: kind.cells() - inside,
                         complete: covered == kind.cells(),
+                        enclosed: ring_seen as i32 == 2 * (ai + aj) - 4,
+                        extrapolation: 0.0,
                         map,
                         window: ([si, sj], [ai, aj]),
                     });
@@ -570,6 +598,52 @@ fn refit_inside(
             (inside, scored)
         }
         Err(_) => (lattice, scored),
+    }
+}
+
+/// How uncertain the placement of the cells not seen as patches is, in local pitches: the most
+/// a cell not seen moves when the lattice's homography is fitted again without one of its points
+/// (a jackknife over the lattice). Cells seen are pinned by their centroids; a cell not seen is
+/// placed by the fit alone, and when dropping a single point moves it, its projective terms are
+/// extrapolated from too little (seen: a lattice of 12 patches whose fit showed perspective 1.46
+/// where the chart's was 1.20, putting other rows most of a pitch off). 0 when every cell was seen.
+fn extrapolation(blobs: &[Blob], lattice: &Lattice, p: &Placement, kind: super::ChartKind) -> f64 {
+    let Some(to_chart) = p.map.inverse() else {
+        return f64::INFINITY;
+    };
+    let seen: Vec<[f64; 2]> = lattice
+        .iter()
+        .map(|(_, ij)| to_chart.apply([ij[0] as f64, ij[1] as f64]))
+        .collect();
+    let unseen: Vec<[f64; 2]> = (0..kind.cells())
+        .map(|i| kind.cell_centre(i))
+        .filter(|c| !seen.iter().any(|q| (q[0] - c[0]).hypot(q[1] - c[1]) < 0.25))
+        .collect();
+    if unseen.is_empty() {
+        return 0.0;
+    }
+    let mut worst = 0.0f64;
+    for k in 0..lattice.len() {
+        let rest: Lattice = lattice
+            .iter()
+            .enumerate()
+            .filter(|(m, _)| *m != k)
+            .map(|(_, x)| *x)
+            .collect();
+        let Ok(h) = fit_lattice(blobs, &rest) else {
+            return f64::INFINITY;
+        };
+        let hc = h.then_after(&p.map);
+        for c in &unseen {
+            let (a, b) = (p.hc.apply(*c), hc.apply(*c));
+            let step = local_step_at(&p.hc, *c);
+            worst = worst.max((a[0] - b[0]).hypot(a[1] - b[1]) / step);
+        }
+    }
+    if worst.is_finite() {
+        worst
+    } else {
+        f64::INFINITY
     }
 }
 
@@ -613,15 +687,21 @@ fn judge(
         )));
     }
     let persp = perspective(kind, &best.hc);
-    let limit = if complete {
-        COMPLETE_PERSPECTIVE_LIMIT
+    let limit = if best.enclosed {
+        ENCLOSED_PERSPECTIVE_LIMIT
     } else {
         PERSPECTIVE_LIMIT
     };
+    if !best.enclosed && best.extrapolation > EXTRAPOLATION_LIMIT {
+        return Err(nf(format!(
+            "cells of the chart's outer ring were not seen as patches, and where they lie is uncertain (one moves {:.2} pitch when the grid is fitted without one of its patches, limit {EXTRAPOLATION_LIMIT}): refused rather than risk misplaced patches; give the chart's corners",
+            best.extrapolation
+        )));
+    }
     if persp > limit {
         return Err(nf(format!(
             "the chart is seen under strong perspective (patch scale varies {persp:.2}× across it, limit {limit}{}): refused rather than risk misplaced patches; shoot it more squarely or give the chart's corners",
-            if complete { "" } else { " when some cells were not seen as patches" }
+            if best.enclosed { "" } else { " when cells of the chart's outer ring were not seen as patches" }
         )));
     }
     if score > AMBIGUITY_RATIO * runner_up {
@@ -706,7 +786,10 @@ pub(crate) fn detect(
         });
         return Err(fail(e, regions.candidates(f, &[])));
     };
-    let (lattice, scored) = refit_inside(blobs, lattice, scored);
+    let (lattice, mut scored) = refit_inside(blobs, lattice, scored);
+    if let Some(best) = scored.first_mut() {
+        best.extrapolation = extrapolation(blobs, &lattice, best, kind);
+    }
     let mut accepted = vec![false; blobs.len()];
     for (b, _) in &lattice {
         accepted[*b] = true;
@@ -747,9 +830,14 @@ fn windows(l: &[(usize, [i32; 2])], lo: i32, hi: i32, len: i32, k: usize) -> Vec
 }
 
 fn local_step(h: &Homography, i: i32, j: i32) -> f64 {
-    let p = h.apply([i as f64, j as f64]);
-    let a = h.apply([i as f64 + 1.0, j as f64]);
-    let b = h.apply([i as f64, j as f64 + 1.0]);
+    local_step_at(h, [i as f64, j as f64])
+}
+
+/// The shorter of the two unit steps of `h` from `q`.
+fn local_step_at(h: &Homography, q: [f64; 2]) -> f64 {
+    let p = h.apply(q);
+    let a = h.apply([q[0] + 1.0, q[1]]);
+    let b = h.apply([q[0], q[1] + 1.0]);
     (a[0] - p[0])
         .hypot(a[1] - p[1])
         .min((b[0] - p[0]).hypot(b[1] - p[1]))
@@ -870,6 +958,68 @@ mod tests {
             }
         }
         v
+    }
+
+    /// Blobs on a 20-pixel grid of `rows` rows of six from (50, 40), each centroid moved by up
+    /// to `jitter` pixels, and their lattice.
+    fn jittered(rows: i32, jitter: f64) -> (Vec<Blob>, Lattice) {
+        let wobble = [
+            0.8, -1.0, 0.5, -0.3, 1.0, -0.6, 0.2, 0.9, -0.8, 0.4, -0.5, 0.7,
+        ];
+        let mut blobs = Vec::new();
+        let mut lat = Vec::new();
+        for r in 0..rows {
+            for c in 0..6 {
+                let k = (r * 6 + c) as usize;
+                blobs.push(Blob {
+                    c: [
+                        50.0 + 20.0 * c as f64 + jitter * wobble[k % 12],
+                        40.0 + 20.0 * r as f64 - jitter * wobble[(k + 5) % 12],
+                    ],
+                    area: 196.0,
+                });
+                lat.push((k, [c, r]));
+            }
+        }
+        (blobs, lat)
+    }
+
+    #[test]
+    fn cells_placed_from_too_little_lattice_are_uncertain() {
+        let kind = ChartKind::Cc24;
+        let place = |blobs: &[Blob], lat: &Lattice| {
+            let map = placement_map(false, 1.0, 1.0, 0, 0);
+            Placement {
+                score: 1.0,
+                hc: fit_lattice(blobs, lat).unwrap().then_after(&map),
+                mirrored: false,
+                outside: 0,
+                complete: lat.len() == 24,
+                enclosed: lat.len() == 24,
+                extrapolation: 0.0,
+                map,
+                window: ([0, 0], [6, 4]),
+            }
+        };
+        let x = |rows: i32, jitter: f64| {
+            let (blobs, lat) = jittered(rows, jitter);
+            extrapolation(&blobs, &lat, &place(&blobs, &lat), kind)
+        };
+        // Every cell seen: nothing is placed by the fit alone.
+        assert_eq!(x(4, 1.0), 0.0);
+        // Centroids exactly on a grid: dropping a point moves nothing.
+        assert!(x(2, 0.0) < 1e-6, "{}", x(2, 0.0));
+        // Two rows seen, centroids up to 0.15 pitch off (patches partly covered, or blurred into
+        // a neighbour): the projective terms that place the other two rows hang on single points
+        // (0.31 pitch).
+        let two = x(2, 3.0);
+        assert!(two > EXTRAPOLATION_LIMIT, "{two}");
+        // Three rows seen with the same errors: the fourth row is pinned well enough (0.17).
+        let three = x(3, 3.0);
+        assert!(
+            three < two && three < EXTRAPOLATION_LIMIT,
+            "{three} vs {two}"
+        );
     }
 
     #[test]
@@ -1015,6 +1165,8 @@ mod tests {
             mirrored: false,
             outside: 0,
             complete: true,
+            enclosed: true,
+            extrapolation: 0.0,
             map,
             window: ([0, 0], [6, 4]),
         };
@@ -1061,6 +1213,8 @@ mod tests {
             mirrored: false,
             outside: 0,
             complete,
+            enclosed: complete,
+            extrapolation: 0.0,
             map: placement_map(false, 1.0, 1.0, 0, 0),
             window: ([0, 0], [6, 4]),
         };
@@ -1073,6 +1227,18 @@ mod tests {
         let loose = 0.5 * (DETECT_MATCH_LIMIT + MATCH_LIMIT);
         assert!(judge(&r, 24, &[p(loose, false), p(4.0 * loose, false)]).is_err());
         assert!(judge(&r, 24, &[p(loose, true), p(4.0 * loose, true)]).is_ok());
+        // Strong perspective (1.8×): refused unless the chart's outer ring was all seen.
+        let steep = |enclosed: bool| Placement {
+            hc: Homography([20.0, 0.0, 10.0, 0.0, 20.0, 10.0, 0.1, 0.0, 1.0]),
+            enclosed,
+            ..p(1.0, false)
+        };
+        assert!(judge(&r, 24, &[steep(false), p(3.0, false)]).is_err());
+        let (_, _, persp) = judge(&r, 24, &[steep(true), p(3.0, false)]).unwrap();
+        assert!(
+            persp > PERSPECTIVE_LIMIT && persp < ENCLOSED_PERSPECTIVE_LIMIT,
+            "{persp}"
+        );
         let mut out = p(1.0, true);
         out.outside = 2;
         assert!(matches!(

@@ -475,9 +475,8 @@ struct Placement {
     /// Every cell of the chart's outer ring holds a lattice patch: the cells not seen, if any,
     /// are enclosed by seen ones, so they are interpolated, never extrapolated.
     enclosed: bool,
-    /// How far apart (in local pitches, the most over the cells not seen) the projective fit
-    /// and an affine fit of the same lattice points place the cells not seen
-    /// ([`extrapolation`]); 0 until measured for the best placement.
+    /// The most a cell not seen moves, in local pitches, when the lattice is fitted without one
+    /// of its points ([`extrapolation`]); 0 until measured for the best placement.
     extrapolation: f64,
     /// Chart → lattice ([`placement_map`]).
     map: Homography,

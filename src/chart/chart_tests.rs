@@ -36,6 +36,17 @@ fn sg() -> Option<ChartColours> {
     Some(ChartColours::simulate(ChartKind::Sg, "nikon-d5100", "D65", Some(path)).unwrap())
 }
 
+/// The true pitch (frame pixels from one cell to the next along the rows) at the chart's centre:
+/// the unit of "a quarter pitch off".
+fn centre_pitch(kind: ChartKind, truth: &SceneTruth) -> f64 {
+    let c = [kind.columns() as f64 / 2.0, kind.rows() as f64 / 2.0];
+    let (a, b) = (
+        truth.homography.apply(c),
+        truth.homography.apply([c[0] + 1.0, c[1]]),
+    );
+    (a[0] - b[0]).hypot(a[1] - b[1])
+}
+
 /// Largest |measured / truth − 1| over patches brighter than `min_g`.
 fn worst_ratio(ex: &Extraction, truth: &SceneTruth, min_g: f64) -> f64 {
     ex.patches
@@ -150,10 +161,7 @@ fn detection_in_the_envelope_is_right_or_refuses() {
             ) else {
                 continue;
             };
-            let c = [kind.columns() as f64 / 2.0, kind.rows() as f64 / 2.0];
-            let a = truth.homography.apply(c);
-            let b = truth.homography.apply([c[0] + 1.0, c[1]]);
-            let pitch = (a[0] - b[0]).hypot(a[1] - b[1]);
+            let pitch = centre_pitch(kind, &truth);
             for (p, t) in ex.patches.iter().zip(&truth.patches) {
                 let off = (p.centre[0] - t.centre[0]).hypot(p.centre[1] - t.centre[1]);
                 assert!(
@@ -246,13 +254,7 @@ fn charts_covering_one_percent_of_the_frame_are_found() {
         let Ok(d) = detect(&frame, &reference, &DetectOptions::default()) else {
             continue;
         };
-        let pitch = {
-            let (a, b) = (
-                truth.homography.apply([3.0, 2.0]),
-                truth.homography.apply([4.0, 2.0]),
-            );
-            (a[0] - b[0]).hypot(a[1] - b[1])
-        };
+        let pitch = centre_pitch(ChartKind::Cc24, &truth);
         // Patches 01 and 24 (opposite corners: a rotated placement moves both).
         for cell in [[0.5, 0.5], [5.5, 3.5]] {
             let (t, q) = (truth.homography.apply(cell), d.homography.apply(cell));
@@ -413,10 +415,7 @@ fn family_outcomes(
             refused += 1;
             continue;
         };
-        let (cc, rr) = ((kind.columns() / 2) as f64, (kind.rows() / 2) as f64);
-        let c0 = truth.homography.apply([cc, rr]);
-        let c1 = truth.homography.apply([cc + 1.0, rr]);
-        let pitch = (c0[0] - c1[0]).hypot(c0[1] - c1[1]);
+        let pitch = centre_pitch(kind, &truth);
         for (p, t) in ex.patches.iter().zip(&truth.patches) {
             let off = (p.centre[0] - t.centre[0]).hypot(p.centre[1] - t.centre[1]);
             assert!(

@@ -475,13 +475,15 @@ struct Placement {
     /// Every cell of the chart's outer ring holds a lattice patch: the cells not seen, if any,
     /// are enclosed by seen ones, so they are interpolated, never extrapolated.
     enclosed: bool,
-    /// The most a cell not seen moves, in local pitches, when the lattice is fitted without one
-    /// of its points ([`extrapolation`]); 0 until measured for the best placement.
-    extrapolation: f64,
     /// Chart → lattice ([`placement_map`]).
     map: Homography,
     /// The lattice window the chart covers: first `[i, j]` and sizes.
     window: ([i32; 2], [i32; 2]),
+}
+
+/// Whether lattice point `ij` lies in the window `(first [i, j], sizes)`.
+fn in_window(ij: &[i32; 2], (s, a): ([i32; 2], [i32; 2])) -> bool {
+    ij[0] >= s[0] && ij[0] < s[0] + a[0] && ij[1] >= s[1] && ij[1] < s[1] + a[1]
 }
 
 /// Chart `(u, v)` → lattice `(i, j)`: axes swapped or not, signs `sx`, `sy`, the cell
@@ -540,9 +542,7 @@ fn placements(
                         continue;
                     };
                     let det = if swap { -sxf * syf } else { sxf * syf };
-                    let in_window = |ij: &[i32; 2]| {
-                        ij[0] >= si && ij[0] < si + ai && ij[1] >= sj && ij[1] < sj + aj
-                    };
+                    let in_window = |ij: &[i32; 2]| in_window(ij, ([si, sj], [ai, aj]));
                     let ring = |ij: &[i32; 2]| {
                         ij[0] == si || ij[0] == si + ai - 1 || ij[1] == sj || ij[1] == sj + aj - 1
                     };
@@ -558,7 +558,6 @@ fn placements(
                         outside: kind.cells() - inside,
                         complete: covered == kind.cells(),
                         enclosed: ring_seen as i32 == 2 * (ai + aj) - 4,
-                        extrapolation: 0.0,
                         map,
                         window: ([si, sj], [ai, aj]),
                     });
@@ -582,11 +581,10 @@ fn refit_inside(
     let Some(best) = scored.first_mut() else {
         return (lattice, scored);
     };
-    let ([si, sj], [ai, aj]) = best.window;
     let inside: Lattice = lattice
         .iter()
         .copied()
-        .filter(|(_, ij)| ij[0] >= si && ij[0] < si + ai && ij[1] >= sj && ij[1] < sj + aj)
+        .filter(|(_, ij)| in_window(ij, best.window))
         .collect();
     if inside.len() == lattice.len() || inside.len() < MIN_LATTICE {
         return (lattice, scored);
@@ -647,12 +645,14 @@ fn extrapolation(blobs: &[Blob], lattice: &Lattice, p: &Placement, kind: super::
 }
 
 /// Step 6: the best placement if it is certain — plausible colours, decisive against the next
-/// placement, moderate perspective, inside the image — with the runner-up's score and the
-/// perspective; otherwise why not.
+/// placement, moderate perspective, its unseen cells placed with certainty (`extrapolation`: the
+/// best placement's [`extrapolation`], looked at only when it is not enclosed), inside the image —
+/// with the runner-up's score and the perspective; otherwise why not.
 fn judge(
     reference: &Reference,
     lattice: usize,
     scored: &[Placement],
+    extrapolation: f64,
 ) -> Result<(Placement, f64, f64), ChartError> {
     let kind = reference.chart;
     let nf = |m: String| ChartError::NotFound(m);
@@ -691,10 +691,9 @@ fn judge(
     } else {
         PERSPECTIVE_LIMIT
     };
-    if !best.enclosed && best.extrapolation > EXTRAPOLATION_LIMIT {
+    if !best.enclosed && extrapolation > EXTRAPOLATION_LIMIT {
         return Err(nf(format!(
-            "cells of the chart's outer ring were not seen as patches, and where they lie is uncertain (one moves {:.2} pitch when the grid is fitted without one of its patches, limit {EXTRAPOLATION_LIMIT}): refused rather than risk misplaced patches; give the chart's corners",
-            best.extrapolation
+            "cells of the chart's outer ring were not seen as patches, and where they lie is uncertain (one moves {extrapolation:.2} pitch when the grid is fitted without one of its patches, limit {EXTRAPOLATION_LIMIT}): refused rather than risk misplaced patches; give the chart's corners"
         )));
     }
     if persp > limit {
@@ -785,16 +784,19 @@ pub(crate) fn detect(
         });
         return Err(fail(e, regions.candidates(f, &[])));
     };
-    let (lattice, mut scored) = refit_inside(blobs, lattice, scored);
-    if let Some(best) = scored.first_mut() {
-        best.extrapolation = extrapolation(blobs, &lattice, best, kind);
-    }
+    let (lattice, scored) = refit_inside(blobs, lattice, scored);
+    // Only a placement whose outer ring was not all seen is judged by it (the jackknife refits
+    // the lattice once per point).
+    let spread = match scored.first() {
+        Some(best) if !best.enclosed => extrapolation(blobs, &lattice, best, kind),
+        _ => 0.0,
+    };
     let mut accepted = vec![false; blobs.len()];
     for (b, _) in &lattice {
         accepted[*b] = true;
     }
     let candidates = regions.candidates(f, &accepted);
-    match judge(reference, lattice.len(), &scored) {
+    match judge(reference, lattice.len(), &scored, spread) {
         Ok((best, runner_up, persp)) => Ok(Detection {
             homography: best.hc.scaled(f as f64),
             score: best.score,
@@ -995,7 +997,6 @@ mod tests {
                 outside: 0,
                 complete: lat.len() == 24,
                 enclosed: lat.len() == 24,
-                extrapolation: 0.0,
                 map,
                 window: ([0, 0], [6, 4]),
             }
@@ -1165,7 +1166,6 @@ mod tests {
             outside: 0,
             complete: true,
             enclosed: true,
-            extrapolation: 0.0,
             map,
             window: ([0, 0], [6, 4]),
         };
@@ -1213,27 +1213,30 @@ mod tests {
             outside: 0,
             complete,
             enclosed: complete,
-            extrapolation: 0.0,
             map: placement_map(false, 1.0, 1.0, 0, 0),
             window: ([0, 0], [6, 4]),
         };
-        let (best, runner, persp) = judge(&r, 24, &[p(1.0, false), p(3.0, false)]).unwrap();
+        let (best, runner, persp) = judge(&r, 24, &[p(1.0, false), p(3.0, false)], 0.0).unwrap();
         assert_eq!((best.score, runner), (1.0, 3.0));
         assert!((persp - 1.0).abs() < 1e-12);
-        assert!(judge(&r, 24, &[p(1.0, false), p(1.2, false)]).is_err());
-        assert!(judge(&r, 24, &[]).is_err());
+        assert!(judge(&r, 24, &[p(1.0, false), p(1.2, false)], 0.0).is_err());
+        assert!(judge(&r, 24, &[], 0.0).is_err());
         // Loosely matching: only with a complete lattice and a decisive runner-up.
         let loose = 0.5 * (DETECT_MATCH_LIMIT + MATCH_LIMIT);
-        assert!(judge(&r, 24, &[p(loose, false), p(4.0 * loose, false)]).is_err());
-        assert!(judge(&r, 24, &[p(loose, true), p(4.0 * loose, true)]).is_ok());
+        assert!(judge(&r, 24, &[p(loose, false), p(4.0 * loose, false)], 0.0).is_err());
+        assert!(judge(&r, 24, &[p(loose, true), p(4.0 * loose, true)], 0.0).is_ok());
         // Strong perspective (1.8×): refused unless the chart's outer ring was all seen.
         let steep = |enclosed: bool| Placement {
             hc: Homography([20.0, 0.0, 10.0, 0.0, 20.0, 10.0, 0.1, 0.0, 1.0]),
             enclosed,
             ..p(1.0, false)
         };
-        assert!(judge(&r, 24, &[steep(false), p(3.0, false)]).is_err());
-        let (_, _, persp) = judge(&r, 24, &[steep(true), p(3.0, false)]).unwrap();
+        assert!(judge(&r, 24, &[steep(false), p(3.0, false)], 0.0).is_err());
+        // Unseen cells of the ring placed uncertainly: refused; enclosed, not looked at.
+        let spread = 2.0 * EXTRAPOLATION_LIMIT;
+        assert!(judge(&r, 24, &[p(1.0, false), p(3.0, false)], spread).is_err());
+        assert!(judge(&r, 24, &[p(1.0, true), p(3.0, true)], spread).is_ok());
+        let (_, _, persp) = judge(&r, 24, &[steep(true), p(3.0, false)], 0.0).unwrap();
         assert!(
             persp > PERSPECTIVE_LIMIT && persp < ENCLOSED_PERSPECTIVE_LIMIT,
             "{persp}"
@@ -1241,7 +1244,7 @@ mod tests {
         let mut out = p(1.0, true);
         out.outside = 2;
         assert!(matches!(
-            judge(&r, 24, &[out, p(3.0, true)]),
+            judge(&r, 24, &[out, p(3.0, true)], 0.0),
             Err(ChartError::Geometry(_))
         ));
     }

@@ -19,7 +19,8 @@
 //!    [`super::extract::chart_score`]). The best must be plausible (below
 //!    [`DETECT_MATCH_LIMIT`], or [`MATCH_LIMIT`] when every cell of the chart was seen as a patch
 //!    and the next placement is [`COMPLETE_AMBIGUITY_RATIO`] worse), clearly better than the next
-//!    (ratio [`AMBIGUITY_RATIO`]) and seen under moderate perspective ([`PERSPECTIVE_LIMIT`], or
+//!    (ratio [`AMBIGUITY_RATIO`]), not a block of a larger grid of like patches (a CC24's colours
+//!    inside a ColorChecker Digital SG, [`SURROUND_LIMIT`]) and seen under moderate perspective ([`PERSPECTIVE_LIMIT`], or
 //!    [`ENCLOSED_PERSPECTIVE_LIMIT`] when the chart's outer ring of cells was all seen); where
 //!    cells of that ring were not seen, their placement must survive fitting the lattice without
 //!    any one of its points ([`EXTRAPOLATION_LIMIT`]); otherwise detection fails with a message
@@ -64,6 +65,16 @@ pub(crate) const ENCLOSED_PERSPECTIVE_LIMIT: f64 = 2.2;
 /// Where cells of the chart's outer ring were not seen, the most a cell not seen may move when
 /// the lattice is fitted without one of its points, in pitches ([`extrapolation`]).
 pub(crate) const EXTRAPOLATION_LIMIT: f64 = 0.25;
+
+/// A placement is refused when at least this fraction of the cells just around it hold lattice
+/// patches of its own patches' size ([`surround`]): the grid goes on past the chart, which is
+/// then a block of a larger chart — a ColorChecker Digital SG holds the classic 24 colours in its
+/// E2–J5 block, and a CC24 read there is a chart reported where there is another make (53 of 60
+/// `--family nested` scenes were, before this check). Measured: `nested` scenes 19–22 of the 24
+/// cells around that block, rendered SG scenes 17–21, a photographed SG 24; CC24 scenes (every
+/// family, 60 seeds each) at most 2 and photographs at most 1, their frame or background lying
+/// around the patches.
+pub(crate) const SURROUND_LIMIT: f64 = 0.5;
 
 /// [`PERSPECTIVE_LIMIT`]'s measure: largest over smallest local patch scale, over the cells
 /// that `h` (chart → image) places.
@@ -644,14 +655,46 @@ fn extrapolation(blobs: &[Blob], lattice: &Lattice, p: &Placement, kind: super::
     }
 }
 
+/// The cells just around placement `p`'s window (the ring one cell outside it) that hold lattice
+/// points of the chart's patch size (area within a factor 2 of the median of the points inside
+/// the window: clutter and specks on a chart's frame are not), and how many cells that ring has.
+fn surround(blobs: &[Blob], lattice: &Lattice, p: &Placement) -> (usize, usize) {
+    let ([si, sj], [ai, aj]) = p.window;
+    let mut inside: Vec<f64> = lattice
+        .iter()
+        .filter(|(_, ij)| in_window(ij, p.window))
+        .map(|(b, _)| blobs[*b].area)
+        .collect();
+    let ring = (2 * (ai + aj) + 4) as usize;
+    if inside.is_empty() {
+        return (0, ring);
+    }
+    inside.sort_by(f64::total_cmp);
+    let median = inside[inside.len() / 2];
+    let around = ([si - 1, sj - 1], [ai + 2, aj + 2]);
+    let like = lattice
+        .iter()
+        .filter(|(b, ij)| {
+            let a = blobs[*b].area;
+            in_window(ij, around)
+                && !in_window(ij, p.window)
+                && a >= 0.5 * median
+                && a <= 2.0 * median
+        })
+        .count();
+    (like, ring)
+}
+
 /// Step 6: the best placement if it is certain — plausible colours, decisive against the next
-/// placement, moderate perspective, its unseen cells placed with certainty (`extrapolation`: the
-/// best placement's [`extrapolation`], looked at only when it is not enclosed), inside the image —
+/// placement, not a block of a larger grid (`surround`: the best placement's [`surround`]),
+/// moderate perspective, its unseen cells placed with certainty (`extrapolation`: the best
+/// placement's [`extrapolation`], looked at only when it is not enclosed), inside the image —
 /// with the runner-up's score and the perspective; otherwise why not.
 fn judge(
     reference: &Reference,
     lattice: usize,
     scored: &[Placement],
+    surround: (usize, usize),
     extrapolation: f64,
 ) -> Result<(Placement, f64, f64), ChartError> {
     let kind = reference.chart;
@@ -683,6 +726,15 @@ fn judge(
             } else {
                 String::new()
             }
+        )));
+    }
+    let (like, ring) = surround;
+    if like as f64 >= SURROUND_LIMIT * ring as f64 {
+        return Err(nf(format!(
+            "a grid of patches matching the {} chart was found, but the grid goes on past it: {like} of the {ring} cells around it hold patches like its own (limit {:.0} %), so it is part of a larger chart (a ColorChecker Digital SG holds the classic 24 colours in its middle), not a {}",
+            kind.name(),
+            100.0 * SURROUND_LIMIT,
+            kind.name()
         )));
     }
     let persp = perspective(kind, &best.hc);
@@ -784,6 +836,10 @@ pub(crate) fn detect(
         });
         return Err(fail(e, regions.candidates(f, &[])));
     };
+    // Measured before `refit_inside` drops the points outside the best placement's window.
+    let around = scored
+        .first()
+        .map_or((0, 1), |best| surround(blobs, &lattice, best));
     let (lattice, scored) = refit_inside(blobs, lattice, scored);
     // Only a placement whose outer ring was not all seen is judged by it (the jackknife refits
     // the lattice once per point).
@@ -796,7 +852,7 @@ pub(crate) fn detect(
         accepted[*b] = true;
     }
     let candidates = regions.candidates(f, &accepted);
-    match judge(reference, lattice.len(), &scored, spread) {
+    match judge(reference, lattice.len(), &scored, around, spread) {
         Ok((best, runner_up, persp)) => Ok(Detection {
             homography: best.hc.scaled(f as f64),
             score: best.score,
@@ -1216,27 +1272,49 @@ mod tests {
             map: placement_map(false, 1.0, 1.0, 0, 0),
             window: ([0, 0], [6, 4]),
         };
-        let (best, runner, persp) = judge(&r, 24, &[p(1.0, false), p(3.0, false)], 0.0).unwrap();
+        let (best, runner, persp) =
+            judge(&r, 24, &[p(1.0, false), p(3.0, false)], (0, 24), 0.0).unwrap();
         assert_eq!((best.score, runner), (1.0, 3.0));
         assert!((persp - 1.0).abs() < 1e-12);
-        assert!(judge(&r, 24, &[p(1.0, false), p(1.2, false)], 0.0).is_err());
-        assert!(judge(&r, 24, &[], 0.0).is_err());
+        assert!(judge(&r, 24, &[p(1.0, false), p(1.2, false)], (0, 24), 0.0).is_err());
+        assert!(judge(&r, 24, &[], (0, 24), 0.0).is_err());
         // Loosely matching: only with a complete lattice and a decisive runner-up.
         let loose = 0.5 * (DETECT_MATCH_LIMIT + MATCH_LIMIT);
-        assert!(judge(&r, 24, &[p(loose, false), p(4.0 * loose, false)], 0.0).is_err());
-        assert!(judge(&r, 24, &[p(loose, true), p(4.0 * loose, true)], 0.0).is_ok());
+        assert!(judge(
+            &r,
+            24,
+            &[p(loose, false), p(4.0 * loose, false)],
+            (0, 24),
+            0.0
+        )
+        .is_err());
+        assert!(judge(
+            &r,
+            24,
+            &[p(loose, true), p(4.0 * loose, true)],
+            (0, 24),
+            0.0
+        )
+        .is_ok());
         // Strong perspective (1.8×): refused unless the chart's outer ring was all seen.
         let steep = |enclosed: bool| Placement {
             hc: Homography([20.0, 0.0, 10.0, 0.0, 20.0, 10.0, 0.1, 0.0, 1.0]),
             enclosed,
             ..p(1.0, false)
         };
-        assert!(judge(&r, 24, &[steep(false), p(3.0, false)], 0.0).is_err());
+        assert!(judge(&r, 24, &[steep(false), p(3.0, false)], (0, 24), 0.0).is_err());
         // Unseen cells of the ring placed uncertainly: refused; enclosed, not looked at.
         let spread = 2.0 * EXTRAPOLATION_LIMIT;
-        assert!(judge(&r, 24, &[p(1.0, false), p(3.0, false)], spread).is_err());
-        assert!(judge(&r, 24, &[p(1.0, true), p(3.0, true)], spread).is_ok());
-        let (_, _, persp) = judge(&r, 24, &[steep(true), p(3.0, false)], 0.0).unwrap();
+        assert!(judge(&r, 24, &[p(1.0, false), p(3.0, false)], (0, 24), spread).is_err());
+        assert!(judge(&r, 24, &[p(1.0, true), p(3.0, true)], (0, 24), spread).is_ok());
+        // A block of a larger grid (half the cells around it hold patches like its own).
+        assert!(judge(&r, 24, &[p(1.0, true), p(3.0, true)], (11, 24), 0.0).is_ok());
+        let larger = judge(&r, 24, &[p(1.0, true), p(3.0, true)], (12, 24), 0.0);
+        assert!(
+            matches!(&larger, Err(ChartError::NotFound(m)) if m.contains("larger chart")),
+            "{larger:?}"
+        );
+        let (_, _, persp) = judge(&r, 24, &[steep(true), p(3.0, false)], (0, 24), 0.0).unwrap();
         assert!(
             persp > PERSPECTIVE_LIMIT && persp < ENCLOSED_PERSPECTIVE_LIMIT,
             "{persp}"
@@ -1244,7 +1322,7 @@ mod tests {
         let mut out = p(1.0, true);
         out.outside = 2;
         assert!(matches!(
-            judge(&r, 24, &[out, p(3.0, true)], 0.0),
+            judge(&r, 24, &[out, p(3.0, true)], (0, 24), 0.0),
             Err(ChartError::Geometry(_))
         ));
     }

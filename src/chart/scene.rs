@@ -1118,10 +1118,14 @@ pub(crate) enum Family {
     /// drawn uniformly), the whole chart in the frame (15–45 % of it), nothing over it, the
     /// body darker than the black patch (0.35–0.6×) so that every cell can be seen.
     Wide,
+    /// Negative: one chart nested in another ([`nested`]) — for a CC24, a ColorChecker Digital
+    /// SG-like 14 × 10 chart holding the classic 24 colours in its E2–J5 block, as the SG does;
+    /// for an SG, a CC24 whose 24 cells are the SG's E2–J5 block.
+    Nested,
 }
 
 impl Family {
-    pub(crate) const ALL: [Family; 11] = [
+    pub(crate) const ALL: [Family; 12] = [
         Family::Envelope,
         Family::Jpeg,
         Family::Fill,
@@ -1133,6 +1137,7 @@ impl Family {
         Family::Spyder,
         Family::Random,
         Family::Shuffled,
+        Family::Nested,
     ];
 
     /// The family's name (`envelope`, `jpeg`, …), as `chart rate --family` takes it.
@@ -1149,6 +1154,7 @@ impl Family {
             Family::Spyder => "spyder",
             Family::Random => "random",
             Family::Shuffled => "shuffled",
+            Family::Nested => "nested",
         }
     }
 
@@ -1160,7 +1166,10 @@ impl Family {
 
     /// True for the charts that are not the one asked for: any detection is wrong.
     pub(crate) fn negative(self) -> bool {
-        matches!(self, Family::Spyder | Family::Random | Family::Shuffled)
+        matches!(
+            self,
+            Family::Spyder | Family::Random | Family::Shuffled | Family::Nested
+        )
     }
 
     /// The colours and options of scene `seed` of this family (a negative's impostor in the
@@ -1227,8 +1236,12 @@ impl Family {
                     o.look = Some(look(&mut g));
                 }
             }
-            Family::Spyder | Family::Random | Family::Shuffled => {
-                c = impostor(colours, self, &mut g);
+            Family::Spyder | Family::Random | Family::Shuffled | Family::Nested => {
+                c = if self == Family::Nested {
+                    nested(colours, &mut g)
+                } else {
+                    impostor(colours, self, &mut g)
+                };
                 if g.uniform() < 0.5 {
                     o.look = Some(look(&mut g));
                 }
@@ -1278,6 +1291,60 @@ fn impostor(colours: &ChartColours, family: Family, g: &mut Gaussian) -> ChartCo
     match colours.chart {
         ChartKind::Cc24 => cc24_impostor(colours, family, g),
         ChartKind::Sg => sg_impostor(colours, family, g),
+    }
+}
+
+/// The SG's cells that hold the classic 24 colours: its block E2–J5 (columns E–J, rows 2–5),
+/// SG index of CC24 cell `i`.
+fn sg_block(i: usize) -> usize {
+    let (cc24, sg) = (ChartKind::Cc24, ChartKind::Sg);
+    let (c, r) = cc24.cell(i);
+    (r + 1) * sg.columns() + c + 4
+}
+
+/// [`Family::Nested`]'s chart: for a CC24's `colours`, an SG-like chart — the alternating
+/// white, grey and black border of the SG, the classic 24 in its E2–J5 block, random colours
+/// elsewhere (as [`Family::Random`]'s); for an SG's, a CC24 made of the SG's E2–J5 block.
+fn nested(colours: &ChartColours, g: &mut Gaussian) -> ChartColours {
+    let w = colours.white_rgb;
+    let (cc24, sg) = (ChartKind::Cc24, ChartKind::Sg);
+    match colours.chart {
+        ChartKind::Sg => ChartColours {
+            chart: cc24,
+            rgb: (0..cc24.cells())
+                .map(|i| colours.rgb[sg_block(i)])
+                .collect(),
+            xyz: (0..cc24.cells())
+                .map(|i| colours.xyz[sg_block(i)])
+                .collect(),
+            ..colours.clone()
+        },
+        ChartKind::Cc24 => {
+            let (cols, rows) = (sg.columns(), sg.rows());
+            let mut rgb: Vec<[f64; 3]> = (0..sg.cells())
+                .map(|i| {
+                    let (c, r) = sg.cell(i);
+                    if c == 0 || r == 0 || c == cols - 1 || r == rows - 1 {
+                        let level = [0.9, 0.2, 0.03][(c + r) % 3];
+                        w.map(|v| v * level)
+                    } else {
+                        let base = 0.03 + 0.85 * g.uniform();
+                        [0, 1, 2].map(|k| w[k] * (base * (0.3 + 1.4 * g.uniform())).min(0.95))
+                    }
+                })
+                .collect();
+            let mut xyz = vec![[0.0; 3]; sg.cells()];
+            for i in 0..cc24.cells() {
+                rgb[sg_block(i)] = colours.rgb[i];
+                xyz[sg_block(i)] = colours.xyz[i];
+            }
+            ChartColours {
+                chart: sg,
+                rgb,
+                xyz,
+                ..colours.clone()
+            }
+        }
     }
 }
 

@@ -17,11 +17,12 @@
 //!    best 3×3 linear map, or after linearising each channel through the chart's own grey ramp
 //!    and then the best 3×3 map — a camera's tone curve — whichever is better,
 //!    [`super::extract::chart_score`]). The best must be plausible (below
-//!    [`DETECT_MATCH_LIMIT`], or [`MATCH_LIMIT`] when every cell of the chart was seen as a patch
-//!    and the next placement is [`COMPLETE_AMBIGUITY_RATIO`] worse), clearly better than the next
-//!    (ratio [`AMBIGUITY_RATIO`]), not a block of a larger grid of like patches (a CC24's colours
-//!    inside a ColorChecker Digital SG, [`SURROUND_LIMIT`]) and seen under moderate perspective ([`PERSPECTIVE_LIMIT`], or
-//!    [`ENCLOSED_PERSPECTIVE_LIMIT`] when the chart's outer ring of cells was all seen); where
+//!    [`DETECT_MATCH_LIMIT`], or [`MATCH_LIMIT`] when every cell of the chart's outer ring was
+//!    seen as a patch and the next placement is [`ENCLOSED_AMBIGUITY_RATIO`] worse), clearly
+//!    better than the next (ratio [`AMBIGUITY_RATIO`]), not a block of a larger grid of like
+//!    patches (a CC24's colours inside a ColorChecker Digital SG, [`SURROUND_LIMIT`]) and seen
+//!    under moderate perspective ([`PERSPECTIVE_LIMIT`], or [`ENCLOSED_PERSPECTIVE_LIMIT`] when
+//!    the chart's outer ring of cells was all seen); where
 //!    cells of that ring were not seen, their placement must survive fitting the lattice without
 //!    any one of its points ([`EXTRAPOLATION_LIMIT`]); otherwise detection fails with a message
 //!    and the candidates, never a guess.
@@ -42,11 +43,13 @@ pub(crate) const AMBIGUITY_RATIO: f64 = 0.7;
 /// was seen at 7.6.
 pub(crate) const DETECT_MATCH_LIMIT: f64 = 5.0;
 
-/// With a complete lattice (every cell of the placement seen as a patch), a found chart may
-/// match up to [`MATCH_LIMIT`] when the next placement scores at least 1 / this times worse
-/// (stricter than [`AMBIGUITY_RATIO`]; the correct placements of the development photographs
-/// score 4× to 12× better than the next).
-pub(crate) const COMPLETE_AMBIGUITY_RATIO: f64 = 0.5;
+/// With an enclosed placement (every cell of the chart's outer ring seen as a patch), a found
+/// chart may match up to [`MATCH_LIMIT`] when the next placement scores at least 1 / this times
+/// worse (stricter than [`AMBIGUITY_RATIO`]; the correct placements of the development
+/// photographs score 4× to 12× better than the next). Until 2026-12-03 every cell had to be seen;
+/// a photographed SG with one of its 140 cells unseen (median ΔE00 5.4, the next placement 4×
+/// worse) was refused.
+pub(crate) const ENCLOSED_AMBIGUITY_RATIO: f64 = 0.5;
 
 /// Perspective strength above which a found chart is refused: the ratio of the largest to the
 /// smallest patch scale (square root of the local area) over the chart's cells. Beyond it the
@@ -481,8 +484,6 @@ struct Placement {
     mirrored: bool,
     /// Cells outside the image.
     outside: usize,
-    /// Every cell holds a lattice patch: nothing extrapolated past what was seen.
-    complete: bool,
     /// Every cell of the chart's outer ring holds a lattice patch: the cells not seen, if any,
     /// are enclosed by seen ones, so they are interpolated, never extrapolated.
     enclosed: bool,
@@ -557,7 +558,6 @@ fn placements(
                     let ring = |ij: &[i32; 2]| {
                         ij[0] == si || ij[0] == si + ai - 1 || ij[1] == sj || ij[1] == sj + aj - 1
                     };
-                    let covered = lattice.iter().filter(|(_, ij)| in_window(ij)).count();
                     let ring_seen = lattice
                         .iter()
                         .filter(|(_, ij)| in_window(ij) && ring(ij))
@@ -567,7 +567,6 @@ fn placements(
                         hc,
                         mirrored: det * obs_det < 0.0,
                         outside: kind.cells() - inside,
-                        complete: covered == kind.cells(),
                         enclosed: ring_seen as i32 == 2 * (ai + aj) - 4,
                         map,
                         window: ([si, sj], [ai, aj]),
@@ -704,7 +703,7 @@ fn judge(
             "a grid of {lattice} patches was found, but no placement of the chart fits it"
         )));
     };
-    let (score, complete) = (best.score, best.complete);
+    let score = best.score;
     let runner_up = scored.get(1).map_or(f64::INFINITY, |s| s.score);
     if score > MATCH_LIMIT {
         return Err(nf(format!(
@@ -712,17 +711,19 @@ fn judge(
             reference.name
         )));
     }
-    // A complete lattice (every cell seen as a patch) with a decisive orientation may match
-    // up to MATCH_LIMIT: the looser match then cannot come from a placement shifted across a
-    // partial lattice (the failure DETECT_MATCH_LIMIT guards against), only from colours the
-    // camera rendered (tone curve, saturation, a strong cast).
-    let loose_ok = complete && score <= COMPLETE_AMBIGUITY_RATIO * runner_up;
+    // An enclosed placement (every cell of its outer ring seen as a patch) with a decisive
+    // orientation may match up to MATCH_LIMIT: the looser match then cannot come from a
+    // placement shifted across a partial lattice (the failure DETECT_MATCH_LIMIT guards
+    // against; a shifted window leaves cells of its ring unseen, and a lattice going on past
+    // the window is refused below, SURROUND_LIMIT), only from colours the camera rendered (tone
+    // curve, saturation, a strong cast).
+    let loose_ok = best.enclosed && score <= ENCLOSED_AMBIGUITY_RATIO * runner_up;
     if score > DETECT_MATCH_LIMIT && !loose_ok {
         return Err(nf(format!(
             "a grid of {lattice} patches was found, but its colours match reference {} only loosely (median ΔE00 {score:.1}, next placement {runner_up:.1}; limit {DETECT_MATCH_LIMIT} for a found chart{}): refused rather than risk a wrong placement; give the chart's corners",
             reference.name,
-            if complete {
-                format!(", or {MATCH_LIMIT} with a complete grid and the next placement {:.0}× worse", 1.0 / COMPLETE_AMBIGUITY_RATIO)
+            if best.enclosed {
+                format!(", or {MATCH_LIMIT} with the chart's outer ring all seen and the next placement {:.0}× worse", 1.0 / ENCLOSED_AMBIGUITY_RATIO)
             } else {
                 String::new()
             }
@@ -1051,7 +1052,6 @@ mod tests {
                 hc: fit_lattice(blobs, lat).unwrap().then_after(&map),
                 mirrored: false,
                 outside: 0,
-                complete: lat.len() == 24,
                 enclosed: lat.len() == 24,
                 map,
                 window: ([0, 0], [6, 4]),
@@ -1220,7 +1220,6 @@ mod tests {
             hc: h_all.then_after(&map),
             mirrored: false,
             outside: 0,
-            complete: true,
             enclosed: true,
             map,
             window: ([0, 0], [6, 4]),
@@ -1262,13 +1261,12 @@ mod tests {
         let r =
             Reference::load(ChartKind::Cc24.default_reference(), ChartKind::Cc24, None).unwrap();
         let hc = Homography([20.0, 0.0, 10.0, 0.0, 20.0, 10.0, 0.0, 0.0, 1.0]);
-        let p = |score: f64, complete: bool| Placement {
+        let p = |score: f64, enclosed: bool| Placement {
             score,
             hc,
             mirrored: false,
             outside: 0,
-            complete,
-            enclosed: complete,
+            enclosed,
             map: placement_map(false, 1.0, 1.0, 0, 0),
             window: ([0, 0], [6, 4]),
         };
@@ -1278,7 +1276,7 @@ mod tests {
         assert!((persp - 1.0).abs() < 1e-12);
         assert!(judge(&r, 24, &[p(1.0, false), p(1.2, false)], (0, 24), 0.0).is_err());
         assert!(judge(&r, 24, &[], (0, 24), 0.0).is_err());
-        // Loosely matching: only with a complete lattice and a decisive runner-up.
+        // Loosely matching: only with the outer ring all seen and a decisive runner-up.
         let loose = 0.5 * (DETECT_MATCH_LIMIT + MATCH_LIMIT);
         assert!(judge(
             &r,

@@ -133,9 +133,10 @@ pub(crate) struct RateArgs {
     /// to the chart: perspective 1.6–2.2); negatives, which must all be refused, in the
     /// chart's layout: spyder (another make's chart: a SpyderCHECKR-24-like one, for sg a
     /// 14×10 one with a grey ramp in two columns), random (random patch grids), shuffled (the
-    /// chart's greys in place, its colours in another order); and nested (for cc24 an SG-like
+    /// chart's greys in place, its colours in another order), nested (for cc24 an SG-like
     /// 14×10 chart holding the classic 24 in its E2–J5 block, as the SG does; for sg a CC24 made
-    /// of that block).
+    /// of that block) and spyder24 (a Datacolor SpyderCHECKR 24: the classic colours, rows 1 and
+    /// 3 reversed; for sg that chart made of the SG's E2–J5 block).
     #[arg(long, default_value = "envelope", value_parser = parse_family)]
     family: Family,
 }
@@ -615,7 +616,7 @@ mod tests {
             assert!(e.downcast_ref::<UsageError>().is_some(), "{bad:?}: {e}");
         }
         // The negatives come in either chart's layout.
-        for f in ["spyder", "random", "shuffled", "nested"] {
+        for f in ["spyder", "random", "shuffled", "nested", "spyder24"] {
             assert!(check_rate_args(&args(&["--family", f])).is_ok());
             let sg = ["rate", "--chart", "sg", "--family", f];
             assert!(check_rate_args(&Rate::try_parse_from(sg).unwrap().a).is_ok());

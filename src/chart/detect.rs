@@ -1270,49 +1270,37 @@ mod tests {
             map: placement_map(false, 1.0, 1.0, 0, 0),
             window: ([0, 0], [6, 4]),
         };
-        let (best, runner, persp) =
-            judge(&r, 24, &[p(1.0, false), p(3.0, false)], (0, 24), 0.0).unwrap();
+        let judged = |scored: &[Placement], around: (usize, usize), spread: f64| {
+            judge(&r, 24, scored, around, spread)
+        };
+        let (best, runner, persp) = judged(&[p(1.0, false), p(3.0, false)], (0, 24), 0.0).unwrap();
         assert_eq!((best.score, runner), (1.0, 3.0));
         assert!((persp - 1.0).abs() < 1e-12);
-        assert!(judge(&r, 24, &[p(1.0, false), p(1.2, false)], (0, 24), 0.0).is_err());
-        assert!(judge(&r, 24, &[], (0, 24), 0.0).is_err());
+        assert!(judged(&[p(1.0, false), p(1.2, false)], (0, 24), 0.0).is_err());
+        assert!(judged(&[], (0, 24), 0.0).is_err());
         // Loosely matching: only with the outer ring all seen and a decisive runner-up.
         let loose = 0.5 * (DETECT_MATCH_LIMIT + MATCH_LIMIT);
-        assert!(judge(
-            &r,
-            24,
-            &[p(loose, false), p(4.0 * loose, false)],
-            (0, 24),
-            0.0
-        )
-        .is_err());
-        assert!(judge(
-            &r,
-            24,
-            &[p(loose, true), p(4.0 * loose, true)],
-            (0, 24),
-            0.0
-        )
-        .is_ok());
+        assert!(judged(&[p(loose, false), p(4.0 * loose, false)], (0, 24), 0.0).is_err());
+        assert!(judged(&[p(loose, true), p(4.0 * loose, true)], (0, 24), 0.0).is_ok());
         // Strong perspective (1.8×): refused unless the chart's outer ring was all seen.
         let steep = |enclosed: bool| Placement {
             hc: Homography([20.0, 0.0, 10.0, 0.0, 20.0, 10.0, 0.1, 0.0, 1.0]),
             enclosed,
             ..p(1.0, false)
         };
-        assert!(judge(&r, 24, &[steep(false), p(3.0, false)], (0, 24), 0.0).is_err());
+        assert!(judged(&[steep(false), p(3.0, false)], (0, 24), 0.0).is_err());
         // Unseen cells of the ring placed uncertainly: refused; enclosed, not looked at.
         let spread = 2.0 * EXTRAPOLATION_LIMIT;
-        assert!(judge(&r, 24, &[p(1.0, false), p(3.0, false)], (0, 24), spread).is_err());
-        assert!(judge(&r, 24, &[p(1.0, true), p(3.0, true)], (0, 24), spread).is_ok());
+        assert!(judged(&[p(1.0, false), p(3.0, false)], (0, 24), spread).is_err());
+        assert!(judged(&[p(1.0, true), p(3.0, true)], (0, 24), spread).is_ok());
         // A block of a larger grid (half the cells around it hold patches like its own).
-        assert!(judge(&r, 24, &[p(1.0, true), p(3.0, true)], (11, 24), 0.0).is_ok());
-        let larger = judge(&r, 24, &[p(1.0, true), p(3.0, true)], (12, 24), 0.0);
+        assert!(judged(&[p(1.0, true), p(3.0, true)], (11, 24), 0.0).is_ok());
+        let larger = judged(&[p(1.0, true), p(3.0, true)], (12, 24), 0.0);
         assert!(
             matches!(&larger, Err(ChartError::NotFound(m)) if m.contains("larger chart")),
             "{larger:?}"
         );
-        let (_, _, persp) = judge(&r, 24, &[steep(true), p(3.0, false)], (0, 24), 0.0).unwrap();
+        let (_, _, persp) = judged(&[steep(true), p(3.0, false)], (0, 24), 0.0).unwrap();
         assert!(
             persp > PERSPECTIVE_LIMIT && persp < ENCLOSED_PERSPECTIVE_LIMIT,
             "{persp}"
@@ -1320,7 +1308,7 @@ mod tests {
         let mut out = p(1.0, true);
         out.outside = 2;
         assert!(matches!(
-            judge(&r, 24, &[out, p(3.0, true)], (0, 24), 0.0),
+            judged(&[out, p(3.0, true)], (0, 24), 0.0),
             Err(ChartError::Geometry(_))
         ));
     }

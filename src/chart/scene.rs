@@ -1247,11 +1247,7 @@ impl Family {
             | Family::Shuffled
             | Family::Nested
             | Family::Spyder24 => {
-                c = match self {
-                    Family::Nested => nested(colours, &mut g),
-                    Family::Spyder24 => spyder24(colours, &mut g),
-                    _ => impostor(colours, self, &mut g),
-                };
+                c = impostor(colours, self, &mut g);
                 if g.uniform() < 0.5 {
                     o.look = Some(look(&mut g));
                 }
@@ -1295,13 +1291,22 @@ fn fill_corners(kind: ChartKind, width: usize, height: usize, g: &mut Gaussian) 
     q
 }
 
-/// The colours of a chart that is not the one simulated (see [`Family`]), in its layout: for a
-/// CC24 ([`cc24_impostor`]) or an SG ([`sg_impostor`]).
+/// The colours of a chart that is not the one simulated (see [`Family`]): [`nested`] and
+/// [`spyder24`], or in its layout for a CC24 ([`cc24_impostor`]) or an SG ([`sg_impostor`]).
 fn impostor(colours: &ChartColours, family: Family, g: &mut Gaussian) -> ChartColours {
-    match colours.chart {
-        ChartKind::Cc24 => cc24_impostor(colours, family, g),
-        ChartKind::Sg => sg_impostor(colours, family, g),
+    match (family, colours.chart) {
+        (Family::Nested, _) => nested(colours, g),
+        (Family::Spyder24, _) => spyder24(colours, g),
+        (_, ChartKind::Cc24) => cc24_impostor(colours, family, g),
+        (_, ChartKind::Sg) => sg_impostor(colours, family, g),
     }
+}
+
+/// A random patch colour relative to the white `w` ([`Family::Random`]'s cells): a level of
+/// 0.03–0.88, each channel 0.3–1.7 times it, at most 0.95 of the white.
+fn random_colour(w: [f64; 3], g: &mut Gaussian) -> [f64; 3] {
+    let base = 0.03 + 0.85 * g.uniform();
+    [0, 1, 2].map(|k| w[k] * (base * (0.3 + 1.4 * g.uniform())).min(0.95))
 }
 
 /// The SG's cells that hold the classic 24 colours: its block E2–J5 (columns E–J, rows 2–5),
@@ -1338,8 +1343,7 @@ fn nested(colours: &ChartColours, g: &mut Gaussian) -> ChartColours {
                         let level = [0.9, 0.2, 0.03][(c + r) % 3];
                         w.map(|v| v * level)
                     } else {
-                        let base = 0.03 + 0.85 * g.uniform();
-                        [0, 1, 2].map(|k| w[k] * (base * (0.3 + 1.4 * g.uniform())).min(0.95))
+                        random_colour(w, g)
                     }
                 })
                 .collect();
@@ -1502,8 +1506,7 @@ fn cc24_impostor(colours: &ChartColours, family: Family, g: &mut Gaussian) -> Ch
         }
         Family::Random => {
             for v in c.rgb.iter_mut() {
-                let base = 0.03 + 0.85 * g.uniform();
-                *v = [0, 1, 2].map(|k| w[k] * (base * (0.3 + 1.4 * g.uniform())).min(0.95));
+                *v = random_colour(w, g);
             }
         }
         Family::Shuffled => {

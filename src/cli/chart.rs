@@ -616,7 +616,11 @@ mod tests {
             assert!(e.downcast_ref::<UsageError>().is_some(), "{bad:?}: {e}");
         }
         // The negatives come in either chart's layout.
-        for f in ["spyder", "random", "shuffled", "nested", "spyder24"] {
+        for f in Family::ALL
+            .into_iter()
+            .filter(|f| f.negative())
+            .map(Family::name)
+        {
             assert!(check_rate_args(&args(&["--family", f])).is_ok());
             let sg = ["rate", "--chart", "sg", "--family", f];
             assert!(check_rate_args(&Rate::try_parse_from(sg).unwrap().a).is_ok());

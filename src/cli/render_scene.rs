@@ -41,8 +41,8 @@ pub(crate) struct Args {
     /// A scene of one of `chart rate`'s families (implies --envelope's draws): jpeg, fill, small,
     /// passport, tilt, black-frame, wide, or the negatives spyder, random, shuffled (in the
     /// chart's layout), nested (an SG-like chart holding the CC24's colours; for sg, a CC24 of
-    /// the SG's E2–J5 block), spyder24 (a SpyderCHECKR 24). A jpeg-look scene is written as the values nsrm decodes from the camera
-    /// JPEG (sRGB decoded, tone curve kept).
+    /// the SG's E2–J5 block), spyder24 (a SpyderCHECKR 24). A jpeg-look scene is written as the
+    /// values nsrm decodes from the camera JPEG (sRGB decoded, tone curve kept).
     #[arg(long, value_parser = super::chart::parse_family, conflicts_with = "envelope")]
     family: Option<crate::chart::scene::Family>,
     /// Seed of the random pose, clutter and noise (and, with --envelope, of everything).

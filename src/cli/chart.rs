@@ -615,6 +615,13 @@ mod tests {
             let e = check_rate_args(&args(bad)).unwrap_err();
             assert!(e.downcast_ref::<UsageError>().is_some(), "{bad:?}: {e}");
         }
+        // Every family parses by its name; another name is refused, naming the known ones.
+        for f in Family::ALL {
+            assert_eq!(parse_family(f.name()), Ok(f));
+        }
+        let e = parse_family("spyder48").unwrap_err();
+        assert!(e.contains("spyder24") && e.contains("nested"), "{e}");
+        assert!(Rate::try_parse_from(["rate", "--family", "spyder48"]).is_err());
         // The negatives come in either chart's layout.
         for f in Family::ALL
             .into_iter()

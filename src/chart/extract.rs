@@ -12,8 +12,10 @@
 //!   `dark` (the brightest channel's mean below [`ExtractOptions::dark_fraction`] of the white
 //!   level, or any channel's mean not positive), `nonuniform` (the means of the four quadrants of
 //!   the sampled area differ from the patch mean by more than [`ExtractOptions::nonuniform`] (4 %),
-//!   by more than one code step of the integer encoding decoded ([`Quantisation`]), if any,
-//!   of it and by more than five standard errors: glare, dust, a finger, an edge).
+//!   by more than five standard errors and, in a frame decoded from integer codes
+//!   ([`Quantisation`]), by more than one code step and more than the chart's code-noise floor
+//!   (three times its patches' median quadrant spread, at most six code steps: a camera JPEG's
+//!   mottle and block errors; see `flag_nonuniform`): glare, dust, a finger, an edge).
 
 use super::reference::Reference;
 use super::{ChartError, ChartKind, Homography};
@@ -40,7 +42,8 @@ pub(crate) struct ExtractOptions {
     pub(crate) nonuniform: f64,
     /// The integer encoding the frame was decoded from, if any: a quadrant must then differ by
     /// more than one code step of it to count as non-uniform (dark channels of an 8-bit JPEG
-    /// are a few codes, whose steps are tens of percent of their value).
+    /// are a few codes, whose steps are tens of percent of their value), and by more than the
+    /// chart's code-noise floor (`flag_nonuniform`).
     pub(crate) quantisation: Option<Quantisation>,
 }
 
@@ -361,7 +364,7 @@ pub(crate) fn extract(
     let labels = kind.labels();
     // Patches are read in parallel (each gathers its own pixels); results are taken in cell
     // order, so the first error is the same as a sequential reading's.
-    let read: Vec<Option<Result<PatchReading, ChartError>>> = (0..kind.cells())
+    let read: Vec<Option<Result<(PatchReading, Quadrants), ChartError>>> = (0..kind.cells())
         .into_par_iter()
         .map(|i| {
             read_patch(
@@ -385,8 +388,8 @@ pub(crate) fn extract(
             None => outside.push(labels[i].clone()),
             Some(Err(e)) => return Err(e),
             Some(Ok(p)) => {
-                frame_max = frame_max.max(p.rgb[0].max(p.rgb[1]).max(p.rgb[2]));
-                patches.push((i, p));
+                frame_max = frame_max.max(p.0.rgb[0].max(p.0.rgb[1]).max(p.0.rgb[2]));
+                patches.push(p);
             }
         }
     }
@@ -404,14 +407,15 @@ pub(crate) fn extract(
             if outside.len() > 6 { ", …" } else { "" }
         )));
     }
+    flag_nonuniform(&mut patches);
     let level = white_level.unwrap_or(frame_max);
-    for (_, p) in patches.iter_mut() {
+    for (p, _) in patches.iter_mut() {
         let m = p.rgb[0].max(p.rgb[1]).max(p.rgb[2]);
         if m < opts.dark_fraction * level || p.rgb.iter().any(|&v| v <= 0.0) {
             p.flags.push(Flag::Dark);
         }
     }
-    let patches: Vec<PatchReading> = patches.into_iter().map(|(_, p)| p).collect();
+    let patches: Vec<PatchReading> = patches.into_iter().map(|(p, _)| p).collect();
     if patches.iter().all(|p| p.flags.contains(&Flag::Clipped)) {
         return Err(ChartError::Implausible(
             "every patch is clipped: the frame is overexposed".into(),
@@ -439,7 +443,7 @@ fn read_patch(
     xyz: [f64; 3],
     white_level: Option<f64>,
     opts: &ExtractOptions,
-) -> Option<Result<PatchReading, ChartError>> {
+) -> Option<Result<(PatchReading, Quadrants), ChartError>> {
     let (s, outline) = gather(frame, h, hinv, centre, side)?;
     let n = s.quadrant.len();
     if n < 4 {
@@ -482,30 +486,77 @@ fn read_patch(
             qsum[q][k] += s.values[k][j] as f64;
         }
     }
-    let nonuniform = (0..4).filter(|&q| qn[q] >= 2).any(|q| {
-        (0..3).any(|k| {
+    // The largest quadrant deviation, in code steps of the encoding (0 without one), over all
+    // quadrants and channels (`spread`), and over those past the other limits (`excess`;
+    // `None`: none is, the patch is uniform).
+    let (mut spread, mut excess) = (0.0f64, None::<f64>);
+    for q in (0..4).filter(|&q| qn[q] >= 2) {
+        for k in 0..3 {
             let m = qsum[q][k] / qn[q] as f64;
             let dev = (m - rgb[k]).abs();
             let se = std[k] / (qn[q] as f64).sqrt();
             let step = opts.quantisation.map_or(0.0, |q| q.step(rgb[k]));
-            dev > opts.nonuniform * rgb[k].abs() && dev > 5.0 * se && dev > step
-        })
-    });
-    if nonuniform {
-        flags.push(Flag::Nonuniform);
+            let codes = if step > 0.0 { dev / step } else { 0.0 };
+            spread = spread.max(codes);
+            if dev > opts.nonuniform * rgb[k].abs() && dev > 5.0 * se && dev > step {
+                excess = Some(excess.map_or(codes, |e| e.max(codes)));
+            }
+        }
     }
-    Some(Ok(PatchReading {
-        label: label.to_string(),
-        rgb,
-        std,
-        count: n,
-        flags,
-        xyz,
-        centre: h.apply(centre),
-        outline,
-        flat: 1.0,
-    }))
+    Some(Ok((
+        PatchReading {
+            label: label.to_string(),
+            rgb,
+            std,
+            count: n,
+            flags,
+            xyz,
+            centre: h.apply(centre),
+            outline,
+            flat: 1.0,
+        },
+        Quadrants { spread, excess },
+    )))
 }
+
+/// How far a patch's quadrant means stray from its mean (see [`read_patch`]).
+#[derive(Debug, Clone, Copy)]
+struct Quadrants {
+    /// The largest deviation, in code steps of the encoding decoded (0 without one).
+    spread: f64,
+    /// The largest deviation past the percentage, standard-error and one-step limits, in code
+    /// steps; `None` when no quadrant is past them.
+    excess: Option<f64>,
+}
+
+/// Sets `nonuniform` on the patches whose quadrants stray past the limits of [`read_patch`] and,
+/// for a frame decoded from integer codes, by more than the chart's noise floor: [`CODE_NOISE_FACTOR`]
+/// times the median spread of its patches, in code steps, at most [`CODE_NOISE_LIMIT`] steps.
+/// A camera's noise reduction and a lossy encoder's block errors (a JPEG's 8×8 blocks and
+/// subsampled chroma) are spatially correlated and shared by every patch of the chart, so
+/// the standard error of a quadrant of a small patch understates them; glare, a speck, a finger
+/// or an edge on one patch stands out from that floor, and the limit keeps a structure printed
+/// on every patch (labels, texture) from raising the floor past what encoders leave.
+fn flag_nonuniform(patches: &mut [(PatchReading, Quadrants)]) {
+    let mut spreads: Vec<f64> = patches.iter().map(|(_, q)| q.spread).collect();
+    spreads.sort_by(f64::total_cmp);
+    let median = spreads.get(spreads.len() / 2).copied().unwrap_or(0.0);
+    let floor = (CODE_NOISE_FACTOR * median).min(CODE_NOISE_LIMIT);
+    for (p, q) in patches.iter_mut() {
+        // Without an integer encoding the spreads are 0 and the other limits decide alone.
+        if q.excess.is_some_and(|e| floor <= 0.0 || e > floor) {
+            p.flags.push(Flag::Nonuniform);
+        }
+    }
+}
+
+/// How many times the chart's median quadrant spread (in code steps) a patch's must exceed to
+/// be flagged `nonuniform` in a frame decoded from integer codes (see [`flag_nonuniform`]).
+const CODE_NOISE_FACTOR: f64 = 3.0;
+
+/// The most code steps of quadrant deviation counted as the encoding's noise (see
+/// [`flag_nonuniform`]).
+const CODE_NOISE_LIMIT: f64 = 6.0;
 
 /// The mean of `v` without its `cut` smallest and `cut` largest values (`2 * cut < v.len()`):
 /// the values are partitioned around the two cut points (linear time), not sorted.

@@ -1038,7 +1038,11 @@ impl SecondPage {
 /// Renders `frame` (linear, clipped at `white_level`) the way a camera writes a JPEG — sRGB
 /// encoding, an S-shaped contrast curve, a saturation gain, 8-bit quantisation and JPEG
 /// compression — and decodes it back with the plain sRGB transfer function.
-fn apply_look(frame: &mut Frame, look: CameraLook, white_level: f64) -> Result<(), ChartError> {
+pub(super) fn apply_look(
+    frame: &mut Frame,
+    look: CameraLook,
+    white_level: f64,
+) -> Result<(), ChartError> {
     use crate::colorimetry::output::srgb_oetf;
     let c = look.contrast;
     let curve = |x: f64| -> f64 {

@@ -26,6 +26,11 @@
 //!    cells of that ring were not seen, their placement must survive fitting the lattice without
 //!    any one of its points ([`EXTRAPOLATION_LIMIT`]); otherwise detection fails with a message
 //!    and the candidates, never a guess.
+//! 5. When no chart was found and the frame is larger than [`DetectOptions::retry_side`], steps
+//!    1–4 run once more on the frame downsampled to that long side: averaging more pixels
+//!    quiets the noise and texture that break patches (dark ones, on phone JPEGs) into pieces
+//!    at the finer scale. The second search is judged by the same rules; when it finds nothing
+//!    either, the first failure is reported.
 
 use super::extract::{cell_means, chart_score, MATCH_LIMIT};
 use super::reference::Reference;
@@ -107,6 +112,9 @@ pub(crate) fn perspective(kind: super::ChartKind, h: &Homography) -> f64 {
 pub(crate) struct DetectOptions {
     /// Long side of the downsampled image searched.
     pub(crate) max_side: usize,
+    /// Long side of the coarser image searched again when the first search finds no chart (and
+    /// the frame is larger): see [`detect`].
+    pub(crate) retry_side: usize,
     /// Largest gradient (log units per pixel) of a flat pixel.
     pub(crate) flat_threshold: f32,
 }
@@ -115,6 +123,7 @@ impl Default for DetectOptions {
     fn default() -> Self {
         DetectOptions {
             max_side: 1600,
+            retry_side: 800,
             flat_threshold: 0.08,
         }
     }
@@ -776,9 +785,28 @@ pub(crate) fn detect(
     reference: &Reference,
     opts: &DetectOptions,
 ) -> Result<Detection, DetectFailure> {
+    let first = detect_at(frame, reference, opts, opts.max_side);
+    let long = frame.width.max(frame.height);
+    let factor = |side: usize| long.div_ceil(side.max(64)).max(1);
+    match first {
+        Err(e) if factor(opts.retry_side) != factor(opts.max_side) => {
+            // The first failure is the one reported: its candidates are the finer ones.
+            detect_at(frame, reference, opts, opts.retry_side).map_err(|_| e)
+        }
+        r => r,
+    }
+}
+
+/// [`detect`] on the frame downsampled to a long side of at most `max_side`.
+fn detect_at(
+    frame: &Frame,
+    reference: &Reference,
+    opts: &DetectOptions,
+    max_side: usize,
+) -> Result<Detection, DetectFailure> {
     let kind = reference.chart;
     let fail = |error: ChartError, candidates: Vec<Candidate>| DetectFailure { error, candidates };
-    let prep = prepare(frame, opts.max_side).map_err(|m| fail(ChartError::NotFound(m), vec![]))?;
+    let prep = prepare(frame, max_side).map_err(|m| fail(ChartError::NotFound(m), vec![]))?;
     let f = prep.f;
     let regions = Regions::new(
         &region_moments(&flat_mask(&prep, opts.flat_threshold)),

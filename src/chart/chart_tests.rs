@@ -56,6 +56,29 @@ fn assert_placed(ex: &Extraction, truth: &SceneTruth, what: &str) {
     }
 }
 
+/// Detection without the second, coarser search.
+fn first_search_only() -> DetectOptions {
+    DetectOptions {
+        retry_side: DetectOptions::default().max_side,
+        ..DetectOptions::default()
+    }
+}
+
+/// Detects the chart (default options), reads it and checks every patch against the truth
+/// ([`assert_placed`]); the detection.
+fn found_in_place(
+    frame: &crate::frame::Frame,
+    reference: &Reference,
+    truth: &SceneTruth,
+    what: &str,
+) -> super::detect::Detection {
+    let d = detect(frame, reference, &DetectOptions::default())
+        .unwrap_or_else(|e| panic!("{what}: {}", e.error));
+    let ex = extract(frame, reference, &d.homography, &ExtractOptions::default()).unwrap();
+    assert_placed(&ex, truth, what);
+    d
+}
+
 /// Largest |measured / truth − 1| over patches brighter than `min_g`.
 fn worst_ratio(ex: &Extraction, truth: &SceneTruth, min_g: f64) -> f64 {
     ex.patches
@@ -233,23 +256,11 @@ fn cells_extrapolated_uncertainly_are_refused() {
     let reference = Reference::load("cc24-after2014", ChartKind::Cc24, None).unwrap();
     let (c, opts) = Family::Passport.scene(&colours, 1200, 800, 59);
     let (frame, _, truth) = render(&c, &opts).unwrap();
-    let once = DetectOptions {
-        retry_side: DetectOptions::default().max_side,
-        ..DetectOptions::default()
-    };
-    let e = detect(&frame, &reference, &once)
+    let e = detect(&frame, &reference, &first_search_only())
         .map(|d| d.score)
         .expect_err("refused");
     assert!(e.error.to_string().contains("uncertain"), "{}", e.error);
-    let d = detect(&frame, &reference, &DetectOptions::default()).unwrap();
-    let ex = extract(
-        &frame,
-        &reference,
-        &d.homography,
-        &ExtractOptions::default(),
-    )
-    .unwrap();
-    assert_placed(&ex, &truth, "passport seed 59");
+    found_in_place(&frame, &reference, &truth, "passport seed 59");
 }
 
 #[test]
@@ -700,23 +711,19 @@ fn mottle_frame(frame: &mut crate::frame::Frame, sigma: f64, cell: usize, seed: 
 fn a_second_search_at_a_coarser_scale_finds_what_the_first_missed() {
     let colours = cc24();
     let reference = Reference::load("cc24-after2014", ChartKind::Cc24, None).unwrap();
-    let once = DetectOptions {
-        retry_side: DetectOptions::default().max_side,
-        ..DetectOptions::default()
-    };
     for seed in [49, 51] {
         let (c, opts) = Family::BlackFrame.scene(&colours, 1200, 800, seed);
         let (frame, _, truth) = render(&c, &opts).unwrap();
-        assert!(detect(&frame, &reference, &once).is_err(), "seed {seed}");
-        let d = detect(&frame, &reference, &DetectOptions::default()).unwrap();
-        assert_eq!(d.downsample, 2, "seed {seed}");
-        let ex = extract(
+        assert!(
+            detect(&frame, &reference, &first_search_only()).is_err(),
+            "seed {seed}"
+        );
+        let d = found_in_place(
             &frame,
             &reference,
-            &d.homography,
-            &ExtractOptions::default(),
-        )
-        .unwrap();
-        assert_placed(&ex, &truth, &format!("black-frame seed {seed}"));
+            &truth,
+            &format!("black-frame seed {seed}"),
+        );
+        assert_eq!(d.downsample, 2, "seed {seed}");
     }
 }

@@ -224,10 +224,7 @@ pub fn read(
         ..Default::default()
     };
     ex_opts.validate()?;
-    ex_opts.quantisation = decoded.max_code.map(|max_code| Quantisation {
-        max_code,
-        srgb: decoded.transfer == Transfer::SrgbDecoded,
-    });
+    ex_opts.quantisation = Quantisation::of(decoded);
     let (h, detection) = match opts.corners {
         Some(c) => (
             homography_from_corners(kind, &c, img.width, img.height)?,

@@ -220,10 +220,19 @@ struct Prepared {
     cb: Vec<f32>,
 }
 
+/// The box-downsampling factor that brings `frame`'s long side to at most `max_side` (at least
+/// 64) pixels.
+fn downsample_factor(frame: &Frame, max_side: usize) -> usize {
+    frame
+        .width
+        .max(frame.height)
+        .div_ceil(max_side.max(64))
+        .max(1)
+}
+
 /// Step 1: downsample so the long side is at most `max_side`, smooth (σ = 1) and convert.
 fn prepare(frame: &Frame, max_side: usize) -> Result<Prepared, String> {
-    let long = frame.width.max(frame.height);
-    let f = long.div_ceil(max_side.max(64)).max(1);
+    let f = downsample_factor(frame, max_side);
     let (ws, hs, small) = downsample(frame, f);
     if ws < 32 || hs < 32 {
         return Err(format!(
@@ -786,10 +795,11 @@ pub(crate) fn detect(
     opts: &DetectOptions,
 ) -> Result<Detection, DetectFailure> {
     let first = detect_at(frame, reference, opts, opts.max_side);
-    let long = frame.width.max(frame.height);
-    let factor = |side: usize| long.div_ceil(side.max(64)).max(1);
     match first {
-        Err(e) if factor(opts.retry_side) != factor(opts.max_side) => {
+        Err(e)
+            if downsample_factor(frame, opts.retry_side)
+                != downsample_factor(frame, opts.max_side) =>
+        {
             // The first failure is the one reported: its candidates are the finer ones.
             detect_at(frame, reference, opts, opts.retry_side).map_err(|_| e)
         }

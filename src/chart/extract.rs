@@ -57,6 +57,14 @@ pub(crate) struct Quantisation {
 }
 
 impl Quantisation {
+    /// The encoding a chart frame was decoded from: `None` for the linear readers' frames.
+    pub(crate) fn of(read: &crate::io::display::ChartFrame) -> Option<Quantisation> {
+        read.max_code.map(|max_code| Quantisation {
+            max_code,
+            srgb: read.transfer.display_referred(),
+        })
+    }
+
     /// The difference between the decoded values of the codes around the (decoded) value `v`.
     pub(crate) fn step(&self, v: f64) -> f64 {
         if self.srgb {

@@ -176,12 +176,7 @@ fn run_time(a: TimeArgs) -> Result<ExitCode> {
             }
         };
         let ex_opts = ExtractOptions {
-            quantisation: read
-                .max_code
-                .map(|max_code| crate::chart::extract::Quantisation {
-                    max_code,
-                    srgb: read.transfer.display_referred(),
-                }),
+            quantisation: crate::chart::extract::Quantisation::of(&read),
             ..Default::default()
         };
         let mut times = Vec::new();

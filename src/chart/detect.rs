@@ -762,12 +762,12 @@ fn judge(
     let persp = perspective(kind, &best.hc);
     if !best.enclosed && extrapolation > EXTRAPOLATION_LIMIT {
         return Err(nf(format!(
-            "cells of the chart's outer ring were not seen as patches, and where they lie is uncertain (one moves {extrapolation:.2} pitch when the grid is fitted without one of its patches, limit {EXTRAPOLATION_LIMIT}): refused rather than risk misplaced patches; give the chart's corners"
+            "cells of the chart's outer ring were not seen as patches, and where they lie is uncertain (one moves {extrapolation:.3} pitch when the grid is fitted without one of its patches, limit {EXTRAPOLATION_LIMIT}): refused rather than risk misplaced patches; give the chart's corners"
         )));
     }
     if persp > PERSPECTIVE_LIMIT {
         return Err(nf(format!(
-            "the chart is seen under strong perspective (patch scale varies {persp:.2}× across it, limit {PERSPECTIVE_LIMIT}): refused rather than risk misplaced patches; shoot it more squarely or give the chart's corners"
+            "the chart is seen under strong perspective (patch scale varies {persp:.3}× across it, limit {PERSPECTIVE_LIMIT}): refused rather than risk misplaced patches; shoot it more squarely or give the chart's corners"
         )));
     }
     if score > AMBIGUITY_RATIO * runner_up {

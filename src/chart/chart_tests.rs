@@ -100,6 +100,19 @@ fn missed_first_found_second(
 /// limit was tightened (2026-12-03): scenes beyond it are read now when those cells are pinned.
 const PERSPECTIVE_LIMIT_BEFORE_PINNING: f64 = 1.6;
 
+/// Renders a CC24 scene and checks it is read with every patch in place
+/// ([`found_in_place`]) at a perspective beyond [`PERSPECTIVE_LIMIT_BEFORE_PINNING`].
+fn found_beyond_the_old_limit(colours: &ChartColours, opts: &SceneOptions, what: &str) {
+    let reference = Reference::load("cc24-after2014", ChartKind::Cc24, None).unwrap();
+    let (frame, _, truth) = render(colours, opts).unwrap();
+    let d = found_in_place(&frame, &reference, &truth, what);
+    assert!(
+        d.perspective > PERSPECTIVE_LIMIT_BEFORE_PINNING,
+        "{what}: {}",
+        d.perspective
+    );
+}
+
 /// Largest |measured / truth − 1| over patches brighter than `min_g`.
 fn worst_ratio(ex: &Extraction, truth: &SceneTruth, min_g: f64) -> f64 {
     ex.patches
@@ -236,17 +249,10 @@ fn outside_the_envelope_old_wrong_answers_are_read_right_or_refused() {
     // read, every patch in place (perspective 1.67, its unseen cells pinned: the jackknife
     // moves them 0.002 pitch).
     let colours = cc24();
-    let reference = Reference::load("cc24-after2014", ChartKind::Cc24, None).unwrap();
     let mut opts = SceneOptions::envelope(&colours, 1200, 800, 2032);
     opts.min_tilt_deg = 30.5;
     opts.max_tilt_deg = 55.0;
-    let (frame, _, truth) = render(&colours, &opts).unwrap();
-    let d = found_in_place(&frame, &reference, &truth, "tilt seed 2032");
-    assert!(
-        d.perspective > PERSPECTIVE_LIMIT_BEFORE_PINNING,
-        "{}",
-        d.perspective
-    );
+    found_beyond_the_old_limit(&colours, &opts, "tilt seed 2032");
     let Some(colours) = sg() else {
         return;
     };
@@ -297,16 +303,8 @@ fn cells_extrapolated_uncertainly_are_refused() {
     // Strong perspective with the unseen cells pinned is read: `--family tilt --seed 402`,
     // perspective 1.73 (over the limit of 1.6 that held until the jackknife's was tightened),
     // the black patch unseen, the jackknife 0.04: every patch in place.
-    let colours = cc24();
-    let reference = Reference::load("cc24-after2014", ChartKind::Cc24, None).unwrap();
-    let (c, opts) = Family::Tilt.scene(&colours, 1200, 800, 402);
-    let (frame, _, truth) = render(&c, &opts).unwrap();
-    let d = found_in_place(&frame, &reference, &truth, "tilt seed 402");
-    assert!(
-        d.perspective > PERSPECTIVE_LIMIT_BEFORE_PINNING,
-        "{}",
-        d.perspective
-    );
+    let (c, opts) = Family::Tilt.scene(&cc24(), 1200, 800, 402);
+    found_beyond_the_old_limit(&c, &opts, "tilt seed 402");
 }
 
 #[test]

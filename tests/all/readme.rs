@@ -1,29 +1,55 @@
-//! The README's code blocks stay what they say they are (issue 23): every fence names its
-//! language (```sh: a step of the walk-through that `.ci/readme-run` runs; ```text: a synopsis),
-//! the steps call `nsrm` the one way the README installs it (never `cargo run` or
-//! `./target/...`), and every flag a step or synopsis passes to `nsrm` is one that command
-//! documents in its `--help` (old spellings, kept as hidden aliases, are not used).
+//! The walk-through's code blocks (the README's and the guide pages', `docs/guide/NN-*.md`) stay
+//! what they say they are (issue 23): every fence names its language (```sh: a step of the
+//! walk-through that `.ci/readme-run` runs; ```text: a synopsis), the steps call `nsrm` the one way
+//! the README installs it (never `cargo run` or `./target/...`), and every flag a step or synopsis
+//! passes to `nsrm` is one that command documents in its `--help` (old spellings, kept as hidden
+//! aliases, are not used).
 
 use crate::common::nsrm;
 use std::collections::{BTreeMap, BTreeSet};
 
-const README: &str = include_str!("../../README.md");
+use std::path::Path;
 
-/// (line of the opening fence, language, lines) of every fenced block.
-fn blocks() -> Vec<(usize, String, Vec<&'static str>)> {
+/// The walk-through's pages in the order `.ci/readme-run` runs them: README.md, then the guide
+/// pages `docs/guide/NN-*.md` by name; (path relative to the repository, text).
+fn pages() -> Vec<(String, String)> {
+    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+    let mut guide: Vec<String> = std::fs::read_dir(root.join("docs/guide"))
+        .expect("docs/guide")
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .filter(|n| n.ends_with(".md") && n.starts_with(|c: char| c.is_ascii_digit()))
+        .collect();
+    guide.sort();
+    assert!(guide.len() >= 8, "the guide pages: {guide:?}");
+    std::iter::once("README.md".to_string())
+        .chain(guide.into_iter().map(|n| format!("docs/guide/{n}")))
+        .map(|p| {
+            let text = std::fs::read_to_string(root.join(&p)).unwrap();
+            (p, text)
+        })
+        .collect()
+}
+
+/// ("page:line" of the opening fence, language, lines) of every fenced block of every page.
+fn blocks() -> Vec<(String, String, Vec<String>)> {
     let mut out = Vec::new();
-    let mut open: Option<(usize, String, Vec<&str>)> = None;
-    for (i, line) in README.lines().enumerate() {
-        if let Some(rest) = line.strip_prefix("```") {
-            match open.take() {
-                Some(b) => out.push(b),
-                None => open = Some((i + 1, rest.trim().to_string(), Vec::new())),
+    for (page, text) in pages() {
+        let mut open: Option<(String, String, Vec<String>)> = None;
+        for (i, line) in text.lines().enumerate() {
+            if let Some(rest) = line.strip_prefix("```") {
+                match open.take() {
+                    Some(b) => out.push(b),
+                    None => {
+                        let at = format!("{page}:{}", i + 1);
+                        open = Some((at, rest.trim().to_string(), Vec::new()));
+                    }
+                }
+            } else if let Some((_, _, lines)) = open.as_mut() {
+                lines.push(line.to_string());
             }
-        } else if let Some((_, _, lines)) = open.as_mut() {
-            lines.push(line);
         }
+        assert!(open.is_none(), "{page}: an unclosed code fence");
     }
-    assert!(open.is_none(), "README.md: an unclosed code fence");
     out
 }
 
@@ -33,7 +59,7 @@ fn every_block_is_a_step_or_a_synopsis() {
     for (line, lang, lines) in blocks() {
         assert!(
             !lang.is_empty(),
-            "README.md:{line}: a fence without a language (```sh for a step, ```text for a synopsis)"
+            "{line}: a fence without a language (```sh for a step, ```text for a synopsis)"
         );
         if lang == "sh" {
             steps += 1;
@@ -41,11 +67,11 @@ fn every_block_is_a_step_or_a_synopsis() {
                 let code = l.split('#').next().unwrap_or("");
                 assert!(
                     !code.contains("cargo ") && !code.contains("target/"),
-                    "README.md:{line}: a step runs `nsrm` as installed, not `{l}`"
+                    "{line}: a step runs `nsrm` as installed, not `{l}`"
                 );
                 assert!(
                     !code.contains("../shared"),
-                    "README.md:{line}: steps name the shared data as $NSRM_SHARED: `{l}`"
+                    "{line}: steps name the shared data as $NSRM_SHARED: `{l}`"
                 );
             }
         }
@@ -62,7 +88,7 @@ fn commands() -> BTreeMap<String, BTreeSet<String>> {
         }
         // Join continuation lines of a synopsis (indented under the `nsrm` line).
         let mut joined: Vec<String> = Vec::new();
-        for l in lines {
+        for l in &lines {
             let t = l.trim_start();
             if t.starts_with("nsrm ") {
                 joined.push(t.to_string());
@@ -118,7 +144,7 @@ fn every_flag_in_the_blocks_is_documented_by_its_command() {
                 .any(|w| w == f);
             assert!(
                 documented,
-                "README: `nsrm {sub} {f}`: not in `nsrm {sub} --help`"
+                "the walk-through: `nsrm {sub} {f}`: not in `nsrm {sub} --help`"
             );
         }
     }

@@ -1,5 +1,6 @@
 //! The overlay picture of a chart reading: the frame as an sRGB preview (camera RGB shown as
-//! linear sRGB, white-balanced on the chart's neutrals when there is a reading, exposed so the
+//! linear sRGB, white-balanced on the chart's neutrals when there is a reading — else on the
+//! frame's grey world — and exposed so the
 //! brightest usable patch sits at 90 %), each sampled area outlined and labelled — green when
 //! used, red with its flags when not — the candidate regions of a failed detection (yellow:
 //! rejected, cyan: linked into a grid), and after a fit a swatch panel: reference (upper half of
@@ -61,9 +62,7 @@ pub(crate) fn render(
     swatches: Option<(&[Swatch], [f64; 3])>,
 ) -> RgbImage {
     let s = frame.width.max(frame.height).div_ceil(MAX_SIDE).max(1);
-    let (gain, level) = balance(frame, reading);
-    let k = if level > 0.0 { 0.9 / level } else { 1.0 };
-    let mut img = preview(frame, s, gain, k);
+    let mut img = picture(frame, reading);
     let font = font();
     let sc = 1.0 / s as f32;
     draw_candidates(&mut img, candidates, sc);
@@ -76,9 +75,19 @@ pub(crate) fn render(
     }
 }
 
+/// The frame as the overlay shows it, without marks: scaled down to at most [`MAX_SIDE`],
+/// white-balanced and exposed as [`balance`] says (the studio's un-corrected preview).
+pub(crate) fn picture(frame: &Frame, reading: Option<&Extraction>) -> RgbImage {
+    let s = frame.width.max(frame.height).div_ceil(MAX_SIDE).max(1);
+    let (gain, level) = balance(frame, reading);
+    let k = if level > 0.0 { 0.9 / level } else { 1.0 };
+    preview(frame, s, gain, k)
+}
+
 /// The preview's white balance (per-channel gains, G = 1) and the level to show at 90 %: from
-/// the reading's neutral patches (a* and b* within 4) and its brightest usable patch, else no
-/// balance and the frame's 99th percentile of green (every 7th pixel).
+/// the reading's neutral patches (a* and b* within 4) and its brightest usable patch; else the
+/// frame's grey world ([`grey_world`]) and its 99th percentile of balanced green (every 7th
+/// pixel).
 fn balance(frame: &Frame, reading: Option<&Extraction>) -> ([f64; 3], f64) {
     match reading {
         Some(ex) => {
@@ -108,6 +117,7 @@ fn balance(frame: &Frame, reading: Option<&Extraction>) -> ([f64; 3], f64) {
             (gain, top)
         }
         None => {
+            let gain = grey_world(frame);
             let ch = frame.layout.channels();
             let mut g: Vec<f32> = frame
                 .data
@@ -118,9 +128,29 @@ fn balance(frame: &Frame, reading: Option<&Extraction>) -> ([f64; 3], f64) {
                 .collect();
             g.sort_by(f32::total_cmp);
             let p = g.get(g.len() * 99 / 100).copied().unwrap_or(1.0) as f64;
-            ([1.0; 3], p)
+            (gain, p)
         }
     }
+}
+
+/// Per-channel gains (G = 1) that make the frame's mean grey (the grey-world assumption), from
+/// every 7th pixel with finite, positive channels; each gain within [1/8, 8], and none at all
+/// (1, 1, 1) when no pixel counts. A camera's raw frame is green-heavy: shown unbalanced it is
+/// green, which no person reading a chart wants to see.
+fn grey_world(frame: &Frame) -> [f64; 3] {
+    let ch = frame.layout.channels();
+    let mut sum = [0.0f64; 3];
+    for p in frame.data.chunks_exact(ch).step_by(7) {
+        if p[..3].iter().all(|v| v.is_finite() && *v > 0.0) {
+            for c in 0..3 {
+                sum[c] += p[c] as f64;
+            }
+        }
+    }
+    if sum.iter().any(|&v| v <= 0.0 || !v.is_finite()) {
+        return [1.0; 3];
+    }
+    [sum[1] / sum[0], 1.0, sum[1] / sum[2]].map(|g| g.clamp(0.125, 8.0))
 }
 
 /// The frame as 8-bit sRGB, each `s × s` block averaged and scaled by `gain` per channel and
@@ -324,6 +354,33 @@ mod tests {
         };
         // The grey sets the gains; the red patch, balanced, is the brightest.
         assert_eq!(balance(&frame, Some(&ex)), ([2.0, 1.0, 4.0], 2.0));
+    }
+
+    #[test]
+    fn without_a_reading_a_green_heavy_frame_is_shown_grey() {
+        // A raw frame of a grey scene: green twice red, four times blue, with a brighter strip.
+        let data: Vec<f32> = (0..64)
+            .flat_map(|i| {
+                let v = if i % 8 == 0 { 2.0 } else { 1.0 };
+                [0.25 * v, 0.5 * v, 0.125 * v]
+            })
+            .collect();
+        let frame = Frame::from_data(8, 8, Layout::Rgb, data).unwrap();
+        let (gain, _) = balance(&frame, None);
+        assert!(
+            (gain[0] - 2.0).abs() < 1e-9 && (gain[2] - 4.0).abs() < 1e-9,
+            "{gain:?}"
+        );
+        let img = picture(&frame, None);
+        for p in img.pixels() {
+            let [r, g, b] = p.0;
+            assert!(r.abs_diff(g) <= 1 && b.abs_diff(g) <= 1, "{:?}", p.0);
+        }
+        // A frame with no positive pixel keeps gains of 1, and extreme casts are bounded.
+        let black = Frame::from_data(2, 1, Layout::Rgb, vec![0.0; 6]).unwrap();
+        assert_eq!(grey_world(&black), [1.0; 3]);
+        let red = Frame::from_data(1, 1, Layout::Rgb, vec![1.0, 1e-6, 1.0]).unwrap();
+        assert_eq!(grey_world(&red), [0.125, 1.0, 0.125]);
     }
 
     #[test]

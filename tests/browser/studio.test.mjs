@@ -17,6 +17,33 @@ const WORK = process.env.STUDIO_WORK || fs.mkdtempSync(path.join(os.tmpdir(), 's
 fs.mkdirSync(OUT, { recursive: true });
 
 const log = (...a) => console.log('[studio test]', ...a);
+// With every panel filled (reading, fit, comparison, corrected preview): no horizontal scroll at
+// common window widths, and the corrected preview right under its button (no blank gap).
+async function checkLayout(page) {
+  // The server's preview too (a browser without WebGPU): the page's canvas is then hidden.
+  await page.select('#where', 'server');
+  await page.click('#show-corrected');
+  await page.waitForFunction(() => document.getElementById('corrected-device').dataset.device === 'server', { timeout: 120000 });
+  for (const width of [1280, 1400, 1920]) {
+    await page.setViewport({ width, height: 1000 });
+    await sleep(200);
+    const m = await page.evaluate(() => {
+      const shown = [...document.querySelectorAll('#corrected, #corrected-canvas')].find((e) => !e.hidden);
+      const button = document.getElementById('show-corrected').getBoundingClientRect();
+      return {
+        scrollWidth: document.documentElement.scrollWidth,
+        innerWidth: window.innerWidth,
+        gap: shown ? shown.getBoundingClientRect().top - button.bottom : null,
+      };
+    });
+    log(`layout at ${width} px:`, JSON.stringify(m));
+    if (m.scrollWidth > m.innerWidth) fail(`horizontal scroll at ${width} px: the page is ${m.scrollWidth} px wide`);
+    if (m.gap === null || m.gap > 120) fail(`the corrected preview starts ${m.gap} px below its button at ${width} px`);
+    await page.screenshot({ path: path.join(OUT, `06-layout-${width}.png`), fullPage: true });
+  }
+  await page.setViewport({ width: 1500, height: 1100 });
+}
+
 function fail(msg) {
   throw new Error(msg);
 }
@@ -41,7 +68,11 @@ execFileSync(BIN, ['render-scene', '--chart', 'cc24', '--width', '960', '--heigh
 const serveDir = path.join(WORK, 'serve');
 fs.rmSync(serveDir, { recursive: true, force: true });
 fs.mkdirSync(serveDir);
-const server = spawn(BIN, ['studio', '--no-browser'], { cwd: serveDir, stdio: ['ignore', 'pipe', 'inherit'] });
+// A listed frame with a long name, as a real shoot's are: its name fills the file and flat-field
+// menus, which must not push the page sideways.
+const listed = path.join(WORK, 'a_chart_shot_under_the_tungsten_lamps_of_stage_b_take_0001_after_the_lens_change.exr');
+fs.copyFileSync(scene, listed);
+const server = spawn(BIN, ['studio', '--no-browser', listed], { cwd: serveDir, stdio: ['ignore', 'pipe', 'inherit'] });
 let serverOut = '';
 server.stdout.on('data', (d) => { serverOut += d; });
 let browser;
@@ -76,6 +107,13 @@ try {
   await page.goto(url, { waitUntil: 'load' });
   await page.waitForSelector('body[data-ready="1"]', { timeout: 30000 });
   await page.screenshot({ path: path.join(OUT, '01-loaded.png') });
+  // The drop zone's text is one centred paragraph, not flex columns.
+  const hint = await page.evaluate(() => {
+    const p = document.querySelector('#drop-hint > p');
+    const v = document.getElementById('viewer').getBoundingClientRect();
+    return p ? { width: p.getBoundingClientRect().width, viewer: v.width, kids: document.getElementById('drop-hint').children.length } : null;
+  });
+  if (!hint || hint.kids !== 1 || hint.width < 0.4 * hint.viewer) fail(`the drop zone's text is laid out in pieces: ${JSON.stringify(hint)}`);
 
   // Drop the frame on the page, as a person drags it from a file manager.
   const b64 = fs.readFileSync(scene).toString('base64');
@@ -153,6 +191,7 @@ try {
   log('corrected preview:', device.text);
   if (device.device === 'webgpu' && Number(device.maxDiff) > 1) fail(`the WebGPU preview differs from the server's by ${device.maxDiff}/255`);
   await page.screenshot({ path: path.join(OUT, '05-corrected.png'), fullPage: true });
+  await checkLayout(page);
 
   // Download the CLF (output space ACEScg) through the page's link.
   const dl = path.join(WORK, 'downloads');

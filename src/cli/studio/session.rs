@@ -428,7 +428,7 @@ impl Studio {
         // the chart (a corner drag, an exclusion) is taken from this frame.
         let decoded = open_frame(&path, None, self.max_pixels)?;
         let frame = decoded.frame();
-        let img = crate::chart::overlay::render(frame, None, &[], None);
+        let img = crate::chart::overlay::picture(frame, None);
         let scale = frame.width.div_ceil(img.width().max(1) as usize).max(1);
         let preview_png = crate::chart::overlay::encode(&img)?;
         let small = downsample(frame, scale);
@@ -461,6 +461,12 @@ impl Studio {
             files: self.files.clone(),
         };
         st.read();
+        // Shown white-balanced as the overlay is: on the chart's neutrals once it is read (the
+        // grey world of the frame until then, or when no chart is found).
+        if let Some(c) = &st.capture {
+            let img = crate::chart::overlay::picture(st.frame.frame(), Some(&c.extraction));
+            st.preview_png = crate::chart::overlay::encode(&img)?;
+        }
         Ok(Arc::new(FrameSlot(Mutex::new(st))))
     }
 }

@@ -75,13 +75,13 @@ pub enum ModelError {
     Degenerate,
     /// No ridge λ makes the model's f32 evaluation (fast CPU path, shaders) reproduce its f64
     /// in-sample ΔE00: the terms are too nearly collinear on this data.
-    #[error("{kind} order {order}: evaluating the fitted model in f32 (as apply does) could change a training patch's ΔE00 by up to {bound:.3}, more than {tolerance}, and no ridge λ up to 100 brings it within: the terms are too nearly collinear on this data (choose a lower order)")]
+    #[error("{kind} order {order}: evaluating the fitted model in f32 (as apply does) moves its output by up to {bound:.3} ΔE00 (measured on the training patches and an in-gamut probe set), more than {tolerance}, and no ridge λ up to 100 brings it within: the terms are too nearly collinear on this data (choose a lower order)")]
     F32Unstable {
         /// The model kind.
         kind: Kind,
         /// The model order.
         order: u8,
-        /// The largest change in a training patch's ΔE00 that f32 evaluation could cause.
+        /// The largest ΔE00 between f32 and f64 evaluation measured (training patches, probe set).
         bound: f64,
         /// The largest change accepted.
         tolerance: f64,

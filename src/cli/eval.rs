@@ -202,17 +202,7 @@ pub(crate) fn run(a: Args) -> Result<ExitCode> {
         }
     }
     if a.json {
-        let out = serde_json::json!({
-            "protocol": match protocol { Protocol::LeaveOneOut => "leave-one-out", Protocol::InSample => "in-sample" },
-            "camera": if a.training.training.is_some() { None } else { Some(&a.training.camera) },
-            "reflectances": a.training.training.as_ref().map(|p| p.display().to_string()).unwrap_or_else(|| a.training.reflectances.clone()),
-            "capture": captured.as_ref().map(|c| c.provenance()),
-            "patches": a.training.patches,
-            "n_patches": n_patches,
-            "grid": a.training.grid,
-            "results": results,
-        });
-        println!("{}", serde_json::to_string_pretty(&out)?);
+        print_json(&a, protocol, captured.as_ref(), n_patches, &results)?;
     } else if a.variants {
         print_variants(&a, protocol, n_patches, &results);
     } else {
@@ -233,6 +223,28 @@ pub(crate) fn run(a: Args) -> Result<ExitCode> {
         }
     }
     Ok(ExitCode::SUCCESS)
+}
+
+/// `--json`: one object with the source, the protocol and the `results` array.
+fn print_json(
+    a: &Args,
+    protocol: Protocol,
+    captured: Option<&crate::chart::capture::Capture>,
+    n_patches: usize,
+    results: &[VariantResult],
+) -> Result<()> {
+    let out = serde_json::json!({
+        "protocol": match protocol { Protocol::LeaveOneOut => "leave-one-out", Protocol::InSample => "in-sample" },
+        "camera": if a.training.training.is_some() { None } else { Some(&a.training.camera) },
+        "reflectances": a.training.training.as_ref().map(|p| p.display().to_string()).unwrap_or_else(|| a.training.reflectances.clone()),
+        "capture": captured.map(|c| c.provenance()),
+        "patches": a.training.patches,
+        "n_patches": n_patches,
+        "grid": a.training.grid,
+        "results": results,
+    });
+    println!("{}", serde_json::to_string_pretty(&out)?);
+    Ok(())
 }
 
 /// The illuminants evaluated: the capture's, the measured file's white (or `measured`), those

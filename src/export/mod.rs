@@ -843,6 +843,31 @@ mod tests {
     use super::*;
     use crate::spectral::{simulate_named, Grid};
 
+    #[test]
+    fn an_error_that_could_not_be_measured_fails_any_limit() {
+        let stats = ErrorStats::from(&[0.1, f64::NAN, 0.2]);
+        assert!(stats.max.is_nan());
+        let r = ErrorReport {
+            training: ErrorStats::from(&[0.1, 0.2]),
+            dense: stats,
+            exposures: vec![0.0],
+            out_of_range: 0,
+        };
+        assert!(r.max().is_nan());
+        assert!(matches!(
+            r.check_limit(Some(1e9)),
+            Err(ExportError::TooInaccurate { .. })
+        ));
+        assert!(r.check_limit(None).is_ok());
+        // The worse of two measurements keeps the NaN.
+        let fine = ErrorReport {
+            dense: ErrorStats::from(&[0.3]),
+            ..r.clone()
+        };
+        assert!(fine.worst(&r).max().is_nan());
+        assert!(fine.check_limit(Some(0.5)).is_ok());
+    }
+
     fn data() -> crate::TrainingSet {
         simulate_named("nikon-d5100", "D65", "rawtoaces-190", &Grid::default()).unwrap()
     }

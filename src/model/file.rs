@@ -103,7 +103,7 @@ impl Model {
                 } else {
                     "linear camera RGB, not white-balanced; the model multiplies R, G, B by `gains` (the training white's response becomes 1, 1, 1) before the terms".into()
                 },
-                camera_scale: "the training exposure: the camera response the model maps to reference_white (the training white; G = 1 for spectral simulations, the chart white's raw level for a capture) is what apply writes at Y = 1, with or without --white".into(),
+                camera_scale: "the training exposure: the camera response the model maps to reference_white (the training white; G = 1 for spectral simulations, the chart white's raw level for a capture) is what apply writes at Y = 1, with or without a frame white".into(),
                 gains: (!unit).then_some(self.input_gains),
             },
             output: Output {

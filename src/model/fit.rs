@@ -1039,12 +1039,19 @@ pub(crate) fn f32_error_probe(model: &Model, rgb: &[[f64; 3]]) -> f64 {
     let white = model.white_xyz();
     let mut p = vec![0.0; model.len_terms()];
     let mut worst = 0.0f64;
+    let in_f32 = |v: &[f64; 3]| v.iter().all(|x| x.abs() <= f32::MAX as f64);
     for (c, y) in rgb.iter().zip(frame.data.chunks_exact(3)) {
-        if model.features_of(*c, &mut p).is_none() {
+        // Camera RGB a frame cannot hold, or an output beyond f32's range, is not a question of
+        // f32 precision: only what f32 can represent is measured.
+        if !in_f32(c) || model.features_of(*c, &mut p).is_none() {
+            continue;
+        }
+        let exact = model.apply_f64(*c);
+        if !in_f32(&exact) {
             continue;
         }
         let fast = [y[0] as f64, y[1] as f64, y[2] as f64];
-        let d = crate::colorimetry::delta_e00_xyz(fast, model.apply_f64(*c), white);
+        let d = crate::colorimetry::delta_e00_xyz(fast, exact, white);
         worst = if d.is_finite() {
             worst.max(d)
         } else {

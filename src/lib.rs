@@ -106,7 +106,7 @@ mod kit;
 pub use frame::{Frame, Layout};
 
 // Models: kinds, fitting, the model file, applying on the CPU, the output space folded in.
-pub use model::fit::{fit_with, Fit, FitOptions, FitReport, F32_TOLERANCE_DE00};
+pub use model::fit::{fit_with, F32GuardChange, Fit, FitOptions, FitReport, F32_TOLERANCE_DE00};
 pub use model::fit::{Normalise, Objective, Ridge, White as FitWhite};
 pub use model::output::output_model;
 pub use model::terms::MAX_ORDER;

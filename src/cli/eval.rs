@@ -64,6 +64,12 @@ pub(crate) struct Args {
     /// `--white-patch` for the variants that use a white.
     #[arg(long, conflicts_with_all = ["objective", "preserve_white", "ridge", "normalise"])]
     variants: bool,
+    /// Evaluate the f32-guarded fits (as `fit` writes them: the ridge λ raised where evaluating
+    /// the model in f32, as `apply` does, measurably moves its output by more than 0.01 ΔE00)
+    /// instead of the paper's plain least squares. Without it, fits that would not survive f32
+    /// evaluation are marked `*` in the table.
+    #[arg(long)]
+    f32_guard: bool,
 }
 
 /// One evaluation with the variant it used (`--json`'s `results` entries).
@@ -137,6 +143,12 @@ pub(crate) fn run(a: Args) -> Result<ExitCode> {
         Protocol::LeaveOneOut
     };
     // With --variants, --white-patch names the white of the variants that use one.
+    if a.f32_guard && a.fit.ridge_is_zero() {
+        return Err(super::common::UsageError(
+            "--f32-guard raises the ridge λ, --ridge 0 asks for none: choose one".into(),
+        )
+        .into());
+    }
     let custom = if a.variants {
         FitOptions::default()
     } else {
@@ -170,7 +182,9 @@ pub(crate) fn run(a: Args) -> Result<ExitCode> {
                 } else {
                     vec![(custom_name.to_string(), custom_fit(kind, &custom))]
                 };
-                for (name, opts) in list {
+                for (name, mut opts) in list {
+                    // The paper's method unless the guarded fits are asked for.
+                    opts.f32_guard = a.f32_guard;
                     let r = evaluate_with(kind, order, &data, protocol, &ill_name, &opts)
                         .with_context(|| {
                             let source = match (&a.capture, &a.training.training) {
@@ -188,22 +202,15 @@ pub(crate) fn run(a: Args) -> Result<ExitCode> {
         }
     }
     if a.json {
-        let out = serde_json::json!({
-            "protocol": match protocol { Protocol::LeaveOneOut => "leave-one-out", Protocol::InSample => "in-sample" },
-            "camera": if a.training.training.is_some() { None } else { Some(&a.training.camera) },
-            "reflectances": a.training.training.as_ref().map(|p| p.display().to_string()).unwrap_or_else(|| a.training.reflectances.clone()),
-            "capture": captured.as_ref().map(|c| c.provenance()),
-            "patches": a.training.patches,
-            "n_patches": n_patches,
-            "grid": a.training.grid,
-            "results": results,
-        });
-        println!("{}", serde_json::to_string_pretty(&out)?);
+        print_json(&a, protocol, captured.as_ref(), n_patches, &results)?;
     } else if a.variants {
         print_variants(&a, protocol, n_patches, &results);
     } else {
         let plain: Vec<EvalResult> = results.iter().map(|r| r.result.clone()).collect();
         print_table(&a, protocol, n_patches, &plain);
+    }
+    if !a.json {
+        f32_notes(&results);
     }
     if let Some(p) = &a.plot {
         let title = format!("ΔE00 per patch: {}", plot_title(&a, protocol));
@@ -216,6 +223,28 @@ pub(crate) fn run(a: Args) -> Result<ExitCode> {
         }
     }
     Ok(ExitCode::SUCCESS)
+}
+
+/// `--json`: one object with the source, the protocol and the `results` array.
+fn print_json(
+    a: &Args,
+    protocol: Protocol,
+    captured: Option<&crate::chart::capture::Capture>,
+    n_patches: usize,
+    results: &[VariantResult],
+) -> Result<()> {
+    let out = serde_json::json!({
+        "protocol": match protocol { Protocol::LeaveOneOut => "leave-one-out", Protocol::InSample => "in-sample" },
+        "camera": if a.training.training.is_some() { None } else { Some(&a.training.camera) },
+        "reflectances": a.training.training.as_ref().map(|p| p.display().to_string()).unwrap_or_else(|| a.training.reflectances.clone()),
+        "capture": captured.map(|c| c.provenance()),
+        "patches": a.training.patches,
+        "n_patches": n_patches,
+        "grid": a.training.grid,
+        "results": results,
+    });
+    println!("{}", serde_json::to_string_pretty(&out)?);
+    Ok(())
 }
 
 /// The illuminants evaluated: the capture's, the measured file's white (or `measured`), those
@@ -374,6 +403,49 @@ fn header(a: &Args, protocol: Protocol, n: usize) {
     );
 }
 
+/// `*` after a result some of whose fits would not survive f32 evaluation, else a space.
+fn marker(r: &EvalResult) -> char {
+    if r.f32_unsafe_fits > 0 {
+        '*'
+    } else {
+        ' '
+    }
+}
+
+/// The lines under a table for the results marked `*`: how many fits would not survive f32
+/// evaluation (`apply`'s CPU kernel) within the tolerance, and by how much; or, with the guarded
+/// fits, a line saying so.
+fn f32_notes(results: &[VariantResult]) {
+    let tol = crate::model::fit::F32_TOLERANCE_DE00;
+    let mut marked = false;
+    for v in results.iter().filter(|v| v.result.f32_unsafe_fits > 0) {
+        let r = &v.result;
+        let variant = if v.variant == "ls" || v.variant == "custom" {
+            String::new()
+        } else {
+            format!(" {}", v.variant)
+        };
+        println!(
+            "* {}{variant} under {}: {} of {} fits evaluate in f32 (as apply does) up to {:.3} ΔE00 away from f64 (> {tol})",
+            model_label(r),
+            r.illuminant,
+            r.f32_unsafe_fits,
+            r.fits,
+            r.f32_error_max
+        );
+        marked = true;
+    }
+    if marked {
+        if results.iter().any(|v| v.result.f32_guard) {
+            println!("  no ridge λ up to the guard's limit brought those within; the figures are of the fits as solved");
+        } else {
+            println!("  the figures are the paper's method (least squares as solved); `--f32-guard` evaluates the fits `fit` would write (ridge λ raised until within)");
+        }
+    } else if results.iter().any(|v| v.result.f32_guard) {
+        println!("fits f32-guarded as `fit` writes them (ridge λ raised where f32 evaluation moved the output by more than {tol} ΔE00)");
+    }
+}
+
 fn model_label(r: &EvalResult) -> String {
     if r.model == "lrm" {
         "LRM".to_string()
@@ -397,7 +469,7 @@ fn print_variants(a: &Args, protocol: Protocol, n: usize, results: &[VariantResu
             rows.push(key);
         }
     }
-    const W: usize = 28;
+    const W: usize = 29;
     print!("{:<26}", "");
     for ill in &ills {
         print!(" | {ill:^W$}");
@@ -405,7 +477,10 @@ fn print_variants(a: &Args, protocol: Protocol, n: usize, results: &[VariantResu
     println!();
     print!("{:<26}", "model, variant");
     for _ in &ills {
-        print!(" | {:>6} {:>6} {:>6} {:>7}", "mean", "median", "p95", "max");
+        print!(
+            " | {:>6} {:>6} {:>6} {:>7} ",
+            "mean", "median", "p95", "max"
+        );
     }
     println!();
     println!("{}", "-".repeat(26 + ills.len() * (W + 3)));
@@ -432,8 +507,12 @@ fn print_variants(a: &Args, protocol: Protocol, n: usize, results: &[VariantResu
                 Some(r) => {
                     let s = r.result.stats;
                     print!(
-                        " | {:>6.3} {:>6.3} {:>6.3} {:>7.3}",
-                        s.mean, s.median, s.p95, s.max
+                        " | {:>6.3} {:>6.3} {:>6.3} {:>7.3}{}",
+                        s.mean,
+                        s.median,
+                        s.p95,
+                        s.max,
+                        marker(&r.result)
                     )
                 }
                 None => print!(" | {:>W$}", "-"),
@@ -474,15 +553,15 @@ fn print_table(a: &Args, protocol: Protocol, n: usize, results: &[EvalResult]) {
     };
     print!("{:<12}", "");
     for ill in &ills {
-        print!(" | {:^22}", ill);
+        print!(" | {:^23}", ill);
     }
     println!();
     print!("{:<12}", "model");
     for _ in &ills {
-        print!(" | {:>6} {:>7} {:>7}", "mean", "median", "max");
+        print!(" | {:>6} {:>7} {:>7} ", "mean", "median", "max");
     }
     println!();
-    println!("{}", "-".repeat(12 + ills.len() * 25));
+    println!("{}", "-".repeat(12 + ills.len() * 26));
     let mut rows: Vec<(String, u8)> = Vec::new();
     for r in results {
         let key = (r.model.clone(), r.order);
@@ -503,10 +582,13 @@ fn print_table(a: &Args, protocol: Protocol, n: usize, results: &[EvalResult]) {
                 .find(|r| &r.model == model && r.order == *order && r.illuminant == *ill)
             {
                 Some(r) => print!(
-                    " | {:>6.2} {:>7.2} {:>7.2}",
-                    r.stats.mean, r.stats.median, r.stats.max
+                    " | {:>6.2} {:>7.2} {:>7.2}{}",
+                    r.stats.mean,
+                    r.stats.median,
+                    r.stats.max,
+                    marker(r)
                 ),
-                None => print!(" | {:>22}", "-"),
+                None => print!(" | {:>23}", "-"),
             }
         }
         println!();

@@ -176,9 +176,20 @@ fn run_dcp(a: &Args, stops: [f64; 2]) -> Result<ExitCode> {
         }
     }
     println!(
-        "approximation error (DNG profile pipeline vs the model, D50; at {}): {}",
+        "approximation error (DNG profile pipeline vs the model re-balanced for the white, as apply --white runs it; D50; at {}): {}",
         w.whites.join(", "),
-        w.report.summary()
+        w.rebalanced.summary()
+    );
+    if let Some(u) = &w.unbalanced {
+        println!(
+            "approximation error (a raw file white-balanced by the training white vs the model as apply runs it without --white; D50; the white included): {}",
+            u.summary()
+        );
+    }
+    println!(
+        "reported error (the worse of the above; what --max-de00 holds): {}; overall max {:.4} ΔE00",
+        w.report.summary(),
+        w.report.max()
     );
     Ok(ExitCode::SUCCESS)
 }

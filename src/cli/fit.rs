@@ -51,25 +51,32 @@ pub(crate) struct Args {
     fit: FitVariantArgs,
 }
 
-/// How far evaluating the model in f32 (`apply`'s CPU and GPU paths) can move the in-sample ΔE00:
-/// the bound every back end keeps, what this CPU's fast path does, and whether the ridge λ was
-/// raised to keep it small.
-fn f32_summary(
-    model: &crate::model::Model,
-    report: &crate::model::fit::FitReport,
-    data: &crate::TrainingSet,
-) -> String {
-    let measured = crate::model::fit::f32_error_measured(model, &data.rgb, &data.xyz);
+/// How far evaluating the model in f32 as `apply` does moves its output (measured on the training
+/// patches and an in-gamut probe set; the first-order bound as a diagnostic), and what the f32
+/// guard changed: λ, and the in-sample ΔE00 mean / max before and after. A model kept beyond the
+/// tolerance (`--ridge 0` turns the guard off) gets a warning.
+fn f32_summary(report: &crate::model::fit::FitReport) -> String {
+    let tol = crate::model::fit::F32_TOLERANCE_DE00;
+    let measured = report.f32_error_measured.unwrap_or(f64::NAN);
     let bound = report.f32_error_bound.unwrap_or(f64::NAN);
-    let raised = match report.ridge_requested {
-        Some(r) => format!(
-            "; ridge λ raised from {r} to {} to keep it within {}",
+    let head = format!("f32 evaluation as apply does it (this CPU's kernel) moves the output by at most {measured:.1e} ΔE00, measured on the training patches and an in-gamut probe set (first-order bound on the patches {bound:.1e})");
+    match &report.f32_guard {
+        Some(c) => format!(
+            "{head}; the fit at λ {} moved it by {:.3} ΔE00 (> {tol}): f32 guard raised the ridge λ {} → {}, in-sample ΔE00 mean / max {:.3} / {:.3} → {:.3} / {:.3}",
+            c.lambda_before,
+            c.f32_error_before,
+            c.lambda_before,
             report.ridge_lambda,
-            crate::model::fit::F32_TOLERANCE_DE00
+            c.de00_mean_before,
+            c.de00_max_before,
+            c.de00_mean_after,
+            c.de00_max_after
         ),
-        None => String::new(),
-    };
-    format!("f32 evaluation (apply on CPU or GPU) moves a patch's ΔE00 by at most {bound:.1e} (bound), {measured:.1e} measured on this CPU{raised}")
+        None if measured.is_nan() || measured > tol => format!(
+            "{head}\nwarning: that is more than {tol} ΔE00 and the f32 guard is off (--ridge 0): apply's output will differ from this fit's by up to {measured:.3}"
+        ),
+        None => format!("{head}: within {tol}, no ridge added"),
+    }
 }
 
 impl Args {
@@ -293,7 +300,7 @@ fn report(fitted: &crate::model::fit::Fit, data: &crate::TrainingSet, source: &s
             _ => String::new(),
         }
     );
-    eprintln!("{}", f32_summary(model, report, data));
+    eprintln!("{}", f32_summary(report));
     if let Some(w) = few_patches_warning(model.len_terms(), data.len()) {
         eprintln!("{w}");
     }

@@ -23,7 +23,8 @@ pub(crate) struct FitVariantArgs {
     pub(crate) white_patch: Option<String>,
     /// Tikhonov regularisation of the matrix on standardised terms: λ ≥ 0, `auto` (λ chosen by
     /// generalised cross-validation on a log grid 1e-12..10; also `auto-gcv`) or `auto-loo` (by
-    /// exact, closed-form leave-one-out of the ridge solve on the same grid).
+    /// exact, closed-form leave-one-out of the ridge solve on the same grid). `0` means no ridge
+    /// at all: not even the f32 guard's.
     #[arg(long, value_name = "LAMBDA|auto|auto-loo")]
     pub(crate) ridge: Option<String>,
     /// NSRM's input: `raw` (the paper) or `white-balanced` (R, G, B divided by the training white's
@@ -56,7 +57,16 @@ impl FitVariantArgs {
             },
             ridge,
             normalise,
+            // An explicit `--ridge 0` means no ridge anywhere: not even the f32 guard's.
+            f32_guard: !self.ridge_is_zero(),
         })
+    }
+
+    /// Whether `--ridge` names λ = 0 explicitly.
+    pub(crate) fn ridge_is_zero(&self) -> bool {
+        self.ridge
+            .as_deref()
+            .is_some_and(|s| Ridge::parse(s).is_ok_and(|r| r == Ridge::None))
     }
 
     /// The fit in a few words: `least squares` (the paper's), or the objective and options.

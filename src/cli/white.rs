@@ -105,7 +105,7 @@ pub(crate) fn models_for_apply(path: &Path, white: Option<&str>) -> Result<Apply
         WhiteSpec::Fixed(fw) => fw,
     };
     let c = profile
-        .combine(fw)
+        .combine_for_apply(fw)
         .with_context(|| format!("--white {w}"))?;
     eprintln!("nsrm apply: {}", describe(&profile, &c));
     Ok(ApplyModels::Fixed(c.parts))
@@ -144,7 +144,7 @@ pub(crate) fn for_as_shot(profile: &Profile, neutral: Option<[f32; 3]>) -> Resul
         )
     })?;
     profile
-        .combine(FrameWhite::Neutral(n.map(f64::from)))
+        .combine_for_apply(FrameWhite::Neutral(n.map(f64::from)))
         .with_context(|| {
             format!(
                 "--white as-shot: the frame's as-shot neutral {}, {}, {}",

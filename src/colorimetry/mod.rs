@@ -10,11 +10,11 @@ pub(crate) mod spaces;
 pub(crate) mod temperature;
 
 pub(crate) use dual::{Dual, Real};
-pub(crate) use output::output_matrix;
 #[cfg(feature = "io")]
 pub(crate) use output::srgb8;
 #[cfg(feature = "cli")]
 pub(crate) use output::to_linear_srgb;
+pub(crate) use output::{output_matrix, output_matrix_exact};
 
 /// CIE D65 white point (2° observer), Y = 100; used when measured XYZ data names no white.
 pub const D65_WHITE_XYZ: [f64; 3] = [95.047, 100.0, 108.883];

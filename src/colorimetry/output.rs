@@ -16,6 +16,14 @@ pub(crate) fn output_matrix(white_xyz: [f64; 3], space: OutputSpace) -> Mat3 {
     m.map(|row| row.map(|v| v * k))
 }
 
+/// [`output_matrix`] for a frame's white (a combination's): adapted exactly
+/// ([`OutputSpace::from_xyz_exact`]), never by the "counts as D65" shortcut.
+pub(crate) fn output_matrix_exact(white_xyz: [f64; 3], space: OutputSpace) -> Mat3 {
+    let m = space.from_xyz_exact(white_xyz);
+    let k = 1.0 / white_xyz[1];
+    m.map(|row| row.map(|v| v * k))
+}
+
 /// The matrix from pixels in `space` (as written by `nsrm apply`, white `Y = 1`, scene white
 /// `white_xyz`) to linear sRGB (D65, white = 1): for previews.
 #[cfg(any(feature = "cli", test))]

@@ -70,22 +70,33 @@ impl OutputSpace {
     /// [`OutputSpace::Xyz`] is D65-referred XYZ (its interop ID says so): the identity when the scene
     /// white is D65 to within 1e-3 in xy (e.g. D65 integrated on a coarse grid),
     /// otherwise a Bradford adaptation from the scene white to D65.
+    ///
+    /// The shortcut is for a model's own training white only: a frame's white (a combination's,
+    /// `apply --white`) adapts exactly ([`OutputSpace::from_xyz_exact`]), so that the output moves
+    /// smoothly with the white.
     pub fn from_xyz(self, scene_white: [f64; 3]) -> [[f64; 3]; 3] {
+        if self == OutputSpace::Xyz {
+            let sum: f64 = scene_white.iter().sum();
+            let xy = [scene_white[0] / sum, scene_white[1] / sum];
+            let d = (xy[0] - D65_XY[0]).hypot(xy[1] - D65_XY[1]);
+            if d <= D65_XY_TOLERANCE {
+                return IDENTITY;
+            }
+        }
+        self.from_xyz_exact(scene_white)
+    }
+
+    /// [`OutputSpace::from_xyz`] without the "counts as D65" shortcut: always the Bradford
+    /// adaptation from the scene white to the space's white (D65 for XYZ).
+    pub fn from_xyz_exact(self, scene_white: [f64; 3]) -> [[f64; 3]; 3] {
         match self.primaries() {
             None => {
-                let sum: f64 = scene_white.iter().sum();
-                let xy = [scene_white[0] / sum, scene_white[1] / sum];
-                let d = (xy[0] - D65_XY[0]).hypot(xy[1] - D65_XY[1]);
-                if d <= D65_XY_TOLERANCE {
-                    IDENTITY
-                } else {
-                    let sw = [
-                        scene_white[0] / scene_white[1],
-                        1.0,
-                        scene_white[2] / scene_white[1],
-                    ];
-                    bradford(sw, xy_to_xyz(D65_XY))
-                }
+                let sw = [
+                    scene_white[0] / scene_white[1],
+                    1.0,
+                    scene_white[2] / scene_white[1],
+                ];
+                bradford(sw, xy_to_xyz(D65_XY))
             }
             Some((prim, white)) => {
                 let to_xyz = rgb_to_xyz(prim, white);
@@ -105,7 +116,8 @@ impl OutputSpace {
 /// CIE D65 chromaticity (2° observer).
 pub(crate) const D65_XY: [f64; 2] = [0.3127, 0.3290];
 
-/// How far (xy distance) a scene white may be from D65 and still count as D65 for XYZ output.
+/// How far (xy distance) a model's training white may be from D65 and still count as D65 for XYZ
+/// output (a frame's white never does: [`OutputSpace::from_xyz_exact`]).
 pub(crate) const D65_XY_TOLERANCE: f64 = 1e-3;
 
 /// The identity matrix.

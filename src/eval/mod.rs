@@ -80,22 +80,40 @@ pub struct EvalResult {
     pub stats: Stats,
     /// ΔE00 of every patch, in the training set's order.
     pub per_patch: Vec<PatchError>,
+    /// Whether the fits evaluated were the f32-guarded ones ([`FitOptions::f32_guard`]); `false`
+    /// is the paper's method (each fit exactly as solved).
+    pub f32_guard: bool,
+    /// How many of the fits evaluated (leave-one-out: one per fold; in-sample: one) would not
+    /// survive f32 evaluation as `apply` does it: their measured f32 error
+    /// (`model::fit::f32_error_probe`) exceeds [`crate::F32_TOLERANCE_DE00`].
+    pub f32_unsafe_fits: usize,
+    /// The number of fits evaluated.
+    pub fits: usize,
+    /// The largest measured f32 error over the fits evaluated (ΔE00).
+    pub f32_error_max: f64,
 }
 
-/// Predicted XYZ for every patch under `protocol`, fitting with `opts`. Leave-one-out runs the
-/// whole procedure (objective, white constraint, λ choice, white balance) inside every fold, folds
-/// in parallel.
+/// The measured f32 error of a fit ([`crate::model::fit::FitReport::f32_error_measured`]).
+fn f32_error_of(f: &crate::model::fit::Fit) -> f64 {
+    f.report.f32_error_measured.unwrap_or(f64::NAN)
+}
+
+/// Predicted XYZ for every patch under `protocol`, fitting with `opts`, each with the measured
+/// f32 error of the fit that predicted it. Leave-one-out runs the whole procedure (objective,
+/// white constraint, λ choice, white balance, the f32 guard if `opts` asks for it) inside every
+/// fold, folds in parallel.
 pub(crate) fn predict_with(
     kind: Kind,
     order: u8,
     data: &TrainingSet,
     protocol: Protocol,
     opts: &FitOptions,
-) -> Result<Vec<[f64; 3]>, ModelError> {
+) -> Result<Vec<([f64; 3], f64)>, ModelError> {
     match protocol {
         Protocol::InSample => {
             let f = fit_with(kind, order, data, opts)?;
-            Ok(data.rgb.iter().map(|c| f.apply_f64(*c)).collect())
+            let e = f32_error_of(&f);
+            Ok(data.rgb.iter().map(|c| (f.apply_f64(*c), e)).collect())
         }
         Protocol::LeaveOneOut => (0..data.len())
             .into_par_iter()
@@ -111,13 +129,14 @@ pub(crate) fn predict_with(
                     }
                 }
                 let f = fit_with(kind, order, &data.subset(&rest), &fold_opts)?;
-                Ok(f.apply_f64(data.rgb[i]))
+                Ok((f.apply_f64(data.rgb[i]), f32_error_of(&f)))
             })
             .collect(),
     }
 }
 
-/// ΔE00 statistics of `kind` at `order` on `data`; `illuminant` labels the result.
+/// ΔE00 statistics of `kind` at `order` on `data`; `illuminant` labels the result. The fits are
+/// the paper's: least squares by SVD, exactly as solved (no f32 guard).
 pub fn evaluate(
     kind: Kind,
     order: u8,
@@ -131,11 +150,12 @@ pub fn evaluate(
         data,
         protocol,
         illuminant,
-        &FitOptions::default(),
+        &FitOptions::default().unguarded(),
     )
 }
 
-/// [`evaluate`] with a fit variant.
+/// [`evaluate`] with a fit variant (its [`FitOptions::f32_guard`] says whether the guarded fits
+/// are evaluated; the result counts the fits that would not survive f32 evaluation either way).
 pub fn evaluate_with(
     kind: Kind,
     order: u8,
@@ -163,12 +183,18 @@ pub fn evaluate_with(
         .iter()
         .zip(&pred)
         .zip(&data.xyz)
-        .map(|((label, p), t)| PatchError {
+        .map(|((label, (p, _)), t)| PatchError {
             label: label.clone(),
             de00: delta_e00_xyz(*p, *t, data.white_xyz),
         })
         .collect();
     let values: Vec<f64> = per_patch.iter().map(|p| p.de00).collect();
+    let errors: Vec<f64> = match protocol {
+        Protocol::LeaveOneOut => pred.iter().map(|p| p.1).collect(),
+        Protocol::InSample => pred.first().map(|p| p.1).into_iter().collect(),
+    };
+    // A NaN error (not measured) counts as not surviving.
+    let unsafe_fit = |e: &f64| e.is_nan() || *e > crate::model::fit::F32_TOLERANCE_DE00;
     Ok(EvalResult {
         illuminant: illuminant.to_string(),
         model: kind.name().to_string(),
@@ -176,6 +202,10 @@ pub fn evaluate_with(
         terms: crate::model::terms(kind, order).len(),
         stats: Stats::of(&values),
         per_patch,
+        f32_guard: opts.f32_guard,
+        f32_unsafe_fits: errors.iter().filter(|e| unsafe_fit(e)).count(),
+        fits: errors.len(),
+        f32_error_max: errors.iter().copied().fold(0.0, f64::max),
     })
 }
 

@@ -390,6 +390,10 @@ mod tests {
                     de00: d,
                 })
                 .collect(),
+            f32_guard: false,
+            f32_unsafe_fits: 0,
+            fits: v.len(),
+            f32_error_max: 0.0,
         }
     }
 

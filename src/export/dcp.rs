@@ -1169,11 +1169,58 @@ pub(crate) fn measure(
     Ok(report)
 }
 
+/// The ΔE00 (D50-referred) of a single-model DCP against the model as `nsrm apply` runs it
+/// without a white (no re-balancing), for a raw file white-balanced by the training white's
+/// camera response `white` (a DNG maps that neutral exactly to D50, whether or not the model maps
+/// it to its white): the training patches and the training white itself, and the dense in-gamut
+/// set built from the patches. Exposure is normalised on both sides: the training white's green
+/// is the DCP's `G = 1` (its `Y = 1`) and the model's training exposure (its white `Y = 1`).
+pub(crate) fn measure_unbalanced(
+    dcp: &Dcp,
+    model: &crate::Model,
+    white: [f64; 3],
+    training_rgb: &[[f64; 3]],
+    stops: [f64; 2],
+) -> Result<super::ErrorReport, ExportError> {
+    if !(white.iter().all(|v| v.is_finite() && *v > 0.0)) {
+        return Err(ExportError::Model(format!(
+            "the training white's camera response {white:?} is not positive"
+        )));
+    }
+    let d50 = d50();
+    let n = white.map(|v| v / white[1]);
+    let xy = dcp.neutral_to_xy(n)?;
+    let pipeline = dcp.at_weight(dcp.weight_at(xy));
+    let mw = model.white_xyz();
+    let adapt = temperature::bradford_between(mw, d50).map(|r| r.map(|v| v / mw[1]));
+    let mut samples = training_rgb.to_vec();
+    samples.push(white);
+    let report = super::measure_fn(&samples, stops, false, |p, k| {
+        let exact = spaces::apply(&adapt, model.apply_f64(p));
+        let approx = pipeline.eval(p.map(|v| v / white[1]), n);
+        let d = crate::colorimetry::delta_e00_xyz(exact, approx, d50.map(|v| v * k));
+        if d.is_finite() {
+            d
+        } else {
+            f64::INFINITY
+        }
+    });
+    Ok(report)
+}
+
 /// What [`export_to`] wrote and measured.
 #[derive(Debug, Clone)]
 pub struct DcpWritten {
-    /// The error of the profile against the model set, over every white measured.
+    /// The error of the profile against the model set, over every white measured, and for a
+    /// single model the error against the model applied without a white (`unbalanced`): the
+    /// worse of the two per sample set. What `max_de00` is held to.
     pub report: super::ErrorReport,
+    /// For a single model whose training white's camera response is known: the error of the
+    /// profile, on a raw file white-balanced by that response, against the model as `nsrm apply`
+    /// runs it without `--white` ([`measure_unbalanced`]; includes the white's own error).
+    pub unbalanced: Option<super::ErrorReport>,
+    /// The error against the re-balanced model alone (as `apply --white` runs it).
+    pub rebalanced: super::ErrorReport,
     /// The frame whites the error was measured at (described).
     pub whites: Vec<String>,
     /// Per model: ΔE00 between the model's output for its training white's camera response and
@@ -1238,7 +1285,26 @@ pub fn export_to(
         whites.push((FrameWhite::Xy(xy), format!("a {mid:.0} K light")));
     }
     let fw: Vec<FrameWhite> = whites.iter().map(|w| w.0).collect();
-    let report = measure(&dcp, profile, &fw, sets[0], stops)?;
+    let rebalanced = measure(&dcp, profile, &fw, sets[0], stops)?;
+    // A single model is also applied without a white: a DNG white-balanced by the training
+    // white then differs from it wherever re-balancing moves the model (its own white first).
+    let unbalanced = match (
+        profile.is_dual(),
+        training.first().and_then(|t| t.white_rgb),
+    ) {
+        (false, Some(w)) => Some(measure_unbalanced(
+            &dcp,
+            &profile.models()[0],
+            w,
+            sets[0],
+            stops,
+        )?),
+        _ => None,
+    };
+    let report = match &unbalanced {
+        Some(u) => rebalanced.worst(u),
+        None => rebalanced.clone(),
+    };
     report.check_limit(max_de00)?;
     let white_miss = profile
         .models()
@@ -1253,6 +1319,8 @@ pub fn export_to(
     unit.write_bytes(out, &dcp.to_bytes())?;
     Ok(DcpWritten {
         report,
+        unbalanced,
+        rebalanced,
         whites: whites.into_iter().map(|w| w.1).collect(),
         white_miss,
         illuminants: dcp

@@ -242,10 +242,25 @@ impl ErrorStats {
         if count == 0 {
             return ErrorStats::default();
         }
+        // A NaN (an error that could not be measured) is the maximum: it must fail any limit.
+        let max = if values.iter().any(|v| v.is_nan()) {
+            f64::NAN
+        } else {
+            values.iter().cloned().fold(0.0, f64::max)
+        };
         ErrorStats {
             count,
             mean: values.iter().sum::<f64>() / count as f64,
-            max: values.iter().cloned().fold(0.0, f64::max),
+            max,
+        }
+    }
+
+    /// The one of `self` and `other` with the larger maximum (NaN counts as largest).
+    fn worst(self, other: ErrorStats) -> ErrorStats {
+        if other.max.is_nan() || other.max > self.max {
+            other
+        } else {
+            self
         }
     }
 }
@@ -274,24 +289,41 @@ pub struct ErrorReport {
 }
 
 impl ErrorReport {
-    /// The larger of the two maxima.
+    /// The larger of the two maxima (NaN when either is: an error not measured).
     pub(crate) fn max(&self) -> f64 {
+        if self.training.max.is_nan() || self.dense.max.is_nan() {
+            return f64::NAN;
+        }
         self.training.max.max(self.dense.max)
     }
 
-    /// Refuses an export whose largest error passes the caller's `limit`, saying where it was.
+    /// Per sample set, the worse of two measurements of one export (e.g. a DCP against the
+    /// re-balanced model and against the model as applied without a white).
+    pub(crate) fn worst(&self, other: &ErrorReport) -> ErrorReport {
+        ErrorReport {
+            training: self.training.worst(other.training),
+            dense: self.dense.worst(other.dense),
+            exposures: self.exposures.clone(),
+            out_of_range: self.out_of_range.max(other.out_of_range),
+        }
+    }
+
+    /// Refuses an export whose largest error passes the caller's `limit` (or could not be
+    /// measured: NaN), saying where it was.
     pub(crate) fn check_limit(&self, limit: Option<f64>) -> Result<(), ExportError> {
         match limit {
-            Some(limit) if self.max() > limit => Err(ExportError::TooInaccurate {
-                max: self.max(),
-                limit,
-                where_: if self.training.max >= self.dense.max {
-                    "on the training patches"
-                } else {
-                    "on the dense in-gamut set"
-                }
-                .into(),
-            }),
+            Some(limit) if self.max().is_nan() || self.max() > limit => {
+                Err(ExportError::TooInaccurate {
+                    max: self.max(),
+                    limit,
+                    where_: if self.training.max.is_nan() || self.training.max >= self.dense.max {
+                        "on the training patches"
+                    } else {
+                        "on the dense in-gamut set"
+                    }
+                    .into(),
+                })
+            }
             _ => Ok(()),
         }
     }
@@ -810,6 +842,31 @@ pub(crate) fn camera_space_name(model: &Model) -> String {
 mod tests {
     use super::*;
     use crate::spectral::{simulate_named, Grid};
+
+    #[test]
+    fn an_error_that_could_not_be_measured_fails_any_limit() {
+        let stats = ErrorStats::from(&[0.1, f64::NAN, 0.2]);
+        assert!(stats.max.is_nan());
+        let r = ErrorReport {
+            training: ErrorStats::from(&[0.1, 0.2]),
+            dense: stats,
+            exposures: vec![0.0],
+            out_of_range: 0,
+        };
+        assert!(r.max().is_nan());
+        assert!(matches!(
+            r.check_limit(Some(1e9)),
+            Err(ExportError::TooInaccurate { .. })
+        ));
+        assert!(r.check_limit(None).is_ok());
+        // The worse of two measurements keeps the NaN.
+        let fine = ErrorReport {
+            dense: ErrorStats::from(&[0.3]),
+            ..r.clone()
+        };
+        assert!(fine.worst(&r).max().is_nan());
+        assert!(fine.check_limit(Some(0.5)).is_ok());
+    }
 
     fn data() -> crate::TrainingSet {
         simulate_named("nikon-d5100", "D65", "rawtoaces-190", &Grid::default()).unwrap()

@@ -212,6 +212,10 @@ impl Calibration {
     }
 }
 
+/// How close (xy distance) a frame's white must be to a model's training white to be that white
+/// (the chromaticity found for a camera neutral by iteration is within about 1e-9 of it).
+const OWN_WHITE_XY: f64 = 1e-7;
+
 /// The white of a frame.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub enum FrameWhite {
@@ -442,8 +446,25 @@ impl Profile {
         })
     }
 
-    /// The models combined for a frame's white (DNG's interpolation by inverse temperature).
+    /// The models combined for a frame's white (DNG's interpolation by inverse temperature), on
+    /// DNG's scale: the frame's camera neutral at `G = 1` maps to the white at `Y = 100`.
     pub fn combine(&self, white: FrameWhite) -> Result<Combination, ModelError> {
+        self.combine_scaled(white, false)
+    }
+
+    /// [`Profile::combine`] on the models' own scale, as `apply --white` writes it: the frame's
+    /// neutral at the training white's exposure (its green equal to that of the camera response
+    /// each model maps to its training white) maps to the white at `Y = 100`, as that response
+    /// does without a white. At a model's own training white the combination is the model.
+    pub fn combine_for_apply(&self, white: FrameWhite) -> Result<Combination, ModelError> {
+        self.combine_scaled(white, true)
+    }
+
+    fn combine_scaled(
+        &self,
+        white: FrameWhite,
+        training_exposure: bool,
+    ) -> Result<Combination, ModelError> {
         let te = |e: TemperatureError| spec(e.to_string());
         let (xy, neutral) = match white {
             FrameWhite::Xy(xy) => (xy, self.neutral_for_xy(xy).map_err(te)?),
@@ -470,14 +491,28 @@ impl Profile {
             if c == 0.0 {
                 continue;
             }
-            let gains = [0, 1, 2].map(|k| cal.white_rgb[k] / neutral[k]);
+            // Re-balance: the frame's neutral (at G = 1, or at the training white's exposure)
+            // becomes the training white's response.
+            let exposure = if training_exposure {
+                cal.white_rgb[1]
+            } else {
+                1.0
+            };
+            let gains = [0, 1, 2].map(|k| cal.white_rgb[k] / (neutral[k] * exposure));
             let balanced = with_extra_gains(m, gains)?;
             // Model i's white (Y = its white's Y) → the frame's white at Y = 100.
             let adapt = bradford_between(m.white_xyz(), white_xyz);
             let k = c * 100.0 / m.white_xyz()[1];
             let mat = adapt.map(|row| row.map(|v| v * k));
-            let part = premultiplied(&balanced, &mat)?.with_white_xyz(white_xyz)?;
-            parts.push(part);
+            let part = premultiplied(&balanced, &mat)?;
+            // The frame's white adapts exactly to the output space's, unless it is this model's
+            // own training white (which may count as D65, as without `--white`).
+            let own = (xy[0] - cal.xy[0]).hypot(xy[1] - cal.xy[1]) <= OWN_WHITE_XY;
+            parts.push(if own && c == 1.0 {
+                part.with_white_xyz(white_xyz)?
+            } else {
+                part.with_frame_white(white_xyz)?
+            });
         }
         Ok(Combination {
             parts,

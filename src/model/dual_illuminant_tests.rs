@@ -196,3 +196,71 @@ fn two_illuminant_table() {
         println!("| {light} ({cct:.0} K) | {} |", cells.join(" | "));
     }
 }
+
+/// `apply --white` swept through 6400–6600 K in 5 K steps (the daylight whites within and around
+/// the 1e-3 "counts as D65" tolerance): the output (XYZ, D65-referred, as `apply` folds it) of
+/// every cc24 colour moves smoothly. No step may move a colour by more than twice the larger of
+/// its two neighbouring steps (plus 1e-3 ΔE00 for steps that are all but zero): before issue
+/// 35 a frame white inside the tolerance skipped the adaptation to D65, a jump of 0.42 ΔE00 at
+/// 6460 → 6465 K between steps of about 0.02.
+#[test]
+fn white_sweep_near_d65_has_no_jump() {
+    use crate::colorimetry::spaces::OutputSpace;
+    let p = Profile::dual(model(Kind::Nsrm, "A"), model(Kind::Nsrm, "D65")).unwrap();
+    let chart = simulated("D65", "cc24");
+    let d65 = m3::xy_to_xyz(crate::colorimetry::spaces::D65_XY);
+    let temps: Vec<f64> = (0..=40).map(|i| 6400.0 + 5.0 * i as f64).collect();
+    let outputs: Vec<Vec<[f64; 3]>> = temps
+        .iter()
+        .map(|t| {
+            let c = p
+                .combine_for_apply(FrameWhite::Xy(temperature_xy(*t).unwrap()))
+                .unwrap();
+            let parts: Vec<crate::Model> = c
+                .parts
+                .iter()
+                .map(|m| crate::model::output_model(m, OutputSpace::Xyz).unwrap())
+                .collect();
+            chart
+                .rgb
+                .iter()
+                .map(|rgb| {
+                    let mut out = [0.0; 3];
+                    for m in &parts {
+                        let y = m.apply_f64(*rgb);
+                        (0..3).for_each(|k| out[k] += y[k]);
+                    }
+                    out
+                })
+                .collect()
+        })
+        .collect();
+    let steps: Vec<Vec<f64>> = outputs
+        .windows(2)
+        .map(|w| {
+            w[0].iter()
+                .zip(&w[1])
+                .map(|(a, b)| crate::colorimetry::delta_e00_xyz(*a, *b, d65))
+                .collect()
+        })
+        .collect();
+    let mut largest = (0.0f64, 0.0);
+    for i in 0..steps.len() {
+        for c in 0..chart.len() {
+            let d = steps[i][c];
+            let before = if i > 0 { steps[i - 1][c] } else { 0.0 };
+            let after = steps.get(i + 1).map_or(0.0, |s| s[c]);
+            assert!(
+                d <= 2.0 * before.max(after) + 1e-3,
+                "{} → {} K moves {} by {d:.4} ΔE00 (neighbouring steps {before:.4}, {after:.4})",
+                temps[i],
+                temps[i + 1],
+                chart.labels[c]
+            );
+            if d > largest.0 {
+                largest = (d, temps[i]);
+            }
+        }
+    }
+    eprintln!("largest 5 K step: {:.4} ΔE00 at {} K", largest.0, largest.1);
+}

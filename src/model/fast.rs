@@ -97,7 +97,6 @@ pub(crate) enum FastError {
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub(crate) enum Threads {
     /// The calling thread only.
-    #[cfg(any(feature = "cli", test))]
     Single,
     /// Every thread of rayon's current pool (the global pool unless called inside `install`).
     All,
@@ -595,7 +594,6 @@ fn in_place<K: Chunks, const C: usize>(k: &K, data: &mut [f32], threads: Threads
     };
     match threads {
         Threads::All => data.par_chunks_mut(n).for_each(run),
-        #[cfg(any(feature = "cli", test))]
         Threads::Single => data.chunks_mut(n).for_each(run),
     }
 }

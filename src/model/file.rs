@@ -103,11 +103,11 @@ impl Model {
                 } else {
                     "linear camera RGB, not white-balanced; the model multiplies R, G, B by `gains` (the training white's response becomes 1, 1, 1) before the terms".into()
                 },
-                camera_scale: "the perfect white under the training illuminant has G = 1".into(),
+                camera_scale: "the training exposure: the camera response the model maps to reference_white (the training white; G = 1 for spectral simulations, the chart white's raw level for a capture) is what apply writes at Y = 1, with or without a frame white".into(),
                 gains: (!unit).then_some(self.input_gains),
             },
             output: Output {
-                space: "CIE XYZ (1931 2°), relative to the training illuminant".into(),
+                space: "CIE XYZ (1931 2°), relative to the training illuminant; apply divides by xyz_scale (the training white at the training exposure → Y = 1)".into(),
                 xyz_scale: self.white_xyz[1],
                 reference_white: self.white_xyz,
             },

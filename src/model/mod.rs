@@ -75,13 +75,13 @@ pub enum ModelError {
     Degenerate,
     /// No ridge λ makes the model's f32 evaluation (fast CPU path, shaders) reproduce its f64
     /// in-sample ΔE00: the terms are too nearly collinear on this data.
-    #[error("{kind} order {order}: evaluating the fitted model in f32 (as apply does) could change a training patch's ΔE00 by up to {bound:.3}, more than {tolerance}, and no ridge λ up to 100 brings it within: the terms are too nearly collinear on this data (choose a lower order)")]
+    #[error("{kind} order {order}: evaluating the fitted model in f32 (as apply does) moves its output by up to {bound:.3} ΔE00 (measured on the training patches and an in-gamut probe set), more than {tolerance}, and no ridge λ up to 100 brings it within: the terms are too nearly collinear on this data (choose a lower order)")]
     F32Unstable {
         /// The model kind.
         kind: Kind,
         /// The model order.
         order: u8,
-        /// The largest change in a training patch's ΔE00 that f32 evaluation could cause.
+        /// The largest ΔE00 between f32 and f64 evaluation measured (training patches, probe set).
         bound: f64,
         /// The largest change accepted.
         tolerance: f64,
@@ -248,6 +248,12 @@ pub struct Model {
     /// white-balanced NSRM (the training white's response becomes `(1, 1, 1)`). Finite, `> 0`
     /// and finite in f32 (checked wherever they are set: the fit, the model file, a combination).
     input_gains: [f64; 3],
+    /// Whether `white_xyz` is a frame's white that the model was combined for
+    /// ([`dual_illuminant::Profile::combine`]) rather than its own training white: the output
+    /// space then adapts from it exactly, never by the "counts as D65" shortcut of
+    /// [`crate::colorimetry::spaces::OutputSpace::from_xyz`] (which is for a training white
+    /// integrated on a coarse grid). Not stored in the model file.
+    frame_white: bool,
 }
 
 impl Model {
@@ -280,6 +286,7 @@ impl Model {
             patches: Vec::new(),
             fit_report: None,
             input_gains: UNIT_GAINS,
+            frame_white: false,
         })
     }
 
@@ -362,6 +369,19 @@ impl Model {
         check_white(white_xyz)?;
         self.white_xyz = white_xyz;
         Ok(self)
+    }
+
+    /// The model with `white_xyz` as its white, marked as a frame's white (see `frame_white`).
+    pub(crate) fn with_frame_white(mut self, white_xyz: [f64; 3]) -> Result<Model, ModelError> {
+        check_white(white_xyz)?;
+        self.white_xyz = white_xyz;
+        self.frame_white = true;
+        Ok(self)
+    }
+
+    /// Whether the model's white is a frame's white it was combined for (not its training white).
+    pub(crate) fn has_frame_white(&self) -> bool {
+        self.frame_white
     }
 
     /// The model with a record of its training data (where it came from, the patch labels).

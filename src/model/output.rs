@@ -2,7 +2,7 @@
 //! matrix.
 
 use super::{Model, ModelError};
-use crate::colorimetry::{output_matrix, spaces::OutputSpace};
+use crate::colorimetry::{output_matrix, output_matrix_exact, spaces::OutputSpace};
 
 /// The model with the output-space matrix ([`OutputSpace::from_xyz`], white at `Y = 1`) folded into its matrix: it maps camera RGB straight to the
 /// output space (white `Y = 1`), on every apply path, with no extra pass over the pixels. This
@@ -14,7 +14,13 @@ pub fn output_model(model: &Model, space: OutputSpace) -> Result<Model, ModelErr
             "the model's reference white {w:?} has no positive Y; cannot scale the output"
         )));
     }
-    let p = output_matrix(w, space);
+    // A frame's white (a combination's) adapts exactly; only a model's own training white may
+    // count as D65.
+    let p = if model.has_frame_white() {
+        output_matrix_exact(w, space)
+    } else {
+        output_matrix(w, space)
+    };
     let l = model.len_terms();
     let mut folded = vec![0.0; 3 * l];
     for i in 0..3 {

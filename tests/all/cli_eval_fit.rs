@@ -276,3 +276,46 @@ fn plot_writes_png_and_svg() {
     }
     std::fs::remove_dir_all(&d).unwrap();
 }
+
+#[test]
+fn eval_marks_fits_that_f32_cannot_evaluate_and_evaluates_the_guarded_ones_on_request() {
+    // RPRM 4 on rawtoaces-190: least squares as solved takes coefficients f32 cannot evaluate
+    // within 0.01 ΔE00. `eval` evaluates it as the paper does, marks it `*` and says why under the
+    // table; `--f32-guard` evaluates the fit `fit` writes; `--ridge 0` with it is refused.
+    let base = [
+        "eval",
+        "--kinds",
+        "rprm",
+        "--order",
+        "4",
+        "--illuminant",
+        "D65",
+        "--in-sample",
+    ];
+    let plain = nsrm().args(base).output().unwrap();
+    common::assert_ok(&plain);
+    let s = String::from_utf8(plain.stdout).unwrap();
+    let row = s.lines().find(|l| l.starts_with("RPRM4")).unwrap();
+    assert!(row.trim_end().ends_with('*'), "{s}");
+    assert!(s.contains("* RPRM4 under D65: 1 of 1 fits"), "{s}");
+    assert!(s.contains("--f32-guard"), "{s}");
+    let json = nsrm().args(base).arg("--json").output().unwrap();
+    common::assert_ok(&json);
+    let v: serde_json::Value = serde_json::from_slice(&json.stdout).unwrap();
+    let r = &v["results"][0];
+    assert_eq!(r["f32_guard"], false);
+    assert_eq!(r["f32_unsafe_fits"], 1);
+    assert!(r["f32_error_max"].as_f64().unwrap() > nsrm::F32_TOLERANCE_DE00);
+    let guarded = nsrm().args(base).arg("--f32-guard").output().unwrap();
+    common::assert_ok(&guarded);
+    let g = String::from_utf8(guarded.stdout).unwrap();
+    let row = g.lines().find(|l| l.starts_with("RPRM4")).unwrap();
+    assert!(!row.contains('*'), "{g}");
+    assert!(g.contains("f32-guarded"), "{g}");
+    let both = nsrm()
+        .args(base)
+        .args(["--f32-guard", "--ridge", "0"])
+        .output()
+        .unwrap();
+    assert_eq!(both.status.code(), Some(2), "{}", common::stderr(&both));
+}

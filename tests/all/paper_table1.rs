@@ -22,12 +22,13 @@ fn sg_inner_96_d65_order_3_leave_one_out() {
     assert_eq!(all.len(), 140); // one patch per reflectance of the file
     let data = all.select("B2:M9").unwrap();
     assert_eq!(data.len(), 96);
-    // (mean, median, max) from the issue, pinned to ±0.01. RPRM moved with issue 19's f32 guard
-    // (each fold's λ raised from 0 to about 1e-9): it was 0.72 / 0.51 / 2.78 unregularised.
+    // (mean, median, max) from the issue, pinned to ±0.01: the paper's method (plain least
+    // squares in every fold, no f32 guard; issue 35 restored RPRM's 0.72 / 0.51 / 2.78, which
+    // issue 19's guard had moved to 0.72 / 0.54 / 3.03).
     let want = [
         (Kind::Lrm, 1.37, 1.09, 5.44),
         (Kind::Prm, 0.83, 0.72, 2.94),
-        (Kind::Rprm, 0.72, 0.54, 3.03),
+        (Kind::Rprm, 0.72, 0.51, 2.78),
         (Kind::Nsrm, 0.79, 0.63, 3.18),
     ];
     for (kind, mean, median, max) in want {
@@ -59,22 +60,21 @@ fn sg_inner_96_d65_order_3_leave_one_out() {
 fn builtin_rawtoaces_190_table_is_pinned() {
     // `nsrm eval`: D5100 (NPL), rawtoaces-190, leave-one-out, order 3; (mean, median, max) as
     // measured, to ±5e-4 (a regression pin: a change to the fit or ΔE00 that moves them must say so).
-    // RPRM moved with issue 19's f32 guard: unregularised, its 13 near-collinear terms on 189
-    // patches take coefficients f32 cannot evaluate to 0.01 ΔE00, so each fold's λ is raised from
-    // 0 to about 1e-9 (D65 was 0.7820 / 0.6206 / 5.0228, TL865 0.5664 / 0.4107 / 4.0525, LED-B5
-    // 0.6078 / 0.4398 / 3.4385); the other kinds did not move.
+    // The paper's method: plain least squares in every fold (issue 35 restored RPRM's rows, which
+    // issue 19's f32 guard had moved to D65 0.7510 / 0.6106 / 3.1569, TL865 0.5458 / 0.4091 /
+    // 2.5180, LED-B5 0.5873 / 0.4352 / 3.3209); the other kinds never moved.
     let want = [
         ("D65", Kind::Lrm, 1.2162, 0.9802, 4.5695),
         ("D65", Kind::Prm, 0.7916, 0.6148, 3.1486),
-        ("D65", Kind::Rprm, 0.7510, 0.6106, 3.1569),
+        ("D65", Kind::Rprm, 0.7820, 0.6206, 5.0228),
         ("D65", Kind::Nsrm, 0.7945, 0.6478, 3.1228),
         ("TL865", Kind::Lrm, 0.9554, 0.7698, 4.1321),
         ("TL865", Kind::Prm, 0.6014, 0.4413, 2.5950),
-        ("TL865", Kind::Rprm, 0.5458, 0.4091, 2.5180),
+        ("TL865", Kind::Rprm, 0.5664, 0.4107, 4.0525),
         ("TL865", Kind::Nsrm, 0.5753, 0.4319, 2.8543),
         ("LED-B5", Kind::Lrm, 0.9273, 0.7450, 3.5164),
         ("LED-B5", Kind::Prm, 0.6063, 0.4567, 2.9391),
-        ("LED-B5", Kind::Rprm, 0.5873, 0.4352, 3.3209),
+        ("LED-B5", Kind::Rprm, 0.6078, 0.4398, 3.4385),
         ("LED-B5", Kind::Nsrm, 0.6214, 0.5049, 2.5208),
     ];
     for ill in ["D65", "TL865", "LED-B5"] {

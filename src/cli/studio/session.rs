@@ -913,6 +913,8 @@ impl ComparePlan {
                     if kind != Kind::Nsrm {
                         o.normalise = Normalise::Raw;
                     }
+                    // As `nsrm eval`: the paper's method, the fits as solved.
+                    o.f32_guard = false;
                     match evaluate_with(kind, order, &data, protocol, "capture", &o) {
                         Ok(r) => {
                             if protocol == Protocol::LeaveOneOut

@@ -322,6 +322,12 @@ impl Illuminant {
         };
         Illuminant::new(table)
     }
+
+    /// Whether `spec` is a built-in or computed name (never a file).
+    #[cfg(feature = "studio")]
+    pub(crate) fn is_builtin(spec: &str) -> bool {
+        builtin_illuminant(spec).is_some() || computed::computed_illuminant(spec).is_some()
+    }
 }
 
 /// Reflectances, one spectrum per patch (column names are the patch labels).

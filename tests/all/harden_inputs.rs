@@ -189,3 +189,58 @@ fn non_utf8_names_are_converted() {
         );
     }
 }
+
+/// A camera JPEG cut short, or whose header declares 16000×16000 over a few kilobytes, is
+/// refused before it is decoded: an error naming the file, no CSV, and no more memory than
+/// reading the whole file takes (before: the cut file read without a word, the chart "found";
+/// the inflated one 4.5 GB and 18 s before it was taken as a frame).
+#[cfg(unix)]
+#[test]
+fn a_cut_or_inflated_jpeg_is_refused_before_decoding() {
+    let dir = common::tempdir("jpeg-hostile");
+    let mut img = image::RgbImage::new(320, 240);
+    for (x, y, p) in img.enumerate_pixels_mut() {
+        *p = image::Rgb([(x % 251) as u8, (y % 241) as u8, ((x * y) % 239) as u8]);
+    }
+    let mut whole = Vec::new();
+    image::codecs::jpeg::JpegEncoder::new_with_quality(&mut whole, 90)
+        .encode_image(&img)
+        .unwrap();
+    let sof = whole.windows(2).position(|w| w == [0xFF, 0xC0]).unwrap();
+    let mut inflated = whole.clone();
+    inflated[sof + 5..sof + 9].copy_from_slice(&16000u16.to_be_bytes().repeat(2));
+    let cut = whole[..whole.len() * 8 / 10].to_vec();
+    let limit = std::time::Duration::from_secs(120);
+    let extract = |name: &str, bytes: &[u8]| {
+        let file = format!("{name}.jpg");
+        std::fs::write(dir.join(&file), bytes).unwrap();
+        let csv = format!("{name}.csv");
+        let args = ["chart", "extract", "--chart", "cc24", &file, "-o", &csv];
+        (common::nsrm_measured(&dir, &args, limit), dir.join(csv))
+    };
+    // The whole file is decoded (then no chart is found in it: not what is measured).
+    let ((o, whole_peak, _), _) = extract("whole", &whole);
+    let err = common::stderr(&o);
+    assert!(
+        !err.contains("truncated") && !err.contains("blocks"),
+        "{err}"
+    );
+    for (name, bytes, says) in [
+        ("cut", &cut, "truncated"),
+        ("inflated", &inflated, "blocks"),
+    ] {
+        let ((o, peak, _), csv) = extract(name, bytes);
+        common::no_crash(&o, name);
+        let err = common::stderr(&o);
+        assert!(!o.status.success(), "{name} accepted");
+        assert!(
+            err.contains(&format!("{name}.jpg")) && err.contains(says),
+            "{name}: {err}"
+        );
+        assert!(!csv.exists(), "{name}: a CSV written");
+        assert!(
+            peak <= whole_peak + whole_peak / 2,
+            "{name}: {peak} KiB at its peak, the whole file {whole_peak} KiB"
+        );
+    }
+}

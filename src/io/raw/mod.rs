@@ -44,6 +44,8 @@ mod decode;
 #[cfg(feature = "raw")]
 mod demosaic;
 #[cfg(feature = "raw")]
+mod ljpeg;
+#[cfg(feature = "raw")]
 mod xtrans;
 #[cfg(feature = "raw")]
 pub(crate) use decode::read;

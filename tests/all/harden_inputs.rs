@@ -244,3 +244,98 @@ fn a_cut_or_inflated_jpeg_is_refused_before_decoding() {
         );
     }
 }
+
+/// Messages that name their file: a camera CSV whose channels overflow once its white's green
+/// is 1 (before: "fitting PRM order …" and a patch, no file), the DCP export of a model with
+/// an all-zero matrix (before: "no positive camera response …", no file); and `--illuminant
+/// D3000` (daylight is defined from 4000 K) lists every name it could have been, with ranges.
+#[test]
+fn messages_name_the_camera_file_the_model_file_and_the_illuminant_forms() {
+    let dir = common::tempdir("named-files");
+    let src = std::fs::read_to_string(concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/assets/nikon_d5100_npl_darrodi2015.csv"
+    ))
+    .unwrap();
+    let mut lines = src.lines();
+    let mut cam = format!("{}\n", lines.next().unwrap());
+    for l in lines {
+        let wl = l.split(',').next().unwrap();
+        cam.push_str(&format!("{wl},1e300,1e-10,1e300\n"));
+    }
+    std::fs::write(dir.join("huge_cam.csv"), cam).unwrap();
+    let o = nsrm_in(
+        &dir,
+        &[
+            "fit",
+            "--kind",
+            "prm",
+            "--order",
+            "2",
+            "--camera",
+            "huge_cam.csv",
+            "-o",
+            "p.json",
+        ],
+    );
+    let err = stderr(&o);
+    assert_eq!(o.status.code(), Some(1), "{err}");
+    assert!(
+        err.contains("huge_cam.csv") && err.contains("green"),
+        "{err}"
+    );
+    assert!(!dir.join("p.json").exists());
+
+    nsrm_ok(&dir, &["fit", "--kind", "lrm", "-o", "m.json"]);
+    let mut v: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(dir.join("m.json")).unwrap()).unwrap();
+    for row in v["matrix"].as_array_mut().unwrap() {
+        for x in row.as_array_mut().unwrap() {
+            *x = 0.0.into();
+        }
+    }
+    std::fs::write(dir.join("zero_model.json"), v.to_string()).unwrap();
+    let o = nsrm_in(
+        &dir,
+        &[
+            "export",
+            "--model",
+            "zero_model.json",
+            "--format",
+            "dcp",
+            "-o",
+            "z.dcp",
+        ],
+    );
+    let err = stderr(&o);
+    assert_eq!(o.status.code(), Some(1), "{err}");
+    assert!(err.contains("zero_model.json"), "{err}");
+    assert!(!dir.join("z.dcp").exists());
+
+    let o = nsrm_in(
+        &dir,
+        &[
+            "fit",
+            "--kind",
+            "lrm",
+            "--illuminant",
+            "D3000",
+            "-o",
+            "d.json",
+        ],
+    );
+    let err = stderr(&o);
+    assert!(!o.status.success(), "{err}");
+    for want in [
+        "D3000",
+        "A (StdA)",
+        "D50",
+        "D<kelvin>",
+        "4000",
+        "P<kelvin>",
+        "1000",
+        "25000",
+    ] {
+        assert!(err.contains(want), "{want}: {err}");
+    }
+}

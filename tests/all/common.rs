@@ -417,6 +417,8 @@ pub fn nsrm_measured(
     use std::io::Read;
     use std::os::unix::process::ExitStatusExt;
     let t0 = std::time::Instant::now();
+    // Reaped by `wait4` below (for its resource usage), not by `Child::wait`.
+    #[allow(clippy::zombie_processes)]
     let mut child = nsrm()
         .current_dir(dir)
         .args(args)

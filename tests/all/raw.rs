@@ -981,10 +981,13 @@ fn a_raf_naming_a_superccd_camera_is_bounded_whatever_its_layout_tag_says() {
     assert!(matches!(r, Err(nsrm::io::IoError::Corrupt { .. })), "{r:?}");
 }
 
-/// A TIFF's IFDs as (offset, entries (tag, type, count, value field position)), IFD0's chain
-/// and SubIFDs, in the order met.
+/// An IFD's entries: (tag, type, count, value field position).
 #[cfg(feature = "raw")]
-fn ifds(b: &[u8]) -> (bool, Vec<(usize, Vec<(u16, u16, u32, usize)>)>) {
+type IfdEntries = Vec<(u16, u16, u32, usize)>;
+
+/// A TIFF's IFDs as (offset, entries), IFD0's chain and SubIFDs, in the order met.
+#[cfg(feature = "raw")]
+fn ifds(b: &[u8]) -> (bool, Vec<(usize, IfdEntries)>) {
     let le = b[0] == b'I';
     let u16_at = |o: usize| {
         let v = [b[o], b[o + 1]];
@@ -1031,7 +1034,7 @@ fn ifds(b: &[u8]) -> (bool, Vec<(usize, Vec<(u16, u16, u32, usize)>)>) {
                 let _ = typ;
             }
         }
-        queue.push(u32_at(off + 2 + 12 * n as usize));
+        queue.push(u32_at(off + 2 + 12 * n));
         out.push((off, entries));
     }
     (le, out)

@@ -119,3 +119,6 @@ write(f"{R}/cc24_lab_cgats_no_white", "\x01" + cg)
 write(f"{R}/sg_given_cc24_csv", "\x06" + ref)
 write(f"{R}/cc24_truncated_csv", "\x04" + ref[: len(ref) // 2])
 write(f"{R}/cc24_cgats_bad_sets", "\x05" + cg.replace("NUMBER_OF_SETS 24", "NUMBER_OF_SETS 99999999999"))
+
+# The lossless-JPEG DNG and JPEG seeds (Pillow).
+subprocess.run([sys.executable, "fuzz/seeds/make_jpeg.py"], check=True)

@@ -39,6 +39,7 @@ pub(crate) fn run(a: Args) -> Result<ExitCode> {
     let session = super::outputs::open(a.overwrite, &inputs, &[a.output.as_path()])?;
     let first = Model::load(&a.models[0]).with_context(|| a.models[0].display().to_string())?;
     let second = Model::load(&a.models[1]).with_context(|| a.models[1].display().to_string())?;
+    same_camera(&a.models, [&first, &second])?;
     let profile = Profile::dual(first, second).context("combining the two models")?;
     let mut unit = session.unit();
     unit.write_bytes(&a.output, profile.to_json().as_bytes())?;
@@ -51,6 +52,32 @@ pub(crate) fn run(a: Args) -> Result<ExitCode> {
         a.output.display()
     );
     Ok(ExitCode::SUCCESS)
+}
+
+/// Refuses two models fitted on different cameras (as their files record them): one sensor's
+/// two illuminants make a two-illuminant model, two sensors' do not. A model that records no
+/// camera is taken as it is.
+fn same_camera(paths: &[PathBuf], models: [&Model; 2]) -> Result<()> {
+    // A raw frame's `make model`, else the sensitivities a simulated fit used.
+    let camera = |m: &Model| {
+        let p = m.provenance();
+        p.capture
+            .as_ref()
+            .and_then(|c| c.camera.clone())
+            .or_else(|| p.camera.clone())
+            .filter(|c| !c.trim().is_empty())
+    };
+    if let (Some(a), Some(b)) = (camera(models[0]), camera(models[1])) {
+        if !a.trim().eq_ignore_ascii_case(b.trim()) {
+            anyhow::bail!(
+                "{} was fitted on camera {a} and {} on camera {b}: a two-illuminant model is one \
+                 camera's (fit both on the same camera)",
+                paths[0].display(),
+                paths[1].display()
+            );
+        }
+    }
+    Ok(())
 }
 
 /// `calibration illuminants T1 K (x, y …) and T2 K (x, y …)`: how `combine` and a two-illuminant

@@ -2,6 +2,45 @@
 //! (their doc comments) and clap turns them into `--help`.
 //!
 //! Exit status: 0 success, 1 failure (a message with its context on stderr), 2 usage error.
+//!
+//! A closed pipe ends nothing: `println!`, `print!`, `eprintln!` and `eprint!` are shadowed here
+//! (before every subcommand's module, so all of them use these) by versions that drop what the
+//! reader no longer takes (`nsrm export … | head -1`, `nsrm apply … 2>&1 | head -1`) instead
+//! of panicking; the command goes on, its outputs are committed, and its exit status is that of
+//! its work. (The standard macros panic on a write error, and the panic hook's own message to a
+//! closed stderr then aborted the process.)
+
+/// `println!` that a closed standard output does not end.
+macro_rules! println {
+    () => { $crate::cli::say(false, format_args!("\n")) };
+    ($($t:tt)*) => { $crate::cli::say(false, format_args!("{}\n", format_args!($($t)*))) };
+}
+/// `print!` that a closed standard output does not end.
+#[allow(unused_macros)]
+macro_rules! print {
+    ($($t:tt)*) => { $crate::cli::say(false, format_args!($($t)*)) };
+}
+/// `eprintln!` that a closed standard error does not end.
+macro_rules! eprintln {
+    () => { $crate::cli::say(true, format_args!("\n")) };
+    ($($t:tt)*) => { $crate::cli::say(true, format_args!("{}\n", format_args!($($t)*))) };
+}
+/// `eprint!` that a closed standard error does not end.
+#[allow(unused_macros)]
+macro_rules! eprint {
+    ($($t:tt)*) => { $crate::cli::say(true, format_args!($($t)*)) };
+}
+
+/// Writes `args` to standard error (`err`) or output; a write that fails (a closed pipe, a full
+/// disk behind a redirection) is dropped: the message is lost, not the command's work.
+pub(crate) fn say(err: bool, args: std::fmt::Arguments<'_>) {
+    use std::io::Write;
+    let _ = if err {
+        std::io::stderr().lock().write_fmt(args)
+    } else {
+        std::io::stdout().lock().write_fmt(args)
+    };
+}
 
 mod apply;
 mod bench;

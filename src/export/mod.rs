@@ -308,24 +308,41 @@ impl ErrorReport {
         }
     }
 
-    /// Refuses an export whose largest error passes the caller's `limit` (or could not be
-    /// measured: NaN), saying where it was.
+    /// Refuses an export whose largest error passes the caller's `limit`, saying where it was.
+    /// An error that could not be measured (NaN or infinite anywhere in the statistics: a
+    /// sample the export or the model sends to NaN) passes no limit.
     pub(crate) fn check_limit(&self, limit: Option<f64>) -> Result<(), ExportError> {
-        match limit {
-            Some(limit) if self.max().is_nan() || self.max() > limit => {
-                Err(ExportError::TooInaccurate {
-                    max: self.max(),
-                    limit,
-                    where_: if self.training.max.is_nan() || self.training.max >= self.dense.max {
-                        "on the training patches"
-                    } else {
-                        "on the dense in-gamut set"
-                    }
-                    .into(),
-                })
-            }
-            _ => Ok(()),
+        let Some(limit) = limit else {
+            return Ok(());
+        };
+        let stats = [&self.training, &self.dense];
+        if let Some(bad) = stats
+            .iter()
+            .position(|s| !(s.mean.is_finite() && s.max.is_finite()))
+        {
+            return Err(ExportError::TooInaccurate {
+                max: f64::NAN,
+                limit,
+                where_: format!(
+                    "not measurable {}: {}",
+                    ["on the training patches", "on the dense in-gamut set"][bad],
+                    stats[bad]
+                ),
+            });
         }
+        if self.max() > limit {
+            return Err(ExportError::TooInaccurate {
+                max: self.max(),
+                limit,
+                where_: if self.training.max >= self.dense.max {
+                    "on the training patches"
+                } else {
+                    "on the dense in-gamut set"
+                }
+                .into(),
+            });
+        }
+        Ok(())
     }
 
     /// One line for the CLF `Description`, the .cube header and the terminal.
@@ -840,6 +857,37 @@ pub(crate) fn camera_space_name(model: &Model) -> String {
 
 #[cfg(test)]
 mod tests {
+    #[test]
+    fn an_unmeasurable_error_passes_no_limit() {
+        use super::{ErrorReport, ErrorStats, ExportError};
+        let stats = |mean: f64, max: f64| ErrorStats {
+            count: 10,
+            mean,
+            max,
+        };
+        let report = |training: ErrorStats| ErrorReport {
+            training,
+            dense: stats(0.1, 0.2),
+            exposures: vec![0.0],
+            out_of_range: 0,
+        };
+        assert!(report(stats(0.1, 0.3)).check_limit(Some(1.0)).is_ok());
+        assert!(report(stats(f64::NAN, 0.0)).check_limit(None).is_ok());
+        for bad in [
+            stats(f64::NAN, 0.0),
+            stats(0.1, f64::NAN),
+            stats(0.1, f64::INFINITY),
+        ] {
+            let e = report(bad).check_limit(Some(1.0)).unwrap_err();
+            assert!(matches!(e, ExportError::TooInaccurate { .. }));
+            let text = e.to_string();
+            assert!(
+                text.contains("not measurable on the training patches"),
+                "{text}"
+            );
+        }
+    }
+
     use super::*;
     use crate::spectral::{simulate_named, Grid};
 

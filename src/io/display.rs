@@ -151,7 +151,10 @@ pub(crate) fn read_chart_frame(
 ) -> Result<ChartFrame, IoError> {
     let mut camera = None;
     let (frame, integer_display, format) = match sniff(path)? {
-        Kind::Jpeg => (read_image(path, &opts.limits)?, true, "JPEG"),
+        Kind::Jpeg => {
+            check_jpeg(path, &opts.limits)?;
+            (read_image(path, &opts.limits)?, true, "JPEG")
+        }
         Kind::Png => (read_image(path, &opts.limits)?, true, "PNG"),
         Kind::Tiff8 => (read_image(path, &opts.limits)?, true, "TIFF (8-bit)"),
         Kind::Other => {
@@ -181,6 +184,32 @@ pub(crate) fn read_chart_frame(
         transfer,
         max_code,
         camera,
+    })
+}
+
+/// The JPEG's structure before it is decoded ([`super::jpeg::check`]): its end marker, and
+/// data enough for the size its header declares. A file larger than 8 bytes a pixel at the
+/// pixel limit (JPEGs hold 1–3) is refused unread.
+fn check_jpeg(path: &Path, limits: &Limits) -> Result<(), IoError> {
+    use std::io::Read;
+    let rd = |err| IoError::Read {
+        path: path.to_path_buf(),
+        err,
+    };
+    let f = std::fs::File::open(path).map_err(rd)?;
+    let len = f.metadata().map_err(rd)?.len();
+    let cap = limits.max_pixels.saturating_mul(8).saturating_add(64 << 20);
+    if len > cap {
+        return Err(IoError::TooLarge {
+            path: path.to_path_buf(),
+            why: format!("a JPEG of {len} bytes, more than {cap} at the pixel limit"),
+        });
+    }
+    let mut bytes = super::try_with_capacity(path, len as usize)?;
+    f.take(len).read_to_end(&mut bytes).map_err(rd)?;
+    super::jpeg::check(&bytes).map_err(|why| IoError::Corrupt {
+        path: path.to_path_buf(),
+        why,
     })
 }
 

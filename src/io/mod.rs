@@ -21,6 +21,7 @@
 
 pub(crate) mod batch;
 pub(crate) mod display;
+mod jpeg;
 mod openexr;
 pub(crate) mod preview;
 pub(crate) mod raw;

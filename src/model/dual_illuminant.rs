@@ -561,11 +561,18 @@ impl Profile {
                 path: origin.to_string(),
                 err,
             })?;
+        // A model that parses but has no calibration (an all-zero matrix): the file named.
+        let single = |m: Model| {
+            Profile::single(m).map_err(|e| match e {
+                ModelError::Invalid(why) => ModelError::Invalid(format!("{origin}: {why}")),
+                e => e,
+            })
+        };
         let Some(o) = doc.as_object_mut() else {
-            return Model::from_json(text, origin).and_then(Profile::single);
+            return Model::from_json(text, origin).and_then(single);
         };
         let Some(second) = o.remove(SECOND_FIELD) else {
-            return Model::from_json(text, origin).and_then(Profile::single);
+            return Model::from_json(text, origin).and_then(single);
         };
         o.remove(CALIBRATION_FIELD);
         let first = Model::from_json(&doc.to_string(), origin)?;

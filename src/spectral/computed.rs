@@ -6,6 +6,15 @@ use super::SpectralTable;
 
 const DAYLIGHT_BASIS: &str = include_str!("../../assets/cie_daylight_basis.csv");
 
+/// The names [`computed_illuminant`] takes, with their ranges (for messages).
+pub(crate) static NAMES_AND_RANGES: std::sync::LazyLock<String> = std::sync::LazyLock::new(|| {
+    use crate::colorimetry::temperature::{DAYLIGHT_FROM, MAX_CCT, MIN_CCT};
+    format!(
+        "A (StdA), D50, D55, D75, D<kelvin> (CIE daylight, {DAYLIGHT_FROM}..={MAX_CCT} K), \
+         P<kelvin> (Planckian, {MIN_CCT}..={MAX_CCT} K)"
+    )
+});
+
 /// An illuminant named by formula, or `None` for a name that is not one: `A` / `StdA` (CIE 15's
 /// definition), `P<kelvin>` (Planck, 1000..=25000 K), `D<2 digits>` (CIE daylight at the digits ×
 /// 100 × 1.4388/1.4380 K: D50, D55, D75) and `D<kelvin>` (CIE daylight, 4000..=25000 K).
@@ -96,6 +105,19 @@ mod tests {
         assert!((p[0] - want[0]).abs() < 5e-4 && (p[1] - want[1]).abs() < 5e-4);
         for bad in ["P10", "D12", "D66", "Dx", "Q5000", "P", "D3000"] {
             assert!(computed_illuminant(bad).is_none(), "{bad}");
+        }
+        // The message for a name out of range gives every form with its range.
+        let e = Illuminant::from_name_or_path("D3000")
+            .unwrap_err()
+            .to_string();
+        for want in [
+            "`D3000`",
+            "A (StdA)",
+            "D50",
+            "D<kelvin> (CIE daylight, 4000..=25000 K)",
+            "P<kelvin> (Planckian, 1000..=25000 K)",
+        ] {
+            assert!(e.contains(want), "{want}: {e}");
         }
     }
 }

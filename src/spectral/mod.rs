@@ -110,6 +110,19 @@ pub enum SpectralError {
         /// The integral found.
         value: f64,
     },
+    /// Simulated values that overflow once the camera's white green is scaled to 1 (a camera
+    /// file whose channels are far larger than its green).
+    #[error("camera {camera}: patch `{patch}` under {illuminant} has RGB {rgb:?} once the white's green is 1 (values too large for their green?)")]
+    Overflow {
+        /// The camera's source (its file).
+        camera: String,
+        /// The illuminant's source.
+        illuminant: String,
+        /// The first patch that overflows.
+        patch: String,
+        /// Its RGB.
+        rgb: [f64; 3],
+    },
     /// A name that looks like a file path (a directory part or a file extension), and no such
     /// file exists.
     #[error("{path}: no such file (a {what} CSV was expected there)")]
@@ -318,9 +331,22 @@ impl Illuminant {
     pub(crate) fn from_name_or_path(spec: &str) -> Result<Illuminant, SpectralError> {
         let table = match builtin_illuminant(spec).or_else(|| computed::computed_illuminant(spec)) {
             Some(t) => t,
-            None => table_from_path(spec, "illuminant", ILLUMINANTS)?,
+            None => table_from_path(spec, "illuminant", ILLUMINANTS).map_err(|e| match e {
+                SpectralError::UnknownName { what, name, known } => SpectralError::UnknownName {
+                    what,
+                    name,
+                    known: format!("{known}; computed: {}", computed::NAMES_AND_RANGES.as_str()),
+                },
+                e => e,
+            })?,
         };
         Illuminant::new(table)
+    }
+
+    /// Whether `spec` is a built-in or computed name (never a file).
+    #[cfg(feature = "studio")]
+    pub(crate) fn is_builtin(spec: &str) -> bool {
+        builtin_illuminant(spec).is_some() || computed::computed_illuminant(spec).is_some()
     }
 }
 
@@ -475,6 +501,24 @@ pub(crate) fn simulate(
             kx * riemann(&e, r, &cmf[1], grid.step),
             kx * riemann(&e, r, &cmf[2], grid.step),
         ]);
+    }
+    let finite = |v: &[f64; 3]| v.iter().all(|x| x.is_finite());
+    let bad = (!finite(&white_rgb))
+        .then(|| ("the perfect white".to_string(), white_rgb))
+        .or_else(|| {
+            let i = rgb.iter().position(|v| !finite(v))?;
+            Some((
+                reflectances.0.names.get(i).cloned().unwrap_or_default(),
+                rgb[i],
+            ))
+        });
+    if let Some((patch, rgb)) = bad {
+        return Err(SpectralError::Overflow {
+            camera: camera.0.source_name.clone(),
+            illuminant: illuminant.0.source_name.clone(),
+            patch,
+            rgb,
+        });
     }
     Ok(TrainingSet {
         labels: reflectances.0.names.clone(),

@@ -405,3 +405,62 @@ pub mod mat {
         )
     }
 }
+
+/// Runs `nsrm args` in `dir`, killed after `limit`: its output, its peak resident memory in
+/// KiB (the kernel's `ru_maxrss` of that child) and how long it ran.
+#[cfg(all(feature = "cli", unix))]
+pub fn nsrm_measured(
+    dir: &Path,
+    args: &[&str],
+    limit: std::time::Duration,
+) -> (Output, u64, std::time::Duration) {
+    use std::io::Read;
+    use std::os::unix::process::ExitStatusExt;
+    let t0 = std::time::Instant::now();
+    // Reaped by `wait4` below (for its resource usage), not by `Child::wait`.
+    #[allow(clippy::zombie_processes)]
+    let mut child = nsrm()
+        .current_dir(dir)
+        .args(args)
+        .stdout(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .expect("running nsrm");
+    let pid = child.id() as libc::pid_t;
+    let mut out = child.stdout.take().unwrap();
+    let mut err = child.stderr.take().unwrap();
+    let reader = std::thread::spawn(move || {
+        let (mut o, mut e) = (Vec::new(), Vec::new());
+        let _ = err.read_to_end(&mut e);
+        let _ = out.read_to_end(&mut o);
+        (o, e)
+    });
+    let done = std::sync::Arc::new(std::sync::atomic::AtomicBool::new(false));
+    let flag = std::sync::Arc::clone(&done);
+    std::thread::spawn(move || {
+        let t = std::time::Instant::now();
+        while t.elapsed() < limit {
+            if flag.load(std::sync::atomic::Ordering::SeqCst) {
+                return;
+            }
+            std::thread::sleep(std::time::Duration::from_millis(50));
+        }
+        if !flag.load(std::sync::atomic::Ordering::SeqCst) {
+            // The child has not been reaped yet (wait4 below), so the pid is still its own.
+            unsafe { libc::kill(pid, libc::SIGKILL) };
+        }
+    });
+    let mut status = 0;
+    let mut usage: libc::rusage = unsafe { std::mem::zeroed() };
+    let r = unsafe { libc::wait4(pid, &mut status, 0, &mut usage) };
+    done.store(true, std::sync::atomic::Ordering::SeqCst);
+    assert_eq!(r, pid, "wait4");
+    let elapsed = t0.elapsed();
+    let (stdout, stderr) = reader.join().unwrap();
+    let o = Output {
+        status: std::process::ExitStatus::from_raw(status),
+        stdout,
+        stderr,
+    };
+    (o, usage.ru_maxrss as u64, elapsed)
+}

@@ -194,3 +194,38 @@ fn two_captures_each_with_its_light() {
         assert!(!d.join("o.png").exists(), "{args:?} wrote");
     }
 }
+
+/// `combine` refuses two models fitted on different cameras, naming both files and cameras,
+/// and writes nothing.
+#[test]
+fn combining_two_cameras_is_refused() {
+    let d = tempdir("combine-cameras");
+    for (ill, out) in [("A", "a.json"), ("D65", "d65.json")] {
+        nsrm_ok(
+            &d,
+            &["fit", "--kind", "lrm", "--illuminant", ill, "-o", out],
+        );
+    }
+    let mut v: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(d.join("d65.json")).unwrap()).unwrap();
+    let prov = v
+        .get_mut("training")
+        .and_then(|p| p.as_object_mut())
+        .expect("a training object");
+    let own = prov.get("camera").cloned().expect("the camera of the fit");
+    prov.insert("camera".into(), "other-sensor.csv".into());
+    std::fs::write(d.join("other.json"), serde_json::to_vec(&v).unwrap()).unwrap();
+    let o = nsrm_in(&d, &["combine", "a.json", "other.json", "-o", "dual.json"]);
+    let err = stderr(&o);
+    assert_eq!(o.status.code(), Some(1), "{err}");
+    for want in [
+        "a.json",
+        "other.json",
+        "other-sensor.csv",
+        own.as_str().unwrap(),
+    ] {
+        assert!(err.contains(want), "{want}: {err}");
+    }
+    assert!(!d.join("dual.json").exists());
+    nsrm_ok(&d, &["combine", "a.json", "d65.json", "-o", "dual.json"]);
+}

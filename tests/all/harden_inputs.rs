@@ -189,3 +189,153 @@ fn non_utf8_names_are_converted() {
         );
     }
 }
+
+/// A camera JPEG cut short, or whose header declares 16000×16000 over a few kilobytes, is
+/// refused before it is decoded: an error naming the file, no CSV, and no more memory than
+/// reading the whole file takes (before: the cut file read without a word, the chart "found";
+/// the inflated one 4.5 GB and 18 s before it was taken as a frame).
+#[cfg(unix)]
+#[test]
+fn a_cut_or_inflated_jpeg_is_refused_before_decoding() {
+    let dir = common::tempdir("jpeg-hostile");
+    let mut img = image::RgbImage::new(320, 240);
+    for (x, y, p) in img.enumerate_pixels_mut() {
+        *p = image::Rgb([(x % 251) as u8, (y % 241) as u8, ((x * y) % 239) as u8]);
+    }
+    let mut whole = Vec::new();
+    image::codecs::jpeg::JpegEncoder::new_with_quality(&mut whole, 90)
+        .encode_image(&img)
+        .unwrap();
+    let sof = whole.windows(2).position(|w| w == [0xFF, 0xC0]).unwrap();
+    let mut inflated = whole.clone();
+    inflated[sof + 5..sof + 9].copy_from_slice(&16000u16.to_be_bytes().repeat(2));
+    let cut = whole[..whole.len() * 8 / 10].to_vec();
+    let limit = std::time::Duration::from_secs(120);
+    let extract = |name: &str, bytes: &[u8]| {
+        let file = format!("{name}.jpg");
+        std::fs::write(dir.join(&file), bytes).unwrap();
+        let csv = format!("{name}.csv");
+        let args = ["chart", "extract", "--chart", "cc24", &file, "-o", &csv];
+        (common::nsrm_measured(&dir, &args, limit), dir.join(csv))
+    };
+    // The whole file is decoded (then no chart is found in it: not what is measured).
+    let ((o, whole_peak, _), _) = extract("whole", &whole);
+    let err = common::stderr(&o);
+    assert!(
+        !err.contains("truncated") && !err.contains("blocks"),
+        "{err}"
+    );
+    for (name, bytes, says) in [
+        ("cut", &cut, "truncated"),
+        ("inflated", &inflated, "blocks"),
+    ] {
+        let ((o, peak, _), csv) = extract(name, bytes);
+        common::no_crash(&o, name);
+        let err = common::stderr(&o);
+        assert!(!o.status.success(), "{name} accepted");
+        assert!(
+            err.contains(&format!("{name}.jpg")) && err.contains(says),
+            "{name}: {err}"
+        );
+        assert!(!csv.exists(), "{name}: a CSV written");
+        assert!(
+            peak <= whole_peak + whole_peak / 2,
+            "{name}: {peak} KiB at its peak, the whole file {whole_peak} KiB"
+        );
+    }
+}
+
+/// Messages that name their file: a camera CSV whose channels overflow once its white's green
+/// is 1 (before: "fitting PRM order …" and a patch, no file), the DCP export of a model with
+/// an all-zero matrix (before: "no positive camera response …", no file); and `--illuminant
+/// D3000` (daylight is defined from 4000 K) lists every name it could have been, with ranges.
+#[test]
+fn messages_name_the_camera_file_the_model_file_and_the_illuminant_forms() {
+    let dir = common::tempdir("named-files");
+    let src = std::fs::read_to_string(concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/assets/nikon_d5100_npl_darrodi2015.csv"
+    ))
+    .unwrap();
+    let mut lines = src.lines();
+    let mut cam = format!("{}\n", lines.next().unwrap());
+    for l in lines {
+        let wl = l.split(',').next().unwrap();
+        cam.push_str(&format!("{wl},1e300,1e-10,1e300\n"));
+    }
+    std::fs::write(dir.join("huge_cam.csv"), cam).unwrap();
+    let o = nsrm_in(
+        &dir,
+        &[
+            "fit",
+            "--kind",
+            "prm",
+            "--order",
+            "2",
+            "--camera",
+            "huge_cam.csv",
+            "-o",
+            "p.json",
+        ],
+    );
+    let err = stderr(&o);
+    assert_eq!(o.status.code(), Some(1), "{err}");
+    assert!(
+        err.contains("huge_cam.csv") && err.contains("green"),
+        "{err}"
+    );
+    assert!(!dir.join("p.json").exists());
+
+    nsrm_ok(&dir, &["fit", "--kind", "lrm", "-o", "m.json"]);
+    let mut v: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(dir.join("m.json")).unwrap()).unwrap();
+    for row in v["matrix"].as_array_mut().unwrap() {
+        for x in row.as_array_mut().unwrap() {
+            *x = 0.0.into();
+        }
+    }
+    std::fs::write(dir.join("zero_model.json"), v.to_string()).unwrap();
+    let o = nsrm_in(
+        &dir,
+        &[
+            "export",
+            "--model",
+            "zero_model.json",
+            "--format",
+            "dcp",
+            "-o",
+            "z.dcp",
+        ],
+    );
+    let err = stderr(&o);
+    assert_eq!(o.status.code(), Some(1), "{err}");
+    assert!(err.contains("zero_model.json"), "{err}");
+    assert!(!dir.join("z.dcp").exists());
+
+    let o = nsrm_in(
+        &dir,
+        &[
+            "fit",
+            "--kind",
+            "lrm",
+            "--illuminant",
+            "D3000",
+            "-o",
+            "d.json",
+        ],
+    );
+    let err = stderr(&o);
+    assert!(!o.status.success(), "{err}");
+    for want in [
+        "D3000",
+        "A (StdA)",
+        "D50",
+        "D<kelvin>",
+        "4000",
+        "P<kelvin>",
+        "1000",
+        "25000",
+    ] {
+        assert!(err.contains(want), "{want}: {err}");
+    }
+}

@@ -339,3 +339,54 @@ fn a_frame_being_written_at_sigterm_is_aborted_not_finished() {
     let f = crate::common::read_frame(&d.join("out/f_xyz.0000.exr"), &Default::default()).unwrap();
     assert_eq!((f.width, f.height), (64, 64));
 }
+
+/// Runs `nsrm args` in `dir` with its standard output and error pipes closed before it writes
+/// (what `| head -1` does once it has its line): its exit status.
+#[cfg(unix)]
+fn with_closed_pipes(dir: &Path, args: &[&str]) -> std::process::ExitStatus {
+    let mut child = nsrm()
+        .current_dir(dir)
+        .args(args)
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    drop(child.stdout.take());
+    drop(child.stderr.take());
+    child.wait().unwrap()
+}
+
+/// A closed pipe ends a command quietly: `nsrm export … | head -1` exits 0 with its export
+/// written (before: 101, "internal error … failed printing to stdout"), `nsrm apply … 2>&1 |
+/// head -1` on a file that fails exits 1 (before: SIGABRT), and a batch's good outputs stay.
+#[cfg(unix)]
+#[test]
+fn a_closed_pipe_ends_a_command_quietly() {
+    use std::os::unix::process::ExitStatusExt;
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    batch(d, 2);
+    nsrm_ok(d, &["fit", "--kind", "lrm", "-o", "fitted.json"]);
+    let st = with_closed_pipes(
+        d,
+        &[
+            "export",
+            "--model",
+            "fitted.json",
+            "--format",
+            "cube",
+            "-o",
+            "x.cube",
+        ],
+    );
+    assert_eq!((st.code(), st.signal()), (Some(0), None), "export: {st:?}");
+    assert!(d.join("x.cube").is_file());
+    std::fs::write(d.join("in/z_bad.exr"), b"not an exr").unwrap();
+    let args = ["apply", "--model", "m.json", "--device", "cpu", "-o", "out"];
+    let st = with_closed_pipes(d, &[&args[..], &["in/z_bad.exr"]].concat());
+    assert_eq!((st.code(), st.signal()), (Some(1), None), "apply: {st:?}");
+    let st = with_closed_pipes(d, &[&args[..], &["--continue-on-error", "in"]].concat());
+    assert_eq!((st.code(), st.signal()), (Some(1), None), "batch: {st:?}");
+    let written = names(&d.join("out"));
+    assert_eq!(written.len(), 2, "the good outputs stay: {written:?}");
+}

@@ -980,3 +980,180 @@ fn a_raf_naming_a_superccd_camera_is_bounded_whatever_its_layout_tag_says() {
     );
     assert!(matches!(r, Err(nsrm::io::IoError::Corrupt { .. })), "{r:?}");
 }
+
+/// An IFD's entries: (tag, type, count, value field position).
+#[cfg(feature = "raw")]
+type IfdEntries = Vec<(u16, u16, u32, usize)>;
+
+/// A TIFF's IFDs as (offset, entries), IFD0's chain and SubIFDs, in the order met.
+#[cfg(feature = "raw")]
+fn ifds(b: &[u8]) -> (bool, Vec<(usize, IfdEntries)>) {
+    let le = b[0] == b'I';
+    let u16_at = |o: usize| {
+        let v = [b[o], b[o + 1]];
+        (if le {
+            u16::from_le_bytes(v)
+        } else {
+            u16::from_be_bytes(v)
+        }) as usize
+    };
+    let u32_at = |o: usize| {
+        let v = [b[o], b[o + 1], b[o + 2], b[o + 3]];
+        (if le {
+            u32::from_le_bytes(v)
+        } else {
+            u32::from_be_bytes(v)
+        }) as usize
+    };
+    let mut out = Vec::new();
+    let mut queue = vec![u32_at(4)];
+    while let Some(off) = queue.pop() {
+        if off == 0 || out.iter().any(|(o, _)| *o == off) {
+            continue;
+        }
+        let n = u16_at(off);
+        let entries: Vec<_> = (0..n)
+            .map(|i| {
+                let e = off + 2 + 12 * i;
+                (
+                    u16_at(e) as u16,
+                    u16_at(e + 2) as u16,
+                    u32_at(e + 4) as u32,
+                    e + 8,
+                )
+            })
+            .collect();
+        for &(tag, typ, count, field) in &entries {
+            if tag == 330 {
+                if count == 1 {
+                    queue.push(u32_at(field));
+                } else {
+                    let at = u32_at(field);
+                    queue.extend((0..count as usize).map(|i| u32_at(at + 4 * i)));
+                }
+                let _ = typ;
+            }
+        }
+        queue.push(u32_at(off + 2 + 12 * n));
+        out.push((off, entries));
+    }
+    (le, out)
+}
+
+/// Lossless-JPEG DNGs whose streams lie (a frame header of 65535×65535, data that stops after
+/// ten bytes, a Huffman table with no code, a tile four times the image) and DNGs whose IFD
+/// chain loops are refused before the decoder sees them: a clear error naming the file, no
+/// output, and no more memory or time than reading the true file takes (before: 8.4 GB and
+/// 43 s for the first; invented zero pixels and exit 0 for the next three; a decoder that
+/// grew until it aborted for the loops).
+#[cfg(all(feature = "raw", unix))]
+#[test]
+fn lossless_jpeg_dngs_that_lie_are_refused_before_decoding() {
+    if !judge_available() {
+        return;
+    }
+    let dir = common::tempdir("raw-ljpeg-hostile");
+    common::model(&dir);
+    let plain = dir.join("plain.dng");
+    write_dng(&plain, &["--width", "600", "--height", "420"]);
+    let good = dir.join("good.dng");
+    to_lossless_dng(&plain, &good);
+    let b = std::fs::read(&good).unwrap();
+    let (le, all) = ifds(&b);
+    let put32 = |b: &mut Vec<u8>, at: usize, v: u32| {
+        let bytes = if le { v.to_le_bytes() } else { v.to_be_bytes() };
+        b[at..at + 4].copy_from_slice(&bytes);
+    };
+    let field = |tag: u16| {
+        all.iter()
+            .flat_map(|(_, e)| e.iter())
+            .find(|e| e.0 == tag)
+            .copied()
+            .unwrap_or_else(|| panic!("no tag {tag}"))
+    };
+    let u32_of = |at: usize| {
+        let v = [b[at], b[at + 1], b[at + 2], b[at + 3]];
+        if le {
+            u32::from_le_bytes(v)
+        } else {
+            u32::from_be_bytes(v)
+        }
+    };
+    let (_, typ, count, f) = field(324);
+    let tile0 = if count == 1 {
+        u32_of(f)
+    } else {
+        u32_of(u32_of(f) as usize)
+    } as usize;
+    let _ = typ;
+    let in_tile = |m: u8| tile0 + b[tile0..].windows(2).position(|w| w == [0xFF, m]).unwrap();
+    let mut cases: Vec<(&str, Vec<u8>)> = Vec::new();
+    let mut huge = b.clone();
+    huge[in_tile(0xC3) + 5..in_tile(0xC3) + 9].copy_from_slice(&[0xFF; 4]);
+    cases.push(("sof_65535", huge));
+    let mut short = b.clone();
+    let sos = in_tile(0xDA);
+    let data = sos + 2 + usize::from(u16::from_be_bytes([b[sos + 2], b[sos + 3]]));
+    short[data + 10..data + 12].copy_from_slice(&[0xFF, 0xD9]);
+    cases.push(("ten_bytes", short));
+    let mut empty = b.clone();
+    let dht = in_tile(0xC4);
+    empty[dht + 5..dht + 21].fill(0);
+    cases.push(("empty_table", empty));
+    let mut wide = b.clone();
+    let (_, typ, _, f) = field(322);
+    let four = 4 * u32_of(field(256).3).max(1);
+    if typ == 3 {
+        let v = if le {
+            (four as u16).to_le_bytes()
+        } else {
+            (four as u16).to_be_bytes()
+        };
+        wide[f..f + 2].copy_from_slice(&v);
+    } else {
+        put32(&mut wide, f, four);
+    }
+    cases.push(("tile_too_large", wide));
+    // IFD0's next IFD is IFD0; the last IFD's next is IFD0.
+    let (ifd0, e0) = &all[0];
+    let mut self_loop = b.clone();
+    put32(&mut self_loop, ifd0 + 2 + 12 * e0.len(), *ifd0 as u32);
+    cases.push(("ifd_loop", self_loop));
+    let (last, el) = all.last().unwrap();
+    let mut back = b.clone();
+    put32(&mut back, last + 2 + 12 * el.len(), *ifd0 as u32);
+    cases.push(("ifd_back_to_the_first", back));
+    let limit = std::time::Duration::from_secs(120);
+    let apply = |name: &str| {
+        let out = format!("out_{name}");
+        let file = format!("{name}.dng");
+        let args = [
+            "apply", "--model", "m.json", "--device", "cpu", "-o", &out, &file,
+        ];
+        (common::nsrm_measured(&dir, &args, limit), dir.join(out))
+    };
+    std::fs::write(dir.join("true.dng"), &b).unwrap();
+    let ((o, true_peak, true_time), _) = apply("true");
+    common::assert_ok(&o);
+    for (name, bytes) in &cases {
+        std::fs::write(dir.join(format!("{name}.dng")), bytes).unwrap();
+        let ((o, peak, took), out) = apply(name);
+        no_crash(&o, name);
+        let err = stderr(&o);
+        assert_eq!(o.status.code(), Some(1), "{name}: {:?} {err}", o.status);
+        assert!(err.contains(&format!("{name}.dng")), "{name}: {err}");
+        assert!(
+            !out.exists() || common::names(&out).is_empty(),
+            "{name}: written"
+        );
+        assert!(
+            peak <= true_peak + true_peak / 2,
+            "{name}: {peak} KiB at its peak, the true file {true_peak} KiB"
+        );
+        assert!(
+            took <= 2 * true_time + std::time::Duration::from_secs(5),
+            "{name}: {took:?}"
+        );
+        eprintln!("{name}: {} ({peak} KiB, {took:?})", err.trim());
+    }
+}

@@ -983,3 +983,200 @@ fn a_long_comparison_does_not_block_the_frame() {
         "requests waited for the comparison ({during:?} of {total:?})"
     );
 }
+
+/// Writes `bytes` on a new connection (write errors ignored: the server may close first) and
+/// reads the answer for at most `wait`: its status, its body and how long it took.
+fn exchange(port: u16, bytes: &[u8], wait: Duration) -> (Option<u16>, String, Duration) {
+    let t0 = Instant::now();
+    let mut s = TcpStream::connect(("127.0.0.1", port)).expect("connecting");
+    s.set_read_timeout(Some(wait)).unwrap();
+    s.set_write_timeout(Some(wait)).unwrap();
+    let _ = s.write_all(bytes);
+    let mut buf = Vec::new();
+    let _ = s.read_to_end(&mut buf);
+    let text = String::from_utf8_lossy(&buf).into_owned();
+    let status = text
+        .lines()
+        .next()
+        .and_then(|l| l.split_whitespace().nth(1))
+        .and_then(|c| c.parse().ok());
+    let body = text.split_once("\r\n\r\n").map(|(_, b)| b.to_string());
+    (status, body.unwrap_or_default(), t0.elapsed())
+}
+
+/// A refused request (no token, a body over its cap) is answered at once and its body never
+/// read: a `Content-Length` of 10¹² or 2⁶⁴−1 neither aborts nor panics the server, stalled
+/// clients (a head without its end, a body that never comes) hold no handler, and a stalled body
+/// gets 408 within the idle bound.
+#[test]
+fn hostile_requests_are_bounded_before_they_are_read() {
+    let d = tempdir("studio-bounds");
+    let srv = Server::start(&d, &["--threads", "2"]);
+    let host = format!("127.0.0.1:{}", srv.port);
+    let tok = &srv.token;
+    let quick = Duration::from_secs(5);
+    for len in ["1000000000000", "18446744073709551615"] {
+        // Without the token: 403 before any body byte is sent, more times than there are handlers.
+        for _ in 0..5 {
+            let req = format!(
+                "POST /api/frames?name=x.exr HTTP/1.1\r\nHost: {host}\r\nContent-Length: {len}\r\n\r\n"
+            );
+            let (st, _, took) = exchange(srv.port, req.as_bytes(), Duration::from_secs(30));
+            assert_eq!(st, Some(403), "Content-Length {len}");
+            assert!(took < quick, "403 took {took:?}");
+        }
+        // With the token: 413 for an upload and for a JSON body, unread.
+        for path in ["/api/frames?name=x.exr", "/api/frames/f1/reading"] {
+            let req = format!(
+                "POST {path} HTTP/1.1\r\nHost: {host}\r\nX-Nsrm-Token: {tok}\r\nContent-Length: {len}\r\n\r\n"
+            );
+            let (st, body, took) = exchange(srv.port, req.as_bytes(), Duration::from_secs(30));
+            assert_eq!(st, Some(413), "{path} Content-Length {len}: {body}");
+            assert!(took < quick, "413 took {took:?}");
+        }
+    }
+    // A Content-Length past 2⁶⁴−1, a bad one, two that disagree: 4xx.
+    for cl in [
+        "Content-Length: 18446744073709551616",
+        "Content-Length: -1",
+        "Content-Length: 1e12",
+        "Content-Length: 5\r\nContent-Length: 6",
+    ] {
+        let req = format!("POST /api/info HTTP/1.1\r\nHost: {host}\r\n{cl}\r\n\r\n");
+        let (st, _, _) = exchange(srv.port, req.as_bytes(), Duration::from_secs(30));
+        assert!(st.is_some_and(|s| (400..500).contains(&s)), "{cl}: {st:?}");
+    }
+    // Stalled clients, more than the handlers: heads never finished, bodies that never come
+    // (with and without the token, on an upload and on a JSON endpoint).
+    let mut stalled = Vec::new();
+    for i in 0..8 {
+        let mut s = TcpStream::connect(("127.0.0.1", srv.port)).unwrap();
+        let head = match i % 4 {
+            0 => format!("POST /api/frames HTTP/1.1\r\nHost: {host}\r\n"),
+            1 => format!("POST /api/frames?name=a.exr HTTP/1.1\r\nHost: {host}\r\nX-Nsrm-Token: {tok}\r\nContent-Length: 100000\r\n\r\n"),
+            2 => format!("POST /api/frames/f1/fit HTTP/1.1\r\nHost: {host}\r\nX-Nsrm-Token: {tok}\r\nContent-Length: 100000\r\n\r\n"),
+            _ => format!("POST /api/frames HTTP/1.1\r\nHost: {host}\r\nContent-Length: 100000\r\n\r\n"),
+        };
+        s.write_all(head.as_bytes()).unwrap();
+        stalled.push(s);
+    }
+    std::thread::sleep(Duration::from_millis(300));
+    let t0 = Instant::now();
+    assert_eq!(srv.call("GET", "/api/info", b"").0, 200);
+    assert!(
+        t0.elapsed() < Duration::from_secs(3),
+        "the page waited {:?} behind stalled clients",
+        t0.elapsed()
+    );
+    // A JSON body that stops half way: 408 within the idle bound (10 s), not never.
+    let req = format!(
+        "POST /api/frames/f1/fit HTTP/1.1\r\nHost: {host}\r\nX-Nsrm-Token: {tok}\r\nContent-Length: 100\r\n\r\n{{\"kind\""
+    );
+    let (st, _, took) = exchange(srv.port, req.as_bytes(), Duration::from_secs(60));
+    assert_eq!(st, Some(408));
+    assert!(took < Duration::from_secs(20), "408 after {took:?}");
+    drop(stalled);
+    assert_eq!(srv.call("GET", "/api/info", b"").0, 200);
+}
+
+/// `reference` and `reference_white` take built-in names only: a path is refused with the same
+/// words whether or not the file exists, and nothing of the file comes back.
+#[test]
+fn a_reading_request_never_names_a_file() {
+    let d = tempdir("studio-nopath");
+    let frame = scene(&d, "scene.exr");
+    let secret = d.join("secret.csv");
+    std::fs::write(&secret, "SAMPLE_ID,X,Y,Z\nTOPSECRET,1,2,3\n").unwrap();
+    let srv = Server::start(&d, &[s(&frame)]);
+    let st = srv.json("POST", "/api/files/0/open", "");
+    let id = st["id"].as_str().unwrap();
+    let path = format!("/api/frames/{id}/reading");
+    let missing = d.join("missing.csv");
+    let mut answers = Vec::new();
+    for field in ["reference", "reference_white"] {
+        for p in [&secret, &missing] {
+            let body = serde_json::json!({ field: p.to_str().unwrap() }).to_string();
+            let (code, b) = srv.call("POST", &path, body.as_bytes());
+            let text = String::from_utf8_lossy(&b).into_owned();
+            assert_eq!(code, 400, "{field} {}: {text}", p.display());
+            assert!(!text.contains("TOPSECRET"), "{text}");
+            answers.push((field, text));
+        }
+    }
+    assert_eq!(
+        answers[0].1, answers[1].1,
+        "reference: the answer tells a file exists"
+    );
+    assert_eq!(
+        answers[2].1, answers[3].1,
+        "white: the answer tells a file exists"
+    );
+    // The built-ins still work.
+    let ok = srv.json(
+        "POST",
+        &path,
+        r#"{"reference": "cc24-before2014", "reference_white": "D65"}"#,
+    );
+    assert!(ok["reading"].is_object(), "{ok}");
+}
+
+/// A chunked upload over the limit is answered 413 and leaves no partial file behind.
+#[test]
+fn a_refused_chunked_upload_leaves_no_file() {
+    let d = tempdir("studio-chunked");
+    let srv = Server::start(&d, &["--max-pixels", "1000"]);
+    let host = format!("127.0.0.1:{}", srv.port);
+    let limit = 1000 * 16 + (1 << 20);
+    let mut req = format!(
+        "POST /api/frames?name=big.exr HTTP/1.1\r\nHost: {host}\r\nX-Nsrm-Token: {}\r\nTransfer-Encoding: chunked\r\n\r\n",
+        srv.token
+    )
+    .into_bytes();
+    let chunk = vec![b'x'; 64 * 1024];
+    for _ in 0..(2 * limit / chunk.len() + 1) {
+        req.extend_from_slice(format!("{:x}\r\n", chunk.len()).as_bytes());
+        req.extend_from_slice(&chunk);
+        req.extend_from_slice(b"\r\n");
+    }
+    req.extend_from_slice(b"0\r\n\r\n");
+    let (st, body, _) = exchange(srv.port, &req, Duration::from_secs(60));
+    assert_eq!(st, Some(413), "{body}");
+    let left: Vec<_> = walk(&srv.tmp);
+    assert!(left.is_empty(), "left in the temporary folder: {left:?}");
+    assert_eq!(srv.call("GET", "/api/info", b"").0, 200);
+    // A chunked upload under the limit is read as the same bytes sent whole are.
+    let srv2 = Server::start(&d, &[]);
+    let bytes = std::fs::read(scene(&d, "small.exr")).unwrap();
+    let mut req = format!(
+        "POST /api/frames?name=small.exr HTTP/1.1\r\nHost: 127.0.0.1:{}\r\nX-Nsrm-Token: {}\r\nTransfer-Encoding: chunked\r\n\r\n",
+        srv2.port, srv2.token
+    )
+    .into_bytes();
+    for c in bytes.chunks(7919) {
+        req.extend_from_slice(format!("{:X};ext=1\r\n", c.len()).as_bytes());
+        req.extend_from_slice(c);
+        req.extend_from_slice(b"\r\n");
+    }
+    req.extend_from_slice(b"0\r\nX-Trailer: 1\r\n\r\n");
+    let (st, body, _) = exchange(srv2.port, &req, Duration::from_secs(120));
+    assert_eq!(st, Some(200), "{body}");
+    let chunked: Value = serde_json::from_str(&body).unwrap();
+    let (code, b) = srv2.call("POST", "/api/frames?name=small.exr", &bytes);
+    assert_eq!(code, 200);
+    let whole: Value = serde_json::from_slice(&b).unwrap();
+    assert_eq!(chunked["reading"]["patches"], whole["reading"]["patches"]);
+    assert!(!chunked["reading"]["patches"].is_null());
+}
+
+fn walk(dir: &Path) -> Vec<PathBuf> {
+    let mut out = Vec::new();
+    for e in std::fs::read_dir(dir).into_iter().flatten().flatten() {
+        let p = e.path();
+        if p.is_dir() {
+            out.extend(walk(&p));
+        } else {
+            out.push(p);
+        }
+    }
+    out
+}

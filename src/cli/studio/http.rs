@@ -3,11 +3,12 @@
 //! become JSON `{"error": …}` replies and a panic becomes a 500.
 
 use super::json;
+use super::server::Request;
 use super::session::Studio;
 use anyhow::{anyhow, bail, Context, Result};
 use std::io::{Read, Write};
 use std::path::Path;
-use tiny_http::{Header, Request, Response};
+use std::time::Duration;
 
 const INDEX_HTML: &str = include_str!("web/index.html");
 const APP_JS: &str = include_str!("web/app.js");
@@ -15,6 +16,11 @@ const STYLE_CSS: &str = include_str!("web/style.css");
 
 /// Largest JSON request body (settings, fit options).
 const MAX_JSON: u64 = 1 << 20;
+/// The time a client has to send a JSON body (read before a handler slot is taken).
+const JSON_DEADLINE: Duration = Duration::from_secs(30);
+/// The time an upload may take: this, plus its byte limit at [`UPLOAD_RATE`] bytes a second.
+const UPLOAD_BASE: Duration = Duration::from_secs(60);
+const UPLOAD_RATE: u64 = 4 << 20;
 
 /// What a handler answers.
 pub(crate) struct Reply {
@@ -109,10 +115,7 @@ pub(crate) fn percent_decode(s: &str) -> String {
 }
 
 fn header<'a>(req: &'a Request, name: &'static str) -> Option<&'a str> {
-    req.headers()
-        .iter()
-        .find(|h| h.field.equiv(name))
-        .map(|h| h.value.as_str())
+    req.header(name)
 }
 
 /// Equal in constant time (for the token).
@@ -156,25 +159,20 @@ fn check(studio: &Studio, req: &Request, target: &Target) -> std::result::Result
     }
 }
 
-/// Answers one request (never panics out: a panic in a handler becomes a 500).
+/// Answers one request (never panics out: a panic in a handler becomes a 500). A request the
+/// gate refuses is answered without its body being read.
 pub(crate) fn serve(studio: &Studio, mut req: Request) {
     let target = parse_target(req.url());
     let reply = match check(studio, &req, &target) {
         Err(why) => Reply::text(403, &format!("403 forbidden: {why}\n")),
         Ok(()) => {
             let r = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
-                route(studio, &mut req, &target)
+                handle(studio, &mut req, &target)
             }));
             match r {
                 Ok(Ok(reply)) => reply,
                 Ok(Err(e)) => {
-                    let status = if e.chain().any(|c| c.downcast_ref::<NotFound>().is_some()) {
-                        404
-                    } else if e.chain().any(|c| c.downcast_ref::<TooLarge>().is_some()) {
-                        413
-                    } else {
-                        400
-                    };
+                    let status = error_status(&e);
                     // In the page's words: no CLI flag named.
                     let msg = super::session::explain_for_page(e);
                     json(status, &serde_json::json!({ "error": msg }))
@@ -189,8 +187,46 @@ pub(crate) fn serve(studio: &Studio, mut req: Request) {
     respond(req, reply);
 }
 
+/// The status of a handler's error: 404, 413, 408 (the client too slow), else 400.
+fn error_status(e: &anyhow::Error) -> u16 {
+    if e.chain().any(|c| c.downcast_ref::<NotFound>().is_some()) {
+        404
+    } else if e.chain().any(|c| c.downcast_ref::<TooLarge>().is_some()) {
+        413
+    } else if e.chain().any(|c| {
+        c.downcast_ref::<std::io::Error>()
+            .is_some_and(|io| io.kind() == std::io::ErrorKind::TimedOut)
+    }) {
+        408
+    } else {
+        400
+    }
+}
+
+/// Whether `method path` streams an upload (its body is read by its handler, before the handler
+/// takes a slot); every other body is small and read ahead.
+fn is_upload(method: &str, path: &str) -> bool {
+    let parts: Vec<&str> = path.trim_matches('/').split('/').collect();
+    method.eq_ignore_ascii_case("POST")
+        && matches!(
+            parts.as_slice(),
+            ["api", "frames"] | ["api", "frames", _, "flat"]
+        )
+}
+
+/// A request past the gate: its small body read (with a deadline) before a handler slot is
+/// taken, so that a slow client holds no slot.
+fn handle(studio: &Studio, req: &mut Request, t: &Target) -> Result<Reply> {
+    if is_upload(req.method(), &t.path) {
+        return route(studio, req, t);
+    }
+    req.buffer_body(MAX_JSON + 1, JSON_DEADLINE)
+        .context("reading the request body")?;
+    let _slot = studio.slots.take();
+    route(studio, req, t)
+}
+
 fn respond(req: Request, reply: Reply) {
-    let mut resp = Response::from_data(reply.body).with_status_code(reply.status);
     let mut headers = vec![
         ("Content-Type", reply.content_type.to_string()),
         ("Cache-Control", "no-store".to_string()),
@@ -211,13 +247,7 @@ fn respond(req: Request, reply: Reply) {
         ));
     }
     headers.extend(reply.extra);
-    for (k, v) in headers {
-        if let Ok(h) = Header::from_bytes(k.as_bytes(), v.as_bytes()) {
-            resp.add_header(h);
-        }
-    }
-    // The client may have gone away; nothing to do then.
-    let _ = req.respond(resp);
+    req.respond(reply.status, &headers, &reply.body);
 }
 
 /// A 404.
@@ -233,7 +263,7 @@ pub(crate) struct TooLarge(pub String);
 /// The page's files and the API: what is not about one open frame here, the rest in
 /// [`route_frame`].
 fn route(studio: &Studio, req: &mut Request, t: &Target) -> Result<Reply> {
-    let method = req.method().as_str().to_ascii_uppercase();
+    let method = req.method().to_ascii_uppercase();
     let parts: Vec<&str> = t.path.trim_matches('/').split('/').collect();
     match (method.as_str(), parts.as_slice()) {
         ("GET", [""]) | ("GET", ["index.html"]) => Ok(Reply::new(
@@ -255,7 +285,10 @@ fn route(studio: &Studio, req: &mut Request, t: &Target) -> Result<Reply> {
         ("POST", ["api", "frames"]) => {
             let name = t.param("name").map(str::to_string);
             let (dir, id) = studio.new_upload_dir()?;
-            let saved = receive_upload(studio, req, &dir, name)?;
+            let saved = receive_upload(studio, req, &dir, name).inspect_err(|_| {
+                let _ = std::fs::remove_dir_all(&dir);
+            })?;
+            let _slot = studio.slots.take();
             Ok(json(200, &studio.open(id, saved, true)?))
         }
         ("POST", ["api", "files", n, "open"]) => {
@@ -302,7 +335,10 @@ fn route_frame(
             let name = t.param("name").map(str::to_string);
             let dir = studio.new_flat_dir(id)?;
             // Received before the frame is locked: a slow upload blocks nothing else.
-            let saved = receive_upload(studio, req, &dir, name)?;
+            let saved = receive_upload(studio, req, &dir, name).inspect_err(|_| {
+                let _ = std::fs::remove_dir_all(&dir);
+            })?;
+            let _slot = studio.slots.take();
             let mut s = f.lock_state();
             s.set_flat_upload(&saved)?;
             Ok(json(200, &s.state()))
@@ -410,7 +446,7 @@ fn header_text(text: &str) -> String {
 
 /// A JSON body (at most [`MAX_JSON`] bytes; an empty body is `{}`).
 fn read_json(req: &mut Request) -> Result<serde_json::Value> {
-    if req.body_length().is_some_and(|n| n as u64 > MAX_JSON) {
+    if req.body_length().is_some_and(|n| n > MAX_JSON) {
         return Err(TooLarge(format!("a JSON body over {MAX_JSON} bytes")).into());
     }
     let mut buf = Vec::new();
@@ -461,7 +497,7 @@ fn receive_upload(
     let limit = studio.max_upload_bytes();
     if req
         .body_length()
-        .is_some_and(|n| n as u64 > limit + 64 * 1024)
+        .is_some_and(|n| n > limit.saturating_add(64 * 1024))
     {
         return Err(TooLarge(format!(
             "the upload ({} bytes) is over the limit of {limit} bytes (the frame limit of {} pixels)",
@@ -481,6 +517,7 @@ fn receive_upload(
                     .map(|b| b.trim_matches('"').to_string())
             })
         });
+    req.set_body_deadline(UPLOAD_BASE + Duration::from_secs(limit / UPLOAD_RATE));
     let reader = req.as_reader();
     let (name, path) = match boundary {
         Some(None) => bail!(BadRequest("a multipart body without a boundary".into())),
@@ -505,13 +542,29 @@ fn receive_upload(
 }
 
 /// Copies `r` into a new file at `path`, at most `limit` bytes (else [`TooLarge`]), stopping at
-/// `delimiter` if given (which must then be found).
+/// `delimiter` if given (which must then be found). On any error the partial file is removed.
 fn copy_bounded(r: &mut dyn Read, path: &Path, limit: u64, delimiter: Option<&[u8]>) -> Result<()> {
+    let created = std::cell::Cell::new(false);
+    copy_bounded_inner(r, path, limit, delimiter, &created).inspect_err(|_| {
+        if created.get() {
+            let _ = std::fs::remove_file(path);
+        }
+    })
+}
+
+fn copy_bounded_inner(
+    r: &mut dyn Read,
+    path: &Path,
+    limit: u64,
+    delimiter: Option<&[u8]>,
+    created: &std::cell::Cell<bool>,
+) -> Result<()> {
     let mut f = std::fs::OpenOptions::new()
         .write(true)
         .create_new(true)
         .open(path)
         .with_context(|| format!("creating {}", path.display()))?;
+    created.set(true);
     let mut written = 0u64;
     let mut buf = vec![0u8; 1 << 16];
     let mut pending: Vec<u8> = Vec::new();

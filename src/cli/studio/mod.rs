@@ -10,6 +10,7 @@
 //! uploaded, never from a path in a request.
 
 mod http;
+mod server;
 mod session;
 
 use super::common::UsageError;
@@ -42,7 +43,8 @@ pub(crate) struct Args {
     /// adapter, software ones included) or cpu. As in `apply`.
     #[arg(long, value_enum, ignore_case = true, default_value_t = super::values::Device::Auto)]
     device: super::values::Device,
-    /// Request-handling threads.
+    /// Requests computed at once (each connection is read on a thread of its own, at most 64;
+    /// a request takes one of these once its headers and small body are in).
     #[arg(long, default_value_t = 4, value_parser = clap::value_parser!(u64).range(1..=64))]
     threads: u64,
 }
@@ -59,15 +61,14 @@ pub(crate) fn run(a: Args) -> Result<ExitCode> {
     } else {
         crate::io::batch::expand_inputs(&a.inputs).context("the frames to open")?
     };
-    let server = tiny_http::Server::http(("127.0.0.1", a.port)).map_err(|e| {
+    let listener = std::net::TcpListener::bind(("127.0.0.1", a.port)).map_err(|e| {
         UsageError(format!(
             "--port {}: cannot listen on 127.0.0.1: {e}",
             a.port
         ))
     })?;
-    let port = server
-        .server_addr()
-        .to_ip()
+    let port = listener
+        .local_addr()
         .map(|s| s.port())
         .context("the server's address")?;
     let signal = Arc::new(AtomicUsize::new(0));
@@ -80,6 +81,7 @@ pub(crate) fn run(a: Args) -> Result<ExitCode> {
         port,
         a.max_pixels,
         crate::gpu::DeviceChoice::from(a.device),
+        a.threads as usize,
     )?);
     let url = format!("http://127.0.0.1:{port}/?token={}", studio.token);
     println!("nsrm studio: {url}");
@@ -91,22 +93,18 @@ pub(crate) fn run(a: Args) -> Result<ExitCode> {
     if !a.no_browser {
         open_browser(&url);
     }
-    let server = Arc::new(server);
-    let mut workers = Vec::new();
-    for _ in 0..a.threads {
-        let (server, studio) = (Arc::clone(&server), Arc::clone(&studio));
-        workers.push(std::thread::spawn(move || {
-            while let Ok(req) = server.recv() {
-                http::serve(&studio, req);
-            }
-        }));
-    }
-    // The main thread waits for a signal; the workers serve until the process ends.
+    let handler = Arc::clone(&studio);
+    let handle: Arc<dyn Fn(server::Request) + Send + Sync> =
+        Arc::new(move |req| http::serve(&handler, req));
+    std::thread::Builder::new()
+        .name("nsrm-studio-accept".into())
+        .spawn(move || server::accept_loop(listener, handle))
+        .context("starting the server's thread")?;
+    // The main thread waits for a signal; the connections are served until the process ends.
     while signal.load(Ordering::SeqCst) == 0 {
         std::thread::sleep(Duration::from_millis(100));
     }
     let sig = signal.load(Ordering::SeqCst);
-    server.unblock();
     studio.cleanup();
     eprintln!("nsrm studio: stopped (signal {sig}); temporary files removed");
     Ok(ExitCode::from((128 + sig).min(255) as u8))

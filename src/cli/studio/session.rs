@@ -54,6 +54,8 @@ pub(crate) struct Studio {
     engine: Mutex<Option<ServerDevice>>,
     frames: Mutex<Vec<(String, Arc<FrameSlot>)>>,
     next: AtomicU64,
+    /// The handler slots (`--threads`).
+    pub(crate) slots: super::server::Slots,
 }
 
 /// The server's device for corrected previews, opened on first use with the policy of `apply`:
@@ -246,6 +248,7 @@ impl Studio {
         port: u16,
         max_pixels: u64,
         device: DeviceChoice,
+        threads: usize,
     ) -> Result<Studio> {
         let token = random_hex(16)?;
         let tmp = std::env::temp_dir().join(format!(
@@ -271,6 +274,7 @@ impl Studio {
             engine: Mutex::new(None),
             frames: Mutex::new(Vec::new()),
             next: AtomicU64::new(1),
+            slots: super::server::Slots::new(threads),
         })
     }
 
@@ -561,10 +565,42 @@ fn parse_space(s: &str) -> Result<OutputSpace> {
     })
 }
 
+/// A request never names a file: the reference is one of the built-ins, the reference white
+/// a number triple or pair, `D50` or an illuminant's built-in name. (Refused before anything is
+/// looked up, so that the answer tells nothing of the files on this machine.)
+fn check_no_path(s: &Settings) -> Result<()> {
+    if let Some(r) = s.reference.as_deref().filter(|r| !r.trim().is_empty()) {
+        if !REFERENCES.iter().any(|b| b.eq_ignore_ascii_case(r.trim())) {
+            bail!(BadRequest(format!(
+                "reference: one of {} (the page reads no file a request names)",
+                REFERENCES.join(", ")
+            )));
+        }
+    }
+    if let Some(w) = s
+        .reference_white
+        .as_deref()
+        .filter(|w| !w.trim().is_empty())
+    {
+        let w = w.trim();
+        let numbers = w.contains(',')
+            && w.split(',')
+                .all(|p| p.trim().parse::<f64>().is_ok_and(f64::is_finite));
+        if !numbers && !w.eq_ignore_ascii_case("d50") && !crate::spectral::Illuminant::is_builtin(w)
+        {
+            bail!(BadRequest(
+                "reference white: X,Y,Z, x,y, D50 or a built-in illuminant's name (the page reads no file a request names)".into()
+            ));
+        }
+    }
+    Ok(())
+}
+
 impl FrameState {
     /// The capture options these settings name (the CLI's flags, checked the same way).
     fn options(&self) -> Result<CaptureOptions> {
         let s = &self.settings;
+        check_no_path(s)?;
         let chart = values::Chart::from_str(&s.chart, true)
             .map_err(|_| BadRequest(format!("chart `{}`: cc24 or sg", s.chart)))?;
         let flat = match s.flat.as_deref().map(str::trim) {

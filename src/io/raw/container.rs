@@ -136,13 +136,26 @@ pub(crate) fn tiff(f: &mut File, base: u64, end: u64) -> std::io::Result<Declare
         return Ok(d);
     }
     let len = end.saturating_sub(base);
-    let mut queue: Vec<(u64, u32)> = vec![(u64::from(u32_of(&hdr[4..8])), 0)];
+    // Each IFD with the IFDs that lead to it: one that comes back to its own path is a cycle,
+    // which the decoder's parser follows for ever (an IFD reached twice otherwise is read once).
+    let mut queue: Vec<(u64, u32, Vec<u64>)> = vec![(u64::from(u32_of(&hdr[4..8])), 0, Vec::new())];
     let mut seen = std::collections::HashSet::new();
     let mut first = true;
-    while let Some((off, depth)) = queue.pop() {
+    while let Some((off, depth, path)) = queue.pop() {
+        if path.contains(&off) {
+            d.damage(|| {
+                format!(
+                    "the IFD at byte {} points back at itself (a cycle)",
+                    base + off
+                )
+            });
+            continue;
+        }
         if off < 8 || off + 2 > len || seen.len() >= 64 || !seen.insert(off) {
             continue;
         }
+        let mut path = path;
+        path.push(off);
         let root = std::mem::take(&mut first);
         let mut cnt = [0u8; 2];
         read_at(f, base + off, end, &mut cnt)?;
@@ -168,14 +181,7 @@ pub(crate) fn tiff(f: &mut File, base: u64, end: u64) -> std::io::Result<Declare
                 3 | 8 => u32::from(u16_of(&e[8..10])),
                 _ => u32_of(&e[8..12]),
             };
-            let size: u64 = match typ {
-                1 | 2 | 6 | 7 => 1,
-                3 | 8 => 2,
-                4 | 9 | 11 | 13 => 4,
-                5 | 10 | 12 => 8,
-                _ => 0,
-            };
-            let bytes = u64::from(n) * size;
+            let bytes = u64::from(n) * type_size(typ);
             if bytes > 4 && u64::from(u32_of(&e[8..12])) + bytes > len {
                 d.damage(|| format!("tag {tag} claims {bytes} bytes, past the end of the file"));
             }
@@ -192,17 +198,17 @@ pub(crate) fn tiff(f: &mut File, base: u64, end: u64) -> std::io::Result<Declare
                 34665 | 34853 | 40965 | 0xF000
                     if depth < 3 && n == 1 && (typ == 4 || typ == 13) =>
                 {
-                    queue.push((u64::from(value), depth + 1));
+                    queue.push((u64::from(value), depth + 1, path.clone()));
                 }
                 330 if depth < 3 => {
                     // SubIFDs: one offset inline, or an array of offsets.
                     if n == 1 {
-                        queue.push((u64::from(value), depth + 1));
+                        queue.push((u64::from(value), depth + 1, path.clone()));
                     } else if n > 1 && u64::from(value) + u64::from(n) * 4 <= len {
                         let mut offs = vec![0u8; n.min(64) as usize * 4];
                         read_at(f, base + u64::from(value), end, &mut offs)?;
                         for o in offs.chunks_exact(4) {
-                            queue.push((u64::from(u32_of(o)), depth + 1));
+                            queue.push((u64::from(u32_of(o)), depth + 1, path.clone()));
                         }
                     }
                 }
@@ -217,10 +223,21 @@ pub(crate) fn tiff(f: &mut File, base: u64, end: u64) -> std::io::Result<Declare
         d.take(pw, ph);
         let next = u64::from(u32_of(&entries[(count * 12) as usize..]));
         if next != 0 {
-            queue.push((next, depth));
+            queue.push((next, depth, path));
         }
     }
     Ok(d)
+}
+
+/// The bytes of one value of TIFF type `typ` (0 for a type rawler does not read).
+fn type_size(typ: u16) -> u64 {
+    match typ {
+        1 | 2 | 6 | 7 => 1,
+        3 | 8 => 2,
+        4 | 9 | 11 | 13 => 4,
+        5 | 10 | 12 => 8,
+        _ => 0,
+    }
 }
 
 /// The UUID of Canon's CR3 description box (holding CMT1–CMT4), as rawler matches it.

@@ -80,6 +80,8 @@ pub(crate) fn read(path: &Path, limits: &Limits, demosaic: Demosaic) -> Result<R
     std::fs::File::open(path)
         .and_then(|f| f.take(len).read_to_end(&mut bytes))
         .map_err(rd)?;
+    // The JPEG streams' own sizes and data, before rawler allocates what they declare.
+    super::ljpeg::check(&bytes, limits.max_pixels).map_err(|why| corrupt(path, why))?;
     let source = rawler::rawsource::RawSource::new_from_shared_vec(std::sync::Arc::new(bytes))
         .with_path(path);
     let decoded = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {

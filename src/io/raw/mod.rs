@@ -28,7 +28,11 @@
 //! PEF, …, and ORF / RW2) those of every IFD; in CR3, RAF, MRW, CRW and X3F those their own
 //! headers declare (`container`); a structure that reaches past its end is refused as damaged,
 //! and a container declaring no image size is refused. A RAF naming a camera whose mosaic rawler
-//! turns by 45° (SuperCCD) has the turned image checked too, whatever its layout tag says. The decoded mosaic is checked again
+//! turns by 45° (SuperCCD) has the turned image checked too, whatever its layout tag says. An IFD chain
+//! that comes back to its own path (a cycle, which the decoder follows for ever) is refused. The
+//! JPEG streams of a DNG's strips and tiles are checked from the streams themselves (`ljpeg`):
+//! sizes against the tile and the pixel limit, Huffman tables, and the data walked to its last
+//! sample, so that data that runs out is an error, not zeros. The decoded mosaic is checked again
 //! before anything of nsrm's is allocated. A panic inside the decoder is caught and reported as
 //! a corrupt file.
 
@@ -43,6 +47,8 @@ pub(crate) use orient::describe as describe_orientation;
 mod decode;
 #[cfg(feature = "raw")]
 mod demosaic;
+#[cfg(feature = "raw")]
+mod ljpeg;
 #[cfg(feature = "raw")]
 mod xtrans;
 #[cfg(feature = "raw")]

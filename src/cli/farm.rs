@@ -117,6 +117,13 @@ pub(crate) struct VerifyArgs {
     /// The model the job applies: every shard must have applied this file.
     #[arg(long, value_name = "FILE")]
     model: Option<PathBuf>,
+    /// The job's preview directory: previews the manifests record are checked there (the
+    /// directory a manifest records is not trusted).
+    #[arg(long, value_name = "DIR")]
+    preview: Option<PathBuf>,
+    /// An Open Job Description path-mapping rules file applied to --preview.
+    #[arg(long, value_name = "FILE")]
+    path_mapping_rules: Option<PathBuf>,
 }
 
 /// `apply`'s arguments parsed on their own.
@@ -167,8 +174,13 @@ fn absolute(p: &Path) -> Result<PathBuf> {
 }
 
 fn generate(engine: Engine, mut g: GenArgs) -> Result<ExitCode> {
-    if g.shards == 0 {
-        return Err(UsageError("--shards must be at least 1".into()).into());
+    if g.shards == 0 || g.shards > crate::farm::MAX_SHARDS {
+        return Err(UsageError(format!(
+            "--shards {}: a batch has 1 to {} shards",
+            g.shards,
+            crate::farm::MAX_SHARDS
+        ))
+        .into());
     }
     let mut map = PathMap::new();
     for spec in &g.path_map {
@@ -215,7 +227,7 @@ fn generate(engine: Engine, mut g: GenArgs) -> Result<ExitCode> {
         preview.as_deref(),
         &settings,
     );
-    let verify = verify_args();
+    let verify = verify_args(matches!(engine, Engine::Openjd), preview.as_deref());
     let spec = JobSpec {
         name: g.name.clone(),
         shards: g.shards,
@@ -274,10 +286,11 @@ fn task_args(openjd: bool, preview: Option<&str>, settings: &[String]) -> Vec<Ar
 }
 
 /// The verification's command after the program: `farm verify` of the output directory with
-/// the shard count and the model.
-fn verify_args() -> Vec<Arg> {
+/// the shard count, the model and the `preview` directory (for Open Job Description, mapped by
+/// the session's path-mapping rules).
+fn verify_args(openjd: bool, preview: Option<&str>) -> Vec<Arg> {
     let lit = |s: &str| Arg::Lit(s.to_string());
-    vec![
+    let mut v = vec![
         lit("farm"),
         lit("verify"),
         Arg::OutputDir,
@@ -285,7 +298,14 @@ fn verify_args() -> Vec<Arg> {
         Arg::Shards,
         lit("--model"),
         Arg::Model,
-    ]
+    ];
+    if let Some(p) = preview {
+        v.extend([lit("--preview"), lit(p)]);
+        if openjd {
+            v.extend([lit("--path-mapping-rules"), Arg::PathMappingRules]);
+        }
+    }
+    v
 }
 
 /// The engine's job files for `spec`, and how to run them from `job_dir`.
@@ -379,6 +399,13 @@ fn run_shard(r: RunArgs) -> Result<ExitCode> {
         .map(|d| d.as_secs_f64())
         .unwrap_or(0.0);
     let shard = Shard::parse(&r.shard).context("--shard")?;
+    if shard.count > crate::farm::MAX_SHARDS {
+        return Err(UsageError(format!(
+            "--shard {shard}: a batch has at most {} shards",
+            crate::farm::MAX_SHARDS
+        ))
+        .into());
+    }
     let mut a = shard_apply_args(&r)?;
     let parts = a.farm_parts();
     let out_dir = parts
@@ -691,20 +718,30 @@ fn check_existing(
     }
 }
 
+/// `farm verify`'s preview directory, through its path-mapping rules.
+fn verify_preview_dir(v: &VerifyArgs) -> Result<Option<PathBuf>> {
+    let Some(p) = &v.preview else {
+        return Ok(None);
+    };
+    let mut map = PathMap::new();
+    if let Some(f) = &v.path_mapping_rules {
+        map.add_openjd_file(f).context("--path-mapping-rules")?;
+    }
+    Ok(Some(PathBuf::from(map.map(&utf8(p, "--preview")?))))
+}
+
 fn run_verify(v: VerifyArgs) -> Result<ExitCode> {
     let model_sha256 = match &v.model {
         Some(p) => Some(crate::farm::sha256_file(p).context("--model")?.1),
         None => None,
     };
-    if v.shards == Some(0) {
-        return Err(UsageError("--shards must be at least 1".into()).into());
-    }
     let t = Instant::now();
     let r = verify::verify(
         &v.dir,
         &Expect {
             shards: v.shards,
             model_sha256,
+            preview_dir: verify_preview_dir(&v)?,
         },
     )?;
     let summary = format!(
@@ -862,6 +899,13 @@ mod tests {
             &[lit("--path-mapping-rules"), Arg::PathMappingRules]
         );
         assert_eq!(openjd.len(), 13);
-        assert!(verify_args().contains(&Arg::Shards));
+        assert!(verify_args(false, None).contains(&Arg::Shards));
+        let v = verify_args(true, Some("/p"));
+        assert!(v.ends_with(&[
+            lit("--preview"),
+            lit("/p"),
+            lit("--path-mapping-rules"),
+            Arg::PathMappingRules
+        ]));
     }
 }

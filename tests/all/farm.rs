@@ -932,3 +932,118 @@ fn temporaries(dir: &Path) -> Vec<PathBuf> {
     found.sort();
     found
 }
+
+/// A shard manifest of one output, `name`, whose content is `bytes` (its true size and hash).
+fn hostile_manifest(name: &str, bytes: &[u8], inputs: serde_json::Value) -> serde_json::Value {
+    use sha2::{Digest, Sha256};
+    let hex = |b: &[u8]| -> String { b.iter().map(|x| format!("{x:02x}")).collect() };
+    serde_json::json!({
+        "format": "nsrm-farm-shard/1", "nsrm_version": "0", "shard": 1, "shards": 1,
+        "batch": {"inputs": inputs, "outputs_sha256": hex(&Sha256::digest(format!("{name}\n")))},
+        "model": {"path": "m.json", "sha256": "00".repeat(32)},
+        "settings": [], "failures": [], "stale_temporaries_removed": [],
+        "outputs": [{"input": "in.exr", "output": name, "bytes": bytes.len(),
+                     "sha256": hex(&Sha256::digest(bytes)), "how": "converted"}],
+        "timings": {"started_unix": 0.0, "check_s": 0.0, "convert_s": 0.0, "hash_s": 0.0, "total_s": 0.0}
+    })
+}
+
+/// `nsrm farm verify` under a 2 GB address-space limit (a count sized into an allocation
+/// aborts there instead of swapping), in `dir`.
+fn verify_bounded(dir: &Path, args: &[&str]) -> (std::process::Output, String) {
+    let t = Instant::now();
+    let o = Command::new("sh")
+        .arg("-c")
+        .arg("ulimit -v 2000000; exec \"$0\" farm verify \"$@\"")
+        .arg(env!("CARGO_BIN_EXE_nsrm"))
+        .args(args)
+        .current_dir(dir)
+        .output()
+        .unwrap();
+    let err = stderr(&o);
+    crate::common::no_crash(&o, &format!("farm verify {args:?}"));
+    assert!(!err.contains("internal error"), "{args:?}: {err}");
+    assert!(
+        t.elapsed() < Duration::from_secs(20),
+        "{args:?}: {:?}",
+        t.elapsed()
+    );
+    (o, err)
+}
+
+/// `farm verify` trusts nothing in a manifest (issue 42): a name leaving the batch directory
+/// (`..`, absolute, a symbolic link) is refused naming the manifest, even with its true hash;
+/// huge stated counts, a huge shard count in a file name or in `--shards` cost neither memory
+/// nor time; a manifest that does not parse is named.
+#[test]
+fn verify_trusts_nothing_a_manifest_says() {
+    let root = tempdir("farm-hostile-verify");
+    let out = root.join("out");
+    std::fs::create_dir_all(&out).unwrap();
+    let secret = root.join("secret.txt");
+    std::fs::write(&secret, b"not the batch's").unwrap();
+    #[cfg(unix)]
+    std::os::unix::fs::symlink(&secret, out.join("link.exr")).unwrap();
+    let m = out.join("nsrm-farm.shard-0001-of-0001.json");
+    let write = |v: &serde_json::Value| std::fs::write(&m, v.to_string()).unwrap();
+    let abs = secret.to_str().unwrap().to_string();
+    let mut names = vec!["../secret.txt".to_string(), abs];
+    if cfg!(unix) {
+        names.push("link.exr".into());
+    }
+    for name in &names {
+        write(&hostile_manifest(name, b"not the batch's", 1.into()));
+        let (o, err) = verify_bounded(&root, &["out"]);
+        assert_eq!(o.status.code(), Some(1), "{name}: {err}");
+        assert!(err.contains("FAILED"), "{name}: {err}");
+        assert!(
+            err.contains("nsrm-farm.shard-0001-of-0001.json"),
+            "{name}: {err}"
+        );
+        assert!(err.contains("0 output(s) match"), "{name}: {err}");
+    }
+    // The same manifest naming a file of the batch is whole: the refusals above are the names'.
+    std::fs::write(out.join("a.exr"), b"frame").unwrap();
+    write(&hostile_manifest("a.exr", b"frame", 1.into()));
+    let (o, err) = verify_bounded(&root, &["out"]);
+    assert!(o.status.success(), "{err}");
+    // Counts no file backs.
+    for inputs in [
+        serde_json::json!(1_000_000_000_000_000u64),
+        serde_json::json!(u64::MAX),
+        serde_json::json!(1e15),
+    ] {
+        write(&hostile_manifest("a.exr", b"frame", inputs.clone()));
+        let (o, err) = verify_bounded(&root, &["out"]);
+        assert_eq!(o.status.code(), Some(1), "{inputs}: {err}");
+        assert!(
+            err.contains("nsrm-farm.shard-0001-of-0001.json") || err.contains("input(s)"),
+            "{inputs}: {err}"
+        );
+    }
+    write(&hostile_manifest("a.exr", b"frame", 1.into()));
+    std::fs::write(
+        out.join("nsrm-farm.shard-0001-of-1000000000000.json"),
+        b"{}",
+    )
+    .unwrap();
+    let (o, err) = verify_bounded(&root, &["out"]);
+    assert_eq!(o.status.code(), Some(1), "{err}");
+    assert!(err.contains("of-1000000000000.json"), "{err}");
+    std::fs::remove_file(out.join("nsrm-farm.shard-0001-of-1000000000000.json")).unwrap();
+    let (o, err) = verify_bounded(&root, &["out", "--shards", "1000000000000"]);
+    assert_eq!(o.status.code(), Some(2), "{err}");
+    let (o, err) = verify_bounded(&root, &["out", "--shards", "100000"]);
+    assert_eq!(o.status.code(), Some(1), "{err}");
+    assert!(err.contains("shards 1-100000/100000: no manifest"), "{err}");
+    assert!(err.lines().count() < 10, "{err}");
+    // A manifest that does not parse is named.
+    std::fs::write(&m, b"{\"format\": ").unwrap();
+    let (o, err) = verify_bounded(&root, &["out"]);
+    assert_eq!(o.status.code(), Some(1), "{err}");
+    assert!(
+        err.contains("out/nsrm-farm.shard-0001-of-0001.json: not a shard manifest"),
+        "{err}"
+    );
+    let _ = std::fs::remove_dir_all(&root);
+}

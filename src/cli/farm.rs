@@ -23,8 +23,9 @@ use std::time::{Instant, SystemTime, UNIX_EPOCH};
 
 #[derive(Debug, clap::Subcommand)]
 pub(crate) enum Command {
-    /// Write an Open Job Description job bundle (template.yaml, parameter_values.yaml/.json):
-    /// the format AWS Deadline Cloud submits; `openjd run` runs it locally.
+    /// Write an Open Job Description job bundle (template.yaml, parameter_values.yaml,
+    /// asset_references.yaml, inputs.txt; job_parameters.json for `openjd run`): the format AWS
+    /// Deadline Cloud submits (job attachments upload the inputs); `openjd run` runs it locally.
     Openjd(GenArgs),
     /// Write a Slurm array job (array.sbatch, verify.sbatch, submit.sh).
     Slurm(GenArgs),
@@ -234,6 +235,8 @@ fn generate(engine: Engine, mut g: GenArgs) -> Result<ExitCode> {
         inputs,
         model,
         output_dir,
+        preview_dir: preview.clone(),
+        job_dir: m(&g.job_dir, "--job-dir")?,
         program: g.program.clone(),
         task,
         verify,
@@ -314,7 +317,7 @@ fn engine_files(engine: &Engine, spec: &JobSpec, job_dir: &Path) -> Result<(Vec<
         Engine::Openjd => (
             jobs::openjd(spec)?,
             format!(
-                "openjd run {dir}/template.yaml --step Apply -p file://{dir}/parameter_values.json, then --step Verify; or submit {dir} as a Deadline Cloud job bundle",
+                "openjd run {dir}/template.yaml --step Apply -p file://{dir}/job_parameters.json, then --step Verify; or submit {dir} as a Deadline Cloud job bundle",
                 dir = job_dir.display()
             ),
         ),

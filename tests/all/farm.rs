@@ -360,9 +360,37 @@ fn openjd_runs_every_task_and_the_union_equals_one_apply() {
     for f in [
         "template.yaml",
         "parameter_values.yaml",
-        "parameter_values.json",
+        "job_parameters.json",
     ] {
         assert!(submit.join("job").join(f).is_file(), "{f}");
+    }
+    // Deadline Cloud's own bundle reader: job attachments would upload every input, the input
+    // list and the model, and download the output directory.
+    if let Some(refs) = deadline_asset_references(&submit.join("job")) {
+        let sorted = |v: &serde_json::Value| {
+            let mut v: Vec<String> = v
+                .as_array()
+                .unwrap()
+                .iter()
+                .map(|x| x.as_str().unwrap().to_string())
+                .collect();
+            v.sort();
+            v
+        };
+        let mut want: Vec<String> = std::fs::read_dir(submit.join("in"))
+            .unwrap()
+            .map(|e| e.unwrap().path().to_str().unwrap().to_string())
+            .collect();
+        want.push(submit.join("job/inputs.txt").to_str().unwrap().into());
+        want.push(submit.join("m.json").to_str().unwrap().into());
+        want.sort();
+        let refs = &refs["assetReferences"];
+        assert_eq!(sorted(&refs["inputs"]["filenames"]), want, "{refs}");
+        assert_eq!(
+            sorted(&refs["outputs"]["directories"]),
+            [submit.join("out").to_str().unwrap()],
+            "{refs}"
+        );
     }
     // Refused without --overwrite the second time.
     let again = nsrm_in(
@@ -408,7 +436,7 @@ fn openjd_runs_every_task_and_the_union_equals_one_apply() {
             .args(["--step", step, "-p"])
             .arg(format!(
                 "file://{}",
-                worker.join("job/parameter_values.json").display()
+                worker.join("job/job_parameters.json").display()
             ))
             .arg("--path-mapping-rules")
             .arg(format!("file://{}", rules.display()))
@@ -1045,5 +1073,247 @@ fn verify_trusts_nothing_a_manifest_says() {
         err.contains("out/nsrm-farm.shard-0001-of-0001.json: not a shard manifest"),
         "{err}"
     );
+    let _ = std::fs::remove_dir_all(&root);
+}
+
+/// The asset references Deadline Cloud's client (PyPI `deadline`) makes of the job bundle in
+/// `dir`, as its submission does (the bundle's parameters, their values and
+/// `asset_references.yaml`); `None` (SKIP) when the package is absent, a failure under CI.
+fn deadline_asset_references(dir: &Path) -> Option<serde_json::Value> {
+    let script = "import json, sys\n\
+from deadline.client.job_bundle.parameters import read_job_bundle_parameters, apply_job_parameters\n\
+from deadline.client.job_bundle.submission import AssetReferences\n\
+from deadline.client.job_bundle.loader import read_yaml_or_json_object\n\
+d = sys.argv[1]\n\
+params = read_job_bundle_parameters(d)\n\
+refs = AssetReferences.from_dict(read_yaml_or_json_object(d, 'asset_references', False))\n\
+apply_job_parameters([], d, params, refs)\n\
+print(json.dumps(refs.to_dict()))\n";
+    let has = Command::new("python3")
+        .args(["-c", "import deadline.client.job_bundle"])
+        .output()
+        .is_ok_and(|o| o.status.success());
+    if !has {
+        assert!(
+            std::env::var("CI").as_deref() != Ok("true"),
+            "PyPI deadline is missing under CI=true (.ci/install.d/50-farm.sh installs it)"
+        );
+        eprintln!("SKIP: PyPI deadline is not installed (.ci/install.d/50-farm.sh installs it)");
+        return None;
+    }
+    let o = Command::new("python3")
+        .args(["-c", script])
+        .arg(dir)
+        .output()
+        .unwrap();
+    assert_ok(&o);
+    Some(serde_json::from_slice(&o.stdout).unwrap())
+}
+
+/// Names a template language or a YAML reader would misread (issue 42): Open Job Description
+/// expressions and unmatched braces, a DEL, C1 controls, U+0085 and U+2028, shell syntax, a
+/// leading dash.
+const HOSTILE_NAMES: [&str; 6] = [
+    "a{{Param.Model}}.exr",
+    "b}}{{.exr",
+    "c\u{7f}\u{85}\u{9b}\u{2028}é.exr",
+    "d'$(touch x)`;.exr",
+    "-e.exr",
+    "f{{ Task.Param.Shard .exr",
+];
+
+/// The generated Open Job Description bundle carries hostile names to the worker byte for
+/// byte: `openjd check` accepts it, `openjd run` runs it (with the whole tree moved and mapped)
+/// with a stub program that records its argument vector and the input list it is given, and
+/// the asset references read back (PyYAML, openjd's reader) exactly.
+#[test]
+fn openjd_hostile_names_reach_the_worker_byte_for_byte() {
+    if !have("openjd") {
+        return;
+    }
+    let root = tempdir("farm-openjd-hostile");
+    let submit = root.join("sub {{Param.OutputDir}}");
+    std::fs::create_dir_all(submit.join("in")).unwrap();
+    for n in HOSTILE_NAMES {
+        std::fs::write(submit.join("in").join(n), b"").unwrap();
+    }
+    let model = "m{{Task.Param.Shard}}}}.json";
+    std::fs::write(submit.join(model), b"{}").unwrap();
+    let record = root.join("argv.bin");
+    let stub = root.join("stub.sh");
+    std::fs::write(
+        &stub,
+        format!(
+            "#!/bin/sh\nprev=\nfor a in \"$@\"; do\n  printf '%s\\0' \"$a\" >> '{r}'\n  if [ \"$prev\" = --inputs-from ]; then cat -- \"$a\" >> '{r}.list'; fi\n  prev=$a\ndone\nprintf 'END\\0' >> '{r}'\n",
+            r = record.display()
+        ),
+    )
+    .unwrap();
+    #[cfg(unix)]
+    {
+        use std::os::unix::fs::PermissionsExt;
+        std::fs::set_permissions(&stub, std::fs::Permissions::from_mode(0o755)).unwrap();
+    }
+    let out = "out {{Param.Shards}}";
+    let made = nsrm_in(
+        &submit,
+        &[
+            "farm",
+            "openjd",
+            "--shards",
+            "2",
+            "--job-dir",
+            "job",
+            "--program",
+            stub.to_str().unwrap(),
+            "--name",
+            "hostile",
+            "--device",
+            "cpu",
+            "--suffix",
+            "_{{Param.Model}}",
+            "--model",
+            model,
+            "-o",
+            out,
+            "in",
+        ],
+    );
+    assert_ok(&made);
+    let inputs: Vec<String> = {
+        let mut v: Vec<String> = HOSTILE_NAMES
+            .iter()
+            .map(|n| submit.join("in").join(n).to_str().unwrap().to_string())
+            .collect();
+        v.sort();
+        v
+    };
+    // The asset references as PyYAML (openjd's and deadline's reader) reads them.
+    let refs = Command::new("python3")
+        .arg("-c")
+        .arg("import json,sys,yaml; print(json.dumps(yaml.safe_load(open(sys.argv[1], encoding='utf-8'))))")
+        .arg(submit.join("job/asset_references.yaml"))
+        .output()
+        .unwrap();
+    assert_ok(&refs);
+    let refs: serde_json::Value = serde_json::from_slice(&refs.stdout).unwrap();
+    let mut listed: Vec<String> = refs["assetReferences"]["inputs"]["filenames"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|v| v.as_str().unwrap().to_string())
+        .collect();
+    listed.sort();
+    assert_eq!(listed, inputs);
+    // Moved and mapped, as on a worker.
+    let worker = root.join("worker }}");
+    std::fs::rename(&submit, &worker).unwrap();
+    let template = worker.join("job/template.yaml");
+    let check = Command::new("openjd")
+        .arg("check")
+        .arg(&template)
+        .output()
+        .unwrap();
+    assert_ok(&check);
+    let rules = root.join("rules.json");
+    std::fs::write(
+        &rules,
+        serde_json::json!({"version": "pathmapping-1.0", "path_mapping_rules": [
+            {"source_path_format": "POSIX", "source_path": submit, "destination_path": worker}]})
+        .to_string(),
+    )
+    .unwrap();
+    for step in ["Apply", "Verify"] {
+        let o = Command::new("openjd")
+            .arg("run")
+            .arg(&template)
+            .args(["--step", step, "-p"])
+            .arg(format!(
+                "file://{}",
+                worker.join("job/job_parameters.json").display()
+            ))
+            .arg("--path-mapping-rules")
+            .arg(format!("file://{}", rules.display()))
+            .output()
+            .unwrap();
+        assert!(
+            o.status.success(),
+            "{step}: {}{}",
+            String::from_utf8_lossy(&o.stdout),
+            stderr(&o)
+        );
+    }
+    let bytes = std::fs::read(&record).unwrap();
+    let words: Vec<&[u8]> = bytes
+        .strip_suffix(b"\0")
+        .unwrap_or(&bytes)
+        .split(|&b| b == 0)
+        .collect();
+    let calls: Vec<&[&[u8]]> = words
+        .split(|w| *w == b"END")
+        .filter(|c| !c.is_empty())
+        .collect();
+    assert_eq!(calls.len(), 3, "{:?}", String::from_utf8_lossy(&bytes));
+    let w = |s: &Path| s.to_str().unwrap().as_bytes().to_vec();
+    let text = |c: &[&[u8]]| c.iter().map(|x| x.to_vec()).collect::<Vec<_>>();
+    for (k, call) in calls[..2].iter().enumerate() {
+        let call = text(call);
+        let want_head: Vec<Vec<u8>> = vec![
+            b"farm".to_vec(),
+            b"run".to_vec(),
+            b"--shard".to_vec(),
+            format!("{}/2", k + 1).into_bytes(),
+            b"--inputs-from".to_vec(),
+            w(&worker.join("job/inputs.txt")),
+            b"--path-mapping-rules".to_vec(),
+        ];
+        assert_eq!(call[..7], want_head[..], "{call:?}");
+        let want_tail: Vec<Vec<u8>> = vec![
+            b"--".to_vec(),
+            b"--model".to_vec(),
+            w(&worker.join(model)),
+            b"-o".to_vec(),
+            w(&worker.join(out)),
+        ];
+        assert_eq!(call[8..13], want_tail[..], "{call:?}");
+        assert!(
+            call.contains(&b"--suffix=_{{Param.Model}}".to_vec()),
+            "{call:?}"
+        );
+    }
+    assert_eq!(
+        text(calls[2]),
+        vec![
+            b"farm".to_vec(),
+            b"verify".to_vec(),
+            w(&worker.join(out)),
+            b"--shards".to_vec(),
+            b"2".to_vec(),
+            b"--model".to_vec(),
+            w(&worker.join(model)),
+        ]
+    );
+    // The input list each task is given: the submitter's paths, byte for byte (the task maps them).
+    let mut want = Vec::new();
+    for _ in 0..2 {
+        let mut sorted = inputs.clone();
+        sorted.sort();
+        for i in &sorted {
+            want.extend_from_slice(i.as_bytes());
+            want.push(b'\n');
+        }
+    }
+    let got = std::fs::read(root.join("argv.bin.list")).unwrap();
+    let mut got_lines: Vec<&[u8]> = got
+        .split(|&b| b == b'\n')
+        .filter(|l| !l.is_empty())
+        .collect();
+    let mut want_lines: Vec<&[u8]> = want
+        .split(|&b| b == b'\n')
+        .filter(|l| !l.is_empty())
+        .collect();
+    got_lines.sort();
+    want_lines.sort();
+    assert_eq!(got_lines, want_lines);
     let _ = std::fs::remove_dir_all(&root);
 }

@@ -49,9 +49,11 @@ pub(crate) struct GenArgs {
     /// same names there are replaced.
     #[arg(long, value_name = "DIR")]
     job_dir: PathBuf,
-    /// The job's name (letters, digits, -, _, .).
-    #[arg(long, default_value = "nsrm-apply")]
-    name: String,
+    /// The job's name (letters, digits, -, _, .); by default `nsrm-` and 12 hex digits of a
+    /// hash of the batch (inputs, model, output directory, shards, settings): two batches never
+    /// share a name, and making the same batch again gives the same one.
+    #[arg(long)]
+    name: Option<String>,
     /// The nsrm program on the workers.
     #[arg(long, value_name = "PATH", default_value = "nsrm")]
     program: String,
@@ -229,8 +231,16 @@ fn generate(engine: Engine, mut g: GenArgs) -> Result<ExitCode> {
         &settings,
     );
     let verify = verify_args(matches!(engine, Engine::Openjd), preview.as_deref());
+    let name = match &g.name {
+        Some(n) => n.clone(),
+        None => {
+            let n = batch_name(&inputs, &model, &output_dir, g.shards, &settings);
+            eprintln!("nsrm farm: job name {n} (from the batch; --name sets another)");
+            n
+        }
+    };
     let spec = JobSpec {
-        name: g.name.clone(),
+        name,
         shards: g.shards,
         inputs,
         model,
@@ -256,6 +266,29 @@ fn generate(engine: Engine, mut g: GenArgs) -> Result<ExitCode> {
     );
     eprintln!("nsrm farm: run it with: {how}");
     Ok(ExitCode::SUCCESS)
+}
+
+/// The default job name of a batch: `nsrm-` and the first 12 hex digits of the SHA-256 of its
+/// inputs, model, output directory, shard count and settings (each field's length first, so no
+/// two different batches join to the same text).
+fn batch_name(
+    inputs: &[String],
+    model: &str,
+    output_dir: &str,
+    shards: usize,
+    settings: &[String],
+) -> String {
+    let mut text = String::new();
+    let shards = shards.to_string();
+    let fields = inputs
+        .iter()
+        .map(String::as_str)
+        .chain(["", model, output_dir, &shards, ""])
+        .chain(settings.iter().map(String::as_str));
+    for f in fields {
+        text.push_str(&format!("{}:{f};", f.len()));
+    }
+    format!("nsrm-{}", &crate::farm::sha256_bytes(text.as_bytes())[..12])
 }
 
 /// A shard's command after the program: `farm run` of the shard with the listed inputs (and,
@@ -869,6 +902,24 @@ mod tests {
             line.contains("1 failed; 1 stale temporary removed; 1.50 s"),
             "{line}"
         );
+    }
+
+    #[test]
+    fn batch_names_are_stable_and_differ_between_batches() {
+        let i = |v: &[&str]| v.iter().map(|s| s.to_string()).collect::<Vec<_>>();
+        let a = batch_name(&i(&["/a.exr", "/b.exr"]), "/m", "/o", 2, &[]);
+        assert_eq!(a, batch_name(&i(&["/a.exr", "/b.exr"]), "/m", "/o", 2, &[]));
+        assert!(a.starts_with("nsrm-") && a.len() == 17, "{a}");
+        for other in [
+            batch_name(&i(&["/a.exr"]), "/m", "/o", 2, &[]),
+            batch_name(&i(&["/a.exr", "/b.exr"]), "/m2", "/o", 2, &[]),
+            batch_name(&i(&["/a.exr", "/b.exr"]), "/m", "/o2", 2, &[]),
+            batch_name(&i(&["/a.exr", "/b.exr"]), "/m", "/o", 3, &[]),
+            batch_name(&i(&["/a.exr", "/b.exr"]), "/m", "/o", 2, &i(&["--half"])),
+            batch_name(&i(&["/a.exr/b.exr"]), "/m", "/o", 2, &[]),
+        ] {
+            assert_ne!(a, other);
+        }
     }
 
     #[test]

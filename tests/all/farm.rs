@@ -1317,3 +1317,31 @@ fn openjd_hostile_names_reach_the_worker_byte_for_byte() {
     assert_eq!(got_lines, want_lines);
     let _ = std::fs::remove_dir_all(&root);
 }
+
+/// A farm task opens the GPU (`--device auto`) with `XDG_RUNTIME_DIR` unset or naming no
+/// directory, as under a batch scheduler: its log has no Mesa `XDG_RUNTIME_DIR` line.
+#[test]
+fn a_farm_task_log_has_no_mesa_runtime_dir_line() {
+    let dir = tempdir("farm-xdg");
+    batch(&dir, 2, 8, 8);
+    for xdg in [None, Some("/nonexistent/nsrm-xdg")] {
+        let mut c = crate::common::nsrm();
+        c.current_dir(&dir).env_remove("XDG_RUNTIME_DIR");
+        if let Some(x) = xdg {
+            c.env("XDG_RUNTIME_DIR", x);
+        }
+        let o = c
+            .args([
+                "farm", "run", "--shard", "1/1", "--", "--model", "m.json", "-o", "out", "in",
+            ])
+            .output()
+            .unwrap();
+        let err = stderr(&o);
+        assert!(o.status.success(), "{xdg:?}: {err}");
+        assert!(
+            !err.contains("XDG_RUNTIME_DIR"),
+            "{xdg:?}: Mesa complained: {err}"
+        );
+    }
+    let _ = std::fs::remove_dir_all(&dir);
+}

@@ -361,7 +361,7 @@ fn engine_files(engine: &Engine, spec: &JobSpec, job_dir: &Path) -> Result<(Vec<
         Engine::Kube(k) => (
             jobs::kube(spec, k)?,
             format!(
-                "kubectl apply -f {dir}/job.yaml; kubectl wait --for=condition=complete job/{name}; kubectl apply -f {dir}/verify.yaml",
+                "kubectl apply -f {dir}/job.yaml && sh {dir}/wait.sh && kubectl apply -f {dir}/verify.yaml (wait.sh returns when job/{name} is Complete or Failed, and says which)",
                 dir = job_dir.display(),
                 name = spec.name
             ),

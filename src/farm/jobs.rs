@@ -541,7 +541,35 @@ pub(crate) fn kube(spec: &JobSpec, k: &Kube) -> Result<Vec<JobFile>, FarmError> 
             text: yaml::to_string(&verify_job),
             executable: false,
         },
+        JobFile {
+            name: "wait.sh".into(),
+            text: kube_wait_script(&spec.name),
+            executable: true,
+        },
     ])
+}
+
+/// Seconds a finished Job (and its pods' logs) is kept before Kubernetes deletes it.
+const KUBE_TTL_S: i64 = 7 * 24 * 3600;
+
+/// `wait.sh`: waits until the Job `name` is `Complete` or `Failed` (a `kubectl wait
+/// --for=condition=complete` alone waits forever on a failed Job), says which, and exits 0 only
+/// when it completed.
+fn kube_wait_script(name: &str) -> String {
+    format!(
+        "#!/bin/sh\n\
+         # Waits for the Job {name} to end: exit 0 when it is Complete, 1 when it Failed.\n\
+         set -eu\n\
+         job=job/{name}\n\
+         while :; do\n\
+         \x20   state=$(kubectl get \"$job\" -o jsonpath='{{.status.conditions[?(@.status==\"True\")].type}}')\n\
+         \x20   case \" $state \" in\n\
+         \x20   *\" Complete \"*) echo \"$job: Complete\"; exit 0 ;;\n\
+         \x20   *\" Failed \"*) echo \"$job: Failed (kubectl describe $job; kubectl logs $job)\" >&2; exit 1 ;;\n\
+         \x20   esac\n\
+         \x20   sleep 10\n\
+         done\n"
+    )
 }
 
 /// The labels of every object of a batch.
@@ -620,6 +648,7 @@ fn kube_indexed_job(spec: &JobSpec, k: &Kube, script: &str) -> Node {
                     "backoffLimitPerIndex",
                     Node::Int(k.retries_per_index as i64),
                 ),
+                ("ttlSecondsAfterFinished", Node::Int(KUBE_TTL_S)),
                 (
                     "template",
                     Node::map([
@@ -664,6 +693,7 @@ fn kube_verify_job(spec: &JobSpec, k: &Kube, script: &str) -> Node {
             "spec",
             Node::map([
                 ("backoffLimit", Node::Int(0)),
+                ("ttlSecondsAfterFinished", Node::Int(KUBE_TTL_S)),
                 (
                     "template",
                     Node::map([(
@@ -858,6 +888,41 @@ mod tests {
         assert_eq!(get(&list(&steps)[1], "name"), &Node::str("Verify"));
     }
 
+    /// `wait.sh` returns on `Failed` as on `Complete` and says which (a stub `kubectl` reports
+    /// the Job's true conditions).
+    #[cfg(unix)]
+    #[test]
+    fn the_kubernetes_wait_returns_on_failed_and_on_complete() {
+        let dir = std::env::temp_dir().join(format!("nsrm-kube-wait-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let script = dir.join("wait.sh");
+        std::fs::write(&script, kube_wait_script("plates")).unwrap();
+        for (state, code, said) in [
+            ("Failed", 1, "job/plates: Failed"),
+            ("SuccessCriteriaMet Complete", 0, "job/plates: Complete"),
+        ] {
+            let kubectl = dir.join("kubectl");
+            std::fs::write(&kubectl, format!("#!/bin/sh\nprintf '%s' '{state}'\n")).unwrap();
+            use std::os::unix::fs::PermissionsExt;
+            std::fs::set_permissions(&kubectl, std::fs::Permissions::from_mode(0o755)).unwrap();
+            let path = format!(
+                "{}:{}",
+                dir.display(),
+                std::env::var("PATH").unwrap_or_default()
+            );
+            let o = std::process::Command::new("sh")
+                .arg(&script)
+                .env("PATH", path)
+                .output()
+                .unwrap();
+            let text = String::from_utf8_lossy(&o.stdout).into_owned()
+                + &String::from_utf8_lossy(&o.stderr);
+            assert_eq!(o.status.code(), Some(code), "{state}: {text}");
+            assert!(text.contains(said), "{state}: {text}");
+        }
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+
     #[test]
     fn kubernetes_pods_mount_the_claim_and_the_shards_the_list() {
         let (s, k) = (spec(), kube_place());
@@ -872,6 +937,10 @@ mod tests {
         let job = kube_indexed_job(&s, &k, "true");
         assert_eq!(get(get(&job, "spec"), "parallelism"), &Node::Int(3));
         assert_eq!(get(get(&job, "spec"), "completions"), &Node::Int(3));
+        assert_eq!(
+            get(get(&job, "spec"), "ttlSecondsAfterFinished"),
+            &Node::Int(KUBE_TTL_S)
+        );
         let verify = kube_verify_job(&s, &k, "exec x");
         assert_eq!(
             get(get(&verify, "metadata"), "name"),

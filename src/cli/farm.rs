@@ -771,6 +771,13 @@ fn run_verify(v: VerifyArgs) -> Result<ExitCode> {
         Some(p) => Some(crate::farm::sha256_file(p).context("--model")?.1),
         None => None,
     };
+    if let Some(n) = v.shards.filter(|&n| n == 0 || n > crate::farm::MAX_SHARDS) {
+        return Err(UsageError(format!(
+            "--shards {n}: a batch has 1 to {} shards",
+            crate::farm::MAX_SHARDS
+        ))
+        .into());
+    }
     let t = Instant::now();
     let r = verify::verify(
         &v.dir,
@@ -800,6 +807,9 @@ fn run_verify(v: VerifyArgs) -> Result<ExitCode> {
     );
     for p in &r.problems {
         eprintln!("  {p}");
+    }
+    if v.preview.is_none() && r.problems.iter().any(|p| p.contains("preview directory")) {
+        eprintln!("nsrm farm verify: the previews are checked with --preview DIR (the job's)");
     }
     Ok(ExitCode::from(1))
 }

@@ -122,7 +122,7 @@ fn shown(s: &str) -> String {
 pub(crate) fn verify(dir: &Path, expect: &Expect) -> Result<Report, FarmError> {
     if let Some(n) = expect.shards.filter(|&n| n == 0 || n > MAX_SHARDS) {
         return Err(FarmError::Usage(format!(
-            "--shards {n}: a batch has 1 to {MAX_SHARDS} shards"
+            "a shard count of {n}: a batch has 1 to {MAX_SHARDS} shards"
         )));
     }
     let root = Root::new(dir)?;
@@ -428,7 +428,7 @@ fn check_shard<'m>(
 fn check_preview(dir: Option<&Root>, pv: &super::manifest::Preview) -> Result<(), String> {
     let Some(dir) = dir else {
         return Err(format!(
-            "{} recorded; give the job's preview directory (--preview DIR) to check it",
+            "{} recorded; give the job's preview directory to check it",
             shown(&pv.path)
         ));
     };

@@ -23,8 +23,9 @@ use std::time::{Instant, SystemTime, UNIX_EPOCH};
 
 #[derive(Debug, clap::Subcommand)]
 pub(crate) enum Command {
-    /// Write an Open Job Description job bundle (template.yaml, parameter_values.yaml/.json):
-    /// the format AWS Deadline Cloud submits; `openjd run` runs it locally.
+    /// Write an Open Job Description job bundle (template.yaml, parameter_values.yaml,
+    /// asset_references.yaml, inputs.txt; job_parameters.json for `openjd run`): the format AWS
+    /// Deadline Cloud submits (job attachments upload the inputs); `openjd run` runs it locally.
     Openjd(GenArgs),
     /// Write a Slurm array job (array.sbatch, verify.sbatch, submit.sh).
     Slurm(GenArgs),
@@ -48,9 +49,11 @@ pub(crate) struct GenArgs {
     /// same names there are replaced.
     #[arg(long, value_name = "DIR")]
     job_dir: PathBuf,
-    /// The job's name (letters, digits, -, _, .).
-    #[arg(long, default_value = "nsrm-apply")]
-    name: String,
+    /// The job's name (letters, digits, -, _, .); by default `nsrm-` and 12 hex digits of a
+    /// hash of the batch (inputs, model, output directory, shards, settings): two batches never
+    /// share a name, and making the same batch again gives the same one.
+    #[arg(long)]
+    name: Option<String>,
     /// The nsrm program on the workers.
     #[arg(long, value_name = "PATH", default_value = "nsrm")]
     program: String,
@@ -117,6 +120,13 @@ pub(crate) struct VerifyArgs {
     /// The model the job applies: every shard must have applied this file.
     #[arg(long, value_name = "FILE")]
     model: Option<PathBuf>,
+    /// The job's preview directory: previews the manifests record are checked there (the
+    /// directory a manifest records is not trusted).
+    #[arg(long, value_name = "DIR")]
+    preview: Option<PathBuf>,
+    /// An Open Job Description path-mapping rules file applied to --preview.
+    #[arg(long, value_name = "FILE")]
+    path_mapping_rules: Option<PathBuf>,
 }
 
 /// `apply`'s arguments parsed on their own.
@@ -167,8 +177,13 @@ fn absolute(p: &Path) -> Result<PathBuf> {
 }
 
 fn generate(engine: Engine, mut g: GenArgs) -> Result<ExitCode> {
-    if g.shards == 0 {
-        return Err(UsageError("--shards must be at least 1".into()).into());
+    if g.shards == 0 || g.shards > crate::farm::MAX_SHARDS {
+        return Err(UsageError(format!(
+            "--shards {}: a batch has 1 to {} shards",
+            g.shards,
+            crate::farm::MAX_SHARDS
+        ))
+        .into());
     }
     let mut map = PathMap::new();
     for spec in &g.path_map {
@@ -215,13 +230,23 @@ fn generate(engine: Engine, mut g: GenArgs) -> Result<ExitCode> {
         preview.as_deref(),
         &settings,
     );
-    let verify = verify_args();
+    let verify = verify_args(matches!(engine, Engine::Openjd), preview.as_deref());
+    let name = match &g.name {
+        Some(n) => n.clone(),
+        None => {
+            let n = batch_name(&inputs, &model, &output_dir, g.shards, &settings);
+            eprintln!("nsrm farm: job name {n} (from the batch; --name sets another)");
+            n
+        }
+    };
     let spec = JobSpec {
-        name: g.name.clone(),
+        name,
         shards: g.shards,
         inputs,
         model,
         output_dir,
+        preview_dir: preview.clone(),
+        job_dir: m(&g.job_dir, "--job-dir")?,
         program: g.program.clone(),
         task,
         verify,
@@ -241,6 +266,29 @@ fn generate(engine: Engine, mut g: GenArgs) -> Result<ExitCode> {
     );
     eprintln!("nsrm farm: run it with: {how}");
     Ok(ExitCode::SUCCESS)
+}
+
+/// The default job name of a batch: `nsrm-` and the first 12 hex digits of the SHA-256 of its
+/// inputs, model, output directory, shard count and settings (each field's length first, so no
+/// two different batches join to the same text).
+fn batch_name(
+    inputs: &[String],
+    model: &str,
+    output_dir: &str,
+    shards: usize,
+    settings: &[String],
+) -> String {
+    let mut text = String::new();
+    let shards = shards.to_string();
+    let fields = inputs
+        .iter()
+        .map(String::as_str)
+        .chain(["", model, output_dir, &shards, ""])
+        .chain(settings.iter().map(String::as_str));
+    for f in fields {
+        text.push_str(&format!("{}:{f};", f.len()));
+    }
+    format!("nsrm-{}", &crate::farm::sha256_bytes(text.as_bytes())[..12])
 }
 
 /// A shard's command after the program: `farm run` of the shard with the listed inputs (and,
@@ -274,10 +322,11 @@ fn task_args(openjd: bool, preview: Option<&str>, settings: &[String]) -> Vec<Ar
 }
 
 /// The verification's command after the program: `farm verify` of the output directory with
-/// the shard count and the model.
-fn verify_args() -> Vec<Arg> {
+/// the shard count, the model and the `preview` directory (for Open Job Description, mapped by
+/// the session's path-mapping rules).
+fn verify_args(openjd: bool, preview: Option<&str>) -> Vec<Arg> {
     let lit = |s: &str| Arg::Lit(s.to_string());
-    vec![
+    let mut v = vec![
         lit("farm"),
         lit("verify"),
         Arg::OutputDir,
@@ -285,7 +334,14 @@ fn verify_args() -> Vec<Arg> {
         Arg::Shards,
         lit("--model"),
         Arg::Model,
-    ]
+    ];
+    if let Some(p) = preview {
+        v.extend([lit("--preview"), lit(p)]);
+        if openjd {
+            v.extend([lit("--path-mapping-rules"), Arg::PathMappingRules]);
+        }
+    }
+    v
 }
 
 /// The engine's job files for `spec`, and how to run them from `job_dir`.
@@ -294,7 +350,7 @@ fn engine_files(engine: &Engine, spec: &JobSpec, job_dir: &Path) -> Result<(Vec<
         Engine::Openjd => (
             jobs::openjd(spec)?,
             format!(
-                "openjd run {dir}/template.yaml --step Apply -p file://{dir}/parameter_values.json, then --step Verify; or submit {dir} as a Deadline Cloud job bundle",
+                "openjd run {dir}/template.yaml --step Apply -p file://{dir}/job_parameters.json, then --step Verify; or submit {dir} as a Deadline Cloud job bundle",
                 dir = job_dir.display()
             ),
         ),
@@ -305,7 +361,7 @@ fn engine_files(engine: &Engine, spec: &JobSpec, job_dir: &Path) -> Result<(Vec<
         Engine::Kube(k) => (
             jobs::kube(spec, k)?,
             format!(
-                "kubectl apply -f {dir}/job.yaml; kubectl wait --for=condition=complete job/{name}; kubectl apply -f {dir}/verify.yaml",
+                "kubectl apply -f {dir}/job.yaml && sh {dir}/wait.sh && kubectl apply -f {dir}/verify.yaml (wait.sh returns when job/{name} is Complete or Failed, and says which)",
                 dir = job_dir.display(),
                 name = spec.name
             ),
@@ -379,6 +435,13 @@ fn run_shard(r: RunArgs) -> Result<ExitCode> {
         .map(|d| d.as_secs_f64())
         .unwrap_or(0.0);
     let shard = Shard::parse(&r.shard).context("--shard")?;
+    if shard.count > crate::farm::MAX_SHARDS {
+        return Err(UsageError(format!(
+            "--shard {shard}: a batch has at most {} shards",
+            crate::farm::MAX_SHARDS
+        ))
+        .into());
+    }
     let mut a = shard_apply_args(&r)?;
     let parts = a.farm_parts();
     let out_dir = parts
@@ -691,13 +754,29 @@ fn check_existing(
     }
 }
 
+/// `farm verify`'s preview directory, through its path-mapping rules.
+fn verify_preview_dir(v: &VerifyArgs) -> Result<Option<PathBuf>> {
+    let Some(p) = &v.preview else {
+        return Ok(None);
+    };
+    let mut map = PathMap::new();
+    if let Some(f) = &v.path_mapping_rules {
+        map.add_openjd_file(f).context("--path-mapping-rules")?;
+    }
+    Ok(Some(PathBuf::from(map.map(&utf8(p, "--preview")?))))
+}
+
 fn run_verify(v: VerifyArgs) -> Result<ExitCode> {
     let model_sha256 = match &v.model {
         Some(p) => Some(crate::farm::sha256_file(p).context("--model")?.1),
         None => None,
     };
-    if v.shards == Some(0) {
-        return Err(UsageError("--shards must be at least 1".into()).into());
+    if let Some(n) = v.shards.filter(|&n| n == 0 || n > crate::farm::MAX_SHARDS) {
+        return Err(UsageError(format!(
+            "--shards {n}: a batch has 1 to {} shards",
+            crate::farm::MAX_SHARDS
+        ))
+        .into());
     }
     let t = Instant::now();
     let r = verify::verify(
@@ -705,6 +784,7 @@ fn run_verify(v: VerifyArgs) -> Result<ExitCode> {
         &Expect {
             shards: v.shards,
             model_sha256,
+            preview_dir: verify_preview_dir(&v)?,
         },
     )?;
     let summary = format!(
@@ -727,6 +807,9 @@ fn run_verify(v: VerifyArgs) -> Result<ExitCode> {
     );
     for p in &r.problems {
         eprintln!("  {p}");
+    }
+    if v.preview.is_none() && r.problems.iter().any(|p| p.contains("preview directory")) {
+        eprintln!("nsrm farm verify: the previews are checked with --preview DIR (the job's)");
     }
     Ok(ExitCode::from(1))
 }
@@ -832,6 +915,24 @@ mod tests {
     }
 
     #[test]
+    fn batch_names_are_stable_and_differ_between_batches() {
+        let i = |v: &[&str]| v.iter().map(|s| s.to_string()).collect::<Vec<_>>();
+        let a = batch_name(&i(&["/a.exr", "/b.exr"]), "/m", "/o", 2, &[]);
+        assert_eq!(a, batch_name(&i(&["/a.exr", "/b.exr"]), "/m", "/o", 2, &[]));
+        assert!(a.starts_with("nsrm-") && a.len() == 17, "{a}");
+        for other in [
+            batch_name(&i(&["/a.exr"]), "/m", "/o", 2, &[]),
+            batch_name(&i(&["/a.exr", "/b.exr"]), "/m2", "/o", 2, &[]),
+            batch_name(&i(&["/a.exr", "/b.exr"]), "/m", "/o2", 2, &[]),
+            batch_name(&i(&["/a.exr", "/b.exr"]), "/m", "/o", 3, &[]),
+            batch_name(&i(&["/a.exr", "/b.exr"]), "/m", "/o", 2, &i(&["--half"])),
+            batch_name(&i(&["/a.exr/b.exr"]), "/m", "/o", 2, &[]),
+        ] {
+            assert_ne!(a, other);
+        }
+    }
+
+    #[test]
     fn a_shards_command_carries_the_rules_only_for_openjd() {
         let lit = |s: &str| Arg::Lit(s.to_string());
         let settings = vec!["--output-space".to_string(), "acescg".to_string()];
@@ -862,6 +963,13 @@ mod tests {
             &[lit("--path-mapping-rules"), Arg::PathMappingRules]
         );
         assert_eq!(openjd.len(), 13);
-        assert!(verify_args().contains(&Arg::Shards));
+        assert!(verify_args(false, None).contains(&Arg::Shards));
+        let v = verify_args(true, Some("/p"));
+        assert!(v.ends_with(&[
+            lit("--preview"),
+            lit("/p"),
+            lit("--path-mapping-rules"),
+            Arg::PathMappingRules
+        ]));
     }
 }

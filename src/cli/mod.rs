@@ -153,10 +153,9 @@ pub fn main() -> ExitCode {
             return ExitCode::from(code);
         }
     };
-    // Before any thread starts: Mesa's loader complains on every GPU run without it.
-    if matches!(cli.command, Command::Apply(_) | Command::Bench(_)) {
-        runtime_dir::ensure_runtime_dir();
-    }
+    // Before any thread starts: Mesa's loader complains on every GPU run without it, and more
+    // commands than `apply` open the GPU (`farm run`, the studio, exports that validate).
+    runtime_dir::ensure_runtime_dir();
     let result = match cli.command {
         Command::Apply(a) => apply::run(a),
         Command::Bench(a) => bench::run(a),

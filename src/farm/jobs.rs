@@ -40,6 +40,11 @@ pub(crate) struct JobSpec {
     pub inputs: Vec<String>,
     pub model: String,
     pub output_dir: String,
+    /// The previews' directory, when the job writes previews (an output of the job).
+    pub preview_dir: Option<String>,
+    /// The job's directory as the submitter names it (an Open Job Description bundle's input
+    /// list is a file there, given to the workers as a `PATH` parameter).
+    pub job_dir: String,
     /// The nsrm program on the workers.
     pub program: String,
     /// The command of one shard, after the program.
@@ -103,32 +108,75 @@ impl JobSpec {
     }
 }
 
-/// Open Job Description's text for one argument.
-fn openjd_arg(a: &Arg) -> Result<String, FarmError> {
-    Ok(match a {
-        Arg::Lit(s) if s.contains("{{") => {
-            return Err(FarmError::Usage(format!(
-                "`{s}`: `{{{{` would be read as an Open Job Description expression"
-            )))
+/// The file of an Open Job Description bundle listing the batch's inputs, one per line.
+pub(crate) const OPENJD_INPUT_LIST: &str = "inputs.txt";
+
+/// The job parameters' values as `openjd run --job-param file://…` reads them.
+pub(crate) const OPENJD_RUN_VALUES: &str = "job_parameters.json";
+
+/// The most characters of an Open Job Description `STRING` parameter's value.
+const OPENJD_MAX_STRING: usize = 1024;
+
+/// Whether `s` would be read as (part of) an Open Job Description expression in a format
+/// string (`{{ … }}`); such a word reaches the worker as a parameter's value instead.
+fn openjd_needs_param(s: &str) -> bool {
+    s.contains("{{") || s.contains("}}")
+}
+
+/// The literal words of the job's commands that no format string can hold as they are, in
+/// order, each once: they become `STRING` job parameters `NsrmArg1`, `NsrmArg2`, … whose
+/// values (never parsed as templates) are the words.
+fn openjd_literals(spec: &JobSpec) -> Result<Vec<String>, FarmError> {
+    let mut out: Vec<String> = Vec::new();
+    for a in spec.task.iter().chain(&spec.verify) {
+        if let Arg::Lit(s) = a {
+            if openjd_needs_param(s) && !out.contains(s) {
+                if s.chars().count() > OPENJD_MAX_STRING {
+                    return Err(FarmError::Usage(format!(
+                        "{s:?}: a word holding `{{{{` or `}}}}` reaches an Open Job Description worker as a parameter, of at most {OPENJD_MAX_STRING} characters"
+                    )));
+                }
+                out.push(s.clone());
+            }
         }
-        Arg::Lit(s) => s.clone(),
+    }
+    Ok(out)
+}
+
+/// Open Job Description's text for one argument; a literal with `{{` or `}}` is the parameter
+/// of `literals` holding it.
+fn openjd_arg(a: &Arg, literals: &[String]) -> String {
+    match a {
+        Arg::Lit(s) => match literals.iter().position(|l| l == s) {
+            Some(i) => format!("{{{{Param.NsrmArg{}}}}}", i + 1),
+            None => s.clone(),
+        },
         Arg::Shard => "{{Task.Param.Shard}}/{{Param.Shards}}".into(),
         Arg::Shards => "{{Param.Shards}}".into(),
-        Arg::InputList => "{{Task.File.Inputs}}".into(),
+        Arg::InputList => "{{Param.InputList}}".into(),
         Arg::PathMappingRules => "{{Session.PathMappingRulesFile}}".into(),
         Arg::Model => "{{Param.Model}}".into(),
         Arg::OutputDir => "{{Param.OutputDir}}".into(),
-    })
+    }
 }
 
-/// An Open Job Description job bundle (`jobtemplate-2023-09`): `template.yaml` with job
-/// parameters `Shards` (INT), `Model` and `OutputDir` (PATH, so the worker's path-mapping rules
-/// apply to them) and `NsrmProgram`; a step `Apply` whose task parameter `Shard` ranges over
-/// `1-{{Param.Shards}}` and whose embedded file `Inputs` lists the batch; a step `Verify`
-/// depending on it. `parameter_values.yaml` holds the values in Deadline Cloud's job-bundle
-/// form, and `parameter_values.json` the same for `openjd run`'s job parameters.
+/// An Open Job Description job bundle (`jobtemplate-2023-09`), ready for Deadline Cloud with or
+/// without shared storage:
+/// - `template.yaml`: job parameters `Shards` (INT), `InputList` and `Model` (PATH, FILE, IN),
+///   `OutputDir` (PATH, DIRECTORY, OUT), `NsrmProgram` and one `NsrmArgK` per word no format
+///   string can hold; a step `Apply` whose task parameter `Shard` ranges over
+///   `1-{{Param.Shards}}`, a step `Verify` depending on it. No user text is ever part of a
+///   format string: paths and such words are parameter values, which are not templates.
+/// - `inputs.txt`: the batch's inputs, one per line, as the submitter names them (a worker maps
+///   them with its session's path-mapping rules, the ones job attachments or storage profiles
+///   give).
+/// - `asset_references.yaml`: every input file (uploaded by job attachments) and the output
+///   directories (downloaded).
+/// - `parameter_values.yaml` in Deadline Cloud's job-bundle form, `parameter_values.json` for
+///   `openjd run`'s job parameters.
 pub(crate) fn openjd(spec: &JobSpec) -> Result<Vec<JobFile>, FarmError> {
     spec.check()?;
+    let literals = openjd_literals(spec)?;
     let template = Node::map([
         ("specificationVersion", Node::str("jobtemplate-2023-09")),
         ("name", Node::str(&spec.name)),
@@ -140,38 +188,73 @@ pub(crate) fn openjd(spec: &JobSpec) -> Result<Vec<JobFile>, FarmError> {
                 spec.shards
             )),
         ),
-        ("parameterDefinitions", openjd_parameters(spec)),
-        ("steps", openjd_steps(spec)?),
+        ("parameterDefinitions", openjd_parameters(spec, &literals)),
+        ("steps", openjd_steps(spec, &literals)),
     ]);
     let (bundle_values, json) = openjd_values(spec);
+    let file = |name: &str, text: String| JobFile {
+        name: name.into(),
+        text,
+        executable: false,
+    };
     Ok(vec![
-        JobFile {
-            name: "template.yaml".into(),
-            text: yaml::to_string(&template),
-            executable: false,
-        },
-        JobFile {
-            name: "parameter_values.yaml".into(),
-            text: yaml::to_string(&bundle_values),
-            executable: false,
-        },
-        JobFile {
-            name: "parameter_values.json".into(),
-            text: json,
-            executable: false,
-        },
+        file("template.yaml", yaml::to_string(&template)),
+        file("parameter_values.yaml", yaml::to_string(&bundle_values)),
+        file(OPENJD_RUN_VALUES, json),
+        file(OPENJD_INPUT_LIST, spec.input_list()),
+        file(
+            "asset_references.yaml",
+            yaml::to_string(&openjd_asset_references(spec)),
+        ),
     ])
 }
 
-/// The template's job parameters: `Shards` (INT), `Model` and `OutputDir` (PATH) and
-/// `NsrmProgram` (STRING).
-fn openjd_parameters(spec: &JobSpec) -> Node {
+/// `asset_references.yaml`: the inputs as files job attachments upload, the output (and
+/// preview) directories as those they download.
+fn openjd_asset_references(spec: &JobSpec) -> Node {
+    let mut outputs = vec![spec.output_dir.clone()];
+    outputs.extend(spec.preview_dir.iter().cloned());
+    Node::map([(
+        "assetReferences",
+        Node::map([
+            (
+                "inputs",
+                Node::map([
+                    ("filenames", Node::strs(spec.inputs.iter().cloned())),
+                    ("directories", Node::List(Vec::new())),
+                ]),
+            ),
+            ("outputs", Node::map([("directories", Node::strs(outputs))])),
+            ("referencedPaths", Node::List(Vec::new())),
+        ]),
+    )])
+}
+
+/// The path of the bundle's input list as the submitter names it.
+fn openjd_input_list_path(spec: &JobSpec) -> String {
+    format!("{}/{OPENJD_INPUT_LIST}", spec.job_dir.trim_end_matches('/'))
+}
+
+/// The template's job parameters: `Shards` (INT), `InputList`, `Model` and `OutputDir` (PATH),
+/// `NsrmProgram` and the `literals` (STRING).
+fn openjd_parameters(spec: &JobSpec, literals: &[String]) -> Node {
     let param = |name: &str, ty: &str, extra: Vec<(&str, Node)>| {
         let mut pairs = vec![("name", Node::str(name)), ("type", Node::str(ty))];
         pairs.extend(extra);
         Node::map(pairs)
     };
-    Node::List(vec![
+    let path = |name: &str, object: &str, flow: &str, what: &str| {
+        param(
+            name,
+            "PATH",
+            vec![
+                ("objectType", Node::str(object)),
+                ("dataFlow", Node::str(flow)),
+                ("description", Node::str(what)),
+            ],
+        )
+    };
+    let mut params = vec![
         param(
             "Shards",
             "INT",
@@ -184,26 +267,18 @@ fn openjd_parameters(spec: &JobSpec) -> Node {
                 ),
             ],
         ),
-        param(
-            "Model",
-            "PATH",
-            vec![
-                ("objectType", Node::str("FILE")),
-                ("dataFlow", Node::str("IN")),
-                ("description", Node::str("The model file (nsrm fit)")),
-            ],
+        path(
+            "InputList",
+            "FILE",
+            "IN",
+            "The batch's inputs, one path per line (inputs.txt of the bundle)",
         ),
-        param(
+        path("Model", "FILE", "IN", "The model file (nsrm fit)"),
+        path(
             "OutputDir",
-            "PATH",
-            vec![
-                ("objectType", Node::str("DIRECTORY")),
-                ("dataFlow", Node::str("OUT")),
-                (
-                    "description",
-                    Node::str("Where the outputs and the shard manifests go"),
-                ),
-            ],
+            "DIRECTORY",
+            "OUT",
+            "Where the outputs and the shard manifests go",
         ),
         param(
             "NsrmProgram",
@@ -213,29 +288,42 @@ fn openjd_parameters(spec: &JobSpec) -> Node {
                 ("description", Node::str("The nsrm program on the workers")),
             ],
         ),
-    ])
+    ];
+    for (i, l) in literals.iter().enumerate() {
+        params.push(param(
+            &format!("NsrmArg{}", i + 1),
+            "STRING",
+            vec![
+                ("default", Node::str(l)),
+                (
+                    "description",
+                    Node::str("A word of nsrm's command line (a parameter, so that it is never read as a template)"),
+                ),
+            ],
+        ));
+    }
+    Node::List(params)
 }
 
 /// The action running `{{Param.NsrmProgram}}` with `list`'s arguments.
-fn openjd_action(list: &[Arg]) -> Result<Node, FarmError> {
+fn openjd_action(list: &[Arg], literals: &[String]) -> Node {
     let args = Node::List(
         list.iter()
-            .map(|a| openjd_arg(a).map(Node::Str))
-            .collect::<Result<_, _>>()?,
+            .map(|a| Node::Str(openjd_arg(a, literals)))
+            .collect(),
     );
-    Ok(Node::map([(
+    Node::map([(
         "onRun",
         Node::map([
             ("command", Node::str("{{Param.NsrmProgram}}")),
             ("args", args),
         ]),
-    )]))
+    )])
 }
 
-/// The template's steps: `Apply` (a task per shard, the input list embedded) and `Verify`
-/// after it.
-fn openjd_steps(spec: &JobSpec) -> Result<Node, FarmError> {
-    Ok(Node::List(vec![
+/// The template's steps: `Apply` (a task per shard) and `Verify` after it.
+fn openjd_steps(spec: &JobSpec, literals: &[String]) -> Node {
+    Node::List(vec![
         Node::map([
             ("name", Node::str("Apply")),
             (
@@ -251,17 +339,7 @@ fn openjd_steps(spec: &JobSpec) -> Result<Node, FarmError> {
             ),
             (
                 "script",
-                Node::map([
-                    (
-                        "embeddedFiles",
-                        Node::List(vec![Node::map([
-                            ("name", Node::str("Inputs")),
-                            ("type", Node::str("TEXT")),
-                            ("data", Node::str(spec.input_list())),
-                        ])]),
-                    ),
-                    ("actions", openjd_action(&spec.task)?),
-                ]),
+                Node::map([("actions", openjd_action(&spec.task, literals))]),
             ),
         ]),
         Node::map([
@@ -272,10 +350,10 @@ fn openjd_steps(spec: &JobSpec) -> Result<Node, FarmError> {
             ),
             (
                 "script",
-                Node::map([("actions", openjd_action(&spec.verify)?)]),
+                Node::map([("actions", openjd_action(&spec.verify, literals))]),
             ),
         ]),
-    ]))
+    ])
 }
 
 /// The job parameters' values: in Deadline Cloud's job-bundle form (YAML) and as `openjd run`
@@ -283,6 +361,7 @@ fn openjd_steps(spec: &JobSpec) -> Result<Node, FarmError> {
 fn openjd_values(spec: &JobSpec) -> (Node, String) {
     let values = [
         ("Shards", spec.shards.to_string()),
+        ("InputList", openjd_input_list_path(spec)),
         ("Model", spec.model.clone()),
         ("OutputDir", spec.output_dir.clone()),
         ("NsrmProgram", spec.program.clone()),
@@ -462,7 +541,35 @@ pub(crate) fn kube(spec: &JobSpec, k: &Kube) -> Result<Vec<JobFile>, FarmError> 
             text: yaml::to_string(&verify_job),
             executable: false,
         },
+        JobFile {
+            name: "wait.sh".into(),
+            text: kube_wait_script(&spec.name),
+            executable: true,
+        },
     ])
+}
+
+/// Seconds a finished Job (and its pods' logs) is kept before Kubernetes deletes it.
+const KUBE_TTL_S: i64 = 7 * 24 * 3600;
+
+/// `wait.sh`: waits until the Job `name` is `Complete` or `Failed` (a `kubectl wait
+/// --for=condition=complete` alone waits forever on a failed Job), says which, and exits 0 only
+/// when it completed.
+fn kube_wait_script(name: &str) -> String {
+    format!(
+        "#!/bin/sh\n\
+         # Waits for the Job {name} to end: exit 0 when it is Complete, 1 when it Failed.\n\
+         set -eu\n\
+         job=job/{name}\n\
+         while :; do\n\
+         \x20   state=$(kubectl get \"$job\" -o jsonpath='{{.status.conditions[?(@.status==\"True\")].type}}')\n\
+         \x20   case \" $state \" in\n\
+         \x20   *\" Complete \"*) echo \"$job: Complete\"; exit 0 ;;\n\
+         \x20   *\" Failed \"*) echo \"$job: Failed (kubectl describe $job; kubectl logs $job)\" >&2; exit 1 ;;\n\
+         \x20   esac\n\
+         \x20   sleep 10\n\
+         done\n"
+    )
 }
 
 /// The labels of every object of a batch.
@@ -541,6 +648,7 @@ fn kube_indexed_job(spec: &JobSpec, k: &Kube, script: &str) -> Node {
                     "backoffLimitPerIndex",
                     Node::Int(k.retries_per_index as i64),
                 ),
+                ("ttlSecondsAfterFinished", Node::Int(KUBE_TTL_S)),
                 (
                     "template",
                     Node::map([
@@ -585,6 +693,7 @@ fn kube_verify_job(spec: &JobSpec, k: &Kube, script: &str) -> Node {
             "spec",
             Node::map([
                 ("backoffLimit", Node::Int(0)),
+                ("ttlSecondsAfterFinished", Node::Int(KUBE_TTL_S)),
                 (
                     "template",
                     Node::map([(
@@ -620,6 +729,8 @@ mod tests {
             inputs: vec!["/in/a b.exr".into(), "/in/it's.exr".into()],
             model: "/m/model.json".into(),
             output_dir: "/out".into(),
+            preview_dir: None,
+            job_dir: "/job".into(),
             program: "nsrm".into(),
             task: vec![
                 Arg::Lit("farm".into()),
@@ -665,7 +776,8 @@ mod tests {
         s.shards = 0;
         assert!(slurm(&s).unwrap_err().is_usage());
         let mut s = spec();
-        s.task.push(Arg::Lit("{{Param.X}}".into()));
+        s.task
+            .push(Arg::Lit("x".repeat(OPENJD_MAX_STRING + 1) + "{{"));
         assert!(openjd(&s).unwrap_err().is_usage());
         let mut s = spec();
         s.task.push(Arg::PathMappingRules);
@@ -701,9 +813,51 @@ mod tests {
     }
 
     #[test]
+    fn template_words_reach_openjd_workers_as_parameter_values() {
+        let mut s = spec();
+        let hostile = ["a{{Param.Model}}", "}}", "{{", "{{Task.Param.Shard}}/x"];
+        s.task
+            .extend(hostile.iter().map(|h| Arg::Lit(h.to_string())));
+        s.verify.push(Arg::Lit(hostile[0].into()));
+        let literals = openjd_literals(&s).unwrap();
+        assert_eq!(literals, hostile);
+        let files = openjd(&s).unwrap();
+        let template = &files[0].text;
+        // Every `{{` of the template's format strings (all but the parameters' default
+        // values, which are not templates) opens one of the engine's own names.
+        let formats: String = template
+            .lines()
+            .filter(|l| !l.trim_start().starts_with("default:"))
+            .collect();
+        for (i, _) in formats.match_indices("{{") {
+            let rest = &formats[i + 2..];
+            assert!(
+                ["Param.", "Task.Param.", "Session."]
+                    .iter()
+                    .any(|p| rest.starts_with(p)),
+                "{}",
+                &formats[i..]
+            );
+        }
+        for (i, h) in hostile.iter().enumerate() {
+            assert!(
+                template.contains(&format!("\"{{{{Param.NsrmArg{}}}}}\"", i + 1)),
+                "{h}: {template}"
+            );
+        }
+        assert_eq!(files[3].name, OPENJD_INPUT_LIST);
+        assert_eq!(files[3].text, s.input_list());
+        let refs = openjd_asset_references(&s);
+        assert_eq!(
+            get(get(get(&refs, "assetReferences"), "inputs"), "filenames"),
+            &Node::strs(s.inputs.clone())
+        );
+    }
+
+    #[test]
     fn openjd_parameters_values_and_actions() {
         let s = spec();
-        let params = openjd_parameters(&s);
+        let params = openjd_parameters(&s, &[]);
         let named: Vec<(&Node, &Node)> = list(&params)
             .iter()
             .map(|p| (get(p, "name"), get(p, "type")))
@@ -712,6 +866,7 @@ mod tests {
             named,
             [
                 (&Node::str("Shards"), &Node::str("INT")),
+                (&Node::str("InputList"), &Node::str("PATH")),
                 (&Node::str("Model"), &Node::str("PATH")),
                 (&Node::str("OutputDir"), &Node::str("PATH")),
                 (&Node::str("NsrmProgram"), &Node::str("STRING")),
@@ -722,14 +877,50 @@ mod tests {
         let v: serde_json::Value = serde_json::from_str(&json).unwrap();
         assert_eq!(v["Shards"], "3");
         assert_eq!(v["OutputDir"], "/out");
-        assert_eq!(list(get(&yaml_values, "parameterValues")).len(), 4);
-        let action = openjd_action(&s.verify).unwrap();
+        assert_eq!(v["InputList"], "/job/inputs.txt");
+        assert_eq!(list(get(&yaml_values, "parameterValues")).len(), 5);
+        let action = openjd_action(&s.verify, &[]);
         assert_eq!(
             get(get(&action, "onRun"), "args"),
             &Node::strs(["verify", "{{Param.OutputDir}}", "{{Param.Shards}}"])
         );
-        let steps = openjd_steps(&s).unwrap();
+        let steps = openjd_steps(&s, &[]);
         assert_eq!(get(&list(&steps)[1], "name"), &Node::str("Verify"));
+    }
+
+    /// `wait.sh` returns on `Failed` as on `Complete` and says which (a stub `kubectl` reports
+    /// the Job's true conditions).
+    #[cfg(unix)]
+    #[test]
+    fn the_kubernetes_wait_returns_on_failed_and_on_complete() {
+        let dir = std::env::temp_dir().join(format!("nsrm-kube-wait-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let script = dir.join("wait.sh");
+        std::fs::write(&script, kube_wait_script("plates")).unwrap();
+        for (state, code, said) in [
+            ("Failed", 1, "job/plates: Failed"),
+            ("SuccessCriteriaMet Complete", 0, "job/plates: Complete"),
+        ] {
+            let kubectl = dir.join("kubectl");
+            std::fs::write(&kubectl, format!("#!/bin/sh\nprintf '%s' '{state}'\n")).unwrap();
+            use std::os::unix::fs::PermissionsExt;
+            std::fs::set_permissions(&kubectl, std::fs::Permissions::from_mode(0o755)).unwrap();
+            let path = format!(
+                "{}:{}",
+                dir.display(),
+                std::env::var("PATH").unwrap_or_default()
+            );
+            let o = std::process::Command::new("sh")
+                .arg(&script)
+                .env("PATH", path)
+                .output()
+                .unwrap();
+            let text = String::from_utf8_lossy(&o.stdout).into_owned()
+                + &String::from_utf8_lossy(&o.stderr);
+            assert_eq!(o.status.code(), Some(code), "{state}: {text}");
+            assert!(text.contains(said), "{state}: {text}");
+        }
+        std::fs::remove_dir_all(&dir).unwrap();
     }
 
     #[test]
@@ -746,6 +937,10 @@ mod tests {
         let job = kube_indexed_job(&s, &k, "true");
         assert_eq!(get(get(&job, "spec"), "parallelism"), &Node::Int(3));
         assert_eq!(get(get(&job, "spec"), "completions"), &Node::Int(3));
+        assert_eq!(
+            get(get(&job, "spec"), "ttlSecondsAfterFinished"),
+            &Node::Int(KUBE_TTL_S)
+        );
         let verify = kube_verify_job(&s, &k, "exec x");
         assert_eq!(
             get(get(&verify, "metadata"), "name"),

@@ -177,6 +177,13 @@ impl ShardManifest {
                 m.format
             )));
         }
+        if m.shards > super::MAX_SHARDS {
+            return Err(bad(format!(
+                "{} shards; a batch has at most {}",
+                m.shards,
+                super::MAX_SHARDS
+            )));
+        }
         if m.shards == 0 || m.shard == 0 || m.shard > m.shards {
             return Err(bad(format!(
                 "shard {}/{} is not a shard",

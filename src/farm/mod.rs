@@ -54,6 +54,11 @@ fn io_err(path: &Path) -> impl FnOnce(std::io::Error) -> FarmError + '_ {
     }
 }
 
+/// The most shards a batch has (Kubernetes' limit on an Indexed Job's completions; Slurm's
+/// array size is configured lower by default). A larger count, from a flag, a manifest or a
+/// manifest's file name, is refused before anything is sized by it.
+pub(crate) const MAX_SHARDS: usize = 100_000;
+
 /// The most bytes of a manifest or rules file read (a batch of a million frames fits).
 pub(crate) const MAX_RECORD_BYTES: u64 = 1 << 30;
 

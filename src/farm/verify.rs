@@ -1,9 +1,16 @@
 //! Checks that a batch run on a farm is whole.
+//!
+//! Nothing a manifest says is trusted: every file it names must be a plain name in the batch
+//! directory (or, for previews, in the preview directory the caller gives) that resolves there
+//! once symbolic links are followed; every count it states is checked against what the
+//! manifests record instead of sizing anything; a shard count is bounded by [`MAX_SHARDS`].
 
 use super::manifest::{parse_file_name, Batch, ShardManifest};
 use super::{sha256_file, FarmError};
-use std::collections::HashMap;
-use std::path::{Path, PathBuf};
+use std::collections::{BTreeMap, HashMap};
+use std::path::{Component, Path, PathBuf};
+
+use super::MAX_SHARDS;
 
 /// What to expect beyond what the manifests say.
 #[derive(Debug, Clone, Default)]
@@ -12,6 +19,9 @@ pub(crate) struct Expect {
     pub shards: Option<usize>,
     /// The SHA-256 of the model the job applies.
     pub model_sha256: Option<String>,
+    /// Where the previews were written (the job's `--preview`); without it, a manifest that
+    /// records previews is a problem (its paths are not trusted).
+    pub preview_dir: Option<PathBuf>,
 }
 
 /// What [`verify`] found.
@@ -38,18 +48,90 @@ impl Report {
     }
 }
 
+/// A directory a manifest's names are resolved in: as given, and with its symbolic links
+/// resolved.
+struct Root<'a> {
+    dir: &'a Path,
+    real: PathBuf,
+}
+
+impl<'a> Root<'a> {
+    fn new(dir: &'a Path) -> Result<Root<'a>, FarmError> {
+        let real = dir.canonicalize().map_err(|err| FarmError::Io {
+            path: dir.to_path_buf(),
+            err,
+        })?;
+        Ok(Root { dir, real })
+    }
+
+    /// `name` in this directory, when it is one plain file name there whose symbolic links
+    /// (if any) resolve inside the directory; `Err` says why not. A name that is not there
+    /// is returned as it is (a missing file is the caller's problem to report).
+    fn resolve(&self, name: &str) -> Result<PathBuf, String> {
+        let mut parts = Path::new(name).components();
+        let plain = matches!(
+            (parts.next(), parts.next()),
+            (Some(Component::Normal(c)), None) if c == std::ffi::OsStr::new(name)
+        );
+        if !plain || name.contains('\0') {
+            return Err(format!(
+                "{}: not a file name in {} (a manifest names only files of its own directory)",
+                shown(name),
+                self.dir.display()
+            ));
+        }
+        let path = self.dir.join(name);
+        match path.canonicalize() {
+            Ok(real) if real.starts_with(&self.real) => Ok(path),
+            Ok(real) => Err(format!(
+                "{}: a symbolic link leaving {} (to {}); refused",
+                path.display(),
+                self.dir.display(),
+                real.display()
+            )),
+            Err(_) if path.symlink_metadata().is_ok() => Err(format!(
+                "{}: a symbolic link that resolves nowhere; refused",
+                path.display()
+            )),
+            Err(_) => Ok(path),
+        }
+    }
+}
+
+/// Text from a manifest as a problem line shows it: control characters escaped, so a crafted
+/// name cannot rewrite the terminal or fake a line of the report.
+fn shown(s: &str) -> String {
+    if s.chars().any(char::is_control) {
+        format!("{s:?}")
+    } else {
+        s.to_string()
+    }
+}
+
 /// Reads every shard manifest in `dir` and checks: every shard `1..=N` has exactly one
 /// manifest, all from one batch, one model and the same settings; no shard reports a failure;
 /// each input of the batch has exactly one output; every output (and preview) is there with
 /// the size and SHA-256 its manifest records; and no nsrm temporary is left in `dir`. Errors
-/// only when `dir` cannot be listed; everything else is a problem in the report.
+/// only when `dir` cannot be listed or `expect` asks for more than [`MAX_SHARDS`]; everything
+/// else is a problem in the report.
 ///
 /// The steps: the manifests read (`read_manifests`), checked against each other
-/// (`agreeing_shards`), each shard's outputs checked on disk (`check_shard`), and the
-/// outputs' names against the batch's identity.
+/// (`agreeing_shards`), each shard's outputs checked on disk (`check_shard`), the shards
+/// without a manifest named as ranges (`missing_shards`), and the outputs' names against the
+/// batch's identity. Nothing is sized by a count a manifest states.
 pub(crate) fn verify(dir: &Path, expect: &Expect) -> Result<Report, FarmError> {
+    if let Some(n) = expect.shards.filter(|&n| n == 0 || n > MAX_SHARDS) {
+        return Err(FarmError::Usage(format!(
+            "a shard count of {n}: a batch has 1 to {MAX_SHARDS} shards"
+        )));
+    }
+    let root = Root::new(dir)?;
+    let previews = match &expect.preview_dir {
+        Some(p) => Some(Root::new(p)?),
+        None => None,
+    };
     let mut r = Report::default();
-    let manifests = read_manifests(dir, &mut r.problems)?;
+    let manifests = read_manifests(&root, &mut r.problems)?;
     r.manifests = manifests.len();
     let Some(first) = manifests.first() else {
         r.problems.push(format!(
@@ -68,18 +150,23 @@ pub(crate) fn verify(dir: &Path, expect: &Expect) -> Result<Report, FarmError> {
         .unwrap_or_else(|| first.model.sha256.clone());
     let by_shard = agreeing_shards(&manifests, n, &model, &mut r.problems);
     let mut seen: HashMap<&str, usize> = HashMap::new();
-    let mut names: Vec<Option<&str>> = vec![None; batch.inputs];
-    for k in 1..=n {
-        match by_shard.get(&k).copied() {
-            Some(m) => check_shard(dir, m, n, &mut r, &mut seen, &mut names),
-            None => r.problems.push(format!(
-                "shard {k}/{n}: no manifest ({} input(s) of the batch unaccounted for; run or re-run that shard)",
-                shard_share(batch.inputs, n, k)
-            )),
-        }
+    // Batch place → output name, for the places the manifests fill (never sized by the
+    // batch's stated input count).
+    let mut names: BTreeMap<usize, &str> = BTreeMap::new();
+    let places = Places {
+        inputs: batch.inputs,
+        n,
+    };
+    for (_, m) in by_shard.iter() {
+        let dirs = Dirs {
+            out: &root,
+            previews: previews.as_ref(),
+        };
+        check_shard(&dirs, m, places, &mut r, &mut seen, &mut names);
     }
-    let complete: Option<Vec<&str>> = names.into_iter().collect();
-    if let Some(all) = complete {
+    missing_shards(&by_shard, places, &mut r.problems);
+    if names.len() == batch.inputs {
+        let all: Vec<&str> = names.into_values().collect();
         if Batch::of(&all) != batch {
             r.problems.push(
                 "the outputs recorded are not the batch's (names or order differ from the batch the shards were given)".into(),
@@ -89,23 +176,98 @@ pub(crate) fn verify(dir: &Path, expect: &Expect) -> Result<Report, FarmError> {
     Ok(with_temporaries(r, dir))
 }
 
-/// The shard manifests in `dir`, in shard order; one that does not read, or whose content names
-/// another shard than its file name, is a problem instead.
-fn read_manifests(dir: &Path, problems: &mut Vec<String>) -> Result<Vec<ShardManifest>, FarmError> {
-    let mut found: Vec<(usize, usize, PathBuf)> = Vec::new();
-    let listing = std::fs::read_dir(dir).map_err(|err| FarmError::Io {
-        path: dir.to_path_buf(),
+/// Where a shard's files are: the batch's output directory and the previews' (when given).
+struct Dirs<'r, 'a> {
+    out: &'r Root<'a>,
+    previews: Option<&'r Root<'a>>,
+}
+
+/// A batch's size and shard count, for the arithmetic of who converts what.
+#[derive(Debug, Clone, Copy)]
+struct Places {
+    inputs: usize,
+    n: usize,
+}
+
+impl Places {
+    /// The batch place of shard `k`'s `j`-th output (input `i` goes to shard `i % n + 1`), if
+    /// it is within the batch.
+    fn place(self, k: usize, j: usize) -> Option<usize> {
+        j.checked_mul(self.n)
+            .and_then(|p| p.checked_add(k - 1))
+            .filter(|&p| p < self.inputs)
+    }
+}
+
+/// The shards `1..=n` without a manifest in `by_shard`, one problem per run of consecutive
+/// missing shards (so a shard count of a million costs a line, not a million).
+fn missing_shards(
+    by_shard: &BTreeMap<usize, &ShardManifest>,
+    p: Places,
+    problems: &mut Vec<String>,
+) {
+    let mut next = 1usize;
+    let ends = by_shard
+        .keys()
+        .copied()
+        .filter(|&k| k <= p.n)
+        .chain([p.n + 1]);
+    for k in ends {
+        if k > next {
+            let (a, b) = (next, k - 1);
+            let unaccounted = shares(p.inputs, p.n, a, b);
+            problems.push(if a == b {
+                format!(
+                    "shard {a}/{n}: no manifest ({unaccounted} input(s) of the batch unaccounted for; run or re-run that shard)",
+                    n = p.n
+                )
+            } else {
+                format!(
+                    "shards {a}-{b}/{n}: no manifest ({unaccounted} input(s) of the batch unaccounted for; run or re-run those shards)",
+                    n = p.n
+                )
+            });
+        }
+        next = k + 1;
+    }
+}
+
+/// The shard manifests in `dir`, in shard order; one that does not read, names a shard count
+/// over [`MAX_SHARDS`], is not a file of `dir`, or whose content names another shard than its
+/// file name, is a problem instead.
+fn read_manifests(
+    root: &Root,
+    problems: &mut Vec<String>,
+) -> Result<Vec<ShardManifest>, FarmError> {
+    let mut found: Vec<(usize, usize, String)> = Vec::new();
+    let listing = std::fs::read_dir(root.dir).map_err(|err| FarmError::Io {
+        path: root.dir.to_path_buf(),
         err,
     })?;
     for e in listing.flatten() {
-        if let Some((k, n)) = e.file_name().to_str().and_then(parse_file_name) {
-            found.push((k, n, e.path()));
+        let Some(name) = e.file_name().to_str().map(str::to_string) else {
+            continue;
+        };
+        match parse_file_name(&name) {
+            Some((_, n)) if n > MAX_SHARDS => problems.push(format!(
+                "{}: a manifest of {n} shards; a batch has at most {MAX_SHARDS}",
+                root.dir.join(&name).display()
+            )),
+            Some((k, n)) => found.push((k, n, name)),
+            None => {}
         }
     }
     found.sort();
     let mut manifests: Vec<ShardManifest> = Vec::new();
-    for (k, n, path) in &found {
-        match ShardManifest::read(path) {
+    for (k, n, name) in &found {
+        let path = match root.resolve(name) {
+            Ok(p) => p,
+            Err(why) => {
+                problems.push(why);
+                continue;
+            }
+        };
+        match ShardManifest::read(&path) {
             Ok(m) if (m.shard, m.shards) == (*k, *n) => manifests.push(m),
             Ok(m) => problems.push(format!(
                 "{}: records shard {}/{}, not the {k}/{n} its name says",
@@ -127,8 +289,8 @@ fn agreeing_shards<'m>(
     n: usize,
     model: &str,
     problems: &mut Vec<String>,
-) -> HashMap<usize, &'m ShardManifest> {
-    let mut by_shard: HashMap<usize, &ShardManifest> = HashMap::new();
+) -> BTreeMap<usize, &'m ShardManifest> {
+    let mut by_shard: BTreeMap<usize, &ShardManifest> = BTreeMap::new();
     let Some(first) = manifests.first() else {
         return by_shard;
     };
@@ -146,78 +308,100 @@ fn agreeing_shards<'m>(
             problems.push(format!(
                 "{name}: from another batch ({} inputs, outputs {}) than {} ({} inputs, outputs {})",
                 m.batch.inputs,
-                short(&m.batch.outputs_sha256),
+                shown(short(&m.batch.outputs_sha256)),
                 super::manifest::file_name(first.shard, first.shards),
                 batch.inputs,
-                short(&batch.outputs_sha256)
+                shown(short(&batch.outputs_sha256))
             ));
         }
         if m.model.sha256 != model {
             problems.push(format!(
                 "{name}: applied another model ({} sha256 {}, expected {})",
-                m.model.path,
-                short(&m.model.sha256),
+                shown(&m.model.path),
+                shown(short(&m.model.sha256)),
                 short(model)
             ));
         }
         if m.settings != first.settings {
             problems.push(format!(
                 "{name}: converted with other settings ({}) than the rest ({})",
-                m.settings.join(" "),
-                first.settings.join(" ")
+                shown(&m.settings.join(" ")),
+                shown(&first.settings.join(" "))
             ));
         }
         for f in &m.failures {
-            problems.push(format!("{name}: {} was not converted: {}", f.input, f.why));
+            problems.push(format!(
+                "{name}: {} was not converted: {}",
+                shown(&f.input),
+                shown(&f.why)
+            ));
         }
         by_shard.insert(m.shard, m);
     }
     by_shard
 }
 
-/// How many of a batch's `inputs` shard `k` of `n` converts (input `i` goes to shard
-/// `i % n + 1`).
-fn shard_share(inputs: usize, n: usize, k: usize) -> usize {
-    (0..inputs).filter(|i| i % n == k - 1).count()
+/// How many of a batch's `inputs` shards `a..=b` of `n` convert together (input `i` goes to
+/// shard `i % n + 1`), by arithmetic: no count is iterated.
+fn shares(inputs: usize, n: usize, a: usize, b: usize) -> usize {
+    // Shard k converts the inputs k-1, k-1+n, …: inputs / n of them, one more when
+    // k-1 < inputs % n.
+    let (whole, rest) = (inputs / n, inputs % n);
+    let count = b + 1 - a;
+    let extra = rest.min(b).saturating_sub(a - 1);
+    whole.saturating_mul(count).saturating_add(extra)
 }
 
-/// Checks shard `m` (of `n`): its outputs and failures account for its share of the inputs, no
-/// output is recorded by two shards (`seen`: output → shard), each output (and preview) is on
-/// disk in `dir` with its recorded size and hash; each output's name goes to its batch place in
-/// `names`.
+/// How many of a batch's `inputs` shard `k` of `n` converts.
+fn shard_share(inputs: usize, n: usize, k: usize) -> usize {
+    shares(inputs, n, k, k)
+}
+
+/// Checks shard `m` (of `p.n`): its outputs and failures account for its share of the inputs,
+/// no output is recorded by two shards (`seen`: output → shard), each output (and preview) is
+/// a file of its directory with its recorded size and hash; each output's name goes to its
+/// batch place in `names`. The problems name the manifest.
 fn check_shard<'m>(
-    dir: &Path,
+    dirs: &Dirs,
     m: &'m ShardManifest,
-    n: usize,
+    p: Places,
     r: &mut Report,
     seen: &mut HashMap<&'m str, usize>,
-    names: &mut [Option<&'m str>],
+    names: &mut BTreeMap<usize, &'m str>,
 ) {
-    let k = m.shard;
-    let expected = shard_share(names.len(), n, k);
+    let (k, n) = (m.shard, p.n);
+    let manifest = super::manifest::file_name(k, n);
+    let expected = shard_share(p.inputs, n, k);
     let done = m.outputs.len();
-    if done + m.failures.len() != expected {
+    if done.saturating_add(m.failures.len()) != expected {
         r.problems.push(format!(
             "shard {k}/{n}: {done} output(s) and {} failure(s) recorded for {expected} input(s)",
             m.failures.len()
         ));
     }
     for (j, e) in m.outputs.iter().enumerate() {
-        if let Some(slot) = names.get_mut(k - 1 + j * n) {
-            *slot = Some(&e.output);
+        if let Some(place) = p.place(k, j) {
+            names.insert(place, &e.output);
         }
         if let Some(other) = seen.insert(&e.output, k) {
             r.problems.push(format!(
                 "{}: recorded by shard {other}/{n} and by shard {k}/{n}",
-                e.output
+                shown(&e.output)
             ));
+            continue;
         }
-        let out = dir.join(&e.output);
+        let out = match dirs.out.resolve(&e.output) {
+            Ok(out) => out,
+            Err(why) => {
+                r.problems.push(format!("{manifest}: output {why}"));
+                continue;
+            }
+        };
         if !out.is_file() {
             r.problems.push(format!(
                 "{}: missing (the output of {}, shard {k}/{n})",
                 out.display(),
-                e.input
+                shown(&e.input)
             ));
             continue;
         }
@@ -228,13 +412,34 @@ fn check_shard<'m>(
             }
             Err(why) => r.problems.push(format!("{}: {why}", out.display())),
         }
-        if let Some(p) = &e.preview {
-            if let Err(why) = check_file(Path::new(&p.path), p.bytes, &p.sha256) {
-                r.problems
-                    .push(format!("{} (preview of {}): {why}", p.path, e.output));
+        if let Some(pv) = &e.preview {
+            if let Err(why) = check_preview(dirs.previews, pv) {
+                r.problems.push(format!(
+                    "{manifest}: preview of {}: {why}",
+                    shown(&e.output)
+                ));
             }
         }
     }
+}
+
+/// Checks a recorded preview: its file name, in the preview directory given, with the size and
+/// hash recorded. The directory the manifest records is not trusted.
+fn check_preview(dir: Option<&Root>, pv: &super::manifest::Preview) -> Result<(), String> {
+    let Some(dir) = dir else {
+        return Err(format!(
+            "{} recorded; give the job's preview directory to check it",
+            shown(&pv.path)
+        ));
+    };
+    let name = Path::new(&pv.path)
+        .file_name()
+        .and_then(|n| n.to_str())
+        .ok_or_else(|| format!("{}: not a file's path", shown(&pv.path)))?;
+    let path = dir.resolve(name)?;
+    check_file(&path, pv.bytes, &pv.sha256)
+        .map(drop)
+        .map_err(|why| format!("{}: {why}", path.display()))
 }
 
 fn with_temporaries(mut r: Report, dir: &Path) -> Report {
@@ -256,14 +461,18 @@ fn check_file(path: &Path, bytes: u64, sha256: &str) -> Result<u64, String> {
         return Err(format!(
             "sha256 {}, the manifest records {} (changed since it was written)",
             short(&hash),
-            short(sha256)
+            shown(short(sha256))
         ));
     }
     Ok(size)
 }
 
 fn short(h: &str) -> &str {
-    h.get(..12).unwrap_or(h)
+    // The first 12 characters (never a split character: a manifest's hash may be any text).
+    match h.char_indices().nth(12) {
+        Some((i, _)) => &h[..i],
+        None => h,
+    }
 }
 
 #[cfg(test)]
@@ -348,24 +557,114 @@ mod tests {
         std::fs::create_dir_all(&dir).unwrap();
         std::fs::write(dir.join("a.exr"), b"right").unwrap();
         std::fs::write(dir.join("c.exr"), b"wrong").unwrap();
+        let root = Root::new(&dir).unwrap();
+        let dirs = Dirs {
+            out: &root,
+            previews: None,
+        };
         let names = ["a.exr", "b.exr", "c.exr", "d.exr"];
+        let p = Places { inputs: 4, n: 2 };
         let m = manifest(1, 2, &names, &[("a.exr", b"right"), ("c.exr", b"other")]);
         let mut r = Report::default();
-        let (mut seen, mut slots) = (HashMap::new(), vec![None; 4]);
-        check_shard(&dir, &m, 2, &mut r, &mut seen, &mut slots);
+        let (mut seen, mut slots) = (HashMap::new(), BTreeMap::new());
+        check_shard(&dirs, &m, p, &mut r, &mut seen, &mut slots);
         assert_eq!((r.outputs_ok, r.bytes), (1, 5));
         assert_eq!(r.problems.len(), 1, "{:?}", r.problems);
         assert!(r.problems[0].contains("sha256"), "{:?}", r.problems);
-        assert_eq!(slots, [Some("a.exr"), None, Some("c.exr"), None]);
+        assert_eq!(
+            slots.into_iter().collect::<Vec<_>>(),
+            [(0, "a.exr"), (2, "c.exr")]
+        );
         // Shard 2 records `a.exr` again (twice recorded) and an output that is not there.
         let again = manifest(2, 2, &names, &[("a.exr", b"right"), ("x.exr", b"")]);
         let mut r = Report::default();
-        check_shard(&dir, &again, 2, &mut r, &mut seen, &mut slots);
+        let mut slots = BTreeMap::new();
+        check_shard(&dirs, &again, p, &mut r, &mut seen, &mut slots);
         assert!(r
             .problems
             .iter()
             .any(|p| p.contains("recorded by shard 1/2")));
         assert!(r.problems.iter().any(|p| p.contains("missing")));
         std::fs::remove_dir_all(&dir).unwrap();
+    }
+
+    #[test]
+    fn names_leaving_the_directory_are_refused_naming_the_manifest() {
+        let base = std::env::temp_dir().join(format!("nsrm-verify-escape-{}", std::process::id()));
+        let dir = base.join("out");
+        std::fs::create_dir_all(&dir).unwrap();
+        let secret = base.join("secret.txt");
+        std::fs::write(&secret, b"secret").unwrap();
+        #[cfg(unix)]
+        std::os::unix::fs::symlink(&secret, dir.join("link.exr")).unwrap();
+        let root = Root::new(&dir).unwrap();
+        let abs = secret.to_str().unwrap().to_string();
+        let mut hostile = vec![
+            "../secret.txt",
+            abs.as_str(),
+            "",
+            ".",
+            "..",
+            "a/../../secret.txt",
+        ];
+        if cfg!(unix) {
+            hostile.push("link.exr");
+        }
+        for name in &hostile {
+            assert!(root.resolve(name).is_err(), "{name:?} accepted");
+            let m = manifest(1, 1, &[name], &[(name, b"secret")]);
+            let dirs = Dirs {
+                out: &root,
+                previews: None,
+            };
+            let mut r = Report::default();
+            let (mut seen, mut slots) = (HashMap::new(), BTreeMap::new());
+            check_shard(
+                &dirs,
+                &m,
+                Places { inputs: 1, n: 1 },
+                &mut r,
+                &mut seen,
+                &mut slots,
+            );
+            assert_eq!(r.outputs_ok, 0, "{name:?}");
+            assert!(
+                r.problems
+                    .iter()
+                    .any(|p| p.contains("nsrm-farm.shard-0001-of-0001.json")),
+                "{name:?}: {:?}",
+                r.problems
+            );
+        }
+        assert!(root.resolve("plain.exr").is_ok());
+        std::fs::remove_dir_all(&base).unwrap();
+    }
+
+    #[test]
+    fn shares_are_counted_without_iterating_the_batch() {
+        for (inputs, n) in [(10, 3), (1, 4), (0, 2), (7, 7), (9, 2)] {
+            for a in 1..=n {
+                for b in a..=n {
+                    let slow = (0..inputs)
+                        .filter(|i| (a - 1..b).contains(&(i % n)))
+                        .count();
+                    assert_eq!(shares(inputs, n, a, b), slow, "{inputs} {n} {a}-{b}");
+                }
+            }
+        }
+        // A stated count of 2^64-1 costs nothing.
+        assert_eq!(shard_share(usize::MAX, 1, 1), usize::MAX);
+        let p = Places {
+            inputs: usize::MAX,
+            n: MAX_SHARDS,
+        };
+        assert_eq!(p.place(2, usize::MAX), None);
+        let mut problems = Vec::new();
+        missing_shards(&BTreeMap::new(), p, &mut problems);
+        assert_eq!(problems.len(), 1, "{problems:?}");
+        assert!(
+            problems[0].starts_with("shards 1-100000/100000"),
+            "{problems:?}"
+        );
     }
 }

@@ -1,6 +1,14 @@
 //! A small YAML writer for the job descriptions: block mappings and sequences in the order
-//! built, every string double-quoted with JSON's escapes (a subset of YAML's double-quoted
-//! style), so no value is ever read back as another type (`"yes"`, `"1-4"`, `"0777"`).
+//! built, every string double-quoted, so no value is ever read back as another type (`"yes"`,
+//! `"1-4"`, `"0777"`), and every character outside YAML's printable set, or one a YAML 1.1
+//! reader takes for a line break (C0 and C1 controls, DEL, U+0085, U+2028, U+2029), the BOM and
+//! the non-characters U+FFFE/U+FFFF escaped (`\xNN`, `\uNNNN`), so every string, every path
+//! included, reads back exactly, with YAML 1.1 readers (PyYAML, which `openjd` and `deadline`
+//! use) as with YAML 1.2 ones (serde_norway, libyaml).
+//!
+//! Not serde_norway's (libyaml's) emitter: it picks a style per string and writes a string
+//! with line breaks as a literal block, where a U+0085 or U+2028 is taken as a line break by a
+//! YAML 1.1 reader and comes back as another string; this writer has one style, always escaped.
 
 /// A YAML value.
 #[derive(Debug, Clone, PartialEq)]
@@ -29,9 +37,36 @@ impl Node {
     }
 }
 
+/// Whether `c` stands for itself inside a double-quoted scalar for every YAML reader.
+fn plain_char(c: char) -> bool {
+    matches!(c as u32, 0x20..=0x7E | 0xA0..=0x2027 | 0x202A..=0xD7FF | 0xE000..=0xFEFE | 0xFF00..=0xFFFD | 0x10000..=0x10FFFF)
+}
+
 fn quote(s: &str) -> String {
-    // serde_json's string escaping is valid inside a YAML double-quoted scalar.
-    serde_json::to_string(s).unwrap_or_else(|_| "\"\"".to_string())
+    use std::fmt::Write;
+    let mut out = String::with_capacity(s.len() + 2);
+    out.push('"');
+    for c in s.chars() {
+        match c {
+            '"' => out.push_str("\\\""),
+            '\\' => out.push_str("\\\\"),
+            '\n' => out.push_str("\\n"),
+            '\t' => out.push_str("\\t"),
+            '\r' => out.push_str("\\r"),
+            c if plain_char(c) => out.push(c),
+            c if (c as u32) <= 0xFF => {
+                let _ = write!(out, "\\x{:02X}", c as u32);
+            }
+            c if (c as u32) <= 0xFFFF => {
+                let _ = write!(out, "\\u{:04X}", c as u32);
+            }
+            c => {
+                let _ = write!(out, "\\U{:08X}", c as u32);
+            }
+        }
+    }
+    out.push('"');
+    out
 }
 
 fn key(k: &str) -> String {
@@ -141,5 +176,45 @@ mod tests {
     fn control_characters_and_quotes_are_escaped() {
         let s = to_string(&Node::map([("k", Node::str("a\"b\\c\nd\te"))]));
         assert_eq!(s, "k: \"a\\\"b\\\\c\\nd\\te\"\n");
+        let s = to_string(&Node::str(
+            "\u{0}\u{1b}\u{7f}\u{85}\u{9f}\u{a0}\u{2028}\u{feff}\u{fffe}é",
+        ));
+        assert_eq!(
+            s,
+            "\"\\x00\\x1B\\x7F\\x85\\x9F\u{a0}\\u2028\\uFEFF\\uFFFE\u{e9}\"\n"
+        );
+    }
+
+    /// Every string reads back exactly (serde_norway, a YAML 1.2 reader), as a value and as
+    /// a key, whatever characters it holds.
+    #[test]
+    fn every_string_round_trips() {
+        use proptest::prelude::*;
+        let check = |v: &str| {
+            let doc = Node::map([
+                ("k", Node::str(v)),
+                ("l", Node::strs([v])),
+                ("m", Node::Map(vec![(v.to_string(), Node::Int(1))])),
+            ]);
+            let text = to_string(&doc);
+            let back: std::collections::BTreeMap<String, serde_norway::Value> =
+                serde_norway::from_str(&text).map_err(|e| format!("{e}: {text}"))?;
+            let want = serde_norway::Value::String(v.to_string());
+            if back.get("k") != Some(&want)
+                || back.get("l") != Some(&serde_norway::Value::Sequence(vec![want]))
+                || back.get("m").and_then(|m| m.get(v))
+                    != Some(&serde_norway::Value::Number(1.into()))
+            {
+                return Err(format!("{v:?} came back as {back:?} from {text}"));
+            }
+            Ok(())
+        };
+        // Every character of the first planes one by one (not surrogates: no `char`).
+        for c in (0u32..0x3_0000).filter_map(char::from_u32) {
+            check(&format!("a{c}b")).unwrap();
+        }
+        proptest!(ProptestConfig::with_cases(2000), |(v in any::<String>())| {
+            prop_assert!(check(&v).is_ok(), "{}", check(&v).unwrap_err());
+        });
     }
 }

@@ -360,9 +360,37 @@ fn openjd_runs_every_task_and_the_union_equals_one_apply() {
     for f in [
         "template.yaml",
         "parameter_values.yaml",
-        "parameter_values.json",
+        "job_parameters.json",
     ] {
         assert!(submit.join("job").join(f).is_file(), "{f}");
+    }
+    // Deadline Cloud's own bundle reader: job attachments would upload every input, the input
+    // list and the model, and download the output directory.
+    if let Some(refs) = deadline_asset_references(&submit.join("job")) {
+        let sorted = |v: &serde_json::Value| {
+            let mut v: Vec<String> = v
+                .as_array()
+                .unwrap()
+                .iter()
+                .map(|x| x.as_str().unwrap().to_string())
+                .collect();
+            v.sort();
+            v
+        };
+        let mut want: Vec<String> = std::fs::read_dir(submit.join("in"))
+            .unwrap()
+            .map(|e| e.unwrap().path().to_str().unwrap().to_string())
+            .collect();
+        want.push(submit.join("job/inputs.txt").to_str().unwrap().into());
+        want.push(submit.join("m.json").to_str().unwrap().into());
+        want.sort();
+        let refs = &refs["assetReferences"];
+        assert_eq!(sorted(&refs["inputs"]["filenames"]), want, "{refs}");
+        assert_eq!(
+            sorted(&refs["outputs"]["directories"]),
+            [submit.join("out").to_str().unwrap()],
+            "{refs}"
+        );
     }
     // Refused without --overwrite the second time.
     let again = nsrm_in(
@@ -408,7 +436,7 @@ fn openjd_runs_every_task_and_the_union_equals_one_apply() {
             .args(["--step", step, "-p"])
             .arg(format!(
                 "file://{}",
-                worker.join("job/parameter_values.json").display()
+                worker.join("job/job_parameters.json").display()
             ))
             .arg("--path-mapping-rules")
             .arg(format!("file://{}", rules.display()))
@@ -931,4 +959,389 @@ fn temporaries(dir: &Path) -> Vec<PathBuf> {
         .collect();
     found.sort();
     found
+}
+
+/// A shard manifest of one output, `name`, whose content is `bytes` (its true size and hash).
+fn hostile_manifest(name: &str, bytes: &[u8], inputs: serde_json::Value) -> serde_json::Value {
+    use sha2::{Digest, Sha256};
+    let hex = |b: &[u8]| -> String { b.iter().map(|x| format!("{x:02x}")).collect() };
+    serde_json::json!({
+        "format": "nsrm-farm-shard/1", "nsrm_version": "0", "shard": 1, "shards": 1,
+        "batch": {"inputs": inputs, "outputs_sha256": hex(&Sha256::digest(format!("{name}\n")))},
+        "model": {"path": "m.json", "sha256": "00".repeat(32)},
+        "settings": [], "failures": [], "stale_temporaries_removed": [],
+        "outputs": [{"input": "in.exr", "output": name, "bytes": bytes.len(),
+                     "sha256": hex(&Sha256::digest(bytes)), "how": "converted"}],
+        "timings": {"started_unix": 0.0, "check_s": 0.0, "convert_s": 0.0, "hash_s": 0.0, "total_s": 0.0}
+    })
+}
+
+/// `nsrm farm verify` under a 2 GB address-space limit (a count sized into an allocation
+/// aborts there instead of swapping), in `dir`.
+fn verify_bounded(dir: &Path, args: &[&str]) -> (std::process::Output, String) {
+    let t = Instant::now();
+    let o = Command::new("sh")
+        .arg("-c")
+        .arg("ulimit -v 2000000; exec \"$0\" farm verify \"$@\"")
+        .arg(env!("CARGO_BIN_EXE_nsrm"))
+        .args(args)
+        .current_dir(dir)
+        .output()
+        .unwrap();
+    let err = stderr(&o);
+    crate::common::no_crash(&o, &format!("farm verify {args:?}"));
+    assert!(!err.contains("internal error"), "{args:?}: {err}");
+    assert!(
+        t.elapsed() < Duration::from_secs(20),
+        "{args:?}: {:?}",
+        t.elapsed()
+    );
+    (o, err)
+}
+
+/// `farm verify` trusts nothing in a manifest (issue 42): a name leaving the batch directory
+/// (`..`, absolute, a symbolic link) is refused naming the manifest, even with its true hash;
+/// huge stated counts, a huge shard count in a file name or in `--shards` cost neither memory
+/// nor time; a manifest that does not parse is named.
+#[test]
+fn verify_trusts_nothing_a_manifest_says() {
+    let root = tempdir("farm-hostile-verify");
+    let out = root.join("out");
+    std::fs::create_dir_all(&out).unwrap();
+    let secret = root.join("secret.txt");
+    std::fs::write(&secret, b"not the batch's").unwrap();
+    #[cfg(unix)]
+    std::os::unix::fs::symlink(&secret, out.join("link.exr")).unwrap();
+    let m = out.join("nsrm-farm.shard-0001-of-0001.json");
+    let write = |v: &serde_json::Value| std::fs::write(&m, v.to_string()).unwrap();
+    let abs = secret.to_str().unwrap().to_string();
+    let mut names = vec!["../secret.txt".to_string(), abs];
+    if cfg!(unix) {
+        names.push("link.exr".into());
+    }
+    for name in &names {
+        write(&hostile_manifest(name, b"not the batch's", 1.into()));
+        let (o, err) = verify_bounded(&root, &["out"]);
+        assert_eq!(o.status.code(), Some(1), "{name}: {err}");
+        assert!(err.contains("FAILED"), "{name}: {err}");
+        assert!(
+            err.contains("nsrm-farm.shard-0001-of-0001.json"),
+            "{name}: {err}"
+        );
+        assert!(err.contains("0 output(s) match"), "{name}: {err}");
+    }
+    // The same manifest naming a file of the batch is whole: the refusals above are the names'.
+    std::fs::write(out.join("a.exr"), b"frame").unwrap();
+    write(&hostile_manifest("a.exr", b"frame", 1.into()));
+    let (o, err) = verify_bounded(&root, &["out"]);
+    assert!(o.status.success(), "{err}");
+    // Counts no file backs.
+    for inputs in [
+        serde_json::json!(1_000_000_000_000_000u64),
+        serde_json::json!(u64::MAX),
+        serde_json::json!(1e15),
+    ] {
+        write(&hostile_manifest("a.exr", b"frame", inputs.clone()));
+        let (o, err) = verify_bounded(&root, &["out"]);
+        assert_eq!(o.status.code(), Some(1), "{inputs}: {err}");
+        assert!(
+            err.contains("nsrm-farm.shard-0001-of-0001.json") || err.contains("input(s)"),
+            "{inputs}: {err}"
+        );
+    }
+    write(&hostile_manifest("a.exr", b"frame", 1.into()));
+    std::fs::write(
+        out.join("nsrm-farm.shard-0001-of-1000000000000.json"),
+        b"{}",
+    )
+    .unwrap();
+    let (o, err) = verify_bounded(&root, &["out"]);
+    assert_eq!(o.status.code(), Some(1), "{err}");
+    assert!(err.contains("of-1000000000000.json"), "{err}");
+    std::fs::remove_file(out.join("nsrm-farm.shard-0001-of-1000000000000.json")).unwrap();
+    let (o, err) = verify_bounded(&root, &["out", "--shards", "1000000000000"]);
+    assert_eq!(o.status.code(), Some(2), "{err}");
+    let (o, err) = verify_bounded(&root, &["out", "--shards", "100000"]);
+    assert_eq!(o.status.code(), Some(1), "{err}");
+    assert!(err.contains("shards 1-100000/100000: no manifest"), "{err}");
+    assert!(err.lines().count() < 10, "{err}");
+    // A manifest that does not parse is named.
+    std::fs::write(&m, b"{\"format\": ").unwrap();
+    let (o, err) = verify_bounded(&root, &["out"]);
+    assert_eq!(o.status.code(), Some(1), "{err}");
+    assert!(
+        err.contains("out/nsrm-farm.shard-0001-of-0001.json: not a shard manifest"),
+        "{err}"
+    );
+    let _ = std::fs::remove_dir_all(&root);
+}
+
+/// The asset references Deadline Cloud's client (PyPI `deadline`) makes of the job bundle in
+/// `dir`, as its submission does (the bundle's parameters, their values and
+/// `asset_references.yaml`); `None` (SKIP) when the package is absent, a failure under CI.
+fn deadline_asset_references(dir: &Path) -> Option<serde_json::Value> {
+    let script = "import json, sys\n\
+from deadline.client.job_bundle.parameters import read_job_bundle_parameters, apply_job_parameters\n\
+from deadline.client.job_bundle.submission import AssetReferences\n\
+from deadline.client.job_bundle.loader import read_yaml_or_json_object\n\
+d = sys.argv[1]\n\
+params = read_job_bundle_parameters(d)\n\
+refs = AssetReferences.from_dict(read_yaml_or_json_object(d, 'asset_references', False))\n\
+apply_job_parameters([], d, params, refs)\n\
+print(json.dumps(refs.to_dict()))\n";
+    let has = Command::new("python3")
+        .args(["-c", "import deadline.client.job_bundle"])
+        .output()
+        .is_ok_and(|o| o.status.success());
+    if !has {
+        assert!(
+            std::env::var("CI").as_deref() != Ok("true"),
+            "PyPI deadline is missing under CI=true (.ci/install.d/50-farm.sh installs it)"
+        );
+        eprintln!("SKIP: PyPI deadline is not installed (.ci/install.d/50-farm.sh installs it)");
+        return None;
+    }
+    let o = Command::new("python3")
+        .args(["-c", script])
+        .arg(dir)
+        .output()
+        .unwrap();
+    assert_ok(&o);
+    Some(serde_json::from_slice(&o.stdout).unwrap())
+}
+
+/// Names a template language or a YAML reader would misread (issue 42): Open Job Description
+/// expressions and unmatched braces, a DEL, C1 controls, U+0085 and U+2028, shell syntax, a
+/// leading dash.
+const HOSTILE_NAMES: [&str; 6] = [
+    "a{{Param.Model}}.exr",
+    "b}}{{.exr",
+    "c\u{7f}\u{85}\u{9b}\u{2028}é.exr",
+    "d'$(touch x)`;.exr",
+    "-e.exr",
+    "f{{ Task.Param.Shard .exr",
+];
+
+/// The generated Open Job Description bundle carries hostile names to the worker byte for
+/// byte: `openjd check` accepts it, `openjd run` runs it (with the whole tree moved and mapped)
+/// with a stub program that records its argument vector and the input list it is given, and
+/// the asset references read back (PyYAML, openjd's reader) exactly.
+#[test]
+fn openjd_hostile_names_reach_the_worker_byte_for_byte() {
+    if !have("openjd") {
+        return;
+    }
+    let root = tempdir("farm-openjd-hostile");
+    let submit = root.join("sub {{Param.OutputDir}}");
+    std::fs::create_dir_all(submit.join("in")).unwrap();
+    for n in HOSTILE_NAMES {
+        std::fs::write(submit.join("in").join(n), b"").unwrap();
+    }
+    let model = "m{{Task.Param.Shard}}}}.json";
+    std::fs::write(submit.join(model), b"{}").unwrap();
+    let record = root.join("argv.bin");
+    let stub = root.join("stub.sh");
+    std::fs::write(
+        &stub,
+        format!(
+            "#!/bin/sh\nprev=\nfor a in \"$@\"; do\n  printf '%s\\0' \"$a\" >> '{r}'\n  if [ \"$prev\" = --inputs-from ]; then cat -- \"$a\" >> '{r}.list'; fi\n  prev=$a\ndone\nprintf 'END\\0' >> '{r}'\n",
+            r = record.display()
+        ),
+    )
+    .unwrap();
+    #[cfg(unix)]
+    {
+        use std::os::unix::fs::PermissionsExt;
+        std::fs::set_permissions(&stub, std::fs::Permissions::from_mode(0o755)).unwrap();
+    }
+    let out = "out {{Param.Shards}}";
+    let made = nsrm_in(
+        &submit,
+        &[
+            "farm",
+            "openjd",
+            "--shards",
+            "2",
+            "--job-dir",
+            "job",
+            "--program",
+            stub.to_str().unwrap(),
+            "--name",
+            "hostile",
+            "--device",
+            "cpu",
+            "--suffix",
+            "_{{Param.Model}}",
+            "--model",
+            model,
+            "-o",
+            out,
+            "in",
+        ],
+    );
+    assert_ok(&made);
+    let inputs: Vec<String> = {
+        let mut v: Vec<String> = HOSTILE_NAMES
+            .iter()
+            .map(|n| submit.join("in").join(n).to_str().unwrap().to_string())
+            .collect();
+        v.sort();
+        v
+    };
+    // The asset references as PyYAML (openjd's and deadline's reader) reads them.
+    let refs = Command::new("python3")
+        .arg("-c")
+        .arg("import json,sys,yaml; print(json.dumps(yaml.safe_load(open(sys.argv[1], encoding='utf-8'))))")
+        .arg(submit.join("job/asset_references.yaml"))
+        .output()
+        .unwrap();
+    assert_ok(&refs);
+    let refs: serde_json::Value = serde_json::from_slice(&refs.stdout).unwrap();
+    let mut listed: Vec<String> = refs["assetReferences"]["inputs"]["filenames"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|v| v.as_str().unwrap().to_string())
+        .collect();
+    listed.sort();
+    assert_eq!(listed, inputs);
+    // Moved and mapped, as on a worker.
+    let worker = root.join("worker }}");
+    std::fs::rename(&submit, &worker).unwrap();
+    let template = worker.join("job/template.yaml");
+    let check = Command::new("openjd")
+        .arg("check")
+        .arg(&template)
+        .output()
+        .unwrap();
+    assert_ok(&check);
+    let rules = root.join("rules.json");
+    std::fs::write(
+        &rules,
+        serde_json::json!({"version": "pathmapping-1.0", "path_mapping_rules": [
+            {"source_path_format": "POSIX", "source_path": submit, "destination_path": worker}]})
+        .to_string(),
+    )
+    .unwrap();
+    for step in ["Apply", "Verify"] {
+        let o = Command::new("openjd")
+            .arg("run")
+            .arg(&template)
+            .args(["--step", step, "-p"])
+            .arg(format!(
+                "file://{}",
+                worker.join("job/job_parameters.json").display()
+            ))
+            .arg("--path-mapping-rules")
+            .arg(format!("file://{}", rules.display()))
+            .output()
+            .unwrap();
+        assert!(
+            o.status.success(),
+            "{step}: {}{}",
+            String::from_utf8_lossy(&o.stdout),
+            stderr(&o)
+        );
+    }
+    let bytes = std::fs::read(&record).unwrap();
+    let words: Vec<&[u8]> = bytes
+        .strip_suffix(b"\0")
+        .unwrap_or(&bytes)
+        .split(|&b| b == 0)
+        .collect();
+    let calls: Vec<&[&[u8]]> = words
+        .split(|w| *w == b"END")
+        .filter(|c| !c.is_empty())
+        .collect();
+    assert_eq!(calls.len(), 3, "{:?}", String::from_utf8_lossy(&bytes));
+    let w = |s: &Path| s.to_str().unwrap().as_bytes().to_vec();
+    let text = |c: &[&[u8]]| c.iter().map(|x| x.to_vec()).collect::<Vec<_>>();
+    for (k, call) in calls[..2].iter().enumerate() {
+        let call = text(call);
+        let want_head: Vec<Vec<u8>> = vec![
+            b"farm".to_vec(),
+            b"run".to_vec(),
+            b"--shard".to_vec(),
+            format!("{}/2", k + 1).into_bytes(),
+            b"--inputs-from".to_vec(),
+            w(&worker.join("job/inputs.txt")),
+            b"--path-mapping-rules".to_vec(),
+        ];
+        assert_eq!(call[..7], want_head[..], "{call:?}");
+        let want_tail: Vec<Vec<u8>> = vec![
+            b"--".to_vec(),
+            b"--model".to_vec(),
+            w(&worker.join(model)),
+            b"-o".to_vec(),
+            w(&worker.join(out)),
+        ];
+        assert_eq!(call[8..13], want_tail[..], "{call:?}");
+        assert!(
+            call.contains(&b"--suffix=_{{Param.Model}}".to_vec()),
+            "{call:?}"
+        );
+    }
+    assert_eq!(
+        text(calls[2]),
+        vec![
+            b"farm".to_vec(),
+            b"verify".to_vec(),
+            w(&worker.join(out)),
+            b"--shards".to_vec(),
+            b"2".to_vec(),
+            b"--model".to_vec(),
+            w(&worker.join(model)),
+        ]
+    );
+    // The input list each task is given: the submitter's paths, byte for byte (the task maps them).
+    let mut want = Vec::new();
+    for _ in 0..2 {
+        let mut sorted = inputs.clone();
+        sorted.sort();
+        for i in &sorted {
+            want.extend_from_slice(i.as_bytes());
+            want.push(b'\n');
+        }
+    }
+    let got = std::fs::read(root.join("argv.bin.list")).unwrap();
+    let mut got_lines: Vec<&[u8]> = got
+        .split(|&b| b == b'\n')
+        .filter(|l| !l.is_empty())
+        .collect();
+    let mut want_lines: Vec<&[u8]> = want
+        .split(|&b| b == b'\n')
+        .filter(|l| !l.is_empty())
+        .collect();
+    got_lines.sort();
+    want_lines.sort();
+    assert_eq!(got_lines, want_lines);
+    let _ = std::fs::remove_dir_all(&root);
+}
+
+/// A farm task opens the GPU (`--device auto`) with `XDG_RUNTIME_DIR` unset or naming no
+/// directory, as under a batch scheduler: its log has no Mesa `XDG_RUNTIME_DIR` line.
+#[test]
+fn a_farm_task_log_has_no_mesa_runtime_dir_line() {
+    let dir = tempdir("farm-xdg");
+    batch(&dir, 2, 8, 8);
+    for xdg in [None, Some("/nonexistent/nsrm-xdg")] {
+        let mut c = crate::common::nsrm();
+        c.current_dir(&dir).env_remove("XDG_RUNTIME_DIR");
+        if let Some(x) = xdg {
+            c.env("XDG_RUNTIME_DIR", x);
+        }
+        let o = c
+            .args([
+                "farm", "run", "--shard", "1/1", "--", "--model", "m.json", "-o", "out", "in",
+            ])
+            .output()
+            .unwrap();
+        let err = stderr(&o);
+        assert!(o.status.success(), "{xdg:?}: {err}");
+        assert!(
+            !err.contains("XDG_RUNTIME_DIR"),
+            "{xdg:?}: Mesa complained: {err}"
+        );
+    }
+    let _ = std::fs::remove_dir_all(&dir);
 }

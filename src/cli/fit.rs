@@ -210,6 +210,7 @@ fn training_sets(
     } else {
         for (i, f) in a.capture.iter().enumerate() {
             let c = super::capture::for_model(Some(f), &a.chart)?.expect("a capture was given");
+            eprintln!("{}", c.summary());
             if let Some(w) = c.other_chart_warning() {
                 eprintln!("{w}");
             }
@@ -219,6 +220,8 @@ fn training_sets(
                 data = under_light(data, ill, &a.training)?;
                 source.push_str(&format!(" (reference adapted to {ill})"));
             }
+            // The model file carries the patches it was fitted on: `nsrm export` needs no CSV.
+            data.record_patches();
             sets.push((data, Some(c), source));
         }
     }

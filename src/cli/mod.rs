@@ -6,6 +6,8 @@
 mod apply;
 mod bench;
 mod bench_aids;
+mod calibrate;
+mod calibrate_report;
 mod capture;
 mod chart;
 mod combine;
@@ -46,6 +48,11 @@ enum Command {
     /// Per-pixel throughput of each model on the CPU (one thread, all threads) and the GPU, as a
     /// fraction of a memcpy of the same bytes.
     Bench(bench::Args),
+    /// One chart shot to a calibrated result: `nsrm calibrate SHOT -o DIR` finds and reads the
+    /// chart, diagnoses the shot, fits (the best by leave-one-out, or --kind), and writes the
+    /// model, the patches, the overlay and a report (text and HTML); --export dcp,icc,… adds
+    /// the profiles.
+    Calibrate(calibrate::Args),
     /// Read a photographed chart: `nsrm chart extract FRAME --chart cc24|sg -o patches.csv`;
     /// `nsrm chart rate` measures detection on synthetic scenes.
     #[command(subcommand)]
@@ -121,6 +128,7 @@ pub fn main() -> ExitCode {
     let result = match cli.command {
         Command::Apply(a) => apply::run(a),
         Command::Bench(a) => bench::run(a),
+        Command::Calibrate(a) => calibrate::run(a),
         Command::Chart(c) => chart::run(c),
         Command::Combine(a) => combine::run(a),
         Command::Eval(a) => eval::run(a),

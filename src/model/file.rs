@@ -103,7 +103,7 @@ impl Model {
                 } else {
                     "linear camera RGB, not white-balanced; the model multiplies R, G, B by `gains` (the training white's response becomes 1, 1, 1) before the terms".into()
                 },
-                camera_scale: "the perfect white under the training illuminant has G = 1".into(),
+                camera_scale: camera_scale(&self.provenance),
                 gains: (!unit).then_some(self.input_gains),
             },
             output: Output {
@@ -230,6 +230,19 @@ impl Model {
             err,
         })?;
         Model::from_json(&text, &origin)
+    }
+}
+
+/// The `camera_scale` line: simulated data's perfect white has G = 1; a capture's camera RGB
+/// is as recorded, its perfect white at the G its neutral patches imply.
+fn camera_scale(p: &Provenance) -> String {
+    match &p.capture {
+        Some(c) if c.white_g.is_finite() => format!(
+            "camera RGB as recorded in the capture: the perfect white under its light has G = {:.6} (from the neutral patches)",
+            c.white_g
+        ),
+        Some(_) => "camera RGB as recorded in the capture".into(),
+        None => "the perfect white under the training illuminant has G = 1".into(),
     }
 }
 

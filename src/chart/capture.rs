@@ -561,6 +561,44 @@ mod tests {
         assert_eq!(a.provenance().located, "corners");
     }
 
+    /// A bright patch with a channel at 0 (a JPEG's cyan with red 0) is flagged as clipped at
+    /// black, not as dark (issue 36: `18 cyan (dark)`).
+    #[test]
+    fn a_bright_patch_with_a_zero_channel_is_clipped_not_dark() {
+        let mut colours =
+            ChartColours::simulate(ChartKind::Cc24, "nikon-d5100", "D65", None).unwrap();
+        colours.rgb[17][0] = 0.0;
+        let corners = [[100.0, 80.0], [500.0, 90.0], [490.0, 350.0], [110.0, 340.0]];
+        let opts = SceneOptions {
+            width: 600,
+            height: 420,
+            corners: Some(corners),
+            exposure: 0.8,
+            noise: 0.0,
+            clutter: 0,
+            ..Default::default()
+        };
+        let (frame, _, _) = render(&colours, &opts).unwrap();
+        let reference = Reference::load("cc24-after2014", ChartKind::Cc24, None).unwrap();
+        let cap = read(
+            &decoded(frame),
+            &reference,
+            &ReadingOptions {
+                corners: Some(corners),
+                ..Default::default()
+            },
+        )
+        .unwrap();
+        let cyan = &cap.extraction.patches[17];
+        assert_eq!(cyan.label, "18 cyan");
+        assert_eq!(cyan.flags, vec![crate::chart::extract::Flag::ClippedBlack]);
+        assert!(cap
+            .extraction
+            .flagged()
+            .iter()
+            .any(|f| f == "18 cyan (a channel clipped at 0)"));
+    }
+
     #[test]
     fn a_flat_frame_of_another_size_and_a_frame_without_a_chart_are_refused() {
         let (frame, _, corners, reference) = scene(0.0);

@@ -181,6 +181,7 @@ pub(crate) fn run(mut a: Args) -> Result<ExitCode> {
     };
     let mut data = cap.training_set();
     data.record_patches();
+    let opts = a.fit.resolved(&opts, &data.labels)?;
     let (kind, order, tried) = choose(&a, &candidates, &data, &opts)?;
     let fitted = fit_with(kind, order, &data, &opts)
         .with_context(|| format!("fitting {kind} order {order} on {} patches", data.len()))?;

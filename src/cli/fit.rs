@@ -36,8 +36,9 @@ pub(crate) struct Args {
     /// Replace an existing output file.
     #[arg(long)]
     overwrite: bool,
-    /// Fit on the chart photographed in this frame (raw, EXR, TIFF) instead: see `nsrm chart
-    /// extract` for the chart options. Twice, each with its `--illuminant` (e.g. `--capture
+    /// Fit on the chart photographed in this frame instead (camera raw: DNG, CR2, CR3, NEF,
+    /// ARW, …; linear EXR or TIFF; or a display-referred JPEG, PNG or 8-bit TIFF): see `nsrm
+    /// chart extract` for the chart options. Twice, each with its `--illuminant` (e.g. `--capture
     /// a.dng --illuminant A --capture d65.dng --illuminant D65`): a two-illuminant model file.
     #[arg(long, value_name = "FRAME", conflicts_with_all = ["training", "camera", "reflectances", "grid"], action = clap::ArgAction::Append)]
     capture: Vec<PathBuf>,
@@ -63,8 +64,9 @@ fn f32_summary(
     let bound = report.f32_error_bound.unwrap_or(f64::NAN);
     let raised = match report.ridge_requested {
         Some(r) => format!(
-            "; ridge λ raised from {r} to {} to keep it within {}",
-            report.ridge_lambda,
+            "; ridge λ raised from {} to {} to keep it within {}",
+            fmt_lambda(r),
+            fmt_lambda(report.ridge_lambda),
             crate::model::fit::F32_TOLERANCE_DE00
         ),
         None => String::new(),
@@ -105,6 +107,7 @@ pub(crate) fn run(a: Args) -> Result<ExitCode> {
     let sets = training_sets(&a, &illuminants)?;
     let mut fits = Vec::new();
     for (data, _, source) in &sets {
+        let opts = a.fit.resolved(&opts, &data.labels)?;
         let fitted = fit_with(kind, a.order, data, &opts).with_context(|| {
             format!(
                 "fitting {kind} order {} on {} patches{source}",
@@ -250,6 +253,18 @@ fn under_light(
     Ok(data)
 }
 
+/// A ridge λ as people write it: `0`, `0.25`, or `1.778e-7` (four significant digits).
+pub(crate) fn fmt_lambda(v: f64) -> String {
+    if v == 0.0 || !v.is_finite() {
+        format!("{v}")
+    } else if (1e-3..1e4).contains(&v.abs()) {
+        let s = format!("{v:.4}");
+        s.trim_end_matches('0').trim_end_matches('.').to_string()
+    } else {
+        format!("{v:.3e}")
+    }
+}
+
 /// What `fit` prints about one fitted model.
 fn report(fitted: &crate::model::fit::Fit, data: &crate::TrainingSet, source: &str, output: &Path) {
     let model = &fitted.model;
@@ -280,7 +295,7 @@ fn report(fitted: &crate::model::fit::Fit, data: &crate::TrainingSet, source: &s
         "objective {}, preserve white {}, ridge λ {}{}, normalise {}; coefficient norm {:.4e}, design condition number {cond}; in-sample ΔE00 mean {mean:.3}, max {max:.3}{}",
         report.objective,
         report.preserve_white,
-        report.ridge_lambda,
+        fmt_lambda(report.ridge_lambda),
         match report.ridge_criterion.as_deref() {
             Some("loo") => " (leave-one-out)",
             Some(_) => " (GCV)",
@@ -329,6 +344,16 @@ mod tests {
             .into_iter()
             .chain(extra.iter().copied());
         Fit::try_parse_from(argv).unwrap().a
+    }
+
+    /// The ridge λ is printed as people write it (issue 36: `0.00000017782794100389227`).
+    #[test]
+    fn lambda_is_printed_sensibly() {
+        assert_eq!(fmt_lambda(0.000_000_177_827_941_003_892_27), "1.778e-7");
+        assert_eq!(fmt_lambda(0.0), "0");
+        assert_eq!(fmt_lambda(0.25), "0.25");
+        assert_eq!(fmt_lambda(10.0), "10");
+        assert_eq!(fmt_lambda(3.0e5), "3.000e5");
     }
 
     #[test]

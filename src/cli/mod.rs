@@ -43,7 +43,8 @@ struct Cli {
 
 #[derive(Debug, Subcommand)]
 enum Command {
-    /// Colour-correct linear camera-raw EXR/TIFF frames with a model file (batch, GPU or CPU).
+    /// Colour-correct frames with a model file (batch, GPU or CPU): camera raw files (DNG, CR2,
+    /// CR3, NEF, ARW, RAF, ORF, RW2, …) and linear EXR or TIFF.
     Apply(apply::Args),
     /// Per-pixel throughput of each model on the CPU (one thread, all threads) and the GPU, as a
     /// fraction of a memcpy of the same bytes.
@@ -205,6 +206,38 @@ mod tests {
             }
         }
         assert!(missing.is_empty(), "flags without help text: {missing:?}");
+    }
+
+    /// The help of every command that reads frames names every input type it accepts (issue 36:
+    /// `apply` said EXR/TIFF, `eval --capture` "linear frame (EXR/TIFF)", though both read raw).
+    #[test]
+    fn help_texts_name_every_input_type() {
+        let mut cli = Cli::command();
+        for (path, jpeg) in [
+            (&["apply"][..], false),
+            (&["fit"], true),
+            (&["eval"], true),
+            (&["chart", "extract"], true),
+            (&["calibrate"], true),
+        ] {
+            let mut c = &mut cli;
+            for p in path {
+                c = c.find_subcommand_mut(p).expect("a subcommand");
+            }
+            let help = c.render_long_help().to_string();
+            let mut want = vec!["raw", "DNG", "EXR", "TIFF"];
+            if jpeg {
+                want.push("JPEG");
+            }
+            for w in want {
+                assert!(
+                    help.contains(w),
+                    "nsrm {} --help does not say {w}",
+                    path.join(" ")
+                );
+            }
+            assert!(!help.contains("linear frame (EXR/TIFF)"), "{help}");
+        }
     }
 
     /// One vocabulary: `--model` is a model file wherever it appears (the kind is `--kind`), and

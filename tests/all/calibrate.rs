@@ -383,3 +383,76 @@ fn glare_compensation_lowers_the_error_on_the_real_dng() {
     assert!(m1 < m0 && x1 < x0, "{m0} {x0} → {m1} {x1}");
     assert!(text.contains("glare compensation: subtracted"), "{text}");
 }
+
+/// The wording fixes of issue 36 on the real DNG: `eval --capture` prints the reading's line
+/// once and its `--json` names the capture's camera and reference; the summary names LRM as the
+/// table does; `--white-patch 19` is the white patch's number.
+#[test]
+fn eval_and_fit_on_a_capture_say_things_once_and_right() {
+    let dng = chart_dng();
+    if !dng.exists() {
+        return skip("../shared/data/colorchart.dng is absent");
+    }
+    let work = tempdir("calibrate-words");
+    let d = dng.to_str().unwrap();
+    let o = nsrm_ok(
+        &work,
+        &[
+            "eval",
+            "--capture",
+            d,
+            "--chart",
+            "cc24",
+            "--kinds",
+            "lrm,rprm",
+        ],
+    );
+    let err = stderr(&o);
+    assert_eq!(err.matches("cc24 chart found").count(), 1, "{err}");
+    let out = String::from_utf8_lossy(&o.stdout);
+    let last = out.lines().last().unwrap_or("");
+    assert!(!last.contains("LRM1") && last.contains("LRM"), "{out}");
+    let o = nsrm_ok(
+        &work,
+        &[
+            "eval",
+            "--capture",
+            d,
+            "--chart",
+            "cc24",
+            "--kinds",
+            "lrm",
+            "--json",
+        ],
+    );
+    let j: Value = serde_json::from_slice(&o.stdout).unwrap();
+    assert!(j["camera"].as_str().unwrap().starts_with("Canon"), "{j}");
+    assert_eq!(j["reflectances"], "cc24-after2014");
+    let o = nsrm_ok(
+        &work,
+        &[
+            "fit",
+            "--capture",
+            d,
+            "--chart",
+            "cc24",
+            "--kind",
+            "nsrm",
+            "--preserve-white",
+            "--white-patch",
+            "19",
+            "-o",
+            "m.json",
+        ],
+    );
+    let err = stderr(&o);
+    assert_eq!(err.matches("cc24 chart found").count(), 1, "{err}");
+    let m: Value = serde_json::from_slice(&std::fs::read(work.join("m.json")).unwrap()).unwrap();
+    assert!(
+        m["fit"]["preserve_white"]
+            .to_string()
+            .contains("19 white 9.5"),
+        "{}",
+        m["fit"]
+    );
+}

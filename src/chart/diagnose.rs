@@ -188,7 +188,7 @@ pub(crate) fn diagnose(
             "reference",
             Severity::Warning,
             format!("the reading matches its reference poorly (median ΔE00 {score:.2} after the best 3×3 map)"),
-            "check the chart's edition (--reference cc24-before2014 for charts made before Nov 2014) and that the frame is linear (raw, linear EXR/TIFF)",
+            "check the chart's edition (charts made before Nov 2014 have other reference values: the cc24-before2014 reference) and that the frame is linear (raw, linear EXR/TIFF)",
         ));
     }
     out.sort_by_key(|f| std::cmp::Reverse(f.severity));
@@ -206,10 +206,10 @@ fn ramp_findings(r: &Ramp, flat_given: bool, out: &mut Vec<Finding>) {
         r.points.len()
     );
     if g > GLARE_WARN {
-        let mut advice = "dark patches read too bright: shade the lens (a hood), keep bright light and windows out of and near the frame, do not backlight the chart; or fit with --glare-compensation".to_string();
+        let mut advice = "dark patches read too bright: shade the lens (a hood), keep bright light and windows out of and near the frame, do not backlight the chart; or fit with glare compensation".to_string();
         if !flat_given {
             advice.push_str(
-                "; do not use --flat neutrals here: on a CC24 it reads the glare as uneven light",
+                "; do not compensate light from the neutral patches here: on a CC24 it reads the glare as uneven light",
             );
         }
         out.push(finding("glare", Severity::Warning, text, &advice));
@@ -328,7 +328,7 @@ fn light_findings(
     out: &mut Vec<Finding>,
 ) {
     let (u, how) = match measured {
-        Some(u) => (u, "measured with --flat, and compensated"),
+        Some(u) => (u, "measured, and compensated"),
         None => match flat::from_neutrals(ex, reference) {
             Ok(f) => (
                 f.nonuniformity,
@@ -352,7 +352,7 @@ fn light_findings(
         if sev == Severity::Ok {
             ""
         } else {
-            "light the chart evenly (two lights at 45°, or the chart small in an even light), or shoot a flat frame (a grey card in the chart's place) and pass --flat FRAME; on a CC24 the neutral estimate also reads glare as uneven light"
+            "light the chart evenly (two lights at 45°, or the chart small in an even light), or shoot a flat frame (a grey card in the chart's place) and compensate with it; on a CC24 the neutral estimate also reads glare as uneven light"
         },
     ));
 }

@@ -129,14 +129,24 @@ impl TrainingSet {
     /// If an index is out of range (`indices` are the caller's own, like a slice index; a
     /// selection from user input goes through [`select`](Self::select), which checks it).
     pub fn subset(&self, indices: &[usize]) -> TrainingSet {
-        TrainingSet {
+        let mut out = TrainingSet {
             labels: indices.iter().map(|&i| self.labels[i].clone()).collect(),
             rgb: indices.iter().map(|&i| self.rgb[i]).collect(),
             xyz: indices.iter().map(|&i| self.xyz[i]).collect(),
             white_xyz: self.white_xyz,
             white_rgb: self.white_rgb,
             provenance: self.provenance.clone(),
+        };
+        // A capture's recorded patches follow the selection (a model carries what it was fitted on).
+        if out
+            .provenance
+            .capture
+            .as_ref()
+            .is_some_and(|c| c.training.is_some())
+        {
+            out.record_patches();
         }
+        out
     }
 
     /// Keeps the patches chosen by `spec` (see `select_patches`: labels, `A1,B2`, ranges `B2:M9`, `all`).

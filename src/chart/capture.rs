@@ -357,10 +357,12 @@ impl Capture {
         }
     }
 
-    /// The unflagged patches as training data, with the capture's provenance.
+    /// The unflagged patches as training data, with the capture's provenance (which records
+    /// the patches themselves: a model fitted on them carries them).
     pub fn training_set(&self) -> TrainingSet {
         let mut t = self.extraction.training_set(&self.reference);
         t.provenance.capture = Some(self.provenance());
+        t.record_patches();
         t
     }
 

@@ -129,14 +129,24 @@ impl TrainingSet {
     /// If an index is out of range (`indices` are the caller's own, like a slice index; a
     /// selection from user input goes through [`select`](Self::select), which checks it).
     pub fn subset(&self, indices: &[usize]) -> TrainingSet {
-        TrainingSet {
+        let mut out = TrainingSet {
             labels: indices.iter().map(|&i| self.labels[i].clone()).collect(),
             rgb: indices.iter().map(|&i| self.rgb[i]).collect(),
             xyz: indices.iter().map(|&i| self.xyz[i]).collect(),
             white_xyz: self.white_xyz,
             white_rgb: self.white_rgb,
             provenance: self.provenance.clone(),
+        };
+        // A capture's recorded patches follow the selection (a model carries what it was fitted on).
+        if out
+            .provenance
+            .capture
+            .as_ref()
+            .is_some_and(|c| c.training.is_some())
+        {
+            out.record_patches();
         }
+        out
     }
 
     /// Keeps the patches chosen by `spec` (see `select_patches`: labels, `A1,B2`, ranges `B2:M9`, `all`).
@@ -428,6 +438,60 @@ fn column_index(col: &str) -> Option<u32> {
 /// The most patches a `B2:M9` rectangle may hold (charts have hundreds).
 pub(crate) const MAX_RECTANGLE: u64 = 1 << 20;
 
+/// The label of the one patch `spec` names (for `--white-patch`): the full label (`19 white
+/// 9.5`), its number (`19`, the label's first word), or its name (`white 9.5`, or a word of it
+/// that only one label has: `white`); case-insensitive. An error lists the candidates when
+/// none or several match.
+pub(crate) fn resolve_patch(labels: &[String], spec: &str) -> Result<String, TrainingError> {
+    let s = spec.trim().to_lowercase();
+    let err = |why: String| TrainingError::Patches {
+        spec: spec.to_string(),
+        why,
+    };
+    if let Some(l) = labels.iter().find(|l| l.to_lowercase() == s) {
+        return Ok(l.clone());
+    }
+    let number = |l: &str| l.split_whitespace().next().unwrap_or("").to_lowercase();
+    let name = |l: &str| {
+        l.split_once(' ')
+            .map(|(_, n)| n.trim().to_lowercase())
+            .unwrap_or_default()
+    };
+    let tiers: [&dyn Fn(&str) -> bool; 3] = [
+        &|l| number(l) == s || number(l).trim_start_matches('0') == s.trim_start_matches('0'),
+        &|l| name(l) == s,
+        &|l| name(l).split_whitespace().any(|w| w == s),
+    ];
+    for matches in tiers {
+        let found: Vec<&String> = labels.iter().filter(|l| matches(l)).collect();
+        match found.len() {
+            0 => continue,
+            1 => return Ok(found[0].clone()),
+            _ => {
+                return Err(err(format!(
+                    "it names {} patches ({}): give the full label",
+                    found.len(),
+                    found
+                        .iter()
+                        .map(|l| l.as_str())
+                        .collect::<Vec<_>>()
+                        .join(", ")
+                )))
+            }
+        }
+    }
+    Err(err(format!(
+        "no training patch has that label, number or name (the patches: {}{})",
+        labels
+            .iter()
+            .take(30)
+            .cloned()
+            .collect::<Vec<_>>()
+            .join(", "),
+        if labels.len() > 30 { ", …" } else { "" }
+    )))
+}
+
 /// Chooses patches by `spec`, returning indices into `labels` in the labels' own order.
 ///
 /// * `all` — every patch;
@@ -523,6 +587,37 @@ mod tests {
             }
         }
         v
+    }
+
+    /// `--white-patch` takes the label, the number or the name (issue 36: `19` was refused).
+    #[test]
+    fn a_patch_is_named_by_label_number_or_name() {
+        let cc24: Vec<String> = [
+            "01 dark skin",
+            "18 cyan",
+            "19 white 9.5",
+            "20 neutral 8",
+            "21 neutral 6.5",
+        ]
+        .iter()
+        .map(|s| s.to_string())
+        .collect();
+        for spec in ["19 white 9.5", "19", "white 9.5", "white", "WHITE", " 19 "] {
+            assert_eq!(
+                resolve_patch(&cc24, spec).unwrap(),
+                "19 white 9.5",
+                "{spec}"
+            );
+        }
+        assert_eq!(resolve_patch(&cc24, "1").unwrap(), "01 dark skin");
+        let e = resolve_patch(&cc24, "neutral").unwrap_err().to_string();
+        assert!(
+            e.contains("20 neutral 8") && e.contains("21 neutral 6.5"),
+            "{e}"
+        );
+        let e = resolve_patch(&cc24, "magenta").unwrap_err().to_string();
+        assert!(e.contains("no training patch"), "{e}");
+        assert_eq!(resolve_patch(&sg_labels(), "d4").unwrap(), "D4");
     }
 
     #[test]

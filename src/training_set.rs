@@ -63,6 +63,29 @@ pub struct CaptureProvenance {
     /// EXR / TIFF frames and in files written before it existed.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub camera: Option<String>,
+    /// The chromaticity of the light the chart was shot under, estimated from the chart's
+    /// neutral patches through the raw file's own colour matrices (the DNG `NeutralToXY`
+    /// iteration); absent without them (EXR, TIFF, JPEG frames).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub light_xy: Option<[f64; 2]>,
+    /// That light's correlated colour temperature (K).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub light_cct: Option<f64>,
+    /// The patches the model was fitted on (camera RGB, reference XYZ, their white), so that an
+    /// export needs no other file; in the order of the model's `patch_labels`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub training: Option<CapturedPatches>,
+}
+
+/// The training patches of a model fitted on a chart capture, carried in its file.
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+pub struct CapturedPatches {
+    /// Linear camera RGB, one per patch.
+    pub rgb: Vec<[f64; 3]>,
+    /// Reference XYZ (relative to `white_xyz`), one per patch.
+    pub xyz: Vec<[f64; 3]>,
+    /// The white the XYZ are relative to (the Lab white of the fit).
+    pub white_xyz: [f64; 3],
 }
 
 /// Patches with camera RGB and reference XYZ, and the reference white (for Lab).
@@ -93,5 +116,37 @@ impl TrainingSet {
     /// Whether there are no patches.
     pub fn is_empty(&self) -> bool {
         self.labels.is_empty()
+    }
+
+    /// Records the patches themselves in a capture's provenance (a no-op for other sets), so
+    /// that a model fitted on them carries them: call it on the set as fitted (after patch
+    /// selection and any adaptation).
+    pub(crate) fn record_patches(&mut self) {
+        if let Some(c) = self.provenance.capture.as_mut() {
+            c.training = Some(CapturedPatches {
+                rgb: self.rgb.clone(),
+                xyz: self.xyz.clone(),
+                white_xyz: self.white_xyz,
+            });
+        }
+    }
+
+    /// The training set a model file carries (see [`TrainingSet::record_patches`]): `None`
+    /// unless its capture provenance holds one patch per label.
+    pub(crate) fn recorded(provenance: &Provenance, labels: &[String]) -> Option<TrainingSet> {
+        let t = provenance.capture.as_ref()?.training.as_ref()?;
+        let ok = t.rgb.len() == labels.len()
+            && t.xyz.len() == labels.len()
+            && !labels.is_empty()
+            && t.rgb.iter().chain(&t.xyz).flatten().all(|v| v.is_finite())
+            && t.white_xyz.iter().all(|v| v.is_finite() && *v > 0.0);
+        ok.then(|| TrainingSet {
+            labels: labels.to_vec(),
+            rgb: t.rgb.clone(),
+            xyz: t.xyz.clone(),
+            white_xyz: t.white_xyz,
+            white_rgb: None,
+            provenance: provenance.clone(),
+        })
     }
 }

@@ -301,6 +301,30 @@ impl Capture {
         r.get(r.len() / 2).copied().unwrap_or(f64::NAN)
     }
 
+    /// The light the chart was shot under: the chromaticity and CCT of the camera response to
+    /// the perfect white on the neutral ramp (glare left out), through the raw file's colour
+    /// matrices by the DNG `NeutralToXY` iteration. `None` without matrices (not a raw file)
+    /// or without a neutral ramp.
+    pub(crate) fn light(&self) -> Option<([f64; 2], f64)> {
+        let cam = self.frame.decoded.camera.as_ref()?;
+        let ramp = super::diagnose::Ramp::of(&self.extraction, self.reference.white)?;
+        let w = ramp.white_rgb();
+        light_of_neutral(&cam.color_matrices, w.map(|v| v / w[1]))
+    }
+
+    /// Subtracts the veiling glare measured on the neutral ramp (a uniform camera-RGB term,
+    /// its positive intercepts) from every patch and checks the reading again; returns the
+    /// term subtracted, or `None` (nothing changed) without a ramp of 3 neutral patches.
+    pub(crate) fn compensate_glare(&mut self) -> Option<[f64; 3]> {
+        let ramp = super::diagnose::Ramp::of(&self.extraction, self.reference.white)?;
+        let g = ramp.glare_rgb();
+        super::diagnose::remove_glare(&mut self.extraction, g);
+        if let Ok(score) = verify(&self.extraction, &self.reference) {
+            self.score = score;
+        }
+        Some(g)
+    }
+
     /// Where the training data came from, for the model's provenance.
     pub(crate) fn provenance(&self) -> CaptureProvenance {
         CaptureProvenance {
@@ -327,13 +351,18 @@ impl Capture {
             reference_match_de00: self.score,
             encoding: self.transfer().describe().into(),
             camera: self.camera(),
+            light_xy: self.light().map(|l| l.0.map(|v| (v * 1e6).round() / 1e6)),
+            light_cct: self.light().map(|l| l.1.round()),
+            training: None,
         }
     }
 
-    /// The unflagged patches as training data, with the capture's provenance.
+    /// The unflagged patches as training data, with the capture's provenance (which records
+    /// the patches themselves: a model fitted on them carries them).
     pub fn training_set(&self) -> TrainingSet {
         let mut t = self.extraction.training_set(&self.reference);
         t.provenance.capture = Some(self.provenance());
+        t.record_patches();
         t
     }
 
@@ -399,6 +428,51 @@ impl Capture {
             })
             .collect()
     }
+}
+
+/// The temperatures the DNG SDK gives EXIF light sources (those a colour matrix is given for).
+fn light_source_cct(code: u16) -> Option<f64> {
+    Some(match code {
+        17 => 2856.0,
+        24 => 3200.0,
+        23 => 5003.0,
+        20 => 5503.0,
+        21 => 6504.0,
+        22 => 7504.0,
+        _ => return None,
+    })
+}
+
+/// The chromaticity and CCT of the light whose camera response is `neutral`, through colour
+/// matrices (XYZ → camera, with their EXIF light sources): one matrix inverted, two interpolated
+/// in inverse temperature by the DNG iteration. `None` when none is usable.
+pub(crate) fn light_of_neutral(
+    matrices: &[(u16, [f64; 9])],
+    neutral: [f64; 3],
+) -> Option<([f64; 2], f64)> {
+    use crate::colorimetry::{spaces, temperature};
+    let mut known: Vec<(f64, spaces::Mat3)> = matrices
+        .iter()
+        .filter_map(|(c, m)| {
+            let t = light_source_cct(*c)?;
+            Some((
+                t,
+                [[m[0], m[1], m[2]], [m[3], m[4], m[5]], [m[6], m[7], m[8]]],
+            ))
+        })
+        .collect();
+    known.sort_by(|a, b| a.0.total_cmp(&b.0));
+    let (lo, hi) = (*known.first()?, *known.last()?);
+    let xy = temperature::neutral_to_xy(neutral, [lo.0, hi.0.max(lo.0 + 1.0)], |n, w| {
+        let m: spaces::Mat3 = std::array::from_fn(|r| {
+            std::array::from_fn(|c| w * lo.1[r][c] + (1.0 - w) * hi.1[r][c])
+        });
+        let inv = spaces::try_invert(&m)?;
+        Some(spaces::apply(&inv, n))
+    })
+    .ok()?;
+    let t = temperature::cct(xy).ok()?;
+    t.is_finite().then_some((xy, t))
 }
 
 #[cfg(test)]
@@ -487,6 +561,44 @@ mod tests {
         );
         assert_eq!(with_flat.provenance().flat, "flat frame");
         assert_eq!(a.provenance().located, "corners");
+    }
+
+    /// A bright patch with a channel at 0 (a JPEG's cyan with red 0) is flagged as clipped at
+    /// black, not as dark (issue 36: `18 cyan (dark)`).
+    #[test]
+    fn a_bright_patch_with_a_zero_channel_is_clipped_not_dark() {
+        let mut colours =
+            ChartColours::simulate(ChartKind::Cc24, "nikon-d5100", "D65", None).unwrap();
+        colours.rgb[17][0] = 0.0;
+        let corners = [[100.0, 80.0], [500.0, 90.0], [490.0, 350.0], [110.0, 340.0]];
+        let opts = SceneOptions {
+            width: 600,
+            height: 420,
+            corners: Some(corners),
+            exposure: 0.8,
+            noise: 0.0,
+            clutter: 0,
+            ..Default::default()
+        };
+        let (frame, _, _) = render(&colours, &opts).unwrap();
+        let reference = Reference::load("cc24-after2014", ChartKind::Cc24, None).unwrap();
+        let cap = read(
+            &decoded(frame),
+            &reference,
+            &ReadingOptions {
+                corners: Some(corners),
+                ..Default::default()
+            },
+        )
+        .unwrap();
+        let cyan = &cap.extraction.patches[17];
+        assert_eq!(cyan.label, "18 cyan");
+        assert_eq!(cyan.flags, vec![crate::chart::extract::Flag::ClippedBlack]);
+        assert!(cap
+            .extraction
+            .flagged()
+            .iter()
+            .any(|f| f == "18 cyan (a channel clipped at 0)"));
     }
 
     #[test]

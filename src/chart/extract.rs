@@ -122,6 +122,10 @@ pub(crate) enum Flag {
     Dark,
     /// Not evenly lit or not a uniform patch (see [`ExtractOptions::nonuniform`]).
     Nonuniform,
+    /// Bright enough, but a channel is at 0 or below (clipped at black: a display-referred
+    /// frame's saturated colour, e.g. a JPEG's cyan with red 0).
+    #[serde(rename = "clipped-black")]
+    ClippedBlack,
 }
 
 impl Flag {
@@ -130,6 +134,7 @@ impl Flag {
             Flag::Clipped => "clipped",
             Flag::Dark => "dark",
             Flag::Nonuniform => "nonuniform",
+            Flag::ClippedBlack => "a channel clipped at 0",
         }
     }
 }
@@ -419,8 +424,10 @@ pub(crate) fn extract(
     let level = white_level.unwrap_or(frame_max);
     for (p, _) in patches.iter_mut() {
         let m = p.rgb[0].max(p.rgb[1]).max(p.rgb[2]);
-        if m < opts.dark_fraction * level || p.rgb.iter().any(|&v| v <= 0.0) {
+        if m < opts.dark_fraction * level {
             p.flags.push(Flag::Dark);
+        } else if p.rgb.iter().any(|&v| v <= 0.0) {
+            p.flags.push(Flag::ClippedBlack);
         }
     }
     let patches: Vec<PatchReading> = patches.into_iter().map(|(p, _)| p).collect();

@@ -30,6 +30,7 @@
 
 pub(crate) mod capture;
 pub(crate) mod detect;
+pub(crate) mod diagnose;
 pub(crate) mod extract;
 pub(crate) mod flat;
 pub(crate) mod overlay;

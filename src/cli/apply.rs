@@ -1,4 +1,4 @@
-//! `nsrm apply`: batch colour correction of linear camera-raw EXR/TIFF frames.
+//! `nsrm apply`: batch colour correction of camera raw files and linear EXR/TIFF frames.
 //!
 //! Pipeline: `--jobs` decode workers → one correction stage (the GPU engine, or the multi-threaded
 //! fast CPU path) → `--jobs` encode workers, joined by bounded channels so decoding, correcting
@@ -112,7 +112,8 @@ pub(crate) struct Args {
     /// no other nsrm is writing there.
     #[arg(long)]
     remove_stale_temporaries: bool,
-    /// Files, directories (their .exr/.tif/.tiff files) or glob patterns ('shots/*.exr').
+    /// Files (camera raw: DNG, CR2, CR3, NEF, ARW, …; linear EXR or TIFF), directories (their
+    /// .exr/.tif/.tiff files) or glob patterns ('shots/*.exr').
     #[arg(required = true, value_name = "INPUT")]
     inputs: Vec<PathBuf>,
 }

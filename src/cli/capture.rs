@@ -307,7 +307,8 @@ pub(crate) fn write_overlay(
 }
 
 /// `--capture FRAME` with its chart options, for `fit` and `eval`: the read capture, or `None`
-/// without `--capture` (then no chart option may be given).
+/// without `--capture` (then no chart option may be given). The caller prints the reading's
+/// [`CaptureText::summary`] (once).
 pub(crate) fn for_model(capture: Option<&Path>, o: &CaptureOptions) -> Result<Option<Capture>> {
     match capture {
         None if o.any() => Err(UsageError(
@@ -317,10 +318,9 @@ pub(crate) fn for_model(capture: Option<&Path>, o: &CaptureOptions) -> Result<Op
         None => Ok(None),
         Some(p) => {
             let cap = o.read(p, None)?;
-            eprintln!("{}", cap.summary());
             if cap.transfer().display_referred() {
                 eprintln!(
-                    "warning: {} is display-referred ({}): its values carry the camera's tone curve and saturation, so a model fitted from them maps display values, not light; use a raw, linear EXR or 16-bit linear TIFF capture for a calibration",
+                    "warning: {} is read as {}: its values carry the camera's tone curve and saturation, so a model fitted from them maps display values, not light; use a raw, linear EXR or 16-bit linear TIFF capture for a calibration",
                     p.display(),
                     cap.transfer().describe()
                 );

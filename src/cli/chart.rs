@@ -16,7 +16,8 @@ use std::time::Instant;
 
 #[derive(Debug, clap::Subcommand)]
 pub(crate) enum Command {
-    /// Read the patches of a chart in a linear frame and write them as `label,R,G,B,X,Y,Z`
+    /// Read the patches of a chart in a frame (camera raw, linear EXR/TIFF, or a JPEG/PNG) and
+    /// write them as `label,R,G,B,X,Y,Z`
     /// (the format `--training` reads; flagged patches are left out with a warning).
     Extract(ExtractArgs),
     /// Detection rate (and time) over seeded synthetic scenes inside the detection envelope.
@@ -48,8 +49,8 @@ pub(crate) struct TimeArgs {
 
 #[derive(Debug, clap::Args)]
 pub(crate) struct ExtractArgs {
-    /// The frame: a linear camera-raw EXR or TIFF, or a display-referred JPEG, PNG or 8-bit
-    /// TIFF (see --encoding).
+    /// The frame: a camera raw file (DNG, CR2, CR3, NEF, ARW, …), a linear EXR or TIFF, or a
+    /// display-referred JPEG, PNG or 8-bit TIFF (see --encoding).
     #[arg(value_name = "FRAME")]
     frame: PathBuf,
     #[command(flatten)]

@@ -50,7 +50,8 @@ pub(crate) struct Args {
     /// Replace an existing plot file.
     #[arg(long)]
     overwrite: bool,
-    /// Evaluate on the chart photographed in this linear frame (EXR/TIFF): see `nsrm chart
+    /// Evaluate on the chart photographed in this frame (camera raw: DNG, CR2, CR3, NEF, ARW, …;
+    /// linear EXR or TIFF; or a display-referred JPEG, PNG or 8-bit TIFF): see `nsrm chart
     /// extract` for the chart options.
     #[arg(long, value_name = "FRAME", conflicts_with_all = ["training", "camera", "reflectances", "grid", "illuminants"])]
     capture: Option<PathBuf>,
@@ -163,6 +164,15 @@ pub(crate) fn run(a: Args) -> Result<ExitCode> {
             None => a.training.load(ill)?,
         };
         n_patches = data.len();
+        // `--white-patch` may name the patch by its number or name: the label it names.
+        let custom = a.fit.resolved(&custom, &data.labels)?;
+        let white_patch = a
+            .fit
+            .white_patch
+            .as_deref()
+            .map(|w| crate::training::resolve_patch(&data.labels, w))
+            .transpose()
+            .context("--white-patch")?;
         let ill_name = if a.training.training.is_some() || captured.is_some() {
             ill.clone()
         } else {
@@ -176,7 +186,7 @@ pub(crate) fn run(a: Args) -> Result<ExitCode> {
                     continue;
                 }
                 done.push(eff);
-                let white_patch = a.fit.white_patch.as_deref();
+                let white_patch = white_patch.as_deref();
                 let list = if a.variants {
                     variant_fits(kind, white_patch)
                 } else {
@@ -202,7 +212,8 @@ pub(crate) fn run(a: Args) -> Result<ExitCode> {
         }
     }
     if a.json {
-        print_json(&a, protocol, captured.as_ref(), n_patches, &results)?;
+        let out = json_report(&a, protocol, captured.as_ref(), n_patches, &results);
+        println!("{}", serde_json::to_string_pretty(&out)?);
     } else if a.variants {
         print_variants(&a, protocol, n_patches, &results);
     } else {
@@ -225,26 +236,33 @@ pub(crate) fn run(a: Args) -> Result<ExitCode> {
     Ok(ExitCode::SUCCESS)
 }
 
-/// `--json`: one object with the source, the protocol and the `results` array.
-fn print_json(
+/// `--json`'s object: the protocol, where the patches came from (a capture's camera and
+/// reference, else the simulated camera and reflectances or the measured file) and the results.
+fn json_report(
     a: &Args,
     protocol: Protocol,
-    captured: Option<&crate::chart::capture::Capture>,
+    captured: Option<&super::capture::Capture>,
     n_patches: usize,
     results: &[VariantResult],
-) -> Result<()> {
-    let out = serde_json::json!({
+) -> serde_json::Value {
+    serde_json::json!({
         "protocol": match protocol { Protocol::LeaveOneOut => "leave-one-out", Protocol::InSample => "in-sample" },
-        "camera": if a.training.training.is_some() { None } else { Some(&a.training.camera) },
-        "reflectances": a.training.training.as_ref().map(|p| p.display().to_string()).unwrap_or_else(|| a.training.reflectances.clone()),
+        "camera": match captured {
+            Some(c) => c.camera(),
+            None if a.training.training.is_some() => None,
+            None => Some(a.training.camera.clone()),
+        },
+        "reflectances": match (captured, &a.training.training) {
+            (Some(c), _) => c.reference.name.clone(),
+            (None, Some(p)) => p.display().to_string(),
+            (None, None) => a.training.reflectances.clone(),
+        },
         "capture": captured.map(|c| c.provenance()),
         "patches": a.training.patches,
         "n_patches": n_patches,
         "grid": a.training.grid,
         "results": results,
-    });
-    println!("{}", serde_json::to_string_pretty(&out)?);
-    Ok(())
+    })
 }
 
 /// The illuminants evaluated: the capture's, the measured file's white (or `measured`), those
@@ -599,7 +617,7 @@ fn print_table(a: &Args, protocol: Protocol, n: usize, results: &[EvalResult]) {
             of_ill
                 .iter()
                 .min_by(|x, y| f(x).total_cmp(&f(y)))
-                .map(|r| format!("{}{}", r.model.to_uppercase(), r.order))
+                .map(|r| model_label(r))
                 .unwrap_or_default()
         };
         if of_ill.len() > 1 {

@@ -85,12 +85,11 @@ fn training_set(a: &Args, model: &Model) -> Result<TrainingSet> {
         return super::common::read_measured(path, a.white.get()?);
     }
     let p = model.provenance();
+    if let Some(t) = TrainingSet::recorded(p, model.patches()) {
+        return Ok(t);
+    }
     let (Some(camera), Some(ill), Some(refl)) = (&p.camera, &p.illuminant, &p.reflectances) else {
-        return Err(UsageError(format!(
-            "{}: the model's provenance names no spectra to re-simulate its training patches from; pass --training FILE",
-            a.model.display()
-        ))
-        .into());
+        return Err(UsageError(no_training_message(&a.model, p)).into());
     };
     let strip = |s: &str| s.strip_prefix("builtin:").unwrap_or(s).to_string();
     let grid = crate::spectral::Grid::parse(p.grid.as_deref().unwrap_or("400:700:10"))?;
@@ -107,6 +106,25 @@ fn training_set(a: &Args, model: &Model) -> Result<TrainingSet> {
         ));
     }
     Ok(data)
+}
+
+/// What to do when a model file neither carries its training patches nor names spectra to
+/// re-simulate them from: the file to pass and the command that writes it.
+fn no_training_message(model: &std::path::Path, p: &crate::Provenance) -> String {
+    match &p.capture {
+        Some(c) => format!(
+            "{}: the model was fitted on the chart in {} but its file does not carry the patches (written before models did); pass --training PATCHES.csv, the file `nsrm chart extract {} --chart {} -o PATCHES.csv` writes (or re-fit with `nsrm calibrate {} -o DIR`, whose model carries them)",
+            model.display(),
+            c.frame,
+            c.frame,
+            c.chart,
+            c.frame
+        ),
+        None => format!(
+            "{}: the model's provenance names no spectra to re-simulate its training patches from; pass --training FILE, the measured patches CSV it was fitted on (`nsrm chart extract FRAME --chart cc24 -o FILE` writes one from a chart photograph)",
+            model.display()
+        ),
+    }
 }
 
 fn parse_map(s: &str) -> Result<crate::export::dcp::DcpOptions> {

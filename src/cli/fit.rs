@@ -36,8 +36,9 @@ pub(crate) struct Args {
     /// Replace an existing output file.
     #[arg(long)]
     overwrite: bool,
-    /// Fit on the chart photographed in this frame (raw, EXR, TIFF) instead: see `nsrm chart
-    /// extract` for the chart options. Twice, each with its `--illuminant` (e.g. `--capture
+    /// Fit on the chart photographed in this frame instead (camera raw: DNG, CR2, CR3, NEF,
+    /// ARW, …; linear EXR or TIFF; or a display-referred JPEG, PNG or 8-bit TIFF): see `nsrm
+    /// chart extract` for the chart options. Twice, each with its `--illuminant` (e.g. `--capture
     /// a.dng --illuminant A --capture d65.dng --illuminant D65`): a two-illuminant model file.
     #[arg(long, value_name = "FRAME", conflicts_with_all = ["training", "camera", "reflectances", "grid"], action = clap::ArgAction::Append)]
     capture: Vec<PathBuf>,
@@ -63,10 +64,10 @@ fn f32_summary(report: &crate::model::fit::FitReport) -> String {
     match &report.f32_guard {
         Some(c) => format!(
             "{head}; the fit at λ {} moved it by {:.3} ΔE00 (> {tol}): f32 guard raised the ridge λ {} → {}, in-sample ΔE00 mean / max {:.3} / {:.3} → {:.3} / {:.3}",
-            c.lambda_before,
+            fmt_lambda(c.lambda_before),
             c.f32_error_before,
-            c.lambda_before,
-            report.ridge_lambda,
+            fmt_lambda(c.lambda_before),
+            fmt_lambda(report.ridge_lambda),
             c.de00_mean_before,
             c.de00_max_before,
             c.de00_mean_after,
@@ -112,6 +113,7 @@ pub(crate) fn run(a: Args) -> Result<ExitCode> {
     let sets = training_sets(&a, &illuminants)?;
     let mut fits = Vec::new();
     for (data, _, source) in &sets {
+        let opts = a.fit.resolved(&opts, &data.labels)?;
         let fitted = fit_with(kind, a.order, data, &opts).with_context(|| {
             format!(
                 "fitting {kind} order {} on {} patches{source}",
@@ -217,6 +219,7 @@ fn training_sets(
     } else {
         for (i, f) in a.capture.iter().enumerate() {
             let c = super::capture::for_model(Some(f), &a.chart)?.expect("a capture was given");
+            eprintln!("{}", c.summary());
             if let Some(w) = c.other_chart_warning() {
                 eprintln!("{w}");
             }
@@ -226,6 +229,8 @@ fn training_sets(
                 data = under_light(data, ill, &a.training)?;
                 source.push_str(&format!(" (reference adapted to {ill})"));
             }
+            // The model file carries the patches it was fitted on: `nsrm export` needs no CSV.
+            data.record_patches();
             sets.push((data, Some(c), source));
         }
     }
@@ -252,6 +257,18 @@ fn under_light(
     }
     data.white_xyz = dst;
     Ok(data)
+}
+
+/// A ridge λ as people write it: `0`, `0.25`, or `1.778e-7` (four significant digits).
+pub(crate) fn fmt_lambda(v: f64) -> String {
+    if v == 0.0 || !v.is_finite() {
+        format!("{v}")
+    } else if (1e-3..1e4).contains(&v.abs()) {
+        let s = format!("{v:.4}");
+        s.trim_end_matches('0').trim_end_matches('.').to_string()
+    } else {
+        format!("{v:.3e}")
+    }
 }
 
 /// What `fit` prints about one fitted model.
@@ -284,7 +301,7 @@ fn report(fitted: &crate::model::fit::Fit, data: &crate::TrainingSet, source: &s
         "objective {}, preserve white {}, ridge λ {}{}, normalise {}; coefficient norm {:.4e}, design condition number {cond}; in-sample ΔE00 mean {mean:.3}, max {max:.3}{}",
         report.objective,
         report.preserve_white,
-        report.ridge_lambda,
+        fmt_lambda(report.ridge_lambda),
         match report.ridge_criterion.as_deref() {
             Some("loo") => " (leave-one-out)",
             Some(_) => " (GCV)",
@@ -333,6 +350,16 @@ mod tests {
             .into_iter()
             .chain(extra.iter().copied());
         Fit::try_parse_from(argv).unwrap().a
+    }
+
+    /// The ridge λ is printed as people write it (issue 36: `0.00000017782794100389227`).
+    #[test]
+    fn lambda_is_printed_sensibly() {
+        assert_eq!(fmt_lambda(0.000_000_177_827_941_003_892_27), "1.778e-7");
+        assert_eq!(fmt_lambda(0.0), "0");
+        assert_eq!(fmt_lambda(0.25), "0.25");
+        assert_eq!(fmt_lambda(10.0), "10");
+        assert_eq!(fmt_lambda(3.0e5), "3.000e5");
     }
 
     #[test]

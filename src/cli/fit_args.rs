@@ -19,7 +19,8 @@ pub(crate) struct FitVariantArgs {
     pub(crate) preserve_white: bool,
     /// A neutral training patch to use as the white (for `--preserve-white` and
     /// `--normalise white-balanced`); needed with measured data, which has no perfect white.
-    #[arg(long, value_name = "LABEL")]
+    /// Its full label (`"19 white 9.5"`), its number (`19`) or its name (`white`).
+    #[arg(long, value_name = "LABEL|NUMBER|NAME")]
     pub(crate) white_patch: Option<String>,
     /// Tikhonov regularisation of the matrix on standardised terms: λ ≥ 0, `auto` (λ chosen by
     /// generalised cross-validation on a log grid 1e-12..10; also `auto-gcv`) or `auto-loo` (by
@@ -67,6 +68,17 @@ impl FitVariantArgs {
         self.ridge
             .as_deref()
             .is_some_and(|s| Ridge::parse(s).is_ok_and(|r| r == Ridge::None))
+    }
+
+    /// `opts` with `--white-patch` resolved to the full label of one of `labels` (it may name
+    /// the patch by its number or name).
+    pub(crate) fn resolved(&self, opts: &FitOptions, labels: &[String]) -> Result<FitOptions> {
+        let mut o = opts.clone();
+        if let White::Patch(spec) = &opts.white {
+            let l = crate::training::resolve_patch(labels, spec).context("--white-patch")?;
+            o.white = White::Patch(l);
+        }
+        Ok(o)
     }
 
     /// The fit in a few words: `least squares` (the paper's), or the objective and options.

@@ -45,6 +45,8 @@ pub(crate) fn say(err: bool, args: std::fmt::Arguments<'_>) {
 mod apply;
 mod bench;
 mod bench_aids;
+mod calibrate;
+mod calibrate_report;
 mod capture;
 mod chart;
 mod combine;
@@ -80,11 +82,17 @@ struct Cli {
 
 #[derive(Debug, Subcommand)]
 enum Command {
-    /// Colour-correct linear camera-raw EXR/TIFF frames with a model file (batch, GPU or CPU).
+    /// Colour-correct frames with a model file (batch, GPU or CPU): camera raw files (DNG, CR2,
+    /// CR3, NEF, ARW, RAF, ORF, RW2, …) and linear EXR or TIFF.
     Apply(apply::Args),
     /// Per-pixel throughput of each model on the CPU (one thread, all threads) and the GPU, as a
     /// fraction of a memcpy of the same bytes.
     Bench(bench::Args),
+    /// One chart shot to a calibrated result: `nsrm calibrate SHOT -o DIR` finds and reads the
+    /// chart, diagnoses the shot, fits (the best by leave-one-out, or --kind), and writes the
+    /// model, the patches, the overlay and a report (text and HTML); --export dcp,icc,… adds
+    /// the profiles.
+    Calibrate(calibrate::Args),
     /// Read a photographed chart: `nsrm chart extract FRAME --chart cc24|sg -o patches.csv`;
     /// `nsrm chart rate` measures detection on synthetic scenes.
     #[command(subcommand)]
@@ -159,6 +167,7 @@ pub fn main() -> ExitCode {
     let result = match cli.command {
         Command::Apply(a) => apply::run(a),
         Command::Bench(a) => bench::run(a),
+        Command::Calibrate(a) => calibrate::run(a),
         Command::Chart(c) => chart::run(c),
         Command::Combine(a) => combine::run(a),
         Command::Eval(a) => eval::run(a),
@@ -235,6 +244,38 @@ mod tests {
             }
         }
         assert!(missing.is_empty(), "flags without help text: {missing:?}");
+    }
+
+    /// The help of every command that reads frames names every input type it accepts (issue 36:
+    /// `apply` said EXR/TIFF, `eval --capture` "linear frame (EXR/TIFF)", though both read raw).
+    #[test]
+    fn help_texts_name_every_input_type() {
+        let mut cli = Cli::command();
+        for (path, jpeg) in [
+            (&["apply"][..], false),
+            (&["fit"], true),
+            (&["eval"], true),
+            (&["chart", "extract"], true),
+            (&["calibrate"], true),
+        ] {
+            let mut c = &mut cli;
+            for p in path {
+                c = c.find_subcommand_mut(p).expect("a subcommand");
+            }
+            let help = c.render_long_help().to_string();
+            let mut want = vec!["raw", "DNG", "EXR", "TIFF"];
+            if jpeg {
+                want.push("JPEG");
+            }
+            for w in want {
+                assert!(
+                    help.contains(w),
+                    "nsrm {} --help does not say {w}",
+                    path.join(" ")
+                );
+            }
+            assert!(!help.contains("linear frame (EXR/TIFF)"), "{help}");
+        }
     }
 
     /// One vocabulary: `--model` is a model file wherever it appears (the kind is `--kind`), and

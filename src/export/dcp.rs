@@ -105,6 +105,53 @@ pub(crate) fn light_source_for(cct: f64) -> Result<(u16, &'static str, f64), Exp
     Ok(best)
 }
 
+/// EXIF LightSource "Other" (DNG 1.6): the light is given by its IlluminantData tag.
+pub(crate) const OTHER_LIGHT: u16 = 255;
+
+/// The light a calibration is named by in the DCP.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(crate) struct NamedLight {
+    /// EXIF LightSource (CalibrationIlluminant).
+    pub code: u16,
+    /// The chromaticity written as IlluminantData (for [`OTHER_LIGHT`] only).
+    pub xy: Option<[f64; 2]>,
+    /// The temperature a DNG reader gives it (K).
+    pub cct: f64,
+}
+
+/// The light a single model fitted on a chart capture was shot under (its provenance's
+/// estimate from the chart's neutrals), when its reference was not adapted to a named light.
+fn captured_light(profile: &Profile) -> Option<([f64; 2], f64)> {
+    if profile.is_dual() {
+        return None;
+    }
+    let p = profile.models()[0].provenance();
+    let c = p.capture.as_ref()?;
+    match (p.illuminant.as_ref(), c.light_xy, c.light_cct) {
+        (None, Some(xy), Some(t)) if t.is_finite() && t > 0.0 => Some((xy, t)),
+        _ => None,
+    }
+}
+
+/// The light naming calibration `cal`: the capture's light for a model fitted on a chart shot
+/// (else the model's own white); a standard light source when within
+/// [`NAME_TOLERANCE_MIRED`] of one, else DNG 1.6's Other with its chromaticity.
+fn calibration_light(profile: &Profile, cal: &Calibration) -> NamedLight {
+    let (xy, cct) = captured_light(profile).unwrap_or((cal.xy, cal.cct));
+    match light_source_for(cct) {
+        Ok((code, _, named)) => NamedLight {
+            code,
+            xy: None,
+            cct: named,
+        },
+        Err(_) => NamedLight {
+            code: OTHER_LIGHT,
+            xy: Some(xy),
+            cct,
+        },
+    }
+}
+
 /// One entry of a hue/saturation map: hue shift (degrees), saturation scale, value scale.
 pub(crate) type HsmEntry = [f32; 3];
 
@@ -113,6 +160,8 @@ pub(crate) type HsmEntry = [f32; 3];
 pub(crate) struct DcpSide {
     /// EXIF LightSource.
     pub illuminant: u16,
+    /// The light's chromaticity, written as IlluminantData when `illuminant` is Other.
+    pub illuminant_xy: Option<[f64; 2]>,
     /// ColorMatrix: XYZ → camera RGB (DNG convention).
     pub color_matrix: Mat3,
     /// ForwardMatrix: white-balanced camera RGB → XYZ D50.
@@ -474,7 +523,11 @@ pub(crate) fn build(
         let one = Mix {
             parts: vec![(1.0, *t)],
         };
-        let (fm, cm) = matrices(&one, training_rgb, cal.white_rgb, t.part.white_xyz())?;
+        // A chart capture's ColorMatrix sends the light it was shot under to its neutral.
+        let light_white = captured_light(profile).map_or(t.part.white_xyz(), |(xy, _)| {
+            spaces::xy_to_xyz(xy).map(|v| v * t.part.white_xyz()[1])
+        });
+        let (fm, cm) = matrices(&one, training_rgb, cal.white_rgb, light_white)?;
         forward.push(fm);
         colour.push(cm);
     }
@@ -554,8 +607,8 @@ fn side(
     opts: DcpOptions,
 ) -> Result<DcpSide, ExportError> {
     let d50 = d50();
-    let (ls, _, named) = light_source_for(cal.cct)?;
-    let weights = mix_weights(profile, named);
+    let light = calibration_light(profile, cal);
+    let weights = mix_weights(profile, light.cct);
     let mix = Mix {
         parts: targets
             .iter()
@@ -589,7 +642,8 @@ fn side(
     let cm = quantise(&cm, None);
     let hsm = hue_sat_map(&mix, &fm, opts);
     Ok(DcpSide {
-        illuminant: ls,
+        illuminant: light.code,
+        illuminant_xy: light.xy,
         color_matrix: cm,
         forward_matrix: fm,
         hue_sat_map: hsm,
@@ -601,16 +655,22 @@ fn side(
 fn profile_names(profile: &Profile) -> (String, String, String) {
     let m0 = &profile.models()[0];
     let p = m0.provenance();
+    // A capture's camera as the raw file names it (rawler's normalised make and model, Adobe's
+    // spelling), else the simulated camera's name.
     let camera = p
-        .camera
-        .as_deref()
-        .map(crate::spectral::display_name)
+        .capture
+        .as_ref()
+        .and_then(|c| c.camera.clone())
+        .or_else(|| p.camera.as_deref().map(crate::spectral::display_name))
         .unwrap_or_else(|| "camera".into());
-    let lights: Vec<String> = profile
-        .calibrations()
-        .iter()
-        .map(|c| format!("{:.0}K", c.cct))
-        .collect();
+    let lights: Vec<String> = match captured_light(profile) {
+        Some((_, t)) => vec![format!("{t:.0}K chart light")],
+        None => profile
+            .calibrations()
+            .iter()
+            .map(|c| format!("{:.0}K", c.cct))
+            .collect(),
+    };
     let name = format!(
         "nsrm {}{} {} {}",
         m0.kind(),
@@ -669,6 +729,18 @@ fn matrices(
     Ok((fm, cm.map(|r| r.map(|v| v / mx))))
 }
 
+/// DNG 1.6 IlluminantData of a chromaticity: type 0 (x, y), then x and y as URATIONALs.
+fn illuminant_data(xy: [f64; 2]) -> Vec<u8> {
+    let mut v = 0u16.to_le_bytes().to_vec();
+    for c in xy {
+        let den = 1_000_000u32;
+        let num = (c.clamp(0.0, 1.0) * f64::from(den)).round() as u32;
+        v.extend_from_slice(&num.to_le_bytes());
+        v.extend_from_slice(&den.to_le_bytes());
+    }
+    v
+}
+
 fn ascii(s: &str) -> String {
     s.chars()
         .map(|c| {
@@ -691,6 +763,7 @@ impl Dcp {
                     .iter()
                     .find(|l| l.0 == s.illuminant)
                     .map(|l| l.2)
+                    .or_else(|| s.illuminant_xy.and_then(|xy| temperature::cct(xy).ok()))
                     .unwrap_or(5000.0)
             })
             .collect()
@@ -842,6 +915,9 @@ impl Dcp {
                 floats(&s.hue_sat_map),
             ));
             entries.push((50964 + i, 10, 9, srat(&s.forward_matrix)));
+            if let Some(xy) = s.illuminant_xy.filter(|_| s.illuminant == OTHER_LIGHT) {
+                entries.push((52533 + i, 7, 18, illuminant_data(xy)));
+            }
         }
         entries.push((
             50936,
@@ -1089,8 +1165,21 @@ impl<'a> DcpTags<'a> {
             }
             None => Vec::new(),
         };
+        let illuminant_xy = self
+            .0
+            .get(&(52533 + i))
+            .filter(|(typ, _, d)| *typ == 7 && d.len() >= 18 && d[0..2] == [0, 0])
+            .map(|(_, _, d)| {
+                let r = |o: usize| {
+                    let n = u32::from_le_bytes([d[o], d[o + 1], d[o + 2], d[o + 3]]);
+                    let q = u32::from_le_bytes([d[o + 4], d[o + 5], d[o + 6], d[o + 7]]);
+                    f64::from(n) / f64::from(q.max(1))
+                };
+                [r(2), r(10)]
+            });
         Ok(Some(DcpSide {
             illuminant: ill,
+            illuminant_xy,
             color_matrix: cm,
             forward_matrix: fm,
             hue_sat_map: map,
@@ -1331,7 +1420,11 @@ pub fn export_to(
                     .iter()
                     .find(|l| l.0 == s.illuminant)
                     .map(|l| l.1)
-                    .unwrap_or("?")
+                    .unwrap_or(if s.illuminant == OTHER_LIGHT {
+                        "Other (IlluminantData)"
+                    } else {
+                        "?"
+                    })
             })
             .collect(),
         hue_divisions: dcp.hue_divisions,
@@ -1449,14 +1542,43 @@ mod tests {
         )
         .unwrap_err();
         assert!(e.to_string().contains("exposure-invariant"), "{e}");
+        // A light no EXIF light source names (4000 K, 20 mired from the nearest) is written as
+        // DNG 1.6's Other with its chromaticity in IlluminantData (issue 36: it was refused).
         let (m4, d4) = fitted(Kind::Nsrm, "P4000");
-        let e = build(
+        let cal = Calibration::of(&m4).unwrap();
+        let dcp = build(
             &Profile::single(m4).unwrap(),
             &[d4.rgb.as_slice()],
             DcpOptions::default(),
         )
-        .unwrap_err();
-        assert!(e.to_string().contains("not one a DCP can name"), "{e}");
+        .unwrap();
+        assert_eq!(dcp.sides[0].illuminant, OTHER_LIGHT);
+        let back = Dcp::parse(&dcp.to_bytes()).unwrap();
+        let xy = back.sides[0]
+            .illuminant_xy
+            .expect("IlluminantData1 read back");
+        assert!((xy[0] - cal.xy[0]).abs() < 1e-6 && (xy[1] - cal.xy[1]).abs() < 1e-6);
+        assert!(
+            (back.temperatures()[0] - cal.cct).abs() < 1.0,
+            "{:?}",
+            back.temperatures()
+        );
+        // A light near a standard one is named by it, with no IlluminantData.
+        assert!(dcp_tags_have_no_illuminant_data(
+            &build(
+                &p,
+                &[da.rgb.as_slice(), db.rgb.as_slice()],
+                DcpOptions::default()
+            )
+            .unwrap()
+        ));
+    }
+
+    fn dcp_tags_have_no_illuminant_data(d: &Dcp) -> bool {
+        let back = Dcp::parse(&d.to_bytes()).unwrap();
+        back.sides
+            .iter()
+            .all(|s| s.illuminant_xy.is_none() && s.illuminant != OTHER_LIGHT)
     }
 
     #[test]

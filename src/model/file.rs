@@ -103,7 +103,7 @@ impl Model {
                 } else {
                     "linear camera RGB, not white-balanced; the model multiplies R, G, B by `gains` (the training white's response becomes 1, 1, 1) before the terms".into()
                 },
-                camera_scale: "the training exposure: the camera response the model maps to reference_white (the training white; G = 1 for spectral simulations, the chart white's raw level for a capture) is what apply writes at Y = 1, with or without a frame white".into(),
+                camera_scale: camera_scale(&self.provenance),
                 gains: (!unit).then_some(self.input_gains),
             },
             output: Output {
@@ -231,6 +231,20 @@ impl Model {
         })?;
         Model::from_json(&text, &origin)
     }
+}
+
+/// The `camera_scale` line: simulated data's perfect white has G = 1; a capture's camera RGB
+/// is as recorded, its perfect white at the G its neutral patches imply.
+fn camera_scale(p: &Provenance) -> String {
+    let what = match &p.capture {
+        Some(c) if c.white_g.is_finite() => format!(
+            "camera RGB as recorded in the capture: the perfect white under its light has G = {:.6} (from the neutral patches)",
+            c.white_g
+        ),
+        Some(_) => "camera RGB as recorded in the capture".into(),
+        None => "the perfect white under the training illuminant has G = 1".into(),
+    };
+    format!("{what}; that response (the training white at the training exposure) is what apply writes at Y = 1, with or without a frame white")
 }
 
 /// For each term of `want`, the index of the same-named term in `file`; `None` unless `file` is a

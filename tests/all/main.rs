@@ -5,6 +5,8 @@
 mod apply;
 mod architecture;
 #[cfg(feature = "cli")]
+mod calibrate;
+#[cfg(feature = "cli")]
 mod capture_lib;
 #[cfg(feature = "cli")]
 mod chart_real;

@@ -137,18 +137,6 @@ fn dcp_export_and_refusals() {
             vec![
                 "export",
                 "--model",
-                "p4000.json",
-                "--format",
-                "dcp",
-                "-o",
-                "bad.dcp",
-            ],
-            "not one a DCP can name",
-        ),
-        (
-            vec![
-                "export",
-                "--model",
                 "d65.json",
                 "--format",
                 "dcp",
@@ -179,6 +167,30 @@ fn dcp_export_and_refusals() {
             assert!(!dir.join(f).exists(), "{args:?} wrote {f}");
         }
     }
+    // A light no EXIF light source names (4000 K) was refused; since issue 36 it is written as
+    // DNG 1.6's Other (255) with its chromaticity in IlluminantData1.
+    nsrm_ok(
+        &dir,
+        &[
+            "export",
+            "--model",
+            "p4000.json",
+            "--format",
+            "dcp",
+            "-o",
+            "p4000.dcp",
+        ],
+    );
+    let bytes = std::fs::read(dir.join("p4000.dcp")).unwrap();
+    let tag = |t: u16| {
+        bytes
+            .windows(4)
+            .any(|w| w[..2] == t.to_le_bytes() && w[2..] == [7, 0])
+    };
+    assert!(
+        tag(52533),
+        "no IlluminantData1 (tag 52533, UNDEFINED) in p4000.dcp"
+    );
     if !have("exiftool") {
         return skip("exiftool is not installed (Debian libimage-exiftool-perl)");
     }

@@ -200,7 +200,20 @@ fn camera_info(
         orientation: image.orientation.to_u16(),
         cfa,
         demosaic: demosaic.name().to_string(),
+        color_matrices: color_matrices(image),
     }
+}
+
+/// The raw file's 3×3 colour matrices with their light sources, by light source.
+fn color_matrices(image: &rawler::RawImage) -> Vec<(u16, [f64; 9])> {
+    let mut v: Vec<(u16, [f64; 9])> = image
+        .color_matrix
+        .iter()
+        .filter(|(_, m)| m.len() == 9 && m.iter().all(|x| x.is_finite()))
+        .map(|(ill, m)| (*ill as u16, std::array::from_fn(|i| f64::from(m[i]))))
+        .collect();
+    v.sort_by_key(|e| e.0);
+    v
 }
 
 /// The rectangle of the raw image that is kept: the default crop (or active area), clamped to

@@ -129,6 +129,10 @@ pub(crate) struct CameraInfo {
     /// The demosaic the frame was made with.
     #[serde(default)]
     pub demosaic: String,
+    /// The file's colour matrices (XYZ → camera RGB, row-major), each with the EXIF light
+    /// source it is for (17 A, 21 D65, …): what the DNG pipeline finds a neutral's light with.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub color_matrices: Vec<(u16, [f64; 9])>,
 }
 
 impl CameraInfo {

@@ -107,6 +107,20 @@ fn describe(name: &str, opts: &FitOptions, r: EvalResult) -> VariantResult {
     }
 }
 
+/// The output session: every file read (the capture, the chart's files, the spectra or patches)
+/// and the plot written, resolved before any work.
+fn open_session(a: &Args) -> Result<crate::output::Session> {
+    let mut inputs: Vec<&Path> = Vec::new();
+    inputs.extend(a.capture.as_deref());
+    inputs.extend(a.chart.input_files());
+    for ill in &a.illuminants {
+        inputs.extend(a.training.input_files(ill));
+    }
+    inputs.extend(a.training.input_files("D65"));
+    let outputs: Vec<&Path> = a.plot.iter().map(PathBuf::as_path).collect();
+    super::outputs::open(a.overwrite, &inputs, &outputs)
+}
+
 pub(crate) fn run(a: Args) -> Result<ExitCode> {
     let kinds = parse_models(&a.kinds)?;
     let orders = match &a.orders {
@@ -116,15 +130,7 @@ pub(crate) fn run(a: Args) -> Result<ExitCode> {
     if let Some(p) = &a.plot {
         plot::Format::from_path(p)?;
     }
-    let mut inputs: Vec<&Path> = Vec::new();
-    inputs.extend(a.capture.as_deref());
-    inputs.extend(a.chart.input_files());
-    for ill in &a.illuminants {
-        inputs.extend(a.training.input_files(ill));
-    }
-    inputs.extend(a.training.input_files("D65"));
-    let outputs: Vec<&Path> = a.plot.iter().map(PathBuf::as_path).collect();
-    let session = super::outputs::open(a.overwrite, &inputs, &outputs)?;
+    let session = open_session(&a)?;
     let captured = super::capture::for_model(a.capture.as_deref(), &a.chart)?;
     if let Some(c) = &captured {
         if let Some(w) = c.other_chart_warning() {

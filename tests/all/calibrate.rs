@@ -410,7 +410,11 @@ fn eval_and_fit_on_a_capture_say_things_once_and_right() {
     let err = stderr(&o);
     assert_eq!(err.matches("cc24 chart found").count(), 1, "{err}");
     let out = String::from_utf8_lossy(&o.stdout);
-    let last = out.lines().last().unwrap_or("");
+    // The summary line (the f32 notes, when any, come after it).
+    let last = out
+        .lines()
+        .find(|l| l.contains("smallest mean"))
+        .unwrap_or("");
     assert!(!last.contains("LRM1") && last.contains("LRM"), "{out}");
     let o = nsrm_ok(
         &work,

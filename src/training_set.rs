@@ -131,6 +131,7 @@ impl TrainingSet {
         }
     }
 
+    #[cfg(feature = "cli")]
     /// The training set a model file carries (see [`TrainingSet::record_patches`]): `None`
     /// unless its capture provenance holds one patch per label.
     pub(crate) fn recorded(provenance: &Provenance, labels: &[String]) -> Option<TrainingSet> {

@@ -27,7 +27,6 @@ pub(crate) enum TemperatureError {
 
 /// The range of temperatures handled, in kelvin (Robertson's table spans 1667 K to infinity; CIE
 /// daylight is defined from 4000 K to 25000 K).
-#[cfg(any(feature = "export", test))]
 pub(crate) const MIN_CCT: f64 = 1000.0;
 pub(crate) const MAX_CCT: f64 = 25000.0;
 /// Below this a bare temperature names a Planckian light, from it up CIE daylight.

@@ -219,7 +219,7 @@ fn white_sweep_near_d65_has_no_jump() {
             let parts: Vec<crate::Model> = c
                 .parts
                 .iter()
-                .map(|m| crate::model::output_model(m, OutputSpace::Xyz).unwrap())
+                .map(|m| crate::model::output::output_model(m, OutputSpace::Xyz).unwrap())
                 .collect();
             chart
                 .rgb

@@ -64,7 +64,7 @@ extern "C" fn print_skips() {
     let mut err = std::io::stderr().lock();
     let _ = writeln!(
         err,
-        "\nSKIPPED {} test(s) for a missing prerequisite (counted as passed above; under CI=true they fail; README, Tests, lists what to install):",
+        "\nSKIPPED {} test(s) for a missing prerequisite (counted as passed above; under CI=true they fail; docs/testing.md lists what to install):",
         skips.len()
     );
     for s in skips.iter() {

@@ -17,7 +17,7 @@ use std::sync::OnceLock;
 /// returns. (The integration tests' `common::skip` also counts the skipped tests.)
 pub fn skip_or_fail(reason: &str) {
     if std::env::var("CI").as_deref() == Ok("true") {
-        panic!("{reason} (a prerequisite of this test, required under CI=true; the README's Tests section lists them)");
+        panic!("{reason} (a prerequisite of this test, required under CI=true; docs/testing.md lists them)");
     }
     eprintln!("SKIP: {reason}");
 }

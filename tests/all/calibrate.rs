@@ -4,22 +4,11 @@
 //! camera's name, the light) and RawTherapee (it develops the DNG with it); the report page in
 //! headless Chromium (tests/browser/report.test.mjs); glare compensation on the real shot.
 
-use crate::common::{nsrm_in, nsrm_ok, skip, stderr, tempdir};
+use crate::common::{chart_dng, nsrm_in, nsrm_ok, skip, stderr, tempdir};
 use serde_json::Value;
 use std::path::{Path, PathBuf};
 use std::process::Command;
 use std::sync::OnceLock;
-
-fn chart_dng() -> PathBuf {
-    let p = PathBuf::from(concat!(
-        env!("CARGO_MANIFEST_DIR"),
-        "/../shared/data/colorchart.dng"
-    ));
-    match std::env::var_os("NSRM_SHARED") {
-        Some(s) if !p.exists() => PathBuf::from(s).join("data/colorchart.dng"),
-        _ => p,
-    }
-}
 
 fn have(tool: &str) -> bool {
     Command::new("sh")
@@ -299,18 +288,10 @@ fn the_report_renders_in_chromium_and_fetches_nothing() {
     let Some((dir, _)) = calibrated() else {
         return skip("../shared/data/colorchart.dng is absent");
     };
+    let Some(chromium) = crate::common::browser_prerequisites() else {
+        return;
+    };
     let root = Path::new(env!("CARGO_MANIFEST_DIR"));
-    let browser = root.join("tests/browser");
-    let chromium = std::env::var("NSRM_CHROMIUM").unwrap_or_else(|_| "/usr/bin/chromium".into());
-    if !have("node") {
-        return skip("node is not installed");
-    }
-    if !Path::new(&chromium).exists() {
-        return skip("chromium is not installed (apt-get install chromium)");
-    }
-    if !browser.join("node_modules/puppeteer-core").exists() {
-        return skip("tests/browser/node_modules is absent (npm ci in tests/browser)");
-    }
     // Nothing external in the file: the SVG namespace is the only URL.
     let html = std::fs::read_to_string(dir.join("report.html"))
         .unwrap()
@@ -319,26 +300,15 @@ fn the_report_renders_in_chromium_and_fetches_nothing() {
         assert!(!html.contains(external), "{external} in the report");
     }
     let out_dir = root.join("target/calibrate-report");
-    let work = tempdir("calibrate-browser");
-    let out = Command::new("node")
-        .arg("report.test.mjs")
-        .current_dir(&browser)
-        .env("NSRM_CHROMIUM", &chromium)
-        .env("REPORT_HTML", dir.join("report.html"))
-        .env("REPORT_OUT", &out_dir)
-        .env("HOME", &work)
-        .env("XDG_CONFIG_HOME", work.join("config"))
-        .env("XDG_CACHE_HOME", work.join("cache"))
-        .env("XDG_RUNTIME_DIR", &work)
-        .output()
-        .expect("running node");
-    let text = format!(
-        "{}\n{}",
-        String::from_utf8_lossy(&out.stdout),
-        String::from_utf8_lossy(&out.stderr)
+    crate::common::run_browser_script(
+        "report.test.mjs",
+        "calibrate-browser",
+        &chromium,
+        &[
+            ("REPORT_HTML", &dir.join("report.html")),
+            ("REPORT_OUT", &out_dir),
+        ],
     );
-    println!("{text}");
-    assert!(out.status.success(), "the report test failed:\n{text}");
     assert!(out_dir.join("report.png").exists());
 }
 

@@ -3,23 +3,12 @@
 //! flat frame, on an SG scene, and on the real raw frame `../shared/data/colorchart.dng`; and a
 //! reading taken again from the decoded frame equals a fresh one.
 
-use crate::common::{nsrm_ok, skip, tempdir};
+use crate::common::{chart_dng, nsrm_ok, skip, tempdir};
 use nsrm::chart::{read, CaptureFrame, ChartKind, FlatField, ReadingOptions, Reference};
 use nsrm::io::Encoding;
 use nsrm::io::ReadOptions;
-use std::path::{Path, PathBuf};
+use std::path::Path;
 use std::sync::Arc;
-
-fn chart_dng() -> PathBuf {
-    let p = PathBuf::from(concat!(
-        env!("CARGO_MANIFEST_DIR"),
-        "/../shared/data/colorchart.dng"
-    ));
-    match std::env::var_os("NSRM_SHARED") {
-        Some(s) if !p.exists() => PathBuf::from(s).join("data/colorchart.dng"),
-        _ => p,
-    }
-}
 
 /// The CLI's default frame reading (raw: half; JPEG/PNG: sRGB-decoded).
 fn open(path: &Path) -> Arc<CaptureFrame> {

@@ -36,6 +36,19 @@ pub fn sg_path() -> Option<PathBuf> {
 /// The tests skipped in this run, `test name: reason`.
 static SKIPS: std::sync::Mutex<Vec<String>> = std::sync::Mutex::new(Vec::new());
 
+/// The real Canon DNG of a ColorChecker Passport, `../shared/data/colorchart.dng`, or under
+/// `$NSRM_SHARED` (a worktree elsewhere) when that is absent.
+pub fn chart_dng() -> PathBuf {
+    let p = PathBuf::from(concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/../shared/data/colorchart.dng"
+    ));
+    match std::env::var_os("NSRM_SHARED") {
+        Some(s) if !p.exists() => PathBuf::from(s).join("data/colorchart.dng"),
+        _ => p,
+    }
+}
+
 /// A test whose prerequisite (an external tool, a driver, `../shared` data) is absent: under
 /// `CI=true` this fails the test; otherwise it prints `SKIP: reason` and records the test, and
 /// the run ends with one summary line counting the skipped tests (after libtest's own result
@@ -463,4 +476,59 @@ pub fn nsrm_measured(
         stderr,
     };
     (o, usage.ru_maxrss as u64, elapsed)
+}
+
+/// Chromium for the browser tests (`$NSRM_CHROMIUM`, else `/usr/bin/chromium`), or `None`
+/// after [`skip`] when it, node or `tests/browser/node_modules` (puppeteer-core) is absent.
+pub fn browser_prerequisites() -> Option<String> {
+    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/browser");
+    let chromium = std::env::var("NSRM_CHROMIUM").unwrap_or_else(|_| "/usr/bin/chromium".into());
+    let missing = if Command::new("node").arg("--version").output().is_err() {
+        Some("node is not installed (.ci/install.d/60-browser.sh installs it)")
+    } else if !Path::new(&chromium).exists() {
+        Some("chromium is not installed (apt-get install chromium)")
+    } else if !dir.join("node_modules/puppeteer-core").exists() {
+        Some("tests/browser/node_modules is absent (npm ci in tests/browser)")
+    } else {
+        None
+    };
+    match missing {
+        Some(why) => {
+            skip(why);
+            None
+        }
+        None => Some(chromium),
+    }
+}
+
+/// Runs `tests/browser/SCRIPT` with node and `env`, Chromium's (and GLib's) per-user files in a
+/// fresh work directory named after `name` (never the caller's home or the repository); asserts
+/// it succeeded and returns its output.
+pub fn run_browser_script(
+    script: &str,
+    name: &str,
+    chromium: &str,
+    env: &[(&str, &Path)],
+) -> String {
+    let work = tempdir(name);
+    let mut cmd = Command::new("node");
+    cmd.arg(script)
+        .current_dir(Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/browser"))
+        .env("NSRM_CHROMIUM", chromium)
+        .env("HOME", &work)
+        .env("XDG_CONFIG_HOME", work.join("config"))
+        .env("XDG_CACHE_HOME", work.join("cache"))
+        .env("XDG_RUNTIME_DIR", &work);
+    for (k, v) in env {
+        cmd.env(k, v);
+    }
+    let out = cmd.output().expect("running node");
+    let text = format!(
+        "{}\n{}",
+        String::from_utf8_lossy(&out.stdout),
+        String::from_utf8_lossy(&out.stderr)
+    );
+    println!("{text}");
+    assert!(out.status.success(), "{script} failed:\n{text}");
+    text
 }

@@ -412,22 +412,8 @@ fn openjd_runs_every_task_and_the_union_equals_one_apply() {
     assert!(!again.status.success());
     // The whole tree moves: the worker finds it elsewhere.
     let worker = root.join("worker");
-    std::fs::rename(&submit, &worker).unwrap();
-    let template = worker.join("job/template.yaml");
-    let check = Command::new("openjd")
-        .arg("check")
-        .arg(&template)
-        .output()
-        .unwrap();
-    assert_ok(&check);
     let rules = worker.join("rules.json");
-    std::fs::write(
-        &rules,
-        serde_json::json!({"version": "pathmapping-1.0", "path_mapping_rules": [
-            {"source_path_format": "POSIX", "source_path": submit, "destination_path": worker}]})
-        .to_string(),
-    )
-    .unwrap();
+    let template = moved_to_worker(&submit, &worker, &rules);
     let openjd = |step: &str| {
         let t = Instant::now();
         let o = Command::new("openjd")
@@ -1207,22 +1193,8 @@ fn openjd_hostile_names_reach_the_worker_byte_for_byte() {
     assert_eq!(listed, inputs);
     // Moved and mapped, as on a worker.
     let worker = root.join("worker }}");
-    std::fs::rename(&submit, &worker).unwrap();
-    let template = worker.join("job/template.yaml");
-    let check = Command::new("openjd")
-        .arg("check")
-        .arg(&template)
-        .output()
-        .unwrap();
-    assert_ok(&check);
     let rules = root.join("rules.json");
-    std::fs::write(
-        &rules,
-        serde_json::json!({"version": "pathmapping-1.0", "path_mapping_rules": [
-            {"source_path_format": "POSIX", "source_path": submit, "destination_path": worker}]})
-        .to_string(),
-    )
-    .unwrap();
+    let template = moved_to_worker(&submit, &worker, &rules);
     for step in ["Apply", "Verify"] {
         let o = Command::new("openjd")
             .arg("run")
@@ -1344,4 +1316,26 @@ fn a_farm_task_log_has_no_mesa_runtime_dir_line() {
         );
     }
     let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// Moves a submitted bundle's tree from `submit` to `worker`, as a worker on other storage sees
+/// it; checks its template with `openjd check`; writes path-mapping rules from `submit` to
+/// `worker` into `rules`. The template's path.
+fn moved_to_worker(submit: &Path, worker: &Path, rules: &Path) -> PathBuf {
+    std::fs::rename(submit, worker).unwrap();
+    let template = worker.join("job/template.yaml");
+    let check = Command::new("openjd")
+        .arg("check")
+        .arg(&template)
+        .output()
+        .unwrap();
+    assert_ok(&check);
+    std::fs::write(
+        rules,
+        serde_json::json!({"version": "pathmapping-1.0", "path_mapping_rules": [
+            {"source_path_format": "POSIX", "source_path": submit, "destination_path": worker}]})
+        .to_string(),
+    )
+    .unwrap();
+    template
 }

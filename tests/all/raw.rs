@@ -6,7 +6,7 @@
 //! errors, write nothing and never end a `--continue-on-error` batch.
 
 use crate::common::read_frame;
-use crate::common::{self, no_crash, nsrm_in, stderr};
+use crate::common::{self, chart_dng, no_crash, nsrm_in, stderr};
 use nsrm::io::Demosaic;
 use nsrm::io::{Limits, ReadOptions};
 use std::ffi::{OsStr, OsString};
@@ -15,16 +15,6 @@ use std::process::Command;
 
 const JUDGE: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/tests/tools/raw_judge.py");
 const CHART_DNG: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/../shared/data/colorchart.dng");
-
-/// `../shared/data/colorchart.dng`, or under `$NSRM_SHARED` (a worktree elsewhere) when that
-/// is absent.
-fn chart_dng() -> PathBuf {
-    let p = PathBuf::from(CHART_DNG);
-    match std::env::var_os("NSRM_SHARED") {
-        Some(s) if !p.exists() => PathBuf::from(s).join("data/colorchart.dng"),
-        _ => p,
-    }
-}
 
 fn on_ci() -> bool {
     std::env::var("CI").as_deref() == Ok("true")

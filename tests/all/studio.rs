@@ -581,50 +581,23 @@ fn uploads_hostile_input_and_cleanup() {
 #[test]
 fn the_page_in_a_real_browser() {
     let root = Path::new(env!("CARGO_MANIFEST_DIR"));
-    let dir = root.join("tests/browser");
-    let chromium = std::env::var("NSRM_CHROMIUM").unwrap_or_else(|_| "/usr/bin/chromium".into());
-    let missing = if Command::new("node").arg("--version").output().is_err() {
-        Some("node is not installed")
-    } else if !Path::new(&chromium).exists() {
-        Some("chromium is not installed (apt-get install chromium)")
-    } else if !dir.join("node_modules/puppeteer-core").exists() {
-        Some("tests/browser/node_modules is absent (npm ci in tests/browser)")
-    } else {
-        None
-    };
-    if let Some(why) = missing {
-        if std::env::var("CI").as_deref() == Ok("true") {
-            panic!("{why} (required under CI=true; .ci/install.d/60-browser.sh installs it)");
-        }
-        println!("SKIP: {why}");
+    let Some(chromium) = crate::common::browser_prerequisites() else {
         return;
-    }
+    };
     let out_dir = root.join("target/studio-browser");
     let _ = std::fs::remove_dir_all(&out_dir);
     std::fs::create_dir_all(&out_dir).unwrap();
-    let work = tempdir("studio-browser");
-    let out = Command::new("node")
-        .arg("studio.test.mjs")
-        .current_dir(&dir)
-        .env("NSRM_BIN", env!("CARGO_BIN_EXE_nsrm"))
-        .env("NSRM_CHROMIUM", &chromium)
-        .env("STUDIO_OUT", &out_dir)
-        .env("STUDIO_WORK", &work)
-        // Chromium's (and GLib's) per-user files in the work directory, never the caller's home
-        // or the repository.
-        .env("HOME", &work)
-        .env("XDG_CONFIG_HOME", work.join("config"))
-        .env("XDG_CACHE_HOME", work.join("cache"))
-        .env("XDG_RUNTIME_DIR", &work)
-        .output()
-        .expect("running node");
-    let text = format!(
-        "{}\n{}",
-        String::from_utf8_lossy(&out.stdout),
-        String::from_utf8_lossy(&out.stderr)
+    let work = tempdir("studio-browser-work");
+    crate::common::run_browser_script(
+        "studio.test.mjs",
+        "studio-browser",
+        &chromium,
+        &[
+            ("NSRM_BIN", Path::new(env!("CARGO_BIN_EXE_nsrm"))),
+            ("STUDIO_OUT", &out_dir),
+            ("STUDIO_WORK", &work),
+        ],
     );
-    println!("{text}");
-    assert!(out.status.success(), "the browser test failed:\n{text}");
     assert!(
         !root.join("dconf").exists(),
         "the browser left a dconf directory in the repository"

@@ -4,19 +4,8 @@
 //! 1, 2.477, 1.462, as exiftool prints it).
 
 use crate::common::read_frame;
-use crate::common::{nsrm_in, nsrm_ok, skip, stderr, tempdir};
+use crate::common::{chart_dng, nsrm_in, nsrm_ok, skip, stderr, tempdir};
 use nsrm::io::ReadOptions;
-use std::path::PathBuf;
-
-const CHART_DNG: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/../shared/data/colorchart.dng");
-
-fn chart_dng() -> PathBuf {
-    let p = PathBuf::from(CHART_DNG);
-    match std::env::var_os("NSRM_SHARED") {
-        Some(s) if !p.exists() => PathBuf::from(s).join("data/colorchart.dng"),
-        _ => p,
-    }
-}
 
 /// The numbers after `camera neutral ` in apply's line about the white.
 fn neutral_printed(err: &str) -> [f64; 3] {

@@ -438,11 +438,11 @@ fn column_index(col: &str) -> Option<u32> {
 /// The most patches a `B2:M9` rectangle may hold (charts have hundreds).
 pub(crate) const MAX_RECTANGLE: u64 = 1 << 20;
 
-#[cfg(any(feature = "cli", test))]
 /// The label of the one patch `spec` names (for `--white-patch`): the full label (`19 white
 /// 9.5`), its number (`19`, the label's first word), or its name (`white 9.5`, or a word of it
 /// that only one label has: `white`); case-insensitive. An error lists the candidates when
 /// none or several match.
+#[cfg(any(feature = "cli", test))]
 pub(crate) fn resolve_patch(labels: &[String], spec: &str) -> Result<String, TrainingError> {
     let s = spec.trim().to_lowercase();
     let err = |why: String| TrainingError::Patches {

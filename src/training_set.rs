@@ -131,9 +131,9 @@ impl TrainingSet {
         }
     }
 
-    #[cfg(feature = "cli")]
     /// The training set a model file carries (see [`TrainingSet::record_patches`]): `None`
     /// unless its capture provenance holds one patch per label.
+    #[cfg(feature = "cli")]
     pub(crate) fn recorded(provenance: &Provenance, labels: &[String]) -> Option<TrainingSet> {
         let t = provenance.capture.as_ref()?.training.as_ref()?;
         let ok = t.rgb.len() == labels.len()

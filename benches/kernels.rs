@@ -22,7 +22,7 @@ use std::time::Duration;
 
 /// The benchmark frame and the memcpy reference, shared with `nsrm bench` (the file names the
 /// library as `crate::`, which it is inside nsrm; here the root's imports stand for it).
-#[path = "../src/cli/bench_aids.rs"]
+#[path = "../crates/nsrm-cli/src/bench_aids.rs"]
 mod bench_aids;
 use bench_aids::{memcpy_chunked, synthetic_camera_rgb};
 

@@ -20,8 +20,7 @@ impl Layout {
 
     /// Parses `rgb` / `rgba` (the unit test of the command line's `--layout` values holds them
     /// to it).
-    #[cfg(all(test, feature = "cli"))]
-    pub(crate) fn parse(s: &str) -> Option<Layout> {
+    pub fn parse(s: &str) -> Option<Layout> {
         match s.to_ascii_lowercase().as_str() {
             "rgb" => Some(Layout::Rgb),
             "rgba" => Some(Layout::Rgba),
@@ -30,8 +29,7 @@ impl Layout {
     }
 
     /// `rgb` or `rgba`.
-    #[cfg(any(feature = "gpu", feature = "io", test))]
-    pub(crate) fn name(self) -> &'static str {
+    pub fn name(self) -> &'static str {
         match self {
             Layout::Rgb => "rgb",
             Layout::Rgba => "rgba",

@@ -24,10 +24,11 @@
 //!
 //! # The API
 //! The colour-science core is one flat list of items at the crate root (below, grouped as the
-//! documentation lists them): frames, models (fit, file, apply), dual-illuminant profiles,
-//! colorimetry, spectral simulation, training sets and evaluation. The rooms behind optional
-//! features are modules, each with its own flat list: [`gpu`], `io`, `chart`, `export` (`farm`
-//! adds commands to the binary, no library API).
+//! documentation lists them): frames, models (fit, file, apply), the CPU frame kernels,
+//! dual-illuminant profiles, colorimetry, spectral simulation, training sets and evaluation. The
+//! rooms behind optional features are modules, each with its own flat list and the modules of
+//! its steps: [`gpu`], `io`, `chart`, `export`, `plot`. The `nsrm` command line is the
+//! `nsrm-cli` package of this workspace (`crates/nsrm-cli`), built on this API only.
 //!
 //! # Applying a model: one way per back end
 //! | back end | the way | notes |
@@ -47,13 +48,13 @@
 //!
 //! | feature | brings |
 //! |---|---|
-//! | `gpu` | `gpu`: wgpu, the frame `gpu::Engine` and the embeddable `gpu::Corrector` |
-//! | `io` | `io`: OpenEXR / TIFF frames and batches, PNG previews |
-//! | `export` | `export`: LUTs and profiles other tools read (CLF, `.cube`, OCIO, DCTL, DCP); with `gpu` also the baked shaders in WGSL, SPIR-V, GLSL, HLSL and MSL (naga's back ends) |
-//! | `plot` | for the binary: `nsrm eval --plot`, the paper's Fig. 1 as SVG or PNG |
+//! | `gpu` (default) | `gpu`: wgpu, the frame `gpu::Engine` and the embeddable `gpu::Corrector` |
+//! | `io` | `io`: OpenEXR / TIFF / raw / display-referred frames, the batch plan, PNG previews |
+//! | `export` | `export`: LUTs and profiles other tools read (CLF, `.cube`, OCIO, DCP, ICC); with `gpu` also DCTL and the baked shaders in WGSL, SPIR-V, GLSL, HLSL and MSL (naga's back ends) |
+//! | `plot` | `plot`: the paper's Fig. 1 as SVG or PNG |
 //! | `chart` | chart detection in captured frames, synthetic chart frames and scenes; implies `io` |
-//! | `farm` | for the binary: per-shard manifests, their verification, path mapping, farm job files; implies `io` |
-//! | `cli` (default) | the `nsrm` binary; implies all of the above |
+//! | `raw` | camera raw files as frames (rawler); implies `io` |
+//! | `full` | all of the above: what the `nsrm` binary uses |
 //!
 //! A renderer embeds the correction pass with
 //! `nsrm = { version = "0.1", default-features = false, features = ["gpu"] }`.
@@ -64,12 +65,6 @@
 
 #[cfg(feature = "chart")]
 pub mod chart;
-/// The `nsrm` command line: argument parsing and one file per subcommand, over the library's
-/// public API and its crate-private machinery (the output session, the batch plan, the farm
-/// files). Not a library API: only [`cli::main`], the binary's entry point, is reachable.
-#[cfg(feature = "cli")]
-#[doc(hidden)]
-pub mod cli;
 mod colorimetry;
 pub mod csv_table;
 // `Param` and `Concern` are public through the `io` and `chart` errors (re-exported by `io`);
@@ -78,8 +73,6 @@ mod error;
 mod eval;
 #[cfg(feature = "export")]
 pub mod export;
-#[cfg(feature = "farm")]
-mod farm;
 mod frame;
 #[cfg(feature = "gpu")]
 pub mod gpu;
@@ -113,17 +106,31 @@ pub use model::terms::MAX_ORDER;
 pub use model::{fit, Kind, Model, ModelError};
 
 // Dual-illuminant profiles: two models interpolated by the frame's white, as DNG does.
-pub use model::dual_illuminant::{Combination, FrameWhite, Profile};
+pub use model::dual_illuminant::{Calibration, Combination, FrameWhite, Profile};
 
-// Colorimetry: Lab, ΔE00, output spaces.
-pub use colorimetry::spaces::OutputSpace;
+// The CPU frame kernels: a model prepared once and applied to many frames, on chosen threads.
+pub use model::fast::{FastError, FastModel, Threads, CHUNK_PIXELS};
+
+// Colorimetry: Lab, ΔE00, output spaces, the output and preview matrices, correlated colour
+// temperatures and chromatic adaptation.
+#[cfg(any(feature = "io", test))]
+pub use colorimetry::output::srgb8;
+pub use colorimetry::output::{output_matrix, to_linear_srgb};
+pub use colorimetry::spaces::{apply as apply_mat3, Mat3, OutputSpace};
+#[cfg(any(feature = "export", test))]
+pub use colorimetry::temperature::temperature_xy;
+pub use colorimetry::temperature::{bradford_between, TemperatureError};
 pub use colorimetry::{ciede2000, delta_e00_xyz, xyz_to_lab, D65_WHITE_XYZ};
 
 // Spectral simulation: camera × illuminant × reflectances on a wavelength grid.
+pub use spectral::{display_name, simulate, white_xyz, Camera, Illuminant, Reflectances};
 pub use spectral::{simulate_named, Grid, SpectralError};
 
 // Training sets: patches with camera RGB and reference XYZ, and their white.
-pub use training::{parse_white, CaptureProvenance, Provenance, TrainingError, TrainingSet};
+pub use training::{fmt_white, parse_white, resolve_patch};
+pub use training::{CaptureProvenance, Provenance, TrainingError, TrainingSet};
 
-// Evaluation: leave-one-out and in-sample ΔE00 statistics.
+// Evaluation: leave-one-out and in-sample ΔE00 statistics, and the paper's Fig. 1.
+#[cfg(feature = "plot")]
+pub use eval::plot;
 pub use eval::{evaluate, evaluate_with, EvalResult, PatchError, Protocol, Stats};

@@ -108,8 +108,7 @@ pub enum WriteError {
 impl WriteError {
     /// True for outputs that collide with an input or with each other, and for an output path
     /// that names no file: the request itself is wrong.
-    #[cfg(any(feature = "cli", test))]
-    pub(crate) fn is_usage(&self) -> bool {
+    pub fn is_usage(&self) -> bool {
         matches!(
             self,
             WriteError::OutputIsInput { .. }
@@ -163,8 +162,7 @@ impl AbortHandle {
     /// The abort flag, for `signal_hook::flag::register`: once set, writes fail at their next
     /// buffer write and nothing more is committed (temporaries are then removed by
     /// the session's clean-up or when their unit is dropped).
-    #[cfg(feature = "cli")]
-    pub(crate) fn flag(&self) -> Arc<AtomicBool> {
+    pub fn flag(&self) -> Arc<AtomicBool> {
         Arc::clone(&self.shared.abort)
     }
 
@@ -253,8 +251,7 @@ impl Session {
     }
 
     /// Whether the session was aborted.
-    #[cfg(feature = "cli")]
-    pub(crate) fn is_aborted(&self) -> bool {
+    pub fn is_aborted(&self) -> bool {
         self.shared.aborted()
     }
 
@@ -356,16 +353,14 @@ impl Session {
     }
 
     /// Writes one output on its own: a unit holding just `dest`, committed.
-    #[cfg(any(feature = "cli", test))]
-    pub(crate) fn write_bytes(&self, dest: &Path, bytes: &[u8]) -> Result<(), WriteError> {
+    pub fn write_bytes(&self, dest: &Path, bytes: &[u8]) -> Result<(), WriteError> {
         let mut unit = self.unit();
         unit.write_bytes(dest, bytes)?;
         unit.commit()
     }
 
     /// Removes every temporary this session still holds (after an abort); returns how many.
-    #[cfg(feature = "cli")]
-    pub(crate) fn remove_temporaries(&self) -> usize {
+    pub fn remove_temporaries(&self) -> usize {
         remove_all(&mut self.shared.temps())
     }
 
@@ -443,7 +438,7 @@ pub(crate) fn is_temp_name(name: &OsStr) -> bool {
 /// that was killed (SIGKILL, power loss); a running `nsrm` elsewhere may also own some, so they
 /// are reported, never removed.
 #[cfg(any(feature = "io", test))]
-pub(crate) fn stale_temporaries(dir: &Path) -> Vec<PathBuf> {
+pub fn stale_temporaries(dir: &Path) -> Vec<PathBuf> {
     let mut found: Vec<PathBuf> = std::fs::read_dir(dir)
         .into_iter()
         .flatten()

@@ -110,8 +110,7 @@ pub enum TrainingError {
 impl TrainingError {
     /// True for a malformed patch selection or white point, a white that is missing or that
     /// contradicts the file's.
-    #[cfg(feature = "cli")]
-    pub(crate) fn is_usage(&self) -> bool {
+    pub fn is_usage(&self) -> bool {
         matches!(
             self,
             TrainingError::PatchSpec { .. }
@@ -301,7 +300,7 @@ impl TrainingSet {
 
 /// `X,Y,Z` as the patch CSV's `# white:` line and messages write it (shortest round-trip
 /// decimals, so reading it back gives the same numbers).
-pub(crate) fn fmt_white(w: [f64; 3]) -> String {
+pub fn fmt_white(w: [f64; 3]) -> String {
     format!("{},{},{}", w[0], w[1], w[2])
 }
 
@@ -442,8 +441,7 @@ pub(crate) const MAX_RECTANGLE: u64 = 1 << 20;
 /// 9.5`), its number (`19`, the label's first word), or its name (`white 9.5`, or a word of it
 /// that only one label has: `white`); case-insensitive. An error lists the candidates when
 /// none or several match.
-#[cfg(any(feature = "cli", test))]
-pub(crate) fn resolve_patch(labels: &[String], spec: &str) -> Result<String, TrainingError> {
+pub fn resolve_patch(labels: &[String], spec: &str) -> Result<String, TrainingError> {
     let s = spec.trim().to_lowercase();
     let err = |why: String| TrainingError::Patches {
         spec: spec.to_string(),

@@ -121,7 +121,7 @@ impl TrainingSet {
     /// Records the patches themselves in a capture's provenance (a no-op for other sets), so
     /// that a model fitted on them carries them: call it on the set as fitted (after patch
     /// selection and any adaptation).
-    pub(crate) fn record_patches(&mut self) {
+    pub fn record_patches(&mut self) {
         if let Some(c) = self.provenance.capture.as_mut() {
             c.training = Some(CapturedPatches {
                 rgb: self.rgb.clone(),
@@ -133,8 +133,7 @@ impl TrainingSet {
 
     /// The training set a model file carries (see [`TrainingSet::record_patches`]): `None`
     /// unless its capture provenance holds one patch per label.
-    #[cfg(feature = "cli")]
-    pub(crate) fn recorded(provenance: &Provenance, labels: &[String]) -> Option<TrainingSet> {
+    pub fn recorded(provenance: &Provenance, labels: &[String]) -> Option<TrainingSet> {
         let t = provenance.capture.as_ref()?.training.as_ref()?;
         let ok = t.rgb.len() == labels.len()
             && t.xyz.len() == labels.len()

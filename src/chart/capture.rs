@@ -77,7 +77,7 @@ pub enum CaptureError {
 
 impl CaptureError {
     /// True for options or corners that are malformed or do not fit the frame.
-    pub(crate) fn is_usage(&self) -> bool {
+    pub fn is_usage(&self) -> bool {
         match self {
             CaptureError::Io(e) => e.is_usage(),
             CaptureError::Chart(e) => e.is_usage(),
@@ -86,7 +86,7 @@ impl CaptureError {
     }
 
     /// The parameter this error is about (see [`ChartError::concern`]).
-    pub(crate) fn concern(&self) -> Option<crate::error::Concern> {
+    pub fn concern(&self) -> Option<crate::error::Concern> {
         match self {
             CaptureError::Io(e) => e.concern(),
             CaptureError::Chart(e) => e.concern(),
@@ -144,7 +144,7 @@ impl CaptureFrame {
     }
 
     /// The decoded pixels.
-    pub(crate) fn frame(&self) -> &Frame {
+    pub fn frame(&self) -> &Frame {
         &self.decoded.frame
     }
 }
@@ -200,11 +200,11 @@ pub struct Capture {
     pub reference: Reference,
     /// The patches as read (after flat-field compensation when asked for): in
     /// [`report`](Self::report), the usable ones in [`to_csv`](Self::to_csv).
-    pub(crate) extraction: Extraction,
+    pub extraction: Extraction,
     /// How the chart was found; `None` when read at given corners.
-    pub(crate) detection: Option<Detection>,
+    pub detection: Option<Detection>,
     /// The light compensation applied; `None` when none was asked for.
-    pub(crate) flat: Option<Flat>,
+    pub flat: Option<Flat>,
     /// Median ΔE00 of the reading against the reference (after a linear fit).
     pub score: f64,
 }
@@ -275,17 +275,17 @@ pub fn read(
 
 impl Capture {
     /// How the frame's values were decoded.
-    pub(crate) fn transfer(&self) -> Transfer {
+    pub fn transfer(&self) -> Transfer {
         self.frame.decoded.transfer
     }
 
     /// `make model` of a camera raw frame.
-    pub(crate) fn camera(&self) -> Option<String> {
+    pub fn camera(&self) -> Option<String> {
         self.frame.decoded.camera.as_ref().map(|c| c.camera())
     }
 
     /// Camera G of the perfect white implied by the usable neutral patches.
-    pub(crate) fn white_g(&self) -> f64 {
+    pub fn white_g(&self) -> f64 {
         let mut r: Vec<f64> = self
             .extraction
             .patches
@@ -305,7 +305,7 @@ impl Capture {
     /// the perfect white on the neutral ramp (glare left out), through the raw file's colour
     /// matrices by the DNG `NeutralToXY` iteration. `None` without matrices (not a raw file)
     /// or without a neutral ramp.
-    pub(crate) fn light(&self) -> Option<([f64; 2], f64)> {
+    pub fn light(&self) -> Option<([f64; 2], f64)> {
         let cam = self.frame.decoded.camera.as_ref()?;
         let ramp = super::diagnose::Ramp::of(&self.extraction, self.reference.white)?;
         let w = ramp.white_rgb();
@@ -315,7 +315,7 @@ impl Capture {
     /// Subtracts the veiling glare measured on the neutral ramp (a uniform camera-RGB term,
     /// its positive intercepts) from every patch and checks the reading again; returns the
     /// term subtracted, or `None` (nothing changed) without a ramp of 3 neutral patches.
-    pub(crate) fn compensate_glare(&mut self) -> Option<[f64; 3]> {
+    pub fn compensate_glare(&mut self) -> Option<[f64; 3]> {
         let ramp = super::diagnose::Ramp::of(&self.extraction, self.reference.white)?;
         let g = ramp.glare_rgb();
         super::diagnose::remove_glare(&mut self.extraction, g);
@@ -326,7 +326,7 @@ impl Capture {
     }
 
     /// Where the training data came from, for the model's provenance.
-    pub(crate) fn provenance(&self) -> CaptureProvenance {
+    pub fn provenance(&self) -> CaptureProvenance {
         CaptureProvenance {
             frame: self
                 .frame
@@ -368,7 +368,7 @@ impl Capture {
 
     /// True when the detected lattice holds clearly more patches than the chart has: the frame
     /// probably shows the other chart (a CC24 read inside an SG's patches). The other chart.
-    pub(crate) fn other_chart(&self) -> Option<ChartKind> {
+    pub fn other_chart(&self) -> Option<ChartKind> {
         let d = self.detection.as_ref()?;
         let n = self.reference.chart.columns() * self.reference.chart.rows();
         (d.lattice > n + n / 4).then_some(match self.reference.chart {
@@ -412,7 +412,7 @@ impl Capture {
     }
 
     /// Swatches (reference vs the model's prediction) of the usable patches.
-    pub(crate) fn swatches(&self, model: &crate::Model) -> Vec<overlay::Swatch> {
+    pub fn swatches(&self, model: &crate::Model) -> Vec<overlay::Swatch> {
         self.extraction
             .patches
             .iter()

@@ -91,7 +91,7 @@ pub(crate) const SURROUND_LIMIT: f64 = 0.5;
 
 /// [`PERSPECTIVE_LIMIT`]'s measure: largest over smallest local patch scale, over the cells
 /// that `h` (chart → image) places.
-pub(crate) fn perspective(kind: super::ChartKind, h: &Homography) -> f64 {
+pub fn perspective(kind: super::ChartKind, h: &Homography) -> f64 {
     let scale = |c: [f64; 2]| {
         let p = h.apply(c);
         let a = h.apply([c[0] + 1.0, c[1]]);
@@ -114,7 +114,7 @@ pub(crate) fn perspective(kind: super::ChartKind, h: &Homography) -> f64 {
 
 /// How detection works.
 #[derive(Debug, Clone, PartialEq)]
-pub(crate) struct DetectOptions {
+pub struct DetectOptions {
     /// Long side of the downsampled image searched.
     pub(crate) max_side: usize,
     /// Long side of the coarser image searched again when the first search finds no chart (and
@@ -147,17 +147,17 @@ pub struct Candidate {
 
 /// A found chart.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-pub(crate) struct Detection {
+pub struct Detection {
     /// Chart coordinates → frame pixels.
-    pub(crate) homography: Homography,
+    pub homography: Homography,
     /// Median ΔE00 of the best placement and of the next best.
-    pub(crate) score: f64,
+    pub score: f64,
     /// Median ΔE00 of the next best placement.
-    pub(crate) runner_up: f64,
+    pub runner_up: f64,
     /// Patches linked into the lattice.
-    pub(crate) lattice: usize,
+    pub lattice: usize,
     /// Perspective strength: the largest over the smallest local patch scale over the cells.
-    pub(crate) perspective: f64,
+    pub perspective: f64,
     /// Mirrored (the frame shows the chart's mirror image) — unusual; reported for the user.
     pub(crate) mirrored: bool,
     /// The factor the frame was box-downsampled by before the search.
@@ -168,9 +168,9 @@ pub(crate) struct Detection {
 
 /// Why no chart was found, and what was looked at.
 #[derive(Debug)]
-pub(crate) struct DetectFailure {
+pub struct DetectFailure {
     /// Why no chart was found.
-    pub(crate) error: ChartError,
+    pub error: ChartError,
     /// Every candidate patch region looked at.
     pub(crate) candidates: Vec<Candidate>,
 }
@@ -788,7 +788,7 @@ fn judge(
 }
 
 /// Finds the chart of `reference` in `frame`.
-pub(crate) fn detect(
+pub fn detect(
     frame: &Frame,
     reference: &Reference,
     opts: &DetectOptions,

@@ -18,7 +18,7 @@ const NEUTRAL_CHROMA: f64 = 4.0;
 /// Glare (intercept over white) above which it is reported as a problem.
 pub(crate) const GLARE_WARN: f64 = 0.003;
 /// A patch whose largest channel reaches this fraction of the clipping level is "near clipping".
-pub(crate) const NEAR_CLIP: f64 = 0.9;
+pub const NEAR_CLIP: f64 = 0.9;
 /// A white patch below this fraction of the clipping level is under-exposed (noise, quantisation).
 const UNDER_EXPOSED: f64 = 0.2;
 /// Light non-uniformity (max/min) above which uneven light is reported.
@@ -33,15 +33,15 @@ const COLOUR_DRIFT: f64 = 0.05;
 
 /// The neutral patches' camera response against their reference Y, a line per channel.
 #[derive(Debug, Clone, PartialEq)]
-pub(crate) struct Ramp {
+pub struct Ramp {
     /// The neutral patches used: label, reference Y, camera RGB (brightest first).
-    pub(crate) points: Vec<(String, f64, [f64; 3])>,
+    pub points: Vec<(String, f64, [f64; 3])>,
     /// Camera units per unit of reference Y, per channel.
-    pub(crate) slope: [f64; 3],
+    pub slope: [f64; 3],
     /// Camera response at Y = 0, per channel.
-    pub(crate) intercept: [f64; 3],
+    pub intercept: [f64; 3],
     /// Largest distance of a neutral's G from its line, as a fraction of the white's G.
-    pub(crate) nonlinearity: f64,
+    pub nonlinearity: f64,
 }
 
 /// Whether the reference XYZ `xyz` (relative to `white`) is a neutral patch.
@@ -52,7 +52,7 @@ pub(crate) fn is_neutral(xyz: [f64; 3], white: [f64; 3]) -> bool {
 
 impl Ramp {
     /// The ramp of the usable neutral patches; `None` with fewer than 3 of them.
-    pub(crate) fn of(ex: &Extraction, white: [f64; 3]) -> Option<Ramp> {
+    pub fn of(ex: &Extraction, white: [f64; 3]) -> Option<Ramp> {
         let mut points: Vec<(String, f64, [f64; 3])> = ex
             .patches
             .iter()
@@ -100,7 +100,7 @@ impl Ramp {
     }
 
     /// The glare in G: the intercept as a fraction of the white's G.
-    pub(crate) fn glare(&self) -> f64 {
+    pub fn glare(&self) -> f64 {
         self.intercept[1] / (self.slope[1] * 100.0)
     }
 
@@ -128,7 +128,7 @@ pub(crate) fn remove_glare(ex: &mut Extraction, glare: [f64; 3]) {
 /// How serious a finding is.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, serde::Serialize)]
 #[serde(rename_all = "lowercase")]
-pub(crate) enum Severity {
+pub enum Severity {
     /// Measured and fine.
     Ok,
     /// Worth knowing.
@@ -139,16 +139,16 @@ pub(crate) enum Severity {
 
 /// One line of the diagnosis: what was measured and what to do.
 #[derive(Debug, Clone, PartialEq, serde::Serialize)]
-pub(crate) struct Finding {
+pub struct Finding {
     /// What it is about (`glare`, `clipping`, `exposure`, `light`, `noise`, `size`, `linearity`,
     /// `reference`).
     pub(crate) topic: &'static str,
     /// How serious.
-    pub(crate) severity: Severity,
+    pub severity: Severity,
     /// What was measured.
-    pub(crate) text: String,
+    pub text: String,
     /// What to do (empty when nothing).
-    pub(crate) advice: String,
+    pub advice: String,
 }
 
 fn finding(topic: &'static str, severity: Severity, text: String, advice: &str) -> Finding {
@@ -163,7 +163,7 @@ fn finding(topic: &'static str, severity: Severity, text: String, advice: &str) 
 /// What the reading of a chart shot says about the shot: `ex` the patches as read (before any
 /// glare compensation), `flat_nonuniformity` the light's non-uniformity when `--flat` measured
 /// it, `score` the reading's match to the reference (median ΔE00).
-pub(crate) fn diagnose(
+pub fn diagnose(
     ex: &Extraction,
     reference: &Reference,
     flat_nonuniformity: Option<f64>,

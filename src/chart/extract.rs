@@ -27,29 +27,29 @@ use serde::{Deserialize, Serialize};
 
 /// How patches are read.
 #[derive(Debug, Clone, PartialEq)]
-pub(crate) struct ExtractOptions {
+pub struct ExtractOptions {
     /// Side of the sampled square as a fraction of the patch side (default 0.5).
-    pub(crate) sample_fraction: f64,
+    pub sample_fraction: f64,
     /// Fraction of the sampled pixels dropped at each end per channel for the robust
     /// mean (default 0.1).
-    pub(crate) trim: f64,
+    pub trim: f64,
     /// The sensor's clipping level; `None`: inferred from the frame.
-    pub(crate) white_level: Option<f64>,
+    pub white_level: Option<f64>,
     /// A patch is `dark` below this fraction of the white level (default 1e-3).
-    pub(crate) dark_fraction: f64,
+    pub dark_fraction: f64,
     /// A patch is `nonuniform` when a quadrant's mean differs from the patch mean by more
     /// than this fraction (default 0.04).
-    pub(crate) nonuniform: f64,
+    pub nonuniform: f64,
     /// The integer encoding the frame was decoded from, if any: a quadrant must then differ by
     /// more than one code step of it to count as non-uniform (dark channels of an 8-bit JPEG
     /// are a few codes, whose steps are tens of percent of their value), and by more than the
     /// chart's code-noise floor (`flag_nonuniform`).
-    pub(crate) quantisation: Option<Quantisation>,
+    pub quantisation: Option<Quantisation>,
 }
 
 /// An integer encoding that values were decoded from.
 #[derive(Debug, Clone, Copy, PartialEq)]
-pub(crate) struct Quantisation {
+pub struct Quantisation {
     /// The largest code (255 for 8 bits).
     pub(crate) max_code: f64,
     /// Codes are sRGB-encoded (else linear).
@@ -58,7 +58,7 @@ pub(crate) struct Quantisation {
 
 impl Quantisation {
     /// The encoding a chart frame was decoded from: `None` for the linear readers' frames.
-    pub(crate) fn of(read: &crate::io::display::ChartFrame) -> Option<Quantisation> {
+    pub fn of(read: &crate::io::display::ChartFrame) -> Option<Quantisation> {
         read.max_code.map(|max_code| Quantisation {
             max_code,
             srgb: read.transfer.display_referred(),
@@ -81,7 +81,7 @@ impl Quantisation {
 impl ExtractOptions {
     /// Checks the options (before any frame is read, if the caller likes): a sample fraction in
     /// (0, 1] and a finite, positive white level.
-    pub(crate) fn validate(&self) -> Result<(), ChartError> {
+    pub fn validate(&self) -> Result<(), ChartError> {
         if !(self.sample_fraction > 0.0 && self.sample_fraction <= 1.0) {
             return Err(ChartError::Invalid(
                 "the sample fraction must be in (0, 1]".into(),
@@ -115,7 +115,7 @@ impl Default for ExtractOptions {
 /// Why a patch is not used.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "lowercase")]
-pub(crate) enum Flag {
+pub enum Flag {
     /// A channel reaches the white level.
     Clipped,
     /// Too dark to read (see [`ExtractOptions::dark_fraction`]).
@@ -129,7 +129,8 @@ pub(crate) enum Flag {
 }
 
 impl Flag {
-    pub(crate) fn name(self) -> &'static str {
+    /// The flag's name in reports and CSV files (`clipped`, `dark`, `nonuniform`, …).
+    pub fn name(self) -> &'static str {
         match self {
             Flag::Clipped => "clipped",
             Flag::Dark => "dark",
@@ -141,52 +142,52 @@ impl Flag {
 
 /// One patch as read.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-pub(crate) struct PatchReading {
+pub struct PatchReading {
     /// The patch label (`01 dark skin`, `A1`, …).
-    pub(crate) label: String,
+    pub label: String,
     /// Robust mean camera RGB (after flat-field compensation when one was applied).
-    pub(crate) rgb: [f64; 3],
+    pub rgb: [f64; 3],
     /// Standard deviation of the sampled pixels, per channel.
-    pub(crate) std: [f64; 3],
+    pub std: [f64; 3],
     /// Pixels sampled.
-    pub(crate) count: usize,
+    pub count: usize,
     /// Why the patch is not used; empty when it is.
-    pub(crate) flags: Vec<Flag>,
+    pub flags: Vec<Flag>,
     /// Reference XYZ (perfect white Y = 100).
-    pub(crate) xyz: [f64; 3],
+    pub xyz: [f64; 3],
     /// Centre of the sampled area in the frame (pixels).
-    pub(crate) centre: [f64; 2],
+    pub centre: [f64; 2],
     /// Corners of the sampled area in the frame (pixels).
-    pub(crate) outline: [[f64; 2]; 4],
+    pub outline: [[f64; 2]; 4],
     /// Flat-field factor divided out (1 without compensation).
-    pub(crate) flat: f64,
+    pub flat: f64,
 }
 
 impl PatchReading {
     /// True when no flag is set: the patch goes into the training data.
-    pub(crate) fn usable(&self) -> bool {
+    pub fn usable(&self) -> bool {
         self.flags.is_empty()
     }
 }
 
 /// The patches of one chart in a frame.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-pub(crate) struct Extraction {
+pub struct Extraction {
     /// The chart read.
     pub(crate) chart: ChartKind,
     /// Chart coordinates → frame pixels.
     pub(crate) homography: Homography,
     /// The clipping level used, if one was known or inferred.
-    pub(crate) white_level: Option<f64>,
+    pub white_level: Option<f64>,
     /// Whether the white level was inferred from the frame (not given).
     pub(crate) white_level_inferred: bool,
     /// Every patch, in the chart's reading order.
-    pub(crate) patches: Vec<PatchReading>,
+    pub patches: Vec<PatchReading>,
 }
 
 impl Extraction {
     /// Labels of the flagged patches, with their flags.
-    pub(crate) fn flagged(&self) -> Vec<String> {
+    pub fn flagged(&self) -> Vec<String> {
         self.patches
             .iter()
             .filter(|p| !p.usable())
@@ -198,7 +199,7 @@ impl Extraction {
     }
 
     /// The unflagged patches as training data (`label,R,G,B,X,Y,Z`).
-    pub(crate) fn training_set(&self, reference: &Reference) -> crate::training::TrainingSet {
+    pub fn training_set(&self, reference: &Reference) -> crate::training::TrainingSet {
         let ok: Vec<&PatchReading> = self.patches.iter().filter(|p| p.usable()).collect();
         crate::training::TrainingSet {
             labels: ok.iter().map(|p| p.label.clone()).collect(),
@@ -358,7 +359,7 @@ pub(crate) fn sample_side(kind: ChartKind, opts: &ExtractOptions) -> f64 {
 }
 
 /// Reads every patch of the chart that `h` (chart → frame pixels) places in `frame`.
-pub(crate) fn extract(
+pub fn extract(
     frame: &Frame,
     reference: &Reference,
     h: &Homography,
@@ -760,7 +761,7 @@ pub(crate) fn linearise(
 
 /// Checks that the usable patches match the reference (the better of a linear fit and a
 /// tone-tolerant fit to it); the median ΔE00.
-pub(crate) fn verify(ex: &Extraction, reference: &Reference) -> Result<f64, ChartError> {
+pub fn verify(ex: &Extraction, reference: &Reference) -> Result<f64, ChartError> {
     let rgb: Vec<Option<[f64; 3]>> = ex
         .patches
         .iter()

@@ -21,13 +21,13 @@ use crate::frame::Frame;
 
 /// Light factors per patch (per channel), to divide the readings by.
 #[derive(Debug, Clone, PartialEq)]
-pub(crate) struct Flat {
+pub struct Flat {
     /// `flat` or `neutrals`.
-    pub(crate) method: String,
+    pub method: String,
     /// The factor per patch and channel (mean 1 per channel).
     pub(crate) factors: Vec<[f64; 3]>,
     /// max / min of the (green) factor over the patches.
-    pub(crate) nonuniformity: f64,
+    pub nonuniformity: f64,
     /// Patches the surface was fitted on (`neutrals`).
     pub(crate) fitted_on: usize,
 }

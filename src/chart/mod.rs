@@ -28,16 +28,16 @@
 // `!(x > 0.0)` is meant: it is true for NaN too.
 #![allow(clippy::neg_cmp_op_on_partial_ord)]
 
-pub(crate) mod capture;
-pub(crate) mod detect;
-pub(crate) mod diagnose;
-pub(crate) mod extract;
-pub(crate) mod flat;
-pub(crate) mod overlay;
+pub mod capture;
+pub mod detect;
+pub mod diagnose;
+pub mod extract;
+pub mod flat;
+pub mod overlay;
 mod raster;
-pub(crate) mod reference;
-pub(crate) mod scene;
-pub(crate) mod synthetic;
+pub mod reference;
+pub mod scene;
+pub mod synthetic;
 
 pub use self::{
     capture::{read, Capture, CaptureError, CaptureFrame, FlatField, ReadingOptions},
@@ -99,7 +99,7 @@ pub enum ChartError {
 impl ChartError {
     /// True for an unknown chart name, scene options out of range, and a parameter value that is
     /// malformed or does not fit the frame (corners, white level, flat frame).
-    pub(crate) fn is_usage(&self) -> bool {
+    pub fn is_usage(&self) -> bool {
         use ChartError;
         matches!(
             self,
@@ -114,7 +114,7 @@ impl ChartError {
 
     /// The parameter this error is about; a chart that was not found can always be read from
     /// its corners ([`crate::error::Param::Corners`]).
-    pub(crate) fn concern(&self) -> Option<crate::error::Concern> {
+    pub fn concern(&self) -> Option<crate::error::Concern> {
         use ChartError;
         match self {
             ChartError::Param { concern, .. } => Some(*concern),
@@ -177,8 +177,7 @@ const CC24_NAMES: [&str; 24] = [
 
 impl ChartKind {
     /// `cc24` or `sg` (case-insensitive).
-    #[cfg(test)]
-    pub(crate) fn parse(s: &str) -> Result<ChartKind, ChartError> {
+    pub fn parse(s: &str) -> Result<ChartKind, ChartError> {
         match s.trim().to_ascii_lowercase().as_str() {
             "cc24" => Ok(ChartKind::Cc24),
             "sg" => Ok(ChartKind::Sg),
@@ -187,7 +186,7 @@ impl ChartKind {
     }
 
     /// The name `--chart` takes: `cc24` or `sg`.
-    pub(crate) fn name(self) -> &'static str {
+    pub fn name(self) -> &'static str {
         match self {
             ChartKind::Cc24 => "cc24",
             ChartKind::Sg => "sg",
@@ -195,7 +194,7 @@ impl ChartKind {
     }
 
     /// Columns of the patch grid (chart upright).
-    pub(crate) fn columns(self) -> usize {
+    pub fn columns(self) -> usize {
         match self {
             ChartKind::Cc24 => 6,
             ChartKind::Sg => 14,
@@ -203,7 +202,7 @@ impl ChartKind {
     }
 
     /// Rows of the patch grid.
-    pub(crate) fn rows(self) -> usize {
+    pub fn rows(self) -> usize {
         match self {
             ChartKind::Cc24 => 4,
             ChartKind::Sg => 10,
@@ -231,7 +230,7 @@ impl ChartKind {
     }
 
     /// The built-in reference used when `--reference` is not given.
-    pub(crate) fn default_reference(self) -> &'static str {
+    pub fn default_reference(self) -> &'static str {
         match self {
             ChartKind::Cc24 => "cc24-after2014",
             ChartKind::Sg => "sg-after2014",
@@ -315,7 +314,7 @@ impl ChartKind {
 
 /// A plane projective transform (3×3, row-major, `h[8]` normalised to 1 where possible).
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
-pub(crate) struct Homography(pub(crate) [f64; 9]);
+pub struct Homography(pub(crate) [f64; 9]);
 
 impl Homography {
     /// The transform taking each `src[i]` to `dst[i]` (least squares for more than four
@@ -411,7 +410,7 @@ impl Homography {
     }
 
     /// Maps a point.
-    pub(crate) fn apply(&self, p: [f64; 2]) -> [f64; 2] {
+    pub fn apply(&self, p: [f64; 2]) -> [f64; 2] {
         let h = &self.0;
         let w = h[6] * p[0] + h[7] * p[1] + h[8];
         [
@@ -469,7 +468,7 @@ impl Homography {
 }
 
 /// Parses a chart's corners: four `X,Y` pairs separated by spaces (or `;`).
-pub(crate) fn parse_corners(spec: &str) -> Result<[[f64; 2]; 4], ChartError> {
+pub fn parse_corners(spec: &str) -> Result<[[f64; 2]; 4], ChartError> {
     let bad = |why: &str| ChartError::value(Param::Corners, format!("corners `{spec}`: {why}"));
     let parts: Vec<&str> = spec
         .split(|c: char| c.is_whitespace() || c == ';')

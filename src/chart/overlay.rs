@@ -26,10 +26,14 @@ pub(crate) const MAX_SIDE: usize = 1600;
 
 /// One patch of the swatch panel.
 #[derive(Debug, Clone, PartialEq)]
-pub(crate) struct Swatch {
+pub struct Swatch {
+    /// The patch's label (`01 dark skin`, `A1`).
     pub label: String,
+    /// The chart reference's XYZ.
     pub reference_xyz: [f64; 3],
+    /// The model's XYZ for the patch's camera RGB.
     pub corrected_xyz: [f64; 3],
+    /// ΔE00 between the two.
     pub delta_e: f64,
 }
 
@@ -55,7 +59,7 @@ fn label(img: &mut RgbImage, colour: Rgb<u8>, x: i32, y: i32, px: f32, font: &Fo
 /// Draws the overlay. `swatches`: (patches, reference white) after a fit. The steps: the
 /// white balance and exposure (`balance`), the frame scaled down (`preview`), the
 /// candidates (`draw_candidates`), the reading (`draw_reading`), the swatch panel.
-pub(crate) fn render(
+pub fn render(
     frame: &Frame,
     reading: Option<&Extraction>,
     candidates: &[Candidate],
@@ -77,7 +81,7 @@ pub(crate) fn render(
 
 /// The frame as the overlay shows it, without marks: scaled down to at most [`MAX_SIDE`],
 /// white-balanced and exposed as [`balance`] says (the studio's un-corrected preview).
-pub(crate) fn picture(frame: &Frame, reading: Option<&Extraction>) -> RgbImage {
+pub fn picture(frame: &Frame, reading: Option<&Extraction>) -> RgbImage {
     let s = frame.width.max(frame.height).div_ceil(MAX_SIDE).max(1);
     let (gain, level) = balance(frame, reading);
     let k = if level > 0.0 { 0.9 / level } else { 1.0 };
@@ -295,7 +299,7 @@ fn append_swatches(img: RgbImage, sw: &[Swatch], white: [f64; 3], font: &FontRef
 }
 
 /// PNG bytes of an overlay.
-pub(crate) fn encode(img: &RgbImage) -> Result<Vec<u8>, crate::io::IoError> {
+pub fn encode(img: &RgbImage) -> Result<Vec<u8>, crate::io::IoError> {
     use image::codecs::png::PngEncoder;
     use image::{ExtendedColorType, ImageEncoder};
     let mut png = Vec::new();

@@ -329,7 +329,7 @@ pub struct SceneTruth {
     /// The seed rendered with.
     pub seed: u64,
     /// Chart coordinates → frame pixels (in the truth file; crate-private in the API).
-    pub(crate) homography: Homography,
+    pub homography: Homography,
     /// The patch-grid corners in the frame (what `--corners` takes).
     pub corners: [[f64; 2]; 4],
     /// The chart body's corners in the frame.
@@ -371,7 +371,7 @@ pub struct SceneTruth {
 }
 
 /// The truth file written beside a scene frame: `NAME.scene.json` for `NAME.exr`.
-pub(crate) fn truth_path(frame: &Path) -> PathBuf {
+pub fn truth_path(frame: &Path) -> PathBuf {
     frame.with_extension("scene.json")
 }
 
@@ -1089,7 +1089,7 @@ pub(super) fn apply_look(
 /// plain scenes: the difficulties of real photographs, and charts that are not the one asked
 /// for (every one of which must be refused).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub(crate) enum Family {
+pub enum Family {
     /// The envelope's scenes (linear camera RGB).
     Envelope,
     /// The envelope's scenes through a camera JPEG rendering ([`CameraLook`]).
@@ -1133,7 +1133,8 @@ pub(crate) enum Family {
 }
 
 impl Family {
-    pub(crate) const ALL: [Family; 13] = [
+    /// Every family, in the order `chart rate` lists them.
+    pub const ALL: [Family; 13] = [
         Family::Envelope,
         Family::Jpeg,
         Family::Fill,
@@ -1150,7 +1151,7 @@ impl Family {
     ];
 
     /// The family's name (`envelope`, `jpeg`, …), as `chart rate --family` takes it.
-    pub(crate) fn name(self) -> &'static str {
+    pub fn name(self) -> &'static str {
         match self {
             Family::Envelope => "envelope",
             Family::Jpeg => "jpeg",
@@ -1168,14 +1169,15 @@ impl Family {
         }
     }
 
-    pub(crate) fn parse(s: &str) -> Option<Family> {
+    /// The family named `s` (its [`Family::name`]), if any.
+    pub fn parse(s: &str) -> Option<Family> {
         Family::ALL
             .into_iter()
             .find(|f| f.name().eq_ignore_ascii_case(s.trim()))
     }
 
     /// True for the charts that are not the one asked for: any detection is wrong.
-    pub(crate) fn negative(self) -> bool {
+    pub fn negative(self) -> bool {
         matches!(
             self,
             Family::Spyder | Family::Random | Family::Shuffled | Family::Nested | Family::Spyder24
@@ -1185,7 +1187,7 @@ impl Family {
     /// The colours and options of scene `seed` of this family (a negative's impostor in the
     /// layout of `colours`' chart; the truth of a negative scene names the cells of the
     /// impostor, not that chart's).
-    pub(crate) fn scene(
+    pub fn scene(
         self,
         colours: &ChartColours,
         width: usize,

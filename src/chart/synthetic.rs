@@ -140,7 +140,7 @@ impl ChartLayout {
 }
 
 /// The layout file written beside `chart`: `NAME.patches.json` for `NAME.exr`.
-pub(crate) fn layout_path(chart: &Path) -> PathBuf {
+pub fn layout_path(chart: &Path) -> PathBuf {
     chart.with_extension("patches.json")
 }
 
@@ -154,7 +154,7 @@ pub(crate) const MAX_PATCH_PIXELS: usize = 1 << 14;
 
 /// Checks an exposure and a noise level against [`EXPOSURE_RANGE`] and [`MAX_NOISE`]; the
 /// message names the limit, the error the parameter ([`Param::Exposure`], [`Param::Noise`]).
-pub(crate) fn check_exposure_noise(exposure: f64, noise: f64) -> Result<(), IoError> {
+pub fn check_exposure_noise(exposure: f64, noise: f64) -> Result<(), IoError> {
     let (lo, hi) = EXPOSURE_RANGE;
     if !(exposure.is_finite() && (lo..=hi).contains(&exposure)) {
         return Err(param(
@@ -189,7 +189,7 @@ impl ChartOptions {
     /// Checks each option on its own (whether they fit together depends on the patch count,
     /// which [`render`] checks): a patch size of 1 to [`MAX_PATCH_PIXELS`], a gap up to it, at
     /// least one column, and [`check_exposure_noise`].
-    pub(crate) fn validate(&self) -> Result<(), IoError> {
+    pub fn validate(&self) -> Result<(), IoError> {
         for (p, what, v, least) in [
             (Param::PatchSize, "patch size", self.patch_size, 1),
             (Param::Gap, "gap", self.gap, 0),
@@ -306,7 +306,7 @@ pub fn render(data: &TrainingSet, opts: &ChartOptions) -> Result<(Frame, ChartLa
 /// Writes a rendered chart: the frame at `dest` (camera RGB, so no `colorInteropID`) as a
 /// float EXR, or a 32-bit float TIFF when `dest` ends in `.tif`/`.tiff`, and its layout as JSON
 /// at [`layout_path`]. Both are staged in `unit` (committed together by its owner).
-pub(crate) fn write(
+pub fn write(
     frame: &Frame,
     layout: &ChartLayout,
     dest: &Path,
@@ -340,7 +340,7 @@ pub(crate) fn write(
 
 /// Writes a camera-RGB frame (no colour space attribute) as a float EXR, or a 32-bit float TIFF
 /// when `dest` ends in `.tif`/`.tiff`, with `comments` in the EXR header; staged in `unit`.
-pub(crate) fn write_camera_frame(
+pub fn write_camera_frame(
     frame: &Frame,
     dest: &Path,
     comments: &str,

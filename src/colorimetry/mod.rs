@@ -12,8 +12,6 @@ pub(crate) mod temperature;
 pub(crate) use dual::{Dual, Real};
 #[cfg(feature = "io")]
 pub(crate) use output::srgb8;
-#[cfg(feature = "cli")]
-pub(crate) use output::to_linear_srgb;
 pub(crate) use output::{output_matrix, output_matrix_exact};
 
 /// CIE D65 white point (2° observer), Y = 100; used when measured XYZ data names no white.

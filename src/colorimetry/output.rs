@@ -2,7 +2,6 @@
 //! the perfect white at `Y = 1`; `model::output_model` folds it into a model), the preview matrix to
 //! linear sRGB, and the sRGB transfer function.
 
-#[cfg(any(feature = "cli", test))]
 use super::spaces;
 use super::spaces::{Mat3, OutputSpace};
 
@@ -10,7 +9,7 @@ use super::spaces::{Mat3, OutputSpace};
 /// frames written: scene-linear with the perfect white at `Y = 1`, in `space`, Bradford-adapted
 /// from the training white to the space's white (D65 for XYZ; see [`OutputSpace::from_xyz`]).
 /// With [`OutputSpace::LinearSrgb`] this is XYZ → display (linear sRGB, white = 1).
-pub(crate) fn output_matrix(white_xyz: [f64; 3], space: OutputSpace) -> Mat3 {
+pub fn output_matrix(white_xyz: [f64; 3], space: OutputSpace) -> Mat3 {
     let m = space.from_xyz(white_xyz);
     let k = 1.0 / white_xyz[1];
     m.map(|row| row.map(|v| v * k))
@@ -26,8 +25,7 @@ pub(crate) fn output_matrix_exact(white_xyz: [f64; 3], space: OutputSpace) -> Ma
 
 /// The matrix from pixels in `space` (as written by `nsrm apply`, white `Y = 1`, scene white
 /// `white_xyz`) to linear sRGB (D65, white = 1): for previews.
-#[cfg(any(feature = "cli", test))]
-pub(crate) fn to_linear_srgb(white_xyz: [f64; 3], space: OutputSpace) -> Mat3 {
+pub fn to_linear_srgb(white_xyz: [f64; 3], space: OutputSpace) -> Mat3 {
     let srgb = OutputSpace::LinearSrgb.from_xyz(white_xyz);
     spaces::mul(&srgb, &spaces::invert(&space.from_xyz(white_xyz)))
 }
@@ -44,7 +42,7 @@ pub(crate) fn srgb_oetf(v: f64) -> f64 {
 
 /// A linear value as an 8-bit sRGB code: clipped to `[0, 1]`, [`srgb_oetf`], rounded; NaN is 0.
 #[cfg(any(feature = "io", test))]
-pub(crate) fn srgb8(v: f64) -> u8 {
+pub fn srgb8(v: f64) -> u8 {
     let v = if v.is_nan() { 0.0 } else { v.clamp(0.0, 1.0) };
     (srgb_oetf(v) * 255.0).round() as u8
 }

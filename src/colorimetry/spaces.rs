@@ -2,7 +2,7 @@
 //! adaptation from the scene's white to the space's white where they differ.
 
 /// A 3×3 matrix, row-major: `out[i] = Σ_j m[i][j] · in[j]`.
-pub(crate) type Mat3 = [[f64; 3]; 3];
+pub type Mat3 = [[f64; 3]; 3];
 
 /// Where corrected pixels are written.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -19,7 +19,7 @@ pub enum OutputSpace {
 
 impl OutputSpace {
     /// Every space with its command-line name.
-    pub(crate) const ALL: [(OutputSpace, &'static str); 4] = [
+    pub const ALL: [(OutputSpace, &'static str); 4] = [
         (OutputSpace::Xyz, "xyz"),
         (OutputSpace::LinearSrgb, "linear-srgb"),
         (OutputSpace::Acescg, "acescg"),
@@ -27,8 +27,7 @@ impl OutputSpace {
     ];
 
     /// Parses a command-line name (`xyz`, `linear-srgb`, `acescg`, `aces2065-1`).
-    #[cfg(feature = "cli")]
-    pub(crate) fn parse(name: &str) -> Option<OutputSpace> {
+    pub fn parse(name: &str) -> Option<OutputSpace> {
         Self::ALL
             .iter()
             .find(|(_, n)| n.eq_ignore_ascii_case(name))
@@ -164,7 +163,7 @@ pub(crate) fn bradford(src: [f64; 3], dst: [f64; 3]) -> Mat3 {
 }
 
 /// `m · v`.
-pub(crate) fn apply(m: &Mat3, v: [f64; 3]) -> [f64; 3] {
+pub fn apply(m: &Mat3, v: [f64; 3]) -> [f64; 3] {
     [
         m[0][0] * v[0] + m[0][1] * v[1] + m[0][2] * v[2],
         m[1][0] * v[0] + m[1][1] * v[1] + m[1][2] * v[2],

@@ -11,7 +11,7 @@ use super::spaces::Mat3;
 
 /// Errors from temperatures and chromaticities.
 #[derive(Debug, thiserror::Error)]
-pub(crate) enum TemperatureError {
+pub enum TemperatureError {
     /// A temperature or chromaticity out of the range handled (the caller's mistake).
     #[error("{0}")]
     Range(String),
@@ -69,7 +69,7 @@ pub(crate) fn daylight_xy(t: f64) -> Result<[f64; 2], TemperatureError> {
 /// The chromaticity a bare temperature names: Planckian below 4000 K, CIE daylight from
 /// it up.
 #[cfg(any(feature = "export", test))]
-pub(crate) fn temperature_xy(t: f64) -> Result<[f64; 2], TemperatureError> {
+pub fn temperature_xy(t: f64) -> Result<[f64; 2], TemperatureError> {
     check_t(t, MIN_CCT, MAX_CCT)?;
     if t < DAYLIGHT_FROM {
         planckian_xy(t)
@@ -222,7 +222,7 @@ pub(crate) fn neutral_to_xy(
 
 /// Bradford adaptation from the white `src` to the white `dst` (XYZ, any scale: the matrix maps
 /// `src` to `dst` scaled to `src`'s Y).
-pub(crate) fn bradford_between(src: [f64; 3], dst: [f64; 3]) -> Mat3 {
+pub fn bradford_between(src: [f64; 3], dst: [f64; 3]) -> Mat3 {
     let s = [src[0] / src[1], 1.0, src[2] / src[1]];
     let d = [dst[0] / dst[1], 1.0, dst[2] / dst[1]];
     super::spaces::bradford(s, d)

@@ -1,7 +1,7 @@
 //! Evaluation: leave-one-out (the paper's protocol) and in-sample ΔE00 statistics.
 
 #[cfg(feature = "plot")]
-pub(crate) mod plot;
+pub mod plot;
 
 use crate::colorimetry::delta_e00_xyz;
 use crate::model::fit::{fit_with, FitOptions};
@@ -45,7 +45,7 @@ pub struct Stats {
 impl Stats {
     /// Mean, median, 95th percentile (linear interpolation between order statistics, as numpy's
     /// default) and maximum. `values` must not be empty.
-    pub(crate) fn of(values: &[f64]) -> Stats {
+    pub fn of(values: &[f64]) -> Stats {
         assert!(!values.is_empty());
         let mut v = values.to_vec();
         v.sort_by(|a, b| a.total_cmp(b));

@@ -12,7 +12,7 @@ use std::path::Path;
 
 /// Errors from drawing a plot.
 #[derive(Debug, thiserror::Error)]
-pub(crate) enum PlotError {
+pub enum PlotError {
     /// The plot path (held here) has an extension other than `.png` or `.svg`.
     #[error("{0}: the plot file must end in .png or .svg")]
     Format(String),
@@ -32,21 +32,23 @@ pub(crate) enum PlotError {
 
 impl PlotError {
     /// True for a plot file name that is neither `.png` nor `.svg`.
-    pub(crate) fn is_usage(&self) -> bool {
+    pub fn is_usage(&self) -> bool {
         matches!(self, PlotError::Format(_))
     }
 }
 
 /// The file formats a plot can be written in.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub(crate) enum Format {
+pub enum Format {
+    /// Scalable vector graphics.
     Svg,
+    /// A PNG bitmap.
     Png,
 }
 
 impl Format {
     /// From the file name's extension.
-    pub(crate) fn from_path(path: &Path) -> Result<Format, PlotError> {
+    pub fn from_path(path: &Path) -> Result<Format, PlotError> {
         match path
             .extension()
             .map(|e| e.to_string_lossy().to_ascii_lowercase())
@@ -348,7 +350,7 @@ pub(crate) fn to_image(
 
 /// Draws the histograms of `results` into `path` (.svg or .png), staged in `unit`, with `title`
 /// (what was evaluated: data set, camera, protocol) above the panels.
-pub(crate) fn histograms(
+pub fn histograms(
     results: &[EvalResult],
     title: Option<&str>,
     path: &Path,

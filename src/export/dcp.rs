@@ -208,7 +208,8 @@ impl Default for DcpOptions {
 }
 
 impl DcpOptions {
-    pub(crate) fn check(&self) -> Result<(), ExportError> {
+    /// Checks the options are in range (hue and saturation divisions), before any work.
+    pub fn check(&self) -> Result<(), ExportError> {
         if !(6..=MAX_HUE_DIVISIONS).contains(&self.hue_divisions)
             || !(2..=MAX_SAT_DIVISIONS).contains(&self.sat_divisions)
         {

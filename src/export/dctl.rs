@@ -26,7 +26,7 @@ fn lit(v: f64) -> String {
 
 /// The DCTL source for `folded` (a model whose matrix already maps to the output space);
 /// `header` lines are written as comments at the top.
-pub(crate) fn generate(folded: &Model, header: &[String]) -> Result<String, super::ExportError> {
+pub fn generate(folded: &Model, header: &[String]) -> Result<String, super::ExportError> {
     if folded.matrix().iter().any(|v| !(*v as f32).is_finite()) {
         return Err(super::ExportError::Model(
             "the matrix holds a value that is not finite in f32".into(),

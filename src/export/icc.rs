@@ -60,7 +60,7 @@ pub(crate) const CURVE_ENTRIES: usize = 4096;
 pub(crate) const TOE_STOPS: f64 = 2.0;
 /// The default bottom of the exposure range, log2 of device units (the white's largest channel
 /// is device 1.0).
-pub(crate) const DEFAULT_LO: f64 = -6.0;
+pub const DEFAULT_LO: f64 = -6.0;
 /// The CLUT sizes accepted (lut16 allows up to 255; the file is `6·n³` bytes).
 pub(crate) const CLUT_SIZES: std::ops::RangeInclusive<usize> = 2..=129;
 
@@ -83,7 +83,8 @@ impl Default for IccOptions {
 }
 
 impl IccOptions {
-    pub(crate) fn check(&self) -> Result<(), ExportError> {
+    /// Checks the options are in range (CLUT size, input range), before any work.
+    pub fn check(&self) -> Result<(), ExportError> {
         if !CLUT_SIZES.contains(&self.size) {
             return Err(ExportError::Usage(format!(
                 "CLUT size {} is out of range ({}..={})",

@@ -39,21 +39,21 @@
 
 pub(crate) mod clf;
 pub(crate) mod cube;
-pub(crate) mod dcp;
+pub mod dcp;
 #[cfg(test)]
 mod dcp_tests;
-// Only `nsrm export-shader --lang dctl` prints DCTL.
-#[cfg(any(feature = "cli", test))]
-pub(crate) mod dctl;
+// DCTL is printed from the pixel program, as the shaders are (`nsrm export-shader --lang dctl`).
+#[cfg(any(feature = "gpu", test))]
+pub mod dctl;
 #[cfg(test)]
 mod dctl_tests;
-pub(crate) mod icc;
-pub(crate) mod nodes;
+pub mod icc;
+pub mod nodes;
 pub(crate) mod ocio;
 #[cfg(all(test, feature = "io"))]
 mod ocio_tests;
 #[cfg(feature = "gpu")]
-pub(crate) mod shader;
+pub mod shader;
 
 pub use self::{
     dcp::{export_to as export_dcp, DcpOptions, DcpTraining, DcpWritten},
@@ -95,8 +95,7 @@ pub enum ExportError {
 
 impl ExportError {
     /// True for export options out of range.
-    #[cfg(feature = "cli")]
-    pub(crate) fn is_usage(&self) -> bool {
+    pub fn is_usage(&self) -> bool {
         match self {
             ExportError::Usage(_) => true,
             ExportError::Write(w) => w.is_usage(),
@@ -122,8 +121,7 @@ pub enum Format {
 
 impl Format {
     /// Parses `clf`, `cube` or `ocio`.
-    #[cfg(feature = "cli")]
-    pub(crate) fn parse(s: &str) -> Option<Format> {
+    pub fn parse(s: &str) -> Option<Format> {
         match s.trim().to_ascii_lowercase().as_str() {
             "clf" => Some(Format::Clf),
             "cube" => Some(Format::Cube),
@@ -184,7 +182,7 @@ impl Default for LutOptions {
 
 impl LutOptions {
     /// Checks the sizes and the range.
-    pub(crate) fn check(&self) -> Result<(), ExportError> {
+    pub fn check(&self) -> Result<(), ExportError> {
         if !LUT_SIZES.contains(&self.size) {
             return Err(ExportError::Usage(format!(
                 "LUT size {} is out of range ({}..={})",
@@ -290,7 +288,7 @@ pub struct ErrorReport {
 
 impl ErrorReport {
     /// The larger of the two maxima (NaN when either is: an error not measured).
-    pub(crate) fn max(&self) -> f64 {
+    pub fn max(&self) -> f64 {
         if self.training.max.is_nan() || self.dense.max.is_nan() {
             return f64::NAN;
         }
@@ -346,7 +344,7 @@ impl ErrorReport {
     }
 
     /// One line for the CLF `Description`, the .cube header and the terminal.
-    pub(crate) fn summary(&self) -> String {
+    pub fn summary(&self) -> String {
         format!(
             "training patches: {}; dense in-gamut set ({} exposures 2^{:.2}..2^{:.2} of the brightest patch): {}",
             self.training,
@@ -622,7 +620,7 @@ pub(crate) fn measure_fn(
 
 /// The file an export writes beside `out`: for OCIO the config's CLF, `<stem>.clf`; none for the
 /// other formats. A caller declares it as an output of its session with `out`.
-pub(crate) fn companion_path(
+pub fn companion_path(
     format: Format,
     out: &std::path::Path,
 ) -> Result<Option<std::path::PathBuf>, ExportError> {
@@ -801,7 +799,7 @@ fn inside(hull: &[(f64, f64)], p: (f64, f64)) -> bool {
 }
 
 /// A one-line account of where the model came from, for file headers.
-pub(crate) fn provenance_line(model: &Model) -> String {
+pub fn provenance_line(model: &Model) -> String {
     let p = model.provenance();
     let mut parts = vec![format!(
         "{} order {} ({} terms) fitted on {} patches",
@@ -836,7 +834,7 @@ pub(crate) fn provenance_line(model: &Model) -> String {
 }
 
 /// A name for the camera colour space, from the provenance: `nsrm NSRM3 nikon-d5100 D65`.
-pub(crate) fn camera_space_name(model: &Model) -> String {
+pub fn camera_space_name(model: &Model) -> String {
     let p = model.provenance();
     let mut name = format!("nsrm {}{}", model.kind(), model.order());
     for v in [&p.camera, &p.illuminant].into_iter().flatten() {

@@ -26,8 +26,7 @@ impl Interpolation {
     }
 
     /// Parses `trilinear` / `tetrahedral` (for the unit test of the command line's values).
-    #[cfg(all(test, feature = "cli"))]
-    pub(crate) fn parse(s: &str) -> Option<Interpolation> {
+    pub fn parse(s: &str) -> Option<Interpolation> {
         match s.trim().to_ascii_lowercase().as_str() {
             "trilinear" | "linear" => Some(Interpolation::Trilinear),
             "tetrahedral" => Some(Interpolation::Tetrahedral),

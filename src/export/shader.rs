@@ -27,8 +27,8 @@ pub enum ShaderLang {
 }
 
 impl ShaderLang {
-    #[cfg(test)]
-    pub(crate) const ALL: [ShaderLang; 5] = [
+    /// Every language, in the order `--lang` lists them.
+    pub const ALL: [ShaderLang; 5] = [
         ShaderLang::Wgsl,
         ShaderLang::Glsl,
         ShaderLang::Hlsl,
@@ -37,7 +37,7 @@ impl ShaderLang {
     ];
 
     /// `wgsl`, `glsl`, `hlsl`, `msl` or `spirv`.
-    pub(crate) fn name(self) -> &'static str {
+    pub fn name(self) -> &'static str {
         match self {
             ShaderLang::Wgsl => "wgsl",
             ShaderLang::Glsl => "glsl",
@@ -48,8 +48,7 @@ impl ShaderLang {
     }
 
     /// Parses a name (case-insensitive; `spv` for SPIR-V, `metal` for MSL also taken).
-    #[cfg(test)]
-    pub(crate) fn parse(s: &str) -> Option<ShaderLang> {
+    pub fn parse(s: &str) -> Option<ShaderLang> {
         match s.trim().to_ascii_lowercase().as_str() {
             "wgsl" => Some(ShaderLang::Wgsl),
             "glsl" => Some(ShaderLang::Glsl),
@@ -62,7 +61,7 @@ impl ShaderLang {
 }
 
 /// The self-contained WGSL source (the matrix as constants) for `model` on `layout`.
-pub(crate) fn baked_wgsl(model: &Model, layout: Layout) -> Result<String, GpuError> {
+pub fn baked_wgsl(model: &Model, layout: Layout) -> Result<String, GpuError> {
     Ok(shader::wgsl(
         model.kind(),
         model.order(),

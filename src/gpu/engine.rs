@@ -28,7 +28,7 @@ pub(crate) const OUTPUT_SENTINEL_BITS: u32 = 0x7FC0_BAD5;
 
 /// Timing of one [`Engine::timed_apply`].
 #[derive(Debug, Clone, Copy, PartialEq)]
-pub(crate) struct GpuTiming {
+pub struct GpuTiming {
     /// GPU time of the correction passes (sum over tiles) from timestamp queries; `None` if
     /// the adapter has no timestamp queries.
     pub kernel_seconds: Option<f64>,
@@ -150,7 +150,7 @@ impl Engine {
     }
 
     /// `name (Backend, DeviceType)`, e.g. `llvmpipe (LLVM 15.0.6, 256 bits) (Vulkan, Cpu)`.
-    pub(crate) fn adapter_name(&self) -> String {
+    pub fn adapter_name(&self) -> String {
         self.ctx.adapter_name()
     }
 
@@ -161,8 +161,7 @@ impl Engine {
     }
 
     /// Whether [`timed_apply`](Self::timed_apply) can report kernel time.
-    #[cfg(any(feature = "cli", all(test, feature = "io")))]
-    pub(crate) fn has_timestamps(&self) -> bool {
+    pub fn has_timestamps(&self) -> bool {
         self.timestamps.is_some()
     }
 
@@ -174,12 +173,7 @@ impl Engine {
 
     /// [`apply`](Self::apply), timed: kernel time from timestamp queries (if the adapter has
     /// them) and the wall time of upload + compute + read-back.
-    #[cfg(any(feature = "cli", all(test, feature = "io")))]
-    pub(crate) fn timed_apply(
-        &mut self,
-        model: &Model,
-        frame: &mut Frame,
-    ) -> Result<GpuTiming, GpuError> {
+    pub fn timed_apply(&mut self, model: &Model, frame: &mut Frame) -> Result<GpuTiming, GpuError> {
         self.run(model, frame, true)
     }
 
@@ -403,8 +397,7 @@ impl Engine {
     /// Bytes per second of a `bytes`-byte buffer-to-buffer copy on the device, timed with
     /// timestamp queries (best of three after a warm-up); `None` if the device cannot write
     /// timestamps between commands. `bytes` is capped at the device's buffer size limit.
-    #[cfg(any(feature = "cli", all(test, feature = "io")))]
-    pub(crate) fn copy_bandwidth(&mut self, bytes: u64) -> Result<Option<f64>, GpuError> {
+    pub fn copy_bandwidth(&mut self, bytes: u64) -> Result<Option<f64>, GpuError> {
         let dev = &self.ctx.device;
         let needed =
             wgpu::Features::TIMESTAMP_QUERY | wgpu::Features::TIMESTAMP_QUERY_INSIDE_ENCODERS;

@@ -46,7 +46,7 @@ pub(super) fn engine(tile_pixels: Option<usize>) -> Option<Engine> {
 }
 
 use crate::kit as common;
-use common::{awkward_frame as random_frame, f32_bound, read_buffer, summands, training, Rng};
+use common::{awkward_frame as random_frame, f32_bound, summands, training, Rng};
 
 fn model(kind: Kind, order: u8) -> Model {
     fit(kind, order, training()).unwrap()
@@ -674,4 +674,27 @@ fn exported_wgsl_runs_and_matches_the_reference() {
             REL_TOL,
         );
     }
+}
+
+/// A GPU buffer read back to the CPU as f32s (blocking): the GPU tests' read-back.
+pub(super) fn read_buffer(
+    device: &nsrm::gpu::wgpu::Device,
+    queue: &nsrm::gpu::wgpu::Queue,
+    buf: &nsrm::gpu::wgpu::Buffer,
+) -> Vec<f32> {
+    use nsrm::gpu::wgpu;
+    let rb = device.create_buffer(&wgpu::BufferDescriptor {
+        label: None,
+        size: buf.size(),
+        usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
+        mapped_at_creation: false,
+    });
+    let mut enc = device.create_command_encoder(&Default::default());
+    enc.copy_buffer_to_buffer(buf, 0, &rb, 0, buf.size());
+    queue.submit([enc.finish()]);
+    rb.map_async(wgpu::MapMode::Read, .., |r| r.unwrap());
+    device.poll(wgpu::PollType::wait_indefinitely()).unwrap();
+    let v = bytemuck::cast_slice(&rb.get_mapped_range(..).unwrap()).to_vec();
+    rb.unmap();
+    v
 }

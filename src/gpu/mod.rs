@@ -42,7 +42,8 @@ mod program_tests;
 pub(crate) mod shader;
 
 pub use self::{
-    context::GpuContext, corrector::Corrector, engine::Engine, shader::Target, shader::TexelFormat,
+    context::GpuContext, corrector::Corrector, engine::Engine, engine::GpuTiming, shader::Target,
+    shader::TexelFormat,
 };
 /// The wgpu this crate is built against: a renderer embedding a [`Corrector`] records into
 /// this version's encoders and textures.
@@ -125,8 +126,7 @@ pub enum GpuError {
 
 impl GpuError {
     /// True for buffers, textures or models the caller passed that a corrector cannot take.
-    #[cfg(feature = "cli")]
-    pub(crate) fn is_usage(&self) -> bool {
+    pub fn is_usage(&self) -> bool {
         matches!(self, GpuError::Usage(_) | GpuError::ModelMismatch { .. })
     }
 }
@@ -158,8 +158,7 @@ pub enum DeviceChoice {
 impl DeviceChoice {
     /// Parses `auto`, `gpu` or `cpu` (case-insensitive; the unit tests hold the command line's
     /// `--device` values to it).
-    #[cfg(test)]
-    pub(crate) fn parse(s: &str) -> Option<DeviceChoice> {
+    pub fn parse(s: &str) -> Option<DeviceChoice> {
         match s.trim().to_ascii_lowercase().as_str() {
             "auto" => Some(DeviceChoice::Auto),
             "gpu" => Some(DeviceChoice::Gpu),
@@ -169,8 +168,7 @@ impl DeviceChoice {
     }
 
     /// `auto`, `gpu` or `cpu`.
-    #[cfg(any(feature = "cli", test))]
-    pub(crate) fn name(self) -> &'static str {
+    pub fn name(self) -> &'static str {
         match self {
             DeviceChoice::Auto => "auto",
             DeviceChoice::Gpu => "gpu",
@@ -181,13 +179,19 @@ impl DeviceChoice {
 
 /// Why [`open_device`] chose the CPU path.
 #[derive(Debug, Clone, PartialEq, Eq)]
-pub(crate) enum CpuReason {
+pub enum CpuReason {
     /// The caller asked for the CPU.
     Asked,
     /// `Auto` found no adapter.
-    NoAdapter { detail: String },
+    NoAdapter {
+        /// What wgpu said.
+        detail: String,
+    },
     /// `Auto` found only a software rasteriser (the CPU path is faster).
-    SoftwareOnly { adapter: String },
+    SoftwareOnly {
+        /// The software adapter's name.
+        adapter: String,
+    },
 }
 
 impl std::fmt::Display for CpuReason {
@@ -208,14 +212,11 @@ impl std::fmt::Display for CpuReason {
 
 /// What [`open_device`] opened: a GPU engine, or the CPU path and why.
 #[derive(Debug)]
-pub(crate) enum Opened {
+pub enum Opened {
+    /// A GPU engine on the adapter found.
     Gpu(Box<Engine>),
-    // Only the binary and the tests read the reason (`open` drops it); gating it would gate
-    // `CpuReason` and its three constructions in `open_device` with it.
-    Cpu(
-        #[cfg_attr(not(any(feature = "cli", all(test, feature = "io"))), allow(dead_code))]
-        CpuReason,
-    ),
+    /// The CPU path, and why.
+    Cpu(CpuReason),
 }
 
 /// Opens the engine the choice asks for, saying why when it is the CPU.
@@ -225,7 +226,7 @@ pub(crate) enum Opened {
 ///   (a named adapter that does not exist, a device that cannot be opened) are errors.
 /// * `Gpu`: the engine on any adapter (software included), or an error.
 /// * `Cpu`: the CPU.
-pub(crate) fn open_device(choice: DeviceChoice, opts: &GpuOptions) -> Result<Opened, GpuError> {
+pub fn open_device(choice: DeviceChoice, opts: &GpuOptions) -> Result<Opened, GpuError> {
     let gpu = |e: Engine| Opened::Gpu(Box::new(e));
     match choice {
         DeviceChoice::Cpu => Ok(Opened::Cpu(CpuReason::Asked)),

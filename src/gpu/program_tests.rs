@@ -19,8 +19,9 @@
 //! Without an adapter the test prints `SKIP: …` and passes, unless `CI=true`, where it fails.
 
 use super::gpu_tests::engine;
+use super::gpu_tests::read_buffer;
 use super::{Corrector, Target};
-use crate::kit::{awkward_frame, f32_bound, read_buffer, Rng, F32_REL};
+use crate::kit::{awkward_frame, f32_bound, Rng, F32_REL};
 use crate::model::pixel::{Program, Step};
 use crate::model::terms::{terms, Term};
 use crate::{Frame, Kind, Layout};

@@ -36,9 +36,7 @@ fn take_entry(p: &Path) -> bool {
 /// directory, a glob match (in any component) or the pattern itself (see `glob_into`). Files reached twice (two patterns, or `./a.exr` and `a.exr`)
 /// are listed once. The list is sorted by path, so every machine given the same inputs sees
 /// the same order (see [`Shard`]).
-pub(crate) fn expand_inputs<S: AsRef<std::ffi::OsStr>>(
-    specs: &[S],
-) -> Result<Vec<PathBuf>, IoError> {
+pub fn expand_inputs<S: AsRef<std::ffi::OsStr>>(specs: &[S]) -> Result<Vec<PathBuf>, IoError> {
     let mut found: Vec<PathBuf> = Vec::new();
     for spec in specs {
         let path = Path::new(spec.as_ref());
@@ -372,14 +370,16 @@ impl Pattern {
 /// passes `--shard $SLURM_ARRAY_TASK_ID/N`; a Kubernetes indexed Job (indices from 0) passes
 /// `--shard $((JOB_COMPLETION_INDEX + 1))/N`.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub(crate) struct Shard {
+pub struct Shard {
+    /// This shard's number, from 1.
     pub index: usize,
+    /// How many shards the batch is split into.
     pub count: usize,
 }
 
 impl Shard {
     /// Parses `K/N` (1-based K).
-    pub(crate) fn parse(spec: &str) -> Result<Shard, IoError> {
+    pub fn parse(spec: &str) -> Result<Shard, IoError> {
         let bad = |why: &str| IoError::Shard {
             spec: spec.to_string(),
             why: why.to_string(),
@@ -479,7 +479,7 @@ pub(crate) fn output_path(
 
 /// Checks that `--suffix` is a plain fragment of a file name: no path separator, no `..`, no
 /// NUL. (An empty suffix is allowed; the plan refuses it when an output would land on an input.)
-pub(crate) fn validate_suffix(suffix: &str) -> Result<(), PlanError> {
+pub fn validate_suffix(suffix: &str) -> Result<(), PlanError> {
     let bad = |why: &str| {
         Err(PlanError::Usage(format!(
             "output suffix `{suffix}`: {why}; it must be a plain part of a file name"
@@ -499,7 +499,7 @@ pub(crate) fn validate_suffix(suffix: &str) -> Result<(), PlanError> {
 
 /// What to do about an output that already exists.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
-pub(crate) enum Existing {
+pub enum Existing {
     /// The input fails (`--overwrite` or `--skip-existing` is needed).
     #[default]
     Refuse,
@@ -511,7 +511,7 @@ pub(crate) enum Existing {
 
 /// How a batch is planned.
 #[derive(Debug, Clone, Default)]
-pub(crate) struct PlanOptions<'a> {
+pub struct PlanOptions<'a> {
     /// Output directory; `None`: beside each input.
     pub out_dir: Option<&'a Path>,
     /// Appended to each output's stem (see [`output_path`], [`validate_suffix`]).
@@ -520,6 +520,7 @@ pub(crate) struct PlanOptions<'a> {
     pub format: FileFormat,
     /// Where sRGB PNG previews go, if anywhere.
     pub preview_dir: Option<&'a Path>,
+    /// What to do where an output exists.
     pub existing: Existing,
     /// This run's slice of the inputs; collisions are checked over all of them.
     pub shard: Option<Shard>,
@@ -530,7 +531,8 @@ pub(crate) struct PlanOptions<'a> {
 
 /// What the plan says to do with one input.
 #[derive(Debug, Clone, PartialEq, Eq)]
-pub(crate) enum Action {
+pub enum Action {
+    /// Correct the input into its output.
     Convert,
     /// Nothing to do, with the reason (the output exists and existing outputs are skipped).
     Skip(String),
@@ -540,12 +542,15 @@ pub(crate) enum Action {
 
 /// Why the plan refuses one input before any work (the front end adds how to change that).
 #[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
-pub(crate) enum Refusal {
+pub enum Refusal {
     /// The output or preview path holds something that is not a regular file.
     #[error("{}: the {what} path is not a regular file (it is {kind}); nsrm never replaces one", path.display())]
     NotRegular {
+        /// The path.
         path: PathBuf,
+        /// `output` or `preview`.
         what: &'static str,
+        /// What is there instead (a directory, a symbolic link, …).
         kind: &'static str,
     },
     /// The output exists and existing outputs are refused.
@@ -558,10 +563,14 @@ pub(crate) enum Refusal {
 
 /// One input of the batch: where it goes and what to do.
 #[derive(Debug, Clone, PartialEq, Eq)]
-pub(crate) struct Job {
+pub struct Job {
+    /// The input frame.
     pub input: PathBuf,
+    /// Where its corrected frame goes.
     pub output: PathBuf,
+    /// Where its sRGB PNG preview goes, if one is asked for.
     pub preview: Option<PathBuf>,
+    /// What to do with it.
     pub action: Action,
 }
 
@@ -569,11 +578,12 @@ pub(crate) struct Job {
 /// after resolving symlinks and `..`, and by device and inode), no two sharing a destination,
 /// the policy for existing outputs applied, directories created.
 #[derive(Debug, Clone)]
-pub(crate) struct BatchPlan {
+pub struct BatchPlan {
     /// This run's jobs (this shard's), in input order.
     pub jobs: Vec<Job>,
     /// Inputs of the whole batch (all shards).
     pub total_inputs: usize,
+    /// This run's slice of the batch, if it is sharded.
     pub shard: Option<Shard>,
     /// Temporaries of nsrm's form found in those directories (left by a killed run, or being
     /// written by another one): reported, never removed unless asked.
@@ -582,14 +592,14 @@ pub(crate) struct BatchPlan {
 
 impl BatchPlan {
     /// Indices of the jobs to convert.
-    pub(crate) fn to_convert(&self) -> Vec<usize> {
+    pub fn to_convert(&self) -> Vec<usize> {
         (0..self.jobs.len())
             .filter(|&i| self.jobs[i].action == Action::Convert)
             .collect()
     }
 
     /// `12 inputs` or `shard 2/4: 3 of 12 inputs`.
-    pub(crate) fn scope(&self) -> String {
+    pub fn scope(&self) -> String {
         match self.shard {
             Some(s) => format!(
                 "shard {s}: {} of {} inputs",
@@ -603,7 +613,7 @@ impl BatchPlan {
 
 /// Why a batch cannot be planned.
 #[derive(Debug, thiserror::Error)]
-pub(crate) enum PlanError {
+pub enum PlanError {
     /// The options would lose data or contradict each other (exit status 2).
     #[error("{0}")]
     Usage(String),
@@ -615,7 +625,7 @@ pub(crate) enum PlanError {
 impl PlanError {
     /// True for a batch that cannot be planned as asked (collisions, existing outputs, a bad
     /// suffix); false for a directory that cannot be set up.
-    pub(crate) fn is_usage(&self) -> bool {
+    pub fn is_usage(&self) -> bool {
         matches!(self, PlanError::Usage(_))
     }
 }
@@ -691,7 +701,7 @@ pub(crate) fn ensure_writable_dir(dir: &Path) -> Result<(), PlanError> {
 /// preview that is an input of the batch (by resolved path or by device and inode, so also
 /// through symlinks, `..` and hard links), or two inputs sharing a destination. Existing
 /// destinations follow `existing`; one that is not a regular file always fails its input.
-pub(crate) fn plan_batch(inputs: &[PathBuf], o: &PlanOptions) -> Result<BatchPlan, PlanError> {
+pub fn plan_batch(inputs: &[PathBuf], o: &PlanOptions) -> Result<BatchPlan, PlanError> {
     validate_suffix(o.suffix)?;
     let format = o.format;
     let preview_of = |output: &Path| {

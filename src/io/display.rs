@@ -42,7 +42,7 @@ impl Encoding {
 
 /// What a read frame's values are.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub(crate) enum Transfer {
+pub enum Transfer {
     /// Linear as stored (scene-referred camera data).
     Linear,
     /// Display-referred values decoded with the sRGB transfer function.
@@ -53,12 +53,12 @@ pub(crate) enum Transfer {
 
 impl Transfer {
     /// True when the values went through a display encoding (a camera tone curve may remain).
-    pub(crate) fn display_referred(self) -> bool {
+    pub fn display_referred(self) -> bool {
         self == Transfer::SrgbDecoded
     }
 
     /// Words for messages and provenance.
-    pub(crate) fn describe(self) -> &'static str {
+    pub fn describe(self) -> &'static str {
         match self {
             Transfer::Linear => "linear",
             Transfer::SrgbDecoded => {
@@ -71,8 +71,10 @@ impl Transfer {
 
 /// A frame for chart reading and how its values were decoded.
 #[derive(Debug, Clone)]
-pub(crate) struct ChartFrame {
+pub struct ChartFrame {
+    /// The decoded pixels (linear when `transfer` says they were decoded).
     pub frame: Frame,
+    /// How its values were decoded.
     pub transfer: Transfer,
     /// The largest integer code of a display file decoded here (255, 65535); `None` for frames
     /// read by the linear readers.
@@ -144,7 +146,7 @@ fn tiff_is_8bit(path: &Path) -> bool {
 /// Reads a frame for chart reading: JPEG, PNG and 8-bit TIFF through `image` (display
 /// encodings), anything else through [`super::read_frame`] (EXR, 16-bit / float TIFF, and
 /// whatever else that dispatch reads), then decodes per `encoding`.
-pub(crate) fn read_chart_frame(
+pub fn read_chart_frame(
     path: &Path,
     opts: &ReadOptions,
     encoding: Encoding,

@@ -19,12 +19,12 @@
 //! `--shard`, outputs named), display-referred chart frames (`display`), camera raw decoding
 //! (`raw`), sRGB PNG previews (`preview`) and the frame pool.
 
-pub(crate) mod batch;
-pub(crate) mod display;
+pub mod batch;
+pub mod display;
 mod jpeg;
 mod openexr;
-pub(crate) mod preview;
-pub(crate) mod raw;
+pub mod preview;
+pub mod raw;
 mod tif;
 
 pub use {
@@ -36,10 +36,10 @@ pub use {
 /// The ZIP level written when none is asked for (libdeflate's levels, 0-12): 1, the fastest,
 /// which still compresses noisy float plates about as much as the higher levels. See
 /// BENCHMARKS.md.
-pub(crate) const DEFAULT_ZIP_LEVEL: u8 = 1;
+pub const DEFAULT_ZIP_LEVEL: u8 = 1;
 
 /// The highest deflate level libdeflate has (`--zip-level` accepts 0 to this).
-pub(crate) const MAX_ZIP_LEVEL: u8 = 12;
+pub const MAX_ZIP_LEVEL: u8 = 12;
 
 use crate::colorimetry::spaces::OutputSpace;
 use crate::frame::Frame;
@@ -165,7 +165,7 @@ pub enum IoError {
 
 impl IoError {
     /// True for inputs that name no frame, a malformed shard, and a parameter value out of range.
-    pub(crate) fn is_usage(&self) -> bool {
+    pub fn is_usage(&self) -> bool {
         use IoError;
         matches!(
             self,
@@ -200,7 +200,7 @@ impl IoError {
 
 /// The default of [`Limits::max_pixels`] (and `--max-pixels`): 2²⁸ = 268 435 456 pixels
 /// (16384 × 16384, 32× an 8K UHD frame): 3 GiB of f32 RGB.
-pub(crate) const DEFAULT_MAX_PIXELS: u64 = 1 << 28;
+pub const DEFAULT_MAX_PIXELS: u64 = 1 << 28;
 
 /// Bounds on what a frame's header may make a reader allocate. Checked from the header, before
 /// any pixel buffer exists; buffers whose size comes from a file are then allocated fallibly
@@ -295,14 +295,14 @@ pub(crate) fn try_zeroed<T: bytemuck::Zeroable>(path: &Path, n: usize) -> Result
 /// each zeroing a page, and its release as much again). Holds at most `max` buffers; the
 /// decoding and encoding threads share it by reference.
 #[derive(Debug)]
-pub(crate) struct FramePool {
+pub struct FramePool {
     buffers: std::sync::Mutex<Vec<Vec<f32>>>,
     max: usize,
 }
 
 impl FramePool {
     /// A pool keeping at most `max` idle buffers.
-    pub(crate) fn new(max: usize) -> FramePool {
+    pub fn new(max: usize) -> FramePool {
         FramePool {
             buffers: Default::default(),
             max,
@@ -379,7 +379,7 @@ pub enum FileFormat {
 
 impl FileFormat {
     /// Parses `exr` / `tiff` (also `tif`).
-    pub(crate) fn parse(s: &str) -> Option<FileFormat> {
+    pub fn parse(s: &str) -> Option<FileFormat> {
         match s.trim().to_ascii_lowercase().as_str() {
             "exr" | "openexr" => Some(FileFormat::Exr),
             "tif" | "tiff" => Some(FileFormat::Tiff),
@@ -388,7 +388,7 @@ impl FileFormat {
     }
 
     /// The format a file name's extension names (`.exr`, `.tif`, `.tiff`, any case).
-    pub(crate) fn from_extension(path: &Path) -> Option<FileFormat> {
+    pub fn from_extension(path: &Path) -> Option<FileFormat> {
         FileFormat::parse(path.extension()?.to_str()?)
     }
 
@@ -431,7 +431,7 @@ impl FileFormat {
     }
 
     /// `OpenEXR` / `TIFF`.
-    pub(crate) fn name(self) -> &'static str {
+    pub fn name(self) -> &'static str {
         match self {
             FileFormat::Exr => "OpenEXR",
             FileFormat::Tiff => "TIFF",
@@ -471,8 +471,7 @@ pub enum ExrCompression {
 
 impl ExrCompression {
     /// Every choice with its command-line name.
-    #[cfg(test)]
-    pub(crate) const ALL: [(ExrCompression, &'static str); 6] = [
+    pub const ALL: [(ExrCompression, &'static str); 6] = [
         (ExrCompression::Keep, "keep"),
         (ExrCompression::None, "none"),
         (ExrCompression::Rle, "rle"),
@@ -483,8 +482,7 @@ impl ExrCompression {
 
     /// Parses `keep`, `none`, `rle`, `zips`, `zip` or `piz` (the command line's names, checked
     /// against its parser).
-    #[cfg(test)]
-    pub(crate) fn parse(s: &str) -> Option<ExrCompression> {
+    pub fn parse(s: &str) -> Option<ExrCompression> {
         Self::ALL
             .iter()
             .find(|(_, n)| n.eq_ignore_ascii_case(s.trim()))
@@ -551,17 +549,17 @@ enum Container {
 
 impl Decoded {
     /// The frame and every lower resolution level: what a corrector must process.
-    pub(crate) fn frames_mut(&mut self) -> impl Iterator<Item = &mut Frame> {
+    pub fn frames_mut(&mut self) -> impl Iterator<Item = &mut Frame> {
         std::iter::once(&mut self.frame).chain(self.levels.iter_mut())
     }
 
     /// Total pixels over the frame and its levels.
-    pub(crate) fn pixels(&self) -> usize {
+    pub fn pixels(&self) -> usize {
         self.frame.pixels() + self.levels.iter().map(Frame::pixels).sum::<usize>()
     }
 
     /// What a camera raw input says about the camera and the shot (`None` for EXR and TIFF).
-    pub(crate) fn camera(&self) -> Option<&raw::CameraInfo> {
+    pub fn camera(&self) -> Option<&raw::CameraInfo> {
         match &self.container {
             Container::Raw(c) => Some(c),
             _ => None,
@@ -601,7 +599,7 @@ impl Decoded {
 
     /// [`read`](Self::read), taking the frame's buffer from `pool` where one fits (the
     /// chunk-level EXR path, which overwrites every sample).
-    pub(crate) fn read_pooled(
+    pub fn read_pooled(
         path: &Path,
         opts: &ReadOptions,
         pool: &FramePool,
@@ -691,7 +689,7 @@ impl Decoded {
 
     /// [`write`](Self::write), then gives the frame's buffer to `pool` (whether or not the
     /// write succeeded) for a later [`read_pooled`](Self::read_pooled).
-    pub(crate) fn write_recycling(
+    pub fn write_recycling(
         self,
         dest: &Path,
         opts: &WriteOptions,
@@ -796,6 +794,7 @@ impl From<Frame> for Decoded {
 /// Writes a frame of camera RGB (no colour space attribute): a 32-bit float TIFF when `dest`
 /// ends in `.tif`/`.tiff`, else a float EXR carrying the `text` attributes (name, value) in its
 /// header; staged in `unit`.
+#[cfg(feature = "chart")]
 pub(crate) fn write_camera_float(
     frame: &Frame,
     dest: &Path,
@@ -824,7 +823,7 @@ pub(crate) fn write_camera_float(
 
 /// Reads an EXR or TIFF into one frame (RGB, or RGBA when the file has alpha); pass-through
 /// data is dropped ([`Decoded::into_frame`] of [`Decoded::read`]).
-pub(crate) fn read_frame(path: &Path, opts: &ReadOptions) -> Result<Frame, IoError> {
+pub fn read_frame(path: &Path, opts: &ReadOptions) -> Result<Frame, IoError> {
     read_frame_and_camera(path, opts).map(|(f, _)| f)
 }
 

@@ -30,7 +30,7 @@ pub(crate) fn srgb8(frame: &Frame, to_linear_srgb: &Mat3) -> Vec<u8> {
 }
 
 /// The preview of `frame` as PNG file bytes (8-bit sRGB, fast compression).
-pub(crate) fn encode_png(frame: &Frame, to_linear_srgb: &Mat3) -> Result<Vec<u8>, IoError> {
+pub fn encode_png(frame: &Frame, to_linear_srgb: &Mat3) -> Result<Vec<u8>, IoError> {
     let (Ok(w), Ok(h)) = (u32::try_from(frame.width), u32::try_from(frame.height)) else {
         return Err(IoError::Invalid(format!(
             "a {}×{} frame is too big for a PNG preview",

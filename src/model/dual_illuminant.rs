@@ -183,8 +183,10 @@ pub(crate) fn premultiplied(model: &Model, mat: &Mat3) -> Result<Model, ModelErr
 
 /// One calibration illuminant of a model: its white's chromaticity, CCT and camera response.
 #[derive(Debug, Clone, PartialEq)]
-pub(crate) struct Calibration {
+pub struct Calibration {
+    /// The white's CIE 1931 chromaticity.
     pub xy: [f64; 2],
+    /// Its correlated colour temperature (K).
     pub cct: f64,
     /// The camera RGB the model maps to its white (`invert(model, white_xyz)`).
     pub white_rgb: [f64; 3],
@@ -331,17 +333,18 @@ impl Profile {
     }
 
     #[cfg(feature = "export")]
-    pub(crate) fn calibrations(&self) -> &[Calibration] {
+    /// The models' calibration illuminants, in the order of [`Profile::models`].
+    pub fn calibrations(&self) -> &[Calibration] {
         &self.calibrations
     }
 
     /// Whether the profile holds two models (else one).
-    pub(crate) fn is_dual(&self) -> bool {
+    pub fn is_dual(&self) -> bool {
         self.models.len() == 2
     }
 
     /// The calibration temperatures (the same twice for one model).
-    pub(crate) fn temperatures(&self) -> [f64; 2] {
+    pub fn temperatures(&self) -> [f64; 2] {
         let t = |i: usize| self.calibrations[i.min(self.models.len() - 1)].cct;
         [t(0), t(1)]
     }

@@ -64,38 +64,48 @@ use std::collections::HashMap;
 pub(crate) const LANES: usize = 8;
 
 /// Pixels per rayon task (64 Ki pixels: 768 KiB of packed RGB f32).
-pub(crate) const CHUNK_PIXELS: usize = 1 << 16;
+pub const CHUNK_PIXELS: usize = 1 << 16;
 
 type Lanes = [f32; LANES];
 
 /// Errors of the fast path: only frames of the wrong shape (every [`Model`] has a kernel).
-#[cfg(any(feature = "cli", test))]
 #[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
-pub(crate) enum FastError {
+pub enum FastError {
     /// Source and destination frames differ in size or layout.
     #[error("source frame is {src_w}×{src_h} {src_layout}, destination {dst_w}×{dst_h} {dst_layout}: they must match")]
     FrameMismatch {
+        /// Source width.
         src_w: usize,
+        /// Source height.
         src_h: usize,
+        /// Source layout.
         src_layout: &'static str,
+        /// Destination width.
         dst_w: usize,
+        /// Destination height.
         dst_h: usize,
+        /// Destination layout.
         dst_layout: &'static str,
     },
     /// A frame whose data length does not match its size and layout.
     #[error("a {width}×{height} {layout} frame needs {expected} floats, its data holds {len}")]
     FrameLength {
+        /// Width.
         width: usize,
+        /// Height.
         height: usize,
+        /// Layout.
         layout: &'static str,
+        /// Floats the size and layout need.
         expected: usize,
+        /// Floats the data holds.
         len: usize,
     },
 }
 
 /// How many threads an apply call uses.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub(crate) enum Threads {
+pub enum Threads {
     /// The calling thread only.
     Single,
     /// Every thread of rayon's current pool (the global pool unless called inside `install`).
@@ -138,22 +148,21 @@ enum Kernel {
 
 /// A model prepared for the fast path: f32 matrix and the kernel chosen for its term list.
 #[derive(Debug, Clone)]
-pub(crate) struct FastModel {
+pub struct FastModel {
     kernel: Kernel,
 }
 
 impl FastModel {
     /// Prepares `model`: a hand-written kernel where one declares the model's pixel program
     /// (LRM, PRM 3, RPRM 3, NSRM 3, PRM / RPRM order 1), otherwise a product plan built from it.
-    pub(crate) fn new(model: &Model) -> FastModel {
+    pub fn new(model: &Model) -> FastModel {
         FastModel {
             kernel: Kernel::choose(&model.program(), &model.matrix, model.input_gains),
         }
     }
 
     /// The kernel's name: `linear`, `prm3`, `rprm3`, `nsrm3` or `plan` (the generic one).
-    #[cfg(any(feature = "cli", test))]
-    pub(crate) fn kernel_name(&self) -> &'static str {
+    pub fn kernel_name(&self) -> &'static str {
         match self.kernel {
             Kernel::Linear(_) => "linear",
             Kernel::Prm3(_) => "prm3",
@@ -165,7 +174,7 @@ impl FastModel {
 
     /// Corrects `frame` in place (alpha untouched). Whole pixels only: should the data length not
     /// be a multiple of the channel count, the trailing partial pixel is left as it is.
-    pub(crate) fn apply(&self, frame: &mut Frame, threads: Threads) {
+    pub fn apply(&self, frame: &mut Frame, threads: Threads) {
         self.apply_code(frame, threads, Code::Detected)
     }
 
@@ -188,8 +197,7 @@ impl FastModel {
     }
 
     /// Corrects `src` into `dst` (same size and layout; alpha copied), leaving `src` unchanged.
-    #[cfg(any(feature = "cli", test))]
-    pub(crate) fn apply_into(
+    pub fn apply_into(
         &self,
         src: &Frame,
         dst: &mut Frame,
@@ -234,7 +242,6 @@ impl FastModel {
         }
     }
 
-    #[cfg(any(feature = "cli", test))]
     fn dispatch_into<const C: usize>(&self, src: &[f32], dst: &mut [f32], threads: Threads) {
         match &self.kernel {
             Kernel::Linear(k) => into::<_, C>(k, src, dst, threads),
@@ -335,7 +342,6 @@ trait Chunks: Sync {
     /// AVX2 clone, so they stop at AVX2.
     const AVX512: bool;
     fn run_in_place<const C: usize>(&self, data: &mut [f32], fma: bool);
-    #[cfg(any(feature = "cli", test))]
     fn run_into<const C: usize>(&self, src: &[f32], dst: &mut [f32], fma: bool);
 }
 
@@ -437,7 +443,6 @@ fn rgb_of<const C: usize>(x: &[Lanes; C]) -> [Lanes; 3] {
 
 /// `dst = f(src)` pixel by pixel (alpha copied): the loop the vectoriser turns into interleaved
 /// loads, packed arithmetic and interleaved stores.
-#[cfg(any(feature = "cli", test))]
 #[inline(always)]
 fn map_into<K: PixelKernel, const C: usize, const STEP_OK: bool>(
     k: &K,
@@ -508,7 +513,6 @@ impl<K: PixelKernel> Chunks for K {
         self.slow_in_place::<C>(steps.into_remainder(), fma);
     }
 
-    #[cfg(any(feature = "cli", test))]
     #[inline(always)]
     fn run_into<const C: usize>(&self, src: &[f32], dst: &mut [f32], fma: bool) {
         if !K::STEPPED {
@@ -560,7 +564,6 @@ impl<K: BlockKernel> Chunks for Blocks<'_, K> {
         }
     }
 
-    #[cfg(any(feature = "cli", test))]
     #[inline(always)]
     fn run_into<const C: usize>(&self, src: &[f32], dst: &mut [f32], fma: bool) {
         let k = self.0;
@@ -598,7 +601,6 @@ fn in_place<K: Chunks, const C: usize>(k: &K, data: &mut [f32], threads: Threads
     }
 }
 
-#[cfg(any(feature = "cli", test))]
 fn into<K: Chunks, const C: usize>(k: &K, src: &[f32], dst: &mut [f32], threads: Threads) {
     let n = CHUNK_PIXELS * C;
     let run = |(s, d): (&[f32], &mut [f32])| {
@@ -626,7 +628,6 @@ fn chunk_in_place<K: Chunks, const C: usize>(k: &K, data: &mut [f32]) {
 }
 
 /// [`chunk_in_place`] into a second chunk (the same clones).
-#[cfg(any(feature = "cli", test))]
 #[multiversion::multiversion(targets("x86_64+avx2+fma+avx512f+avx512vl", "x86_64+avx2+fma"))]
 fn chunk_into<K: Chunks, const C: usize>(k: &K, src: &[f32], dst: &mut [f32]) {
     const FMA: bool = multiversion::target::selected_target!().supports_feature_str("fma");
@@ -641,7 +642,6 @@ fn chunk_in_place_avx2<K: Chunks, const C: usize>(k: &K, data: &mut [f32]) {
 }
 
 /// [`chunk_into`] without the AVX-512 clone.
-#[cfg(any(feature = "cli", test))]
 #[multiversion::multiversion(targets("x86_64+avx2+fma"))]
 fn chunk_into_avx2<K: Chunks, const C: usize>(k: &K, src: &[f32], dst: &mut [f32]) {
     const FMA: bool = multiversion::target::selected_target!().supports_feature_str("fma");

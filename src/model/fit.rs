@@ -51,8 +51,7 @@ pub enum Objective {
 
 impl Objective {
     /// Parses `ls`, `de00` or `de00:P` (P ≥ 2, at most 64).
-    #[cfg(any(feature = "cli", test))]
-    pub(crate) fn parse(s: &str) -> Result<Objective, ModelError> {
+    pub fn parse(s: &str) -> Result<Objective, ModelError> {
         let s = s.trim();
         let bad = || {
             ModelError::Spec(format!(
@@ -77,7 +76,7 @@ impl Objective {
     }
 
     /// `ls`, `de00`, `de00:4`.
-    pub(crate) fn name(&self) -> String {
+    pub fn name(&self) -> String {
         match self {
             Objective::LeastSquares => "ls".into(),
             Objective::De00 { power } if *power == 2.0 => "de00".into(),
@@ -112,8 +111,7 @@ pub enum Ridge {
 
 impl Ridge {
     /// Parses `auto` or a number ≥ 0 (`0` is no regularisation).
-    #[cfg(any(feature = "cli", test))]
-    pub(crate) fn parse(s: &str) -> Result<Ridge, ModelError> {
+    pub fn parse(s: &str) -> Result<Ridge, ModelError> {
         let s = s.trim();
         if s.eq_ignore_ascii_case("auto") || s.eq_ignore_ascii_case("auto-gcv") {
             return Ok(Ridge::Auto);
@@ -143,8 +141,7 @@ pub enum Normalise {
 
 impl Normalise {
     /// Parses `raw` or `white-balanced`.
-    #[cfg(test)]
-    pub(crate) fn parse(s: &str) -> Result<Normalise, ModelError> {
+    pub fn parse(s: &str) -> Result<Normalise, ModelError> {
         match s.trim().to_ascii_lowercase().as_str() {
             "raw" => Ok(Normalise::Raw),
             "white-balanced" | "wb" => Ok(Normalise::WhiteBalanced),
@@ -155,7 +152,7 @@ impl Normalise {
     }
 
     /// `raw` or `white-balanced`.
-    pub(crate) fn name(self) -> &'static str {
+    pub fn name(self) -> &'static str {
         match self {
             Normalise::Raw => "raw",
             Normalise::WhiteBalanced => "white-balanced",
@@ -286,7 +283,7 @@ pub struct Fit {
 
 impl Fit {
     /// Applies the model, input gains included (f64 reference): [`Model::apply_f64`].
-    pub(crate) fn apply_f64(&self, rgb: [f64; 3]) -> [f64; 3] {
+    pub fn apply_f64(&self, rgb: [f64; 3]) -> [f64; 3] {
         self.model.apply_f64(rgb)
     }
 }

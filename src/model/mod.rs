@@ -134,8 +134,7 @@ pub enum ModelError {
 
 impl ModelError {
     /// True for an unknown model kind, an order outside 1..=4 and a malformed fit option.
-    #[cfg(any(feature = "cli", test))]
-    pub(crate) fn is_usage(&self) -> bool {
+    pub fn is_usage(&self) -> bool {
         matches!(
             self,
             ModelError::UnknownKind(_) | ModelError::Order(_) | ModelError::Spec(_)
@@ -143,9 +142,9 @@ impl ModelError {
     }
 
     /// A fit that needs the camera response of a white the data lacks: naming a neutral patch
-    /// ([`crate::error::Param::WhitePatch`]) is the way out.
-    #[cfg(feature = "cli")]
-    pub(crate) fn concern(&self) -> Option<crate::error::Concern> {
+    /// ([`crate::io::Param::WhitePatch`]) is the way out.
+    #[cfg(feature = "io")]
+    pub fn concern(&self) -> Option<crate::error::Concern> {
         match self {
             ModelError::NoWhite => Some(crate::error::Concern::Remedy(
                 crate::error::Param::WhitePatch,
@@ -183,7 +182,7 @@ impl Kind {
     }
 
     /// Parses a name, case-insensitively.
-    pub(crate) fn parse(s: &str) -> Result<Kind, ModelError> {
+    pub fn parse(s: &str) -> Result<Kind, ModelError> {
         Kind::ALL
             .into_iter()
             .find(|k| k.name().eq_ignore_ascii_case(s.trim()))
@@ -191,12 +190,21 @@ impl Kind {
     }
 
     /// The order a model of this kind really has when `order` is asked for: LRM is always 1.
-    pub(crate) fn effective_order(self, order: u8) -> u8 {
+    pub fn effective_order(self, order: u8) -> u8 {
         if self == Kind::Lrm {
             1
         } else {
             order
         }
+    }
+
+    /// The names of the terms a model of this kind and (effective) order weighs, in the order of
+    /// its matrix's columns (`R`, `G·B`, `r²`, `√(R·G)`, …): what `nsrm terms` lists.
+    pub fn term_names(self, order: u8) -> Vec<String> {
+        terms(self, order)
+            .iter()
+            .map(|t| term_name(self, t))
+            .collect()
     }
 }
 
@@ -392,7 +400,7 @@ impl Model {
     }
 
     /// Number of terms L.
-    pub(crate) fn len_terms(&self) -> usize {
+    pub fn len_terms(&self) -> usize {
         self.terms.len()
     }
 

@@ -146,8 +146,7 @@ pub enum SpectralError {
 
 impl SpectralError {
     /// True for a malformed wavelength grid.
-    #[cfg(feature = "cli")]
-    pub(crate) fn is_usage(&self) -> bool {
+    pub fn is_usage(&self) -> bool {
         matches!(self, SpectralError::Grid { .. })
     }
 }
@@ -176,8 +175,7 @@ impl Default for Grid {
 
 impl Grid {
     /// Parses `START:END:STEP` (nm).
-    #[cfg(any(feature = "cli", test))]
-    pub(crate) fn parse(spec: &str) -> Result<Grid, SpectralError> {
+    pub fn parse(spec: &str) -> Result<Grid, SpectralError> {
         let err = |why: &str| SpectralError::Grid {
             spec: spec.to_string(),
             why: why.to_string(),
@@ -289,7 +287,7 @@ impl SpectralTable {
 
 /// A camera: three spectral sensitivities (R, G, B), in that column order.
 #[derive(Debug, Clone)]
-pub(crate) struct Camera(pub(crate) SpectralTable);
+pub struct Camera(pub(crate) SpectralTable);
 
 impl Camera {
     pub(crate) fn new(table: SpectralTable) -> Result<Camera, SpectralError> {
@@ -303,7 +301,7 @@ impl Camera {
     }
 
     /// A built-in name (`nikon-d5100`) or a path to a CSV file.
-    pub(crate) fn from_name_or_path(spec: &str) -> Result<Camera, SpectralError> {
+    pub fn from_name_or_path(spec: &str) -> Result<Camera, SpectralError> {
         let table = match builtin_camera(spec) {
             Some(t) => t,
             None => table_from_path(spec, "camera", CAMERAS)?,
@@ -314,7 +312,7 @@ impl Camera {
 
 /// An illuminant: one spectral power distribution.
 #[derive(Debug, Clone)]
-pub(crate) struct Illuminant(pub(crate) SpectralTable);
+pub struct Illuminant(pub(crate) SpectralTable);
 
 impl Illuminant {
     pub(crate) fn new(table: SpectralTable) -> Result<Illuminant, SpectralError> {
@@ -328,7 +326,7 @@ impl Illuminant {
     }
 
     /// A built-in name (`D65`, `FL3.15`, `FL7`, `TL865`, `LED-B5`, `LED-YAG`) or a CSV path.
-    pub(crate) fn from_name_or_path(spec: &str) -> Result<Illuminant, SpectralError> {
+    pub fn from_name_or_path(spec: &str) -> Result<Illuminant, SpectralError> {
         let table = match builtin_illuminant(spec).or_else(|| computed::computed_illuminant(spec)) {
             Some(t) => t,
             None => table_from_path(spec, "illuminant", ILLUMINANTS).map_err(|e| match e {
@@ -344,19 +342,18 @@ impl Illuminant {
     }
 
     /// Whether `spec` is a built-in or computed name (never a file).
-    #[cfg(feature = "studio")]
-    pub(crate) fn is_builtin(spec: &str) -> bool {
+    pub fn is_builtin(spec: &str) -> bool {
         builtin_illuminant(spec).is_some() || computed::computed_illuminant(spec).is_some()
     }
 }
 
 /// Reflectances, one spectrum per patch (column names are the patch labels).
 #[derive(Debug, Clone)]
-pub(crate) struct Reflectances(pub(crate) SpectralTable);
+pub struct Reflectances(pub(crate) SpectralTable);
 
 impl Reflectances {
     /// A built-in name (`rawtoaces-190`, `cc24`) or a CSV path.
-    pub(crate) fn from_name_or_path(spec: &str) -> Result<Reflectances, SpectralError> {
+    pub fn from_name_or_path(spec: &str) -> Result<Reflectances, SpectralError> {
         let table = match builtin_reflectances(spec) {
             Some(t) => t,
             None => table_from_path(spec, "reflectance set", REFLECTANCES)?,
@@ -366,8 +363,7 @@ impl Reflectances {
 }
 
 /// The name shown for a table: `D65` for `builtin:D65`, the file stem for a path.
-#[cfg(feature = "export")]
-pub(crate) fn display_name(source_name: &str) -> String {
+pub fn display_name(source_name: &str) -> String {
     if let Some(n) = source_name.strip_prefix("builtin:") {
         return n.to_string();
     }
@@ -409,7 +405,7 @@ fn looks_like_a_path(spec: &str) -> bool {
 }
 
 /// XYZ of the perfect white (ρ = 1) under `illuminant` on `grid`, scaled to `Y = 100`.
-pub(crate) fn white_xyz(illuminant: &Illuminant, grid: &Grid) -> Result<[f64; 3], SpectralError> {
+pub fn white_xyz(illuminant: &Illuminant, grid: &Grid) -> Result<[f64; 3], SpectralError> {
     let cmf = cie1931_cmf().resample(grid);
     let e = illuminant.0.resample(grid).remove(0);
     let ones = vec![1.0; grid.len()];
@@ -457,7 +453,7 @@ pub fn simulate_named(
 /// `XYZ_k = Σ_λ E(λ) ρ(λ) x̄_k(λ) Δλ`, scaled so the perfect white (ρ = 1) has `Y = 100`.
 /// `RGB_k = Σ_λ E(λ) ρ(λ) c_k(λ) Δλ`, scaled so the perfect white has `G = 1` (one factor for all
 /// three channels: the camera's raw channel ratios are kept).
-pub(crate) fn simulate(
+pub fn simulate(
     camera: &Camera,
     illuminant: &Illuminant,
     reflectances: &Reflectances,

@@ -10,7 +10,7 @@ use std::path::PathBuf;
 
 fn realcharts() -> Option<PathBuf> {
     let mut dirs = vec![PathBuf::from(concat!(
-        env!("CARGO_MANIFEST_DIR"),
+        concat!(env!("CARGO_MANIFEST_DIR"), "/../.."),
         "/../shared/realcharts"
     ))];
     if let Some(s) = std::env::var_os("NSRM_SHARED") {

@@ -240,7 +240,7 @@ fn bad_inputs_fail_and_write_nothing() {
     // --training white): without it the error says which flag to use; with it, it is read.
     let lab = d.join("lab.csv");
     let builtin = std::fs::read_to_string(concat!(
-        env!("CARGO_MANIFEST_DIR"),
+        concat!(env!("CARGO_MANIFEST_DIR"), "/../.."),
         "/assets/chart_cc24_after2014_d50.csv"
     ))
     .unwrap();

@@ -20,8 +20,8 @@ pub use kit::*;
 /// The ColorChecker SG spectra in `../shared/data`, or `None` (after [`skip`]) when absent:
 /// they stay outside the repository.
 pub fn sg_path() -> Option<PathBuf> {
-    let p =
-        PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../shared/data/colorchecker_sg_140.csv");
+    let p = PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/../.."))
+        .join("../shared/data/colorchecker_sg_140.csv");
     if p.exists() {
         Some(p)
     } else {
@@ -40,7 +40,7 @@ static SKIPS: std::sync::Mutex<Vec<String>> = std::sync::Mutex::new(Vec::new());
 /// `$NSRM_SHARED` (a worktree elsewhere) when that is absent.
 pub fn chart_dng() -> PathBuf {
     let p = PathBuf::from(concat!(
-        env!("CARGO_MANIFEST_DIR"),
+        concat!(env!("CARGO_MANIFEST_DIR"), "/../.."),
         "/../shared/data/colorchart.dng"
     ));
     match std::env::var_os("NSRM_SHARED") {
@@ -86,7 +86,6 @@ extern "C" fn print_skips() {
 }
 
 /// A runtime directory for Mesa (once per test process) when the environment has none.
-#[cfg(feature = "cli")]
 fn xdg_runtime_dir() -> Option<PathBuf> {
     static DIR: OnceLock<Option<PathBuf>> = OnceLock::new();
     DIR.get_or_init(|| {
@@ -106,7 +105,6 @@ fn xdg_runtime_dir() -> Option<PathBuf> {
 }
 
 /// The built `nsrm`, with `XDG_RUNTIME_DIR` set and `NSRM_ADAPTER` unset.
-#[cfg(feature = "cli")]
 pub fn nsrm() -> Command {
     let mut c = Command::new(env!("CARGO_BIN_EXE_nsrm"));
     c.env_remove("NSRM_ADAPTER");
@@ -117,7 +115,6 @@ pub fn nsrm() -> Command {
 }
 
 /// Runs the built `nsrm` in `dir`.
-#[cfg(feature = "cli")]
 pub fn nsrm_in(dir: &Path, args: &[&str]) -> Output {
     nsrm()
         .current_dir(dir)
@@ -127,7 +124,6 @@ pub fn nsrm_in(dir: &Path, args: &[&str]) -> Output {
 }
 
 /// Runs `nsrm` in `dir` and asserts it succeeded.
-#[cfg(feature = "cli")]
 pub fn nsrm_ok(dir: &Path, args: &[&str]) -> Output {
     let out = nsrm_in(dir, args);
     assert!(
@@ -208,7 +204,6 @@ pub fn frame(w: usize, h: usize) -> Frame {
 }
 
 /// Writes a small EXR frame at `path`.
-#[cfg(feature = "io")]
 pub fn exr(path: &Path, w: usize, h: usize) {
     use nsrm::io::{ExrCompression, FileFormat, WriteOptions};
     let opts = WriteOptions {
@@ -222,13 +217,11 @@ pub fn exr(path: &Path, w: usize, h: usize) {
 }
 
 /// Reads an EXR, TIFF or raw file into one frame with its alpha (`Decoded::into_frame`).
-#[cfg(feature = "io")]
 pub fn read_frame(path: &Path, opts: &nsrm::io::ReadOptions) -> Result<Frame, nsrm::io::IoError> {
     nsrm::io::Decoded::read(path, opts).map(nsrm::io::Decoded::into_frame)
 }
 
 /// Stages a new EXR holding `frame` in `unit` (a frame made in memory, written by `Decoded`).
-#[cfg(feature = "io")]
 pub fn write_exr(
     frame: &Frame,
     dest: &Path,
@@ -243,7 +236,6 @@ pub fn write_exr(
 }
 
 /// Stages a 32-bit float TIFF holding `frame` in `unit`.
-#[cfg(feature = "io")]
 pub fn write_tiff(
     frame: &Frame,
     dest: &Path,
@@ -273,7 +265,6 @@ pub fn committed<E: From<nsrm::output::WriteError>>(
 }
 
 /// Writes a small 32-bit float TIFF frame at `path`.
-#[cfg(feature = "io")]
 pub fn tiff(path: &Path, w: usize, h: usize) {
     committed(true, |u| write_tiff(&frame(w, h), path, u)).unwrap();
 }
@@ -421,7 +412,7 @@ pub mod mat {
 
 /// Runs `nsrm args` in `dir`, killed after `limit`: its output, its peak resident memory in
 /// KiB (the kernel's `ru_maxrss` of that child) and how long it ran.
-#[cfg(all(feature = "cli", unix))]
+#[cfg(unix)]
 pub fn nsrm_measured(
     dir: &Path,
     args: &[&str],
@@ -481,7 +472,7 @@ pub fn nsrm_measured(
 /// Chromium for the browser tests (`$NSRM_CHROMIUM`, else `/usr/bin/chromium`), or `None`
 /// after [`skip`] when it, node or `tests/browser/node_modules` (puppeteer-core) is absent.
 pub fn browser_prerequisites() -> Option<String> {
-    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/browser");
+    let dir = Path::new(concat!(env!("CARGO_MANIFEST_DIR"), "/../..")).join("tests/browser");
     let chromium = std::env::var("NSRM_CHROMIUM").unwrap_or_else(|_| "/usr/bin/chromium".into());
     let missing = if Command::new("node").arg("--version").output().is_err() {
         Some("node is not installed (.ci/install.d/60-browser.sh installs it)")
@@ -513,7 +504,7 @@ pub fn run_browser_script(
     let work = tempdir(name);
     let mut cmd = Command::new("node");
     cmd.arg(script)
-        .current_dir(Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/browser"))
+        .current_dir(Path::new(concat!(env!("CARGO_MANIFEST_DIR"), "/../..")).join("tests/browser"))
         .env("NSRM_CHROMIUM", chromium)
         .env("HOME", &work)
         .env("XDG_CONFIG_HOME", work.join("config"))

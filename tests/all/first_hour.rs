@@ -9,7 +9,7 @@ use crate::common::{model, nsrm, nsrm_in, nsrm_ok, stderr, tempdir};
 /// software adapter, `None` no adapter at all.
 fn hardware_here() -> Option<bool> {
     match nsrm::gpu::GpuContext::new(&nsrm::gpu::GpuOptions::default()) {
-        Ok(ctx) => Some(ctx.adapter.get_info().device_type != wgpu::DeviceType::Cpu),
+        Ok(ctx) => Some(ctx.adapter.get_info().device_type != nsrm::gpu::wgpu::DeviceType::Cpu),
         Err(_) => None,
     }
 }

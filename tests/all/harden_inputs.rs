@@ -253,7 +253,7 @@ fn a_cut_or_inflated_jpeg_is_refused_before_decoding() {
 fn messages_name_the_camera_file_the_model_file_and_the_illuminant_forms() {
     let dir = common::tempdir("named-files");
     let src = std::fs::read_to_string(concat!(
-        env!("CARGO_MANIFEST_DIR"),
+        concat!(env!("CARGO_MANIFEST_DIR"), "/../.."),
         "/assets/nikon_d5100_npl_darrodi2015.csv"
     ))
     .unwrap();

@@ -13,8 +13,14 @@ use std::ffi::{OsStr, OsString};
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
-const JUDGE: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/tests/tools/raw_judge.py");
-const CHART_DNG: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/../shared/data/colorchart.dng");
+const JUDGE: &str = concat!(
+    concat!(env!("CARGO_MANIFEST_DIR"), "/../.."),
+    "/tests/tools/raw_judge.py"
+);
+const CHART_DNG: &str = concat!(
+    concat!(env!("CARGO_MANIFEST_DIR"), "/../.."),
+    "/../shared/data/colorchart.dng"
+);
 
 fn on_ci() -> bool {
     std::env::var("CI").as_deref() == Ok("true")
@@ -769,7 +775,6 @@ fn apply_warns_once_per_camera_other_than_the_fitted_one() {
 /// must read the same frame from both: for the synthetic DNG, the exact block means written.
 /// (Two other LJPEG decoders, imagecodecs' liblj92 and jpegsof3, also decode rawler's tiles to
 /// exactly the mosaic; checked by hand, not here.)
-#[cfg(feature = "raw")]
 fn to_lossless_dng(src: &Path, dst: &Path) {
     use rawler::dng::convert::{convert_raw_file, ConvertParams};
     use rawler::dng::DngCompression;
@@ -782,13 +787,11 @@ fn to_lossless_dng(src: &Path, dst: &Path) {
     convert_raw_file(src, &mut f, &params).unwrap();
 }
 
-#[cfg(feature = "raw")]
 fn libraw_same(a: &Path, b: &Path) -> serde_json::Value {
     let out = judge([OsStr::new("same"), a.as_os_str(), b.as_os_str()]);
     serde_json::from_str(&out).unwrap()
 }
 
-#[cfg(feature = "raw")]
 #[test]
 fn lossless_jpeg_dngs_read_as_libraw_reads_them() {
     if !judge_available() {
@@ -972,11 +975,9 @@ fn a_raf_naming_a_superccd_camera_is_bounded_whatever_its_layout_tag_says() {
 }
 
 /// An IFD's entries: (tag, type, count, value field position).
-#[cfg(feature = "raw")]
 type IfdEntries = Vec<(u16, u16, u32, usize)>;
 
 /// A TIFF's IFDs as (offset, entries), IFD0's chain and SubIFDs, in the order met.
-#[cfg(feature = "raw")]
 fn ifds(b: &[u8]) -> (bool, Vec<(usize, IfdEntries)>) {
     let le = b[0] == b'I';
     let u16_at = |o: usize| {
@@ -1036,7 +1037,7 @@ fn ifds(b: &[u8]) -> (bool, Vec<(usize, IfdEntries)>) {
 /// output, and no more memory or time than reading the true file takes (before: 8.4 GB and
 /// 43 s for the first; invented zero pixels and exit 0 for the next three; a decoder that
 /// grew until it aborted for the loops).
-#[cfg(all(feature = "raw", unix))]
+#[cfg(unix)]
 #[test]
 fn lossless_jpeg_dngs_that_lie_are_refused_before_decoding() {
     if !judge_available() {

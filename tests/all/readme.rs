@@ -13,7 +13,7 @@ use std::path::Path;
 /// The walk-through's pages in the order `.ci/readme-run` runs them: README.md, then the guide
 /// pages `docs/guide/NN-*.md` by name; (path relative to the repository, text).
 fn pages() -> Vec<(String, String)> {
-    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+    let root = Path::new(concat!(env!("CARGO_MANIFEST_DIR"), "/../.."));
     let mut guide: Vec<String> = std::fs::read_dir(root.join("docs/guide"))
         .expect("docs/guide")
         .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())

@@ -580,7 +580,7 @@ fn uploads_hostile_input_and_cleanup() {
 /// export`'s, no console errors; screenshots in target/studio-browser/.
 #[test]
 fn the_page_in_a_real_browser() {
-    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+    let root = Path::new(concat!(env!("CARGO_MANIFEST_DIR"), "/../.."));
     let Some(chromium) = crate::common::browser_prerequisites() else {
         return;
     };
@@ -782,7 +782,7 @@ fn raw_and_sg_frames_to_exported_profiles_through_the_api() {
         frame_to_profiles(&d, &srv, &f, "sg.exr", "sg");
     }
     let dng = PathBuf::from(concat!(
-        env!("CARGO_MANIFEST_DIR"),
+        concat!(env!("CARGO_MANIFEST_DIR"), "/../.."),
         "/../shared/data/colorchart.dng"
     ));
     if !dng.exists() {

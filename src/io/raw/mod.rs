@@ -55,6 +55,7 @@ mod xtrans;
 pub(crate) use decode::read;
 
 /// The largest raw file read: 2 GiB (real raw files are 10–200 MB).
+#[cfg(feature = "raw")]
 pub(crate) const MAX_RAW_BYTES: u64 = 2 << 30;
 
 /// How a CFA mosaic becomes RGB pixels.
@@ -71,15 +72,14 @@ pub enum Demosaic {
 
 impl Demosaic {
     /// Every choice with its name.
-    pub(crate) const ALL: [(Demosaic, &'static str); 3] = [
+    pub const ALL: [(Demosaic, &'static str); 3] = [
         (Demosaic::Half, "half"),
         (Demosaic::Bilinear, "bilinear"),
         (Demosaic::Mhc, "mhc"),
     ];
 
     /// Parses `half`, `bilinear` or `mhc` (also `malvar`).
-    #[cfg(test)]
-    pub(crate) fn parse(s: &str) -> Option<Demosaic> {
+    pub fn parse(s: &str) -> Option<Demosaic> {
         let s = s.trim();
         if s.eq_ignore_ascii_case("malvar") {
             return Some(Demosaic::Mhc);
@@ -102,7 +102,7 @@ impl Demosaic {
 /// What a raw file says about the camera and the shot (carried into EXR outputs and into a
 /// model's capture provenance).
 #[derive(Debug, Clone, PartialEq, Default, serde::Serialize, serde::Deserialize)]
-pub(crate) struct CameraInfo {
+pub struct CameraInfo {
     /// Camera maker (normalised by rawler, e.g. `Canon`).
     pub make: String,
     /// Camera model (normalised by rawler, e.g. `EOS 550D`).
@@ -137,7 +137,7 @@ pub(crate) struct CameraInfo {
 
 impl CameraInfo {
     /// `make model`, for messages and comparisons.
-    pub(crate) fn camera(&self) -> String {
+    pub fn camera(&self) -> String {
         format!("{} {}", self.make.trim(), self.model.trim())
             .trim()
             .to_string()

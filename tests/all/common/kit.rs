@@ -96,30 +96,6 @@ pub fn awkward_frame(width: usize, height: usize, layout: Layout, seed: u64) -> 
     Frame::from_data(width, height, layout, data).unwrap()
 }
 
-/// A GPU buffer read back to the CPU as f32s (blocking): the GPU tests' read-back.
-#[cfg(feature = "gpu")]
-pub fn read_buffer(
-    device: &nsrm::gpu::wgpu::Device,
-    queue: &nsrm::gpu::wgpu::Queue,
-    buf: &nsrm::gpu::wgpu::Buffer,
-) -> Vec<f32> {
-    use nsrm::gpu::wgpu;
-    let rb = device.create_buffer(&wgpu::BufferDescriptor {
-        label: None,
-        size: buf.size(),
-        usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
-        mapped_at_creation: false,
-    });
-    let mut enc = device.create_command_encoder(&Default::default());
-    enc.copy_buffer_to_buffer(buf, 0, &rb, 0, buf.size());
-    queue.submit([enc.finish()]);
-    rb.map_async(wgpu::MapMode::Read, .., |r| r.unwrap());
-    device.poll(wgpu::PollType::wait_indefinitely()).unwrap();
-    let v = bytemuck::cast_slice(&rb.get_mapped_range(..).unwrap()).to_vec();
-    rb.unmap();
-    v
-}
-
 /// The relative part of the f32 bound.
 pub const F32_REL: f64 = 1e-5;
 

@@ -1,0 +1,70 @@
+//! The binary's side of the output session ([`nsrm::output`]): every command opens one with its
+//! inputs and outputs before any work, and a signal handler that aborts it.
+//!
+//! ```text
+//! let session = outputs::open(a.overwrite, &[&a.model], &[&a.output])?;   // exit 2 on a collision
+//! … work …
+//! let mut unit = session.unit();
+//! unit.write_bytes(&a.output, text.as_bytes())?;  // or a library writer taking `&mut unit`
+//! unit.commit()?;                                 // all outputs together, or none
+//! ```
+
+use anyhow::{Context, Result};
+use nsrm::output::Session;
+use std::path::Path;
+
+/// The signals that abort a run, with their names.
+pub(crate) const STOP_SIGNALS: [(i32, &str); 3] = [
+    (signal_hook::consts::SIGINT, "SIGINT"),
+    (signal_hook::consts::SIGTERM, "SIGTERM"),
+    (signal_hook::consts::SIGHUP, "SIGHUP"),
+];
+
+/// A session for a run that replaces existing outputs when `overwrite`: `inputs` (those that are
+/// files; a built-in name that is no file is left out by the caller) and `outputs` declared,
+/// which fails (a usage error, exit 2) when an output is an input or another output, and (exit
+/// 1, with the hint) when one exists without `overwrite`. Then a signal thread is started: on
+/// SIGINT, SIGTERM or SIGHUP it aborts the session (removing every temporary it holds, after a
+/// unit being committed is placed or rolled back) and ends the process with 128 + the signal.
+pub(crate) fn open(overwrite: bool, inputs: &[&Path], outputs: &[&Path]) -> Result<Session> {
+    let mut session = Session::new(overwrite);
+    for i in inputs {
+        session.input(i)?;
+    }
+    for o in outputs {
+        session.output(o)?;
+    }
+    exit_on_signal(&session)?;
+    Ok(session)
+}
+
+/// Starts the thread that aborts `session` and exits with 128 + the signal (see [`open`]).
+pub(crate) fn exit_on_signal(session: &Session) -> Result<()> {
+    let handle = session.abort_handle();
+    let mut signals = signal_hook::iterator::Signals::new(STOP_SIGNALS.map(|(s, _)| s))
+        .context("installing the signal handlers")?;
+    std::thread::Builder::new()
+        .name("nsrm-signals".into())
+        .spawn(move || {
+            if let Some(sig) = signals.forever().next() {
+                let removed = handle.abort();
+                let name = STOP_SIGNALS
+                    .iter()
+                    .find(|(s, _)| *s == sig)
+                    .map_or("a signal", |(_, n)| n);
+                eprintln!(
+                    "nsrm: interrupted by {name}: no output left half-written ({removed} temporary file(s) removed)"
+                );
+                std::process::exit(128 + sig);
+            }
+        })
+        .context("starting the signal thread")?;
+    Ok(())
+}
+
+/// `spec` as a path when it names an existing file (a `NAME|FILE` option), for
+/// [`Session::input`].
+pub(crate) fn file_arg(spec: &str) -> Option<&Path> {
+    let p = Path::new(spec);
+    p.exists().then_some(p)
+}

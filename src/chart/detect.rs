@@ -29,7 +29,10 @@
 //!    1–4 run once more on the frame downsampled to that long side: averaging more pixels
 //!    quiets the noise and texture that break patches (dark ones, on phone JPEGs) into pieces
 //!    at the finer scale. The second search is judged by the same rules; when it finds nothing
-//!    either, the first failure is reported.
+//!    either, a third runs at [`DetectOptions::coarse_side`] (a large chart under heavy sensor
+//!    noise), and when that finds nothing, the first failure is reported. Within a search, when
+//!    none of the largest lattices matches, up to [`MAX_EXTRA_LATTICES`] smaller ones are placed
+//!    too (a small chart on textured ground).
 
 use super::extract::{cell_means, chart_score, hue_errors, MATCH_LIMIT};
 use super::reference::Reference;

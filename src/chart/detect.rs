@@ -29,9 +29,12 @@
 //!    1–4 run once more on the frame downsampled to that long side: averaging more pixels
 //!    quiets the noise and texture that break patches (dark ones, on phone JPEGs) into pieces
 //!    at the finer scale. The second search is judged by the same rules; when it finds nothing
-//!    either, the first failure is reported.
+//!    either, a third runs at [`DetectOptions::coarse_side`] (a large chart under heavy sensor
+//!    noise), and when that finds nothing, the first failure is reported. Within a search, when
+//!    none of the largest lattices matches, up to [`MAX_EXTRA_LATTICES`] smaller ones are placed
+//!    too (a small chart on textured ground).
 
-use super::extract::{cell_means, chart_score, MATCH_LIMIT};
+use super::extract::{cell_means, chart_score, hue_errors, MATCH_LIMIT};
 use super::reference::Reference;
 use super::{ChartError, Homography};
 use crate::frame::Frame;
@@ -54,6 +57,36 @@ pub(crate) const DETECT_MATCH_LIMIT: f64 = 5.0;
 /// a photographed SG with one of its 140 cells unseen (median ΔE00 5.4, the next placement 4×
 /// worse) was refused.
 pub(crate) const ENCLOSED_AMBIGUITY_RATIO: f64 = 0.5;
+
+/// A placement whose next is far worse ([`DECISIVE_RATIO`]) and whose colours keep the
+/// reference's hues ([`hues_hold`]) may match up to this median ΔE00, whether or not its outer
+/// ring was all seen: a strong camera look — a steep contrast curve and a saturation boost, a
+/// product photograph's grading — bends colours beyond what the grey ramp and a 3×3 map undo,
+/// but along their hues. Measured (`chart rate --family graded`, contrast 3–5, saturation
+/// ×1.6–2.2): correct placements score up to 6.2 with the next 3.8–5.5× worse; a real graded
+/// photograph 5.8 with the next 3.2× worse. Placements shifted across a partial lattice (what
+/// [`DETECT_MATCH_LIMIT`] guards against, seen at 7.6) put colours in cells of other hues.
+pub(crate) const DECISIVE_MATCH_LIMIT: f64 = 7.0;
+
+/// [`DECISIVE_MATCH_LIMIT`]'s placement must score at most this fraction of the next (the next
+/// at least 2.5× worse; stricter than [`AMBIGUITY_RATIO`]).
+pub(crate) const DECISIVE_RATIO: f64 = 0.4;
+
+/// [`hues_hold`]: a chromatic cell keeps its hue when its fitted hue lies within this many
+/// degrees of the reference's.
+pub(crate) const HUE_TOLERANCE: f64 = 30.0;
+
+/// Whether a placement's colours keep the reference's hues: at least 8 chromatic cells
+/// ([`super::extract::HUE_CHROMA`]) were read, and at least five in six of them lie within [`HUE_TOLERANCE`]
+/// of their reference hue after the fit (`hue_errors`: [`hue_errors`]'s degrees). Colours in
+/// the wrong cells land at unrelated hues (a random hue difference lies within 30° one time in
+/// six); a camera look moves them along their hues (the `graded` family: at most one of 18
+/// beyond 30°, none beyond 45°).
+pub(crate) fn hues_hold(hue_errors: &[f64]) -> bool {
+    let n = hue_errors.len();
+    let kept = hue_errors.iter().filter(|&&e| e <= HUE_TOLERANCE).count();
+    n >= 8 && kept * 6 >= n * 5
+}
 
 /// Perspective strength above which a found chart is refused: the ratio of the largest to the
 /// smallest patch scale (square root of the local area) over the chart's cells. Within it, a
@@ -120,6 +153,10 @@ pub struct DetectOptions {
     /// Long side of the coarser image searched again when the first search finds no chart (and
     /// the frame is larger): see [`detect`].
     pub(crate) retry_side: usize,
+    /// Long side of the coarsest image searched, last (a large chart under heavy sensor noise:
+    /// averaging 3–7 pixels makes its patches uniform; `chart rate --family noisy`), when neither search above finds a chart:
+    /// see [`detect`].
+    pub(crate) coarse_side: usize,
     /// Largest gradient (log units per pixel) of a flat pixel.
     pub(crate) flat_threshold: f32,
 }
@@ -129,6 +166,7 @@ impl Default for DetectOptions {
         DetectOptions {
             max_side: 1600,
             retry_side: 800,
+            coarse_side: 400,
             flat_threshold: 0.08,
         }
     }
@@ -392,6 +430,11 @@ const MIN_LATTICE: usize = 6;
 /// largest must hold half of the chart's cells (a second chart page, another chart in the
 /// frame) — smaller ones are clutter that lines up by chance.
 const MAX_LATTICES: usize = 3;
+
+/// When none of the lattices above matches the chart, at most this many more (of 8 patches or
+/// more, largest first) are placed and scored: a small chart on textured ground (leaf litter)
+/// forms a smaller lattice than the ground's flat pieces do.
+const MAX_EXTRA_LATTICES: usize = 8;
 
 /// Step 3: the lattices the candidates form, largest first (at least 6 patches each). Seeds
 /// are taken largest region first; each walk's lattice is split at empty lines
@@ -718,6 +761,7 @@ fn judge(
     scored: &[Placement],
     surround: (usize, usize),
     extrapolation: f64,
+    hue_errors: &[f64],
 ) -> Result<(Placement, f64, f64), ChartError> {
     let kind = reference.chart;
     let nf = |m: String| ChartError::NotFound(m);
@@ -741,10 +785,22 @@ fn judge(
     // the window is refused below, SURROUND_LIMIT), only from colours the camera rendered (tone
     // curve, saturation, a strong cast).
     let loose_ok = best.enclosed && score <= ENCLOSED_AMBIGUITY_RATIO * runner_up;
-    if score > DETECT_MATCH_LIMIT && !loose_ok {
+    // A decisive placement (the next far worse, the hues kept) may match a little beyond
+    // DETECT_MATCH_LIMIT, enclosed or not: a strongly graded photograph.
+    let decisive_ok = score <= DECISIVE_MATCH_LIMIT
+        && score <= DECISIVE_RATIO * runner_up
+        && hues_hold(hue_errors);
+    if score > DETECT_MATCH_LIMIT && !loose_ok && !decisive_ok {
+        let kept = hue_errors.iter().filter(|&&e| e <= HUE_TOLERANCE).count();
         return Err(nf(format!(
-            "a grid of {lattice} patches was found, but its colours match reference {} only loosely (median ΔE00 {score:.1}, next placement {runner_up:.1}; limit {DETECT_MATCH_LIMIT} for a found chart{}): refused rather than risk a wrong placement; give the chart's corners",
+            "a grid of {lattice} patches was found, but its colours match reference {} only loosely (median ΔE00 {score:.1}, next placement {runner_up:.1}{}; limit {DETECT_MATCH_LIMIT} for a found chart, or {DECISIVE_MATCH_LIMIT} with the next placement {:.1}× worse and five in six colours within {HUE_TOLERANCE}° of their hue{}): refused rather than risk a wrong placement; give the chart's corners",
             reference.name,
+            if hue_errors.is_empty() {
+                String::new()
+            } else {
+                format!("; {kept} of {} colours within {HUE_TOLERANCE}° of their hue", hue_errors.len())
+            },
+            1.0 / DECISIVE_RATIO,
             if best.enclosed {
                 format!(", or {MATCH_LIMIT} with the chart's outer ring all seen and the next placement {:.0}× worse", 1.0 / ENCLOSED_AMBIGUITY_RATIO)
             } else {
@@ -794,16 +850,22 @@ pub fn detect(
     opts: &DetectOptions,
 ) -> Result<Detection, DetectFailure> {
     let first = detect_at(frame, reference, opts, opts.max_side);
-    match first {
-        Err(e)
-            if downsample_factor(frame, opts.retry_side)
-                != downsample_factor(frame, opts.max_side) =>
-        {
-            // The first failure is the one reported: its candidates are the finer ones.
-            detect_at(frame, reference, opts, opts.retry_side).map_err(|_| e)
+    let Err(e) = first else {
+        return first;
+    };
+    // The first failure is the one reported: its candidates are the finer ones.
+    let mut searched = vec![downsample_factor(frame, opts.max_side)];
+    for side in [opts.retry_side, opts.coarse_side] {
+        let f = downsample_factor(frame, side);
+        if searched.contains(&f) {
+            continue;
         }
-        r => r,
+        searched.push(f);
+        if let Ok(d) = detect_at(frame, reference, opts, side) {
+            return Ok(d);
+        }
     }
+    Err(e)
 }
 
 /// [`detect`] on the frame downsampled to a long side of at most `max_side`.
@@ -850,9 +912,19 @@ fn detect_at(
     // Each lattice tried: refined, placed; the one whose best placement matches best is judged.
     let mut tried: Vec<(Lattice, Vec<Placement>)> = Vec::new();
     let mut first_err = None;
-    for (k, lat) in lats.into_iter().take(MAX_LATTICES).enumerate() {
-        if k > 0 && lat.len() * 2 < kind.cells() {
-            break;
+    let best_of = |t: &(Lattice, Vec<Placement>)| t.1.first().map_or(f64::INFINITY, |p| p.score);
+    for (k, lat) in lats.into_iter().enumerate() {
+        let extra = k >= MAX_LATTICES || (k > 0 && lat.len() * 2 < kind.cells());
+        if extra {
+            // Beyond the largest lattices: only when none of those matches, and only lattices
+            // the colour check can judge (8 patches).
+            let matched = tried.iter().map(best_of).fold(f64::INFINITY, f64::min);
+            if matched <= DETECT_MATCH_LIMIT || k >= MAX_LATTICES + MAX_EXTRA_LATTICES {
+                break;
+            }
+            if lat.len() < 8 {
+                continue;
+            }
         }
         match refine(blobs, lat, span) {
             Ok((lat, h_obs)) => {
@@ -864,7 +936,6 @@ fn detect_at(
             }
         }
     }
-    let best_of = |t: &(Lattice, Vec<Placement>)| t.1.first().map_or(f64::INFINITY, |p| p.score);
     let Some((lattice, scored)) = tried
         .into_iter()
         .min_by(|a, b| best_of(a).total_cmp(&best_of(b)))
@@ -890,7 +961,15 @@ fn detect_at(
         accepted[*b] = true;
     }
     let candidates = regions.candidates(f, &accepted);
-    match judge(reference, lattice.len(), &scored, around, spread) {
+    // The hues of the best placement, looked at only where the decisive rule may apply.
+    let hues = match scored.first() {
+        Some(best) if best.score > DETECT_MATCH_LIMIT && best.score <= DECISIVE_MATCH_LIMIT => {
+            let means = cell_means(&small, kind, &best.hc, kind.patch_fraction() * 0.5);
+            hue_errors(&means, reference).unwrap_or_default()
+        }
+        _ => Vec::new(),
+    };
+    match judge(reference, lattice.len(), &scored, around, spread, &hues) {
         Ok((best, runner_up, persp)) => Ok(Detection {
             homography: best.hc.scaled(f as f64),
             score: best.score,
@@ -1311,7 +1390,7 @@ mod tests {
             window: ([0, 0], [6, 4]),
         };
         let judged = |scored: &[Placement], around: (usize, usize), spread: f64| {
-            judge(&r, 24, scored, around, spread)
+            judge(&r, 24, scored, around, spread, &[])
         };
         let (best, runner, persp) = judged(&[p(1.0, false), p(3.0, false)], (0, 24), 0.0).unwrap();
         assert_eq!((best.score, runner), (1.0, 3.0));
@@ -1322,6 +1401,30 @@ mod tests {
         let loose = 0.5 * (DETECT_MATCH_LIMIT + MATCH_LIMIT);
         assert!(judged(&[p(loose, false), p(4.0 * loose, false)], (0, 24), 0.0).is_err());
         assert!(judged(&[p(loose, true), p(4.0 * loose, true)], (0, 24), 0.0).is_ok());
+        // Decisive: a little beyond the limit with the next 2.5× worse and the hues kept, enclosed
+        // or not; not with the hues lost, a close runner-up or a poorer match.
+        let graded = 0.5 * (DETECT_MATCH_LIMIT + DECISIVE_MATCH_LIMIT);
+        let kept = [vec![40.0, 35.0], vec![10.0; 10]].concat();
+        let lost = [vec![40.0, 35.0, 31.0], vec![10.0; 9]].concat();
+        let hued = |scored: &[Placement], hues: &[f64]| judge(&r, 23, scored, (0, 24), 0.0, hues);
+        assert!(hues_hold(&kept) && !hues_hold(&lost) && !hues_hold(&[1.0; 7]));
+        let next = graded / DECISIVE_RATIO;
+        for enclosed in [false, true] {
+            assert!(hued(&[p(graded, enclosed), p(next, false)], &kept).is_ok());
+        }
+        let refused = hued(&[p(graded, false), p(next, false)], &lost);
+        assert!(
+            matches!(&refused, Err(ChartError::NotFound(m)) if m.contains("9 of 12 colours")),
+            "{refused:?}"
+        );
+        assert!(hued(&[p(graded, false), p(0.9 * next, false)], &kept).is_err());
+        let poorer = DECISIVE_MATCH_LIMIT + 0.1;
+        assert!(hued(
+            &[p(poorer, false), p(poorer / DECISIVE_RATIO, false)],
+            &kept
+        )
+        .is_err());
+        assert!(hued(&[p(graded, false), p(graded / DECISIVE_RATIO, false)], &[]).is_err());
         // Strong perspective (1.8×, 2.7×): read within the limit, refused beyond it.
         let steep = |enclosed: bool, g: f64| Placement {
             hc: Homography([20.0, 0.0, 10.0, 0.0, 20.0, 10.0, g, 0.0, 1.0]),

@@ -614,6 +614,11 @@ pub(crate) fn linear_fit(rgb: &[[f64; 3]], xyz: &[[f64; 3]], w: &[f64]) -> Optio
 /// from camera RGB to the reference XYZ (`rgb[i]` is cell `i`; `None` cells are skipped).
 /// A right chart in the right orientation scores a few ΔE00; a wrong one scores far more.
 pub(crate) fn match_score(rgb: &[Option<[f64; 3]>], reference: &Reference) -> Option<f64> {
+    fitted(rgb, reference).map(|(score, _)| score)
+}
+
+/// [`match_score`] and the fitted colours (XYZ after the map; `None` where `rgb` is unreadable).
+fn fitted(rgb: &[Option<[f64; 3]>], reference: &Reference) -> Option<(f64, Vec<Option<[f64; 3]>>)> {
     let idx: Vec<usize> = (0..rgb.len())
         .filter(|&i| rgb[i].is_some_and(|v| v.iter().all(|x| x.is_finite())))
         .collect();
@@ -624,17 +629,63 @@ pub(crate) fn match_score(rgb: &[Option<[f64; 3]>], reference: &Reference) -> Op
     let x: Vec<[f64; 3]> = idx.iter().map(|&i| reference.xyz[i]).collect();
     let w: Vec<f64> = x.iter().map(|v| 1.0 / (v[1] + 10.0)).collect();
     let m = linear_fit(&r, &x, &w)?;
-    let mut de: Vec<f64> = r
+    let mut out = vec![None; rgb.len()];
+    let mut de: Vec<f64> = idx
         .iter()
+        .zip(&r)
         .zip(&x)
-        .map(|(ri, xi)| {
+        .map(|((&i, ri), xi)| {
             let p = crate::colorimetry::spaces::apply(&m, *ri);
             let p = p.map(|v| v.max(0.0));
+            out[i] = Some(p);
             delta_e00_xyz(p, *xi, reference.white)
         })
         .collect();
     de.sort_by(f64::total_cmp);
-    Some(de[de.len() / 2])
+    Some((de[de.len() / 2], out))
+}
+
+/// Reference cells at least this chromatic (CIELAB chroma) have their hue checked by
+/// [`hue_order`]; the CC24's colours have chroma 14–80 (16 of its 18 colours above 20), its greys
+/// below 1.
+pub(crate) const HUE_CHROMA: f64 = 20.0;
+
+/// How a placement's colours keep the reference's hues, after the fit that [`chart_score`]
+/// judges by (the better of the linear map and the map through the grey ramp): for every cell
+/// of reference chroma at least [`HUE_CHROMA`] that was read, the difference between the
+/// fitted and the reference CIELAB hue angle, in degrees (largest first). A tone curve and a
+/// saturation gain move colours along their hue; colours placed in the wrong cells land at
+/// unrelated hues. `None` when no fit was possible.
+pub(crate) fn hue_errors(rgb: &[Option<[f64; 3]>], reference: &Reference) -> Option<Vec<f64>> {
+    let lin = fitted(rgb, reference);
+    let tone = linearise(rgb, reference).and_then(|l| fitted(&l, reference));
+    let (_, xyz) = match (lin, tone) {
+        (Some(a), Some(b)) => {
+            if b.0 < a.0 {
+                b
+            } else {
+                a
+            }
+        }
+        (a, b) => a.or(b)?,
+    };
+    let hue = |lab: [f64; 3]| lab[2].atan2(lab[1]).to_degrees();
+    let mut errs: Vec<f64> = xyz
+        .iter()
+        .zip(&reference.xyz)
+        .filter_map(|(p, r)| {
+            let p = (*p)?;
+            let lr = crate::colorimetry::xyz_to_lab(*r, reference.white);
+            if lr[1].hypot(lr[2]) < HUE_CHROMA {
+                return None;
+            }
+            let lp = crate::colorimetry::xyz_to_lab(p, reference.white);
+            let d = (hue(lp) - hue(lr)).rem_euclid(360.0);
+            Some(d.min(360.0 - d))
+        })
+        .collect();
+    errs.sort_by(|a, b| b.total_cmp(a));
+    Some(errs)
 }
 
 /// The median ΔE00 above which patch colours are taken not to match the reference.

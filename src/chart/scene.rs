@@ -147,6 +147,10 @@ pub struct SceneOptions {
     /// A ColorChecker Passport: its second page (creative enhancement: greys, skin tones,
     /// colours in another layout) open beside the classic page.
     pub second_page: bool,
+    /// Textured ground (leaf litter): the background covered edge to edge by flat-ish leaves
+    /// about this many of the chart's patch pitches across, each shaded along its own direction,
+    /// with dark gaps between them (0: none; at most 10).
+    pub texture: f64,
 }
 
 /// A camera's rendering of a scene into a JPEG.
@@ -185,6 +189,7 @@ impl Default for SceneOptions {
             body_reflectance: 0.035,
             look: None,
             second_page: false,
+            texture: 0.0,
         }
     }
 }
@@ -220,6 +225,7 @@ impl SceneOptions {
             body_reflectance: 0.035,
             look: None,
             second_page: false,
+            texture: 0.0,
         }
     }
 
@@ -275,6 +281,9 @@ impl SceneOptions {
             .is_some_and(|p| !(p.is_finite() && (1.0..=4.0).contains(&p)))
         {
             return bad("the perspective must be 1..4");
+        }
+        if !(nonneg(self.texture) && self.texture <= 10.0) {
+            return bad("the texture (leaf size in patch pitches) must be 0..10");
         }
         if self.clutter > 10_000 {
             return bad("at most 10000 clutter shapes");
@@ -534,7 +543,14 @@ pub fn render(
         .inverse()
         .ok_or_else(|| ChartError::Geometry("the pose is singular".into()))?;
     let white = colours.white_rgb;
-    let background = Background::new(white, w, h, opts.clutter, &mut g);
+    let mut background = Background::new(white, w, h, opts.clutter, &mut g);
+    if opts.texture > 0.0 {
+        // Leaves sized in the chart's patch pitch at its centre.
+        let c = kind.cell_centre(kind.cells() / 2);
+        let (a, b) = (hom.apply(c), hom.apply([c[0] + 1.0, c[1]]));
+        let pitch = (a[0] - b[0]).hypot(a[1] - b[1]);
+        background.litter = Some(Litter::new(white, (opts.texture * pitch).max(2.0), &mut g));
+    }
     let occluder = opts
         .occlusion
         .then(|| place_occluder(colours, &hom, &mut g));
@@ -587,6 +603,83 @@ struct Background {
     shapes: Vec<(Shape, [f64; 3])>,
     width: f64,
     height: f64,
+    /// Leaf litter over the gradient, under the shapes ([`SceneOptions::texture`]).
+    litter: Option<Litter>,
+}
+
+/// Leaf litter: a tiling of leaves, one per cell of a square grid of `cell` pixels, each at a
+/// jittered point and elongated (1.5–3×) along its own direction (the nearest leaf in that
+/// leaf's own stretched distance), a random warm colour (browns, ochres, dull greens) shaded
+/// along its length and grained (±20 % over 2-pixel grains: a leaf's veins and speckle), the
+/// gaps between leaves dark.
+struct Litter {
+    cell: f64,
+    white: [f64; 3],
+    key: u64,
+}
+
+impl Litter {
+    fn new(white: [f64; 3], cell: f64, g: &mut Gaussian) -> Litter {
+        Litter {
+            cell,
+            white,
+            key: (g.uniform() * (1u64 << 52) as f64) as u64,
+        }
+    }
+
+    /// Four uniform numbers in 0..1 drawn from the leaf of grid cell `(i, j)` (`salt` picks
+    /// another set).
+    fn draws(&self, i: i64, j: i64, salt: u64) -> [f64; 4] {
+        let mut z = self.key
+            ^ (i as u64).wrapping_mul(0x9e37_79b9_7f4a_7c15)
+            ^ (j as u64).wrapping_mul(0xc2b2_ae3d_27d4_eb4f)
+            ^ salt.wrapping_mul(0xd6e8_feb8_6659_fd93);
+        [0; 4].map(|_| {
+            // splitmix64
+            z = z.wrapping_add(0x9e37_79b9_7f4a_7c15);
+            let mut x = z;
+            x = (x ^ (x >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
+            x = (x ^ (x >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
+            x ^= x >> 31;
+            (x >> 11) as f64 / (1u64 << 53) as f64
+        })
+    }
+
+    fn at(&self, px: f64, py: f64) -> [f64; 3] {
+        let (u, v) = (px / self.cell, py / self.cell);
+        let (ci, cj) = (u.floor() as i64, v.floor() as i64);
+        let (mut d1, mut d2, mut best) = (f64::INFINITY, f64::INFINITY, (0, 0));
+        for j in cj - 2..=cj + 2 {
+            for i in ci - 2..=ci + 2 {
+                let r = self.draws(i, j, 0);
+                let (du, dv) = (u - i as f64 - r[0], v - j as f64 - r[1]);
+                let a = std::f64::consts::TAU * r[3];
+                let (along, across) = (du * a.cos() + dv * a.sin(), dv * a.cos() - du * a.sin());
+                let d = along.hypot(across * (1.5 + 1.5 * self.draws(i, j, 3)[0]));
+                if d < d1 {
+                    d2 = d1;
+                    d1 = d;
+                    best = (i, j);
+                } else if d < d2 {
+                    d2 = d;
+                }
+            }
+        }
+        // The gap between two leaves: dark.
+        if d2 - d1 < 0.08 {
+            return self.white.map(|w| 0.02 * w);
+        }
+        let r = self.draws(best.0, best.1, 0);
+        let s = self.draws(best.0, best.1, 1);
+        let level = 0.04 + 0.4 * r[2] * r[2];
+        let tint = [0.9 + 0.5 * s[0], 0.6 + 0.5 * s[1], 0.25 + 0.4 * s[2]];
+        let a = std::f64::consts::TAU * r[3];
+        let (du, dv) = (u - best.0 as f64 - r[0], v - best.1 as f64 - r[1]);
+        let shade = (1.0 + 0.6 * s[3] * (du * a.cos() + dv * a.sin())).max(0.2);
+        let grain = self.draws((px * 0.5).floor() as i64, (py * 0.5).floor() as i64, 2)[0];
+        let shade = shade * (0.8 + 0.4 * grain);
+        [0, 1, 2].map(|k| (self.white[k] * level * tint[k] * shade).min(0.95 * self.white[k]))
+    }
 }
 
 impl Background {
@@ -616,6 +709,7 @@ impl Background {
             shapes,
             width: w as f64,
             height: h as f64,
+            litter: None,
         }
     }
 
@@ -623,6 +717,9 @@ impl Background {
     fn at(&self, px: f64, py: f64) -> [f64; 3] {
         if let Some((_, rgb)) = self.shapes.iter().rev().find(|(s, _)| s.contains([px, py])) {
             return *rgb;
+        }
+        if let Some(l) = &self.litter {
+            return l.at(px, py);
         }
         let t = px / self.width * 0.7 + py / self.height * 0.3;
         [0, 1, 2].map(|k| self.from[k] * (1.0 - t) + self.to[k] * t)
@@ -1130,11 +1227,24 @@ pub enum Family {
     /// first and third rows reversed (the second row and the grey ramp in place); for an SG,
     /// that chart made of the SG's E2–J5 block.
     Spyder24,
+    /// A strongly graded, saturated product-style photograph: a clean chart (tilt up to 15°,
+    /// 10–35 % of the frame) through a strong camera look — contrast curve 3–5, saturation
+    /// ×1.6–2.2, JPEG quality 85–95 ([`CameraLook`]).
+    Graded,
+    /// A very noisy frame (a small sensor at a very high ISO): a large, frontal chart (35–60 %
+    /// of the frame, tilt up to 10°), 0.5–2 stops under clipping, additive noise σ 0.03–0.07 of
+    /// the white level plus shot noise (0.003–0.008 per unit of signal), blur σ 0.5–1.2 px; a
+    /// camera JPEG half of the time.
+    Noisy,
+    /// A tiny chart on textured ground: 0.8–1.4 % of the frame (a CC24 at 1200 × 800 has about
+    /// 17–23 px between patch centres), on leaf litter whose leaves are 0.8–3 patch pitches
+    /// across ([`SceneOptions::texture`]), no other clutter; a camera JPEG half of the time.
+    Litter,
 }
 
 impl Family {
     /// Every family, in the order `chart rate` lists them.
-    pub const ALL: [Family; 13] = [
+    pub const ALL: [Family; 16] = [
         Family::Envelope,
         Family::Jpeg,
         Family::Fill,
@@ -1148,6 +1258,9 @@ impl Family {
         Family::Shuffled,
         Family::Nested,
         Family::Spyder24,
+        Family::Graded,
+        Family::Noisy,
+        Family::Litter,
     ];
 
     /// The family's name (`envelope`, `jpeg`, …), as `chart rate --family` takes it.
@@ -1166,6 +1279,9 @@ impl Family {
             Family::Shuffled => "shuffled",
             Family::Nested => "nested",
             Family::Spyder24 => "spyder24",
+            Family::Graded => "graded",
+            Family::Noisy => "noisy",
+            Family::Litter => "litter",
         }
     }
 
@@ -1244,6 +1360,38 @@ impl Family {
                 let brightest = colours.rgb.iter().flatten().copied().fold(0.0, f64::max);
                 o.exposure = 2f64.powf(-2.0 - 3.0 * g.uniform()) / brightest;
                 o.blur = 0.8 + 1.2 * g.uniform();
+                if g.uniform() < 0.5 {
+                    o.look = Some(look(&mut g));
+                }
+            }
+            Family::Graded => {
+                o.max_tilt_deg = 15.0;
+                o.min_area = 0.1;
+                o.max_area = 0.35;
+                o.look = Some(CameraLook {
+                    contrast: 3.0 + 2.0 * g.uniform(),
+                    saturation: 1.6 + 0.6 * g.uniform(),
+                    quality: 85 + (10.0 * g.uniform()) as u8,
+                });
+            }
+            Family::Noisy => {
+                o.max_tilt_deg = 10.0;
+                o.min_area = 0.35;
+                o.max_area = 0.6;
+                let brightest = colours.rgb.iter().flatten().copied().fold(0.0, f64::max);
+                o.exposure = 2f64.powf(-0.5 - 1.5 * g.uniform()) / brightest;
+                o.noise = 0.03 + 0.04 * g.uniform();
+                o.shot_noise = 0.003 + 0.005 * g.uniform();
+                o.blur = 0.5 + 0.7 * g.uniform();
+                if g.uniform() < 0.5 {
+                    o.look = Some(look(&mut g));
+                }
+            }
+            Family::Litter => {
+                o.min_area = 0.008;
+                o.max_area = 0.014;
+                o.clutter = 0;
+                o.texture = 0.8 + 2.2 * g.uniform();
                 if g.uniform() < 0.5 {
                     o.look = Some(look(&mut g));
                 }

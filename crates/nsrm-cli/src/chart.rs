@@ -131,7 +131,9 @@ pub(crate) struct RateArgs {
     /// curve, saturation and JPEG), fill (the chart filling the frame), small (small, a corner
     /// covered), passport (the Passport's second page beside the chart), tilt (tilted 30–50°),
     /// black-frame (the chart body as dark as its black patch), wide (a wide-angle camera close
-    /// to the chart: perspective 1.6–2.2); negatives, which must all be refused, in the
+    /// to the chart: perspective 1.6–2.2), graded (a strong contrast curve and saturation boost),
+    /// noisy (a large frontal chart under very high-ISO noise), litter (a tiny chart on leaf
+    /// litter); negatives, which must all be refused, in the
     /// chart's layout: spyder (another make's chart: a SpyderCHECKR-24-like one, for sg a
     /// 14×10 one with a grey ramp in two columns), random (random patch grids), shuffled (the
     /// chart's greys in place, its colours in another order), nested (for cc24 an SG-like

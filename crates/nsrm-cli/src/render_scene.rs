@@ -39,7 +39,7 @@ pub(crate) struct Args {
     #[arg(long)]
     envelope: bool,
     /// A scene of one of `chart rate`'s families (implies --envelope's draws): jpeg, fill, small,
-    /// passport, tilt, black-frame, wide, or the negatives spyder, random, shuffled (in the
+    /// passport, tilt, black-frame, wide, graded, noisy, litter, or the negatives spyder, random, shuffled (in the
     /// chart's layout), nested (an SG-like chart holding the CC24's colours; for sg, a CC24 of
     /// the SG's E2–J5 block), spyder24 (a SpyderCHECKR 24). A jpeg-look scene is written as the
     /// values nsrm decodes from the camera JPEG (sRGB decoded, tone curve kept).

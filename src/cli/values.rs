@@ -73,6 +73,13 @@ value_enum!(
 );
 
 value_enum!(
+    /// `--highlights` (apply, calibrate).
+    Highlights => crate::model::highlights::HighlightMode,
+    crate::model::highlights::HighlightMode::parse,
+    { Clip = "clip", Keep = "keep" }
+);
+
+value_enum!(
     /// `apply --compression`.
     Compression => crate::io::ExrCompression,
     crate::io::ExrCompression::parse,
@@ -183,6 +190,7 @@ mod tests {
         Demosaic::check();
         FileFormat::check();
         Compression::check();
+        Highlights::check();
         Device::check();
         ExportFormat::check();
         Interpolation::check();

@@ -49,6 +49,8 @@ mod harden_signals;
 #[cfg(feature = "cli")]
 mod harden_tiff;
 #[cfg(feature = "cli")]
+mod highlights;
+#[cfg(feature = "cli")]
 mod hostile_exr;
 #[cfg(feature = "cli")]
 mod icc;

@@ -1016,6 +1016,19 @@ impl FrameState {
         s
     }
 
+    /// `model` with the highlight policy `apply` gives this frame by default: clipped to white
+    /// at a camera raw file's clip level, kept in other frames (no level known).
+    fn with_highlights(&self, model: &Model) -> Result<Model> {
+        let clip = self
+            .frame
+            .decoded
+            .camera
+            .as_ref()
+            .and_then(|c| c.clip_level);
+        let h = crate::model::highlights::FrameHighlights::new(None, None, &[model]);
+        Ok(model.clone().with_policy(h.policy(clip, None)?))
+    }
+
     /// The corrected preview in `space` (sRGB PNG), computed on the server's device (`--device`),
     /// and where it was computed.
     pub(crate) fn corrected_png(
@@ -1025,7 +1038,7 @@ impl FrameState {
     ) -> Result<(Vec<u8>, Computed)> {
         let space = parse_space(space)?;
         let f = self.fitted()?;
-        let out = crate::model::output_model(&f.model, space)?;
+        let out = crate::model::output_model(&self.with_highlights(&f.model)?, space)?;
         let mut frame = self.small.clone();
         let computed = studio.correct(&out, &mut frame)?;
         let png =
@@ -1038,7 +1051,7 @@ impl FrameState {
     pub(crate) fn wgsl(&self, space: &str) -> Result<Value> {
         let space = parse_space(space)?;
         let f = self.fitted()?;
-        let out = crate::model::output_model(&f.model, space)?;
+        let out = crate::model::output_model(&self.with_highlights(&f.model)?, space)?;
         let wgsl = crate::export::shader::baked_wgsl(&out, Layout::Rgb)?;
         Ok(json!({
             "wgsl": wgsl,

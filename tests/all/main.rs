@@ -19,6 +19,8 @@ mod cli_eval_fit;
 mod cli_fit_variants;
 mod common;
 #[cfg(feature = "cli")]
+mod export_light;
+#[cfg(feature = "cli")]
 mod export_ocio;
 #[cfg(feature = "io")]
 mod exr_fast;

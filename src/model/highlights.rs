@@ -116,6 +116,7 @@ impl Highlights {
 
     /// The shader uniform's two vectors (`shaders/model_uniform.wgsl`): `clip` with `w = 1`
     /// (the policy is on) and `neutral`. [`uniform_off`] when there is no policy.
+    #[cfg(feature = "gpu")]
     pub(crate) fn uniform(policy: Option<&Highlights>) -> [[f32; 4]; 2] {
         match policy {
             Some(h) => {
@@ -131,6 +132,7 @@ impl Highlights {
 }
 
 /// The uniform's two vectors with no policy (`clip.w = 0`: the shader passes pixels unchanged).
+#[cfg(feature = "gpu")]
 pub(crate) fn uniform_off() -> [[f32; 4]; 2] {
     [[1.0, 1.0, 1.0, 0.0], [0.0; 4]]
 }
@@ -176,6 +178,7 @@ fn check_clip(clip: [f64; 3]) -> Result<(), ModelError> {
 }
 
 /// How clipped highlights are handled (`--highlights`).
+#[cfg(any(feature = "cli", test))]
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub(crate) enum HighlightMode {
     /// To the brightest plausible neutral, blended in below the clip ([`Highlights`]).
@@ -184,6 +187,7 @@ pub(crate) enum HighlightMode {
     Keep,
 }
 
+#[cfg(any(feature = "cli", test))]
 impl HighlightMode {
     /// Every mode with its name.
     #[cfg(test)]
@@ -206,6 +210,7 @@ impl HighlightMode {
 /// * else the frame's own (a camera raw file's white level, `frame`) → that;
 /// * else (EXR, TIFF, JPEG: no level known) → `None` by default, and an error when `Clip` was
 ///   asked for explicitly ([`ModelError::NoClipLevel`]).
+#[cfg(any(feature = "cli", test))]
 pub(crate) fn frame_clip(
     mode: Option<HighlightMode>,
     level: Option<f64>,
@@ -367,6 +372,7 @@ fn newton_step(f: &impl Fn([f64; 3]) -> [f64; 3], x: [f64; 3], r: [f64; 3]) -> O
 
 /// What a batch does with each frame's highlights: the mode and level asked for, and the models
 /// it applies (summed; in XYZ, no output space folded in).
+#[cfg(feature = "cli")]
 #[derive(Debug, Clone)]
 pub(crate) struct FrameHighlights {
     mode: Option<HighlightMode>,
@@ -374,6 +380,7 @@ pub(crate) struct FrameHighlights {
     parts: Vec<Model>,
 }
 
+#[cfg(feature = "cli")]
 impl FrameHighlights {
     /// The policy asked for (`mode`, `level`: see [`frame_clip`]) for the sum of `parts`.
     pub(crate) fn new(

@@ -472,12 +472,14 @@ impl Model {
 
     /// The model with the highlight policy `policy` (made for this model in XYZ, or for the
     /// models it was folded or combined from: see [`highlights::FrameHighlights`]).
+    #[cfg(feature = "cli")]
     pub(crate) fn with_policy(mut self, policy: Option<highlights::Highlights>) -> Model {
         self.highlights = policy;
         self
     }
 
     /// The highlight policy, when set.
+    #[cfg(any(feature = "gpu", test))]
     pub(crate) fn highlights(&self) -> Option<&highlights::Highlights> {
         self.highlights.as_ref()
     }

@@ -147,6 +147,11 @@ impl CaptureFrame {
     pub fn frame(&self) -> &Frame {
         &self.decoded.frame
     }
+
+    /// Make, model, exposure and clip level of a camera raw frame; `None` for other files.
+    pub fn camera(&self) -> Option<&crate::io::raw::CameraInfo> {
+        self.decoded.camera.as_ref()
+    }
 }
 
 /// SHA-256 of a file's bytes, read in 1 MiB blocks (lowercase hex).

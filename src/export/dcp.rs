@@ -152,6 +152,23 @@ fn calibration_light(profile: &Profile, cal: &Calibration) -> NamedLight {
     }
 }
 
+impl NamedLight {
+    /// How messages name the light, as the file names it: `Standard light A (2850 K)`, or
+    /// `Other: 2763 K, x 0.4512 y 0.4088 (IlluminantData)`.
+    pub(crate) fn describe(&self) -> String {
+        match (self.code, self.xy) {
+            (OTHER_LIGHT, Some(xy)) => format!(
+                "Other: {:.0} K, x {:.4} y {:.4} (IlluminantData)",
+                self.cct, xy[0], xy[1]
+            ),
+            (code, _) => match LIGHT_SOURCES.iter().find(|l| l.0 == code) {
+                Some(l) => format!("{} ({:.0} K)", l.1, l.2),
+                None => format!("light source {code} ({:.0} K)", self.cct),
+            },
+        }
+    }
+}
+
 /// One entry of a hue/saturation map: hue shift (degrees), saturation scale, value scale.
 pub(crate) type HsmEntry = [f32; 3];
 
@@ -1317,8 +1334,9 @@ pub struct DcpWritten {
     /// its white, when that response is known (a DCP maps the neutral exactly to D50, so it
     /// cannot follow a model that misses its own white).
     pub white_miss: Vec<Option<f64>>,
-    /// The light source names written (CalibrationIlluminant1/2).
-    pub illuminants: Vec<&'static str>,
+    /// The lights the file names (CalibrationIlluminant1/2), described: the same function
+    /// decides both (`calibration_light`).
+    pub illuminants: Vec<String>,
     /// Hue divisions of the maps written.
     pub hue_divisions: usize,
     /// Saturation divisions of the maps written.
@@ -1364,7 +1382,10 @@ pub fn export_to(
         .map(|c| {
             (
                 FrameWhite::Neutral(c.white_rgb),
-                format!("calibration white {:.0} K", c.cct),
+                format!(
+                    "the calibration white, {}",
+                    calibration_light(profile, c).describe()
+                ),
             )
         })
         .collect();
@@ -1413,20 +1434,10 @@ pub fn export_to(
         rebalanced,
         whites: whites.into_iter().map(|w| w.1).collect(),
         white_miss,
-        illuminants: dcp
-            .sides
+        illuminants: profile
+            .calibrations()
             .iter()
-            .map(|s| {
-                LIGHT_SOURCES
-                    .iter()
-                    .find(|l| l.0 == s.illuminant)
-                    .map(|l| l.1)
-                    .unwrap_or(if s.illuminant == OTHER_LIGHT {
-                        "Other (IlluminantData)"
-                    } else {
-                        "?"
-                    })
-            })
+            .map(|c| calibration_light(profile, c).describe())
             .collect(),
         hue_divisions: dcp.hue_divisions,
         sat_divisions: dcp.sat_divisions,

@@ -698,3 +698,71 @@ pub(super) fn read_buffer(
     rb.unmap();
     v
 }
+
+/// A frame across the highlight policy's blend and clip (ramps of several colours from half
+/// the clip to 1.3 times it), then the awkward pixels (NaN, ±Inf, negatives, huge values).
+fn highlight_frame(layout: Layout) -> Frame {
+    let ch = layout.channels();
+    let n = 2400;
+    let awkward = random_frame(300, 1, layout, 5);
+    let mut f = Frame::new(n + 300, 1, layout);
+    for (i, px) in f.data.chunks_exact_mut(ch).take(n).enumerate() {
+        let k = 0.5 + 0.8 * i as f32 / n as f32;
+        let hue = (i % 11) as f32 / 11.0;
+        px[0] = k * (0.2 + 0.8 * hue);
+        px[1] = k;
+        px[2] = k * (1.0 - 0.7 * hue);
+        if ch == 4 {
+            px[3] = hue;
+        }
+    }
+    f.data[n * ch..].copy_from_slice(&awkward.data);
+    f
+}
+
+/// The GPU runs the highlight policy (`shaders/highlights.wgsl`, parameters in the uniform) as
+/// the f64 reference does, for every kind, and it is not a no-op: the policy changes the output
+/// of pixels at the clip. Swapping to the model without it turns it off.
+#[test]
+fn the_highlight_policy_matches_the_f64_reference() {
+    let Some(mut e) = engine(None) else { return };
+    for kind in Kind::ALL {
+        let plain = model(kind, if kind == Kind::Lrm { 1 } else { 2 });
+        let m = plain
+            .clone()
+            .with_highlights(Some([0.7, 0.75, 0.8]))
+            .unwrap();
+        for layout in [Layout::Rgb, Layout::Rgba] {
+            let input = highlight_frame(layout);
+            let mut reference = input.clone();
+            common::apply_reference(&m, &mut reference);
+            let mut out = input.clone();
+            e.apply(&m, &mut out).unwrap();
+            let what = format!("{kind} {layout:?} with the highlight policy");
+            let worst = compare(&what, &m, &input, &out, &reference, REL_TOL);
+            let mut without = input.clone();
+            e.apply(&plain, &mut without).unwrap();
+            let mut plain_ref = input.clone();
+            common::apply_reference(&plain, &mut plain_ref);
+            compare(
+                &format!("{kind} {layout:?} without"),
+                &plain,
+                &input,
+                &without,
+                &plain_ref,
+                REL_TOL,
+            );
+            let ch = layout.channels();
+            let changed = out
+                .data
+                .chunks_exact(ch)
+                .zip(without.data.chunks_exact(ch))
+                .filter(|(a, b)| (0..3).any(|k| (a[k] - b[k]).abs() > 1e-3 * b[k].abs()))
+                .count();
+            assert!(changed > 500, "{what}: the policy changed {changed} pixels");
+            eprintln!(
+                "{what}: GPU vs f64 max error (floored) {worst:.2e}, {changed} pixels changed"
+            );
+        }
+    }
+}

@@ -198,9 +198,11 @@ impl std::fmt::Display for CpuReason {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         match self {
             CpuReason::Asked => write!(f, "the CPU was asked for"),
-            CpuReason::NoAdapter { .. } => write!(
+            // wgpu's reason is kept: where a driver is installed and the adapter was not found
+            // (once, under load), it is what says why.
+            CpuReason::NoAdapter { detail } => write!(
                 f,
-                "no GPU adapter found (for the GPU install a Vulkan driver, e.g. mesa-vulkan-drivers libvulkan1)"
+                "no GPU adapter found ({detail}; for the GPU install a Vulkan driver, e.g. mesa-vulkan-drivers libvulkan1)"
             ),
             CpuReason::SoftwareOnly { adapter } => write!(
                 f,
@@ -264,6 +266,15 @@ pub fn open(choice: DeviceChoice, opts: &GpuOptions) -> Result<Option<Engine>, G
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn the_cpu_fallback_says_wgpus_reason() {
+        let r = CpuReason::NoAdapter {
+            detail: "No suitable graphics adapter found; Vulkan: ERROR_INITIALIZATION_FAILED"
+                .into(),
+        };
+        assert!(r.to_string().contains("ERROR_INITIALIZATION_FAILED"), "{r}");
+    }
 
     #[test]
     fn device_choice_parses() {

@@ -9,8 +9,10 @@
 //!    rewrites to swap models) or, for exported shaders, literals baked into the code,
 //! 3. `shaders/roots.wgsl` (sign-preserving roots) where a term takes a root,
 //! 4. the frame file (`shaders/frame_{buffer,in_place,texture}.wgsl`: bindings and `main`),
-//! 5. the printed program: `fn correct(rgb) -> vec3<f32>`, one block per step of the program
-//!    (input gains, NSRM's signal and black rule, the combine, the rescale), and
+//! 5. the printed program: `fn correct(rgb) -> vec3<f32>`: first `fn highlights` (the model's
+//!    highlight policy, `shaders/highlights.wgsl` with the uniform's parameters; exported,
+//!    baked shaders have no clip level and keep the raw mapping), then one block per step of
+//!    the program (input gains, NSRM's signal and black rule, the combine, the rescale), and
 //! 6. the printed `fn model_terms(x) -> vec3<f32>`: `Σ_j M[:, j] · term_j(x)` over the term list,
 //!    and, where the program has a gain step, `fn model_gain() -> vec3<f32>` (from the uniform,
 //!    or baked).
@@ -19,6 +21,7 @@
 
 use super::GpuError;
 use crate::frame::Layout;
+use crate::model::highlights::Highlights;
 use crate::model::pixel::{Program, Step};
 use crate::model::{term_name, terms, Kind, Model, Term};
 use std::fmt::Write as _;
@@ -34,7 +37,7 @@ pub(crate) const TILE_SIZE: u32 = 16;
 pub(crate) const ENTRY_POINT: &str = "main";
 
 /// The hand-written WGSL sources, by file name: none of them per kind.
-pub(crate) const SOURCES: [(&str, &str); 5] = [
+pub(crate) const SOURCES: [(&str, &str); 6] = [
     (
         "model_uniform.wgsl",
         include_str!("../../shaders/model_uniform.wgsl"),
@@ -52,6 +55,10 @@ pub(crate) const SOURCES: [(&str, &str); 5] = [
         include_str!("../../shaders/frame_texture.wgsl"),
     ),
     ("roots.wgsl", include_str!("../../shaders/roots.wgsl")),
+    (
+        "highlights.wgsl",
+        include_str!("../../shaders/highlights.wgsl"),
+    ),
 ];
 
 fn source(name: &str) -> &'static str {
@@ -225,16 +232,56 @@ fn columns(matrix: &[f64], l: usize) -> Vec<[f32; 4]> {
 }
 
 /// The uniform's contents: the [`matrix_columns`], then the input gains `(g_R, g_G, g_B, 0)`
-/// (`shaders/model_uniform.wgsl`'s `gain`): `L + 1` × `vec4<f32>`.
+/// (`shaders/model_uniform.wgsl`'s `gain`), then the highlight policy's `clip` and `neutral`
+/// ([`Highlights::uniform`]): `L + 3` × `vec4<f32>`.
 pub(crate) fn uniform_data(model: &Model) -> Vec<[f32; 4]> {
-    uniform_data_of(model.matrix(), model.terms().len(), model.input_gains())
+    let mut v = uniform_data_of(model.matrix(), model.terms().len(), model.input_gains());
+    let n = v.len();
+    v[n - 2..].copy_from_slice(&Highlights::uniform(model.highlights()));
+    v
 }
 
-/// [`uniform_data`] of a row-major 3×`l` matrix and input gains (any pixel program's).
+/// [`uniform_data`] of a row-major 3×`l` matrix and input gains (any pixel program's), with no
+/// highlight policy.
 pub(crate) fn uniform_data_of(matrix: &[f64], l: usize, gains: [f64; 3]) -> Vec<[f32; 4]> {
     let mut v = columns(matrix, l);
     v.push([gains[0] as f32, gains[1] as f32, gains[2] as f32, 0.0]);
+    v.extend(crate::model::highlights::uniform_off());
     v
+}
+
+/// The generated `fn highlights(x) -> vec3<f32>` that `correct` starts with: the policy of
+/// `shaders/highlights.wgsl` with the uniform's parameters; in a baked shader the model's policy
+/// as literals, or none where the model has none (an exported shader runs where no clip level is
+/// known: the raw mapping is kept).
+pub(crate) fn highlights_fn(coefficients: Coefficients<'_>) -> String {
+    let body = match coefficients {
+        Coefficients::Uniform => "highlights_with(x, model.clip, model.neutral.xyz)".to_string(),
+        Coefficients::Baked(m) => match m.highlights() {
+            None => "x".to_string(),
+            Some(h) => {
+                let [c, n] = Highlights::uniform(Some(h));
+                let lit = |v: &[f32]| v.iter().map(|x| f32_literal(*x)).collect::<Vec<_>>();
+                format!(
+                    "highlights_with(x, vec4<f32>({}), vec3<f32>({}))",
+                    lit(&c).join(", "),
+                    lit(&n[..3]).join(", ")
+                )
+            }
+        },
+    };
+    format!(
+        "// The highlight policy (nsrm::model::highlights) before the pixel program.\nfn highlights(x: vec3<f32>) -> vec3<f32> {{\n    return {body};\n}}\n"
+    )
+}
+
+/// Whether the shader carries `shaders/highlights.wgsl`: every uniform shader, and a baked one
+/// whose model has a highlight policy.
+fn has_highlights(coefficients: Coefficients<'_>) -> bool {
+    match coefficients {
+        Coefficients::Uniform => true,
+        Coefficients::Baked(m) => m.highlights().is_some(),
+    }
 }
 
 /// The generated `fn model_gain() -> vec3<f32>` of NSRM shaders: the input gains, read from the
@@ -327,7 +374,7 @@ pub(crate) fn correct_fn(program: &Program<'_>) -> String {
         "// NaN / Inf propagate, negative channels are used as they are, nothing is clamped."
     );
     let _ = writeln!(s, "fn correct(rgb: vec3<f32>) -> vec3<f32> {{");
-    let _ = writeln!(s, "    var x = rgb;");
+    let _ = writeln!(s, "    var x = highlights(rgb);");
     let _ = writeln!(s, "    var y = vec3<f32>(0.0);");
     for step in program.steps {
         let _ = writeln!(s, "    // {:?}: {}", step, step.describe());
@@ -433,6 +480,11 @@ pub(crate) fn wgsl_program(
         s.push_str(source("model_uniform.wgsl"));
         let _ = writeln!(s);
     }
+    if has_highlights(coefficients) {
+        let _ = writeln!(s, "// ---- shaders/highlights.wgsl");
+        s.push_str(source("highlights.wgsl"));
+        let _ = writeln!(s);
+    }
     if !program.roots().is_empty() {
         let _ = writeln!(s, "// ---- shaders/roots.wgsl");
         s.push_str(source("roots.wgsl"));
@@ -445,6 +497,7 @@ pub(crate) fn wgsl_program(
         Target::Buffer { .. } => s.push_str(frame),
     }
     let _ = writeln!(s);
+    s.push_str(&highlights_fn(coefficients));
     s.push_str(&correct_fn(program));
     let _ = writeln!(s);
     s.push_str(&model_terms_fn(program, coefficients));
@@ -646,7 +699,39 @@ mod tests {
         );
         let src = wgsl(Kind::Nsrm, 2, Target::ALL[0], Coefficients::Uniform);
         assert!(src.contains("return model.gain.xyz;"), "{src}");
-        assert_eq!(uniform_data(&m).len(), m.len_terms() + 1);
+        assert_eq!(uniform_data(&m).len(), m.len_terms() + 3);
         assert_eq!(uniform_data(&m)[m.len_terms()], [1.5, 1.0, 0.75, 0.0]);
+    }
+
+    /// A baked shader carries the model's highlight policy as literals (and validates); without
+    /// one, `highlights` returns the pixel as it is; a uniform shader reads the policy from the
+    /// uniform, which holds it after the gains.
+    #[test]
+    fn baked_shaders_carry_the_highlight_policy() {
+        let plain = model(Kind::Nsrm, 2);
+        let src = wgsl(Kind::Nsrm, 2, Target::ALL[0], Coefficients::Baked(&plain));
+        assert!(src.contains("    return x;\n"), "{src}");
+        assert!(!src.contains("fn highlights_with"), "{src}");
+        let m = crate::fit(Kind::Nsrm, 2, crate::kit::training())
+            .unwrap()
+            .with_highlights(Some([1.0; 3]))
+            .unwrap();
+        let n = m.highlights().unwrap().neutral().map(|v| v as f32);
+        for target in Target::ALL {
+            let src = wgsl(Kind::Nsrm, 2, target, Coefficients::Baked(&m));
+            validate(&src).unwrap_or_else(|e| panic!("{e}\n{src}"));
+            let want = format!(
+                "highlights_with(x, vec4<f32>(1.0f, 1.0f, 1.0f, 1.0f), vec3<f32>({}, {}, {}))",
+                f32_literal(n[0]),
+                f32_literal(n[1]),
+                f32_literal(n[2])
+            );
+            assert!(src.contains(&want), "{want}\n{src}");
+        }
+        let u = uniform_data(&m);
+        let l = m.len_terms();
+        assert_eq!(u[l + 1], [1.0, 1.0, 1.0, 1.0]);
+        assert_eq!(&u[l + 2][..3], &n[..]);
+        assert_eq!(uniform_data(&plain)[plain.len_terms() + 1][3], 0.0);
     }
 }

@@ -150,6 +150,9 @@ enum Kernel {
 #[derive(Debug, Clone)]
 pub struct FastModel {
     kernel: Kernel,
+    /// The model's highlight policy, run on each chunk before the kernel
+    /// ([`super::highlights`]).
+    highlights: Option<super::highlights::HighlightsF32>,
 }
 
 impl FastModel {
@@ -158,6 +161,7 @@ impl FastModel {
     pub fn new(model: &Model) -> FastModel {
         FastModel {
             kernel: Kernel::choose(&model.program(), &model.matrix, model.input_gains),
+            highlights: model.highlights.map(|h| h.to_f32()),
         }
     }
 
@@ -233,16 +237,22 @@ impl FastModel {
     }
 
     fn dispatch_in_place<const C: usize>(&self, data: &mut [f32], threads: Threads, code: Code) {
+        let h = self.highlights.as_ref();
         match &self.kernel {
-            Kernel::Linear(k) => in_place::<_, C>(k, data, threads, code),
-            Kernel::Prm3(k) => in_place::<_, C>(k, data, threads, code),
-            Kernel::Rprm3(k) => in_place::<_, C>(k, data, threads, code),
-            Kernel::Nsrm3(k) => in_place::<_, C>(k, data, threads, code),
-            Kernel::Plan(k) => in_place::<_, C>(&Blocks(&**k), data, threads, code),
+            Kernel::Linear(k) => in_place::<_, C>(k, h, data, threads, code),
+            Kernel::Prm3(k) => in_place::<_, C>(k, h, data, threads, code),
+            Kernel::Rprm3(k) => in_place::<_, C>(k, h, data, threads, code),
+            Kernel::Nsrm3(k) => in_place::<_, C>(k, h, data, threads, code),
+            Kernel::Plan(k) => in_place::<_, C>(&Blocks(&**k), h, data, threads, code),
         }
     }
 
     fn dispatch_into<const C: usize>(&self, src: &[f32], dst: &mut [f32], threads: Threads) {
+        if self.highlights.is_some() {
+            // The policy changes the input: copied, then corrected in place.
+            dst.copy_from_slice(src);
+            return self.dispatch_in_place::<C>(dst, threads, Code::Detected);
+        }
         match &self.kernel {
             Kernel::Linear(k) => into::<_, C>(k, src, dst, threads),
             Kernel::Prm3(k) => into::<_, C>(k, src, dst, threads),
@@ -588,12 +598,23 @@ impl<K: BlockKernel> Chunks for Blocks<'_, K> {
     }
 }
 
-fn in_place<K: Chunks, const C: usize>(k: &K, data: &mut [f32], threads: Threads, code: Code) {
+fn in_place<K: Chunks, const C: usize>(
+    k: &K,
+    highlights: Option<&super::highlights::HighlightsF32>,
+    data: &mut [f32],
+    threads: Threads,
+    code: Code,
+) {
     let n = CHUNK_PIXELS * C;
-    let run = |chunk: &mut [f32]| match code {
-        Code::Detected if K::AVX512 => chunk_in_place::<K, C>(k, chunk),
-        Code::Detected => chunk_in_place_avx2::<K, C>(k, chunk),
-        Code::Baseline => k.run_in_place::<C>(chunk, false),
+    let run = |chunk: &mut [f32]| {
+        if let Some(h) = highlights {
+            h.apply::<C>(chunk);
+        }
+        match code {
+            Code::Detected if K::AVX512 => chunk_in_place::<K, C>(k, chunk),
+            Code::Detected => chunk_in_place_avx2::<K, C>(k, chunk),
+            Code::Baseline => k.run_in_place::<C>(chunk, false),
+        }
     };
     match threads {
         Threads::All => data.par_chunks_mut(n).for_each(run),
@@ -1458,7 +1479,10 @@ mod tests {
     /// Runs `kernel` (baseline and detected code) on [`PIXELS`] and holds it to `program`.
     fn run_against(program: &Program<'_>, matrix: &[f64], gains: [f64; 3], name: &str) {
         let kernel = Kernel::choose(program, matrix, gains);
-        let fast = FastModel { kernel };
+        let fast = FastModel {
+            kernel,
+            highlights: None,
+        };
         assert_eq!(fast.kernel_name(), name, "{program:?}");
         let data: Vec<f32> = PIXELS.iter().flatten().copied().collect();
         for baseline in [false, true] {

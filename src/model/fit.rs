@@ -746,6 +746,7 @@ impl<'a> Problem<'a> {
             fit_report: None,
             input_gains: super::UNIT_GAINS,
             frame_white: false,
+            highlights: None,
         }
         .with_input_gains(self.gains)?;
         let f32_bound = f32_error_bound(&model, &self.data.rgb, &self.data.xyz);

@@ -17,6 +17,7 @@ pub(crate) mod fast;
 mod fast_tests;
 pub(crate) mod file;
 pub(crate) mod fit;
+pub(crate) mod highlights;
 pub(crate) mod output;
 pub(crate) mod pixel;
 #[cfg(test)]
@@ -107,6 +108,17 @@ pub enum ModelError {
     /// Training data, a fit option or a model (file) that cannot be used (the message says why).
     #[error("{0}")]
     Invalid(String),
+    /// A clip level for the highlight policy that is not finite and positive (held here).
+    #[error("the clip level {0:?} is not finite and positive in every channel")]
+    ClipLevel([f64; 3]),
+    /// The model maps no positive camera RGB to its white (the solve did not converge, or found
+    /// the RGB held here with a channel at or below 0): clipped highlights have no neutral to go to.
+    #[error("the model maps no positive camera RGB to its white (found {0:?}): its clipped highlights have no neutral to go to")]
+    NoNeutral([f64; 3]),
+    /// Highlights were to be clipped in a frame whose clip level is not known (not a camera raw
+    /// file) and none was given.
+    #[error("the frame records no clip level (only camera raw files do): give one, or keep the highlights' raw mapping")]
+    NoClipLevel,
     /// A malformed fit option (objective, ridge, normalisation): a usage error.
     #[error("{0}")]
     Spec(String),
@@ -137,7 +149,11 @@ impl ModelError {
     pub fn is_usage(&self) -> bool {
         matches!(
             self,
-            ModelError::UnknownKind(_) | ModelError::Order(_) | ModelError::Spec(_)
+            ModelError::UnknownKind(_)
+                | ModelError::Order(_)
+                | ModelError::Spec(_)
+                | ModelError::ClipLevel(_)
+                | ModelError::NoClipLevel
         )
     }
 
@@ -262,6 +278,10 @@ pub struct Model {
     /// [`crate::colorimetry::spaces::OutputSpace::from_xyz`] (which is for a training white
     /// integrated on a coarse grid). Not stored in the model file.
     frame_white: bool,
+    /// The highlight policy every apply path runs before the pixel program, when set
+    /// ([`with_highlights`](Self::with_highlights)); not stored in the model file (the clip level
+    /// is the frame's).
+    highlights: Option<highlights::Highlights>,
 }
 
 impl Model {
@@ -295,6 +315,7 @@ impl Model {
             fit_report: None,
             input_gains: UNIT_GAINS,
             frame_white: false,
+            highlights: None,
         })
     }
 
@@ -431,7 +452,43 @@ impl Model {
 
     /// [`apply_f64`](Self::apply_f64) with a caller-provided term buffer (length L).
     pub(crate) fn apply_f64_with(&self, rgb: [f64; 3], p: &mut [f64]) -> [f64; 3] {
+        let rgb = match &self.highlights {
+            Some(h) => h.map(rgb),
+            None => rgb,
+        };
         self.program().eval(&self.matrix, self.input_gains, rgb, p)
+    }
+
+    /// The pixel program alone, without the highlight policy.
+    pub(crate) fn apply_f64_plain(&self, rgb: [f64; 3]) -> [f64; 3] {
+        let mut p = vec![0.0; self.terms.len()];
+        self.program()
+            .eval(&self.matrix, self.input_gains, rgb, &mut p)
+    }
+
+    /// The model with a highlight policy for clip levels `clip` (camera RGB, per channel), or
+    /// without one (`None`: the raw mapping is kept). Set it on the model in XYZ, before an output
+    /// space is folded in ([`output::output_model`] keeps it): the neutral is found from the
+    /// model's white. See [`highlights`].
+    pub fn with_highlights(mut self, clip: Option<[f64; 3]>) -> Result<Model, ModelError> {
+        self.highlights = match clip {
+            Some(c) => Some(highlights::Highlights::for_model(&self, c)?),
+            None => None,
+        };
+        Ok(self)
+    }
+
+    /// The model with the highlight policy `policy` (made for this model in XYZ, or for the
+    /// models it was folded or combined from: see [`highlights::FrameHighlights`]).
+    pub fn with_policy(mut self, policy: Option<highlights::Highlights>) -> Model {
+        self.highlights = policy;
+        self
+    }
+
+    /// The highlight policy, when set.
+    #[cfg(any(feature = "gpu", test))]
+    pub(crate) fn highlights(&self) -> Option<&highlights::Highlights> {
+        self.highlights.as_ref()
     }
 
     /// Corrects a frame in place on the CPU (alpha untouched): the CPU frame back end.

@@ -16,6 +16,7 @@ use nsrm::io::{
 use nsrm::output::Session;
 use nsrm::Model;
 use nsrm::{FastModel, Threads};
+use nsrm::{FrameHighlights, Highlights};
 use nsrm::{Mat3, OutputSpace};
 use std::io::IsTerminal;
 use std::path::{Path, PathBuf};
@@ -107,6 +108,17 @@ pub(crate) struct Args {
     /// (LibRaw's), or half (one pixel per 2×2 CFA block: half width and height).
     #[arg(long, value_enum, ignore_case = true, default_value_t = values::Demosaic::Mhc)]
     demosaic: values::Demosaic,
+    /// Clipped highlights: clip (pixels at the sensor's clip level go to the corrected white of
+    /// the brightest grey it records, blended in from 0.9 of the level, as RawTherapee and
+    /// darktable do) or keep (the raw mapping: a blown window can turn cyan). Default: clip
+    /// where the clip level is known (camera raw inputs: their white level; any input with
+    /// --clip-level), else keep.
+    #[arg(long, value_enum, ignore_case = true)]
+    highlights: Option<values::Highlights>,
+    /// The level camera RGB clips at, every channel (for EXR, TIFF and JPEG inputs, which
+    /// record none; given, it replaces a raw file's own white level).
+    #[arg(long, value_name = "V")]
+    clip_level: Option<f64>,
     /// Remove the nsrm temporary files (`.NAME.nsrm-PID-RANDOM.tmp`) found in the output
     /// directories, left by a run that was killed; without it they are only reported. Make sure
     /// no other nsrm is writing there.
@@ -130,8 +142,8 @@ enum Outcome {
 
 /// The correction step: one engine, driven from one thread (the GPU engine takes `&mut`).
 enum Corrector {
-    /// The multi-threaded f32 CPU path.
-    Cpu(Box<FastModel>),
+    /// The multi-threaded f32 CPU path (rebuilt when a frame's highlight policy differs).
+    Cpu(Box<FastModel>, Option<Highlights>),
     /// A two-illuminant model at a white between its illuminants: two models, outputs summed.
     Mix(Vec<FastModel>),
     /// `--white as-shot`: the model set combined for each frame's as-shot neutral (the parts
@@ -146,7 +158,20 @@ struct AsShot {
     profile: nsrm::Profile,
     space: OutputSpace,
     built: Vec<([f32; 3], Vec<FastModel>)>,
+    /// The models (in XYZ) of each built combination (for the highlight policy).
+    xyz_parts: Vec<Vec<Model>>,
     current: usize,
+}
+
+/// The highlight policy run over a frame before models that are summed (each part would
+/// otherwise see the policy with its own neutral).
+fn prepass(policy: Option<Highlights>, f: &mut nsrm::Frame) {
+    if let Some(h) = policy {
+        match f.layout {
+            nsrm::Layout::Rgb => h.to_f32().apply::<3>(&mut f.data),
+            nsrm::Layout::Rgba => h.to_f32().apply::<4>(&mut f.data),
+        }
+    }
 }
 
 /// Sums the outputs of `parts` applied to the frame (one part: applied in place).
@@ -197,14 +222,14 @@ impl Corrector {
                         }
                     );
                 }
-                Corrector::Cpu(Box::new(FastModel::new(model)))
+                Corrector::Cpu(Box::new(FastModel::new(model)), None)
             }
         })
     }
 
     fn describe(&self) -> String {
         match self {
-            Corrector::Cpu(f) => format!("CPU ({} kernel)", f.kernel_name()),
+            Corrector::Cpu(f, _) => format!("CPU ({} kernel)", f.kernel_name()),
             Corrector::Mix(f) => format!("CPU, {} models summed", f.len()),
             Corrector::AsShot(a) => format!(
                 "CPU, {} combined for each frame's as-shot neutral",
@@ -243,17 +268,40 @@ impl Corrector {
         );
         a.built
             .push((neutral.expect("checked by for_as_shot"), parts));
+        a.xyz_parts.push(c.parts);
         a.current = a.built.len() - 1;
         Ok(Some(line))
     }
 
-    fn apply(&mut self, model: &Model, d: &mut Decoded) -> Result<()> {
+    /// Corrects the frames of `d` with `model` (folded into the output space), the highlight
+    /// policy of `h` (see [`FrameHighlights`]) before it.
+    fn apply(&mut self, model: &Model, d: &mut Decoded, h: &FrameHighlights) -> Result<()> {
+        let parts = match self {
+            Corrector::AsShot(a) => a.xyz_parts.get(a.current).map(Vec::as_slice),
+            _ => None,
+        };
+        let policy = h
+            .policy(d.camera().and_then(|c| c.clip_level), parts)
+            .context("--highlights, --clip-level")?;
+        let with_policy = || model.clone().with_policy(policy);
         for f in d.frames_mut() {
             match self {
-                Corrector::Cpu(fast) => fast.apply(f, Threads::All),
-                Corrector::Mix(parts) => apply_sum(parts, f),
-                Corrector::AsShot(a) => apply_sum(&a.built[a.current].1, f),
-                Corrector::Gpu(e) => e.apply(model, f)?,
+                Corrector::Cpu(fast, built) => {
+                    if *built != policy {
+                        **fast = FastModel::new(&with_policy());
+                        *built = policy;
+                    }
+                    fast.apply(f, Threads::All)
+                }
+                Corrector::Mix(parts) => {
+                    prepass(policy, f);
+                    apply_sum(parts, f)
+                }
+                Corrector::AsShot(a) => {
+                    prepass(policy, f);
+                    apply_sum(&a.built[a.current].1, f)
+                }
+                Corrector::Gpu(e) => e.apply(&with_policy(), f)?,
             }
         }
         Ok(())
@@ -337,6 +385,12 @@ fn parse_request(a: &Args) -> Result<Request> {
     }
     if a.max_pixels == 0 {
         return Err(UsageError("--max-pixels must be at least 1".into()).into());
+    }
+    if let Some(v) = a
+        .clip_level
+        .filter(|v| !(v.is_finite() && *v > 0.0 && *v <= f32::MAX as f64))
+    {
+        return Err(UsageError(format!("--clip-level {v}: a level is finite and above 0")).into());
     }
     let shard = a
         .shard
@@ -428,6 +482,7 @@ pub(crate) fn run(a: Args) -> Result<ExitCode> {
         corrector_name = corrector.describe();
         let todo = plan.to_convert();
         let settings = Settings {
+            highlights: frame_highlights(&a, &model, &parts),
             read: read_options(&a),
             write: write_options(&a, &req),
             to_srgb: nsrm::to_linear_srgb(model.white_xyz(), req.space),
@@ -488,6 +543,13 @@ pub(crate) fn run(a: Args) -> Result<ExitCode> {
     })
 }
 
+/// What `--highlights` and `--clip-level` make of each frame, for `model` and the `parts` summed
+/// with it (in XYZ).
+fn frame_highlights(a: &Args, model: &Model, parts: &[Model]) -> FrameHighlights {
+    let all: Vec<&Model> = std::iter::once(model).chain(parts).collect();
+    FrameHighlights::new(a.highlights.map(Into::into), a.clip_level, &all)
+}
+
 /// The correction step: the device asked for; for a two-illuminant model between its
 /// illuminants the CPU mix of its models (`extra`, folded like `out_model`); with `--white
 /// as-shot` the set (`as_shot`) combined per frame. The GPU runs one model: asked for with a
@@ -504,6 +566,7 @@ fn open_corrector(
             profile: profile.clone(),
             space: req.space,
             built: Vec::new(),
+            xyz_parts: Vec::new(),
             current: 0,
         }))
     } else if extra.is_empty() {
@@ -734,6 +797,8 @@ fn report_stale(plan: &BatchPlan, remove: bool) {
 
 struct Settings<'s> {
     session: &'s Session,
+    /// What each frame's clipped highlights become.
+    highlights: FrameHighlights,
     read: ReadOptions,
     write: WriteOptions,
     to_srgb: Mat3,
@@ -937,7 +1002,7 @@ impl Pipeline<'_, '_> {
                 }
             }
             let t = Instant::now();
-            match corrector.apply(model, &mut d) {
+            match corrector.apply(model, &mut d, &self.s.highlights) {
                 Ok(()) => {
                     lock(&self.timing).correct += t.elapsed();
                     if enc_tx.send((i, d)).is_err() {
@@ -1135,6 +1200,8 @@ impl Args {
         opt("--suffix", &self.suffix);
         opt("--layer", &self.layer);
         opt("--jobs", &self.jobs.map(|j| j.to_string()));
+        opt("--highlights", &self.highlights.map(name));
+        opt("--clip-level", &self.clip_level.map(|v| v.to_string()));
         for (set, flag) in [
             (self.half, "--half"),
             (self.continue_on_error, "--continue-on-error"),

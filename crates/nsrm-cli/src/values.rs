@@ -73,6 +73,13 @@ value_enum!(
 );
 
 value_enum!(
+    /// `--highlights` (apply, calibrate).
+    Highlights => nsrm::HighlightMode,
+    nsrm::HighlightMode::parse,
+    { Clip = "clip", Keep = "keep" }
+);
+
+value_enum!(
     /// `apply --compression`.
     Compression => nsrm::io::ExrCompression,
     nsrm::io::ExrCompression::parse,
@@ -183,6 +190,7 @@ mod tests {
         Demosaic::check();
         FileFormat::check();
         Compression::check();
+        Highlights::check();
         Device::check();
         ExportFormat::check();
         Interpolation::check();

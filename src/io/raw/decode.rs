@@ -201,7 +201,31 @@ fn camera_info(
         cfa,
         demosaic: demosaic.name().to_string(),
         color_matrices: color_matrices(image),
+        clip_level: clip_level(image),
     }
+}
+
+/// The level each channel of the developed frame clips at: the white level less the black
+/// level, over the divisor the values are scaled by ([`levels`]), the smallest over the
+/// positions of the black level's repeat (1 where every position has the same black). A CFA's
+/// three colours share one set of levels; a three-channel image has its own per channel.
+/// `None` when the levels leave no positive range (the file is refused as damaged anyway).
+fn clip_level(image: &rawler::RawImage) -> Option<[f32; 3]> {
+    let per_channel = |c: usize| {
+        let raw = raw_levels(image, c);
+        let min_black = raw.iter().map(|l| l.0).fold(f32::INFINITY, f32::min);
+        raw.iter()
+            .map(|&(b, w)| (w - b) / (w - min_black))
+            .fold(f32::INFINITY, f32::min)
+    };
+    let clip: [f32; 3] = if image.cpp >= 3 {
+        [0, 1, 2].map(per_channel)
+    } else {
+        [per_channel(0); 3]
+    };
+    clip.iter()
+        .all(|v| v.is_finite() && *v > 0.0)
+        .then_some(clip)
 }
 
 /// The raw file's 3×3 colour matrices with their light sources, by light source.

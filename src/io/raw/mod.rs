@@ -133,6 +133,11 @@ pub struct CameraInfo {
     /// source it is for (17 A, 21 D65, …): what the DNG pipeline finds a neutral's light with.
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub color_matrices: Vec<(u16, [f64; 9])>,
+    /// The level each channel of the frame clips at (the file's white level, in the frame's
+    /// scale: 1 where every CFA position has the same black level), when the levels are known:
+    /// what the highlight policy (`nsrm::model::highlights`) takes as the clip.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub clip_level: Option<[f32; 3]>,
 }
 
 impl CameraInfo {

@@ -1015,6 +1015,14 @@ impl FrameState {
         s
     }
 
+    /// `model` with the highlight policy `apply` gives this frame by default: clipped to white
+    /// at a camera raw file's clip level, kept in other frames (no level known).
+    fn with_highlights(&self, model: &Model) -> Result<Model> {
+        let clip = self.frame.camera().and_then(|c| c.clip_level);
+        let h = nsrm::FrameHighlights::new(None, None, &[model]);
+        Ok(model.clone().with_policy(h.policy(clip, None)?))
+    }
+
     /// The corrected preview in `space` (sRGB PNG), computed on the server's device (`--device`),
     /// and where it was computed.
     pub(crate) fn corrected_png(
@@ -1024,7 +1032,7 @@ impl FrameState {
     ) -> Result<(Vec<u8>, Computed)> {
         let space = parse_space(space)?;
         let f = self.fitted()?;
-        let out = nsrm::output_model(&f.model, space)?;
+        let out = nsrm::output_model(&self.with_highlights(&f.model)?, space)?;
         let mut frame = self.small.clone();
         let computed = studio.correct(&out, &mut frame)?;
         let png =
@@ -1037,7 +1045,7 @@ impl FrameState {
     pub(crate) fn wgsl(&self, space: &str) -> Result<Value> {
         let space = parse_space(space)?;
         let f = self.fitted()?;
-        let out = nsrm::output_model(&f.model, space)?;
+        let out = nsrm::output_model(&self.with_highlights(&f.model)?, space)?;
         let wgsl = nsrm::export::shader::baked_wgsl(&out, Layout::Rgb)?;
         Ok(json!({
             "wgsl": wgsl,

@@ -24,6 +24,8 @@ pub(crate) mod display;
 mod jpeg;
 mod openexr;
 pub(crate) mod preview;
+#[cfg(feature = "cli")]
+pub(crate) mod progress;
 pub(crate) mod raw;
 mod tif;
 

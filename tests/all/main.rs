@@ -24,6 +24,7 @@ mod export_ocio;
 mod exr_fast;
 #[cfg(feature = "cli")]
 mod farm;
+mod farm_jobs;
 #[cfg(feature = "cli")]
 mod first_hour;
 #[cfg(feature = "cli")]

@@ -63,11 +63,11 @@ pub(crate) struct GenArgs {
     /// paths with its own path-mapping rules.
     #[arg(long = "path-map", value_name = "FROM=TO")]
     path_map: Vec<String>,
-    #[command(flatten)]
-    resources: crate::farm::resources::ResourceArgs,
     /// apply's options and inputs (-o is required; --overwrite replaces the job's files).
     #[command(flatten)]
     apply: apply::Args,
+    #[command(flatten)]
+    resources: crate::farm::resources::ResourceArgs,
 }
 
 #[derive(Debug, clap::Args)]

@@ -860,6 +860,72 @@ fn split_alpha(frame: &Frame) -> (Frame, Option<Vec<f32>>) {
     }
 }
 
+/// What an EXR's or TIFF's header says of its largest frame, read without decoding a pixel.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct HeaderSize {
+    /// Width in pixels.
+    pub width: u64,
+    /// Height in pixels.
+    pub height: u64,
+    /// Stored bytes per pixel of its channels other than R, G and B (those become the camera
+    /// RGB; an alpha is kept aside): what a batch holds beside the frame's 12 bytes a pixel.
+    pub extra_bytes_per_pixel: u64,
+}
+
+/// The largest frame of an EXR or TIFF file, from its header only (a farm submitter sizes a
+/// task's memory with it); `None` for other files and for headers that do not read.
+pub fn header_size(path: &Path) -> Option<HeaderSize> {
+    let mut magic = [0u8; 4];
+    {
+        use std::io::Read;
+        let mut f = std::fs::File::open(path).ok()?;
+        f.read_exact(&mut magic).ok()?;
+    }
+    if magic == [0x76, 0x2f, 0x31, 0x01] {
+        let meta = ::exr::meta::MetaData::read_from_file(path, false).ok()?;
+        let mut best = (0u64, 0u64, 0u64);
+        for h in meta.headers.iter() {
+            let (w, ht) = (h.layer_size.0 as u64, h.layer_size.1 as u64);
+            let stored: u64 = h
+                .channels
+                .list
+                .iter()
+                .filter(|c| {
+                    let name = c.name.to_string();
+                    let last = name.rsplit('.').next().unwrap_or("");
+                    !matches!(last, "R" | "G" | "B")
+                })
+                .map(|c| c.sample_type.bytes_per_sample() as u64)
+                .sum();
+            if w * ht * (12 + stored) > best.0 * best.1 * (12 + best.2) {
+                best = (w, ht, stored);
+            }
+        }
+        return (best.0 > 0).then_some(HeaderSize {
+            width: best.0,
+            height: best.1,
+            extra_bytes_per_pixel: best.2,
+        });
+    }
+    if &magic[..2] == b"II" || &magic[..2] == b"MM" {
+        let f = std::io::BufReader::new(std::fs::File::open(path).ok()?);
+        let mut dec = tiff::decoder::Decoder::new(f).ok()?;
+        let (w, h) = dec.dimensions().ok()?;
+        // The alpha is kept aside as f32; other layouts are counted as four more channels.
+        let bytes_pp = match dec.colortype().ok()? {
+            tiff::ColorType::RGB(_) | tiff::ColorType::Gray(_) => 0,
+            tiff::ColorType::RGBA(_) | tiff::ColorType::GrayA(_) => 4,
+            _ => 16,
+        };
+        return Some(HeaderSize {
+            width: u64::from(w),
+            height: u64::from(h),
+            extra_bytes_per_pixel: bytes_pp,
+        });
+    }
+    None
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

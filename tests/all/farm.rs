@@ -11,7 +11,7 @@ use std::process::{Child, Command, Stdio};
 use std::time::{Duration, Instant};
 
 /// Prints SKIP and returns false when a tool is absent; under CI=true that is a failure.
-fn have(tool: &str) -> bool {
+pub(crate) fn have(tool: &str) -> bool {
     let found = Command::new("sh")
         .arg("-c")
         .arg(format!("command -v {tool}"))
@@ -179,7 +179,7 @@ fn apply_writes_the_same_bytes_every_run() {
 }
 
 /// A batch of plates for the farm tests: `n` scanline EXRs of `w`×`h` in `dir/in`.
-fn batch(dir: &Path, n: usize, w: usize, h: usize) {
+pub(crate) fn batch(dir: &Path, n: usize, w: usize, h: usize) {
     std::fs::create_dir_all(dir.join("in")).unwrap();
     model(dir);
     for i in 0..n {
@@ -703,9 +703,9 @@ fn slurm_runs_the_array_and_a_killed_task_resumes() {
              SlurmctldLogFile={s}/slurmctld.log\nSlurmdLogFile={s}/slurmd.log\n\
              ProctrackType=proctrack/linuxproc\nTaskPlugin=task/none\nJobAcctGatherType=jobacct_gather/none\n\
              AccountingStorageType=accounting_storage/none\nSelectType=select/cons_tres\n\
-             SelectTypeParameters=CR_CPU\nReturnToService=2\nMpiDefault=none\nMailProg=/bin/true\n\
+             SelectTypeParameters=CR_CPU_Memory\nReturnToService=2\nMpiDefault=none\nMailProg=/bin/true\n\
              MinJobAge=600\n\
-             NodeName={host} NodeAddr=127.0.0.1 CPUs={cpus} RealMemory=100 State=UNKNOWN\n\
+             NodeName={host} NodeAddr=127.0.0.1 CPUs={cpus} RealMemory=1000 State=UNKNOWN\n\
              PartitionName=main Nodes={host} Default=YES MaxTime=INFINITE State=UP\n"
         ),
     )
@@ -779,6 +779,8 @@ fn slurm_runs_the_array_and_a_killed_task_resumes() {
         program,
         "--name",
         "plates",
+        "--time",
+        "10",
     ];
     args.extend(apply_opts);
     args.extend(["--model", "m.json", "-o", "out", "in"]);
@@ -799,6 +801,22 @@ fn slurm_runs_the_array_and_a_killed_task_resumes() {
         .unwrap();
     assert_ok(&o);
     let first_job = String::from_utf8_lossy(&o.stdout).trim().to_string();
+    // Slurm took the task's resources (memory is a consumable resource here: CR_CPU_Memory):
+    // one CPU (--jobs 1), the memory nsrm derived from the batch, the time limit given.
+    let array = std::fs::read_to_string(job.join("array.sbatch")).unwrap();
+    let mem = array
+        .lines()
+        .find_map(|l| l.strip_prefix("#SBATCH --mem="))
+        .expect("a --mem directive")
+        .to_string();
+    let shown = slurm("scontrol")
+        .args(["show", "job", "-o", &first_job])
+        .output()
+        .unwrap();
+    let shown = String::from_utf8_lossy(&shown.stdout).into_owned();
+    assert!(shown.contains("TimeLimit=00:10:00"), "{shown}");
+    assert!(shown.contains(&format!("mem={mem}")), "{mem}: {shown}");
+    assert!(shown.contains("cpu=1,"), "{shown}");
     let shard1: Vec<PathBuf> = (0..10)
         .step_by(2)
         .map(|i| dir.join(format!("out/shot_xyz.{:04}.exr", i + 1)))
@@ -1233,13 +1251,15 @@ fn openjd_hostile_names_reach_the_worker_byte_for_byte() {
         let want_head: Vec<Vec<u8>> = vec![
             b"farm".to_vec(),
             b"run".to_vec(),
+            b"--batch".to_vec(),
+            b"hostile".to_vec(),
             b"--shard".to_vec(),
             format!("{}/2", k + 1).into_bytes(),
             b"--inputs-from".to_vec(),
             w(&worker.join("job/inputs.txt")),
             b"--path-mapping-rules".to_vec(),
         ];
-        assert_eq!(call[..7], want_head[..], "{call:?}");
+        assert_eq!(call[..9], want_head[..], "{call:?}");
         let want_tail: Vec<Vec<u8>> = vec![
             b"--".to_vec(),
             b"--model".to_vec(),
@@ -1247,7 +1267,7 @@ fn openjd_hostile_names_reach_the_worker_byte_for_byte() {
             b"-o".to_vec(),
             w(&worker.join(out)),
         ];
-        assert_eq!(call[8..13], want_tail[..], "{call:?}");
+        assert_eq!(call[10..15], want_tail[..], "{call:?}");
         assert!(
             call.contains(&b"--suffix=_{{Param.Model}}".to_vec()),
             "{call:?}"

@@ -19,6 +19,7 @@ mod export_light;
 mod export_ocio;
 mod exr_fast;
 mod farm;
+mod farm_jobs;
 mod first_hour;
 mod fit_apply_agree;
 mod fit_hostile;

@@ -480,6 +480,7 @@ pub(crate) fn run(a: Args) -> Result<ExitCode> {
     if (!early_failure || a.continue_on_error) && !interrupt.stopped() {
         let mut corrector = open_corrector(&req, &a, &out_model, &extra, as_shot.as_ref())?;
         corrector_name = corrector.describe();
+        log_device(plan.to_convert().len(), &corrector_name);
         let todo = plan.to_convert();
         let settings = Settings {
             highlights: frame_highlights(&a, &model, &parts),
@@ -548,6 +549,14 @@ pub(crate) fn run(a: Args) -> Result<ExitCode> {
 fn frame_highlights(a: &Args, model: &Model, parts: &[Model]) -> FrameHighlights {
     let all: Vec<&Model> = std::iter::once(model).chain(parts).collect();
     FrameHighlights::new(a.highlights.map(Into::into), a.clip_level, &all)
+}
+
+/// Without a terminal, says the device opened, so that a log's reader (a farm task's) sees it
+/// before the first frame.
+fn log_device(frames: usize, corrector: &str) {
+    if !std::io::stderr().is_terminal() {
+        eprintln!("nsrm apply: correcting {frames} frame(s) on the {corrector}");
+    }
 }
 
 /// The correction step: the device asked for; for a two-illuminant model between its
@@ -848,6 +857,8 @@ fn run_pipeline(
         started: Instant::now(),
         permits: Permits::new(s.workers + 1),
         pool: fio::FramePool::new(s.workers + 1),
+        log: (!std::io::stderr().is_terminal())
+            .then(|| crate::progress::ProgressLog::new(todo.len(), Duration::from_secs(1))),
     };
     let p = &p;
     std::thread::scope(|scope| {
@@ -885,9 +896,21 @@ struct Pipeline<'a, 's> {
     started: Instant,
     permits: Permits,
     pool: fio::FramePool,
+    /// Without a terminal, a log line per finished frame (at most one a second).
+    log: Option<crate::progress::ProgressLog>,
 }
 
 impl Pipeline<'_, '_> {
+    /// Logs frame `i` finished (`ok`: written) when stderr is not a terminal.
+    fn logged(&self, i: usize, ok: bool, pixels: usize) {
+        if let Some(log) = &self.log {
+            let name = self.jobs[i].output.file_name().unwrap_or_default();
+            if let Some(line) = log.frame(ok, pixels as u64, &name.to_string_lossy()) {
+                eprintln!("{line}");
+            }
+        }
+    }
+
     fn fail(&self, i: usize, why: String) {
         self.pb.suspend(|| eprintln!("nsrm apply: failed: {why}"));
         if !self.s.continue_on_error {
@@ -895,6 +918,7 @@ impl Pipeline<'_, '_> {
         }
         lock(&self.results).push((i, Outcome::Failed(why)));
         self.pb.inc(1);
+        self.logged(i, false, 0);
     }
 
     /// A reader thread: takes the next frame to convert (when a permit is free) and decodes it.
@@ -955,6 +979,7 @@ impl Pipeline<'_, '_> {
                     lock(&self.results).push((i, Outcome::Converted));
                     self.pb.set_message(format!("{:.1} Mpixel/s", rate / 1e6));
                     self.pb.inc(1);
+                    self.logged(i, true, pixels);
                 }
                 // Stopped by a signal while writing: not a failure of the file.
                 Err(_) if interrupt.stopped() || self.s.session.is_aborted() => {

@@ -13,6 +13,7 @@ use super::common::UsageError;
 use crate::farmlib::jobs::{self, Arg, JobFile, JobSpec};
 use crate::farmlib::manifest::{self, Batch, Entry, Failure, How, ModelRecord, ShardManifest};
 use crate::farmlib::pathmap::PathMap;
+use crate::farmlib::resources as farm_resources;
 use crate::farmlib::verify::{self, Expect};
 use anyhow::{Context, Result};
 use clap::Parser;
@@ -65,6 +66,8 @@ pub(crate) struct GenArgs {
     /// apply's options and inputs (-o is required; --overwrite replaces the job's files).
     #[command(flatten)]
     apply: apply::Args,
+    #[command(flatten)]
+    resources: crate::farmlib::resources::ResourceArgs,
 }
 
 #[derive(Debug, clap::Args)]
@@ -104,6 +107,9 @@ pub(crate) struct RunArgs {
     /// applied like --path-map.
     #[arg(long, value_name = "FILE")]
     path_mapping_rules: Option<PathBuf>,
+    /// The batch's name, for the task log's header (the generated jobs pass it).
+    #[arg(long, value_name = "NAME")]
+    batch: Option<String>,
     /// apply's options and inputs (-o is required).
     #[arg(last = true, value_name = "APPLY_ARGS")]
     apply: Vec<std::ffi::OsString>,
@@ -162,6 +168,16 @@ enum Engine {
     Kube(jobs::Kube),
 }
 
+impl Engine {
+    fn name(&self) -> &'static str {
+        match self {
+            Engine::Openjd => "openjd",
+            Engine::Slurm => "slurm",
+            Engine::Kube(_) => "k8s",
+        }
+    }
+}
+
 fn utf8(p: &Path, what: &str) -> Result<String> {
     p.to_str().map(str::to_string).ok_or_else(|| {
         UsageError(format!(
@@ -198,7 +214,14 @@ fn generate(engine: Engine, mut g: GenArgs) -> Result<ExitCode> {
         )
         .into());
     }
-    let settings = g.apply.settings_argv();
+    if let Some(flag) = g.resources.foreign(engine.name()).first() {
+        return Err(UsageError(format!(
+            "{flag} is not for `nsrm farm {}` (see --help: each engine's flags)",
+            engine.name()
+        ))
+        .into());
+    }
+    let mut settings = g.apply.settings_argv();
     let parts = g.apply.farm_parts();
     if let Some(flag) = parts.policy_flag {
         return Err(UsageError(format!(
@@ -224,21 +247,31 @@ fn generate(engine: Engine, mut g: GenArgs) -> Result<ExitCode> {
     for i in &found {
         inputs.push(m(i, "input")?);
     }
+    let resources = farm_resources::resolve(&g.resources, &mut settings, &found)?;
 
-    let task = task_args(
+    let mut task = task_args(
         matches!(engine, Engine::Openjd),
         preview.as_deref(),
         &settings,
     );
     let verify = verify_args(matches!(engine, Engine::Openjd), preview.as_deref());
+    let batch_id = batch_name(&inputs, &model, &output_dir, g.shards, &settings);
     let name = match &g.name {
         Some(n) => n.clone(),
         None => {
-            let n = batch_name(&inputs, &model, &output_dir, g.shards, &settings);
-            eprintln!("nsrm farm: job name {n} (from the batch; --name sets another)");
-            n
+            eprintln!("nsrm farm: job name {batch_id} (from the batch; --name sets another)");
+            batch_id.clone()
         }
     };
+    task.splice(2..2, [Arg::Lit("--batch".into()), Arg::Lit(name.clone())]);
+    if let Engine::Kube(k) = &engine {
+        let mut paths = vec![model.as_str(), output_dir.as_str()];
+        paths.extend(preview.as_deref());
+        paths.extend(inputs.iter().map(String::as_str));
+        if let Some(w) = farm_resources::outside_mount(&k.mount_path, &paths) {
+            eprintln!("{w}");
+        }
+    }
     let spec = JobSpec {
         name,
         shards: g.shards,
@@ -250,6 +283,8 @@ fn generate(engine: Engine, mut g: GenArgs) -> Result<ExitCode> {
         program: g.program.clone(),
         task,
         verify,
+        resources,
+        batch: batch_id,
     };
     let (files, how) = engine_files(&engine, &spec, &g.job_dir)?;
     write_job(&g.job_dir, &files, overwrite)?;
@@ -468,6 +503,7 @@ fn run_shard(r: RunArgs) -> Result<ExitCode> {
             .map(|j| name_of(&j.output))
             .collect::<Result<_>>()?
     };
+    log_header(&r, shard, &settings, plan.jobs.len(), all_names.len());
     let batch_id = Batch::of(&all_names);
     let previous =
         ShardManifest::read(&out_dir.join(manifest::file_name(shard.index, shard.count)))
@@ -495,6 +531,12 @@ fn run_shard(r: RunArgs) -> Result<ExitCode> {
         .map(|(j, _)| j)
         .collect();
     let replace = found.iter().any(|f| matches!(f, Found::Todo(true)));
+    eprintln!(
+        "nsrm farm run: {} finished already (kept or adopted), {} to convert ({:.2} s checking)",
+        found.len() - todo.len(),
+        todo.len(),
+        check_s
+    );
     let t1 = Instant::now();
     let mut status = ExitCode::SUCCESS;
     if !todo.is_empty() {
@@ -541,6 +583,22 @@ fn run_shard(r: RunArgs) -> Result<ExitCode> {
         status = ExitCode::from(1);
     }
     Ok(status)
+}
+
+/// The task log's header: nsrm, the batch, the shard, the host, the frames, the device asked.
+fn log_header(r: &RunArgs, shard: Shard, settings: &[String], frames: usize, batch_frames: usize) {
+    let host = crate::farmlib::tasklog::host_name();
+    let header = crate::farmlib::tasklog::Header {
+        batch: r.batch.as_deref(),
+        shard: (shard.index, shard.count),
+        host: &host,
+        settings,
+        frames,
+        batch_frames,
+    };
+    for line in header.lines() {
+        eprintln!("{line}");
+    }
 }
 
 /// The apply arguments of a farm task: those after its `--`, its input list's lines (both

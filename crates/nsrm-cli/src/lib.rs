@@ -66,6 +66,7 @@ mod farmlib;
 mod fit;
 mod fit_args;
 mod outputs;
+mod progress;
 mod render_chart;
 mod render_scene;
 mod runtime_dir;
@@ -119,7 +120,7 @@ enum Command {
     /// Batches on farm engines: job files for Open Job Description (Deadline Cloud), Slurm and
     /// Kubernetes; `farm run` (one retry-safe shard with its manifest); `farm verify`.
     #[command(subcommand)]
-    Farm(farm::Command),
+    Farm(Box<farm::Command>),
     /// Fit one model and write it as a JSON model file.
     Fit(fit::Args),
     /// List the terms of a model kind and order (the single definition the shaders use).
@@ -180,7 +181,7 @@ pub fn main() -> ExitCode {
         Command::Eval(a) => eval::run(a),
         Command::Export(a) => export::run(a),
         Command::ExportShader(a) => export_shader::run(a),
-        Command::Farm(c) => farm::run(c),
+        Command::Farm(c) => farm::run(*c),
         Command::Fit(a) => fit::run(a),
         Command::Terms(a) => terms::run(a),
         Command::RenderChart(a) => render_chart::run(a),

@@ -51,6 +51,11 @@ pub(crate) struct JobSpec {
     pub task: Vec<Arg>,
     /// The verification's command, after the program.
     pub verify: Vec<Arg>,
+    /// What each task asks the engine for.
+    pub resources: super::resources::Resources,
+    /// The batch's own name (`nsrm-` and 12 hex digits of its hash), a label of its
+    /// Kubernetes objects whatever the job's name.
+    pub batch: String,
 }
 
 /// A generated file: its name in the job's directory, its text, and whether it is executable.
@@ -305,54 +310,74 @@ fn openjd_parameters(spec: &JobSpec, literals: &[String]) -> Node {
     Node::List(params)
 }
 
-/// The action running `{{Param.NsrmProgram}}` with `list`'s arguments.
-fn openjd_action(list: &[Arg], literals: &[String]) -> Node {
+/// The action running `{{Param.NsrmProgram}}` with `list`'s arguments, stopped after
+/// `timeout_s` seconds when given.
+fn openjd_action(list: &[Arg], literals: &[String], timeout_s: Option<u64>) -> Node {
     let args = Node::List(
         list.iter()
             .map(|a| Node::Str(openjd_arg(a, literals)))
             .collect(),
     );
-    Node::map([(
-        "onRun",
-        Node::map([
-            ("command", Node::str("{{Param.NsrmProgram}}")),
-            ("args", args),
-        ]),
-    )])
+    let mut run = vec![
+        ("command", Node::str("{{Param.NsrmProgram}}")),
+        ("args", args),
+    ];
+    if let Some(t) = timeout_s {
+        run.push(("timeout", Node::Int(t as i64)));
+    }
+    Node::map([("onRun", Node::map(run))])
+}
+
+/// A step's pairs with its `hostRequirements` (`task`: the Apply step's) before `script`.
+fn openjd_step(spec: &JobSpec, mut pairs: Vec<(&str, Node)>, task: bool) -> Node {
+    if let Some(h) = spec.resources.openjd_host_requirements(task) {
+        let at = pairs.len() - 1;
+        pairs.insert(at, ("hostRequirements", h));
+    }
+    Node::map(pairs)
 }
 
 /// The template's steps: `Apply` (a task per shard) and `Verify` after it.
 fn openjd_steps(spec: &JobSpec, literals: &[String]) -> Node {
+    let timeout = spec.resources.time_s;
     Node::List(vec![
-        Node::map([
-            ("name", Node::str("Apply")),
-            (
-                "parameterSpace",
-                Node::map([(
-                    "taskParameterDefinitions",
-                    Node::List(vec![Node::map([
-                        ("name", Node::str("Shard")),
-                        ("type", Node::str("INT")),
-                        ("range", Node::str("1-{{Param.Shards}}")),
-                    ])]),
-                )]),
-            ),
-            (
-                "script",
-                Node::map([("actions", openjd_action(&spec.task, literals))]),
-            ),
-        ]),
-        Node::map([
-            ("name", Node::str("Verify")),
-            (
-                "dependencies",
-                Node::List(vec![Node::map([("dependsOn", Node::str("Apply"))])]),
-            ),
-            (
-                "script",
-                Node::map([("actions", openjd_action(&spec.verify, literals))]),
-            ),
-        ]),
+        openjd_step(
+            spec,
+            vec![
+                ("name", Node::str("Apply")),
+                (
+                    "parameterSpace",
+                    Node::map([(
+                        "taskParameterDefinitions",
+                        Node::List(vec![Node::map([
+                            ("name", Node::str("Shard")),
+                            ("type", Node::str("INT")),
+                            ("range", Node::str("1-{{Param.Shards}}")),
+                        ])]),
+                    )]),
+                ),
+                (
+                    "script",
+                    Node::map([("actions", openjd_action(&spec.task, literals, timeout))]),
+                ),
+            ],
+            true,
+        ),
+        openjd_step(
+            spec,
+            vec![
+                ("name", Node::str("Verify")),
+                (
+                    "dependencies",
+                    Node::List(vec![Node::map([("dependsOn", Node::str("Apply"))])]),
+                ),
+                (
+                    "script",
+                    Node::map([("actions", openjd_action(&spec.verify, literals, None))]),
+                ),
+            ],
+            false,
+        ),
     ])
 }
 
@@ -454,19 +479,23 @@ pub(crate) fn slurm(spec: &JobSpec) -> Result<Vec<JobFile>, FarmError> {
          #SBATCH -J {name}\n\
          #SBATCH -a 1-{n}\n\
          #SBATCH -o {name}-%A_%a.out\n\
+         {res}\
          set -eu\n\
          exec {task} <<'{end}'\n{list}{end}\n",
         inputs = spec.inputs.len(),
         name = spec.name,
+        res = spec.resources.sbatch_lines(true),
     );
     let verify = format!(
         "#!/bin/sh\n\
          # nsrm: checks every shard's outputs against its manifest.\n\
          #SBATCH -J {name}-verify\n\
          #SBATCH -o {name}-verify-%j.out\n\
+         {res}\
          set -eu\n\
          exec {verify}\n",
         name = spec.name,
+        res = spec.resources.sbatch_lines(false),
     );
     let submit = "#!/bin/sh\n\
          # Submits the array job, then the verification once every task of it has ended.\n\
@@ -518,6 +547,7 @@ pub(crate) const KUBE_LIST_DIR: &str = "/etc/nsrm-batch";
 /// shard `index + 1`; `verify.yaml`, a Job to apply once the first has completed
 /// (Kubernetes orders no jobs).
 pub(crate) fn kube(spec: &JobSpec, k: &Kube) -> Result<Vec<JobFile>, FarmError> {
+    super::resources::check_kube_name(&spec.name)?;
     spec.check()?;
     if k.parallelism == 0 {
         return Err(FarmError::Usage("parallelism must be at least 1".into()));
@@ -572,9 +602,47 @@ fn kube_wait_script(name: &str) -> String {
     )
 }
 
-/// The labels of every object of a batch.
-fn kube_labels() -> Node {
-    Node::map([("app.kubernetes.io/name", Node::str("nsrm"))])
+/// The labels of every object of a batch: the program, the job's name and the batch's own
+/// (`kubectl get jobs,pods,configmaps -l nsrm.batch=nsrm-…` finds all of one batch).
+fn kube_labels(spec: &JobSpec) -> Node {
+    Node::map([
+        ("app.kubernetes.io/name", Node::str("nsrm")),
+        ("app.kubernetes.io/instance", Node::str(&spec.name)),
+        ("nsrm.batch", Node::str(&spec.batch)),
+    ])
+}
+
+/// A pod's single container `name` running `script`, with the task's resources (`task`) or
+/// the verification's.
+fn kube_container(
+    spec: &JobSpec,
+    k: &Kube,
+    name: &str,
+    script: &str,
+    mounts: Node,
+    task: bool,
+) -> Node {
+    let mut pairs = vec![
+        ("name", Node::str(name)),
+        ("image", Node::str(&k.image)),
+        ("command", Node::strs(["/bin/sh", "-c", script])),
+    ];
+    if let Some(r) = spec.resources.kube_resources(task) {
+        pairs.push(("resources", r));
+    }
+    pairs.push(("volumeMounts", mounts));
+    Node::map(pairs)
+}
+
+/// A pod spec: never restarted in place, `container`, the volumes and the scheduling fields.
+fn kube_pod_spec(spec: &JobSpec, container: Node, volumes: Node, task: bool) -> Node {
+    let mut pairs = vec![
+        ("restartPolicy", Node::str("Never")),
+        ("containers", Node::List(vec![container])),
+        ("volumes", volumes),
+    ];
+    pairs.extend(spec.resources.kube_pod_fields(task));
+    Node::map(pairs)
 }
 
 /// A pod's volume mounts and volumes: the claim at `mount_path`, and with `with_list` the
@@ -617,7 +685,7 @@ fn kube_config_map(spec: &JobSpec) -> Node {
             "metadata",
             Node::map([
                 ("name", Node::str(format!("{}-inputs", spec.name))),
-                ("labels", kube_labels()),
+                ("labels", kube_labels(spec)),
             ]),
         ),
         (
@@ -636,7 +704,10 @@ fn kube_indexed_job(spec: &JobSpec, k: &Kube, script: &str) -> Node {
         ("kind", Node::str("Job")),
         (
             "metadata",
-            Node::map([("name", Node::str(&spec.name)), ("labels", kube_labels())]),
+            Node::map([
+                ("name", Node::str(&spec.name)),
+                ("labels", kube_labels(spec)),
+            ]),
         ),
         (
             "spec",
@@ -652,22 +723,15 @@ fn kube_indexed_job(spec: &JobSpec, k: &Kube, script: &str) -> Node {
                 (
                     "template",
                     Node::map([
-                        ("metadata", Node::map([("labels", kube_labels())])),
+                        ("metadata", Node::map([("labels", kube_labels(spec))])),
                         (
                             "spec",
-                            Node::map([
-                                ("restartPolicy", Node::str("Never")),
-                                (
-                                    "containers",
-                                    Node::List(vec![Node::map([
-                                        ("name", Node::str("nsrm")),
-                                        ("image", Node::str(&k.image)),
-                                        ("command", Node::strs(["/bin/sh", "-c", script])),
-                                        ("volumeMounts", mounts),
-                                    ])]),
-                                ),
-                                ("volumes", volumes),
-                            ]),
+                            kube_pod_spec(
+                                spec,
+                                kube_container(spec, k, "nsrm", script, mounts, true),
+                                volumes,
+                                true,
+                            ),
                         ),
                     ]),
                 ),
@@ -686,7 +750,7 @@ fn kube_verify_job(spec: &JobSpec, k: &Kube, script: &str) -> Node {
             "metadata",
             Node::map([
                 ("name", Node::str(format!("{}-verify", spec.name))),
-                ("labels", kube_labels()),
+                ("labels", kube_labels(spec)),
             ]),
         ),
         (
@@ -696,22 +760,18 @@ fn kube_verify_job(spec: &JobSpec, k: &Kube, script: &str) -> Node {
                 ("ttlSecondsAfterFinished", Node::Int(KUBE_TTL_S)),
                 (
                     "template",
-                    Node::map([(
-                        "spec",
-                        Node::map([
-                            ("restartPolicy", Node::str("Never")),
-                            (
-                                "containers",
-                                Node::List(vec![Node::map([
-                                    ("name", Node::str("verify")),
-                                    ("image", Node::str(&k.image)),
-                                    ("command", Node::strs(["/bin/sh", "-c", script])),
-                                    ("volumeMounts", mounts),
-                                ])]),
+                    Node::map([
+                        ("metadata", Node::map([("labels", kube_labels(spec))])),
+                        (
+                            "spec",
+                            kube_pod_spec(
+                                spec,
+                                kube_container(spec, k, "verify", script, mounts, false),
+                                volumes,
+                                false,
                             ),
-                            ("volumes", volumes),
-                        ]),
-                    )]),
+                        ),
+                    ]),
                 ),
             ]),
         ),
@@ -740,6 +800,8 @@ mod tests {
                 Arg::OutputDir,
             ],
             verify: vec![Arg::Lit("verify".into()), Arg::OutputDir, Arg::Shards],
+            resources: Default::default(),
+            batch: "nsrm-0123456789ab".into(),
         }
     }
 
@@ -879,7 +941,7 @@ mod tests {
         assert_eq!(v["OutputDir"], "/out");
         assert_eq!(v["InputList"], "/job/inputs.txt");
         assert_eq!(list(get(&yaml_values, "parameterValues")).len(), 5);
-        let action = openjd_action(&s.verify, &[]);
+        let action = openjd_action(&s.verify, &[], None);
         assert_eq!(
             get(get(&action, "onRun"), "args"),
             &Node::strs(["verify", "{{Param.OutputDir}}", "{{Param.Shards}}"])

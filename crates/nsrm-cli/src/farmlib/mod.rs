@@ -17,6 +17,8 @@
 pub(crate) mod jobs;
 pub(crate) mod manifest;
 pub(crate) mod pathmap;
+pub(crate) mod resources;
+pub(crate) mod tasklog;
 pub(crate) mod verify;
 pub(crate) mod yaml;
 

@@ -1,0 +1,1268 @@
+//! What each task of a farm job asks its engine for, named once for every engine: CPUs,
+//! memory, a wall-time limit and GPUs, plus what only one engine knows (a Slurm partition,
+//! account and QOS; a Kubernetes node selector and tolerations; Open Job Description host
+//! requirements), and a pass-through of extra `#SBATCH` lines.
+//!
+//! Every value is checked here, before any file is written: numbers are bounded, names keep to
+//! the characters their engine allows, and nothing can reach a script or a YAML document as
+//! anything but the value it is (no line break, no quote a Slurm directive would misread).
+
+use super::yaml::Node;
+use super::FarmError;
+
+/// The most CPUs or GPUs one task asks for.
+pub(crate) const MAX_COUNT: u32 = 4096;
+/// The least and most memory one task asks for, in MiB (16 MiB to 64 TiB).
+pub(crate) const MIN_MEM_MIB: u64 = 16;
+pub(crate) const MAX_MEM_MIB: u64 = 64 << 20;
+/// The longest wall-time limit of a task: 365 days, in seconds.
+pub(crate) const MAX_TIME_S: u64 = 365 * 24 * 3600;
+/// The most values of one repeatable flag (node selectors, tolerations, `#SBATCH` lines, host
+/// requirements).
+pub(crate) const MAX_REPEATS: usize = 64;
+
+/// The Kubernetes resource name of a GPU (NVIDIA's device plugin).
+pub(crate) const KUBE_GPU: &str = "nvidia.com/gpu";
+
+/// The resources of one task, checked. `None` leaves a value to the engine's defaults.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub(crate) struct Resources {
+    pub cpus: Option<u32>,
+    pub mem_mib: Option<u64>,
+    pub time_s: Option<u64>,
+    pub gpus: u32,
+    pub partition: Option<String>,
+    pub account: Option<String>,
+    pub qos: Option<String>,
+    /// Extra `#SBATCH` arguments, each one checked word (`--name` or `--name=value`).
+    pub sbatch_args: Vec<String>,
+    pub node_selector: Vec<(String, String)>,
+    pub tolerations: Vec<Toleration>,
+    /// `attr.worker.os.family`: linux, windows or macos.
+    pub os_family: Option<String>,
+    /// Further Open Job Description host requirements.
+    pub host_requirements: Vec<HostRequirement>,
+}
+
+/// A Kubernetes toleration, from `KEY[=VALUE][:EFFECT]` (kubectl taint's syntax): with a
+/// value the operator is `Equal`, without one `Exists`; without an effect it tolerates every
+/// effect.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub(crate) struct Toleration {
+    pub key: String,
+    pub value: Option<String>,
+    pub effect: Option<String>,
+}
+
+/// An Open Job Description host requirement: `amount.…=N` (at least N) or
+/// `attr.…=V1,V2` (any of the values).
+#[derive(Debug, Clone, PartialEq)]
+pub(crate) enum HostRequirement {
+    Amount { name: String, min: f64 },
+    Attr { name: String, any_of: Vec<String> },
+}
+
+fn usage<T>(s: String) -> Result<T, FarmError> {
+    Err(FarmError::Usage(s))
+}
+
+/// A count of CPUs or GPUs: 1 to [`MAX_COUNT`] (0 too for GPUs, `zero_ok`).
+pub(crate) fn check_count(flag: &str, n: u32, zero_ok: bool) -> Result<u32, FarmError> {
+    if n > MAX_COUNT || (n == 0 && !zero_ok) {
+        return usage(format!(
+            "{flag} {n}: a task asks for {} to {MAX_COUNT}",
+            u32::from(!zero_ok)
+        ));
+    }
+    Ok(n)
+}
+
+/// Memory as Slurm writes it: a whole number with an optional unit `K`, `M` (the default),
+/// `G` or `T` (powers of 1024; `Ki`/`Mi`/`Gi`/`Ti` and a trailing `B` are accepted too), in
+/// MiB, between [`MIN_MEM_MIB`] and [`MAX_MEM_MIB`].
+pub(crate) fn parse_mem(s: &str) -> Result<u64, FarmError> {
+    let bad = || {
+        FarmError::Usage(format!(
+            "--mem {s:?}: give a whole number with K, M, G or T (powers of 1024), e.g. 8G or 1500M, from {MIN_MEM_MIB}M to {}T",
+            MAX_MEM_MIB >> 20
+        ))
+    };
+    let t = s.trim();
+    let digits = t.bytes().take_while(u8::is_ascii_digit).count();
+    if digits == 0 || digits > 12 {
+        return Err(bad());
+    }
+    let n: u64 = t[..digits].parse().map_err(|_| bad())?;
+    let unit = t[digits..].to_ascii_uppercase();
+    let unit = unit.strip_suffix('B').unwrap_or(&unit);
+    let unit = unit.strip_suffix('I').unwrap_or(unit);
+    let kib = match unit {
+        "K" => n,
+        "" | "M" => n.checked_mul(1 << 10).ok_or_else(bad)?,
+        "G" => n.checked_mul(1 << 20).ok_or_else(bad)?,
+        "T" => n.checked_mul(1 << 30).ok_or_else(bad)?,
+        _ => return Err(bad()),
+    };
+    let mib = kib.div_ceil(1024);
+    if !(MIN_MEM_MIB..=MAX_MEM_MIB).contains(&mib) {
+        return Err(bad());
+    }
+    Ok(mib)
+}
+
+/// A wall-time limit in Slurm's syntax — `MINUTES`, `MINUTES:SECONDS`, `HOURS:MINUTES:SECONDS`,
+/// `DAYS-HOURS`, `DAYS-HOURS:MINUTES`, `DAYS-HOURS:MINUTES:SECONDS` — in seconds, from 1 s to
+/// 365 days.
+pub(crate) fn parse_time(s: &str) -> Result<u64, FarmError> {
+    let bad = |why: &str| {
+        FarmError::Usage(format!(
+            "--time {s:?}: {why}; Slurm's forms are MINUTES, MINUTES:SECONDS, HOURS:MINUTES:SECONDS, DAYS-HOURS, DAYS-HOURS:MINUTES or DAYS-HOURS:MINUTES:SECONDS (1 s to 365 days)"
+        ))
+    };
+    let num = |p: &str| -> Result<u64, FarmError> {
+        if p.is_empty() || p.len() > 9 || !p.bytes().all(|b| b.is_ascii_digit()) {
+            return Err(bad("each part is a whole number"));
+        }
+        p.parse().map_err(|_| bad("each part is a whole number"))
+    };
+    let (days, rest) = match s.split_once('-') {
+        Some((d, r)) => (Some(num(d)?), r),
+        None => (None, s),
+    };
+    let parts: Vec<u64> = rest.split(':').map(num).collect::<Result<_, _>>()?;
+    let secs = match (days, parts.as_slice()) {
+        (None, [m]) => m * 60,
+        (None, [m, s]) => m * 60 + s,
+        (None, [h, m, s]) => h * 3600 + m * 60 + s,
+        (Some(d), [h]) => d * 86400 + h * 3600,
+        (Some(d), [h, m]) => d * 86400 + h * 3600 + m * 60,
+        (Some(d), [h, m, s]) => d * 86400 + h * 3600 + m * 60 + s,
+        _ => return Err(bad("too many parts")),
+    };
+    if secs == 0 || secs > MAX_TIME_S {
+        return Err(bad("out of range"));
+    }
+    Ok(secs)
+}
+
+/// Seconds as Slurm's `DAYS-HH:MM:SS`.
+pub(crate) fn slurm_time(secs: u64) -> String {
+    let (d, r) = (secs / 86400, secs % 86400);
+    format!("{d}-{:02}:{:02}:{:02}", r / 3600, r % 3600 / 60, r % 60)
+}
+
+/// A Slurm partition, account or QOS name: 1 to 64 letters, digits, `_`, `-` or `.` (a
+/// partition list may hold commas).
+pub(crate) fn check_slurm_name(flag: &str, s: &str) -> Result<String, FarmError> {
+    let comma_ok = flag == "--partition";
+    let ok = !s.is_empty()
+        && s.len() <= 64
+        && s.bytes().all(|b| {
+            b.is_ascii_alphanumeric() || matches!(b, b'_' | b'-' | b'.') || (comma_ok && b == b',')
+        })
+        && !s.starts_with('-');
+    if !ok {
+        return usage(format!(
+            "{flag} {s:?}: use 1 to 64 letters, digits, `_`, `-` or `.`{}",
+            if comma_ok { " (a list: commas)" } else { "" }
+        ));
+    }
+    Ok(s.to_string())
+}
+
+/// The `#SBATCH` options nsrm writes itself, and the flag that sets each.
+const SBATCH_OWN: [(&str, &str); 11] = [
+    ("array", "--shards"),
+    ("job-name", "--name"),
+    ("output", "the job (NAME-%A_%a.out)"),
+    ("cpus-per-task", "--cpus"),
+    ("mem", "--mem"),
+    ("time", "--time"),
+    ("gpus", "--gpus"),
+    ("partition", "--partition"),
+    ("account", "--account"),
+    ("qos", "--qos"),
+    ("dependency", "submit.sh"),
+];
+
+/// One extra `#SBATCH` argument: `--name` or `--name=value`, the name lowercase letters,
+/// digits and `-`, the value without control characters, quotes or backslashes (Slurm's
+/// directive reader knows no escapes); a value with spaces is written double-quoted. The
+/// options nsrm sets itself are refused with the flag that sets them.
+pub(crate) fn parse_sbatch_arg(s: &str) -> Result<String, FarmError> {
+    let Some(body) = s.strip_prefix("--") else {
+        return usage(format!(
+            "--sbatch-arg {s:?}: give a long option, --name or --name=value (e.g. --sbatch-arg=--constraint=avx2)"
+        ));
+    };
+    let (name, value) = match body.split_once('=') {
+        Some((n, v)) => (n, Some(v)),
+        None => (body, None),
+    };
+    if name.is_empty()
+        || name.len() > 64
+        || !name.starts_with(|c: char| c.is_ascii_lowercase())
+        || !name
+            .bytes()
+            .all(|b| b.is_ascii_lowercase() || b.is_ascii_digit() || b == b'-')
+    {
+        return usage(format!(
+            "--sbatch-arg {s:?}: the option's name is lowercase letters, digits and `-`"
+        ));
+    }
+    if let Some((_, flag)) = SBATCH_OWN.iter().find(|(o, _)| *o == name) {
+        return usage(format!(
+            "--sbatch-arg {s:?}: nsrm writes --{name} itself; set it with {flag}"
+        ));
+    }
+    match value {
+        None => Ok(format!("--{name}")),
+        Some(v) => {
+            if v.len() > 1024 || v.chars().any(|c| c.is_control() || "\"'\\".contains(c)) {
+                return usage(format!(
+                    "--sbatch-arg {s:?}: a value holds no control character, quote or backslash, and at most 1024 bytes"
+                ));
+            }
+            if v.is_empty() || v.contains(char::is_whitespace) {
+                Ok(format!("--{name}=\"{v}\""))
+            } else {
+                Ok(format!("--{name}={v}"))
+            }
+        }
+    }
+}
+
+/// An RFC 1123 DNS label: 1 to `max` (at most 63) lowercase letters, digits and `-`, starting
+/// and ending with a letter or digit.
+pub(crate) fn is_dns_label(s: &str, max: usize) -> bool {
+    !s.is_empty()
+        && s.len() <= max.min(63)
+        && s.bytes()
+            .all(|b| b.is_ascii_lowercase() || b.is_ascii_digit() || b == b'-')
+        && !s.starts_with('-')
+        && !s.ends_with('-')
+}
+
+/// The longest Kubernetes job name: a DNS label of 63 less `-verify`, the longest suffix nsrm
+/// gives the batch's objects.
+pub(crate) const KUBE_MAX_NAME: usize = 63 - "-verify".len();
+
+/// Refuses a Kubernetes object name that is not an RFC 1123 DNS label of at most
+/// [`KUBE_MAX_NAME`] characters (the Job, its pods' label and the `-inputs`/`-verify`
+/// objects are named from it).
+pub(crate) fn check_kube_name(name: &str) -> Result<(), FarmError> {
+    if is_dns_label(name, KUBE_MAX_NAME) {
+        return Ok(());
+    }
+    usage(format!(
+        "--name {name:?}: a Kubernetes job name must be an RFC 1123 DNS label: lowercase letters, digits and `-`, starting and ending with a letter or digit, at most {KUBE_MAX_NAME} characters (63 less `-verify`)"
+    ))
+}
+
+/// A label value: empty, or up to 63 letters, digits, `-`, `_`, `.`, starting and ending
+/// with a letter or digit.
+fn is_label_value(s: &str) -> bool {
+    s.is_empty()
+        || (s.len() <= 63
+            && s.bytes()
+                .all(|b| b.is_ascii_alphanumeric() || matches!(b, b'-' | b'_' | b'.'))
+            && s.starts_with(|c: char| c.is_ascii_alphanumeric())
+            && s.ends_with(|c: char| c.is_ascii_alphanumeric()))
+}
+
+/// A label (or taint) key: `[PREFIX/]NAME`, the prefix a DNS subdomain (at most 253
+/// characters), the name a non-empty label value.
+fn is_label_key(s: &str) -> bool {
+    let (prefix, name) = match s.rsplit_once('/') {
+        Some((p, n)) => (Some(p), n),
+        None => (None, s),
+    };
+    let prefix_ok =
+        prefix.is_none_or(|p| p.len() <= 253 && p.split('.').all(|l| is_dns_label(l, 63)));
+    prefix_ok && !name.is_empty() && is_label_value(name)
+}
+
+/// `--node-selector KEY=VALUE`.
+pub(crate) fn parse_node_selector(s: &str) -> Result<(String, String), FarmError> {
+    match s.split_once('=') {
+        Some((k, v)) if is_label_key(k) && is_label_value(v) => Ok((k.into(), v.into())),
+        _ => usage(format!(
+            "--node-selector {s:?}: give KEY=VALUE, a Kubernetes label: KEY is [PREFIX/]NAME (NAME up to 63 letters, digits, `-`, `_`, `.`; PREFIX a DNS subdomain), VALUE up to 63 of the same characters"
+        )),
+    }
+}
+
+const TAINT_EFFECTS: [&str; 3] = ["NoSchedule", "PreferNoSchedule", "NoExecute"];
+
+/// `--toleration KEY[=VALUE][:EFFECT]`.
+pub(crate) fn parse_toleration(s: &str) -> Result<Toleration, FarmError> {
+    let bad = || {
+        FarmError::Usage(format!(
+            "--toleration {s:?}: give KEY[=VALUE][:EFFECT] as `kubectl taint` writes a taint (KEY and VALUE are label names; EFFECT is {}; without VALUE any value is tolerated, without EFFECT every effect)",
+            TAINT_EFFECTS.join(", ")
+        ))
+    };
+    let (kv, effect) = match s.rsplit_once(':') {
+        Some((kv, e)) if TAINT_EFFECTS.contains(&e) => (kv, Some(e.to_string())),
+        Some(_) => return Err(bad()),
+        None => (s, None),
+    };
+    let (key, value) = match kv.split_once('=') {
+        Some((k, v)) => (k, Some(v)),
+        None => (kv, None),
+    };
+    if !is_label_key(key) || value.is_some_and(|v| !is_label_value(v)) {
+        return Err(bad());
+    }
+    Ok(Toleration {
+        key: key.into(),
+        value: value.map(str::to_string),
+        effect,
+    })
+}
+
+/// The OS families Open Job Description names.
+const OS_FAMILIES: [&str; 3] = ["linux", "windows", "macos"];
+
+pub(crate) fn check_os_family(s: &str) -> Result<String, FarmError> {
+    let l = s.to_ascii_lowercase();
+    if OS_FAMILIES.contains(&l.as_str()) {
+        Ok(l)
+    } else {
+        usage(format!(
+            "--os-family {s:?}: Open Job Description names {}",
+            OS_FAMILIES.join(", ")
+        ))
+    }
+}
+
+/// The host requirements nsrm writes itself, and the flag that sets each.
+const OPENJD_OWN: [(&str, &str); 4] = [
+    ("amount.worker.vcpu", "--cpus"),
+    ("amount.worker.memory", "--mem"),
+    ("amount.worker.gpu", "--gpus"),
+    ("attr.worker.os.family", "--os-family"),
+];
+
+/// An Open Job Description capability name (as its model checks one): `[VENDOR:]amount.…` or
+/// `[VENDOR:]attr.…`, lowercase dot-separated words; the `worker`, `job`, `step` and `task`
+/// scopes are the standard names only.
+fn is_capability_name(s: &str, kind: &str) -> bool {
+    const STANDARD: [&str; 7] = [
+        "amount.worker.vcpu",
+        "amount.worker.memory",
+        "amount.worker.gpu",
+        "amount.worker.gpu.memory",
+        "amount.worker.disk.scratch",
+        "attr.worker.os.family",
+        "attr.worker.cpu.arch",
+    ];
+    if s.len() > 100 {
+        return false;
+    }
+    let word = |w: &str| {
+        !w.is_empty()
+            && w.starts_with(|c: char| c.is_ascii_lowercase() || c == '_')
+            && w.bytes()
+                .all(|b| b.is_ascii_lowercase() || b.is_ascii_digit() || b == b'_')
+    };
+    let (vendor, rest) = match s.split_once(':') {
+        Some((v, r)) => (Some(v), r),
+        None => (None, s),
+    };
+    if vendor.is_some_and(|v| !word(v) || v.len() < 2) {
+        return false;
+    }
+    let words: Vec<&str> = rest.split('.').collect();
+    if words.len() < 2 || words[0] != kind || !words.iter().all(|w| word(w)) {
+        return false;
+    }
+    vendor.is_some()
+        || STANDARD.contains(&rest)
+        || !["worker", "job", "step", "task"].contains(&words[1])
+}
+
+/// `--host-requirement NAME=VALUE`: `amount.…=N` (a number ≥ 0: at least N) or
+/// `attr.…=V[,V…]` (any of the values: letters, digits, `_`, `-`).
+pub(crate) fn parse_host_requirement(s: &str) -> Result<HostRequirement, FarmError> {
+    let bad = |why: &str| {
+        FarmError::Usage(format!(
+            "--host-requirement {s:?}: {why} (NAME=VALUE: amount.NAME=N for at least N, attr.NAME=V1,V2 for any of the values; names as Open Job Description's capabilities)"
+        ))
+    };
+    let Some((name, value)) = s.split_once('=') else {
+        return Err(bad("no `=`"));
+    };
+    let name = name.to_ascii_lowercase();
+    if let Some((_, flag)) = OPENJD_OWN.iter().find(|(o, _)| *o == name) {
+        return Err(bad(&format!(
+            "nsrm writes {name} itself; set it with {flag}"
+        )));
+    }
+    if is_capability_name(&name, "amount") {
+        let min: f64 = value
+            .parse()
+            .ok()
+            .filter(|v: &f64| v.is_finite() && *v >= 0.0 && *v <= 1e12)
+            .ok_or_else(|| bad("an amount is a number from 0 to 1e12"))?;
+        return Ok(HostRequirement::Amount { name, min });
+    }
+    if is_capability_name(&name, "attr") {
+        let any_of: Vec<String> = value.split(',').map(str::to_string).collect();
+        let ok = any_of.len() <= 50
+            && any_of.iter().all(|v| {
+                !v.is_empty()
+                    && v.len() <= 100
+                    && v.starts_with(|c: char| c.is_ascii_alphabetic() || c == '_')
+                    && v.bytes()
+                        .all(|b| b.is_ascii_alphanumeric() || b == b'_' || b == b'-')
+            });
+        if !ok {
+            return Err(bad(
+                "attribute values are 1 to 50 words of letters, digits, `_` and `-`",
+            ));
+        }
+        return Ok(HostRequirement::Attr { name, any_of });
+    }
+    Err(bad("not an amount.… or attr.… capability name"))
+}
+
+/// What a task's memory default is made of: `(jobs + 2)` frames alive at once (the decoders'
+/// and encoders' `--jobs`, the one being corrected, the one queued: `apply`'s bound), each of
+/// `frame_bytes`, plus the program's own, with a quarter more as headroom.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) struct MemEstimate {
+    pub jobs: u32,
+    pub frame_bytes: u64,
+    pub mib: u64,
+}
+
+/// The program's own memory besides its frames (code, the model, the GPU driver's), in MiB.
+pub(crate) const BASE_MIB: u64 = 256;
+
+/// Bytes a decoded frame of `pixels` occupies while it is converted: the camera RGB as f32
+/// (12 bytes a pixel) and the file's other channels (alpha, passes) as stored
+/// (`other_bytes_per_pixel`), which the writer passes through.
+pub(crate) fn frame_bytes(pixels: u64, other_bytes_per_pixel: u64) -> u64 {
+    pixels.saturating_mul(12 + other_bytes_per_pixel)
+}
+
+/// The memory default of a task running `jobs` workers on frames of at most `frame_bytes`.
+pub(crate) fn estimate_mem(jobs: u32, frame_bytes: u64) -> MemEstimate {
+    let frames = u64::from(jobs) + 2;
+    let bytes = frames.saturating_mul(frame_bytes);
+    let mib = (BASE_MIB + bytes.div_ceil(1 << 20)).saturating_mul(5) / 4;
+    MemEstimate {
+        jobs,
+        frame_bytes,
+        mib: mib.clamp(MIN_MEM_MIB, MAX_MEM_MIB),
+    }
+}
+
+/// MiB as a short text (`512 MiB`, `3.5 GiB`).
+pub(crate) fn mib_text(mib: u64) -> String {
+    if mib >= 1024 {
+        format!("{:.1} GiB", mib as f64 / 1024.0)
+    } else {
+        format!("{mib} MiB")
+    }
+}
+
+fn yaml_num(v: f64) -> Node {
+    if v.fract() == 0.0 && v.abs() < 9e15 {
+        Node::Int(v as i64)
+    } else {
+        Node::Str(format!("{v}"))
+    }
+}
+
+impl Resources {
+    /// The one line `nsrm farm` prints of what each task asks for.
+    pub(crate) fn summary(&self) -> String {
+        let mut parts = vec![
+            match self.cpus {
+                Some(c) => format!("{c} CPU(s)"),
+                None => "CPUs: engine default".into(),
+            },
+            match self.mem_mib {
+                Some(m) => format!("{} memory", mib_text(m)),
+                None => "memory: engine default".into(),
+            },
+            format!("{} GPU(s)", self.gpus),
+            match self.time_s {
+                Some(t) => format!("time limit {}", slurm_time(t)),
+                None => "no time limit (engine default)".into(),
+            },
+        ];
+        for (what, v) in [
+            ("partition", &self.partition),
+            ("account", &self.account),
+            ("qos", &self.qos),
+            ("os family", &self.os_family),
+        ] {
+            if let Some(v) = v {
+                parts.push(format!("{what} {v}"));
+            }
+        }
+        parts.join(", ")
+    }
+
+    /// The `#SBATCH` lines of a task (`task`) or of the verification: partition, account,
+    /// QOS and the pass-through for both; CPUs, memory, GPUs and time as given for a task, one
+    /// CPU and the task's memory for the verification (which reads every output: no time
+    /// limit but the partition's).
+    pub(crate) fn sbatch_lines(&self, task: bool) -> String {
+        let mut lines = Vec::new();
+        let mut push = |s: String| lines.push(format!("#SBATCH {s}\n"));
+        if let Some(p) = &self.partition {
+            push(format!("--partition={p}"));
+        }
+        if let Some(a) = &self.account {
+            push(format!("--account={a}"));
+        }
+        if let Some(q) = &self.qos {
+            push(format!("--qos={q}"));
+        }
+        let cpus = if task {
+            self.cpus
+        } else {
+            self.cpus.map(|_| 1)
+        };
+        if let Some(c) = cpus {
+            push(format!("--cpus-per-task={c}"));
+        }
+        if let Some(m) = self.mem_mib {
+            push(format!("--mem={m}M"));
+        }
+        if task && self.gpus > 0 {
+            push(format!("--gpus={}", self.gpus));
+        }
+        if let (true, Some(t)) = (task, self.time_s) {
+            push(format!("--time={}", slurm_time(t)));
+        }
+        for a in &self.sbatch_args {
+            push(a.clone());
+        }
+        lines.concat()
+    }
+
+    /// An Open Job Description step's `hostRequirements` (`task`: the Apply step's, with the
+    /// GPUs; else the Verify step's, one vCPU), or `None` when nothing is asked.
+    pub(crate) fn openjd_host_requirements(&self, task: bool) -> Option<Node> {
+        let amount = |name: &str, min: Node| Node::map([("name", Node::str(name)), ("min", min)]);
+        let mut amounts = Vec::new();
+        let cpus = if task {
+            self.cpus
+        } else {
+            self.cpus.map(|_| 1)
+        };
+        if let Some(c) = cpus {
+            amounts.push(amount("amount.worker.vcpu", Node::Int(i64::from(c))));
+        }
+        if let Some(m) = self.mem_mib {
+            amounts.push(amount("amount.worker.memory", Node::Int(m as i64)));
+        }
+        if task && self.gpus > 0 {
+            amounts.push(amount("amount.worker.gpu", Node::Int(i64::from(self.gpus))));
+        }
+        let mut attributes = Vec::new();
+        if let Some(os) = &self.os_family {
+            attributes.push(Node::map([
+                ("name", Node::str("attr.worker.os.family")),
+                ("anyOf", Node::strs([os.as_str()])),
+            ]));
+        }
+        for r in &self.host_requirements {
+            match r {
+                HostRequirement::Amount { name, min } => amounts.push(amount(name, yaml_num(*min))),
+                HostRequirement::Attr { name, any_of } => attributes.push(Node::map([
+                    ("name", Node::str(name)),
+                    ("anyOf", Node::strs(any_of.iter().cloned())),
+                ])),
+            }
+        }
+        let mut pairs = Vec::new();
+        if !amounts.is_empty() {
+            pairs.push(("amounts", Node::List(amounts)));
+        }
+        if !attributes.is_empty() {
+            pairs.push(("attributes", Node::List(attributes)));
+        }
+        (!pairs.is_empty()).then(|| Node::map(pairs))
+    }
+
+    /// A container's `resources` (`task`: with the GPUs): requests of CPUs and memory, a
+    /// memory limit equal to the request (a pod over it is killed, not the node), GPUs as
+    /// limits (`nvidia.com/gpu`). `None` when nothing is asked.
+    pub(crate) fn kube_resources(&self, task: bool) -> Option<Node> {
+        let mut requests = Vec::new();
+        let mut limits = Vec::new();
+        let cpus = if task {
+            self.cpus
+        } else {
+            self.cpus.map(|_| 1)
+        };
+        if let Some(c) = cpus {
+            requests.push(("cpu", Node::str(c.to_string())));
+        }
+        if let Some(m) = self.mem_mib {
+            requests.push(("memory", Node::str(format!("{m}Mi"))));
+            limits.push(("memory", Node::str(format!("{m}Mi"))));
+        }
+        if task && self.gpus > 0 {
+            limits.push((KUBE_GPU, Node::str(self.gpus.to_string())));
+        }
+        let mut pairs = Vec::new();
+        if !requests.is_empty() {
+            pairs.push(("requests", Node::map(requests)));
+        }
+        if !limits.is_empty() {
+            pairs.push(("limits", Node::map(limits)));
+        }
+        (!pairs.is_empty()).then(|| Node::map(pairs))
+    }
+
+    /// A pod spec's scheduling fields: `nodeSelector`, `tolerations` and, for a task with a
+    /// time limit, `activeDeadlineSeconds` (each pod, so each try of a shard, is stopped after
+    /// it; the verification, which reads every output, has none).
+    pub(crate) fn kube_pod_fields(&self, task: bool) -> Vec<(&'static str, Node)> {
+        let mut out = Vec::new();
+        if !self.node_selector.is_empty() {
+            out.push((
+                "nodeSelector",
+                Node::map(
+                    self.node_selector
+                        .iter()
+                        .map(|(k, v)| (k.clone(), Node::str(v))),
+                ),
+            ));
+        }
+        if !self.tolerations.is_empty() {
+            let list = self
+                .tolerations
+                .iter()
+                .map(|t| {
+                    let mut p = vec![("key", Node::str(&t.key))];
+                    match &t.value {
+                        Some(v) => {
+                            p.push(("operator", Node::str("Equal")));
+                            p.push(("value", Node::str(v)));
+                        }
+                        None => p.push(("operator", Node::str("Exists"))),
+                    }
+                    if let Some(e) = &t.effect {
+                        p.push(("effect", Node::str(e)));
+                    }
+                    Node::map(p)
+                })
+                .collect();
+            out.push(("tolerations", Node::List(list)));
+        }
+        if let (true, Some(t)) = (task, self.time_s) {
+            out.push(("activeDeadlineSeconds", Node::Int(t as i64)));
+        }
+        out
+    }
+}
+
+/// The resource flags of `nsrm farm openjd|slurm|k8s`, one group for every engine (each
+/// engine writes what it knows and says nothing of the rest).
+#[derive(Debug, Clone, Default, clap::Args)]
+#[command(next_help_heading = "Resources of each task")]
+pub(crate) struct ResourceArgs {
+    /// CPUs per task (Slurm --cpus-per-task, Kubernetes cpu request, Open Job Description
+    /// amount.worker.vcpu); default apply's --jobs, else 4. A task runs --jobs workers: as
+    /// many as its CPUs unless --jobs says otherwise.
+    #[arg(long, value_name = "N")]
+    pub cpus: Option<u32>,
+    /// Memory per task: a whole number with K, M, G or T (powers of 1024), e.g. 8G (Slurm
+    /// --mem, Kubernetes memory request and limit, amount.worker.memory); default from the
+    /// batch: (jobs + 2) of its largest frame, plus 256 MiB, plus a quarter.
+    #[arg(long, value_name = "SIZE")]
+    pub mem: Option<String>,
+    /// Wall-time limit per task in Slurm's syntax (MINUTES, HH:MM:SS, D-HH:MM:SS…): Slurm
+    /// --time, Kubernetes activeDeadlineSeconds of each pod, the Open Job Description
+    /// action's timeout; default none (the engine's).
+    #[arg(long, value_name = "TIME")]
+    pub time: Option<String>,
+    /// GPUs per task (Slurm --gpus, Kubernetes nvidia.com/gpu limit, amount.worker.gpu);
+    /// default 1 with --device gpu, else 0.
+    #[arg(long, value_name = "N")]
+    pub gpus: Option<u32>,
+    /// Slurm partition (or a comma-separated list).
+    #[arg(long, value_name = "NAME")]
+    pub partition: Option<String>,
+    /// Slurm account charged.
+    #[arg(long, value_name = "NAME")]
+    pub account: Option<String>,
+    /// Slurm quality of service.
+    #[arg(long, value_name = "NAME")]
+    pub qos: Option<String>,
+    /// An extra #SBATCH line for both Slurm scripts, as a long option: --name or --name=value
+    /// (e.g. --sbatch-arg=--constraint=avx2); repeatable. Quotes, backslashes and control
+    /// characters are refused; a value with spaces is double-quoted.
+    #[arg(long = "sbatch-arg", value_name = "OPTION", allow_hyphen_values = true)]
+    pub sbatch_arg: Vec<String>,
+    /// Kubernetes node selector KEY=VALUE (a node label); repeatable.
+    #[arg(long = "node-selector", value_name = "KEY=VALUE")]
+    pub node_selector: Vec<String>,
+    /// Kubernetes toleration KEY[=VALUE][:EFFECT], as `kubectl taint` writes a taint: with
+    /// VALUE the operator is Equal, without it Exists; EFFECT NoSchedule, PreferNoSchedule
+    /// or NoExecute, without it every effect; repeatable.
+    #[arg(long, value_name = "KEY[=VALUE][:EFFECT]")]
+    pub toleration: Vec<String>,
+    /// Open Job Description attr.worker.os.family: linux, windows or macos; default any.
+    #[arg(long, value_name = "FAMILY")]
+    pub os_family: Option<String>,
+    /// A further Open Job Description host requirement: amount.NAME=N (at least N) or
+    /// attr.NAME=V1,V2 (any of the values), e.g. attr.worker.cpu.arch=x86_64; repeatable.
+    #[arg(long = "host-requirement", value_name = "NAME=VALUE")]
+    pub host_requirement: Vec<String>,
+}
+
+/// What the defaults of a batch are derived from.
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct BatchFacts<'a> {
+    /// apply's `--jobs`, when given.
+    pub jobs: Option<u32>,
+    /// Whether apply's `--device` is `gpu`.
+    pub device_gpu: bool,
+    /// The largest frame found, when a header could be read.
+    pub frame: Option<&'a FrameProbe>,
+}
+
+/// CPUs a task asks for when neither --cpus nor --jobs says.
+pub(crate) const DEFAULT_CPUS: u32 = 4;
+
+/// Refuses more than [`MAX_REPEATS`] values of a repeatable flag.
+fn check_repeats(flag: &str, n: usize) -> Result<(), FarmError> {
+    if n > MAX_REPEATS {
+        return usage(format!("{flag}: at most {MAX_REPEATS} of them"));
+    }
+    Ok(())
+}
+
+impl ResourceArgs {
+    /// The checked resources, the defaults filled from `facts`; with them, how the memory
+    /// default was found (`None` when --mem was given).
+    pub(crate) fn resolve(
+        &self,
+        facts: BatchFacts<'_>,
+    ) -> Result<(Resources, Option<String>), FarmError> {
+        let cpus = match self.cpus {
+            Some(c) => check_count("--cpus", c, false)?,
+            None => facts.jobs.unwrap_or(DEFAULT_CPUS).clamp(1, MAX_COUNT),
+        };
+        let gpus = match self.gpus {
+            Some(g) => check_count("--gpus", g, true)?,
+            None => u32::from(facts.device_gpu),
+        };
+        let jobs = facts.jobs.unwrap_or(cpus).max(1);
+        let (mem_mib, how) = match &self.mem {
+            Some(m) => (parse_mem(m)?, None),
+            None => match facts.frame {
+                Some(f) => {
+                    let e = estimate_mem(jobs, f.bytes);
+                    let how = format!(
+                        "memory from the batch: ({jobs} jobs + 2) × {} frame of {}×{} (largest of {} header(s) read{}) + {BASE_MIB} MiB, + 25%",
+                        mib_text(f.bytes.div_ceil(1 << 20)),
+                        f.width,
+                        f.height,
+                        f.probed - f.unread,
+                        if f.unread > 0 {
+                            format!(", {} unreadable", f.unread)
+                        } else {
+                            String::new()
+                        }
+                    );
+                    (e.mib, Some(how))
+                }
+                None => {
+                    let mib = (BASE_MIB * 4).max(MIN_MEM_MIB);
+                    (
+                        mib,
+                        Some(format!(
+                            "memory: no input's header could be read, so {} (set --mem)",
+                            mib_text(mib)
+                        )),
+                    )
+                }
+            },
+        };
+        check_repeats("--sbatch-arg", self.sbatch_arg.len())?;
+        check_repeats("--node-selector", self.node_selector.len())?;
+        check_repeats("--toleration", self.toleration.len())?;
+        check_repeats("--host-requirement", self.host_requirement.len())?;
+        Ok((
+            Resources {
+                cpus: Some(cpus),
+                mem_mib: Some(mem_mib),
+                time_s: self.time.as_deref().map(parse_time).transpose()?,
+                gpus,
+                partition: self
+                    .partition
+                    .as_deref()
+                    .map(|p| check_slurm_name("--partition", p))
+                    .transpose()?,
+                account: self
+                    .account
+                    .as_deref()
+                    .map(|p| check_slurm_name("--account", p))
+                    .transpose()?,
+                qos: self
+                    .qos
+                    .as_deref()
+                    .map(|p| check_slurm_name("--qos", p))
+                    .transpose()?,
+                sbatch_args: self
+                    .sbatch_arg
+                    .iter()
+                    .map(|a| parse_sbatch_arg(a))
+                    .collect::<Result<_, _>>()?,
+                node_selector: self
+                    .node_selector
+                    .iter()
+                    .map(|a| parse_node_selector(a))
+                    .collect::<Result<_, _>>()?,
+                tolerations: self
+                    .toleration
+                    .iter()
+                    .map(|a| parse_toleration(a))
+                    .collect::<Result<_, _>>()?,
+                os_family: self.os_family.as_deref().map(check_os_family).transpose()?,
+                host_requirements: self
+                    .host_requirement
+                    .iter()
+                    .map(|a| parse_host_requirement(a))
+                    .collect::<Result<_, _>>()?,
+            },
+            how,
+        ))
+    }
+
+    /// The flags given that `engine` (`openjd`, `slurm`, `k8s`) has no place for.
+    pub(crate) fn foreign(&self, engine: &str) -> Vec<&'static str> {
+        let mut v = Vec::new();
+        if engine != "slurm" {
+            for (set, f) in [
+                (self.partition.is_some(), "--partition"),
+                (self.account.is_some(), "--account"),
+                (self.qos.is_some(), "--qos"),
+                (!self.sbatch_arg.is_empty(), "--sbatch-arg"),
+            ] {
+                if set {
+                    v.push(f);
+                }
+            }
+        }
+        if engine != "k8s" {
+            for (set, f) in [
+                (!self.node_selector.is_empty(), "--node-selector"),
+                (!self.toleration.is_empty(), "--toleration"),
+            ] {
+                if set {
+                    v.push(f);
+                }
+            }
+        }
+        if engine != "openjd" {
+            for (set, f) in [
+                (self.os_family.is_some(), "--os-family"),
+                (!self.host_requirement.is_empty(), "--host-requirement"),
+            ] {
+                if set {
+                    v.push(f);
+                }
+            }
+        }
+        v
+    }
+}
+
+/// Headers read at most for the memory default.
+const MAX_PROBED: usize = 16;
+
+/// The resources of a batch whose apply settings are `settings` and whose inputs are
+/// `inputs` (as the submitter names them): the defaults from `--jobs`, `--device` and the
+/// largest frame found, printed in one line. Without `--jobs`, the tasks run as many workers
+/// as the CPUs asked for (`--jobs=N` is added to `settings`): a pod sees all of its node's
+/// CPUs, and the memory asked for is sized by the workers.
+pub(crate) fn resolve(
+    args: &ResourceArgs,
+    settings: &mut Vec<String>,
+    inputs: &[std::path::PathBuf],
+) -> Result<Resources, FarmError> {
+    let jobs = settings
+        .iter()
+        .find_map(|w| w.strip_prefix("--jobs="))
+        .and_then(|j| j.parse::<u32>().ok());
+    let device_gpu = settings
+        .windows(2)
+        .any(|w| w[0] == "--device" && w[1] == "gpu");
+    let probe = if args.mem.is_none() {
+        probe_frames(inputs, MAX_PROBED)
+    } else {
+        None
+    };
+    let (r, how) = args.resolve(BatchFacts {
+        jobs,
+        device_gpu,
+        frame: probe.as_ref(),
+    })?;
+    let mut line = format!("nsrm farm: each task asks for {}", r.summary());
+    if let Some(h) = how {
+        line.push_str(&format!("; {h}"));
+    }
+    if jobs.is_none() {
+        let cpus = r.cpus.unwrap_or(DEFAULT_CPUS);
+        settings.push(format!("--jobs={cpus}"));
+        line.push_str(&format!("; apply runs --jobs {cpus} (one worker a CPU)"));
+    }
+    eprintln!("{line}");
+    Ok(r)
+}
+
+/// Whether `path` is `dir` or under it, whole components only.
+fn is_under(path: &str, dir: &str) -> bool {
+    let dir = dir.trim_end_matches('/');
+    dir.is_empty() || path == dir || path.strip_prefix(dir).is_some_and(|r| r.starts_with('/'))
+}
+
+/// A warning naming the `paths` (as the pods will see them, after --path-map) that are not
+/// under the claim's mount `mount`, with the fix; `None` when all are.
+pub(crate) fn outside_mount(mount: &str, paths: &[&str]) -> Option<String> {
+    let outside: Vec<&str> = paths
+        .iter()
+        .copied()
+        .filter(|p| !is_under(p, mount))
+        .collect();
+    let first = outside.first()?;
+    let shown: Vec<&str> = outside.iter().take(3).copied().collect();
+    let more = outside.len() - shown.len();
+    let parent = std::path::Path::new(first)
+        .parent()
+        .and_then(|p| p.to_str())
+        .filter(|p| !p.is_empty() && *p != "/")
+        .unwrap_or(first);
+    Some(format!(
+        "nsrm farm: warning: {} path(s) of the job are not under the claim's mount {mount}, so the pods will not find them: {}{}; map them onto the claim, e.g. --path-map {parent}={}/…",
+        outside.len(),
+        shown.join(", "),
+        if more > 0 {
+            format!(" and {more} more")
+        } else {
+            String::new()
+        },
+        mount.trim_end_matches('/')
+    ))
+}
+
+/// The largest frame of a batch as far as its headers tell, from at most `max_probed` inputs
+/// spread over the list (first and last included): pixels, channels and the bytes a decoded
+/// frame of it occupies ([`frame_bytes`]).
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub(crate) struct FrameProbe {
+    pub width: u64,
+    pub height: u64,
+    pub bytes: u64,
+    pub probed: usize,
+    /// Inputs whose header could not be read (a camera raw file, a broken one).
+    pub unread: usize,
+}
+
+/// Reads the headers of up to `max_probed` of `inputs` (EXR and TIFF; other files are counted
+/// as unread) and returns the largest frame; `None` when no header could be read.
+pub(crate) fn probe_frames(inputs: &[std::path::PathBuf], max_probed: usize) -> Option<FrameProbe> {
+    let n = inputs.len();
+    let k = n.min(max_probed.max(1));
+    let picks: Vec<usize> = if k <= 1 {
+        vec![0]
+    } else {
+        let mut v: Vec<usize> = (0..k).map(|i| i * (n - 1) / (k - 1)).collect();
+        v.dedup();
+        v
+    };
+    let mut best: Option<FrameProbe> = None;
+    let mut unread = 0;
+    for &i in picks.iter().filter(|&&i| i < n) {
+        match nsrm::io::header_size(&inputs[i]) {
+            Some(nsrm::io::HeaderSize {
+                width: w,
+                height: h,
+                extra_bytes_per_pixel: stored,
+            }) => {
+                let bytes = frame_bytes(w.saturating_mul(h), stored);
+                if best.as_ref().is_none_or(|b| bytes > b.bytes) {
+                    best = Some(FrameProbe {
+                        width: w,
+                        height: h,
+                        bytes,
+                        probed: 0,
+                        unread: 0,
+                    });
+                }
+            }
+            None => unread += 1,
+        }
+    }
+    best.map(|b| FrameProbe {
+        probed: picks.len(),
+        unread,
+        ..b
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn memory_takes_slurm_units_and_is_bounded() {
+        assert_eq!(parse_mem("8G").unwrap(), 8192);
+        assert_eq!(parse_mem("1500").unwrap(), 1500);
+        assert_eq!(parse_mem("1500M").unwrap(), 1500);
+        assert_eq!(parse_mem("2Gi").unwrap(), 2048);
+        assert_eq!(parse_mem("1tb").unwrap(), 1 << 20);
+        assert_eq!(parse_mem("20000K").unwrap(), 20);
+        for bad in [
+            "",
+            "G",
+            "8X",
+            "-1G",
+            "1.5G",
+            "8G;rm",
+            "8 G\n",
+            "15M",
+            "65T",
+            "999999999999999T",
+        ] {
+            assert!(parse_mem(bad).is_err(), "{bad:?}");
+        }
+    }
+
+    #[test]
+    fn time_takes_slurm_forms_only() {
+        for (s, want) in [
+            ("30", 1800),
+            ("30:15", 1815),
+            ("2:00:00", 7200),
+            ("1-0", 86400),
+            ("1-2:30", 86400 + 9000),
+            ("1-02:03:04", 86400 + 7384),
+        ] {
+            assert_eq!(parse_time(s).unwrap(), want, "{s}");
+        }
+        assert_eq!(slurm_time(86400 + 7384), "1-02:03:04");
+        for bad in [
+            "",
+            "0",
+            "1:2:3:4",
+            "1-2:3:4:5",
+            "a",
+            "1h",
+            "-5",
+            "366-0",
+            "1--2",
+            "1:",
+            ":1",
+            "12;touch x",
+            "9999999999",
+        ] {
+            assert!(parse_time(bad).is_err(), "{bad:?}");
+        }
+    }
+
+    #[test]
+    fn sbatch_pass_through_is_one_safe_word() {
+        assert_eq!(
+            parse_sbatch_arg("--constraint=avx2").unwrap(),
+            "--constraint=avx2"
+        );
+        assert_eq!(parse_sbatch_arg("--exclusive").unwrap(), "--exclusive");
+        assert_eq!(
+            parse_sbatch_arg("--comment=two words").unwrap(),
+            "--comment=\"two words\""
+        );
+        for bad in [
+            "-C avx2",
+            "constraint=x",
+            "--mem=4G",
+            "--array=1-9",
+            "--job-name=x",
+            "--comment=a\"b",
+            "--comment=a'b",
+            "--comment=a\nset -x",
+            "--Constraint=x",
+            "--=x",
+        ] {
+            assert!(parse_sbatch_arg(bad).is_err(), "{bad:?}");
+        }
+        assert!(check_slurm_name("--partition", "gpu,cpu").is_ok());
+        for bad in ["", "a b", "x\n#SBATCH --mem=1", "-x", &"p".repeat(65)] {
+            assert!(check_slurm_name("--account", bad).is_err(), "{bad:?}");
+        }
+    }
+
+    #[test]
+    fn kubernetes_names_labels_and_tolerations() {
+        assert!(check_kube_name("nsrm-0123456789ab").is_ok());
+        for bad in ["Plates", "a_b", "-a", "a-", "", "a.b", &"a".repeat(57)] {
+            let e = check_kube_name(bad).unwrap_err().to_string();
+            assert!(e.contains("RFC 1123 DNS label"), "{e}");
+        }
+        assert!(check_kube_name(&"a".repeat(56)).is_ok());
+        assert_eq!(
+            parse_node_selector("node.kubernetes.io/instance-type=g5.xlarge").unwrap(),
+            (
+                "node.kubernetes.io/instance-type".into(),
+                "g5.xlarge".into()
+            )
+        );
+        assert!(parse_node_selector("gpu=").is_ok());
+        for bad in ["gpu", "=x", "a b=c", "k=v\nx: y", "k=-v", "Bad_Prefix/k=v"] {
+            assert!(parse_node_selector(bad).is_err(), "{bad:?}");
+        }
+        assert_eq!(
+            parse_toleration("nvidia.com/gpu:NoSchedule").unwrap(),
+            Toleration {
+                key: "nvidia.com/gpu".into(),
+                value: None,
+                effect: Some("NoSchedule".into())
+            }
+        );
+        assert_eq!(
+            parse_toleration("dedicated=render")
+                .unwrap()
+                .value
+                .as_deref(),
+            Some("render")
+        );
+        for bad in ["k:Never", "k=v:", "", "k=v w", "k=v:NoSchedule:x"] {
+            assert!(parse_toleration(bad).is_err(), "{bad:?}");
+        }
+    }
+
+    #[test]
+    fn openjd_host_requirements_follow_the_capability_names() {
+        assert_eq!(
+            parse_host_requirement("attr.worker.cpu.arch=x86_64").unwrap(),
+            HostRequirement::Attr {
+                name: "attr.worker.cpu.arch".into(),
+                any_of: vec!["x86_64".into()]
+            }
+        );
+        assert!(parse_host_requirement("amount.worker.gpu.memory=8192").is_ok());
+        assert!(parse_host_requirement("attr.custom.site=paris,london").is_ok());
+        assert!(parse_host_requirement("acme:amount.worker.licence=1").is_ok());
+        for bad in [
+            "amount.worker.vcpu=4",
+            "amount.worker.foo=1",
+            "attr.job.x=y",
+            "amount.custom.x=-1",
+            "amount.custom.x=inf",
+            "attr.custom.x={{Param.Model}}",
+            "custom.x=1",
+            "attr.custom.x=",
+        ] {
+            assert!(parse_host_requirement(bad).is_err(), "{bad:?}");
+        }
+        assert!(check_os_family("Linux").is_ok() && check_os_family("beos").is_err());
+    }
+
+    #[test]
+    fn paths_outside_the_claim_are_named_with_the_fix() {
+        assert_eq!(outside_mount("/data", &["/data/in/a.exr", "/data"]), None);
+        let w = outside_mount(
+            "/data/",
+            &["/data/a.exr", "/database/b.exr", "/home/x/c.exr"],
+        )
+        .unwrap();
+        assert!(
+            w.contains("2 path(s)") && w.contains("/database/b.exr, /home/x/c.exr"),
+            "{w}"
+        );
+        assert!(w.contains("--path-map /database=/data/…"), "{w}");
+        let many: Vec<String> = (0..5).map(|i| format!("/x/{i}")).collect();
+        let many: Vec<&str> = many.iter().map(String::as_str).collect();
+        assert!(outside_mount("/data", &many)
+            .unwrap()
+            .contains("and 2 more"));
+    }
+
+    #[test]
+    fn headers_give_the_largest_frame_and_its_other_channels() {
+        let dir = std::env::temp_dir().join(format!("nsrm-probe-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let small = dir.join("a.exr");
+        let big = dir.join("b.exr");
+        ::exr::prelude::write_rgb_file(&small, 8, 4, |_, _| (0.5f32, 0.5f32, 0.5f32)).unwrap();
+        ::exr::prelude::write_rgba_file(&big, 16, 8, |_, _| (0.5f32, 0.5f32, 0.5f32, 1.0f32))
+            .unwrap();
+        let junk = dir.join("c.exr");
+        std::fs::write(&junk, b"not a frame").unwrap();
+        let p = probe_frames(&[small.clone(), junk, big], 16).unwrap();
+        // The alpha (f32) is kept beside the camera RGB.
+        assert_eq!((p.width, p.height, p.bytes), (16, 8, 16 * 8 * (12 + 4)));
+        assert_eq!((p.probed, p.unread), (3, 1));
+        let p = probe_frames(&[small], 16).unwrap();
+        assert_eq!(p.bytes, 8 * 4 * 12);
+        assert_eq!(probe_frames(&[dir.join("none.exr")], 16), None);
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+
+    #[test]
+    fn memory_default_grows_with_frames_and_jobs() {
+        let e = estimate_mem(4, 100 << 20);
+        assert_eq!(e.mib, (BASE_MIB + 600) * 5 / 4);
+        assert!(estimate_mem(8, 100 << 20).mib > e.mib);
+        assert!(estimate_mem(4, 200 << 20).mib > e.mib);
+        assert_eq!(estimate_mem(u32::MAX, u64::MAX).mib, MAX_MEM_MIB);
+    }
+
+    #[test]
+    fn each_engine_gets_what_was_asked() {
+        let r = Resources {
+            cpus: Some(4),
+            mem_mib: Some(6000),
+            time_s: Some(7200),
+            gpus: 1,
+            partition: Some("gpu".into()),
+            account: None,
+            qos: Some("high".into()),
+            sbatch_args: vec!["--constraint=avx2".into()],
+            node_selector: vec![("pool".into(), "render".into())],
+            tolerations: vec![Toleration {
+                key: "nvidia.com/gpu".into(),
+                value: None,
+                effect: Some("NoSchedule".into()),
+            }],
+            os_family: Some("linux".into()),
+            host_requirements: Vec::new(),
+        };
+        let task = r.sbatch_lines(true);
+        assert_eq!(
+            task,
+            "#SBATCH --partition=gpu\n#SBATCH --qos=high\n#SBATCH --cpus-per-task=4\n#SBATCH --mem=6000M\n#SBATCH --gpus=1\n#SBATCH --time=0-02:00:00\n#SBATCH --constraint=avx2\n"
+        );
+        let verify = r.sbatch_lines(false);
+        assert!(verify.contains("--cpus-per-task=1\n") && !verify.contains("--gpus"));
+        assert!(!verify.contains("--time") && verify.contains("--constraint=avx2"));
+        assert_eq!(r.kube_pod_fields(false).len(), 2);
+        let text = crate::farmlib::yaml::to_string(&r.openjd_host_requirements(true).unwrap());
+        assert!(text.contains("amount.worker.gpu"), "{text}");
+        assert!(text.contains("attr.worker.os.family"), "{text}");
+        let k = crate::farmlib::yaml::to_string(&r.kube_resources(true).unwrap());
+        assert!(k.contains("nvidia.com/gpu") && k.contains("6000Mi"), "{k}");
+        let pod: Vec<&str> = r.kube_pod_fields(true).iter().map(|(k, _)| *k).collect();
+        assert_eq!(
+            pod,
+            ["nodeSelector", "tolerations", "activeDeadlineSeconds"]
+        );
+        assert_eq!(Resources::default().kube_resources(true), None);
+        assert_eq!(Resources::default().openjd_host_requirements(true), None);
+        assert_eq!(Resources::default().sbatch_lines(true), "");
+        assert!(r
+            .summary()
+            .contains("4 CPU(s), 5.9 GiB memory, 1 GPU(s), time limit 0-02:00:00"));
+    }
+}

@@ -110,8 +110,7 @@ pub use model::dual_illuminant::{Calibration, Combination, FrameWhite, Profile};
 
 // The CPU frame kernels: a model prepared once and applied to many frames, on chosen threads.
 pub use model::fast::{FastError, FastModel, Threads, CHUNK_PIXELS};
-pub use model::highlights::{frame_clip, FrameHighlights, HighlightMode, Highlights};
-pub use model::highlights::{HighlightsF32, BLEND_FROM};
+pub use model::highlights::{FrameHighlights, HighlightMode, Highlights, HighlightsF32};
 
 // Colorimetry: Lab, ΔE00, output spaces, the output and preview matrices, correlated colour
 // temperatures and chromatic adaptation.

@@ -37,7 +37,7 @@ use super::{Model, ModelError};
 
 /// Where the blend towards the neutral starts, as a fraction of the clip level: 0.9 (0.15 stop
 /// below the clip). Below it nothing changes.
-pub const BLEND_FROM: f64 = 0.9;
+pub(crate) const BLEND_FROM: f64 = 0.9;
 
 /// The highlight policy of a model: clipped camera RGB goes to the brightest plausible neutral
 /// (see the [module docs](self)).
@@ -52,13 +52,13 @@ pub struct Highlights {
 impl Highlights {
     /// The policy for `model` (in its XYZ output, before an output space is folded in) with the
     /// sensor's clip levels `clip` in the model's input.
-    pub fn for_model(model: &Model, clip: [f64; 3]) -> Result<Highlights, ModelError> {
+    pub(crate) fn for_model(model: &Model, clip: [f64; 3]) -> Result<Highlights, ModelError> {
         Highlights::for_parts(&[model], clip)
     }
 
     /// The policy for the sum of `parts` (one model, or a combination's; in XYZ) with clip
     /// levels `clip`: towards [`brightest_neutral`].
-    pub fn for_parts(parts: &[&Model], clip: [f64; 3]) -> Result<Highlights, ModelError> {
+    pub(crate) fn for_parts(parts: &[&Model], clip: [f64; 3]) -> Result<Highlights, ModelError> {
         let neutral = brightest_neutral(parts, clip)?;
         if !neutral
             .iter()
@@ -76,7 +76,7 @@ impl Highlights {
     }
 
     /// The f64 reference: one camera RGB through the policy.
-    pub fn map(&self, x: [f64; 3]) -> [f64; 3] {
+    pub(crate) fn map(&self, x: [f64; 3]) -> [f64; 3] {
         if !x.iter().all(|v| v.is_finite()) {
             return x;
         }
@@ -92,7 +92,7 @@ impl Highlights {
 
     /// The f32 code the fast CPU kernels run, operation for operation `shaders/highlights.wgsl`.
     #[inline]
-    pub fn map_f32(p: &HighlightsF32, x: [f32; 3]) -> [f32; 3] {
+    pub(crate) fn map_f32(p: &HighlightsF32, x: [f32; 3]) -> [f32; 3] {
         if !x.iter().all(|v| v.is_finite()) {
             return x;
         }
@@ -208,7 +208,7 @@ impl HighlightMode {
 /// * else the frame's own (a camera raw file's white level, `frame`) → that;
 /// * else (EXR, TIFF, JPEG: no level known) → `None` by default, and an error when `Clip` was
 ///   asked for explicitly ([`ModelError::NoClipLevel`]).
-pub fn frame_clip(
+pub(crate) fn frame_clip(
     mode: Option<HighlightMode>,
     level: Option<f64>,
     frame: Option<[f32; 3]>,
@@ -377,7 +377,8 @@ pub struct FrameHighlights {
 }
 
 impl FrameHighlights {
-    /// The policy asked for (`mode`, `level`: see [`frame_clip`]) for the sum of `parts`.
+    /// The policy asked for (`mode`, `level`: a level given holds for every frame, else each
+    /// frame's own clip level is used, and `Keep` turns the policy off) for the sum of `parts`.
     pub fn new(
         mode: Option<HighlightMode>,
         level: Option<f64>,

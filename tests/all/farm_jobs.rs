@@ -137,6 +137,8 @@ fn resources_reach_every_engine() {
             "1500M",
             "--time",
             "90",
+            "--verify-time",
+            "15",
             "--os-family",
             "linux",
             "--host-requirement",
@@ -167,6 +169,7 @@ fn resources_reach_every_engine() {
         .iter()
         .any(|a| a["name"] == "attr.worker.os.family" && a["anyOf"][0] == "linux"));
     assert_eq!(apply["script"]["actions"]["onRun"]["timeout"], 5400);
+    assert_eq!(t["steps"][1]["script"]["actions"]["onRun"]["timeout"], 900);
     assert_eq!(
         t["steps"][1]["hostRequirements"]["amounts"][0]["min"], 1,
         "the Verify step asks one vCPU"
@@ -240,7 +243,7 @@ fn resources_reach_every_engine() {
 fn hostile_resource_values_are_refused_before_writing() {
     let dir = tempdir("farm-res-hostile");
     batch(&dir, 1, 8, 8);
-    let cases: [(&str, &[&str], &str); 14] = [
+    let cases: [(&str, &[&str], &str); 18] = [
         ("slurm", &["--mem", "8G\n#SBATCH --wrap=x"], "--mem"),
         ("slurm", &["--mem", "100T"], "--mem"),
         ("slurm", &["--time", "1:2:3:4"], "--time"),
@@ -257,6 +260,14 @@ fn hostile_resource_values_are_refused_before_writing() {
         ),
         ("k8s", &["--toleration", "k=v:Always"], "--toleration"),
         ("k8s", &["--name", "Plates_1"], "RFC 1123 DNS label"),
+        ("k8s", &["--pod-spec", "containers=[]"], "set it with"),
+        ("k8s", &["--gpu-resource", "gpu"], "--gpu-resource"),
+        ("slurm", &["--verify-time", "0"], "--verify-time"),
+        (
+            "slurm",
+            &["--pod-spec", "priorityClassName=\"x\""],
+            "--pod-spec is not for `nsrm farm slurm`",
+        ),
         (
             "k8s",
             &["--partition", "gpu"],
@@ -304,10 +315,31 @@ fn kubernetes_manifests_are_valid_named_and_labelled() {
         "pool=render",
         "--toleration",
         "nvidia.com/gpu:NoSchedule",
+        "--verify-time",
+        "20",
+        "--gpu-resource",
+        "amd.com/gpu",
+        "--pod-spec",
+        "priorityClassName=\"render\"",
+        "--pod-spec",
+        r#"securityContext={"runAsNonRoot":true,"runAsUser":1000}"#,
     ];
     make(&dir, "k8s", "a", &flags);
     let job_a = yaml_docs(&dir.join("a/job.yaml"));
     let name_a = job_a[1]["metadata"]["name"].as_str().unwrap().to_string();
+    // The pass-through fields, the GPU's resource name and the verification's time limit.
+    let pod = &job_a[1]["spec"]["template"]["spec"];
+    assert_eq!(pod["priorityClassName"], "render");
+    assert_eq!(pod["securityContext"]["runAsUser"], 1000);
+    assert_eq!(
+        pod["containers"][0]["resources"]["limits"]["amd.com/gpu"],
+        "1"
+    );
+    assert!(pod["containers"][0]["resources"]["limits"]["nvidia.com/gpu"].is_null());
+    assert_eq!(pod["activeDeadlineSeconds"], 1800);
+    let vpod = &yaml_docs(&dir.join("a/verify.yaml"))[0]["spec"]["template"]["spec"];
+    assert_eq!(vpod["activeDeadlineSeconds"], 1200);
+    assert_eq!(vpod["priorityClassName"], "render");
     assert!(
         name_a.starts_with("nsrm-") && name_a.len() == 17,
         "{name_a}"

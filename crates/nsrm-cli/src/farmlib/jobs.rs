@@ -373,7 +373,10 @@ fn openjd_steps(spec: &JobSpec, literals: &[String]) -> Node {
                 ),
                 (
                     "script",
-                    Node::map([("actions", openjd_action(&spec.verify, literals, None))]),
+                    Node::map([(
+                        "actions",
+                        openjd_action(&spec.verify, literals, spec.resources.verify_time_s),
+                    )]),
                 ),
             ],
             false,
@@ -637,9 +640,9 @@ fn kube_container(
 /// A pod spec: never restarted in place, `container`, the volumes and the scheduling fields.
 fn kube_pod_spec(spec: &JobSpec, container: Node, volumes: Node, task: bool) -> Node {
     let mut pairs = vec![
-        ("restartPolicy", Node::str("Never")),
-        ("containers", Node::List(vec![container])),
-        ("volumes", volumes),
+        ("restartPolicy".to_string(), Node::str("Never")),
+        ("containers".to_string(), Node::List(vec![container])),
+        ("volumes".to_string(), volumes),
     ];
     pairs.extend(spec.resources.kube_pod_fields(task));
     Node::map(pairs)

@@ -1,7 +1,8 @@
 //! What each task of a farm job asks its engine for, named once for every engine: CPUs,
 //! memory, a wall-time limit and GPUs, plus what only one engine knows (a Slurm partition,
 //! account and QOS; a Kubernetes node selector and tolerations; Open Job Description host
-//! requirements), and a pass-through of extra `#SBATCH` lines.
+//! requirements), and a pass-through for each engine: extra `#SBATCH` lines, extra pod-spec
+//! fields, further host requirements.
 //!
 //! Every value is checked here, before any file is written: numbers are bounded, names keep to
 //! the characters their engine allows, and nothing can reach a script or a YAML document as
@@ -21,8 +22,12 @@ pub(crate) const MAX_TIME_S: u64 = 365 * 24 * 3600;
 /// requirements).
 pub(crate) const MAX_REPEATS: usize = 64;
 
-/// The Kubernetes resource name of a GPU (NVIDIA's device plugin).
+/// The Kubernetes resource name of a GPU when `--gpu-resource` does not say (NVIDIA's device
+/// plugin; AMD's is `amd.com/gpu`, Intel's `gpu.intel.com/i915`).
 pub(crate) const KUBE_GPU: &str = "nvidia.com/gpu";
+
+/// The largest value of one `--pod-spec` field, in bytes of JSON.
+pub(crate) const MAX_POD_FIELD_BYTES: usize = 16 << 10;
 
 /// The resources of one task, checked. `None` leaves a value to the engine's defaults.
 #[derive(Debug, Clone, Default, PartialEq)]
@@ -30,7 +35,11 @@ pub(crate) struct Resources {
     pub cpus: Option<u32>,
     pub mem_mib: Option<u64>,
     pub time_s: Option<u64>,
+    /// The verification's wall-time limit (it reads every output once).
+    pub verify_time_s: Option<u64>,
     pub gpus: u32,
+    /// The Kubernetes extended resource a GPU is asked for as; `None`: [`KUBE_GPU`].
+    pub gpu_resource: Option<String>,
     pub partition: Option<String>,
     pub account: Option<String>,
     pub qos: Option<String>,
@@ -38,6 +47,8 @@ pub(crate) struct Resources {
     pub sbatch_args: Vec<String>,
     pub node_selector: Vec<(String, String)>,
     pub tolerations: Vec<Toleration>,
+    /// Further pod-spec fields (`--pod-spec`), in the order given.
+    pub pod_fields: Vec<(String, Node)>,
     /// `attr.worker.os.family`: linux, windows or macos.
     pub os_family: Option<String>,
     /// Further Open Job Description host requirements.
@@ -114,9 +125,14 @@ pub(crate) fn parse_mem(s: &str) -> Result<u64, FarmError> {
 /// `DAYS-HOURS`, `DAYS-HOURS:MINUTES`, `DAYS-HOURS:MINUTES:SECONDS` — in seconds, from 1 s to
 /// 365 days.
 pub(crate) fn parse_time(s: &str) -> Result<u64, FarmError> {
+    parse_time_for("--time", s)
+}
+
+/// [`parse_time`] for the flag `flag` (named in the message).
+pub(crate) fn parse_time_for(flag: &str, s: &str) -> Result<u64, FarmError> {
     let bad = |why: &str| {
         FarmError::Usage(format!(
-            "--time {s:?}: {why}; Slurm's forms are MINUTES, MINUTES:SECONDS, HOURS:MINUTES:SECONDS, DAYS-HOURS, DAYS-HOURS:MINUTES or DAYS-HOURS:MINUTES:SECONDS (1 s to 365 days)"
+            "{flag} {s:?}: {why}; Slurm's forms are MINUTES, MINUTES:SECONDS, HOURS:MINUTES:SECONDS, DAYS-HOURS, DAYS-HOURS:MINUTES or DAYS-HOURS:MINUTES:SECONDS (1 s to 365 days)"
         ))
     };
     let num = |p: &str| -> Result<u64, FarmError> {
@@ -230,6 +246,120 @@ pub(crate) fn parse_sbatch_arg(s: &str) -> Result<String, FarmError> {
             }
         }
     }
+}
+
+/// A Kubernetes extended resource name for `--gpu-resource`: `DOMAIN/NAME`, the domain a DNS
+/// subdomain outside `kubernetes.io` (at most 253 characters), the name 1 to 63 letters, digits,
+/// `-`, `_` or `.` starting and ending with a letter or digit.
+pub(crate) fn check_gpu_resource(s: &str) -> Result<String, FarmError> {
+    let bad = || {
+        usage(format!(
+            "--gpu-resource {s:?}: give an extended resource name, DOMAIN/NAME (e.g. nvidia.com/gpu, amd.com/gpu, gpu.intel.com/i915)"
+        ))
+    };
+    let Some((domain, name)) = s.split_once('/') else {
+        return bad();
+    };
+    let domain_ok = domain.len() <= 253
+        && domain.contains('.')
+        && domain.split('.').all(|l| is_dns_label(l, 63))
+        && !domain.ends_with("kubernetes.io");
+    let name_ok = !name.is_empty()
+        && name.len() <= 63
+        && name
+            .bytes()
+            .all(|b| b.is_ascii_alphanumeric() || matches!(b, b'-' | b'_' | b'.'))
+        && name.starts_with(|c: char| c.is_ascii_alphanumeric())
+        && name.ends_with(|c: char| c.is_ascii_alphanumeric());
+    if !(domain_ok && name_ok) {
+        return bad();
+    }
+    Ok(s.to_string())
+}
+
+/// The pod-spec fields nsrm writes itself, and the flag that sets each.
+const POD_SPEC_OWN: [(&str, &str); 6] = [
+    ("containers", "the job (one container running nsrm)"),
+    ("volumes", "--claim"),
+    (
+        "restartPolicy",
+        "the job (Never: a failed shard is retried as a new pod)",
+    ),
+    ("nodeSelector", "--node-selector"),
+    ("tolerations", "--toleration"),
+    ("activeDeadlineSeconds", "--time and --verify-time"),
+];
+
+/// The `--pod-spec FIELD=JSON` values as pod-spec fields: FIELD a camelCase name (letters and
+/// digits, at most 64) given once and not one nsrm writes, JSON a value of at most
+/// [`MAX_POD_FIELD_BYTES`] (strings, whole numbers, booleans, lists and objects; a fraction or
+/// `null` is refused: no pod-spec field takes one).
+pub(crate) fn parse_pod_fields(args: &[String]) -> Result<Vec<(String, Node)>, FarmError> {
+    let mut out: Vec<(String, Node)> = Vec::new();
+    for a in args {
+        let Some((field, json)) = a.split_once('=') else {
+            return usage(format!(
+                "--pod-spec {a:?}: give FIELD=JSON (e.g. --pod-spec priorityClassName='\"render\"')"
+            ));
+        };
+        if field.is_empty()
+            || field.len() > 64
+            || !field.starts_with(|c: char| c.is_ascii_lowercase())
+            || !field.bytes().all(|b| b.is_ascii_alphanumeric())
+        {
+            return usage(format!(
+                "--pod-spec {a:?}: the field is a pod-spec field name in camelCase (letters and digits)"
+            ));
+        }
+        if let Some((_, flag)) = POD_SPEC_OWN.iter().find(|(o, _)| *o == field) {
+            return usage(format!(
+                "--pod-spec {a:?}: nsrm writes {field} itself; set it with {flag}"
+            ));
+        }
+        if out.iter().any(|(k, _)| k == field) {
+            return usage(format!("--pod-spec {a:?}: {field} is given twice"));
+        }
+        if json.len() > MAX_POD_FIELD_BYTES {
+            return usage(format!(
+                "--pod-spec {field}: the value is over {} KiB",
+                MAX_POD_FIELD_BYTES >> 10
+            ));
+        }
+        let value: serde_json::Value = serde_json::from_str(json).map_err(|e| {
+            FarmError::Usage(format!(
+                "--pod-spec {field}: the value is not JSON ({e}); a string is quoted, e.g. '\"render\"'"
+            ))
+        })?;
+        let node = json_node(&value)
+            .map_err(|why| FarmError::Usage(format!("--pod-spec {field}: {why}")))?;
+        out.push((field.to_string(), node));
+    }
+    Ok(out)
+}
+
+/// A JSON value as a YAML node (serde_json bounds the nesting it parses; an object's keys
+/// come out sorted).
+fn json_node(v: &serde_json::Value) -> Result<Node, String> {
+    use serde_json::Value;
+    Ok(match v {
+        Value::Null => return Err("null is not a pod-spec value (leave the field out)".into()),
+        Value::Bool(b) => Node::Bool(*b),
+        Value::Number(n) => match n.as_i64() {
+            Some(i) => Node::Int(i),
+            None => {
+                return Err(format!(
+                    "{n}: pod-spec numbers are whole (a quantity such as \"1.5\" is a string)"
+                ))
+            }
+        },
+        Value::String(s) => Node::str(s),
+        Value::Array(a) => Node::List(a.iter().map(json_node).collect::<Result<_, _>>()?),
+        Value::Object(o) => Node::Map(
+            o.iter()
+                .map(|(k, v)| Ok((k.clone(), json_node(v)?)))
+                .collect::<Result<_, String>>()?,
+        ),
+    })
 }
 
 /// An RFC 1123 DNS label: 1 to `max` (at most 63) lowercase letters, digits and `-`, starting
@@ -494,6 +624,14 @@ impl Resources {
                 None => "no time limit (engine default)".into(),
             },
         ];
+        if let Some(t) = self.verify_time_s {
+            parts.push(format!("verification time limit {}", slurm_time(t)));
+        }
+        if self.gpus > 0 {
+            if let Some(g) = &self.gpu_resource {
+                parts.push(format!("GPUs as {g}"));
+            }
+        }
         for (what, v) in [
             ("partition", &self.partition),
             ("account", &self.account),
@@ -509,8 +647,8 @@ impl Resources {
 
     /// The `#SBATCH` lines of a task (`task`) or of the verification: partition, account,
     /// QOS and the pass-through for both; CPUs, memory, GPUs and time as given for a task, one
-    /// CPU and the task's memory for the verification (which reads every output: no time
-    /// limit but the partition's).
+    /// CPU, the task's memory and `--verify-time` (else the partition's limit) for the
+    /// verification.
     pub(crate) fn sbatch_lines(&self, task: bool) -> String {
         let mut lines = Vec::new();
         let mut push = |s: String| lines.push(format!("#SBATCH {s}\n"));
@@ -537,7 +675,11 @@ impl Resources {
         if task && self.gpus > 0 {
             push(format!("--gpus={}", self.gpus));
         }
-        if let (true, Some(t)) = (task, self.time_s) {
+        if let Some(t) = if task {
+            self.time_s
+        } else {
+            self.verify_time_s
+        } {
             push(format!("--time={}", slurm_time(t)));
         }
         for a in &self.sbatch_args {
@@ -593,7 +735,7 @@ impl Resources {
 
     /// A container's `resources` (`task`: with the GPUs): requests of CPUs and memory, a
     /// memory limit equal to the request (a pod over it is killed, not the node), GPUs as
-    /// limits (`nvidia.com/gpu`). `None` when nothing is asked.
+    /// limits (`--gpu-resource`, `nvidia.com/gpu` by default). `None` when nothing is asked.
     pub(crate) fn kube_resources(&self, task: bool) -> Option<Node> {
         let mut requests = Vec::new();
         let mut limits = Vec::new();
@@ -610,7 +752,8 @@ impl Resources {
             limits.push(("memory", Node::str(format!("{m}Mi"))));
         }
         if task && self.gpus > 0 {
-            limits.push((KUBE_GPU, Node::str(self.gpus.to_string())));
+            let name = self.gpu_resource.as_deref().unwrap_or(KUBE_GPU);
+            limits.push((name, Node::str(self.gpus.to_string())));
         }
         let mut pairs = Vec::new();
         if !requests.is_empty() {
@@ -622,14 +765,14 @@ impl Resources {
         (!pairs.is_empty()).then(|| Node::map(pairs))
     }
 
-    /// A pod spec's scheduling fields: `nodeSelector`, `tolerations` and, for a task with a
-    /// time limit, `activeDeadlineSeconds` (each pod, so each try of a shard, is stopped after
-    /// it; the verification, which reads every output, has none).
-    pub(crate) fn kube_pod_fields(&self, task: bool) -> Vec<(&'static str, Node)> {
+    /// A pod spec's scheduling fields: `nodeSelector`, `tolerations`, `activeDeadlineSeconds`
+    /// (a task's `--time`: each pod, so each try of a shard, is stopped after it; the
+    /// verification's `--verify-time`), then the `--pod-spec` pass-through.
+    pub(crate) fn kube_pod_fields(&self, task: bool) -> Vec<(String, Node)> {
         let mut out = Vec::new();
         if !self.node_selector.is_empty() {
             out.push((
-                "nodeSelector",
+                "nodeSelector".to_string(),
                 Node::map(
                     self.node_selector
                         .iter()
@@ -656,11 +799,16 @@ impl Resources {
                     Node::map(p)
                 })
                 .collect();
-            out.push(("tolerations", Node::List(list)));
+            out.push(("tolerations".to_string(), Node::List(list)));
         }
-        if let (true, Some(t)) = (task, self.time_s) {
-            out.push(("activeDeadlineSeconds", Node::Int(t as i64)));
+        if let Some(t) = if task {
+            self.time_s
+        } else {
+            self.verify_time_s
+        } {
+            out.push(("activeDeadlineSeconds".to_string(), Node::Int(t as i64)));
         }
+        out.extend(self.pod_fields.iter().cloned());
         out
     }
 }
@@ -685,6 +833,10 @@ pub(crate) struct ResourceArgs {
     /// action's timeout; default none (the engine's).
     #[arg(long, value_name = "TIME")]
     pub time: Option<String>,
+    /// Wall-time limit of the verification job or step (it reads every output once), in
+    /// --time's syntax; default none (the engine's).
+    #[arg(long = "verify-time", value_name = "TIME")]
+    pub verify_time: Option<String>,
     /// GPUs per task (Slurm --gpus, Kubernetes nvidia.com/gpu limit, amount.worker.gpu);
     /// default 1 with --device gpu, else 0.
     #[arg(long, value_name = "N")]
@@ -711,6 +863,16 @@ pub(crate) struct ResourceArgs {
     /// or NoExecute, without it every effect; repeatable.
     #[arg(long, value_name = "KEY[=VALUE][:EFFECT]")]
     pub toleration: Vec<String>,
+    /// The Kubernetes extended resource a GPU is asked for as (e.g. amd.com/gpu,
+    /// gpu.intel.com/i915); default nvidia.com/gpu.
+    #[arg(long = "gpu-resource", value_name = "NAME")]
+    pub gpu_resource: Option<String>,
+    /// A further field of every Kubernetes pod spec, FIELD=JSON (e.g.
+    /// priorityClassName='"render"', runtimeClassName='"nvidia"',
+    /// securityContext='{"runAsUser":1000}'); the fields nsrm writes itself are refused with
+    /// the flag that sets them; repeatable.
+    #[arg(long = "pod-spec", value_name = "FIELD=JSON")]
+    pub pod_spec: Vec<String>,
     /// Open Job Description attr.worker.os.family: linux, windows or macos; default any.
     #[arg(long, value_name = "FAMILY")]
     pub os_family: Option<String>,
@@ -792,13 +954,25 @@ impl ResourceArgs {
         check_repeats("--sbatch-arg", self.sbatch_arg.len())?;
         check_repeats("--node-selector", self.node_selector.len())?;
         check_repeats("--toleration", self.toleration.len())?;
+        check_repeats("--pod-spec", self.pod_spec.len())?;
         check_repeats("--host-requirement", self.host_requirement.len())?;
         Ok((
             Resources {
                 cpus: Some(cpus),
                 mem_mib: Some(mem_mib),
                 time_s: self.time.as_deref().map(parse_time).transpose()?,
+                verify_time_s: self
+                    .verify_time
+                    .as_deref()
+                    .map(|t| parse_time_for("--verify-time", t))
+                    .transpose()?,
                 gpus,
+                gpu_resource: self
+                    .gpu_resource
+                    .as_deref()
+                    .map(check_gpu_resource)
+                    .transpose()?,
+                pod_fields: parse_pod_fields(&self.pod_spec)?,
                 partition: self
                     .partition
                     .as_deref()
@@ -859,6 +1033,8 @@ impl ResourceArgs {
             for (set, f) in [
                 (!self.node_selector.is_empty(), "--node-selector"),
                 (!self.toleration.is_empty(), "--toleration"),
+                (self.gpu_resource.is_some(), "--gpu-resource"),
+                (!self.pod_spec.is_empty(), "--pod-spec"),
             ] {
                 if set {
                     v.push(f);
@@ -1238,6 +1414,7 @@ mod tests {
             }],
             os_family: Some("linux".into()),
             host_requirements: Vec::new(),
+            ..Resources::default()
         };
         let task = r.sbatch_lines(true);
         assert_eq!(
@@ -1253,7 +1430,11 @@ mod tests {
         assert!(text.contains("attr.worker.os.family"), "{text}");
         let k = crate::farmlib::yaml::to_string(&r.kube_resources(true).unwrap());
         assert!(k.contains("nvidia.com/gpu") && k.contains("6000Mi"), "{k}");
-        let pod: Vec<&str> = r.kube_pod_fields(true).iter().map(|(k, _)| *k).collect();
+        let pod: Vec<String> = r
+            .kube_pod_fields(true)
+            .into_iter()
+            .map(|(k, _)| k)
+            .collect();
         assert_eq!(
             pod,
             ["nodeSelector", "tolerations", "activeDeadlineSeconds"]
@@ -1264,5 +1445,121 @@ mod tests {
         assert!(r
             .summary()
             .contains("4 CPU(s), 5.9 GiB memory, 1 GPU(s), time limit 0-02:00:00"));
+    }
+
+    #[test]
+    fn the_verification_has_its_own_time_limit() {
+        let r = Resources {
+            time_s: Some(7200),
+            verify_time_s: Some(600),
+            ..Resources::default()
+        };
+        assert!(r.sbatch_lines(true).contains("--time=0-02:00:00\n"));
+        assert!(r.sbatch_lines(false).contains("--time=0-00:10:00\n"));
+        let deadline = |task| {
+            r.kube_pod_fields(task)
+                .into_iter()
+                .find(|(k, _)| k == "activeDeadlineSeconds")
+                .map(|(_, v)| v)
+        };
+        assert_eq!(deadline(true), Some(Node::Int(7200)));
+        assert_eq!(deadline(false), Some(Node::Int(600)));
+        assert!(r.summary().contains("verification time limit 0-00:10:00"));
+        let e = parse_time_for("--verify-time", "0")
+            .unwrap_err()
+            .to_string();
+        assert!(e.starts_with("--verify-time \"0\""), "{e}");
+    }
+
+    #[test]
+    fn gpus_can_be_asked_for_by_another_resource_name() {
+        for ok in [
+            "amd.com/gpu",
+            "gpu.intel.com/i915",
+            "nvidia.com/mig-1g.10gb",
+        ] {
+            assert_eq!(check_gpu_resource(ok).unwrap(), ok);
+        }
+        for bad in [
+            "gpu",
+            "nvidia/gpu",
+            "nvidia.com/",
+            "/gpu",
+            "Nvidia.com/gpu",
+            "nvidia.com/gpu/x",
+            "nvidia.com/-gpu",
+            "kubernetes.io/gpu",
+            "nvidia.com/gpu\ncpu: 1",
+            "nvidia.com/gpu: 1",
+        ] {
+            assert!(check_gpu_resource(bad).is_err(), "{bad:?}");
+        }
+        let r = Resources {
+            gpus: 2,
+            gpu_resource: Some("amd.com/gpu".into()),
+            ..Resources::default()
+        };
+        let k = crate::farmlib::yaml::to_string(&r.kube_resources(true).unwrap());
+        assert!(
+            k.contains("amd.com/gpu: \"2\"") && !k.contains("nvidia"),
+            "{k}"
+        );
+        assert!(r.kube_resources(false).is_none());
+    }
+
+    #[test]
+    fn pod_spec_fields_pass_through_as_typed_values() {
+        let args = |v: &[&str]| v.iter().map(|s| s.to_string()).collect::<Vec<_>>();
+        let f = parse_pod_fields(&args(&[
+            r#"priorityClassName="render""#,
+            r#"securityContext={"runAsUser":1000,"runAsNonRoot":true}"#,
+            r#"imagePullSecrets=[{"name":"registry"}]"#,
+        ]))
+        .unwrap();
+        assert_eq!(f[0], ("priorityClassName".into(), Node::str("render")));
+        assert_eq!(
+            f[1].1,
+            Node::map([
+                ("runAsNonRoot", Node::Bool(true)),
+                ("runAsUser", Node::Int(1000))
+            ])
+        );
+        let r = Resources {
+            pod_fields: f,
+            ..Resources::default()
+        };
+        let keys: Vec<String> = r
+            .kube_pod_fields(true)
+            .into_iter()
+            .map(|(k, _)| k)
+            .collect();
+        assert_eq!(
+            keys,
+            ["priorityClassName", "securityContext", "imagePullSecrets"]
+        );
+        for (bad, why) in [
+            ("priorityClassName", "FIELD=JSON"),
+            ("priorityClassName=render", "not JSON"),
+            ("containers=[]", "nsrm writes containers itself"),
+            ("tolerations=[]", "--toleration"),
+            ("activeDeadlineSeconds=5", "--time"),
+            ("Priority=\"x\"", "camelCase"),
+            ("a-b=1", "camelCase"),
+            ("x=null", "null"),
+            ("x=1.5", "whole"),
+            ("x={\"a\":null}", "null"),
+        ] {
+            let e = parse_pod_fields(&args(&[bad])).unwrap_err().to_string();
+            assert!(e.contains(why), "{bad}: {e}");
+        }
+        let twice = parse_pod_fields(&args(&["x=1", "x=2"])).unwrap_err();
+        assert!(twice.to_string().contains("twice"));
+        let huge = format!("x=\"{}\"", "a".repeat(MAX_POD_FIELD_BYTES + 1));
+        assert!(parse_pod_fields(&[huge])
+            .unwrap_err()
+            .to_string()
+            .contains("KiB"));
+        let deep = format!("x={}{}", "[".repeat(10_000), "]".repeat(10_000));
+        assert!(parse_pod_fields(&[deep]).is_err());
     }
 }

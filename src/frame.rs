@@ -2,10 +2,13 @@
 
 /// How a frame's channels are interleaved.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+#[cfg_attr(feature = "clap", derive(clap::ValueEnum))]
 pub enum Layout {
     /// Packed `R G B R G B …` f32.
+    #[cfg_attr(feature = "clap", value(name = "rgb"))]
     Rgb,
     /// Packed `R G B A R G B A …` f32; alpha passes through unchanged.
+    #[cfg_attr(feature = "clap", value(name = "rgba"))]
     Rgba,
 }
 

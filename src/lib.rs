@@ -85,6 +85,9 @@ mod spectral;
 mod training;
 mod training_set;
 
+#[cfg(all(test, feature = "clap"))]
+mod clap_names_tests;
+
 /// The unit tests' kit, shared with the integration tests (public API only; `nsrm` names this
 /// crate in it).
 #[cfg(test)]

@@ -139,11 +139,14 @@ impl ChartError {
 
 /// The kind of chart.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[cfg_attr(feature = "clap", derive(clap::ValueEnum))]
 #[serde(rename_all = "lowercase")]
 pub enum ChartKind {
     /// The ColorChecker Classic (24 patches, 6 × 4).
+    #[cfg_attr(feature = "clap", value(name = "cc24"))]
     Cc24,
     /// The Digital ColorChecker SG (140 patches, 14 × 10).
+    #[cfg_attr(feature = "clap", value(name = "sg"))]
     Sg,
 }
 

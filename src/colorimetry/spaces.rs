@@ -6,14 +6,19 @@ pub type Mat3 = [[f64; 3]; 3];
 
 /// Where corrected pixels are written.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[cfg_attr(feature = "clap", derive(clap::ValueEnum))]
 pub enum OutputSpace {
     /// CIE XYZ as the model produces it (relative to the training illuminant's white).
+    #[cfg_attr(feature = "clap", value(name = "xyz"))]
     Xyz,
     /// Linear sRGB / Rec. 709 primaries, D65 white.
+    #[cfg_attr(feature = "clap", value(name = "linear-srgb"))]
     LinearSrgb,
     /// ACEScg (AP1 primaries, ACES white ≈ D60).
+    #[cfg_attr(feature = "clap", value(name = "acescg"))]
     Acescg,
     /// ACES2065-1 (AP0 primaries, ACES white ≈ D60).
+    #[cfg_attr(feature = "clap", value(name = "aces2065-1"))]
     Aces2065_1,
 }
 

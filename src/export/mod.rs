@@ -106,16 +106,22 @@ impl ExportError {
 
 /// File formats `nsrm export` writes.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[cfg_attr(feature = "clap", derive(clap::ValueEnum))]
 pub enum Format {
     /// Academy/SMPTE Common LUT Format v3 (`.clf`).
+    #[cfg_attr(feature = "clap", value(name = "clf"))]
     Clf,
     /// Resolve/OCIO `.cube` (1D shaper and 3D table).
+    #[cfg_attr(feature = "clap", value(name = "cube"))]
     Cube,
     /// A minimal OpenColorIO v2 config with its CLF beside it.
+    #[cfg_attr(feature = "clap", value(name = "ocio"))]
     Ocio,
-    /// A DNG Camera Profile, written from a model set by [`export_dcp`].
+    /// A DNG Camera Profile (`.dcp`) for raw developers (Lightroom/Camera Raw, RawTherapee).
+    #[cfg_attr(feature = "clap", value(name = "dcp"))]
     Dcp,
-    /// An ICC input profile, written by [`export_icc`].
+    /// An ICC input profile (`.icc`), a LUT-based camera profile.
+    #[cfg_attr(feature = "clap", value(name = "icc"))]
     Icc,
 }
 

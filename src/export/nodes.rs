@@ -9,10 +9,13 @@ use crate::colorimetry::spaces::Mat3;
 
 /// How a 3D LUT is interpolated between lattice points.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[cfg_attr(feature = "clap", derive(clap::ValueEnum))]
 pub enum Interpolation {
     /// Trilinear: CLF's default, and what most .cube readers do unless told otherwise.
+    #[cfg_attr(feature = "clap", value(name = "trilinear", alias = "linear"))]
     Trilinear,
     /// Tetrahedral: the cube is split into six tetrahedra along its main diagonal.
+    #[cfg_attr(feature = "clap", value(name = "tetrahedral"))]
     Tetrahedral,
 }
 

@@ -144,14 +144,18 @@ pub struct GpuOptions {
 
 /// Where to apply a model.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+#[cfg_attr(feature = "clap", derive(clap::ValueEnum))]
 pub enum DeviceChoice {
-    /// A hardware GPU if there is one, else the CPU: a software rasteriser (device type `Cpu`,
-    /// such as Mesa's lavapipe) is slower than the CPU path, so it is used only when named
-    /// (`GpuOptions::adapter` or `NSRM_ADAPTER`).
+    /// A hardware GPU if there is one, else the CPU: a software rasteriser (such as Mesa's
+    /// lavapipe) is slower than the CPU path, so it is used only when named (an adapter name,
+    /// or `NSRM_ADAPTER`).
+    #[cfg_attr(feature = "clap", value(name = "auto"))]
     Auto,
     /// The GPU (any adapter, software ones included), or an error.
+    #[cfg_attr(feature = "clap", value(name = "gpu"))]
     Gpu,
     /// The CPU.
+    #[cfg_attr(feature = "clap", value(name = "cpu"))]
     Cpu,
 }
 

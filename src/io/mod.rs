@@ -369,11 +369,14 @@ pub(crate) fn try_with_capacity<T>(path: &Path, n: usize) -> Result<Vec<T>, IoEr
 
 /// File formats frames are read from and written to.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default)]
+#[cfg_attr(feature = "clap", derive(clap::ValueEnum))]
 pub enum FileFormat {
     /// OpenEXR (`.exr`).
     #[default]
+    #[cfg_attr(feature = "clap", value(name = "exr", alias = "openexr"))]
     Exr,
     /// TIFF (`.tif`, `.tiff`).
+    #[cfg_attr(feature = "clap", value(name = "tiff", alias = "tif"))]
     Tiff,
 }
 
@@ -453,19 +456,26 @@ pub struct ReadOptions {
 
 /// Lossless EXR compressions an output may be written with.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+#[cfg_attr(feature = "clap", derive(clap::ValueEnum))]
 pub enum ExrCompression {
     /// The input's compression when it is lossless (else ZIP); ZIP for TIFF inputs.
     #[default]
+    #[cfg_attr(feature = "clap", value(name = "keep"))]
     Keep,
     /// Uncompressed.
+    #[cfg_attr(feature = "clap", value(name = "none"))]
     None,
     /// Run-length encoded.
+    #[cfg_attr(feature = "clap", value(name = "rle"))]
     Rle,
     /// ZIP, one scanline per block.
+    #[cfg_attr(feature = "clap", value(name = "zips"))]
     Zips,
     /// ZIP, 16 scanlines per block.
+    #[cfg_attr(feature = "clap", value(name = "zip"))]
     Zip,
     /// PIZ (wavelet and Huffman; 32 scanlines per block), the usual choice for noisy plates.
+    #[cfg_attr(feature = "clap", value(name = "piz"))]
     Piz,
 }
 

@@ -131,11 +131,14 @@ impl Ridge {
 
 /// How NSRM's input is normalised before forming `s, r, g`.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+#[cfg_attr(feature = "clap", derive(clap::ValueEnum))]
 pub enum Normalise {
     /// Raw camera RGB (the paper).
     #[default]
+    #[cfg_attr(feature = "clap", value(name = "raw"))]
     Raw,
     /// R, G, B divided by the training white's camera response (the white becomes (1, 1, 1)).
+    #[cfg_attr(feature = "clap", value(name = "white-balanced", alias = "wb"))]
     WhiteBalanced,
 }
 

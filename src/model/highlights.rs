@@ -181,10 +181,13 @@ fn check_clip(clip: [f64; 3]) -> Result<(), ModelError> {
 
 /// How clipped highlights are handled (`--highlights`).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[cfg_attr(feature = "clap", derive(clap::ValueEnum))]
 pub enum HighlightMode {
-    /// To the brightest plausible neutral, blended in below the clip ([`Highlights`]).
+    /// Clipped pixels to the brightest plausible neutral (white), blended in just below the clip.
+    #[cfg_attr(feature = "clap", value(name = "clip"))]
     Clip,
     /// The raw mapping, whatever colour it gives.
+    #[cfg_attr(feature = "clap", value(name = "keep"))]
     Keep,
 }
 

@@ -172,14 +172,19 @@ impl ModelError {
 
 /// The model families of the paper.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord)]
+#[cfg_attr(feature = "clap", derive(clap::ValueEnum))]
 pub enum Kind {
     /// Linear regression, `p = (R, G, B)`.
+    #[cfg_attr(feature = "clap", value(name = "lrm"))]
     Lrm,
     /// Polynomial regression.
+    #[cfg_attr(feature = "clap", value(name = "prm"))]
     Prm,
     /// Root-polynomial regression (Finlayson, Mackiewicz & Hurlbert 2015).
+    #[cfg_attr(feature = "clap", value(name = "rprm"))]
     Rprm,
     /// Normalised-signal polynomial regression.
+    #[cfg_attr(feature = "clap", value(name = "nsrm"))]
     Nsrm,
 }
 

@@ -35,94 +35,91 @@ pub(crate) struct Args {
     device: values::DeviceArg,
     /// GPU adapter: a substring of its name (case-insensitive); default `NSRM_ADAPTER`, else the
     /// system's choice.
-    #[arg(long, value_name = "NAME")]
+    #[arg(help_heading = "Run", long, value_name = "NAME")]
     adapter: Option<String>,
     /// Output directory (created if missing); default: beside each input.
     #[arg(short = 'o', long = "output", alias = "output-dir", value_name = "DIR")]
     output_dir: Option<PathBuf>,
     /// Appended to each output's name (before a trailing frame number: plate.0101.exr →
     /// plate_xyz.0101.exr). Default: `_` and the output space (`_xyz`, `_acescg`, …).
-    #[arg(long, value_name = "S")]
+    #[arg(help_heading = "Outputs", long, value_name = "S")]
     suffix: Option<String>,
     /// Output file format: `exr` (float, or half with --half; keeps every channel and
     /// attribute of an EXR input) or `tiff` (32-bit float RGB/RGBA).
-    #[arg(long, value_enum, ignore_case = true, default_value_t = values::FileFormat::Exr)]
-    format: values::FileFormat,
-    /// Replace existing outputs (never inputs).
-    #[arg(long, conflicts_with = "skip_existing")]
-    overwrite: bool,
+    #[arg(help_heading = "Outputs", long, value_enum, ignore_case = true, default_value_t = nsrm::io::FileFormat::Exr)]
+    format: nsrm::io::FileFormat,
+    #[command(flatten)]
+    overwrite: super::values::OverwriteArg,
     /// Skip inputs whose output already exists (for re-running a partly done batch).
-    #[arg(long)]
+    #[arg(help_heading = "Outputs", long, conflicts_with = "overwrite")]
     skip_existing: bool,
     /// Go on after a file fails (the run still exits with status 1); default: stop at the first.
-    #[arg(long)]
+    #[arg(help_heading = "Run", long)]
     continue_on_error: bool,
     /// Decode and encode workers (each holds a frame in memory); default: the number of CPUs.
-    #[arg(short = 'j', long, value_name = "N")]
+    #[arg(help_heading = "Run", short = 'j', long, value_name = "N")]
     jobs: Option<usize>,
     /// Convert only the K-th of N slices of the sorted input list (K from 1: files i with
     /// i % N == K-1). With Slurm `--array=1-N`: `--shard $SLURM_ARRAY_TASK_ID/N`.
-    #[arg(long, value_name = "K/N")]
+    #[arg(help_heading = "Run", long, value_name = "K/N")]
     shard: Option<String>,
     /// EXR layer holding the camera RGB: channels NAME.R, NAME.G, NAME.B (or a part NAME).
-    #[arg(long, value_name = "NAME")]
+    #[arg(help_heading = "Inputs", long, value_name = "NAME")]
     layer: Option<String>,
     /// Write the corrected R, G, B as half floats (EXR only).
-    #[arg(long)]
+    #[arg(help_heading = "Outputs", long)]
     half: bool,
     /// EXR compression: `keep` (the input's if lossless, else zip), none, rle, zips, zip, piz.
     /// Noisy float data compresses little; `none` or `piz` encode fastest.
-    #[arg(long, value_enum, ignore_case = true, default_value_t = values::Compression::Keep)]
-    compression: values::Compression,
+    #[arg(help_heading = "Outputs", long, value_enum, ignore_case = true, default_value_t = nsrm::io::ExrCompression::Keep)]
+    compression: nsrm::io::ExrCompression,
     /// Deflate level (libdeflate's, 0-12) of ZIP and ZIPS outputs. The default, 1, is the
     /// fastest, and compresses noisy float data about as much as the higher levels do; 0
     /// stores the chunks raw.
-    #[arg(long, default_value_t = fio::DEFAULT_ZIP_LEVEL, value_name = "N",
+    #[arg(help_heading = "Outputs", long, default_value_t = fio::DEFAULT_ZIP_LEVEL, value_name = "N",
           value_parser = clap::value_parser!(u8).range(0..=fio::MAX_ZIP_LEVEL as i64))]
     zip_level: u8,
-    /// xyz, linear-srgb, acescg or aces2065-1. Pixels are scene-linear with the perfect white
-    /// at Y = 1 (RGB spaces: white = 1, 1, 1 after Bradford adaptation from the training white).
-    #[arg(long, value_enum, ignore_case = true, default_value_t = values::Space::Xyz)]
-    output_space: values::Space,
+    #[command(flatten)]
+    output_space: super::values::OutputSpaceArg,
     /// The frames' white, for a two-illuminant model (or to white-balance a single one): a
     /// temperature in kelvin (Planckian below 4000 K, CIE daylight from 4000 K), x,y, or
     /// as-shot (each raw file's own as-shot neutral, its temperature by the DNG's fixed-point
     /// iteration; a frame without one fails) or as-shot:R,G,B (a neutral given). The output is
     /// that white's XYZ, adapted as --output-space says.
-    #[arg(long, value_name = "CCT|x,y|as-shot|as-shot:R,G,B")]
+    #[arg(help_heading = "Colour", long, value_name = "WHITE")]
     white: Option<String>,
     /// Also write an 8-bit sRGB PNG of each frame here, for a quick look.
-    #[arg(long, value_name = "DIR")]
+    #[arg(help_heading = "Outputs", long, value_name = "DIR")]
     preview: Option<PathBuf>,
     /// Print where the time went (decode, correct, encode; frames/s, Mpixel/s).
-    #[arg(long)]
+    #[arg(help_heading = "Run", long)]
     timing: bool,
     /// Print each input and its output, convert nothing.
-    #[arg(long)]
+    #[arg(help_heading = "Run", long)]
     dry_run: bool,
     /// Most pixels a frame may have (width × height); a file whose header claims more is refused
     /// before anything is allocated. Default 268435456 (16384 × 16384).
-    #[arg(long, value_name = "N", default_value_t = nsrm::io::DEFAULT_MAX_PIXELS)]
+    #[arg(help_heading = "Inputs", long, value_name = "N", default_value_t = nsrm::io::DEFAULT_MAX_PIXELS)]
     max_pixels: u64,
     /// How camera raw inputs are demosaiced: mhc (Malvar-He-Cutler, full resolution), bilinear
     /// (LibRaw's), or half (one pixel per 2×2 CFA block: half width and height).
-    #[arg(long, value_enum, ignore_case = true, default_value_t = values::Demosaic::Mhc)]
-    demosaic: values::Demosaic,
+    #[arg(help_heading = "Inputs", long, value_enum, ignore_case = true, default_value_t = nsrm::io::Demosaic::Mhc)]
+    demosaic: nsrm::io::Demosaic,
     /// Clipped highlights: clip (pixels at the sensor's clip level go to the corrected white of
     /// the brightest grey it records, blended in from 0.9 of the level, as RawTherapee and
     /// darktable do) or keep (the raw mapping: a blown window can turn cyan). Default: clip
     /// where the clip level is known (camera raw inputs: their white level; any input with
     /// --clip-level), else keep.
-    #[arg(long, value_enum, ignore_case = true)]
-    highlights: Option<values::Highlights>,
+    #[arg(help_heading = "Colour", long, value_enum, ignore_case = true)]
+    highlights: Option<nsrm::HighlightMode>,
     /// The level camera RGB clips at, every channel (for EXR, TIFF and JPEG inputs, which
     /// record none; given, it replaces a raw file's own white level).
-    #[arg(long, value_name = "V")]
+    #[arg(help_heading = "Colour", long, value_name = "V")]
     clip_level: Option<f64>,
     /// Remove the nsrm temporary files (`.NAME.nsrm-PID-RANDOM.tmp`) found in the output
     /// directories, left by a run that was killed; without it they are only reported. Make sure
     /// no other nsrm is writing there.
-    #[arg(long)]
+    #[arg(help_heading = "Run", long)]
     remove_stale_temporaries: bool,
     /// Files (camera raw: DNG, CR2, CR3, NEF, ARW, …; linear EXR or TIFF), directories (their
     /// .exr/.tif/.tiff files) or glob patterns ('shots/*.exr').
@@ -373,13 +370,13 @@ struct Request {
 }
 
 fn parse_request(a: &Args) -> Result<Request> {
-    let space = OutputSpace::from(a.output_space);
-    let format = FileFormat::from(a.format);
-    let compression = ExrCompression::from(a.compression);
+    let space = a.output_space.output_space;
+    let format = a.format;
+    let compression = a.compression;
     if a.half && format != FileFormat::Exr {
         return Err(UsageError("--half applies to EXR output only".into()).into());
     }
-    let device = DeviceChoice::from(a.device.device);
+    let device = a.device.device;
     if a.jobs == Some(0) {
         return Err(UsageError("--jobs must be at least 1".into()).into());
     }
@@ -403,7 +400,7 @@ fn parse_request(a: &Args) -> Result<Request> {
         .clone()
         .unwrap_or_else(|| format!("_{}", space.name()));
     batch::validate_suffix(&suffix).context("--suffix")?;
-    let existing = if a.overwrite {
+    let existing = if a.overwrite.overwrite {
         Existing::Overwrite
     } else if a.skip_existing {
         Existing::Skip
@@ -548,7 +545,7 @@ pub(crate) fn run(a: Args) -> Result<ExitCode> {
 /// with it (in XYZ).
 fn frame_highlights(a: &Args, model: &Model, parts: &[Model]) -> FrameHighlights {
     let all: Vec<&Model> = std::iter::once(model).chain(parts).collect();
-    FrameHighlights::new(a.highlights.map(Into::into), a.clip_level, &all)
+    FrameHighlights::new(a.highlights, a.clip_level, &all)
 }
 
 /// Without a terminal, says the device opened, so that a log's reader (a farm task's) sees it
@@ -627,7 +624,7 @@ fn dry_run_lines(plan: &BatchPlan) -> Vec<String> {
 /// The run's output session: the plan compared the outputs with the frames; the session adds
 /// the model and declares every output and preview to be written.
 fn open_session(a: &Args, plan: &BatchPlan) -> Result<Session> {
-    let mut session = Session::new(a.overwrite);
+    let mut session = Session::new(a.overwrite.overwrite);
     session.input(&a.model)?;
     for j in plan
         .jobs
@@ -661,7 +658,7 @@ fn read_options(a: &Args) -> ReadOptions {
         limits: Limits {
             max_pixels: a.max_pixels,
         },
-        demosaic: a.demosaic.into(),
+        demosaic: a.demosaic,
     }
 }
 
@@ -1189,7 +1186,7 @@ impl Args {
             preview: &mut self.preview,
             inputs: &mut self.inputs,
             continue_on_error: &mut self.continue_on_error,
-            overwrite: self.overwrite,
+            overwrite: self.overwrite.overwrite,
             policy_flag,
         }
     }
@@ -1212,7 +1209,7 @@ impl Args {
             "--zip-level".into(),
             self.zip_level.to_string(),
             "--output-space".into(),
-            name(self.output_space),
+            name(self.output_space.output_space),
             "--max-pixels".into(),
             self.max_pixels.to_string(),
         ];
@@ -1265,7 +1262,7 @@ impl Args {
             limits: Limits {
                 max_pixels: self.max_pixels,
             },
-            demosaic: self.demosaic.into(),
+            demosaic: self.demosaic,
         }
     }
 }

@@ -158,7 +158,7 @@ fn plan(a: &Args) -> Result<Plan> {
     Ok(Plan {
         width,
         height,
-        layout: Layout::from(a.layout.layout),
+        layout: a.layout.layout,
         kinds,
         order: a.order,
         reps: a.reps,

@@ -8,7 +8,6 @@ use super::calibrate_report::{self as report, Report};
 use super::capture::{CaptureOptions, CaptureText};
 use super::common::UsageError;
 use super::fit_args::FitVariantArgs;
-use super::values;
 use anyhow::{Context, Result};
 use nsrm::chart::capture::Capture;
 use nsrm::Kind;
@@ -34,7 +33,7 @@ pub(crate) struct Args {
     /// The model kind to fit (lrm, prm, rprm, nsrm); without it the kind and order with the
     /// smallest leave-one-out mean ΔE00 among --candidates is chosen, and the choice is printed.
     #[arg(long, value_enum, ignore_case = true)]
-    kind: Option<values::ModelKind>,
+    kind: Option<nsrm::Kind>,
     /// The polynomial order of --kind, 1..4 (default 2; LRM is always 1).
     #[arg(long, value_name = "N", requires = "kind")]
     order: Option<u8>,
@@ -55,7 +54,7 @@ pub(crate) struct Args {
         value_delimiter = ',',
         value_name = "LIST"
     )]
-    export: Vec<values::ExportFormat>,
+    export: Vec<nsrm::export::Format>,
     /// Subtract the veiling glare measured on the neutral ramp (a uniform camera-RGB term: the
     /// ramp's positive intercepts) from every patch before the fit. Off by default; the report
     /// measures the glare either way.
@@ -63,9 +62,8 @@ pub(crate) struct Args {
     glare_compensation: bool,
     #[command(flatten)]
     fit: FitVariantArgs,
-    /// Replace existing files in DIR.
-    #[arg(long)]
-    overwrite: bool,
+    #[command(flatten)]
+    overwrite: super::values::OverwriteArg,
 }
 
 /// The files written into DIR (the exports aside).
@@ -140,9 +138,9 @@ pub(crate) fn run(mut a: Args) -> Result<ExitCode> {
     let candidates = parse_candidates(&a.candidates)?;
     let opts = a.fit.options()?;
     if a.chart.chart.is_none() {
-        a.chart.chart = Some(values::Chart::Cc24);
+        a.chart.chart = Some(nsrm::chart::ChartKind::Cc24);
     }
-    let formats: Vec<nsrm::export::Format> = a.export.iter().map(|&f| f.into()).collect();
+    let formats: Vec<nsrm::export::Format> = a.export.clone();
     std::fs::create_dir_all(&a.output)
         .with_context(|| format!("creating the folder {}", a.output.display()))?;
     let dir = a.output.clone();
@@ -159,7 +157,7 @@ pub(crate) fn run(mut a: Args) -> Result<ExitCode> {
     let mut inputs: Vec<&Path> = vec![a.shot.as_path()];
     inputs.extend(a.chart.input_files());
     let out_refs: Vec<&Path> = outputs.iter().map(PathBuf::as_path).collect();
-    let session = super::outputs::open(a.overwrite, &inputs, &out_refs)?;
+    let session = super::outputs::open(a.overwrite.overwrite, &inputs, &out_refs)?;
     let mut cap = a
         .chart
         .read(&a.shot, Some((&dir.join(OVERLAY), &session)))?;
@@ -243,7 +241,7 @@ fn choose(
     opts: &FitOptions,
 ) -> Result<(Kind, u8, Vec<Candidate>)> {
     if let Some(k) = a.kind {
-        let kind = Kind::from(k);
+        let kind = k;
         let order = kind.effective_order(a.order.unwrap_or(2));
         return Ok((kind, order, Vec::new()));
     }

@@ -3,7 +3,6 @@
 //! compensation and the check against the reference.
 
 use super::common::UsageError;
-use super::values;
 use anyhow::{Context, Result};
 use nsrm::chart::capture::{CaptureError, CaptureFrame, FlatField, ReadingOptions};
 use nsrm::chart::detect::Candidate;
@@ -20,48 +19,68 @@ use std::sync::Arc;
 #[derive(Debug, Clone, clap::Args)]
 pub(crate) struct CaptureOptions {
     /// The chart photographed: cc24 (ColorChecker Classic) or sg (Digital ColorChecker SG).
-    #[arg(long, value_enum, ignore_case = true)]
-    pub(crate) chart: Option<values::Chart>,
+    #[arg(
+        help_heading = "Chart in a photograph",
+        long,
+        value_enum,
+        ignore_case = true
+    )]
+    pub(crate) chart: Option<nsrm::chart::ChartKind>,
     /// Reference values: cc24-after2014 (default for cc24), cc24-before2014, sg-after2014
     /// (default for sg), sg-before2014, or a file: CSV `label` + `X,Y,Z` or `L,a,b`, or CGATS
     /// (.cie/.txt: SAMPLE_ID + XYZ_X/Y/Z or LAB_L/A/B).
-    #[arg(long, value_name = "NAME|FILE")]
+    #[arg(help_heading = "Chart in a photograph", long, value_name = "NAME|FILE")]
     pub(crate) reference: Option<String>,
     /// White of a reference file's values, in the forms `--white` takes: `X,Y,Z`, `x,y`, D50 or
     /// an illuminant name (needed for a Lab file; XYZ files default to D50, as chart makers'
     /// tables are). Not `--white`: that names the white of a `--training` file, and a Lab
     /// reference's white is given here even when both are used. Built-in references ignore it.
-    #[arg(long, value_name = "X,Y,Z|x,y|D50|ILLUMINANT")]
+    #[arg(help_heading = "Chart in a photograph", long, value_name = "WHITE")]
     pub(crate) reference_white: Option<String>,
     /// The four outer corners of the patch grid in pixels, first patch's corner first, then
     /// clockwise: "X,Y X,Y X,Y X,Y". Without it the chart is found automatically.
-    #[arg(long, value_name = "\"X,Y X,Y X,Y X,Y\"", allow_hyphen_values = true)]
+    #[arg(
+        help_heading = "Chart in a photograph",
+        long,
+        value_name = "CORNERS",
+        allow_hyphen_values = true
+    )]
     pub(crate) corners: Option<String>,
     /// EXR layer holding the camera RGB (as in `apply`).
-    #[arg(long, value_name = "NAME")]
+    #[arg(help_heading = "Chart in a photograph", long, value_name = "NAME")]
     pub(crate) layer: Option<String>,
     /// Sensor clipping level (default: inferred from the frame).
-    #[arg(long, value_name = "V")]
+    #[arg(help_heading = "Chart in a photograph", long, value_name = "V")]
     pub(crate) white_level: Option<f64>,
     /// Uneven-light compensation: a flat frame (grey card under the same light), or `neutrals`
     /// (a smooth surface fitted to the chart's neutral patches).
-    #[arg(long, value_name = "FRAME|neutrals")]
+    #[arg(
+        help_heading = "Chart in a photograph",
+        long,
+        value_name = "FRAME|neutrals"
+    )]
     pub(crate) flat: Option<String>,
     /// How the frame's values are encoded: auto (sRGB for JPEG, PNG and 8-bit TIFF; linear for
     /// EXR, 16-bit and float TIFF, raw), linear, or srgb (decoded with the sRGB transfer
     /// function). Display-referred frames still carry the camera's tone curve: a model fitted
     /// from one is marked so and warned about.
-    #[arg(long, value_enum, ignore_case = true, default_value = "auto")]
+    #[arg(
+        help_heading = "Chart in a photograph",
+        long,
+        value_enum,
+        ignore_case = true,
+        default_value = "auto"
+    )]
     pub(crate) encoding: EncodingArg,
     /// Most pixels the frame (and the flat frame) may have, as in `apply`.
-    #[arg(long, value_name = "N", default_value_t = nsrm::io::DEFAULT_MAX_PIXELS,
+    #[arg(help_heading = "Chart in a photograph", long, value_name = "N", default_value_t = nsrm::io::DEFAULT_MAX_PIXELS,
           value_parser = clap::value_parser!(u64).range(1..))]
     pub(crate) max_pixels: u64,
     /// How a camera raw frame (and flat frame) is demosaiced: half (one pixel per 2×2 CFA block,
     /// no interpolation: the chart reading of profiling tools), bilinear (LibRaw's), or mhc
     /// (Malvar-He-Cutler).
-    #[arg(long, value_enum, ignore_case = true, default_value_t = values::Demosaic::Half)]
-    pub(crate) demosaic: values::Demosaic,
+    #[arg(help_heading = "Chart in a photograph", long, value_enum, ignore_case = true, default_value_t = nsrm::io::Demosaic::Half)]
+    pub(crate) demosaic: nsrm::io::Demosaic,
 }
 
 /// `--encoding`.
@@ -91,7 +110,7 @@ impl CaptureOptions {
         let c = self
             .chart
             .ok_or_else(|| UsageError("--chart cc24|sg is required".into()))?;
-        Ok(ChartKind::from(c))
+        Ok(c)
     }
 
     /// True when any capture option is given.
@@ -142,7 +161,7 @@ impl CaptureOptions {
             &nsrm::io::ReadOptions {
                 layer: self.layer.clone(),
                 limits: self.limits(),
-                demosaic: self.demosaic.into(),
+                demosaic: self.demosaic,
             },
             self.encoding.into(),
         )?))
@@ -165,7 +184,7 @@ impl CaptureOptions {
                     Path::new(f),
                     &nsrm::io::ReadOptions {
                         limits: self.limits(),
-                        demosaic: self.demosaic.into(),
+                        demosaic: self.demosaic,
                         ..Default::default()
                     },
                     self.encoding.into(),

@@ -3,7 +3,6 @@
 
 use super::capture::{write_overlay, CaptureOptions, CaptureText};
 use super::common::UsageError;
-use super::values;
 use anyhow::{Context, Result};
 use nsrm::chart::detect::{detect, DetectFailure, DetectOptions, Detection};
 use nsrm::chart::extract::{extract, ExtractOptions, Extraction, PatchReading};
@@ -34,7 +33,7 @@ pub(crate) struct TimeArgs {
     frames: Vec<PathBuf>,
     /// cc24 or sg.
     #[arg(long, value_enum, ignore_case = true)]
-    chart: values::Chart,
+    chart: nsrm::chart::ChartKind,
     /// How the frames' values are encoded (as in `chart extract`).
     #[arg(long, value_enum, ignore_case = true, default_value = "auto")]
     encoding: super::capture::EncodingArg,
@@ -65,16 +64,15 @@ pub(crate) struct ExtractArgs {
     /// preview of the frame.
     #[arg(long, value_name = "FILE.png")]
     overlay: Option<PathBuf>,
-    /// Replace existing output files.
-    #[arg(long)]
-    overwrite: bool,
+    #[command(flatten)]
+    overwrite: super::values::OverwriteArg,
 }
 
 #[derive(Debug, clap::Args)]
 pub(crate) struct RateArgs {
     /// The chart: cc24 or sg.
     #[arg(long, value_enum, ignore_case = true)]
-    chart: values::Chart,
+    chart: nsrm::chart::ChartKind,
     /// Spectra of the chart (SG: e.g. ../shared/data/colorchecker_sg_140.csv).
     #[arg(long, value_name = "FILE")]
     reflectances: Option<String>,
@@ -160,7 +158,7 @@ pub(crate) fn run(c: Command) -> Result<ExitCode> {
 }
 
 fn run_time(a: TimeArgs) -> Result<ExitCode> {
-    let kind = ChartKind::from(a.chart);
+    let kind = a.chart;
     let reference = Reference::load(kind.default_reference(), kind, None)?;
     let opts = nsrm::io::ReadOptions {
         limits: nsrm::io::Limits {
@@ -236,7 +234,7 @@ fn run_extract(a: ExtractArgs) -> Result<ExitCode> {
         .chain(&a.overlay)
         .map(PathBuf::as_path)
         .collect();
-    let session = super::outputs::open(a.overwrite, &inputs, &outputs)?;
+    let session = super::outputs::open(a.overwrite.overwrite, &inputs, &outputs)?;
     let cap = a
         .capture
         .read(&a.frame, a.overlay.as_deref().map(|p| (p, &session)))?;
@@ -275,7 +273,7 @@ fn run_extract(a: ExtractArgs) -> Result<ExitCode> {
 /// with the asked ranges ([`rate_options`]), rendered, detected and read (timed), and judged
 /// against its truth ([`judge_negative`], [`judge_positive`]); last the tally.
 fn run_rate(a: RateArgs) -> Result<ExitCode> {
-    let kind = ChartKind::from(a.chart);
+    let kind = a.chart;
     check_rate_args(&a)?;
     let colours =
         ChartColours::simulate(kind, &a.camera, &a.illuminant, a.reflectances.as_deref())?;

@@ -17,9 +17,8 @@ pub(crate) struct Args {
     /// The two-illuminant model file to write.
     #[arg(short, long, value_name = "FILE")]
     output: PathBuf,
-    /// Replace an existing output file.
-    #[arg(long)]
-    overwrite: bool,
+    #[command(flatten)]
+    overwrite: super::values::OverwriteArg,
 }
 
 pub(crate) fn run(a: Args) -> Result<ExitCode> {
@@ -36,7 +35,7 @@ pub(crate) fn run(a: Args) -> Result<ExitCode> {
         }
     }
     let inputs: Vec<&std::path::Path> = a.models.iter().map(|p| p.as_path()).collect();
-    let session = super::outputs::open(a.overwrite, &inputs, &[a.output.as_path()])?;
+    let session = super::outputs::open(a.overwrite.overwrite, &inputs, &[a.output.as_path()])?;
     let first = Model::load(&a.models[0]).with_context(|| a.models[0].display().to_string())?;
     let second = Model::load(&a.models[1]).with_context(|| a.models[1].display().to_string())?;
     same_camera(&a.models, [&first, &second])?;

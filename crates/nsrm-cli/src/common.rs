@@ -17,23 +17,43 @@ pub(crate) struct UsageError(pub String);
 #[derive(Debug, Clone, ClapArgs)]
 pub(crate) struct TrainingArgs {
     /// Camera sensitivities: a built-in name (nikon-d5100) or a CSV file (wavelength, R, G, B).
-    #[arg(long, default_value = "nikon-d5100", value_name = "NAME|FILE")]
+    #[arg(
+        help_heading = "Training data",
+        long,
+        default_value = "nikon-d5100",
+        value_name = "NAME|FILE"
+    )]
     pub(crate) camera: String,
     /// Reflectances, one column per patch: a built-in name (rawtoaces-190, cc24) or a CSV file,
     /// e.g. a ColorChecker SG (columns A1..N10).
-    #[arg(long, default_value = "rawtoaces-190", value_name = "NAME|FILE")]
+    #[arg(
+        help_heading = "Training data",
+        long,
+        default_value = "rawtoaces-190",
+        value_name = "NAME|FILE"
+    )]
     pub(crate) reflectances: String,
     /// Which patches to use: `all`, a list of labels (A1,C3,…), or a rectangle of chart labels
     /// such as B2:M9 (columns B..M × rows 2..9: the SG's inner 96).
-    #[arg(long, default_value = "all", value_name = "SPEC")]
+    #[arg(
+        help_heading = "Training data",
+        long,
+        default_value = "all",
+        value_name = "SPEC"
+    )]
     pub(crate) patches: String,
     /// Wavelength grid for the Riemann sums, START:END:STEP in nm.
-    #[arg(long, default_value = "400:700:10", value_name = "START:END:STEP")]
+    #[arg(
+        help_heading = "Training data",
+        long,
+        default_value = "400:700:10",
+        value_name = "START:END:STEP"
+    )]
     pub(crate) grid: String,
     /// Measured patches instead of spectra: a CSV `label,R,G,B,X,Y,Z` or `label,R,G,B,L,a,b`,
     /// with a `# white: X,Y,Z` line before the header naming the white the values are relative
     /// to (`chart extract` writes it), or else `--white`.
-    #[arg(long, value_name = "FILE", conflicts_with_all = ["camera", "reflectances", "grid"])]
+    #[arg(help_heading = "Training data", long, value_name = "FILE", conflicts_with_all = ["camera", "reflectances", "grid"])]
     pub(crate) training: Option<PathBuf>,
     #[command(flatten)]
     pub(crate) white: WhiteArg,
@@ -45,7 +65,7 @@ pub(crate) struct WhiteArg {
     /// The white of a `--training` file's X,Y,Z or L,a,b, when the file has no `# white:` line
     /// (if it has one, they must agree): `X,Y,Z`, a chromaticity `x,y` (at Y = 100), `D50`, or
     /// an illuminant name or file (its perfect white, Y = 100). There is no default.
-    #[arg(long, value_name = "X,Y,Z|x,y|D50|ILLUMINANT", requires = "training")]
+    #[arg(long, value_name = "WHITE", requires = "training")]
     pub(crate) white: Option<String>,
 }
 

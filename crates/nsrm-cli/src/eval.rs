@@ -14,8 +14,6 @@ use std::process::ExitCode;
 
 #[derive(Debug, clap::Args)]
 pub(crate) struct Args {
-    #[command(flatten)]
-    training: TrainingArgs,
     /// Illuminant: a built-in name (D65, FL3.15, FL7, TL865, LED-B5, LED-YAG) or a CSV file.
     /// Repeatable; default D65, TL865 and LED-B5 (the paper's).
     #[arg(
@@ -47,9 +45,10 @@ pub(crate) struct Args {
     /// Draw ΔE00 histograms per model, one panel per illuminant (the paper's Fig. 1): .png or .svg.
     #[arg(long, value_name = "FILE")]
     plot: Option<PathBuf>,
-    /// Replace an existing plot file.
-    #[arg(long)]
-    overwrite: bool,
+    #[command(flatten)]
+    overwrite: super::values::OverwriteArg,
+    #[command(flatten)]
+    training: TrainingArgs,
     /// Evaluate on the chart photographed in this frame (camera raw: DNG, CR2, CR3, NEF, ARW, …;
     /// linear EXR or TIFF; or a display-referred JPEG, PNG or 8-bit TIFF): see `nsrm chart
     /// extract` for the chart options.
@@ -118,7 +117,7 @@ fn open_session(a: &Args) -> Result<nsrm::output::Session> {
     }
     inputs.extend(a.training.input_files("D65"));
     let outputs: Vec<&Path> = a.plot.iter().map(PathBuf::as_path).collect();
-    super::outputs::open(a.overwrite, &inputs, &outputs)
+    super::outputs::open(a.overwrite.overwrite, &inputs, &outputs)
 }
 
 pub(crate) fn run(a: Args) -> Result<ExitCode> {

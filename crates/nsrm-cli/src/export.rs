@@ -2,12 +2,9 @@
 //! the file's measured approximation error against the exact model.
 
 use super::common::UsageError;
-use super::values;
 use anyhow::{Context, Result};
-use nsrm::export::nodes::Interpolation;
 use nsrm::export::{export_to, ExportError, Format, LutOptions};
 use nsrm::Model;
-use nsrm::OutputSpace;
 use nsrm::TrainingSet;
 use std::path::PathBuf;
 use std::process::ExitCode;
@@ -22,11 +19,9 @@ pub(crate) struct Args {
     /// camera profile for Lightroom/ACR and RawTherapee; one or two illuminants) or icc (an ICC v2
     /// input profile: camera RGB → PCS XYZ D50; matrix/TRC for LRM, shaper + CLUT otherwise).
     #[arg(long, value_enum, ignore_case = true)]
-    format: values::ExportFormat,
-    /// Output space, folded in exactly as `nsrm apply --output-space` does (training white at
-    /// Y = 1): xyz (D65-referred), linear-srgb, acescg or aces2065-1. For OCIO: the scene reference.
-    #[arg(long, value_enum, ignore_case = true, default_value_t = values::Space::Xyz)]
-    output_space: values::Space,
+    format: nsrm::export::Format,
+    #[command(flatten)]
+    output_space: super::values::OutputSpaceArg,
     /// Lattice points per axis of the 3D LUT (PRM, RPRM, NSRM; and every .cube; the ICC CLUT), 2..129.
     #[arg(long, default_value_t = 65, value_name = "N")]
     lut_size: usize,
@@ -35,8 +30,8 @@ pub(crate) struct Args {
     shaper_size: usize,
     /// The 3D LUT interpolation, declared in the CLF and measured: tetrahedral (OpenColorIO's
     /// best; what `ocioconvert --lut` uses for .cube) or trilinear (Resolve's default for .cube).
-    #[arg(long, value_enum, ignore_case = true, default_value_t = values::Interpolation::Tetrahedral)]
-    interpolation: values::Interpolation,
+    #[arg(long, value_enum, ignore_case = true, default_value_t = nsrm::export::nodes::Interpolation::Tetrahedral)]
+    interpolation: nsrm::export::nodes::Interpolation,
     /// The LUT's accurate range, log2 of camera units (training white G = 1): LO:HI (default
     /// -6:4). icc: log2 of device units, where the model's white has its largest channel at 1 and
     /// an ICC CLUT has no headroom above it: LO:0 (default -6:0).
@@ -58,9 +53,8 @@ pub(crate) struct Args {
     /// Where to write the file (for ocio: the config).
     #[arg(short, long, value_name = "FILE")]
     output: PathBuf,
-    /// Replace existing output files.
-    #[arg(long)]
-    overwrite: bool,
+    #[command(flatten)]
+    overwrite: super::values::OverwriteArg,
 }
 
 /// Max ΔE00 of an export above which it is flagged as poor (a visible departure from the model).
@@ -146,7 +140,7 @@ fn run_dcp(a: &Args, stops: [f64; 2]) -> Result<ExitCode> {
     let opts = parse_map(&a.dcp_map)?;
     let mut inputs = vec![a.model.as_path()];
     inputs.extend(a.training.as_deref());
-    let session = super::outputs::open(a.overwrite, &inputs, &[a.output.as_path()])?;
+    let session = super::outputs::open(a.overwrite.overwrite, &inputs, &[a.output.as_path()])?;
     let profile = Profile::load(&a.model)?;
     if a.training.is_some() && profile.is_dual() {
         return Err(UsageError(
@@ -238,7 +232,7 @@ fn run_icc(a: &Args) -> Result<ExitCode> {
     }
     let mut inputs = vec![a.model.as_path()];
     inputs.extend(a.training.as_deref());
-    let session = super::outputs::open(a.overwrite, &inputs, &[a.output.as_path()])?;
+    let session = super::outputs::open(a.overwrite.overwrite, &inputs, &[a.output.as_path()])?;
     let model = Model::load(&a.model)?;
     let data = training_set(a, &model)?;
     let mut unit = session.unit();
@@ -286,7 +280,7 @@ fn run_icc(a: &Args) -> Result<ExitCode> {
 }
 
 pub(crate) fn run(a: Args) -> Result<ExitCode> {
-    let format = Format::from(a.format);
+    let format = a.format;
     if format == Format::Icc {
         return run_icc(&a);
     }
@@ -301,12 +295,12 @@ pub(crate) fn run(a: Args) -> Result<ExitCode> {
         }
         return run_dcp(&a, stops);
     }
-    let space = OutputSpace::from(a.output_space);
+    let space = a.output_space.output_space;
     let options = LutOptions {
         size: a.lut_size,
         stops: stops_or(&a, [-6.0, 4.0])?,
         shaper_size: a.shaper_size,
-        interpolation: Interpolation::from(a.interpolation),
+        interpolation: a.interpolation,
     };
     if let Err(e) = options.check() {
         return Err(UsageError(format!("--lut-size/--shaper-size/--stops: {e}")).into());
@@ -323,7 +317,7 @@ pub(crate) fn run(a: Args) -> Result<ExitCode> {
     inputs.extend(a.training.as_deref());
     let mut outputs = vec![a.output.as_path()];
     outputs.extend(companion.as_deref());
-    let session = super::outputs::open(a.overwrite, &inputs, &outputs)?;
+    let session = super::outputs::open(a.overwrite.overwrite, &inputs, &outputs)?;
     let model = Model::load(&a.model)?;
     let data = training_set(&a, &model)?;
     let mut unit = session.unit();

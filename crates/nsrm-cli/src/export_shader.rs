@@ -4,8 +4,8 @@
 use super::values;
 use anyhow::{Context, Result};
 use nsrm::export::shader::export;
+use nsrm::Model;
 use nsrm::OutputSpace;
-use nsrm::{Layout, Model};
 
 use std::path::PathBuf;
 use std::process::ExitCode;
@@ -19,23 +19,20 @@ pub(crate) struct Args {
     /// (DaVinci Resolve DCTL `transform` function; --layout does not apply).
     #[arg(long, value_enum, ignore_case = true)]
     lang: values::Lang,
-    /// The output space folded into the matrix exactly as `nsrm apply --output-space` does, for
-    /// every language alike (training white at Y = 1): xyz, linear-srgb, acescg or aces2065-1.
-    #[arg(long, value_enum, ignore_case = true, default_value_t = values::Space::Xyz)]
-    output_space: values::Space,
+    #[command(flatten)]
+    output_space: super::values::OutputSpaceArg,
     #[command(flatten)]
     layout: values::LayoutArg,
     /// Where to write the shader.
     #[arg(short, long, value_name = "FILE")]
     output: PathBuf,
-    /// Replace an existing output file.
-    #[arg(long)]
-    overwrite: bool,
+    #[command(flatten)]
+    overwrite: super::values::OverwriteArg,
 }
 
 /// The space named by `--output-space`.
 fn output_space(a: &Args) -> OutputSpace {
-    OutputSpace::from(a.output_space)
+    a.output_space.output_space
 }
 
 /// What the output line says about the values written.
@@ -50,7 +47,7 @@ fn scale_note(space: OutputSpace) -> String {
 /// `--lang dctl`: the exact model as a Resolve DCTL.
 fn run_dctl(a: &Args) -> Result<ExitCode> {
     let space = output_space(a);
-    let session = super::outputs::open(a.overwrite, &[&a.model], &[&a.output])?;
+    let session = super::outputs::open(a.overwrite.overwrite, &[&a.model], &[&a.output])?;
     let model = Model::load(&a.model)?;
     let folded = nsrm::output_model(&model, space)?;
     let header = vec![
@@ -82,9 +79,9 @@ pub(crate) fn run(a: Args) -> Result<ExitCode> {
     let Some(lang) = a.lang.shader() else {
         return run_dctl(&a);
     };
-    let layout = Layout::from(a.layout.layout);
+    let layout = a.layout.layout;
     let space = output_space(&a);
-    let session = super::outputs::open(a.overwrite, &[&a.model], &[&a.output])?;
+    let session = super::outputs::open(a.overwrite.overwrite, &[&a.model], &[&a.output])?;
     let model = Model::load(&a.model)?;
     let model = nsrm::output_model(&model, space)?;
     let bytes = export(&model, layout, lang).with_context(|| {

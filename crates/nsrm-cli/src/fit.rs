@@ -16,8 +16,6 @@ use std::process::ExitCode;
 
 #[derive(Debug, clap::Args)]
 pub(crate) struct Args {
-    #[command(flatten)]
-    training: TrainingArgs,
     /// Illuminant the chart is lit by: a built-in name or a CSV file (default D65). Twice (e.g.
     /// `--illuminant A --illuminant D65`): a model per illuminant, written as one
     /// two-illuminant model file. With `--capture`: the light each capture was shot under, in
@@ -33,9 +31,10 @@ pub(crate) struct Args {
     /// Where to write the model file (JSON).
     #[arg(short, long, value_name = "FILE")]
     output: PathBuf,
-    /// Replace an existing output file.
-    #[arg(long)]
-    overwrite: bool,
+    #[command(flatten)]
+    overwrite: super::values::OverwriteArg,
+    #[command(flatten)]
+    training: TrainingArgs,
     /// Fit on the chart photographed in this frame instead (camera raw: DNG, CR2, CR3, NEF,
     /// ARW, …; linear EXR or TIFF; or a display-referred JPEG, PNG or 8-bit TIFF): see `nsrm
     /// chart extract` for the chart options. Twice, each with its `--illuminant` (e.g. `--capture
@@ -84,12 +83,12 @@ impl Args {
     /// The model kind asked for.
     #[cfg(test)]
     pub(crate) fn kind(&self) -> Kind {
-        Kind::from(self.kind.kind)
+        self.kind.kind
     }
 }
 
 pub(crate) fn run(a: Args) -> Result<ExitCode> {
-    let kind = Kind::from(a.kind.kind);
+    let kind = a.kind.kind;
     if !(1..=4).contains(&a.order) {
         return Err(UsageError(format!("--order {} is out of range (1..4)", a.order)).into());
     }
@@ -109,7 +108,7 @@ pub(crate) fn run(a: Args) -> Result<ExitCode> {
         .chain(&a.overlay)
         .map(PathBuf::as_path)
         .collect();
-    let session = super::outputs::open(a.overwrite, &inputs, &outputs)?;
+    let session = super::outputs::open(a.overwrite.overwrite, &inputs, &outputs)?;
     let sets = training_sets(&a, &illuminants)?;
     let mut fits = Vec::new();
     for (data, _, source) in &sets {

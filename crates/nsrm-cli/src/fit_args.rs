@@ -1,7 +1,6 @@
 //! The fit-variant flags shared by `nsrm fit` and `nsrm eval`.
 
 use super::common::UsageError;
-use super::values;
 use anyhow::{Context, Result};
 use nsrm::{FitOptions, FitWhite as White, Normalise, Objective, Ridge};
 
@@ -11,27 +10,32 @@ pub(crate) struct FitVariantArgs {
     /// What the fit minimises: `ls` (least squares in XYZ, the paper), `de00` (Σ ΔE00² over the
     /// training patches, Levenberg–Marquardt from the least-squares solution) or `de00:P`
     /// (Σ ΔE00^P, 2 ≤ P ≤ 64: a larger P trades mean error for maximum error).
-    #[arg(long, default_value = "ls", value_name = "ls|de00|de00:P")]
+    #[arg(
+        help_heading = "Fit",
+        long,
+        default_value = "ls",
+        value_name = "OBJECTIVE"
+    )]
     pub(crate) objective: String,
     /// Map the reference white exactly to its XYZ (an equality constraint, kept by `de00`): the
     /// perfect white of the training illuminant, or the patch named by `--white-patch`.
-    #[arg(long)]
+    #[arg(help_heading = "Fit", long)]
     pub(crate) preserve_white: bool,
     /// A neutral training patch to use as the white (for `--preserve-white` and
     /// `--normalise white-balanced`); needed with measured data, which has no perfect white.
     /// Its full label (`"19 white 9.5"`), its number (`19`) or its name (`white`).
-    #[arg(long, value_name = "LABEL|NUMBER|NAME")]
+    #[arg(help_heading = "Fit", long, value_name = "PATCH")]
     pub(crate) white_patch: Option<String>,
     /// Tikhonov regularisation of the matrix on standardised terms: λ ≥ 0, `auto` (λ chosen by
     /// generalised cross-validation on a log grid 1e-12..10; also `auto-gcv`) or `auto-loo` (by
     /// exact, closed-form leave-one-out of the ridge solve on the same grid). `0` means no ridge
     /// at all: not even the f32 guard's.
-    #[arg(long, value_name = "LAMBDA|auto|auto-loo")]
+    #[arg(help_heading = "Fit", long, value_name = "RIDGE")]
     pub(crate) ridge: Option<String>,
     /// NSRM's input: `raw` (the paper) or `white-balanced` (R, G, B divided by the training white's
     /// camera response before forming s, r, g; the gains go into the model file).
-    #[arg(long, value_enum, ignore_case = true, default_value_t = values::Normalise::Raw)]
-    pub(crate) normalise: values::Normalise,
+    #[arg(help_heading = "Fit", long, value_enum, ignore_case = true, default_value_t = nsrm::Normalise::Raw)]
+    pub(crate) normalise: nsrm::Normalise,
 }
 
 impl FitVariantArgs {
@@ -42,7 +46,7 @@ impl FitVariantArgs {
             Some(s) => Ridge::parse(s).context("--ridge")?,
             None => Ridge::None,
         };
-        let normalise = Normalise::from(self.normalise);
+        let normalise = self.normalise;
         if self.white_patch.is_some() && !self.preserve_white && normalise == Normalise::Raw {
             return Err(UsageError(
                 "--white-patch needs --preserve-white or --normalise white-balanced".into(),
@@ -94,7 +98,7 @@ impl FitVariantArgs {
         if let Some(r) = &self.ridge {
             parts.push(format!("ridge {r}"));
         }
-        if self.normalise != values::Normalise::Raw {
+        if self.normalise != nsrm::Normalise::Raw {
             parts.push("white-balanced input".into());
         }
         parts.join(", ")
@@ -106,6 +110,6 @@ impl FitVariantArgs {
             && !self.preserve_white
             && self.white_patch.is_none()
             && self.ridge.is_none()
-            && self.normalise == values::Normalise::Raw
+            && self.normalise == nsrm::Normalise::Raw
     }
 }

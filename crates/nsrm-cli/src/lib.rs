@@ -65,6 +65,7 @@ mod farm;
 mod farmlib;
 mod fit;
 mod fit_args;
+mod help;
 mod outputs;
 mod progress;
 mod render_chart;
@@ -76,7 +77,7 @@ mod terms;
 mod values;
 mod white;
 
-use clap::{Parser, Subcommand};
+use clap::{CommandFactory, FromArgMatches, Parser, Subcommand};
 use std::process::ExitCode;
 
 /// Camera colour correction: fit LRM / PRM / RPRM / NSRM models on chart spectra or measured
@@ -161,7 +162,10 @@ pub fn main() -> ExitCode {
             .unwrap_or_default();
         eprintln!("nsrm: internal error{at}: {what}");
     }));
-    let cli = match Cli::try_parse() {
+    let parsed = help::command(Cli::command())
+        .try_get_matches()
+        .and_then(|m| Cli::from_arg_matches(&m));
+    let cli = match parsed {
         Ok(c) => c,
         Err(e) => {
             let code = if e.use_stderr() { 2 } else { 0 };
@@ -232,6 +236,62 @@ mod tests {
         out.push((path.clone(), c.clone()));
         for s in c.get_subcommands() {
             commands(s, format!("{path} {}", s.get_name()), out);
+        }
+    }
+
+    /// Every example printed after a command's help parses as that command, and every command
+    /// has examples.
+    #[test]
+    fn every_example_parses_and_every_command_has_some() {
+        let cmd = help::command(Cli::command());
+        for (path, lines) in help::EXAMPLES {
+            for line in *lines {
+                let words: Vec<&str> = line.split_whitespace().collect();
+                let m = cmd
+                    .clone()
+                    .try_get_matches_from(&words)
+                    .unwrap_or_else(|e| panic!("{line}: {e}"));
+                let mut got = Vec::new();
+                let mut at = &m;
+                while let Some((name, sub)) = at.subcommand() {
+                    got.push(name);
+                    at = sub;
+                }
+                assert_eq!(got.join(" "), *path, "{line}");
+                Cli::from_arg_matches(&m).unwrap_or_else(|e| panic!("{line}: {e}"));
+            }
+        }
+        let mut all = Vec::new();
+        commands(&cmd, String::new(), &mut all);
+        for (path, c) in &all {
+            let path = path.trim();
+            if c.get_subcommands().next().is_some() || c.get_name() == "help" || path.is_empty() {
+                continue;
+            }
+            assert!(
+                help::EXAMPLES.iter().any(|(p, _)| *p == path),
+                "nsrm {path} has no examples"
+            );
+        }
+    }
+
+    /// `-h` fits on a screen (60 lines of 100 columns) for every command; `--help` says more.
+    #[test]
+    fn short_help_fits_on_a_screen() {
+        let mut all = Vec::new();
+        commands(&help::command(Cli::command()), "nsrm".into(), &mut all);
+        for (path, c) in &all {
+            let mut c = c.clone().term_width(100);
+            let short = c.render_help().to_string();
+            let long = c.render_long_help().to_string();
+            let n = short.lines().count();
+            assert!(n <= 60, "{path} -h is {n} lines:\n{short}");
+            if c.get_arguments().count() > 3 {
+                assert!(
+                    long.len() > short.len(),
+                    "{path}: --help says no more than -h"
+                );
+            }
         }
     }
 

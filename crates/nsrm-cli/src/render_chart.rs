@@ -35,9 +35,8 @@ pub(crate) struct Args {
     /// NAME.patches.json beside it.
     #[arg(short, long, value_name = "FILE")]
     output: PathBuf,
-    /// Replace existing files.
-    #[arg(long)]
-    overwrite: bool,
+    #[command(flatten)]
+    overwrite: super::values::OverwriteArg,
 }
 
 pub(crate) fn run(a: Args) -> Result<ExitCode> {
@@ -60,7 +59,7 @@ pub(crate) fn run(a: Args) -> Result<ExitCode> {
     opts.validate()?;
     let layout_file = synthetic::layout_path(&a.output);
     let session = super::outputs::open(
-        a.overwrite,
+        a.overwrite.overwrite,
         &a.training.input_files(&a.illuminant),
         &[&a.output, &layout_file],
     )?;

@@ -2,10 +2,9 @@
 //! blur, noise, clipping, optional occlusion) with its ground truth beside it.
 
 use super::common::UsageError;
-use super::values;
 use anyhow::{Context, Result};
+use nsrm::chart::parse_corners;
 use nsrm::chart::scene::{render, truth_path, ChartColours, SceneOptions};
-use nsrm::chart::{parse_corners, ChartKind};
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 
@@ -13,7 +12,7 @@ use std::process::ExitCode;
 pub(crate) struct Args {
     /// cc24 (built-in BabelColor spectra) or sg (spectra from --reflectances).
     #[arg(long, value_enum, ignore_case = true)]
-    chart: values::Chart,
+    chart: nsrm::chart::ChartKind,
     /// Chart spectra: columns named by chart labels (SG: A1..N10, e.g.
     /// ../shared/data/colorchecker_sg_140.csv); default for cc24: the built-in cc24.
     #[arg(long, value_name = "FILE")]
@@ -32,7 +31,7 @@ pub(crate) struct Args {
     height: usize,
     /// Place the patch grid at these corners ("X,Y X,Y X,Y X,Y", first patch first, clockwise);
     /// default: a random pose from --seed.
-    #[arg(long, allow_hyphen_values = true, value_name = "\"X,Y X,Y X,Y X,Y\"")]
+    #[arg(long, allow_hyphen_values = true, value_name = "CORNERS")]
     corners: Option<String>,
     /// A random scene inside the detection envelope (exposure, light, blur and noise drawn from
     /// --seed too; the options below are then ignored).
@@ -93,13 +92,12 @@ pub(crate) struct Args {
     /// The frame: .exr or .tif/.tiff. The truth goes to NAME.scene.json beside it.
     #[arg(short, long, value_name = "FILE")]
     output: PathBuf,
-    /// Replace existing output files.
-    #[arg(long)]
-    overwrite: bool,
+    #[command(flatten)]
+    overwrite: super::values::OverwriteArg,
 }
 
 pub(crate) fn run(a: Args) -> Result<ExitCode> {
-    let kind = ChartKind::from(a.chart);
+    let kind = a.chart;
     for p in std::iter::once(&a.output).chain(&a.flat_output) {
         if nsrm::io::FileFormat::from_extension(p).is_none() {
             return Err(UsageError(format!("{}: must be .exr, .tif or .tiff", p.display())).into());
@@ -117,7 +115,7 @@ pub(crate) fn run(a: Args) -> Result<ExitCode> {
     .collect();
     let mut outputs = vec![a.output.as_path(), tpath.as_path()];
     outputs.extend(a.flat_output.as_deref());
-    let session = super::outputs::open(a.overwrite, &inputs, &outputs)?;
+    let session = super::outputs::open(a.overwrite.overwrite, &inputs, &outputs)?;
     let corners = a.corners.as_deref().map(parse_corners).transpose()?;
     let colours =
         ChartColours::simulate(kind, &a.camera, &a.illuminant, a.reflectances.as_deref())?;

@@ -3,7 +3,6 @@
 use super::common::UsageError;
 use super::values;
 use anyhow::Result;
-use nsrm::Kind;
 use std::process::ExitCode;
 
 #[derive(Debug, clap::Args)]
@@ -16,7 +15,7 @@ pub(crate) struct Args {
 }
 
 pub(crate) fn run(a: Args) -> Result<ExitCode> {
-    let kind = Kind::from(a.kind.kind);
+    let kind = a.kind.kind;
     if !(1..=4).contains(&a.order) {
         return Err(UsageError(format!("--order {} is out of range (1..4)", a.order)).into());
     }

@@ -1,111 +1,9 @@
-//! The command line's enum flags as clap [`ValueEnum`]s: each mirrors a library enum (the
-//! library does not depend on clap), names its values as the library's `parse` does, and converts
-//! with `From`. clap checks the value, lists the possible ones in `--help` and in its error
-//! (exit status 2). A test checks every name and alias against the library's own parser.
+//! The flag groups defined once for the commands that share them, and the one enum flag that is
+//! the command line's own (`export-shader --lang`: the shader languages and DCTL). Every other
+//! enum flag is the library's enum itself (its `clap` feature derives [`ValueEnum`] with the
+//! names its `parse` takes).
 
 use clap::ValueEnum;
-
-macro_rules! value_enum {
-    ($(#[$meta:meta])* $name:ident => $lib:ty, $parse:expr,
-     { $($var:ident = $value:literal $(| $alias:literal)*),+ $(,)? }) => {
-        $(#[$meta])*
-        #[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
-        pub(crate) enum $name {
-            $(#[value(name = $value $(, alias = $alias)*)] $var),+
-        }
-
-        impl From<$name> for $lib {
-            fn from(v: $name) -> $lib {
-                match v {
-                    $($name::$var => <$lib>::$var),+
-                }
-            }
-        }
-
-        impl $name {
-            /// Every name and alias with the value the library's parser gives it.
-            #[cfg(test)]
-            fn check() {
-                let parse: fn(&str) -> Option<$lib> = $parse;
-                $(
-                    for n in [$value $(, $alias)*] {
-                        assert_eq!(parse(n), Some(<$lib>::from($name::$var)), "{n}");
-                    }
-                )+
-            }
-        }
-    };
-}
-
-value_enum!(
-    /// `--output-space`.
-    Space => nsrm::OutputSpace,
-    nsrm::OutputSpace::parse,
-    { Xyz = "xyz", LinearSrgb = "linear-srgb", Acescg = "acescg", Aces2065_1 = "aces2065-1" }
-);
-
-value_enum!(
-    /// `--kind` (one model kind).
-    ModelKind => nsrm::Kind,
-    |s| nsrm::Kind::parse(s).ok(),
-    { Lrm = "lrm", Prm = "prm", Rprm = "rprm", Nsrm = "nsrm" }
-);
-
-value_enum!(
-    /// `--normalise`.
-    Normalise => nsrm::Normalise,
-    |s| nsrm::Normalise::parse(s).ok(),
-    { Raw = "raw", WhiteBalanced = "white-balanced" | "wb" }
-);
-
-value_enum!(
-    /// `apply --format`.
-    FileFormat => nsrm::io::FileFormat,
-    nsrm::io::FileFormat::parse,
-    { Exr = "exr" | "openexr", Tiff = "tiff" | "tif" }
-);
-
-value_enum!(
-    /// `--demosaic` (camera raw inputs).
-    Demosaic => nsrm::io::raw::Demosaic,
-    nsrm::io::raw::Demosaic::parse,
-    { Half = "half", Bilinear = "bilinear", Mhc = "mhc" | "malvar" }
-);
-
-value_enum!(
-    /// `--highlights` (apply, calibrate).
-    Highlights => nsrm::HighlightMode,
-    nsrm::HighlightMode::parse,
-    { Clip = "clip", Keep = "keep" }
-);
-
-value_enum!(
-    /// `apply --compression`.
-    Compression => nsrm::io::ExrCompression,
-    nsrm::io::ExrCompression::parse,
-    { Keep = "keep", None = "none", Rle = "rle", Zips = "zips", Zip = "zip", Piz = "piz" }
-);
-
-value_enum!(
-    /// `--device` (apply, bench).
-    Device => nsrm::gpu::DeviceChoice,
-    nsrm::gpu::DeviceChoice::parse,
-    { Auto = "auto", Gpu = "gpu", Cpu = "cpu" }
-);
-
-value_enum!(
-    /// `export --format`.
-    ExportFormat => nsrm::export::Format,
-    nsrm::export::Format::parse,
-    { Clf = "clf", Cube = "cube", Ocio = "ocio", Dcp = "dcp", Icc = "icc" }
-);
-
-value_enum!(
-    /// `export --interpolation`.
-    Interpolation => nsrm::export::nodes::Interpolation,
-    nsrm::export::nodes::Interpolation::parse,
-    { Tetrahedral = "tetrahedral", Trilinear = "trilinear" | "linear" }
-);
 
 /// `export-shader --lang`: a compute-shader language, or DaVinci Resolve's DCTL.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
@@ -135,20 +33,13 @@ impl Lang {
     }
 }
 
-value_enum!(
-    /// `--layout` (export-shader, bench).
-    Layout => nsrm::Layout,
-    nsrm::Layout::parse,
-    { Rgb = "rgb", Rgba = "rgba" }
-);
-
 /// `--kind`, defined once for `fit` and `terms` (`--model` names a model file everywhere; it is
 /// kept as a hidden alias here, the old spelling).
 #[derive(Debug, Clone, clap::Args)]
 pub(crate) struct KindArg {
     /// Model kind: lrm, prm, rprm or nsrm.
-    #[arg(long, alias = "model", value_enum, ignore_case = true, default_value_t = ModelKind::Nsrm)]
-    pub(crate) kind: ModelKind,
+    #[arg(long, alias = "model", value_enum, ignore_case = true, default_value_t = nsrm::Kind::Nsrm)]
+    pub(crate) kind: nsrm::Kind,
 }
 
 /// `--device`, defined once for `apply` and `bench`.
@@ -158,8 +49,8 @@ pub(crate) struct DeviceArg {
     /// rasteriser such as Mesa's lavapipe is slower than the CPU path and is used only by `gpu`
     /// or when named by --adapter / NSRM_ADAPTER; the choice and its reason are printed), `gpu`
     /// (any GPU adapter, or an error) or `cpu`.
-    #[arg(long, value_enum, ignore_case = true, default_value_t = Device::Auto)]
-    pub(crate) device: Device,
+    #[arg(long, value_enum, ignore_case = true, default_value_t = nsrm::gpu::DeviceChoice::Auto)]
+    pub(crate) device: nsrm::gpu::DeviceChoice,
 }
 
 /// `--layout`, defined once for every command that takes it (one default: `rgb`, the layout of
@@ -167,33 +58,37 @@ pub(crate) struct DeviceArg {
 #[derive(Debug, Clone, clap::Args)]
 pub(crate) struct LayoutArg {
     /// Pixel layout of the buffer: packed f32 `rgb`, or `rgba` (alpha untouched).
-    #[arg(long, value_enum, ignore_case = true, default_value_t = Layout::Rgb)]
-    pub(crate) layout: Layout,
+    #[arg(long, value_enum, ignore_case = true, default_value_t = nsrm::Layout::Rgb)]
+    pub(crate) layout: nsrm::Layout,
 }
 
-value_enum!(
-    /// `--chart`.
-    Chart => nsrm::chart::ChartKind,
-    |s| nsrm::chart::ChartKind::parse(s).ok(),
-    { Cc24 = "cc24", Sg = "sg" }
-);
+/// `--overwrite`, defined once for every command that writes files.
+#[derive(Debug, Clone, Copy, clap::Args)]
+pub(crate) struct OverwriteArg {
+    /// Replace outputs that exist (an input is never written). Without it, a command refuses
+    /// to replace a file and writes nothing.
+    #[arg(long)]
+    pub(crate) overwrite: bool,
+}
+
+/// `--output-space`, defined once for `apply`, `export` and `export-shader` (each folds it in
+/// alike).
+#[derive(Debug, Clone, Copy, clap::Args)]
+pub(crate) struct OutputSpaceArg {
+    /// The colour space of the output. Pixels are scene-linear with the training white at Y = 1:
+    /// xyz as the model produces it (the training illuminant's white; D65-referred in an OCIO
+    /// config), or linear-srgb, acescg or aces2065-1, whose white is 1, 1, 1 after Bradford
+    /// adaptation from the training white. For OCIO: the scene reference.
+    #[arg(long, value_enum, ignore_case = true, default_value_t = nsrm::OutputSpace::Xyz)]
+    pub(crate) output_space: nsrm::OutputSpace,
+}
 
 #[cfg(test)]
 mod tests {
     use super::*;
 
     #[test]
-    fn every_value_parses_as_the_library_parses_it() {
-        Space::check();
-        ModelKind::check();
-        Normalise::check();
-        Demosaic::check();
-        FileFormat::check();
-        Compression::check();
-        Highlights::check();
-        Device::check();
-        ExportFormat::check();
-        Interpolation::check();
+    fn every_shader_language_parses_as_the_library_parses_it() {
         for v in Lang::value_variants() {
             let p = v.to_possible_value().unwrap();
             for n in p.get_name_and_aliases() {
@@ -203,26 +98,6 @@ mod tests {
                     "{n}"
                 );
             }
-        }
-        Layout::check();
-        Chart::check();
-    }
-
-    #[test]
-    fn every_library_value_has_a_flag_value() {
-        use nsrm::OutputSpace;
-        for (s, name) in OutputSpace::ALL {
-            assert_eq!(OutputSpace::from(Space::from_str(name, false).unwrap()), s);
-        }
-        for k in nsrm::Kind::ALL {
-            let v = ModelKind::from_str(k.name(), true).unwrap();
-            assert_eq!(nsrm::Kind::from(v), k);
-        }
-        for (c, name) in nsrm::io::ExrCompression::ALL {
-            assert_eq!(
-                nsrm::io::ExrCompression::from(Compression::from_str(name, false).unwrap()),
-                c
-            );
         }
     }
 }

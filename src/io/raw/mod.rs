@@ -60,13 +60,17 @@ pub(crate) const MAX_RAW_BYTES: u64 = 2 << 30;
 
 /// How a CFA mosaic becomes RGB pixels.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default)]
+#[cfg_attr(feature = "clap", derive(clap::ValueEnum))]
 pub enum Demosaic {
     /// One pixel per 2×2 block (half width and height), no interpolation: what chart readers use.
+    #[cfg_attr(feature = "clap", value(name = "half"))]
     Half,
     /// LibRaw's linear interpolation.
+    #[cfg_attr(feature = "clap", value(name = "bilinear"))]
     Bilinear,
     /// Malvar–He–Cutler gradient-corrected interpolation (full resolution).
     #[default]
+    #[cfg_attr(feature = "clap", value(name = "mhc", alias = "malvar"))]
     Mhc,
 }
 

@@ -861,7 +861,7 @@ pub(crate) struct ResourceArgs {
     /// Kubernetes toleration KEY[=VALUE][:EFFECT], as `kubectl taint` writes a taint: with
     /// VALUE the operator is Equal, without it Exists; EFFECT NoSchedule, PreferNoSchedule
     /// or NoExecute, without it every effect; repeatable.
-    #[arg(long, value_name = "KEY[=VALUE][:EFFECT]")]
+    #[arg(long, value_name = "TAINT")]
     pub toleration: Vec<String>,
     /// The Kubernetes extended resource a GPU is asked for as (e.g. amd.com/gpu,
     /// gpu.intel.com/i915); default nvidia.com/gpu.

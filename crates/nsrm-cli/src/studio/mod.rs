@@ -41,8 +41,8 @@ pub(crate) struct Args {
     /// Where the server computes corrected previews: auto (a hardware GPU if there is one, else
     /// the CPU; a software rasteriser such as lavapipe is slower than the CPU path), gpu (any
     /// adapter, software ones included) or cpu. As in `apply`.
-    #[arg(long, value_enum, ignore_case = true, default_value_t = super::values::Device::Auto)]
-    device: super::values::Device,
+    #[arg(long, value_enum, ignore_case = true, default_value_t = nsrm::gpu::DeviceChoice::Auto)]
+    device: nsrm::gpu::DeviceChoice,
     /// Requests computed at once (each connection is read on a thread of its own, at most 64;
     /// a request takes one of these once its headers and small body are in).
     #[arg(long, default_value_t = 4, value_parser = clap::value_parser!(u64).range(1..=64))]
@@ -80,7 +80,7 @@ pub(crate) fn run(a: Args) -> Result<ExitCode> {
         files,
         port,
         a.max_pixels,
-        nsrm::gpu::DeviceChoice::from(a.device),
+        a.device,
         a.threads as usize,
     )?);
     let url = format!("http://127.0.0.1:{port}/?token={}", studio.token);

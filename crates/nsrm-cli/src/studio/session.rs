@@ -7,7 +7,6 @@
 use super::super::capture::{self, Capture, CaptureOptions};
 use super::super::common::UsageError;
 use super::super::fit_args::FitVariantArgs;
-use super::super::values;
 use super::http::{BadRequest, NotFound, Target};
 use anyhow::{bail, Context, Result};
 use clap::ValueEnum;
@@ -162,7 +161,7 @@ fn default_normalise() -> String {
 
 impl FitRequest {
     fn variant_args(&self) -> Result<FitVariantArgs> {
-        let normalise = values::Normalise::from_str(&self.normalise, true).map_err(|_| {
+        let normalise = nsrm::Normalise::from_str(&self.normalise, true).map_err(|_| {
             BadRequest(format!(
                 "normalise `{}`: raw or white-balanced",
                 self.normalise
@@ -491,7 +490,7 @@ fn open_frame(path: &Path, layer: Option<String>, max_pixels: u64) -> Result<Arc
         &nsrm::io::ReadOptions {
             layer,
             limits: nsrm::io::Limits { max_pixels },
-            demosaic: values::Demosaic::Half.into(),
+            demosaic: nsrm::io::Demosaic::Half,
         },
         nsrm::io::display::Encoding::Auto,
     )
@@ -600,7 +599,7 @@ impl FrameState {
     fn options(&self) -> Result<CaptureOptions> {
         let s = &self.settings;
         check_no_path(s)?;
-        let chart = values::Chart::from_str(&s.chart, true)
+        let chart = nsrm::chart::ChartKind::from_str(&s.chart, true)
             .map_err(|_| BadRequest(format!("chart `{}`: cc24 or sg", s.chart)))?;
         let flat = match s.flat.as_deref().map(str::trim) {
             None | Some("") | Some("none") => None,
@@ -641,7 +640,7 @@ impl FrameState {
             white_level: s.white_level,
             flat,
             encoding: capture::EncodingArg::Auto,
-            demosaic: values::Demosaic::Half,
+            demosaic: nsrm::io::Demosaic::Half,
             max_pixels: self.max_pixels,
         })
     }
@@ -711,7 +710,7 @@ impl FrameState {
                 limits: nsrm::io::Limits {
                     max_pixels: self.max_pixels,
                 },
-                demosaic: values::Demosaic::Half.into(),
+                demosaic: nsrm::io::Demosaic::Half,
                 ..Default::default()
             },
         )

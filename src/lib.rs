@@ -85,9 +85,6 @@ mod spectral;
 mod training;
 mod training_set;
 
-#[cfg(all(test, feature = "clap"))]
-mod clap_names_tests;
-
 /// The unit tests' kit, shared with the integration tests (public API only; `nsrm` names this
 /// crate in it).
 #[cfg(test)]
@@ -103,7 +100,7 @@ pub use frame::{Frame, Layout};
 
 // Models: kinds, fitting, the model file, applying on the CPU, the output space folded in.
 pub use model::fit::{fit_with, F32GuardChange, Fit, FitOptions, FitReport, F32_TOLERANCE_DE00};
-pub use model::fit::{Normalise, Objective, Ridge, White as FitWhite};
+pub use model::fit::{F32Evaluator, Normalise, Objective, Ridge, White as FitWhite};
 pub use model::output::output_model;
 pub use model::terms::MAX_ORDER;
 pub use model::{fit, Kind, Model, ModelError};

@@ -40,10 +40,11 @@ mod gpu_tests;
 #[cfg(all(test, feature = "io"))]
 mod program_tests;
 pub(crate) mod shader;
+mod shader_check;
 
 pub use self::{
     context::GpuContext, corrector::Corrector, engine::Engine, engine::GpuTiming, shader::Target,
-    shader::TexelFormat,
+    shader::TexelFormat, shader_check::ShaderCheck,
 };
 /// The wgpu this crate is built against: a renderer embedding a [`Corrector`] records into
 /// this version's encoders and textures.

@@ -163,8 +163,18 @@ impl Normalise {
     }
 }
 
+/// Another evaluator of fitted models in f32 that the f32 guard measures beside this machine's
+/// fast CPU kernel: the GPU shader, where an adapter is open (`nsrm::gpu::ShaderCheck`).
+pub trait F32Evaluator: Send + Sync + std::fmt::Debug {
+    /// What it evaluates on, for messages and the fit report (`GPU llvmpipe (…)`).
+    fn name(&self) -> String;
+    /// `model`'s f32 outputs (packed X, Y, Z) for the packed camera RGB `rgb`, or `None` when
+    /// it could not evaluate.
+    fn evaluate(&self, model: &Model, rgb: &[f32]) -> Option<Vec<f32>>;
+}
+
 /// Everything that defines a fit besides the kind and order. `Default` is the paper's fit.
-#[derive(Debug, Clone, PartialEq)]
+#[derive(Debug, Clone)]
 pub struct FitOptions {
     /// What the fit minimises.
     pub objective: Objective,
@@ -182,6 +192,26 @@ pub struct FitOptions {
     /// (`fit`'s default). `false` keeps the fit as solved (the paper's method: what `eval`
     /// evaluates unless asked for the guarded fits, and what an explicit `--ridge 0` asks for).
     pub f32_guard: bool,
+    /// Where else the f32 error is measured (the GPU shader where an adapter is open): the guard
+    /// decides on the larger of the CPU kernel's and this one's. `None`: the CPU kernel only.
+    pub f32_also: Option<std::sync::Arc<dyn F32Evaluator>>,
+}
+
+impl PartialEq for FitOptions {
+    /// The same fit: equal options, and the same `f32_also` evaluator (or none).
+    fn eq(&self, o: &Self) -> bool {
+        let also = match (&self.f32_also, &o.f32_also) {
+            (None, None) => true,
+            (Some(a), Some(b)) => std::sync::Arc::ptr_eq(a, b),
+            _ => false,
+        };
+        also && self.objective == o.objective
+            && self.preserve_white == o.preserve_white
+            && self.white == o.white
+            && self.ridge == o.ridge
+            && self.normalise == o.normalise
+            && self.f32_guard == o.f32_guard
+    }
 }
 
 impl Default for FitOptions {
@@ -193,6 +223,7 @@ impl Default for FitOptions {
             ridge: Ridge::None,
             normalise: Normalise::Raw,
             f32_guard: true,
+            f32_also: None,
         }
     }
 }
@@ -266,6 +297,14 @@ pub struct FitReport {
     /// (`f32_error_probe`; what the guard decides on; absent in older files).
     #[serde(skip_serializing_if = "Option::is_none", default)]
     pub f32_error_measured: Option<f64>,
+    /// Where else the f32 error was measured ([`FitOptions::f32_also`]: the GPU the fit found);
+    /// absent when only on the CPU kernel.
+    #[serde(skip_serializing_if = "Option::is_none", default)]
+    pub f32_measured_on: Option<String>,
+    /// What it measured there (included in `f32_error_measured`; infinite when it gave no
+    /// output).
+    #[serde(skip_serializing_if = "Option::is_none", default)]
+    pub f32_error_also: Option<f64>,
     /// The λ the options asked for (0: none), when the fit raised it to `ridge_lambda` so that the
     /// f32 evaluation error stays within [`F32_TOLERANCE_DE00`]; absent when it did not.
     #[serde(skip_serializing_if = "Option::is_none", default)]
@@ -626,8 +665,11 @@ struct Solved {
     de00: Option<(f64, f64)>,
     iterations: usize,
     f32_bound: f64,
-    /// [`f32_error_probe`] of the model (what the guard decides on).
+    /// The measured f32 error of the model: the larger of [`f32_error_probe`] and the
+    /// [`FitOptions::f32_also`] evaluator's (what the guard decides on).
     f32_measured: f64,
+    /// The [`FitOptions::f32_also`] evaluator's measurement, when there is one.
+    f32_also: Option<f64>,
 }
 
 impl<'a> Problem<'a> {
@@ -753,14 +795,20 @@ impl<'a> Problem<'a> {
         }
         .with_input_gains(self.gains)?;
         let f32_bound = f32_error_bound(&model, &self.data.rgb, &self.data.xyz);
-        let f32_measured = f32_error_probe(&model, &self.probe);
+        let cpu = f32_error_probe(&model, &self.probe);
+        let f32_also = self
+            .opts
+            .f32_also
+            .as_ref()
+            .map(|e| f32_error_on(e.as_ref(), &model, &self.probe));
         Ok(Solved {
             model,
             lambda,
             de00,
             iterations,
             f32_bound,
-            f32_measured,
+            f32_measured: cpu.max(f32_also.unwrap_or(0.0)),
+            f32_also,
         })
     }
 
@@ -854,6 +902,8 @@ impl<'a> Problem<'a> {
             iterations: s.iterations,
             f32_error_bound: Some(s.f32_bound),
             f32_error_measured: Some(s.f32_measured),
+            f32_measured_on: s.f32_also.and(opts.f32_also.as_ref()).map(|e| e.name()),
+            f32_error_also: s.f32_also,
             ridge_requested: change.map(|c| c.lambda_before),
             f32_guard: change,
         };
@@ -1037,11 +1087,30 @@ pub(crate) fn f32_error_probe(model: &Model, rgb: &[[f64; 3]]) -> f64 {
         return f64::INFINITY;
     };
     super::fast::FastModel::new(model).apply(&mut frame, super::fast::Threads::Single);
+    f32_error_of(model, rgb, &frame.data)
+}
+
+/// [`f32_error_probe`] measured on `evaluator` instead of the CPU kernel (infinite when it gives
+/// no output, or not one per pixel).
+fn f32_error_on(evaluator: &dyn F32Evaluator, model: &Model, rgb: &[[f64; 3]]) -> f64 {
+    if rgb.is_empty() {
+        return 0.0;
+    }
+    let data: Vec<f32> = rgb.iter().flat_map(|c| c.map(|v| v as f32)).collect();
+    match evaluator.evaluate(model, &data) {
+        Some(out) if out.len() == data.len() => f32_error_of(model, rgb, &out),
+        _ => f64::INFINITY,
+    }
+}
+
+/// The largest ΔE00 between `out` (f32 outputs, packed X, Y, Z) and `model`'s f64 reference
+/// over `rgb`, as [`f32_error_probe`] measures it.
+fn f32_error_of(model: &Model, rgb: &[[f64; 3]], out: &[f32]) -> f64 {
     let white = model.white_xyz();
     let mut p = vec![0.0; model.len_terms()];
     let mut worst = 0.0f64;
     let in_f32 = |v: &[f64; 3]| v.iter().all(|x| x.abs() <= f32::MAX as f64);
-    for (c, y) in rgb.iter().zip(frame.data.chunks_exact(3)) {
+    for (c, y) in rgb.iter().zip(out.chunks_exact(3)) {
         // Camera RGB a frame cannot hold, or an output beyond f32's range, is not a question of
         // f32 precision: only what f32 can represent is measured.
         if !in_f32(c) || model.features_of(*c, &mut p).is_none() {

@@ -48,5 +48,6 @@ mod raw_xtrans;
 mod readme;
 #[cfg(feature = "studio")]
 mod studio;
+mod table1_oracle;
 mod white;
 mod white_as_shot;

@@ -181,7 +181,11 @@ pub(crate) fn run(mut a: Args) -> Result<ExitCode> {
     data.record_patches();
     let opts = a.fit.resolved(&opts, &data.labels)?;
     let (kind, order, tried) = choose(&a, &candidates, &data, &opts)?;
-    let fitted = fit_with(kind, order, &data, &opts)
+    let guarded = FitOptions {
+        f32_also: super::fit_args::gpu_check(),
+        ..opts.clone()
+    };
+    let fitted = fit_with(kind, order, &data, &guarded)
         .with_context(|| format!("fitting {kind} order {order} on {} patches", data.len()))?;
     let loo = evaluate_with(kind, order, &data, Protocol::LeaveOneOut, "capture", &opts)
         .with_context(|| format!("leave-one-out of {kind} order {order}"))?;

@@ -59,7 +59,11 @@ fn f32_summary(report: &nsrm::FitReport) -> String {
     let tol = nsrm::F32_TOLERANCE_DE00;
     let measured = report.f32_error_measured.unwrap_or(f64::NAN);
     let bound = report.f32_error_bound.unwrap_or(f64::NAN);
-    let head = format!("f32 evaluation as apply does it (this CPU's kernel) moves the output by at most {measured:.1e} ΔE00, measured on the training patches and an in-gamut probe set (first-order bound on the patches {bound:.1e})");
+    let on = match &report.f32_measured_on {
+        Some(gpu) => format!("this CPU's kernel and the {gpu}"),
+        None => "this CPU's kernel; no GPU open".into(),
+    };
+    let head = format!("f32 evaluation as apply does it ({on}) moves the output by at most {measured:.1e} ΔE00, measured on the training patches and an in-gamut probe set (first-order bound on the patches {bound:.1e})");
     match &report.f32_guard {
         Some(c) => format!(
             "{head}; the fit at λ {} moved it by {:.3} ΔE00 (> {tol}): f32 guard raised the ridge λ {} → {}, in-sample ΔE00 mean / max {:.3} / {:.3} → {:.3} / {:.3}",
@@ -92,8 +96,9 @@ pub(crate) fn run(a: Args) -> Result<ExitCode> {
     if !(1..=4).contains(&a.order) {
         return Err(UsageError(format!("--order {} is out of range (1..4)", a.order)).into());
     }
-    let opts = a.fit.options()?;
+    let mut opts = a.fit.options()?;
     check_args(&a, kind, opts.normalise)?;
+    opts.f32_also = super::fit_args::gpu_check();
     let illuminants: Vec<String> = if a.illuminant.is_empty() {
         vec!["D65".to_string()]
     } else {

@@ -38,6 +38,15 @@ pub(crate) struct FitVariantArgs {
     pub(crate) normalise: nsrm::Normalise,
 }
 
+/// The GPU shader as the f32 guard's second measurement ([`nsrm::FitOptions::f32_also`]), where
+/// `apply --device auto` would find a GPU: a hardware adapter, or the one `NSRM_ADAPTER` names
+/// (lavapipe, say); `None` without one (the CPU kernel alone is measured).
+pub(crate) fn gpu_check() -> Option<std::sync::Arc<dyn nsrm::F32Evaluator>> {
+    nsrm::gpu::ShaderCheck::open(&nsrm::gpu::GpuOptions::default())
+        .ok()
+        .map(|c| std::sync::Arc::new(c) as std::sync::Arc<dyn nsrm::F32Evaluator>)
+}
+
 impl FitVariantArgs {
     /// The options these flags name.
     pub(crate) fn options(&self) -> Result<FitOptions> {
@@ -64,6 +73,8 @@ impl FitVariantArgs {
             normalise,
             // An explicit `--ridge 0` means no ridge anywhere: not even the f32 guard's.
             f32_guard: !self.ridge_is_zero(),
+            // The GPU is opened by the commands that write a model (`fit`, `calibrate`).
+            f32_also: None,
         })
     }
 

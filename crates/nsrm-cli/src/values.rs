@@ -87,6 +87,54 @@ pub(crate) struct OutputSpaceArg {
 mod tests {
     use super::*;
 
+    // The library's enums are the flag values (its `clap` feature): every value and alias clap
+    // accepts is one the enum's `parse` reads as the same variant, so the command line, the model
+    // file, the studio and the bindings name each variant alike.
+    /// Every name and alias of every variant of `T` parses (`parse`) as that variant.
+    fn names_parse_back<T: ValueEnum + PartialEq + std::fmt::Debug>(
+        parse: impl Fn(&str) -> Option<T>,
+    ) {
+        for v in T::value_variants() {
+            let p = v.to_possible_value().expect("no variant is skipped");
+            for n in p.get_name_and_aliases() {
+                assert_eq!(parse(n).as_ref(), Some(v), "{n}");
+            }
+        }
+    }
+
+    #[test]
+    fn every_flag_value_is_the_library_s_name() {
+        names_parse_back(nsrm::OutputSpace::parse);
+        names_parse_back(|s| nsrm::Kind::parse(s).ok());
+        names_parse_back(|s| nsrm::Normalise::parse(s).ok());
+        names_parse_back(nsrm::HighlightMode::parse);
+        names_parse_back(nsrm::Layout::parse);
+        {
+            names_parse_back(nsrm::io::FileFormat::parse);
+            names_parse_back(nsrm::io::ExrCompression::parse);
+            names_parse_back(nsrm::io::Demosaic::parse);
+        }
+        names_parse_back(nsrm::gpu::DeviceChoice::parse);
+        {
+            names_parse_back(nsrm::export::Format::parse);
+            names_parse_back(nsrm::export::nodes::Interpolation::parse);
+        }
+        names_parse_back(|s| nsrm::chart::ChartKind::parse(s).ok());
+    }
+
+    #[test]
+    fn every_variant_has_a_flag_value() {
+        for (s, name) in nsrm::OutputSpace::ALL {
+            assert_eq!(nsrm::OutputSpace::from_str(name, false), Ok(s));
+        }
+        for k in nsrm::Kind::ALL {
+            assert_eq!(nsrm::Kind::from_str(k.name(), true), Ok(k));
+        }
+        for (c, name) in nsrm::io::ExrCompression::ALL {
+            assert_eq!(nsrm::io::ExrCompression::from_str(name, false), Ok(c));
+        }
+    }
+
     #[test]
     fn every_shader_language_parses_as_the_library_parses_it() {
         for v in Lang::value_variants() {

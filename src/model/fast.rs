@@ -1,5 +1,10 @@
 //! The fast CPU apply path: f32, vectorised by the compiler, multi-threaded with rayon.
 //!
+//! Why one file (about 1,600 lines): the four kernels (LRM, PRM, RPRM, NSRM) share the chunking,
+//! the pixel policy and the prepared-matrix layout, and are checked against each other and against
+//! the f64 reference by the same tests (`fast_tests.rs` and the module below); splitting them would
+//! put the one pixel policy in four places.
+//!
 //! [`apply_frame`] (every thread of rayon's global pool) and [`apply_frame_single`] (the calling
 //! thread only) correct a [`Frame`] in place; [`FastModel`] holds the prepared kernel for repeated
 //! use, and [`FastModel::apply_into`] writes into a second frame (the input is left alone).

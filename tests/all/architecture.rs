@@ -441,3 +441,26 @@ fn the_library_keeps_no_process_wide_mutable_state() {
         found.join("\n")
     );
 }
+
+/// No source file of either crate is over 1,000 lines without its reason at its top (a "Why
+/// one file" paragraph in its module documentation); tests beside the code count as files.
+#[test]
+fn long_files_say_why_they_are_one_file() {
+    let mut long = Vec::new();
+    for dir in ["src", "crates/nsrm-cli/src"] {
+        let mut files = Vec::new();
+        rust_files(&Path::new(ROOT).join(dir), &mut files);
+        for f in files {
+            let text = std::fs::read_to_string(&f).unwrap();
+            let n = text.lines().count();
+            let head: String = text.lines().take(40).collect::<Vec<_>>().join("\n");
+            if n > 1000 && !head.contains("Why one file") {
+                long.push(format!("{} ({n} lines)", f.display()));
+            }
+        }
+    }
+    assert!(
+        long.is_empty(),
+        "split these at their seams, or say at the top why each is one file: {long:?}"
+    );
+}

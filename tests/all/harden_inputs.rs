@@ -339,3 +339,96 @@ fn messages_name_the_camera_file_the_model_file_and_the_illuminant_forms() {
         assert!(err.contains(want), "{want}: {err}");
     }
 }
+
+/// Inputs the user running nsrm may not read (issue 42): a mode-000 file in a
+/// `--continue-on-error` batch fails alone, its message naming the file and the reason; a file
+/// inside a folder that cannot be searched is refused as such ("permission denied"), not as
+/// missing. Run as `nobody` (via `setpriv`) when the tests run as root, who reads everything.
+#[test]
+fn unreadable_inputs_are_named_with_the_reason() {
+    use std::os::unix::fs::PermissionsExt;
+    let root = real_uid() == 0;
+    if root && !Path::new("/usr/bin/setpriv").exists() {
+        skip("setpriv (util-linux), to run nsrm as another user than root");
+        return;
+    }
+    let dir = tempdir("harden-unreadable");
+    let perm = |p: &Path, mode: u32| {
+        std::fs::set_permissions(p, std::fs::Permissions::from_mode(mode)).unwrap()
+    };
+    perm(&dir, 0o777);
+    model(&dir);
+    exr(&dir.join("a.exr"), 8, 4);
+    exr(&dir.join("b.exr"), 8, 4);
+    for f in ["m.json", "a.exr"] {
+        perm(&dir.join(f), 0o644);
+    }
+    perm(&dir.join("b.exr"), 0o000);
+    std::fs::create_dir(dir.join("closed")).unwrap();
+    exr(&dir.join("closed/c.exr"), 8, 4);
+    perm(&dir.join("closed"), 0o000);
+    let run = |args: &[&str]| {
+        let mut c = if root {
+            let mut c = std::process::Command::new("/usr/bin/setpriv");
+            c.args(["--reuid=65534", "--regid=65534", "--clear-groups"])
+                .arg(env!("CARGO_BIN_EXE_nsrm"));
+            c
+        } else {
+            std::process::Command::new(env!("CARGO_BIN_EXE_nsrm"))
+        };
+        c.current_dir(&dir)
+            .env("XDG_RUNTIME_DIR", &dir)
+            .env_remove("NSRM_ADAPTER")
+            .args(args)
+            .output()
+            .unwrap()
+    };
+    let o = run(&[
+        "apply",
+        "--model",
+        "m.json",
+        "--device",
+        "cpu",
+        "--continue-on-error",
+        "-o",
+        "out",
+        "a.exr",
+        "b.exr",
+    ]);
+    let err = stderr(&o);
+    assert_eq!(o.status.code(), Some(1), "{err}");
+    assert!(
+        err.contains("failed: b.exr: cannot read: Permission denied"),
+        "{err}"
+    );
+    assert!(!err.contains("planning the outputs"), "{err}");
+    assert!(dir.join("out/a_xyz.exr").exists(), "{err}");
+    let o = run(&[
+        "apply",
+        "--model",
+        "m.json",
+        "--device",
+        "cpu",
+        "-o",
+        "out2",
+        "closed/c.exr",
+    ]);
+    let err = stderr(&o);
+    assert_eq!(o.status.code(), Some(2), "{err}");
+    assert!(err.contains("closed/c.exr"), "{err}");
+    assert!(err.contains("permission denied"), "{err}");
+    assert!(!err.contains("no such file"), "{err}");
+    perm(&dir.join("closed"), 0o755);
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// The real user id (`id -u`), without `unsafe`.
+fn real_uid() -> u32 {
+    std::process::Command::new("id")
+        .arg("-u")
+        .output()
+        .ok()
+        .and_then(|o| String::from_utf8(o.stdout).ok())
+        .and_then(|s| s.trim().parse().ok())
+        .unwrap_or(u32::MAX)
+}

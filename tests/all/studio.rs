@@ -1153,3 +1153,114 @@ fn walk(dir: &Path) -> Vec<PathBuf> {
     }
     out
 }
+
+/// A reference file uploaded for a frame is its reference (the studio's `--reference FILE`):
+/// the reading equals `chart extract --reference FILE`, the command line names the file by its
+/// upload name, and an unreadable or oversized reference is refused without the server's path
+/// and leaves no file behind.
+#[test]
+fn an_uploaded_reference_file_is_the_reference() {
+    let d = tempdir("studio-reference");
+    let frame = scene(&d, "scene.exr");
+    let refs = Path::new(concat!(env!("CARGO_MANIFEST_DIR"), "/../../assets"));
+    let csv = d.join("my_chart.csv");
+    std::fs::copy(refs.join("chart_cc24_before2014_d50.csv"), &csv).unwrap();
+    let work = d.join("work");
+    std::fs::create_dir_all(&work).unwrap();
+    let srv = Server::start(&work, &[s(&frame)]);
+    let st = srv.json("POST", "/api/files/0/open", "");
+    let id = st["id"].as_str().unwrap().to_string();
+    // The file holds Lab values (an X-Rite table): their white first, as --reference-white.
+    srv.json(
+        "POST",
+        &format!("/api/frames/{id}/reading"),
+        r#"{"chart": "cc24", "reference_white": "D50"}"#,
+    );
+    let (code, body) = srv.call(
+        "POST",
+        &format!("/api/frames/{id}/reference?name=my_chart.csv"),
+        &std::fs::read(&csv).unwrap(),
+    );
+    assert_eq!(code, 200, "{}", String::from_utf8_lossy(&body));
+    let st: Value = serde_json::from_slice(&body).unwrap();
+    assert!(st["error"].is_null(), "{}", st["error"]);
+    assert_eq!(st["reference_upload"], "my_chart.csv");
+    assert_eq!(st["settings"]["reference"], "upload");
+    let command = st["command"].as_str().unwrap();
+    assert!(command.contains("--reference my_chart.csv"), "{command}");
+    cli(
+        &d,
+        &[
+            "chart",
+            "extract",
+            "scene.exr",
+            "--chart",
+            "cc24",
+            "--reference",
+            "my_chart.csv",
+            "--reference-white",
+            "D50",
+            "-o",
+            "p.csv",
+            "--json",
+            "r.json",
+        ],
+    );
+    let theirs: Value =
+        serde_json::from_str(&std::fs::read_to_string(d.join("r.json")).unwrap()).unwrap();
+    assert_eq!(st["reading"]["patches"], theirs["patches"]);
+    // Back to the default and again to the upload: no new upload needed.
+    let path = format!("/api/frames/{id}/reading");
+    srv.json(
+        "POST",
+        &path,
+        r#"{"chart": "cc24", "reference": null, "reference_white": "D50"}"#,
+    );
+    let again = srv.json(
+        "POST",
+        &path,
+        r#"{"chart": "cc24", "reference": "upload", "reference_white": "D50"}"#,
+    );
+    assert_eq!(again["reading"]["patches"], theirs["patches"]);
+
+    // Not a reference: a 400 naming the upload, not the server's copy.
+    let (code, body) = srv.call(
+        "POST",
+        &format!("/api/frames/{id}/reference?name=bad.csv"),
+        b"SAMPLE_ID,X,Y,Z\nnot a patch,1,2\n",
+    );
+    let text = String::from_utf8_lossy(&body).into_owned();
+    assert_eq!(code, 400, "{text}");
+    assert!(
+        text.contains("bad.csv: not a reference nsrm can read"),
+        "{text}"
+    );
+    assert!(!text.contains(&srv.tmp.display().to_string()), "{text}");
+    // Over the limit: 413 before the body is read.
+    let big = vec![b'1'; (1 << 20) + (128 << 10)];
+    let (code, _) = srv.call(
+        "POST",
+        &format!("/api/frames/{id}/reference?name=big.csv"),
+        &big,
+    );
+    assert_eq!(code, 413);
+    let left: Vec<PathBuf> = walk(&srv.tmp)
+        .into_iter()
+        .filter(|p| {
+            p.file_name()
+                .is_some_and(|n| n == "bad.csv" || n == "big.csv")
+        })
+        .collect();
+    assert!(left.is_empty(), "refused references left behind: {left:?}");
+    // Another frame without an upload: `upload` is not a reference there.
+    let other = srv.json("POST", "/api/files/0/open", "");
+    let oid = other["id"].as_str().unwrap();
+    let (code, body) = srv.call(
+        "POST",
+        &format!("/api/frames/{oid}/reading"),
+        br#"{"chart": "cc24", "reference": "upload"}"#,
+    );
+    let text = String::from_utf8_lossy(&body);
+    assert_eq!(code, 400, "{text}");
+    assert!(text.contains("no reference file uploaded"), "{text}");
+}

@@ -1,5 +1,10 @@
 //! Image sizes declared by raw containers, read before the decoder runs.
 //!
+//! Why one file (about 1,000 lines): every container's size walk (TIFF/DNG IFDs and their tiles,
+//! the lossless-JPEG streams inside them, CR3's ISO-BMFF boxes) shares one bounded reader, one
+//! cycle guard and one error type; the parts are kept together so no walk can skip a bound the
+//! others apply.
+//!
 //! rawler allocates what a header claims (the mosaic, and in ISO-BMFF files every table an entry
 //! count announces) before it finds out whether the file holds that much. So the headers are read
 //! here first, every read bounded by the file (or the enclosing box / region), and the largest

@@ -210,7 +210,7 @@ fn is_upload(method: &str, path: &str) -> bool {
     method.eq_ignore_ascii_case("POST")
         && matches!(
             parts.as_slice(),
-            ["api", "frames"] | ["api", "frames", _, "flat"]
+            ["api", "frames"] | ["api", "frames", _, "flat" | "reference"]
         )
 }
 
@@ -285,9 +285,10 @@ fn route(studio: &Studio, req: &mut Request, t: &Target) -> Result<Reply> {
         ("POST", ["api", "frames"]) => {
             let name = t.param("name").map(str::to_string);
             let (dir, id) = studio.new_upload_dir()?;
-            let saved = receive_upload(studio, req, &dir, name).inspect_err(|_| {
-                let _ = std::fs::remove_dir_all(&dir);
-            })?;
+            let saved =
+                receive_upload(studio, req, &dir, name, frame_limit(studio)).inspect_err(|_| {
+                    let _ = std::fs::remove_dir_all(&dir);
+                })?;
             let _slot = studio.slots.take();
             Ok(json(200, &studio.open(id, saved, true)?))
         }
@@ -330,19 +331,7 @@ fn route_frame(
             s.set_reading(studio, body)?;
             Ok(json(200, &s.state()))
         }
-        ("POST", ["flat"]) => {
-            let f = studio.frame(id)?;
-            let name = t.param("name").map(str::to_string);
-            let dir = studio.new_flat_dir(id)?;
-            // Received before the frame is locked: a slow upload blocks nothing else.
-            let saved = receive_upload(studio, req, &dir, name).inspect_err(|_| {
-                let _ = std::fs::remove_dir_all(&dir);
-            })?;
-            let _slot = studio.slots.take();
-            let mut s = f.lock_state();
-            s.set_flat_upload(&saved)?;
-            Ok(json(200, &s.state()))
-        }
+        ("POST", [what @ ("flat" | "reference")]) => frame_upload(studio, req, t, id, what),
         ("GET", ["preview.png"]) => {
             let f = studio.frame(id)?;
             let png = f.lock_state().preview_png.clone();
@@ -486,23 +475,78 @@ pub(crate) fn safe_name(name: &str) -> String {
     }
 }
 
-/// Streams the upload (the raw body, or the multipart field `file`) into `dir`, at most the
-/// studio's byte limit. Returns the file's path.
+/// `POST /api/frames/ID/flat` or `/reference`: the upload received into the frame's folder
+/// (before the frame is locked: a slow upload blocks nothing else), then read as `--flat` or
+/// `--reference` reads one; a refused file leaves nothing behind.
+fn frame_upload(
+    studio: &Studio,
+    req: &mut Request,
+    t: &Target,
+    id: &str,
+    what: &str,
+) -> Result<Reply> {
+    let f = studio.frame(id)?;
+    let name = t.param("name").map(str::to_string);
+    let dir = studio.new_frame_dir(id, what)?;
+    let limit = if what == "flat" {
+        frame_limit(studio)
+    } else {
+        Limit {
+            bytes: MAX_REFERENCE_BYTES,
+            what: "a reference file".into(),
+        }
+    };
+    let saved = receive_upload(studio, req, &dir, name, limit).inspect_err(|_| {
+        let _ = std::fs::remove_dir_all(&dir);
+    })?;
+    let _slot = studio.slots.take();
+    let mut s = f.lock_state();
+    let set = if what == "flat" {
+        s.set_flat_upload(&saved)
+    } else {
+        s.set_reference_upload(&saved)
+    };
+    set.inspect_err(|_| {
+        let _ = std::fs::remove_dir_all(&dir);
+    })?;
+    Ok(json(200, &s.state()))
+}
+
+/// The largest reference file the studio takes (a chart's values are a few kilobytes).
+const MAX_REFERENCE_BYTES: u64 = 1 << 20;
+
+/// What an upload may hold: its bytes, and what the limit is (for the refusal).
+struct Limit {
+    bytes: u64,
+    what: String,
+}
+
+/// The limit of a frame upload: a frame at the pixel limit ([`Studio::max_upload_bytes`]).
+fn frame_limit(studio: &Studio) -> Limit {
+    Limit {
+        bytes: studio.max_upload_bytes(),
+        what: format!("the frame limit of {} pixels", studio.max_pixels),
+    }
+}
+
+/// Streams the upload (the raw body, or the multipart field `file`) into `dir`, at most
+/// `limit`'s bytes. Returns the file's path.
 fn receive_upload(
     studio: &Studio,
     req: &mut Request,
     dir: &Path,
     name: Option<String>,
+    limit: Limit,
 ) -> Result<std::path::PathBuf> {
-    let limit = studio.max_upload_bytes();
+    let _ = studio;
+    let Limit { bytes: limit, what } = limit;
     if req
         .body_length()
         .is_some_and(|n| n > limit.saturating_add(64 * 1024))
     {
         return Err(TooLarge(format!(
-            "the upload ({} bytes) is over the limit of {limit} bytes (the frame limit of {} pixels)",
+            "the upload ({} bytes) is over the limit of {limit} bytes ({what})",
             req.body_length().unwrap_or(0),
-            studio.max_pixels
         ))
         .into());
     }

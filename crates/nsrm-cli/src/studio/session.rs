@@ -3,6 +3,10 @@
 //! the reading from [`CaptureOptions::read`] (as `chart extract`), the fit from `fit_with` on
 //! the capture's training set (as `fit --capture`), the comparison from `evaluate_with` (as `eval
 //! --capture`), the exports from `export_to` (as `export`).
+//!
+//! Why one file (about 1,300 lines): the studio's state is one lock per frame, and every API answer
+//! (reading, fit, comparison, previews, exports) is computed under it from the same settings; the
+//! HTTP side is `http.rs`, the server `server.rs`, the tests `session_tests.rs`.
 
 use super::super::capture::{self, Capture, CaptureOptions};
 use super::super::common::UsageError;
@@ -227,6 +231,9 @@ pub(crate) struct FrameState {
     flat_cache: Option<(String, Arc<Frame>)>,
     /// An uploaded flat frame (its file name and pixels): the `upload` flat setting.
     flat_upload: Option<(String, Arc<Frame>)>,
+    /// An uploaded reference file (its file name and the server's copy): the `upload` reference
+    /// setting.
+    reference_upload: Option<(String, PathBuf)>,
     pub(crate) settings: Settings,
     pub(crate) capture: Option<Capture>,
     pub(crate) error: Option<String>,
@@ -299,12 +306,13 @@ impl Studio {
         Ok((dir, id))
     }
 
-    /// A fresh directory for a flat frame uploaded for frame `id` (removed with the frame).
-    pub(crate) fn new_flat_dir(&self, id: &str) -> Result<PathBuf> {
-        let dir = self
-            .tmp
-            .join(id)
-            .join(format!("flat-{}", self.next.fetch_add(1, Ordering::SeqCst)));
+    /// A fresh directory for a file uploaded for frame `id`, a flat frame or a reference (`what`;
+    /// removed with the frame).
+    pub(crate) fn new_frame_dir(&self, id: &str, what: &str) -> Result<PathBuf> {
+        let dir = self.tmp.join(id).join(format!(
+            "{what}-{}",
+            self.next.fetch_add(1, Ordering::SeqCst)
+        ));
         std::fs::create_dir_all(&dir).with_context(|| format!("creating {}", dir.display()))?;
         Ok(dir)
     }
@@ -456,6 +464,7 @@ impl Studio {
             frame_layer: None,
             flat_cache: None,
             flat_upload: None,
+            reference_upload: None,
             settings: Settings::default(),
             capture: None,
             error: None,
@@ -564,14 +573,16 @@ fn parse_space(s: &str) -> Result<OutputSpace> {
     })
 }
 
-/// A request never names a file: the reference is one of the built-ins, the reference white
-/// a number triple or pair, `D50` or an illuminant's built-in name. (Refused before anything is
-/// looked up, so that the answer tells nothing of the files on this machine.)
+/// A request never names a file: the reference is one of the built-ins or `upload` (a file
+/// uploaded for this frame), the reference white a number triple or pair, `D50` or an
+/// illuminant's built-in name. (Refused before anything is looked up, so that the answer tells
+/// nothing of the files on this machine.)
 fn check_no_path(s: &Settings) -> Result<()> {
     if let Some(r) = s.reference.as_deref().filter(|r| !r.trim().is_empty()) {
-        if !REFERENCES.iter().any(|b| b.eq_ignore_ascii_case(r.trim())) {
+        let r = r.trim();
+        if r != "upload" && !REFERENCES.iter().any(|b| b.eq_ignore_ascii_case(r)) {
             bail!(BadRequest(format!(
-                "reference: one of {} (the page reads no file a request names)",
+                "reference: one of {}, or upload (a reference file uploaded for this frame; the page reads no file a request names)",
                 REFERENCES.join(", ")
             )));
         }
@@ -631,9 +642,21 @@ impl FrameState {
                 bail!(BadRequest("corners: not finite numbers".into()));
             }
         }
+        let reference = match s.reference.as_deref().map(str::trim) {
+            None | Some("") => None,
+            Some("upload") => Some(
+                self.reference_upload
+                    .as_ref()
+                    .map(|(_, p)| p.display().to_string())
+                    .ok_or_else(|| {
+                        BadRequest("reference `upload`: no reference file uploaded".into())
+                    })?,
+            ),
+            Some(r) => Some(r.to_string()),
+        };
         Ok(CaptureOptions {
             chart: Some(chart),
-            reference: s.reference.clone().filter(|r| !r.trim().is_empty()),
+            reference,
             reference_white: s.reference_white.clone().filter(|r| !r.trim().is_empty()),
             corners: s.corners.map(corners_text),
             layer: s.layer.clone().filter(|r| !r.trim().is_empty()),
@@ -695,6 +718,28 @@ impl FrameState {
             flat,
         };
         Ok(nsrm::chart::capture::read(&self.frame, &reference, &opts)?)
+    }
+
+    /// An uploaded reference file (read as `--reference` reads one, for the frame's chart and
+    /// reference white) becomes the reference → a new reading. A file nsrm cannot read as a
+    /// reference is refused, named by its upload name (never the server's path).
+    pub(crate) fn set_reference_upload(&mut self, path: &Path) -> Result<()> {
+        let name = path
+            .file_name()
+            .map(|s| s.to_string_lossy().into_owned())
+            .unwrap_or_default();
+        let mut o = self.options()?;
+        o.reference = Some(path.display().to_string());
+        if let Err(e) = o.reference() {
+            let why = format!("{e:#}").replace(&path.display().to_string(), &name);
+            bail!(BadRequest(format!(
+                "{name}: not a reference nsrm can read for this chart: {why}"
+            )));
+        }
+        self.reference_upload = Some((name, path.to_path_buf()));
+        self.settings.reference = Some("upload".into());
+        self.read();
+        Ok(())
     }
 
     /// An uploaded flat frame (decoded as `--flat` reads one) becomes the flat field → a new
@@ -796,6 +841,7 @@ impl FrameState {
             "reading": self.capture.as_ref().map(|c| c.report()),
             "patches_spec": training,
             "flat_upload": self.flat_upload.as_ref().map(|(name, _)| name),
+            "reference_upload": self.reference_upload.as_ref().map(|(name, _)| name),
             "fitted": self.fitted.as_ref().map(|f| json!({"kind": f.model.kind().to_string(), "order": f.model.order(), "report": f.report})),
             "command": self.command_text("clf", "xyz"),
         })
@@ -1169,8 +1215,14 @@ impl FrameState {
     fn capture_flags(&self) -> Vec<String> {
         let s = &self.settings;
         let mut v = vec![format!("--chart {}", quote(&s.chart.to_ascii_lowercase()))];
-        if let Some(r) = s.reference.as_deref().filter(|r| !r.trim().is_empty()) {
-            v.push(format!("--reference {}", quote(r)));
+        match s.reference.as_deref().map(str::trim) {
+            None | Some("") => {}
+            Some("upload") => {
+                if let Some((name, _)) = &self.reference_upload {
+                    v.push(format!("--reference {}", quote(name)));
+                }
+            }
+            Some(r) => v.push(format!("--reference {}", quote(r))),
         }
         if let Some(r) = s
             .reference_white
@@ -1290,43 +1342,5 @@ fn corners_text(c: [[f64; 2]; 4]) -> String {
 }
 
 #[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn quoting() {
-        assert_eq!(quote("a.exr"), "a.exr");
-        assert_eq!(quote("a b.exr"), "'a b.exr'");
-        assert_eq!(quote("it's"), "'it'\\''s'");
-        assert_eq!(quote(""), "''");
-        assert_eq!(
-            corners_text([[1.5, 2.0], [3.0, 4.0], [5.0, 6.0], [7.0, 8.25]]),
-            "1.5,2 3,4 5,6 7,8.25"
-        );
-    }
-
-    #[test]
-    fn page_messages_name_no_flags() {
-        assert_eq!(
-            unflag("--objective `x`: use --white-patch D4 or --ridge auto"),
-            "objective `x`: use white patch D4 or ridge auto"
-        );
-        assert_eq!(unflag("a -- b --1 c"), "a -- b --1 c");
-        let e = anyhow::Error::new(nsrm::io::IoError::OverLimit {
-            path: "big.exr".into(),
-            why: "10 pixels, more than the limit of 5".into(),
-        });
-        let m = explain_for_page(e);
-        assert!(!m.contains("--"), "{m}");
-        assert!(m.contains("Way out"), "{m}");
-    }
-
-    #[test]
-    fn box_filter() {
-        let f = Frame::from_data(4, 2, Layout::Rgb, (0..24).map(|v| v as f32).collect()).unwrap();
-        let s = downsample(&f, 2);
-        assert_eq!((s.width, s.height), (2, 1));
-        // Pixels 0, 1, 4, 5: R = (0 + 3 + 12 + 15) / 4.
-        assert_eq!(s.data[0], 7.5);
-    }
-}
+#[path = "session_tests.rs"]
+mod tests;

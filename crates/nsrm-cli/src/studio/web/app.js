@@ -135,6 +135,21 @@ async function uploadFlat(file) {
   }
 }
 
+async function uploadReference(file) {
+  if (!S.frame) {
+    status('open a frame first, then the reference file of its chart', true);
+    return;
+  }
+  status(`uploading the reference ${file.name}…`);
+  try {
+    const st = await api('POST', `/api/frames/${S.frame.id}/reference?name=` + encodeURIComponent(file.name), file, true);
+    showFrame(st);
+    if (!st.error) status(`reference: ${file.name}`);
+  } catch (e) {
+    status(e.message, true);
+  }
+}
+
 function showFrame(st) {
   const first = !S.frame || S.frame.id !== st.id;
   S.frame = st;
@@ -154,7 +169,15 @@ function showFrame(st) {
   $('viewer').classList.add('loaded');
   $('frame-name').textContent = `${st.name} (${st.width}×${st.height})`;
   $('chart').value = st.settings.chart;
-  $('reference').value = st.settings.reference || '';
+  const refSel = $('reference');
+  let refUp = refSel.querySelector('option[value="upload"]');
+  if (st.reference_upload) {
+    if (!refUp) refUp = option(refSel, 'upload', '');
+    refUp.textContent = st.reference_upload + ' (uploaded)';
+  } else if (refUp) {
+    refUp.remove();
+  }
+  refSel.value = st.settings.reference || '';
   const flatSel = $('flat');
   let up = flatSel.querySelector('option[value="upload"]');
   if (st.flat_upload) {
@@ -674,6 +697,10 @@ function wire() {
     const onFlat = e.target instanceof Element && e.target.closest('#flat-drop, #flat-input');
     if (onFlat) uploadFlat(f);
     else upload(f);
+  });
+  $('reference-input').addEventListener('change', (e) => {
+    if (e.target.files[0]) uploadReference(e.target.files[0]);
+    e.target.value = '';
   });
   $('flat-input').addEventListener('change', (e) => {
     if (e.target.files[0]) uploadFlat(e.target.files[0]);

@@ -1,0 +1,205 @@
+"""Type stubs of the nsrm package (the native module ``nsrm._nsrm``)."""
+
+import os
+from typing import Any, Literal, Optional, Sequence, Tuple, TypedDict, Union
+
+import numpy as np
+import numpy.typing as npt
+
+__version__: str
+
+ArrayLike = Union[npt.NDArray[np.float32], npt.NDArray[np.float64], Sequence[Any]]
+PathLike = Union[str, "os.PathLike[str]"]
+White = Union[Sequence[float], str]
+Kind = Literal["lrm", "prm", "rprm", "nsrm", "LRM", "PRM", "RPRM", "NSRM"]
+
+class NsrmError(Exception):
+    """The base of every error nsrm raises; its message is the library's."""
+
+class InputError(NsrmError, ValueError):
+    """A bad argument or array (wrong shape, dtype, size, or a number out of range)."""
+
+class GpuUnavailableError(NsrmError, RuntimeError):
+    """device="gpu" was asked for and no GPU adapter could be opened."""
+
+class TrainingData(TypedDict):
+    labels: list[str]
+    camera_rgb: npt.NDArray[np.float64]
+    xyz: npt.NDArray[np.float64]
+    white_xyz: list[float]
+    white_rgb: Optional[list[float]]
+
+class EvalResult(TypedDict):
+    kind: str
+    order: int
+    terms: int
+    mean: float
+    median: float
+    p95: float
+    max: float
+    per_patch: npt.NDArray[np.float64]
+    labels: list[str]
+    f32_unsafe_fits: int
+
+class ChartReading(TypedDict):
+    labels: list[str]
+    camera_rgb: npt.NDArray[np.float64]
+    xyz: npt.NDArray[np.float64]
+    std: npt.NDArray[np.float64]
+    count: list[int]
+    flags: list[list[str]]
+    usable: list[bool]
+    white_xyz: list[float]
+    corners: npt.NDArray[np.float64]
+    report: dict[str, Any]
+    csv: str
+    training: TrainingData
+
+class ExportResult(TypedDict):
+    files: list[str]
+    max_de00: float
+    summary: str
+
+class Model:
+    """A fitted colour-correction model: linear camera RGB → CIE XYZ."""
+
+    @staticmethod
+    def load(path: PathLike) -> "Model":
+        """Reads a model file (the JSON ``nsrm fit`` writes)."""
+    @staticmethod
+    def from_json(text: str, origin: str = "<string>") -> "Model":
+        """Parses a model document."""
+    def to_json(self) -> str:
+        """The model file's JSON text."""
+    def save(self, path: PathLike, overwrite: bool = True) -> None:
+        """Writes the model file (the JSON ``nsrm apply`` reads)."""
+    @property
+    def kind(self) -> str:
+        """``"lrm"``, ``"prm"``, ``"rprm"`` or ``"nsrm"``."""
+    @property
+    def order(self) -> int:
+        """The order (LRM: 1)."""
+    @property
+    def terms(self) -> list[str]:
+        """The terms' names, in the order of the matrix's columns."""
+    @property
+    def matrix(self) -> npt.NDArray[np.float64]:
+        """The coefficient matrix, ``(3, L)``: rows X, Y, Z; columns as ``terms``."""
+    @property
+    def white_xyz(self) -> Tuple[float, float, float]:
+        """XYZ of the training white (``apply`` outputs have its Y at 1)."""
+    @property
+    def input_gains(self) -> Tuple[float, float, float]:
+        """Camera RGB gains applied before the terms (1, 1, 1 unless white-balanced)."""
+    @property
+    def patches(self) -> list[str]:
+        """The training patches' labels."""
+    @property
+    def fit_report(self) -> Optional[dict[str, Any]]:
+        """The fit's report (objective, ridge λ, in-sample ΔE00, f32 error, …)."""
+    def apply(
+        self,
+        rgb: ArrayLike,
+        device: Literal["cpu", "gpu"] = "cpu",
+        *,
+        output_space: Literal["xyz", "linear-srgb", "acescg", "aces2065-1"] = "xyz",
+        highlights: Optional[Literal["clip", "keep"]] = None,
+        clip_level: Optional[float] = None,
+        adapter: Optional[str] = None,
+        max_pixels: int = 268435456,
+    ) -> npt.NDArray[np.float32]:
+        """Corrects ``(..., 3)`` or ``(..., 4)`` float32/float64 linear camera RGB (alpha
+        untouched) as ``nsrm apply`` does: float32 out, the training white at Y = 1, NaN and Inf
+        propagated, nothing clamped. ``device="gpu"`` runs nsrm's wgpu engine
+        (``GpuUnavailableError`` without an adapter)."""
+    def apply_f64(self, rgb: ArrayLike) -> npt.NDArray[np.float64]:
+        """The f64 reference, pixel by pixel: XYZ on the training data's scale (not divided by
+        the white's Y)."""
+
+def fit(
+    camera_rgb: ArrayLike,
+    xyz: ArrayLike,
+    kind: Kind = "nsrm",
+    order: int = 3,
+    *,
+    objective: str = "ls",
+    preserve_white: bool = False,
+    ridge: Union[None, float, str] = None,
+    white: Optional[White] = None,
+    white_patch: Optional[str] = None,
+    white_rgb: Optional[Sequence[float]] = None,
+    normalise: Literal["raw", "white-balanced"] = "raw",
+    labels: Optional[Sequence[str]] = None,
+) -> Model:
+    """Fits a model on ``(N, 3)`` camera RGB → XYZ as ``nsrm fit`` does. ``white`` (required) is
+    the white the XYZ are relative to: ``(X, Y, Z)``, ``"x,y"`` or an illuminant name."""
+
+def eval_loo(
+    camera_rgb: ArrayLike,
+    xyz: ArrayLike,
+    kind: Kind = "nsrm",
+    order: int = 3,
+    *,
+    white: Optional[White] = None,
+    objective: str = "ls",
+    preserve_white: bool = False,
+    ridge: Union[None, float, str] = None,
+    white_patch: Optional[str] = None,
+    white_rgb: Optional[Sequence[float]] = None,
+    normalise: Literal["raw", "white-balanced"] = "raw",
+    labels: Optional[Sequence[str]] = None,
+    in_sample: bool = False,
+    f32_guard: bool = False,
+) -> EvalResult:
+    """Leave-one-out ΔE00 per patch and its statistics, as ``nsrm eval``."""
+
+def delta_e00(lab1: ArrayLike, lab2: ArrayLike) -> npt.NDArray[np.float64]:
+    """CIEDE2000 between two ``(..., 3)`` Lab arrays of the same shape."""
+
+def builtin_training(
+    camera: str = "nikon-d5100", illuminant: str = "D65", chart: str = "cc24"
+) -> TrainingData:
+    """A training set simulated from the built-in spectra (or CSV files of the same columns)."""
+
+def read_chart(
+    path: PathLike,
+    chart: Literal["cc24", "sg"] = "cc24",
+    *,
+    reference: Optional[str] = None,
+    reference_white: Optional[White] = None,
+    corners: Union[None, str, Sequence[Sequence[float]]] = None,
+    white_level: Optional[float] = None,
+    flat: Optional[str] = None,
+    encoding: Literal["auto", "linear", "srgb"] = "auto",
+    demosaic: Literal["half", "bilinear", "mhc"] = "half",
+    layer: Optional[str] = None,
+    max_pixels: int = 268435456,
+) -> ChartReading:
+    """Reads the chart in a photograph as ``nsrm chart extract`` does."""
+
+def read_frame(
+    path: PathLike,
+    *,
+    demosaic: Literal["half", "bilinear", "mhc"] = "mhc",
+    layer: Optional[str] = None,
+    max_pixels: int = 268435456,
+) -> npt.NDArray[np.float32]:
+    """Decodes a linear EXR / TIFF or a camera raw file as ``nsrm apply`` does:
+    ``(height, width, 3)`` float32 camera RGB."""
+
+def export(
+    model: Model,
+    format: Literal["clf", "cube", "ocio", "dcp", "icc"],
+    path: PathLike,
+    *,
+    output_space: Literal["xyz", "linear-srgb", "acescg", "aces2065-1"] = "xyz",
+    lut_size: int = 65,
+    shaper_size: int = 65536,
+    stops: Optional[Tuple[float, float]] = None,
+    interpolation: Literal["tetrahedral", "trilinear"] = "tetrahedral",
+    dcp_map: Tuple[int, int] = (600, 55),
+    max_de00: Optional[float] = None,
+    training_rgb: Optional[ArrayLike] = None,
+    overwrite: bool = True,
+) -> ExportResult:
+    """Writes the model as a CLF, .cube, OCIO config, DCP or ICC profile, as ``nsrm export``."""

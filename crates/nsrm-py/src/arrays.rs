@@ -1,7 +1,9 @@
 //! numpy arrays in and out: shapes, dtypes and sizes checked before anything is allocated.
 
 use crate::errors;
-use numpy::{PyArray1, PyArrayDyn, PyArrayMethods, PyUntypedArray, PyUntypedArrayMethods};
+use numpy::{
+    PyArray1, PyArrayDyn, PyArrayMethods, PyReadonlyArrayDyn, PyUntypedArray, PyUntypedArrayMethods,
+};
 use pyo3::prelude::*;
 
 /// The most patches a training set from arrays may have (a fit's design is patches × terms).
@@ -26,21 +28,20 @@ fn dtype_name(a: &Bound<'_, PyUntypedArray>) -> String {
     a.dtype().to_string()
 }
 
-/// Pixels of a `(…, 3)` or `(…, 4)` float32 / float64 array, as packed f32 in C order (the
-/// buffer the corrected pixels are written to), with the array's shape.
-pub(crate) struct Pixels {
-    /// Packed RGB or RGBA f32, C order.
-    pub(crate) data: Vec<f32>,
-    /// The input's shape (the output has it too).
+/// A checked pixel array: `(…, 3)` RGB or `(…, 4)` RGBA, float32 or float64, at most
+/// `max_pixels` pixels (checked before anything is allocated).
+pub(crate) struct Pixels<'py> {
+    array: Bound<'py, PyUntypedArray>,
+    /// The array's shape (the output has it too).
     pub(crate) shape: Vec<usize>,
     /// 3 or 4.
     pub(crate) channels: usize,
 }
 
-impl Pixels {
+impl<'py> Pixels<'py> {
     /// Number of pixels.
     pub(crate) fn pixels(&self) -> usize {
-        self.data.len() / self.channels
+        self.shape[..self.shape.len() - 1].iter().product()
     }
 
     /// A width and height for the frame the library corrects: the array's last two axes
@@ -62,12 +63,42 @@ impl Pixels {
             nsrm::Layout::Rgb
         }
     }
+
+    /// The array itself when it is C-contiguous float32: the library reads it in place.
+    pub(crate) fn contiguous_f32(&self) -> Option<PyReadonlyArrayDyn<'py, f32>> {
+        let f = self.array.cast::<PyArrayDyn<f32>>().ok()?;
+        f.is_c_contiguous().then(|| f.readonly())
+    }
+
+    /// The pixels as packed f32 in C order: one copy (a C-contiguous float32 array as a block,
+    /// anything else converted element by element).
+    pub(crate) fn to_vec(&self) -> Vec<f32> {
+        if let Ok(f) = self.array.cast::<PyArrayDyn<f32>>() {
+            let r = f.readonly();
+            match r.as_slice() {
+                Ok(s) => s.to_vec(),
+                Err(_) => r.as_array().iter().copied().collect(),
+            }
+        } else {
+            let r = self
+                .array
+                .cast::<PyArrayDyn<f64>>()
+                .expect("checked: float32 or float64")
+                .readonly();
+            match r.as_slice() {
+                Ok(s) => s.iter().map(|&v| v as f32).collect(),
+                Err(_) => r.as_array().iter().map(|&v| v as f32).collect(),
+            }
+        }
+    }
 }
 
-/// Checks a pixel array and copies it into the output buffer (one copy: the output; a
-/// C-contiguous float32 input is copied as a block, anything else converted element by element).
-/// At most `max_pixels` pixels; NaN and ±Inf are allowed (the pixel policy propagates them).
-pub(crate) fn pixels(obj: &Bound<'_, PyAny>, what: &str, max_pixels: u64) -> PyResult<Pixels> {
+/// Checks a pixel array (NaN and ±Inf are allowed: the pixel policy propagates them).
+pub(crate) fn pixels<'py>(
+    obj: &Bound<'py, PyAny>,
+    what: &str,
+    max_pixels: u64,
+) -> PyResult<Pixels<'py>> {
     let a = ndarray(obj, what)?;
     let shape = a.shape().to_vec();
     let channels = match shape.last() {
@@ -87,26 +118,14 @@ pub(crate) fn pixels(obj: &Bound<'_, PyAny>, what: &str, max_pixels: u64) -> PyR
             "{what}: {px} pixels, more than max_pixels = {max_pixels}"
         )));
     }
-    let data = if let Ok(f) = a.cast::<PyArrayDyn<f32>>() {
-        let r = f.readonly();
-        match r.as_slice() {
-            Ok(s) => s.to_vec(),
-            Err(_) => r.as_array().iter().copied().collect(),
-        }
-    } else if let Ok(f) = a.cast::<PyArrayDyn<f64>>() {
-        let r = f.readonly();
-        match r.as_slice() {
-            Ok(s) => s.iter().map(|&v| v as f32).collect(),
-            Err(_) => r.as_array().iter().map(|&v| v as f32).collect(),
-        }
-    } else {
+    if a.cast::<PyArrayDyn<f32>>().is_err() && a.cast::<PyArrayDyn<f64>>().is_err() {
         return Err(errors::input(format!(
             "{what}: dtype {}: expected float32 or float64",
             dtype_name(&a)
         )));
-    };
+    }
     Ok(Pixels {
-        data,
+        array: a,
         shape,
         channels,
     })

@@ -374,8 +374,18 @@ impl PyModel {
         let px = arrays::pixels(rgb, "rgb", max_pixels)?;
         let (w, h) = px.size();
         let layout = px.layout();
-        let shape = px.shape;
-        let mut frame = nsrm::Frame::from_data(w, h, layout, px.data)
+        if !gpu {
+            if let Some(src) = px.contiguous_f32() {
+                // Read where numpy keeps it, written into a new buffer: no copy of the input.
+                let src = src.as_slice().map_err(|e| errors::input(e.to_string()))?;
+                let mut out = vec![0.0f32; src.len()];
+                let fast = FastModel::new(&model);
+                py.detach(|| fast.apply_slices(src, &mut out, layout, Threads::All))
+                    .map_err(|e| errors::lib(e, true))?;
+                return arrays::out_f32(py, out, &px.shape);
+            }
+        }
+        let mut frame = nsrm::Frame::from_data(w, h, layout, px.to_vec())
             .ok_or_else(|| errors::input("rgb: size does not match its shape"))?;
         if gpu {
             py.detach(|| gpu_apply(&model, &mut frame, adapter))
@@ -386,7 +396,7 @@ impl PyModel {
         } else {
             py.detach(|| FastModel::new(&model).apply(&mut frame, Threads::All));
         }
-        arrays::out_f32(py, frame.data, &shape)
+        arrays::out_f32(py, frame.data, &px.shape)
     }
 
     /// The f64 reference (`Model::apply_f64`, pixel by pixel, in XYZ): `(..., 3)` → float64.

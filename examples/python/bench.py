@@ -62,7 +62,13 @@ def main():
     results["nsrm LRM"] = timed(lambda: lrm.apply(rgb), a.reps)
     results["nsrm RPRM3"] = timed(lambda: rprm.apply(rgb), a.reps)
     results["nsrm NSRM3"] = timed(lambda: nsrm3.apply(rgb), a.reps)
+    out = np.empty_like(rgb)
+    results["nsrm LRM, out= preallocated"] = timed(lambda: lrm.apply(rgb, out=out), a.reps)
+    results["nsrm NSRM3, out= preallocated"] = timed(lambda: nsrm3.apply(rgb, out=out), a.reps)
     m = lrm.matrix.astype(np.float32)
+    results["numpy np.matmul(rgb, M.T, out=) preallocated"] = timed(
+        lambda: np.matmul(rgb, m.T, out=out), a.reps
+    )
     results["numpy rgb @ M.T (3x3)"] = timed(lambda: rgb @ m.T, a.reps)
     if apply_matrix_colour_correction is not None:
         kw = {"degree": 3, "root_polynomial_expansion": True}
@@ -83,6 +89,8 @@ def main():
     pairs = [
         ("numpy rgb @ M.T (3x3)", "nsrm LRM"),
         ("numpy rgb @ M.T (3x3)", "nsrm NSRM3"),
+        ("numpy np.matmul(rgb, M.T, out=) preallocated", "nsrm LRM, out= preallocated"),
+        ("numpy np.matmul(rgb, M.T, out=) preallocated", "nsrm NSRM3, out= preallocated"),
         ("colour-science LRM (Finlayson 2015, degree 1)", "nsrm LRM"),
         ("colour-science RPRM3 (Finlayson 2015)", "nsrm RPRM3"),
         ("colour-science RPRM3 (Finlayson 2015)", "nsrm NSRM3"),

@@ -107,11 +107,14 @@ class Model:
         clip_level: Optional[float] = None,
         adapter: Optional[str] = None,
         max_pixels: int = 268435456,
+        out: Optional[npt.NDArray[np.float32]] = None,
     ) -> npt.NDArray[np.float32]:
         """Corrects ``(..., 3)`` or ``(..., 4)`` float32/float64 linear camera RGB (alpha
         untouched) as ``nsrm apply`` does: float32 out, the training white at Y = 1, NaN and Inf
         propagated, nothing clamped. ``device="gpu"`` runs nsrm's wgpu engine
-        (``GpuUnavailableError`` without an adapter)."""
+        (``GpuUnavailableError`` without an adapter). A C-contiguous float32 ``rgb`` is read where
+        it is (do not modify it from another thread meanwhile); ``out`` (a C-contiguous float32
+        array of the same shape, not ``rgb``) receives the result instead of a new array."""
     def apply_f64(self, rgb: ArrayLike) -> npt.NDArray[np.float64]:
         """The f64 reference, pixel by pixel: XYZ on the training data's scale (not divided by
         the white's Y)."""

@@ -49,6 +49,9 @@ def test_apply_shapes_alpha_dtypes_and_non_contiguous(d65, rng):
     view = img[:, ::2, :3]
     assert not view.flags["C_CONTIGUOUS"]
     np.testing.assert_array_equal(m.apply(view), m.apply(np.ascontiguousarray(view)))
+    # Fortran order (contiguous, but not C order): converted, the same result.
+    for a in (img, img.astype(np.float64)):
+        np.testing.assert_array_equal(m.apply(np.asfortranarray(a)), out)
     # One pixel, and a list.
     np.testing.assert_array_equal(m.apply(rgb[0, 0]), m.apply(rgb[:1, :1])[0, 0])
     np.testing.assert_array_equal(m.apply(rgb[0, 0].tolist()), m.apply(rgb[0, 0]))
@@ -126,3 +129,26 @@ def test_delta_e00_is_vectorised():
     # Sharma, Wu & Dalal's first two pairs.
     np.testing.assert_allclose(de, [2.0425, 2.8615], atol=1e-4)
     assert nsrm.delta_e00(lab1.reshape(2, 1, 3), lab2.reshape(2, 1, 3)).shape == (2, 1)
+
+
+def test_apply_into_out(d65, rng):
+    m = fit_d65(d65)
+    img = rng.uniform(0, 1, (6, 5, 4)).astype(np.float32)
+    want = m.apply(img)
+    for src in (img, img.astype(np.float64), np.asfortranarray(img)):
+        out = np.full(img.shape, 7.0, np.float32)
+        got = m.apply(src, out=out)
+        assert got is out
+        np.testing.assert_array_equal(out, want)
+    with pytest.raises(nsrm.InputError, match="not the input"):
+        m.apply(img, out=img)
+    with pytest.raises(nsrm.InputError, match="shape"):
+        m.apply(img, out=np.zeros((6, 5, 3), np.float32))
+    with pytest.raises(nsrm.InputError, match="float32"):
+        m.apply(img, out=np.zeros(img.shape, np.float64))
+    with pytest.raises(nsrm.InputError, match="C-contiguous"):
+        m.apply(img[:, :2], out=np.zeros((6, 4, 4), np.float32)[:, ::2])
+    ro = np.zeros(img.shape, np.float32)
+    ro.flags.writeable = False
+    with pytest.raises(nsrm.InputError):
+        m.apply(img, out=ro)

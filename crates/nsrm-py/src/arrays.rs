@@ -2,7 +2,8 @@
 
 use crate::errors;
 use numpy::{
-    PyArray1, PyArrayDyn, PyArrayMethods, PyReadonlyArrayDyn, PyUntypedArray, PyUntypedArrayMethods,
+    PyArray1, PyArrayDyn, PyArrayMethods, PyReadonlyArrayDyn, PyReadwriteArrayDyn, PyUntypedArray,
+    PyUntypedArrayMethods,
 };
 use pyo3::prelude::*;
 
@@ -75,19 +76,20 @@ impl<'py> Pixels<'py> {
     pub(crate) fn to_vec(&self) -> Vec<f32> {
         if let Ok(f) = self.array.cast::<PyArrayDyn<f32>>() {
             let r = f.readonly();
+            // `as_slice` also takes a Fortran-ordered array: only C order is copied as a block.
             match r.as_slice() {
-                Ok(s) => s.to_vec(),
-                Err(_) => r.as_array().iter().copied().collect(),
+                Ok(s) if f.is_c_contiguous() => s.to_vec(),
+                _ => r.as_array().iter().copied().collect(),
             }
         } else {
-            let r = self
+            let f = self
                 .array
                 .cast::<PyArrayDyn<f64>>()
-                .expect("checked: float32 or float64")
-                .readonly();
+                .expect("checked: float32 or float64");
+            let r = f.readonly();
             match r.as_slice() {
-                Ok(s) => s.iter().map(|&v| v as f32).collect(),
-                Err(_) => r.as_array().iter().map(|&v| v as f32).collect(),
+                Ok(s) if f.is_c_contiguous() => s.iter().map(|&v| v as f32).collect(),
+                _ => r.as_array().iter().map(|&v| v as f32).collect(),
             }
         }
     }
@@ -188,6 +190,36 @@ fn floats(obj: &Bound<'_, PyAny>, what: &str, finite: bool) -> PyResult<(Vec<f64
         }
     }
     Ok((v, shape))
+}
+
+/// `out=`: a C-contiguous, writable float32 array of `shape`.
+pub(crate) fn out_array<'py>(
+    obj: &Bound<'py, PyAny>,
+    shape: &[usize],
+) -> PyResult<Bound<'py, PyArrayDyn<f32>>> {
+    let a = obj
+        .cast::<PyArrayDyn<f32>>()
+        .map_err(|_| errors::input("out: expected a float32 numpy array"))?;
+    if a.shape() != shape || !a.is_c_contiguous() {
+        return Err(errors::input(format!(
+            "out: shape {:?}{}: expected a C-contiguous array of shape {shape:?}",
+            a.shape(),
+            if a.is_c_contiguous() {
+                ""
+            } else {
+                ", not C-contiguous"
+            }
+        )));
+    }
+    Ok(a.clone())
+}
+
+/// Borrows `out` for writing (refused while it is also read: `out` must not be the input).
+pub(crate) fn writable<'py>(
+    a: &Bound<'py, PyArrayDyn<f32>>,
+) -> PyResult<PyReadwriteArrayDyn<'py, f32>> {
+    a.try_readwrite()
+        .map_err(|e| errors::input(format!("out: {e} (it must be writable and not the input)")))
 }
 
 /// A float32 array of `shape` holding `data` (no copy: numpy takes the buffer).

@@ -328,9 +328,10 @@ impl PyModel {
     }
 
     /// Corrects pixels: `rgb` is `(..., 3)` or `(..., 4)` float32 / float64 linear camera RGB
-    /// (alpha untouched); returns float32 of the same shape, as `nsrm apply` writes.
+    /// (alpha untouched); returns float32 of the same shape, as `nsrm apply` writes (into
+    /// `out`, a C-contiguous float32 array of that shape other than `rgb`, when given).
     #[pyo3(signature = (rgb, device="cpu", *, output_space="xyz", highlights=None,
-        clip_level=None, adapter=None, max_pixels=DEFAULT_MAX_PIXELS))]
+        clip_level=None, adapter=None, max_pixels=DEFAULT_MAX_PIXELS, out=None))]
     #[allow(clippy::too_many_arguments)]
     fn apply<'py>(
         &self,
@@ -342,6 +343,7 @@ impl PyModel {
         clip_level: Option<f64>,
         adapter: Option<String>,
         max_pixels: u64,
+        out: Option<Bound<'py, PyAny>>,
     ) -> PyResult<Bound<'py, PyArrayDyn<f32>>> {
         let space = OutputSpace::parse(output_space).ok_or_else(|| {
             errors::input(format!(
@@ -366,23 +368,35 @@ impl PyModel {
         };
         // As `nsrm apply`: the model with the output space folded in, the highlight policy of
         // the XYZ model for the frame's clip level (arrays record none: `clip_level` gives it).
-        let out = nsrm::output_model(&self.inner, space).map_err(errors::model)?;
+        let in_space = nsrm::output_model(&self.inner, space).map_err(errors::model)?;
         let policy = FrameHighlights::new(mode, clip_level, &[&self.inner])
             .policy(None, None)
             .map_err(errors::model)?;
-        let model = out.with_policy(policy);
+        let model = in_space.with_policy(policy);
         let px = arrays::pixels(rgb, "rgb", max_pixels)?;
         let (w, h) = px.size();
         let layout = px.layout();
+        let out = out.map(|o| arrays::out_array(&o, &px.shape)).transpose()?;
         if !gpu {
             if let Some(src) = px.contiguous_f32() {
-                // Read where numpy keeps it, written into a new buffer: no copy of the input.
+                // Read where numpy keeps it, written into the output: no copy of the input.
                 let src = src.as_slice().map_err(|e| errors::input(e.to_string()))?;
-                let mut out = vec![0.0f32; src.len()];
                 let fast = FastModel::new(&model);
-                py.detach(|| fast.apply_slices(src, &mut out, layout, Threads::All))
-                    .map_err(|e| errors::lib(e, true))?;
-                return arrays::out_f32(py, out, &px.shape);
+                let run = |dst: &mut [f32]| {
+                    py.detach(|| fast.apply_slices(src, dst, layout, Threads::All))
+                        .map_err(|e| errors::lib(e, true))
+                };
+                return match out {
+                    Some(o) => {
+                        run(arrays::writable(&o)?.as_slice_mut().expect("C-contiguous"))?;
+                        Ok(o)
+                    }
+                    None => {
+                        let mut dst = vec![0.0f32; src.len()];
+                        run(&mut dst)?;
+                        arrays::out_f32(py, dst, &px.shape)
+                    }
+                };
             }
         }
         let mut frame = nsrm::Frame::from_data(w, h, layout, px.to_vec())
@@ -396,7 +410,16 @@ impl PyModel {
         } else {
             py.detach(|| FastModel::new(&model).apply(&mut frame, Threads::All));
         }
-        arrays::out_f32(py, frame.data, &px.shape)
+        match out {
+            Some(o) => {
+                arrays::writable(&o)?
+                    .as_slice_mut()
+                    .expect("C-contiguous")
+                    .copy_from_slice(&frame.data);
+                Ok(o)
+            }
+            None => arrays::out_f32(py, frame.data, &px.shape),
+        }
     }
 
     /// The f64 reference (`Model::apply_f64`, pixel by pixel, in XYZ): `(..., 3)` → float64.

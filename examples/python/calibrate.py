@@ -76,7 +76,9 @@ if plt is not None:
     ax1.set_title(f"{kind.upper()} {order}")
     display = np.clip(srgb / max(np.percentile(srgb, 99), 1e-6), 0, 1) ** (1 / 2.2)
     ax2.imshow(display)
-    ax2.plot(*np.vstack([chart["corners"], chart["corners"][:1]]).T, "r-")
+    # The chart was read at its own resolution (a raw file: half, one pixel per CFA block).
+    corners = chart["corners"] * (rgb.shape[1] / chart["report"]["width"])
+    ax2.plot(*np.vstack([corners, corners[:1]]).T, "r-")
     ax2.set_title("corrected (linear sRGB, display gamma)")
     ax2.axis("off")
     fig.tight_layout()

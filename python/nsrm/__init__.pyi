@@ -160,9 +160,15 @@ def delta_e00(lab1: ArrayLike, lab2: ArrayLike) -> npt.NDArray[np.float64]:
     """CIEDE2000 between two ``(..., 3)`` Lab arrays of the same shape."""
 
 def builtin_training(
-    camera: str = "nikon-d5100", illuminant: str = "D65", chart: str = "cc24"
+    camera: str = "nikon-d5100",
+    illuminant: str = "D65",
+    chart: str = "cc24",
+    *,
+    patches: str = "all",
 ) -> TrainingData:
-    """A training set simulated from the built-in spectra (or CSV files of the same columns)."""
+    """A training set simulated from the built-in spectra (or CSV files of the same columns):
+    camera sensitivities × illuminant × reflectances (``chart``: ``cc24``, ``rawtoaces-190`` or a
+    file); ``patches`` selects as ``nsrm eval --patches`` (``all``, ``A1,C3``, ``B2:M9``)."""
 
 def read_chart(
     path: PathLike,

@@ -86,18 +86,21 @@ pub(crate) fn delta_e00<'py>(
 }
 
 /// A simulated training set from the built-in spectra (or CSV files of the same columns), as
-/// `nsrm fit --camera … --illuminant …` makes: a dict of `labels`, `camera_rgb` `(N, 3)`,
+/// `nsrm fit --camera … --illuminant … --reflectances … --patches …` makes: a dict of `labels`, `camera_rgb` `(N, 3)`,
 /// `xyz` `(N, 3)` (perfect white Y = 100), `white_xyz`, `white_rgb`.
 #[pyfunction]
-#[pyo3(signature = (camera="nikon-d5100", illuminant="D65", chart="cc24"))]
+#[pyo3(signature = (camera="nikon-d5100", illuminant="D65", chart="cc24", *, patches="all"))]
 pub(crate) fn builtin_training<'py>(
     py: Python<'py>,
     camera: &str,
     illuminant: &str,
     chart: &str,
+    patches: &str,
 ) -> PyResult<Bound<'py, PyDict>> {
     let data = py
         .detach(|| nsrm::simulate_named(camera, illuminant, chart, &nsrm::Grid::default()))
+        .map_err(|e| errors::lib(e, true))?
+        .select(patches)
         .map_err(|e| errors::lib(e, true))?;
     let n = data.len();
     let flat = |v: &[[f64; 3]]| v.iter().flatten().copied().collect::<Vec<f64>>();

@@ -152,3 +152,27 @@ def test_apply_into_out(d65, rng):
     ro.flags.writeable = False
     with pytest.raises(nsrm.InputError):
         m.apply(img, out=ro)
+
+
+def test_apply_releases_the_gil(d65):
+    """While another thread corrects a large frame four times, this thread keeps running
+    Python: it is running (steps under 2 ms apart) for a good part of that time. With the GIL
+    held by apply it could only run between the applies."""
+    import threading
+    import time
+
+    m = fit_d65(d65)
+    big = np.random.default_rng(0).uniform(0, 1, (3000, 4000, 3)).astype(np.float32)
+    th = threading.Thread(target=lambda: [m.apply(big) for _ in range(4)])
+    running = 0.0
+    t0 = last = time.perf_counter()
+    th.start()
+    while th.is_alive():
+        now = time.perf_counter()
+        if now - last < 0.002:
+            running += now - last
+        last = now
+    th.join()
+    share = running / (last - t0)
+    # Measured on 2 busy cores: 0.33 here; 0.06 for numpy's tobytes, which holds the GIL.
+    assert share > 0.15, share

@@ -1,6 +1,7 @@
 """Type stubs of the nsrm package (the native module ``nsrm._nsrm``)."""
 
 import os
+import pathlib
 from typing import Any, Literal, Optional, Sequence, Tuple, TypedDict, Union
 
 import numpy as np
@@ -56,9 +57,9 @@ class ChartReading(TypedDict):
     training: TrainingData
 
 class ExportResult(TypedDict):
-    files: list[str]
-    max_de00: float
-    summary: str
+    files: list[pathlib.Path]
+    max_de00: Optional[float]
+    summary: Optional[str]
 
 class Model:
     """A fitted colour-correction model: linear camera RGB → CIE XYZ."""
@@ -198,7 +199,9 @@ def read_frame(
 
 def export(
     model: Model,
-    format: Literal["clf", "cube", "ocio", "dcp", "icc"],
+    format: Literal[
+        "clf", "cube", "ocio", "dcp", "icc", "dctl", "wgsl", "glsl", "hlsl", "msl", "spirv"
+    ],
     path: PathLike,
     *,
     output_space: Literal["xyz", "linear-srgb", "acescg", "aces2065-1"] = "xyz",
@@ -210,5 +213,9 @@ def export(
     max_de00: Optional[float] = None,
     training_rgb: Optional[ArrayLike] = None,
     overwrite: bool = True,
+    layout: Literal["rgb", "rgba"] = "rgb",
 ) -> ExportResult:
-    """Writes the model as a CLF, .cube, OCIO config, DCP or ICC profile, as ``nsrm export``."""
+    """Writes the model as a CLF, .cube, OCIO config, DCP or ICC profile with its measured error,
+    as ``nsrm export`` (``training_rgb``: the patches to measure it on; default: those it was
+    fitted on, or re-simulated from a model file's provenance); or as a DCTL or a compute shader
+    (``layout``), the model exactly, as ``nsrm export-shader``."""

@@ -121,3 +121,19 @@ def test_apply_on_the_gpu_matches_the_cpu_or_raises_clearly(d65):
     cpu = m.apply(img)
     np.testing.assert_array_equal(gpu[..., 3], img[..., 3])
     np.testing.assert_allclose(gpu, cpu, rtol=1e-5, atol=1e-6)
+
+
+@pytest.mark.parametrize("lang", ["dctl", "wgsl", "glsl", "hlsl", "msl", "spirv"])
+def test_code_exports_equal_export_shader(tmp_path, nsrm_bin, d65, lang):
+    m = nsrm.fit(d65["camera_rgb"], d65["xyz"], "nsrm", 3, white=d65["white_xyz"])
+    m.save(tmp_path / "m.json")
+    ours = tmp_path / f"ours.{lang}"
+    r = nsrm.export(m, lang, ours, output_space="acescg", layout="rgba")
+    assert r["files"] == [ours] and r["max_de00"] is None
+    theirs = tmp_path / f"cli.{lang}"
+    args = [nsrm_bin, "export-shader", "--model", str(tmp_path / "m.json"), "--lang", lang,
+            "--output-space", "acescg", "-o", str(theirs)]
+    if lang != "dctl":
+        args += ["--layout", "rgba"]
+    subprocess.run(args, check=True, capture_output=True)
+    assert ours.read_bytes() == theirs.read_bytes()

@@ -4,6 +4,7 @@
 use crate::errors;
 use crate::model::{PyModel, Training};
 use nsrm::export::nodes::Interpolation;
+use nsrm::export::shader::ShaderLang;
 use nsrm::export::{ExportError, Format, LutOptions};
 use nsrm::output::Session;
 use nsrm::{Model, OutputSpace, Profile, TrainingSet};
@@ -70,11 +71,13 @@ fn stops_arg(stops: Option<(f64, f64)>, default: [f64; 2]) -> [f64; 2] {
 
 /// Writes `model` as `format` (`clf`, `cube`, `ocio`, `dcp` or `icc`) to `path`, measuring
 /// its error against the model on the training patches and a dense in-gamut set, as `nsrm
-/// export`. Returns a dict: `files`, `max_de00`, `summary` (the error report's line).
+/// export`; or as code (`dctl`, or a compute shader in `wgsl`, `glsl`, `hlsl`, `msl`, `spirv`
+/// for `layout` `rgb` / `rgba`), the model exactly, as `nsrm export-shader`. Returns a dict:
+/// `files`, `max_de00` and `summary` (the error report's line; `None` for code).
 #[pyfunction]
 #[pyo3(signature = (model, format, path, *, output_space="xyz", lut_size=65, shaper_size=65536,
     stops=None, interpolation="tetrahedral", dcp_map=(600, 55), max_de00=None, training_rgb=None,
-    overwrite=true))]
+    overwrite=true, layout="rgb"))]
 #[allow(clippy::too_many_arguments)]
 pub(crate) fn export<'py>(
     py: Python<'py>,
@@ -90,10 +93,14 @@ pub(crate) fn export<'py>(
     max_de00: Option<f64>,
     training_rgb: Option<&Bound<'py, PyAny>>,
     overwrite: bool,
+    layout: &str,
 ) -> PyResult<Bound<'py, PyDict>> {
+    if format.eq_ignore_ascii_case("dctl") || ShaderLang::parse(format).is_some() {
+        return code(py, model, format, path, output_space, layout, overwrite);
+    }
     let fmt = Format::parse(format).ok_or_else(|| {
         errors::input(format!(
-            "format `{format}`: expected clf, cube, ocio, dcp or icc"
+            "format `{format}`: expected clf, cube, ocio, dcp, icc, dctl, wgsl, glsl, hlsl, msl or spirv"
         ))
     })?;
     let given = training_rgb
@@ -182,5 +189,59 @@ pub(crate) fn export<'py>(
     d.set_item("files", files)?;
     d.set_item("max_de00", report.max())?;
     d.set_item("summary", report.summary())?;
+    Ok(d)
+}
+
+/// `export(format="dctl" | a shader language)`: the model with the output space folded in, as
+/// `nsrm export-shader` writes it.
+fn code<'py>(
+    py: Python<'py>,
+    model: &PyModel,
+    format: &str,
+    path: PathBuf,
+    output_space: &str,
+    layout: &str,
+    overwrite: bool,
+) -> PyResult<Bound<'py, PyDict>> {
+    let space = OutputSpace::parse(output_space).ok_or_else(|| {
+        errors::input(format!(
+            "output_space `{output_space}`: expected xyz, linear-srgb, acescg or aces2065-1"
+        ))
+    })?;
+    let layout = nsrm::Layout::parse(layout)
+        .ok_or_else(|| errors::input(format!("layout `{layout}`: expected rgb or rgba")))?;
+    let m = &model.inner;
+    let folded = nsrm::output_model(m, space).map_err(errors::model)?;
+    let bytes = match ShaderLang::parse(format) {
+        Some(lang) => nsrm::export::shader::export(&folded, layout, lang).map_err(|e| {
+            let usage = e.is_usage();
+            errors::lib(e, usage)
+        })?,
+        None => {
+            let header = vec![
+                format!(
+                    "nsrm DCTL: {} to {} ({}), scene-linear, training white at Y = 1 (as nsrm apply --output-space {})",
+                    nsrm::export::camera_space_name(m),
+                    space.name(),
+                    space.interop_id(),
+                    space.name()
+                ),
+                nsrm::export::provenance_line(m),
+            ];
+            nsrm::export::dctl::generate(&folded, &header)
+                .map_err(export_err)?
+                .into_bytes()
+        }
+    };
+    Session::new(overwrite)
+        .write_bytes(&path, &bytes)
+        .map_err(|e| {
+            let usage = e.is_usage();
+            errors::lib(e, usage)
+        })?;
+    let d = PyDict::new(py);
+    d.set_item("files", vec![path])?;
+    d.set_item("max_de00", py.None())?;
+    d.set_item("summary", py.None())?;
     Ok(d)
 }

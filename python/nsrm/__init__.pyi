@@ -174,7 +174,8 @@ def eval_loo(
     """Leave-one-out ΔE00 per patch and its statistics, as ``nsrm eval``."""
 
 def delta_e00(lab1: _ArrayLike, lab2: _ArrayLike) -> npt.NDArray[np.float64]:
-    """CIEDE2000 between two ``(..., 3)`` Lab arrays of the same shape."""
+    """CIEDE2000 (kL = kC = kH = 1) between two ``(..., 3)`` Lab arrays, broadcast together as
+    numpy does; float64 of the broadcast shape without its last axis."""
 
 def builtin_training(
     camera: str = "nikon-d5100",

@@ -129,6 +129,11 @@ def test_delta_e00_is_vectorised():
     # Sharma, Wu & Dalal's first two pairs.
     np.testing.assert_allclose(de, [2.0425, 2.8615], atol=1e-4)
     assert nsrm.delta_e00(lab1.reshape(2, 1, 3), lab2.reshape(2, 1, 3)).shape == (2, 1)
+    # Broadcasting: every row of lab1 against one colour; (2, 1, 3) against (4, 3).
+    np.testing.assert_array_equal(nsrm.delta_e00(lab1, lab2[0]), de)
+    assert nsrm.delta_e00(lab1.reshape(2, 1, 3), np.zeros((4, 3))).shape == (2, 4)
+    with pytest.raises(nsrm.InputError):
+        nsrm.delta_e00(lab1, np.zeros((3, 3)))
 
 
 def test_apply_into_out(d65, rng):

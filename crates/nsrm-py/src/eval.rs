@@ -62,20 +62,22 @@ pub(crate) fn eval_loo<'py>(
     Ok(d)
 }
 
-/// CIEDE2000 ΔE00 between two Lab arrays of the same shape `(..., 3)`; returns `(...)` float64.
+/// CIEDE2000 ΔE00 between two `(..., 3)` Lab arrays (broadcast together as numpy does);
+/// returns `(...)` float64.
 #[pyfunction]
 pub(crate) fn delta_e00<'py>(
     py: Python<'py>,
     lab1: &Bound<'py, PyAny>,
     lab2: &Bound<'py, PyAny>,
 ) -> PyResult<Bound<'py, numpy::PyArrayDyn<f64>>> {
-    let (a, sa) = arrays::triples(lab1, "lab1")?;
-    let (b, sb) = arrays::triples(lab2, "lab2")?;
-    if sa != sb {
-        return Err(errors::input(format!(
-            "lab1 has shape {sa:?}, lab2 {sb:?}: they must match"
-        )));
-    }
+    // numpy's broadcasting: (N, 3) against (3,), (N, 1, 3) against (M, 3), …
+    let both = py
+        .import("numpy")?
+        .getattr("broadcast_arrays")?
+        .call1((lab1, lab2))
+        .map_err(|e| errors::input(format!("lab1, lab2: {e}")))?;
+    let (a, sa) = arrays::triples(&both.get_item(0)?, "lab1")?;
+    let (b, _) = arrays::triples(&both.get_item(1)?, "lab2")?;
     let out: Vec<f64> = py.detach(|| {
         a.chunks_exact(3)
             .zip(b.chunks_exact(3))

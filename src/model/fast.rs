@@ -106,6 +106,16 @@ pub enum FastError {
         /// Floats the data holds.
         len: usize,
     },
+    /// Source and destination buffers of different lengths, or not whole pixels.
+    #[error("source buffer holds {src} floats, destination {dst}: they must be equal, a whole number of {layout} pixels")]
+    SliceLength {
+        /// Floats in the source.
+        src: usize,
+        /// Floats in the destination.
+        dst: usize,
+        /// The layout.
+        layout: &'static str,
+    },
 }
 
 /// How many threads an apply call uses.
@@ -234,9 +244,29 @@ impl FastModel {
                 });
             }
         }
-        match src.layout {
-            Layout::Rgb => self.dispatch_into::<3>(&src.data, &mut dst.data, threads),
-            Layout::Rgba => self.dispatch_into::<4>(&src.data, &mut dst.data, threads),
+        self.apply_slices(&src.data, &mut dst.data, src.layout, threads)
+    }
+
+    /// [`apply_into`](Self::apply_into) on bare interleaved buffers of `layout` (the same length,
+    /// whole pixels): for a caller whose pixels live in memory it does not own as a [`Frame`]
+    /// (the Python bindings correct a numpy array into a new one without copying it first).
+    pub fn apply_slices(
+        &self,
+        src: &[f32],
+        dst: &mut [f32],
+        layout: Layout,
+        threads: Threads,
+    ) -> Result<(), FastError> {
+        if src.len() != dst.len() || !src.len().is_multiple_of(layout.channels()) {
+            return Err(FastError::SliceLength {
+                src: src.len(),
+                dst: dst.len(),
+                layout: layout.name(),
+            });
+        }
+        match layout {
+            Layout::Rgb => self.dispatch_into::<3>(src, dst, threads),
+            Layout::Rgba => self.dispatch_into::<4>(src, dst, threads),
         }
         Ok(())
     }

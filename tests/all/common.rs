@@ -86,7 +86,7 @@ extern "C" fn print_skips() {
 }
 
 /// A runtime directory for Mesa (once per test process) when the environment has none.
-fn xdg_runtime_dir() -> Option<PathBuf> {
+pub fn xdg_runtime_dir() -> Option<PathBuf> {
     static DIR: OnceLock<Option<PathBuf>> = OnceLock::new();
     DIR.get_or_init(|| {
         if std::env::var_os("XDG_RUNTIME_DIR").is_some() {

@@ -43,6 +43,7 @@ mod parsers_fuzz;
 mod pixel_policy;
 mod profiles;
 mod profiles_rawtherapee;
+mod python;
 mod raw;
 mod raw_xtrans;
 mod readme;

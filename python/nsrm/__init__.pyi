@@ -189,7 +189,7 @@ def builtin_training(
     file); ``patches`` selects as ``nsrm eval --patches`` (``all``, ``A1,C3``, ``B2:M9``)."""
 
 def read_chart(
-    path: _PathLike,
+    path: Union[_PathLike, npt.NDArray[np.float32], npt.NDArray[np.float64]],
     chart: Literal["cc24", "sg"] = "cc24",
     *,
     reference: Optional[str] = None,
@@ -202,7 +202,8 @@ def read_chart(
     layer: Optional[str] = None,
     max_pixels: int = ...,
 ) -> _ChartReading:
-    """Reads the chart in a photograph as ``nsrm chart extract`` does."""
+    """Reads the chart in a photograph as ``nsrm chart extract`` does: a file, or an
+    ``(height, width, 3 | 4)`` array of linear camera RGB (read as a linear file is)."""
 
 def read_frame(
     path: _PathLike,

@@ -72,6 +72,27 @@ def test_read_chart_on_the_dng(tmp_path, nsrm_bin):
     assert m.kind == "rprm"
 
 
+def test_read_chart_takes_an_array(tmp_path, nsrm_bin):
+    """An (H, W, 3 | 4) array of linear camera RGB is read as the linear file it came from."""
+    scene = tmp_path / "scene.exr"
+    out = subprocess.run([nsrm_bin, "render-scene", "--chart", "cc24", "--seed", "3", "-o",
+                          str(scene)], capture_output=True, text=True)
+    assert out.returncode == 0, out.stderr
+    from_file = nsrm.read_chart(scene, "cc24")
+    rgb = nsrm.read_frame(scene)
+    from_array = nsrm.read_chart(rgb, "cc24")
+    assert from_array["labels"] == from_file["labels"]
+    np.testing.assert_array_equal(from_array["camera_rgb"], from_file["camera_rgb"])
+    np.testing.assert_array_equal(from_array["corners"], from_file["corners"])
+    rgba = np.concatenate([rgb, np.full(rgb.shape[:2] + (1,), 0.5, np.float32)], axis=2)
+    np.testing.assert_array_equal(nsrm.read_chart(rgba.astype(np.float64))["camera_rgb"],
+                                  from_file["camera_rgb"])
+    with pytest.raises(nsrm.InputError, match=r"\(H, W, 3\)"):
+        nsrm.read_chart(rgb.reshape(-1, 3))
+    with pytest.raises(nsrm.InputError, match="file path"):
+        nsrm.read_chart(np.zeros((4, 4, 2), np.float32))
+
+
 def test_read_chart_errors(tmp_path):
     with pytest.raises(nsrm.NsrmError, match="nope.tif"):
         nsrm.read_chart(tmp_path / "nope.tif")

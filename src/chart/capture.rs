@@ -133,6 +133,28 @@ impl CaptureFrame {
         })
     }
 
+    /// A frame the caller decoded (linear camera RGB, e.g. an array from Python), read as a
+    /// linear file is; `name` stands for the file in messages and in the provenance, and the
+    /// hash is that of its f32 pixels (little-endian).
+    pub fn from_frame(frame: Frame, name: &str) -> CaptureFrame {
+        use sha2::{Digest, Sha256};
+        let mut h = Sha256::new();
+        for v in &frame.data {
+            h.update(v.to_le_bytes());
+        }
+        let sha256 = h.finalize().iter().map(|x| format!("{x:02x}")).collect();
+        CaptureFrame {
+            decoded: ChartFrame {
+                frame,
+                transfer: Transfer::Linear,
+                max_code: None,
+                camera: None,
+            },
+            path: PathBuf::from(name),
+            sha256,
+        }
+    }
+
     /// An already decoded frame (`path` names it in messages and in the provenance).
     #[cfg(test)]
     pub(crate) fn from_decoded(decoded: ChartFrame, path: PathBuf, sha256: String) -> CaptureFrame {

@@ -46,13 +46,46 @@ fn encoding_arg(s: &str) -> PyResult<Encoding> {
     }
 }
 
+/// What `read_chart` reads: a file, or a frame from an array.
+enum Source {
+    File(PathBuf),
+    Frame(nsrm::Frame),
+}
+
+/// An `(H, W, 3)` or `(H, W, 4)` float32/float64 array of linear camera RGB as a frame (alpha
+/// dropped), its size checked against `max_pixels` before anything is copied.
+fn frame_arg(obj: &Bound<'_, PyAny>, max_pixels: u64) -> PyResult<nsrm::Frame> {
+    let px = arrays::pixels(obj, "path", max_pixels).map_err(|_| {
+        errors::input(
+            "path: expected a file path, or an (H, W, 3) or (H, W, 4) float32/float64 array of linear camera RGB",
+        )
+    })?;
+    if px.shape.len() != 3 {
+        return Err(errors::input(format!(
+            "path: an array of shape {:?}: expected (H, W, 3) or (H, W, 4)",
+            px.shape
+        )));
+    }
+    let (w, h) = px.size();
+    let data = px.to_vec();
+    let rgb: Vec<f32> = if px.channels == 4 {
+        data.chunks_exact(4)
+            .flat_map(|p| [p[0], p[1], p[2]])
+            .collect()
+    } else {
+        data
+    };
+    nsrm::Frame::from_data(w, h, nsrm::Layout::Rgb, rgb)
+        .ok_or_else(|| errors::input("path: an empty array"))
+}
+
 fn capture_err(e: nsrm::chart::capture::CaptureError) -> PyErr {
     let usage = e.is_usage();
     errors::lib(e, usage)
 }
 
-/// The chart in the frame at `path` (camera raw, linear EXR / TIFF, or JPEG / PNG), read as
-/// `nsrm chart extract` reads it. Returns a dict: `labels`, `camera_rgb` `(N, 3)`, `xyz`
+/// The chart in the frame at `path` (camera raw, linear EXR / TIFF, or JPEG / PNG), or in an
+/// `(H, W, 3 | 4)` array of linear camera RGB, read as `nsrm chart extract` reads it. Returns a dict: `labels`, `camera_rgb` `(N, 3)`, `xyz`
 /// `(N, 3)` (reference, perfect white Y = 100), `std`, `count`, `flags` (per patch, empty when
 /// usable), `usable` (bool), `corners` `(4, 2)` (pixels, first patch's corner first, clockwise),
 /// `white_xyz` (the reference's white), `training` (the usable patches as
@@ -65,7 +98,7 @@ fn capture_err(e: nsrm::chart::capture::CaptureError) -> PyErr {
 #[allow(clippy::too_many_arguments)]
 pub(crate) fn read_chart<'py>(
     py: Python<'py>,
-    path: PathBuf,
+    path: &Bound<'py, PyAny>,
     chart: &str,
     reference: Option<String>,
     reference_white: Option<&Bound<'py, PyAny>>,
@@ -89,11 +122,17 @@ pub(crate) fn read_chart<'py>(
         demosaic: demosaic_arg(demosaic)?,
     };
     let encoding = encoding_arg(encoding)?;
+    // A file (str or os.PathLike), or an (H, W, 3 | 4) array of linear camera RGB.
+    let source = match path.extract::<PathBuf>() {
+        Ok(p) => Source::File(p),
+        Err(_) => Source::Frame(frame_arg(path, max_pixels)?),
+    };
     let cap = py.detach(|| -> Result<_, PyErr> {
         let reference = Reference::load(&spec, kind, white).map_err(|e| errors::lib(e, true))?;
-        let frame = std::sync::Arc::new(
-            CaptureFrame::open(&path, &read_opts, encoding).map_err(capture_err)?,
-        );
+        let frame = std::sync::Arc::new(match source {
+            Source::File(p) => CaptureFrame::open(&p, &read_opts, encoding).map_err(capture_err)?,
+            Source::Frame(f) => CaptureFrame::from_frame(f, "array"),
+        });
         let flat_frame = match flat.as_deref() {
             None => None,
             Some(s) if s.eq_ignore_ascii_case("neutrals") => None,

@@ -7,6 +7,7 @@
 #
 # Only what is missing or stale is redone: the venv when its packages are missing, the wheel when
 # the sources it is built from changed since (a hash of them is kept in the venv).
+# python/tests/test_readme.py runs the README's Python block against what this installs.
 # `--check`: change nothing, exit 0 when the venv holds a wheel of the current sources, 1 if not.
 set -euo pipefail
 cd "$(dirname "$0")/../.."
@@ -41,8 +42,8 @@ want="$(sources_hash)"
 if [ -f "$stamp" ] && [ "$(cat "$stamp")" = "$want" ] && "$py" -c 'import nsrm' >/dev/null 2>&1; then
     exit 0
 fi
-rm -f target/wheels/nsrm-*.whl
-"$venv/bin/maturin" build --release --quiet -o target/wheels -i "$py"
-"$py" -m pip install -q --disable-pip-version-check --force-reinstall --no-deps target/wheels/nsrm-*.whl
+# As the README says: `pip install .` at the top of the checkout (pip runs maturin's build
+# backend, which builds the abi3 wheel in the release profile under target/, then installs it).
+"$py" -m pip install -q --disable-pip-version-check --force-reinstall --no-deps .
 "$py" -c 'import nsrm; print("ci: nsrm", nsrm.__version__, "installed in target/python-venv")'
 echo "$want" > "$stamp"

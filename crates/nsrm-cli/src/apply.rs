@@ -102,10 +102,8 @@ pub(crate) struct Args {
     /// Print each input and its output, convert nothing.
     #[arg(help_heading = "Run", long)]
     dry_run: bool,
-    /// Most pixels a frame may have (width × height); a file whose header claims more is refused
-    /// before anything is allocated. Default 268435456 (16384 × 16384).
-    #[arg(help_heading = "Inputs", long, value_name = "N", default_value_t = nsrm::io::DEFAULT_MAX_PIXELS)]
-    max_pixels: u64,
+    #[command(flatten)]
+    max_pixels: super::values::MaxPixelsArg,
     /// How camera raw inputs are demosaiced: mhc (Malvar-He-Cutler, full resolution), bilinear
     /// (LibRaw's), or half (one pixel per 2×2 CFA block: half width and height).
     #[arg(help_heading = "Inputs", long, value_enum, ignore_case = true, default_value_t = nsrm::io::Demosaic::Mhc)]
@@ -385,9 +383,6 @@ fn parse_request(a: &Args) -> Result<Request> {
     if a.jobs == Some(0) {
         return Err(UsageError("--jobs must be at least 1".into()).into());
     }
-    if a.max_pixels == 0 {
-        return Err(UsageError("--max-pixels must be at least 1".into()).into());
-    }
     if let Some(v) = a
         .clip_level
         .filter(|v| !(v.is_finite() && *v > 0.0 && *v <= f32::MAX as f64))
@@ -661,7 +656,7 @@ fn read_options(a: &Args) -> ReadOptions {
     ReadOptions {
         layer: a.layer.clone(),
         limits: Limits {
-            max_pixels: a.max_pixels,
+            max_pixels: a.max_pixels.max_pixels,
         },
         demosaic: a.demosaic,
     }
@@ -1216,7 +1211,7 @@ impl Args {
             "--output-space".into(),
             name(self.output_space.output_space),
             "--max-pixels".into(),
-            self.max_pixels.to_string(),
+            self.max_pixels.max_pixels.to_string(),
         ];
         let mut opt = |flag: &str, v: &Option<String>| {
             if let Some(v) = v {
@@ -1265,7 +1260,7 @@ impl Args {
         ReadOptions {
             layer: self.layer.clone(),
             limits: Limits {
-                max_pixels: self.max_pixels,
+                max_pixels: self.max_pixels.max_pixels,
             },
             demosaic: self.demosaic,
         }

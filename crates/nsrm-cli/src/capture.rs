@@ -72,10 +72,8 @@ pub(crate) struct CaptureOptions {
         default_value = "auto"
     )]
     pub(crate) encoding: EncodingArg,
-    /// Most pixels the frame (and the flat frame) may have, as in `apply`.
-    #[arg(help_heading = "Chart in a photograph", long, value_name = "N", default_value_t = nsrm::io::DEFAULT_MAX_PIXELS,
-          value_parser = clap::value_parser!(u64).range(1..))]
-    pub(crate) max_pixels: u64,
+    #[command(flatten)]
+    pub(crate) max_pixels: super::values::MaxPixelsArg,
     /// How a camera raw frame (and flat frame) is demosaiced: half (one pixel per 2×2 CFA block,
     /// no interpolation: the chart reading of profiling tools), bilinear (LibRaw's), or mhc
     /// (Malvar-He-Cutler).
@@ -169,7 +167,7 @@ impl CaptureOptions {
 
     fn limits(&self) -> nsrm::io::Limits {
         nsrm::io::Limits {
-            max_pixels: self.max_pixels,
+            max_pixels: self.max_pixels.max_pixels,
         }
     }
 

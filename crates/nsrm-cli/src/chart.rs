@@ -40,10 +40,8 @@ pub(crate) struct TimeArgs {
     /// Runs per frame.
     #[arg(long, default_value_t = 5, value_parser = clap::value_parser!(u32).range(1..=1000))]
     repeat: u32,
-    /// Most pixels a frame may have, as in `chart extract`.
-    #[arg(long, value_name = "N", default_value_t = nsrm::io::DEFAULT_MAX_PIXELS,
-          value_parser = clap::value_parser!(u64).range(1..))]
-    max_pixels: u64,
+    #[command(flatten)]
+    max_pixels: super::values::MaxPixelsArg,
 }
 
 #[derive(Debug, clap::Args)]
@@ -162,7 +160,7 @@ fn run_time(a: TimeArgs) -> Result<ExitCode> {
     let reference = Reference::load(kind.default_reference(), kind, None)?;
     let opts = nsrm::io::ReadOptions {
         limits: nsrm::io::Limits {
-            max_pixels: a.max_pixels,
+            max_pixels: a.max_pixels.max_pixels,
         },
         ..Default::default()
     };

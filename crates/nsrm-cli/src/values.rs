@@ -71,6 +71,17 @@ pub(crate) struct OverwriteArg {
     pub(crate) overwrite: bool,
 }
 
+/// `--max-pixels`, defined once for every command that reads frames.
+#[derive(Debug, Clone, Copy, clap::Args)]
+pub(crate) struct MaxPixelsArg {
+    /// Most pixels a frame may have (width × height): a file whose header claims more is
+    /// refused before anything is allocated; flat frames and the studio's uploads are held to it
+    /// too. Default 268435456 (16384 × 16384).
+    #[arg(long, value_name = "N", default_value_t = nsrm::io::DEFAULT_MAX_PIXELS,
+          value_parser = clap::value_parser!(u64).range(1..))]
+    pub(crate) max_pixels: u64,
+}
+
 /// `--output-space`, defined once for `apply`, `export` and `export-shader` (each folds it in
 /// alike).
 #[derive(Debug, Clone, Copy, clap::Args)]

@@ -34,10 +34,8 @@ pub(crate) struct Args {
     /// Print the URL only; do not open a browser.
     #[arg(long)]
     no_browser: bool,
-    /// Most pixels a frame may have (as in `chart extract`); uploads are bounded by it too.
-    #[arg(long, value_name = "N", default_value_t = nsrm::io::DEFAULT_MAX_PIXELS,
-          value_parser = clap::value_parser!(u64).range(1..))]
-    max_pixels: u64,
+    #[command(flatten)]
+    max_pixels: super::values::MaxPixelsArg,
     /// Where the server computes corrected previews: auto (a hardware GPU if there is one, else
     /// the CPU; a software rasteriser such as lavapipe is slower than the CPU path), gpu (any
     /// adapter, software ones included) or cpu. As in `apply`.
@@ -79,7 +77,7 @@ pub(crate) fn run(a: Args) -> Result<ExitCode> {
     let studio = Arc::new(Studio::new(
         files,
         port,
-        a.max_pixels,
+        a.max_pixels.max_pixels,
         a.device,
         a.threads as usize,
     )?);

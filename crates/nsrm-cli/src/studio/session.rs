@@ -664,7 +664,9 @@ impl FrameState {
             flat,
             encoding: capture::EncodingArg::Auto,
             demosaic: nsrm::io::Demosaic::Half,
-            max_pixels: self.max_pixels,
+            max_pixels: crate::values::MaxPixelsArg {
+                max_pixels: self.max_pixels,
+            },
         })
     }
 

@@ -83,17 +83,10 @@ fn nsrm_eval(args: &[&str]) -> Errors {
     out
 }
 
-/// Mean, median and max of `v`.
+/// Mean, median and max of `v`: the cells of Table 1, as `nsrm eval` summarises its patches.
 fn cell(v: &[f64]) -> [f64; 3] {
-    let mut s = v.to_vec();
-    s.sort_by(f64::total_cmp);
-    let n = s.len();
-    let median = if n % 2 == 1 {
-        s[n / 2]
-    } else {
-        (s[n / 2 - 1] + s[n / 2]) / 2.0
-    };
-    [s.iter().sum::<f64>() / n as f64, median, s[n - 1]]
+    let s = nsrm::Stats::of(v);
+    [s.mean, s.median, s.max]
 }
 
 /// Every patch and every Table-1 cell of `ours` within [`TOLERANCE`] of `oracle`; the worst

@@ -285,10 +285,9 @@ fn route(studio: &Studio, req: &mut Request, t: &Target) -> Result<Reply> {
         ("POST", ["api", "frames"]) => {
             let name = t.param("name").map(str::to_string);
             let (dir, id) = studio.new_upload_dir()?;
-            let saved =
-                receive_upload(studio, req, &dir, name, frame_limit(studio)).inspect_err(|_| {
-                    let _ = std::fs::remove_dir_all(&dir);
-                })?;
+            let saved = receive_upload(req, &dir, name, frame_limit(studio)).inspect_err(|_| {
+                let _ = std::fs::remove_dir_all(&dir);
+            })?;
             let _slot = studio.slots.take();
             Ok(json(200, &studio.open(id, saved, true)?))
         }
@@ -496,7 +495,7 @@ fn frame_upload(
             what: "a reference file".into(),
         }
     };
-    let saved = receive_upload(studio, req, &dir, name, limit).inspect_err(|_| {
+    let saved = receive_upload(req, &dir, name, limit).inspect_err(|_| {
         let _ = std::fs::remove_dir_all(&dir);
     })?;
     let _slot = studio.slots.take();
@@ -532,13 +531,11 @@ fn frame_limit(studio: &Studio) -> Limit {
 /// Streams the upload (the raw body, or the multipart field `file`) into `dir`, at most
 /// `limit`'s bytes. Returns the file's path.
 fn receive_upload(
-    studio: &Studio,
     req: &mut Request,
     dir: &Path,
     name: Option<String>,
     limit: Limit,
 ) -> Result<std::path::PathBuf> {
-    let _ = studio;
     let Limit { bytes: limit, what } = limit;
     if req
         .body_length()

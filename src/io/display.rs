@@ -152,13 +152,15 @@ pub fn read_chart_frame(
     encoding: Encoding,
 ) -> Result<ChartFrame, IoError> {
     let mut camera = None;
+    // A display-encoded file is decoded as it is read (through a table of its codes).
+    let srgb = matches!(encoding, Encoding::Srgb | Encoding::Auto);
     let (frame, integer_display, format) = match sniff(path)? {
         Kind::Jpeg => {
             check_jpeg(path, &opts.limits)?;
-            (read_image(path, &opts.limits)?, true, "JPEG")
+            (read_image(path, &opts.limits, srgb)?, true, "JPEG")
         }
-        Kind::Png => (read_image(path, &opts.limits)?, true, "PNG"),
-        Kind::Tiff8 => (read_image(path, &opts.limits)?, true, "TIFF (8-bit)"),
+        Kind::Png => (read_image(path, &opts.limits, srgb)?, true, "PNG"),
+        Kind::Tiff8 => (read_image(path, &opts.limits, srgb)?, true, "TIFF (8-bit)"),
         Kind::Other => {
             let (f, c) = super::read_frame_and_camera(path, opts)?;
             camera = c;
@@ -174,7 +176,9 @@ pub fn read_chart_frame(
         });
     }
     let transfer = match (encoding, integer_display) {
-        (Encoding::Srgb, _) | (Encoding::Auto, true) => {
+        // Decoded by `read_image`.
+        (Encoding::Srgb | Encoding::Auto, true) => Transfer::SrgbDecoded,
+        (Encoding::Srgb, false) => {
             decode_srgb(&mut frame);
             Transfer::SrgbDecoded
         }
@@ -215,26 +219,31 @@ fn check_jpeg(path: &Path, limits: &Limits) -> Result<(), IoError> {
     })
 }
 
+/// The sRGB decode of one value (clamped to `[0, 1]` first; not finite: 0).
+fn decode_one(v: f32) -> f32 {
+    let x = if v.is_finite() {
+        f64::from(v).clamp(0.0, 1.0)
+    } else {
+        0.0
+    };
+    srgb_eotf(x) as f32
+}
+
 /// Applies the sRGB decode to the colour channels (values clamped to `[0, 1]` first; alpha is
-/// left alone).
+/// left alone): a linear-reader frame that `--encoding srgb` says is encoded.
 fn decode_srgb(frame: &mut Frame) {
     let ch = frame.layout.channels();
     for px in frame.data.chunks_exact_mut(ch) {
         for v in &mut px[..3] {
-            let x = if v.is_finite() {
-                (*v as f64).clamp(0.0, 1.0)
-            } else {
-                0.0
-            };
-            *v = srgb_eotf(x) as f32;
+            *v = decode_one(*v);
         }
     }
 }
 
-/// Decodes an 8/16-bit image with the `image` crate into RGB values scaled to `[0, 1]`
-/// (no transfer function yet). Dimensions are checked against `limits` from the header,
+/// Decodes an 8/16-bit image with the `image` crate into RGB values scaled to `[0, 1]`, and
+/// sRGB-decoded when `srgb` ([`code_table`]). Dimensions are checked against `limits` from the header,
 /// before the pixels are decoded; the decoder's own allocation is bounded too.
-fn read_image(path: &Path, limits: &Limits) -> Result<(Frame, Option<f64>), IoError> {
+fn read_image(path: &Path, limits: &Limits, srgb: bool) -> Result<(Frame, Option<f64>), IoError> {
     let open = || -> Result<image::ImageReader<std::io::BufReader<std::fs::File>>, IoError> {
         image::ImageReader::open(path)
             .map_err(|err| IoError::Read {
@@ -268,7 +277,7 @@ fn read_image(path: &Path, limits: &Limits) -> Result<(Frame, Option<f64>), IoEr
         | image::DynamicImage::ImageRgba8(_)
         | image::DynamicImage::ImageLuma8(_)
         | image::DynamicImage::ImageLumaA8(_) => {
-            let lut: Vec<f32> = (0..256).map(|v| v as f32 / 255.0).collect();
+            let lut = code_table(255, srgb);
             data.extend(
                 img.to_rgb8()
                     .into_raw()
@@ -277,11 +286,12 @@ fn read_image(path: &Path, limits: &Limits) -> Result<(Frame, Option<f64>), IoEr
             );
         }
         _ => {
+            let lut = code_table(65535, srgb);
             data.extend(
                 img.to_rgb16()
                     .into_raw()
                     .into_iter()
-                    .map(|v| v as f32 / 65535.0),
+                    .map(|v| lut[v as usize]),
             );
         }
     }
@@ -292,6 +302,23 @@ fn read_image(path: &Path, limits: &Limits) -> Result<(Frame, Option<f64>), IoEr
         }
     })?;
     Ok((frame, Some(if eight { 255.0 } else { 65535.0 })))
+}
+
+/// The value of each integer code `0..=max`: `code / max`, sRGB-decoded when `srgb` (the same
+/// bits as [`decode_srgb`] of the scaled value; one `pow` per code instead of per sample, which
+/// was most of a JPEG chart reading's time).
+fn code_table(max: u32, srgb: bool) -> Vec<f32> {
+    let m = max as f32;
+    (0..=max)
+        .map(|c| {
+            let v = c as f32 / m;
+            if srgb {
+                decode_one(v)
+            } else {
+                v
+            }
+        })
+        .collect()
 }
 
 fn image_err(path: &Path, e: image::ImageError) -> IoError {
@@ -318,6 +345,18 @@ fn image_err(path: &Path, e: image::ImageError) -> IoError {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn the_code_tables_give_the_formulas_bits() {
+        for m in [255u32, 65535] {
+            let (plain, srgb) = (code_table(m, false), code_table(m, true));
+            for c in 0..=m {
+                let v = c as f32 / m as f32;
+                assert_eq!(plain[c as usize].to_bits(), v.to_bits());
+                assert_eq!(srgb[c as usize].to_bits(), decode_one(v).to_bits());
+            }
+        }
+    }
 
     #[test]
     fn srgb_round_trip() {

@@ -32,7 +32,7 @@ COLOURS = {"R": 0, "G": 1, "B": 2}
 
 
 def write_dng(out, w, h, pattern, black, white, seed, smooth, make, model, bits, flat=None,
-              orientation=None):
+              orientation=None, rgb=None):
     import tifffile
 
     rng = np.random.default_rng(seed)
@@ -40,7 +40,14 @@ def write_dng(out, w, h, pattern, black, white, seed, smooth, make, model, bits,
     n = {4: 2, 36: 6}[len(pattern)]
     pat = np.array([COLOURS[c] for c in pattern], dtype=np.uint8).reshape(n, n)
     black = np.array(black, dtype=np.float64).reshape(2, 2)
-    if flat is not None:
+    if rgb is not None:
+        # A given image (little-endian f32 R, G, B per pixel, row by row, in fractions of the
+        # range): each site takes its colour's value, above 1 clipped to the white level as a
+        # sensor clips.
+        img = np.fromfile(rgb, dtype="<f4").reshape(h, w, 3).astype(np.float64)
+        col = pat[np.arange(h)[:, None] % n, np.arange(w)[None, :] % n]
+        frac = np.minimum(np.take_along_axis(img, col[:, :, None], 2)[:, :, 0], 1.0)
+    elif flat is not None:
         # A flat field: each colour's sites hold one value.
         col = pat[np.arange(h)[:, None] % n, np.arange(w)[None, :] % n]
         frac = np.array(flat, dtype=np.float64)[col]
@@ -229,13 +236,14 @@ def main():
         p.add_argument("--bits", type=int, default=16)
         p.add_argument("--flat", default=None, help="R,G,B fractions of the range: a flat field")
         p.add_argument("--orientation", type=int, default=None)
+        p.add_argument("--rgb", default=None, help="an f32 RGB image (fractions of the range)")
         o = p.parse_args(a[1:])
         flat = [float(v) for v in o.flat.split(",")] if o.flat else None
         black = [float(v) for v in o.black.split(",")]
         if len(black) == 1:
             black = black * 4
         write_dng(o.out, o.width, o.height, o.pattern, black, o.white, o.seed, o.smooth,
-                  o.make, o.model, o.bits, flat, o.orientation)
+                  o.make, o.model, o.bits, flat, o.orientation, o.rgb)
     elif a[0] == "same":
         same(a[1], a[2])
     elif a[0] == "linear":

@@ -1358,10 +1358,8 @@ pub struct DcpTraining {
     pub white_rgb: Option<[f64; 3]>,
 }
 
-/// Builds, measures and writes the DCP of a model set. The error is measured with
-/// [`Dcp::eval`]'s pipeline against the combined model at each calibration white
-/// and, for two illuminants, at a white halfway between them in mired; `max_de00` is checked
-/// before anything is written, and the file is written into `unit` (committed by the caller).
+/// Builds, measures and writes the DCP of a model set: [`render`], staged in `unit` (committed
+/// by the caller); the output is checked for clobbering first.
 pub fn export_to(
     profile: &Profile,
     training: &[DcpTraining],
@@ -1371,14 +1369,25 @@ pub fn export_to(
     out: &std::path::Path,
     unit: &mut crate::output::Unit,
 ) -> Result<DcpWritten, ExportError> {
-    if let Some(x) = max_de00 {
-        if !(x.is_finite() && x >= 0.0) {
-            return Err(ExportError::Usage(format!(
-                "the ΔE00 limit {x} is not a finite, non-negative number"
-            )));
-        }
-    }
+    super::check_max_de00(max_de00)?;
     unit.check_clobber(out)?;
+    let (bytes, written) = render(profile, training, opts, stops, max_de00)?;
+    unit.write_bytes(out, &bytes)?;
+    Ok(written)
+}
+
+/// Builds and measures the DCP of a model set and returns its bytes, writing nothing. The error
+/// is measured with [`Dcp::eval`]'s pipeline against the combined model at each calibration
+/// white and, for two illuminants, at a white halfway between them in mired, and checked against
+/// `max_de00`.
+pub fn render(
+    profile: &Profile,
+    training: &[DcpTraining],
+    opts: DcpOptions,
+    stops: [f64; 2],
+    max_de00: Option<f64>,
+) -> Result<(Vec<u8>, DcpWritten), ExportError> {
+    super::check_max_de00(max_de00)?;
     let sets: Vec<&[[f64; 3]]> = training.iter().map(|t| t.rgb.as_slice()).collect();
     let dcp = build(profile, &sets, opts)?;
     let mut whites: Vec<(FrameWhite, String)> = profile
@@ -1432,8 +1441,7 @@ pub fn export_to(
             })
         })
         .collect();
-    unit.write_bytes(out, &dcp.to_bytes())?;
-    Ok(DcpWritten {
+    let written = DcpWritten {
         report,
         unbalanced,
         rebalanced,
@@ -1446,7 +1454,8 @@ pub fn export_to(
             .collect(),
         hue_divisions: dcp.hue_divisions,
         sat_divisions: dcp.sat_divisions,
-    })
+    };
+    Ok((dcp.to_bytes(), written))
 }
 
 #[cfg(test)]

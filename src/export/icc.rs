@@ -584,8 +584,8 @@ pub struct IccWritten {
     pub bytes: usize,
 }
 
-/// Builds, measures and writes the ICC profile of `model`; `max_de00` is checked before anything
-/// is written, and the file is staged in `unit` (committed by the caller).
+/// Builds, measures and writes the ICC profile of `model`: [`render`], staged in `unit`
+/// (committed by the caller); the output is checked for clobbering first.
 pub fn export_to(
     model: &Model,
     opts: IccOptions,
@@ -594,19 +594,26 @@ pub fn export_to(
     out: &std::path::Path,
     unit: &mut crate::output::Unit,
 ) -> Result<IccWritten, ExportError> {
-    if let Some(x) = max_de00 {
-        if !(x.is_finite() && x >= 0.0) {
-            return Err(ExportError::Usage(format!(
-                "the ΔE00 limit {x} is not a finite, non-negative number"
-            )));
-        }
-    }
+    super::check_max_de00(max_de00)?;
     unit.check_clobber(out)?;
+    let (bytes, written) = render(model, opts, training_rgb, max_de00)?;
+    unit.write_bytes(out, &bytes)?;
+    Ok(written)
+}
+
+/// Builds and measures the ICC profile of `model` and returns its bytes, writing nothing;
+/// `max_de00` is checked against the measured error.
+pub fn render(
+    model: &Model,
+    opts: IccOptions,
+    training_rgb: &[[f64; 3]],
+    max_de00: Option<f64>,
+) -> Result<(Vec<u8>, IccWritten), ExportError> {
+    super::check_max_de00(max_de00)?;
     let p = build(model, opts)?;
     let report = measure(&p, model, training_rgb)?;
     report.check_limit(max_de00)?;
-    unit.write_bytes(out, &p.bytes)?;
-    Ok(IccWritten {
+    let written = IccWritten {
         report,
         exact: p.exact,
         scale: p.scale,
@@ -614,7 +621,8 @@ pub fn export_to(
         clut_size: p.clut_size,
         lo: opts.lo,
         bytes: p.bytes.len(),
-    })
+    };
+    Ok((p.bytes, written))
 }
 
 #[cfg(test)]

@@ -662,8 +662,93 @@ pub struct Written {
     pub lut_size: Option<usize>,
 }
 
+/// An export built and measured in memory ([`render`]): the bytes of each file, nothing
+/// written.
+#[derive(Debug, Clone)]
+pub struct Rendered {
+    /// Each file's path (as [`export_to`] would write it) and bytes, in the order written (for
+    /// OCIO: the CLF, then the config, which names the CLF by its file name).
+    pub files: Vec<(std::path::PathBuf, Vec<u8>)>,
+    /// The error of the export against the model.
+    pub report: ErrorReport,
+    /// Whether the file is the model itself (an LRM as a CLF Matrix) rather than a LUT.
+    pub exact: bool,
+    /// The 3D LUT size, if there is one.
+    pub lut_size: Option<usize>,
+}
+
+/// Refuses a ΔE00 limit that is not a finite, non-negative number.
+pub(crate) fn check_max_de00(max_de00: Option<f64>) -> Result<(), ExportError> {
+    match max_de00 {
+        Some(x) if !(x.is_finite() && x >= 0.0) => Err(ExportError::Usage(format!(
+            "the ΔE00 limit {x} is not a finite, non-negative number"
+        ))),
+        _ => Ok(()),
+    }
+}
+
+/// Builds and measures an export of `model` in `format` and returns its files' bytes, writing
+/// nothing: `out` only names them (for OCIO, `out` is the config and the CLF is `<stem>.clf`
+/// beside it, named in the config). An embedder (the studio, a renderer) writes the bytes where
+/// it likes; [`export_to`] stages them in an output session. The error against the training
+/// patches is checked against `max_de00` first.
+pub fn render(
+    model: &Model,
+    format: Format,
+    space: OutputSpace,
+    options: LutOptions,
+    training_rgb: &[[f64; 3]],
+    max_de00: Option<f64>,
+    out: &std::path::Path,
+) -> Result<Rendered, ExportError> {
+    check_max_de00(max_de00)?;
+    let clf_path = companion_path(format, out)?;
+    let e = match format {
+        Format::Dcp => {
+            return Err(ExportError::Usage(
+                "a DCP is written from a model set (one or two illuminants): dcp::render".into(),
+            ))
+        }
+        Format::Icc => {
+            return Err(ExportError::Usage(
+                "an ICC profile is written by icc::render".into(),
+            ))
+        }
+        Format::Cube => LutExport::cube(model, space, options)?,
+        Format::Clf | Format::Ocio => LutExport::clf(model, space, options, training_rgb)?,
+    };
+    let report = e.measure(training_rgb)?;
+    report.check_limit(max_de00)?;
+    let files = match (format, clf_path) {
+        (Format::Ocio, Some(clf_path)) => {
+            let clf_name = clf_path
+                .file_name()
+                .map(|s| s.to_string_lossy().into_owned())
+                .unwrap_or_default();
+            vec![
+                (clf_path, clf::write(&e, Some(&report)).into_bytes()),
+                (out.to_path_buf(), ocio::write(&e, &clf_name).into_bytes()),
+            ]
+        }
+        (Format::Cube, _) => vec![(
+            out.to_path_buf(),
+            cube::write(&e, Some(&report))?.into_bytes(),
+        )],
+        _ => vec![(
+            out.to_path_buf(),
+            clf::write(&e, Some(&report)).into_bytes(),
+        )],
+    };
+    Ok(Rendered {
+        files,
+        report,
+        exact: e.exact,
+        lut_size: e.lut3d().map(|l| l.size),
+    })
+}
+
 /// Builds, measures and writes an export of `model` in `format` to `out` (for OCIO, `out` is the
-/// config and the CLF is written beside it as `<stem>.clf`).
+/// config and the CLF is written beside it as `<stem>.clf`): [`render`], staged in `unit`.
 ///
 /// Every output is checked for clobbering and the error against `max_de00` before anything is
 /// written; the files are staged in `unit` ([`crate::output`]), whose owner commits them
@@ -679,62 +764,23 @@ pub fn export_to(
     out: &std::path::Path,
     unit: &mut crate::output::Unit,
 ) -> Result<Written, ExportError> {
-    if let Some(x) = max_de00 {
-        if !(x.is_finite() && x >= 0.0) {
-            return Err(ExportError::Usage(format!(
-                "the ΔE00 limit {x} is not a finite, non-negative number"
-            )));
-        }
-    }
+    check_max_de00(max_de00)?;
     let clf_path = companion_path(format, out)?;
     unit.check_clobber(out)?;
     if let Some(p) = &clf_path {
         unit.check_clobber(p)?;
     }
-    let e = match format {
-        Format::Dcp => {
-            return Err(ExportError::Usage(
-                "a DCP is written from a model set (one or two illuminants): dcp::export_to".into(),
-            ))
-        }
-        Format::Icc => {
-            return Err(ExportError::Usage(
-                "an ICC profile is written by icc::export_to".into(),
-            ))
-        }
-        Format::Cube => LutExport::cube(model, space, options)?,
-        Format::Clf | Format::Ocio => LutExport::clf(model, space, options, training_rgb)?,
-    };
-    let report = e.measure(training_rgb)?;
-    report.check_limit(max_de00)?;
+    let r = render(model, format, space, options, training_rgb, max_de00, out)?;
     let mut files = Vec::new();
-    match format {
-        Format::Dcp | Format::Icc => unreachable!("refused above"),
-        Format::Clf => {
-            unit.write_bytes(out, clf::write(&e, Some(&report)).as_bytes())?;
-            files.push(out.to_path_buf());
-        }
-        Format::Cube => {
-            unit.write_bytes(out, cube::write(&e, Some(&report))?.as_bytes())?;
-            files.push(out.to_path_buf());
-        }
-        Format::Ocio => {
-            let clf_path = clf_path.expect("set for OCIO");
-            let clf_name = clf_path
-                .file_name()
-                .map(|s| s.to_string_lossy().into_owned())
-                .unwrap_or_default();
-            unit.write_bytes(&clf_path, clf::write(&e, Some(&report)).as_bytes())?;
-            unit.write_bytes(out, ocio::write(&e, &clf_name).as_bytes())?;
-            files.push(clf_path);
-            files.push(out.to_path_buf());
-        }
+    for (path, bytes) in &r.files {
+        unit.write_bytes(path, bytes)?;
+        files.push(path.clone());
     }
     Ok(Written {
         files,
-        report,
-        exact: e.exact,
-        lut_size: e.lut3d().map(|l| l.size),
+        report: r.report,
+        exact: r.exact,
+        lut_size: r.lut_size,
     })
 }
 

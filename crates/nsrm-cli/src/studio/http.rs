@@ -369,7 +369,7 @@ fn route_frame(
         ("GET", ["export"]) => {
             let f = studio.frame(id)?;
             let s = f.lock_state();
-            let (bytes, name) = s.export(studio, t)?;
+            let (bytes, name) = s.export(t)?;
             Ok(Reply::download("application/octet-stream", bytes, name))
         }
         ("GET", ["model.json"]) => {

@@ -2,7 +2,8 @@
 //! last fit) and what the API computes from them. Every number comes from the code the CLI runs:
 //! the reading from [`CaptureOptions::read`] (as `chart extract`), the fit from `fit_with` on
 //! the capture's training set (as `fit --capture`), the comparison from `evaluate_with` (as `eval
-//! --capture`), the exports from `export_to` (as `export`).
+//! --capture`), the exports from the library's in-memory `render` functions (the bytes `export`
+//! writes).
 //!
 //! Why one file (about 1,300 lines): the studio's state is one lock per frame, and every API answer
 //! (reading, fit, comparison, previews, exports) is computed under it from the same settings; the
@@ -15,7 +16,7 @@ use super::http::{BadRequest, NotFound, Target};
 use anyhow::{bail, Context, Result};
 use clap::ValueEnum;
 use nsrm::chart::capture::{CaptureFrame, FlatField, ReadingOptions};
-use nsrm::export::{export_to, Format, LutOptions};
+use nsrm::export::{render, Format, LutOptions};
 use nsrm::gpu::{DeviceChoice, Engine, GpuOptions, Opened};
 use nsrm::Kind;
 use nsrm::{apply_mat3 as mat_apply, OutputSpace};
@@ -1123,7 +1124,7 @@ impl FrameState {
 
     /// Exports the last fit as `export --model model.json --training patches.csv` does: the
     /// file's bytes and its name.
-    pub(crate) fn export(&self, studio: &Studio, t: &Target) -> Result<(Vec<u8>, String)> {
+    pub(crate) fn export(&self, t: &Target) -> Result<(Vec<u8>, String)> {
         let fname = t.param("format").unwrap_or("clf");
         let format = Format::parse(fname).ok_or_else(|| {
             BadRequest(format!("format `{fname}`: one of {}", formats().join(", ")))
@@ -1143,74 +1144,36 @@ impl FrameState {
         // The training patches `chart extract -o patches.csv` writes (every usable patch; the
         // CSV's numbers are exact decimal round trips).
         let training = c.extraction.training_set(&c.reference);
-        let dir = studio.tmp.join(&self.id).join(format!(
-            "export-{}",
-            studio.next.fetch_add(1, Ordering::SeqCst)
-        ));
-        std::fs::create_dir_all(&dir).with_context(|| format!("creating {}", dir.display()))?;
         let name = format!("model.{}", format.name());
-        let dest = dir.join(&name);
-        // Written through an output session of its own, into this run's temporary directory.
-        let session = nsrm::output::Session::new(false);
-        let mut unit = session.unit();
-        let r = if format == Format::Dcp {
+        // Built in memory by the library, as the CLI's `export` builds it before writing.
+        let bytes = if format == Format::Dcp {
             // As `export --format dcp` does for a one-illuminant model file: the model as a
             // profile, its training patches, the default map and stops, no accuracy limit.
-            nsrm::Profile::single(f.model.clone())
-                .map_err(anyhow::Error::from)
-                .and_then(|profile| {
-                    let t = nsrm::export::dcp::DcpTraining {
-                        rgb: training.rgb.clone(),
-                        white_rgb: training.white_rgb,
-                    };
-                    nsrm::export::dcp::export_to(
-                        &profile,
-                        &[t],
-                        nsrm::export::dcp::DcpOptions::default(),
-                        options.stops,
-                        None,
-                        &dest,
-                        &mut unit,
-                    )
-                    .map(|_| ())
-                    .map_err(anyhow::Error::from)
-                })
+            let profile = nsrm::Profile::single(f.model.clone())?;
+            let t = nsrm::export::dcp::DcpTraining {
+                rgb: training.rgb.clone(),
+                white_rgb: training.white_rgb,
+            };
+            let dcp = nsrm::export::dcp::DcpOptions::default();
+            nsrm::export::dcp::render(&profile, &[t], dcp, options.stops, None)?.0
         } else if format == Format::Icc {
             // As `export --format icc` does: the LUT size asked for, the default stops.
-            nsrm::export::icc::export_to(
-                &f.model,
-                nsrm::export::icc::IccOptions {
-                    size: options.size,
-                    lo: nsrm::export::icc::DEFAULT_LO,
-                },
-                &training.rgb,
-                None,
-                &dest,
-                &mut unit,
-            )
-            .map(|_| ())
-            .map_err(anyhow::Error::from)
+            let icc = nsrm::export::icc::IccOptions {
+                size: options.size,
+                lo: nsrm::export::icc::DEFAULT_LO,
+            };
+            nsrm::export::icc::render(&f.model, icc, &training.rgb, None)?.0
         } else {
-            export_to(
-                &f.model,
-                format,
-                space,
-                options,
-                &training.rgb,
-                None,
-                &dest,
-                &mut unit,
-            )
-            .map(|_| ())
-            .map_err(anyhow::Error::from)
+            // The file the page downloads (for OCIO, the config; its CLF is named in it).
+            let out = Path::new(&name);
+            let r = render(&f.model, format, space, options, &training.rgb, None, out)?;
+            r.files
+                .into_iter()
+                .find(|(p, _)| p == out)
+                .map(|(_, b)| b)
+                .ok_or_else(|| anyhow::anyhow!("the export wrote no {name}"))?
         };
-        let bytes = r
-            .and_then(|_| unit.commit().map_err(anyhow::Error::from))
-            .and_then(|_| {
-                std::fs::read(&dest).with_context(|| format!("reading {}", dest.display()))
-            });
-        let _ = std::fs::remove_dir_all(&dir);
-        Ok((bytes?, name))
+        Ok((bytes, name))
     }
 
     /// The capture flags of the current settings.

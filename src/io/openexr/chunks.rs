@@ -32,6 +32,9 @@
 //!   into its place in one buffer beside its chunk header, and written with as few writes as
 //!   possible (one per round when the chunks are stored raw); the offset table is filled in at the
 //!   end. The bytes are those the `exr` crate writes.
+//! * [`Chunked::new`]: a new file (from a TIFF or camera raw input, or a frame made in memory)
+//!   goes through the same writer, with the header the `exr` crate makes for it
+//!   (`super::write_new`).
 
 use super::super::{IoError, Limits};
 use crate::frame::{Frame, Layout};
@@ -1071,6 +1074,23 @@ pub(super) fn decode(
 }
 
 impl Chunked {
+    /// A new file's parts for [`Chunked::write`]: its `header` (single-part scanline), the
+    /// indices of `R`, `G`, `B` and alpha in its channel list, and the other channels' samples
+    /// (`rest`: per line, each channel's samples as stored, little-endian).
+    pub(crate) fn new(
+        header: Header,
+        rgb: [usize; 3],
+        alpha: Option<usize>,
+        rest: Vec<u8>,
+    ) -> Chunked {
+        Chunked {
+            header,
+            rgb,
+            alpha,
+            rest,
+        }
+    }
+
     /// Bytes of pass-through samples per line, and each pass-through channel's offset there.
     fn layout(&self) -> LineLayout {
         LineLayout::new(

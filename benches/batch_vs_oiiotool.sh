@@ -3,7 +3,7 @@
 # (BENCHMARKS.md, "Batch conversion against oiiotool"). Needs `oiiotool` (apt-get install -y
 # openimageio-tools) and a release build (`cargo build --release --bin nsrm --example plates`).
 #
-#   benches/batch_vs_oiiotool.sh [WORKDIR=/dev/shm/nsrm-bench] [COUNT=4] [SIZE=6000x4000] [ROWS]
+#   [NSRM=BINARY] benches/batch_vs_oiiotool.sh [WORKDIR=/dev/shm/nsrm-bench] [COUNT=4] [SIZE=6000x4000] [ROWS]
 #
 # ROWS (default "zip zips piz none half") picks the table rows; `half` is ZIP in, half ZIP out.
 # WORKDIR should be a tmpfs (both tools then write the same way: nsrm fsyncs each output, oiiotool
@@ -16,7 +16,7 @@ work="${1:-/dev/shm/nsrm-bench}"
 count="${2:-4}"
 size="${3:-6000x4000}"
 rows="${4:-zip zips piz none half}"
-nsrm=./target/release/nsrm
+nsrm="${NSRM:-./target/release/nsrm}"  # NSRM=path: another build, e.g. the previous one
 plates=./target/release/examples/plates
 command -v oiiotool >/dev/null || { echo "oiiotool not found (apt-get install -y openimageio-tools)" >&2; exit 1; }
 [ -x "$nsrm" ] && [ -x "$plates" ] || { echo "build first: cargo build --release --bin nsrm --example plates" >&2; exit 1; }

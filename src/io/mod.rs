@@ -458,7 +458,8 @@ pub struct ReadOptions {
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 #[cfg_attr(feature = "clap", derive(clap::ValueEnum))]
 pub enum ExrCompression {
-    /// The input's compression when it is lossless (else ZIP); ZIP for TIFF inputs.
+    /// The input's compression when it is lossless (else ZIP); ZIP for TIFF and camera raw
+    /// inputs (at the `--zip-level`, default 1).
     #[default]
     #[cfg_attr(feature = "clap", value(name = "keep"))]
     Keep,
@@ -822,6 +823,7 @@ pub(crate) fn write_camera_float(
             &openexr::NewExr {
                 half: false,
                 compression: ExrCompression::Keep,
+                zip_level: DEFAULT_ZIP_LEVEL,
                 space: None,
                 text,
                 camera: None,

@@ -547,7 +547,11 @@ fn set_header_colour(
 #[derive(Debug, Clone, Copy)]
 pub(super) struct NewExr<'a> {
     pub half: bool,
+    /// [`ExrCompression::Keep`]: ZIP (16 lines a block), as for an input whose compression is
+    /// not written.
     pub compression: ExrCompression,
+    /// The deflate level of ZIP and ZIPS (libdeflate's, as for EXR inputs).
+    pub zip_level: u8,
     /// `None`: camera RGB (no `colorInteropID`, no `chromaticities`).
     pub space: Option<OutputSpace>,
     /// Extra text attributes (`comments` goes to the standard attribute).
@@ -563,6 +567,7 @@ impl NewExr<'static> {
         NewExr {
             half: opts.half,
             compression: opts.compression,
+            zip_level: opts.zip_level,
             space: Some(opts.space),
             text: &[],
             camera: None,
@@ -570,8 +575,12 @@ impl NewExr<'static> {
     }
 }
 
-/// Writes a new single-part scanline EXR (ZIP) with `R`, `G`, `B` (and `A`) from `rgb` and
-/// `alpha`, colour attributes for `space` and extra text attributes.
+/// Writes a new single-part scanline EXR (ZIP unless told otherwise) with `R`, `G`, `B` (and
+/// `A`) from `rgb` (RGB, or RGBA whose alpha then takes the place of `alpha`) and `alpha`,
+/// colour attributes for `space` and extra text attributes. The header is the one the `exr`
+/// crate's whole-image writer makes for these channels; the chunks go through the chunk-level
+/// writer ([`chunks::Chunked::write`]: blocks encoded in parallel, ZIP by libdeflate), as for
+/// EXR inputs.
 pub(super) fn write_new(
     rgb: &Frame,
     alpha: Option<&[f32]>,
@@ -579,31 +588,88 @@ pub(super) fn write_new(
     how: &NewExr<'_>,
     unit: &mut Unit,
 ) -> Result<(), IoError> {
-    let NewExr {
-        half,
-        compression,
-        space,
-        text,
-        camera,
-    } = *how;
-    let mut list = ::exr::prelude::SmallVec::new();
-    for (ci, name) in ["R", "G", "B"].into_iter().enumerate() {
-        list.push(AnyChannel::new(
-            name,
-            Levels::Singular(samples_of(rgb, ci, half)),
-        ));
-    }
-    if let Some(a) = alpha {
-        let s = if half {
-            FlatSamples::F16(a.iter().map(|&v| f16::from_f32(v)).collect())
+    let split;
+    let (rgb, alpha) = match rgb.layout {
+        Layout::Rgb => (rgb, alpha),
+        Layout::Rgba => {
+            split = super::split_alpha(rgb);
+            (&split.0, split.1.as_deref())
+        }
+    };
+    // The compression is set by the chunk writer.
+    let header = new_header(rgb, alpha.is_some(), dest, how)?;
+    let compression = chosen(how.compression, Compression::ZIP16);
+    let names: Vec<String> = header
+        .channels
+        .list
+        .iter()
+        .map(|c| c.name.to_string())
+        .collect();
+    let at = |n: &str| names.iter().position(|c| c == n);
+    let (Some(r), Some(g), Some(b)) = (at("R"), at("G"), at("B")) else {
+        return Err(IoError::Encode {
+            path: dest.to_path_buf(),
+            why: "the new header lacks R, G or B".into(),
+        });
+    };
+    // The pass-through bytes: alpha, line by line, as the file stores it (little-endian).
+    let rest: Vec<u8> = match alpha {
+        None => Vec::new(),
+        Some(a) if a.len() == rgb.pixels() => {
+            if how.half {
+                a.iter()
+                    .flat_map(|&v| f16::from_f32(v).to_bits().to_le_bytes())
+                    .collect()
+            } else {
+                a.iter().flat_map(|&v| v.to_le_bytes()).collect()
+            }
+        }
+        Some(a) => {
+            return Err(IoError::Encode {
+                path: dest.to_path_buf(),
+                why: format!(
+                    "{} alpha samples for a {}×{} frame",
+                    a.len(),
+                    rgb.width,
+                    rgb.height
+                ),
+            })
+        }
+    };
+    let alpha_at = alpha.and(at("A"));
+    let chunked = chunks::Chunked::new(header, [r, g, b], alpha_at, rest);
+    unit.write_with(dest, |w| {
+        chunked
+            .write(rgb, w, compression, how.half, how.zip_level, |_| {})
+            .map_err(|e| encode_err(dest, e))
+    })
+}
+
+/// The header the `exr` crate's writer makes for a single-part scanline image of `rgb`'s size
+/// with `R`, `G`, `B` (and `A`: f32, or f16 with `half`), the colour attributes of `how.space`,
+/// its text attributes and camera. No samples are held: the chunk writer takes them from the
+/// frame.
+fn new_header(
+    rgb: &Frame,
+    with_alpha: bool,
+    dest: &Path,
+    how: &NewExr<'_>,
+) -> Result<::exr::meta::header::Header, IoError> {
+    let empty = || {
+        if how.half {
+            FlatSamples::F16(Vec::new())
         } else {
-            FlatSamples::F32(a.to_vec())
-        };
-        list.push(AnyChannel::new("A", Levels::Singular(s)));
+            FlatSamples::F32(Vec::new())
+        }
+    };
+    let mut list = ::exr::prelude::SmallVec::new();
+    let alpha = with_alpha.then_some("A");
+    for name in ["R", "G", "B"].into_iter().chain(alpha) {
+        list.push(AnyChannel::new(name, Levels::Singular(empty())));
     }
     let size = Vec2(rgb.width, rgb.height);
     let mut attributes = LayerAttributes::default();
-    for (k, v) in text {
+    for (k, v) in how.text {
         let (Some(k), Some(v)) = (Text::new_or_none(k), Text::new_or_none(v)) else {
             return Err(IoError::Encode {
                 path: dest.to_path_buf(),
@@ -616,14 +682,14 @@ pub(super) fn write_new(
             attributes.other.insert(k, AttributeValue::Text(v));
         }
     }
-    if let Some(c) = camera {
+    if let Some(c) = how.camera {
         camera_attributes(&mut attributes, c);
     }
     let layer = Layer::new(
         size,
         attributes,
         Encoding {
-            compression: chosen(compression, Compression::ZIP16),
+            compression: Compression::ZIP16,
             blocks: Blocks::ScanLines,
             line_order: LineOrder::Increasing,
         },
@@ -633,8 +699,15 @@ pub(super) fn write_new(
         ImageAttributes::new(IntegerBounds::from_dimensions(size)),
         ::exr::prelude::SmallVec::from_vec(vec![layer]),
     );
-    set_colour_attributes(&mut image, 0, space);
-    write_image(&image, dest, unit)
+    set_colour_attributes(&mut image, 0, how.space);
+    let mut headers = image.write().infer_meta_data();
+    if headers.len() != 1 {
+        return Err(IoError::Encode {
+            path: dest.to_path_buf(),
+            why: format!("{} headers for one part", headers.len()),
+        });
+    }
+    Ok(headers.remove(0))
 }
 
 /// Writes `image` to a temporary file beside `dest`, then moves it into place.

@@ -1148,3 +1148,127 @@ fn lossless_jpeg_dngs_that_lie_are_refused_before_decoding() {
         eprintln!("{name}: {} ({peak} KiB, {took:?})", err.trim());
     }
 }
+
+/// `path` (an EXR) with its `R`, `G`, `B` as the `exr` crate reads them, interleaved, as bits.
+fn exr_rgb_bits(path: &Path) -> (usize, usize, Vec<u32>) {
+    use exr::image::FlatSamples;
+    let img = exr::prelude::read_all_data_from_file(path)
+        .unwrap_or_else(|e| panic!("the exr crate reads {}: {e}", path.display()));
+    let layer = &img.layer_data[0];
+    let chan = |n: &str| -> Vec<u32> {
+        let c = layer
+            .channel_data
+            .list
+            .iter()
+            .find(|c| c.name.eq(n))
+            .unwrap_or_else(|| panic!("no channel {n}"));
+        match &c.sample_data.levels_as_slice()[0] {
+            FlatSamples::F32(v) => v.iter().map(|f| f.to_bits()).collect(),
+            other => panic!("{n}: not f32 ({} samples)", other.len()),
+        }
+    };
+    let (r, g, b) = (chan("R"), chan("G"), chan("B"));
+    let rgb = r
+        .iter()
+        .zip(&g)
+        .zip(&b)
+        .flat_map(|((r, g), b)| [*r, *g, *b])
+        .collect();
+    (layer.size.0, layer.size.1, rgb)
+}
+
+/// A raw input reaches the chunk-level EXR writer (ZIP by default) and its output holds the
+/// pixels the previous path wrote: the corrected frame `apply` writes as a TIFF (a writer of its
+/// own), written by the `exr` crate's whole-image writer as `apply` did before. Judged by the
+/// `exr` crate (bit for bit) and by OpenImageIO (`oiiotool --diff`, OpenEXR's reader).
+#[test]
+fn apply_on_a_raw_file_writes_through_the_fast_writer_the_pixels_of_the_previous_path() {
+    use exr::image::{AnyChannel, AnyChannels, Blocks, Encoding, FlatSamples, Image, Layer};
+    use exr::prelude::WritableImage;
+    let dng = common::chart_dng();
+    if !dng.exists() {
+        common::skip(&format!("{} is absent", dng.display()));
+        return;
+    }
+    let oiio = Command::new("oiiotool")
+        .arg("--help")
+        .output()
+        .is_ok_and(|o| o.status.success());
+    if !oiio {
+        common::skip("oiiotool not found (apt-get install -y openimageio-tools)");
+        return;
+    }
+    let dir = common::tempdir("raw-fast-writer");
+    common::model(&dir);
+    let dng = dng.to_str().unwrap();
+    let apply = |extra: &[&str]| {
+        let mut args = vec!["apply", "--model", "m.json", "--device", "cpu"];
+        args.extend_from_slice(extra);
+        args.push(dng);
+        let o = nsrm_in(&dir, &args);
+        no_crash(&o, "apply");
+        assert!(o.status.success(), "{}", stderr(&o));
+    };
+    apply(&["-o", "exr"]);
+    apply(&["--format", "tiff", "-o", "tif"]);
+    let new = dir.join("exr/colorchart_xyz.exr");
+    let tif = dir.join("tif/colorchart_xyz.tif");
+
+    let meta = exr::meta::MetaData::read_from_file(&new, false).unwrap();
+    let h = &meta.headers[0];
+    assert_eq!(
+        h.compression,
+        exr::compression::Compression::ZIP16,
+        "a raw input's default"
+    );
+    assert!(
+        h.own_attributes
+            .other
+            .contains_key(&exr::meta::attribute::Text::from("cameraMake")),
+        "the camera in the header"
+    );
+
+    // The corrected frame, and the file the previous path (the exr crate's writer) made of it.
+    let want = read_frame(&tif, &ReadOptions::default()).unwrap();
+    let (w, h) = (want.width, want.height);
+    let plane = |c: usize| FlatSamples::F32(want.data.iter().skip(c).step_by(3).copied().collect());
+    let channels = ["R", "G", "B"]
+        .into_iter()
+        .enumerate()
+        .map(|(c, n)| AnyChannel::new(n, exr::image::Levels::Singular(plane(c))))
+        .collect();
+    let layer = Layer::new(
+        (w, h),
+        exr::meta::header::LayerAttributes::default(),
+        Encoding {
+            compression: exr::compression::Compression::ZIP16,
+            blocks: Blocks::ScanLines,
+            line_order: exr::meta::attribute::LineOrder::Increasing,
+        },
+        AnyChannels::sort(channels),
+    );
+    let old = dir.join("old.exr");
+    Image::from_layer(layer).write().to_file(&old).unwrap();
+
+    let (nw, nh, got) = exr_rgb_bits(&new);
+    assert_eq!((nw, nh), (w, h));
+    let want_bits: Vec<u32> = want.data.iter().map(|v| v.to_bits()).collect();
+    assert!(got == want_bits, "the exr crate reads the corrected frame");
+    assert_eq!(exr_rgb_bits(&old).2, got, "as the previous writer wrote it");
+    for other in [&old, &tif] {
+        let o = Command::new("oiiotool")
+            .args(["--diff", "--fail", "0", "--warn", "0"])
+            .arg(&new)
+            .arg(other)
+            .output()
+            .unwrap();
+        let text = String::from_utf8_lossy(&o.stdout);
+        assert!(
+            o.status.success() && text.contains("PASS"),
+            "oiiotool --diff {} {}: {text}{}",
+            new.display(),
+            other.display(),
+            String::from_utf8_lossy(&o.stderr)
+        );
+    }
+}

@@ -74,8 +74,9 @@ pub(crate) struct Args {
     /// Write the corrected R, G, B as half floats (EXR only).
     #[arg(help_heading = "Outputs", long)]
     half: bool,
-    /// EXR compression: `keep` (the input's if lossless, else zip), none, rle, zips, zip, piz.
-    /// Noisy float data compresses little; `none` or `piz` encode fastest.
+    /// EXR compression: `keep` (the input's if lossless, else zip; zip for TIFF and camera raw
+    /// inputs), none, rle, zips, zip, piz. Noisy float data compresses little; `none` or `piz`
+    /// encode fastest.
     #[arg(help_heading = "Outputs", long, value_enum, ignore_case = true, default_value_t = nsrm::io::ExrCompression::Keep)]
     compression: nsrm::io::ExrCompression,
     /// Deflate level (libdeflate's, 0-12) of ZIP and ZIPS outputs. The default, 1, is the

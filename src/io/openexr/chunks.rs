@@ -1,7 +1,7 @@
 //! EXR at the chunk level: the offset tables and chunk headers checked before any pixel buffer
 //! exists, and the fast path for single-part scanline files.
 //!
-//! Why one file (about 1,300 lines): the offset tables, the chunk headers and the fast single-part
+//! Why one file (about 1,400 lines): the offset tables, the chunk headers and the fast single-part
 //! path are checked by one walk before any pixel buffer exists; the PIZ codec is `piz.rs`, the
 //! tests `chunks_tests.rs`.
 //!
@@ -32,6 +32,9 @@
 //!   into its place in one buffer beside its chunk header, and written with as few writes as
 //!   possible (one per round when the chunks are stored raw); the offset table is filled in at the
 //!   end. The bytes are those the `exr` crate writes.
+//! * [`Chunked::new`]: a new file (from a TIFF or camera raw input, or a frame made in memory)
+//!   goes through the same writer, with the header the `exr` crate makes for it
+//!   (`super::write_new`).
 
 use super::super::{IoError, Limits};
 use crate::frame::{Frame, Layout};
@@ -569,12 +572,7 @@ impl LineLayout {
                 rgb
             {
                 // The common case in one pass over the row.
-                for (p, ((r, g), b)) in row
-                    .chunks_exact_mut(3)
-                    .zip(f32s(r).zip(f32s(g)).zip(f32s(b)))
-                {
-                    p.copy_from_slice(&[r, g, b]);
-                }
+                scatter_f32(r, g, b, row);
                 continue;
             }
             for (ci, c) in rgb.into_iter().enumerate() {
@@ -615,15 +613,7 @@ impl LineLayout {
                 &mut rgb
             {
                 // The common case in one pass over the row.
-                for (p, ((r, g), b)) in row.chunks_exact(3).zip(
-                    r.chunks_exact_mut(4)
-                        .zip(g.chunks_exact_mut(4))
-                        .zip(b.chunks_exact_mut(4)),
-                ) {
-                    r.copy_from_slice(&p[0].to_le_bytes());
-                    g.copy_from_slice(&p[1].to_le_bytes());
-                    b.copy_from_slice(&p[2].to_le_bytes());
-                }
+                gather_f32(row, r, g, b);
                 continue;
             }
             for (ci, c) in rgb.into_iter().enumerate() {
@@ -641,6 +631,74 @@ impl LineLayout {
                 }
             }
         }
+    }
+}
+
+/// Pixels handled at once by [`scatter_f32`] and [`gather_f32`]: fixed-size groups the compiler
+/// turns into whole-register loads, shuffles and stores.
+const GROUP: usize = 8;
+
+/// Three lines of little-endian f32 samples (R, G, B) → interleaved RGB `row`.
+fn scatter_f32(r: &[u8], g: &[u8], b: &[u8], row: &mut [f32]) {
+    let one = |p: &mut [f32], r: &[u8], g: &[u8], b: &[u8]| {
+        let px = p.chunks_exact_mut(3);
+        let planes = r
+            .chunks_exact(4)
+            .zip(g.chunks_exact(4))
+            .zip(b.chunks_exact(4));
+        for (p, ((r, g), b)) in px.zip(planes) {
+            let f = |s: &[u8]| f32::from_le_bytes([s[0], s[1], s[2], s[3]]);
+            p.copy_from_slice(&[f(r), f(g), f(b)]);
+        }
+    };
+    let bytes = 4 * GROUP;
+    let groups = r
+        .chunks_exact(bytes)
+        .zip(g.chunks_exact(bytes))
+        .zip(b.chunks_exact(bytes));
+    for (p, ((r, g), b)) in row.chunks_exact_mut(3 * GROUP).zip(groups) {
+        one(p, r, g, b);
+    }
+    let done = row.len() / (3 * GROUP) * GROUP;
+    if let (Some(p), Some(r), Some(g), Some(b)) = (
+        row.get_mut(3 * done..),
+        r.get(4 * done..),
+        g.get(4 * done..),
+        b.get(4 * done..),
+    ) {
+        one(p, r, g, b);
+    }
+}
+
+/// Interleaved RGB `row` → three lines of little-endian f32 samples (R, G, B).
+fn gather_f32(row: &[f32], r: &mut [u8], g: &mut [u8], b: &mut [u8]) {
+    let one = |p: &[f32], r: &mut [u8], g: &mut [u8], b: &mut [u8]| {
+        let planes = r
+            .chunks_exact_mut(4)
+            .zip(g.chunks_exact_mut(4))
+            .zip(b.chunks_exact_mut(4));
+        for (p, ((r, g), b)) in p.chunks_exact(3).zip(planes) {
+            r.copy_from_slice(&p[0].to_le_bytes());
+            g.copy_from_slice(&p[1].to_le_bytes());
+            b.copy_from_slice(&p[2].to_le_bytes());
+        }
+    };
+    let bytes = 4 * GROUP;
+    let done = row.len() / (3 * GROUP) * GROUP;
+    let groups = r
+        .chunks_exact_mut(bytes)
+        .zip(g.chunks_exact_mut(bytes))
+        .zip(b.chunks_exact_mut(bytes));
+    for (p, ((r, g), b)) in row.chunks_exact(3 * GROUP).zip(groups) {
+        one(p, r, g, b);
+    }
+    if let (Some(p), Some(r), Some(g), Some(b)) = (
+        row.get(3 * done..),
+        r.get_mut(4 * done..),
+        g.get_mut(4 * done..),
+        b.get_mut(4 * done..),
+    ) {
+        one(p, r, g, b);
     }
 }
 
@@ -1071,6 +1129,23 @@ pub(super) fn decode(
 }
 
 impl Chunked {
+    /// A new file's parts for [`Chunked::write`]: its `header` (single-part scanline), the
+    /// indices of `R`, `G`, `B` and alpha in its channel list, and the other channels' samples
+    /// (`rest`: per line, each channel's samples as stored, little-endian).
+    pub(crate) fn new(
+        header: Header,
+        rgb: [usize; 3],
+        alpha: Option<usize>,
+        rest: Vec<u8>,
+    ) -> Chunked {
+        Chunked {
+            header,
+            rgb,
+            alpha,
+            rest,
+        }
+    }
+
     /// Bytes of pass-through samples per line, and each pass-through channel's offset there.
     fn layout(&self) -> LineLayout {
         LineLayout::new(
@@ -1112,7 +1187,7 @@ impl Chunked {
     /// Writes `frame` (the corrected RGB) with the pass-through channels and the input's header,
     /// RGB now `F32` (or `F16` with `half`), compressed with `compression` (ZIP at `zip_level`),
     /// to `w`; `edit` adjusts the header's attributes first.
-    pub(crate) fn write<W: std::io::Write + std::io::Seek>(
+    pub(crate) fn write<W: std::io::Write + std::io::Seek + Send>(
         self,
         frame: &Frame,
         w: W,
@@ -1197,13 +1272,19 @@ impl Chunked {
 /// and few large writes.
 const BATCH_BYTES: usize = 4 << 20;
 
+/// The byte ranges of a round buffer to write, in file order: consecutive chunks that filled
+/// their slots lie back to back and make one range.
+type Spans = Vec<(usize, usize)>;
+
 /// Writes a single-part scanline EXR with `headers` (one): the header and offset table as the
 /// `exr` crate writes them, then every block, encoded in parallel by `encode(header, index,
 /// pixel bounds, out)` into `out` (room for the raw block) returning the block's first line and
 /// the bytes of chunk data it left at the start of `out`. Blocks are encoded a round at a time
 /// into one buffer, each beside its 8-byte chunk header, and written in as few writes as
-/// possible; the offset table is filled in at the end.
-fn write_chunks<W: std::io::Write + std::io::Seek>(
+/// possible; while one round is written, the next is encoded into a second buffer (the write, a
+/// copy into the file's pages, then overlaps the encoding instead of leaving the other cores
+/// idle). The offset table is filled in at the end.
+fn write_chunks<W: std::io::Write + std::io::Seek + Send>(
     mut w: W,
     headers: ::exr::meta::Headers,
     encode: impl Fn(&Header, usize, IntegerBounds, &mut [u8]) -> Result<(i32, usize), String> + Sync,
@@ -1232,32 +1313,27 @@ fn write_chunks<W: std::io::Write + std::io::Seek>(
     }
     let most = blocks.iter().map(|&(_, len)| len).max().unwrap_or(0).max(1);
     let per_round = (BATCH_BYTES / most).max(4 * rayon::current_num_threads().max(1));
-    // One round buffer for the call (about BATCH_BYTES), reused round after round.
-    let mut round = Vec::new();
-    for start in (0..n).step_by(per_round) {
+    // Two round buffers for the call (about BATCH_BYTES each), reused round after round: one
+    // being written while the other is encoded.
+    let mut rounds = [Vec::new(), Vec::new()];
+    let mut pending: Spans = Vec::new();
+    for (r, start) in (0..n).step_by(per_round).enumerate() {
         let end = (start + per_round).min(n);
-        let size: usize = blocks[start..end].iter().map(|&(_, len)| 8 + len).sum();
-        let buf = sized(&mut round, size);
-        let mut slots = Vec::with_capacity(end - start);
-        let mut left = &mut buf[..];
-        for &(_, len) in &blocks[start..end] {
-            let (slot, more) = left.split_at_mut(8 + len);
-            slots.push(slot);
-            left = more;
-        }
-        let lens: Vec<Result<usize, String>> = slots
-            .into_par_iter()
-            .enumerate()
-            .map(|(k, slot)| {
-                let b = start + k;
-                let (head, out) = slot.split_at_mut(8);
-                let (y, len) = encode(header, b, blocks[b].0, out)?;
-                let len32 = i32::try_from(len).map_err(|_| "chunk too large".to_string())?;
-                head[..4].copy_from_slice(&y.to_le_bytes());
-                head[4..].copy_from_slice(&len32.to_le_bytes());
-                Ok(len)
-            })
-            .collect();
+        let [even, odd] = &mut rounds;
+        let (cur, prev) = if r % 2 == 0 { (even, odd) } else { (odd, even) };
+        let prev: &[u8] = prev;
+        let spans = std::mem::take(&mut pending);
+        let wr = &mut w;
+        let (written, lens) = rayon::join(
+            move || -> std::io::Result<()> {
+                for (from, to) in spans {
+                    wr.write_all(&prev[from..to])?;
+                }
+                Ok(())
+            },
+            || encode_round(header, &blocks[start..end], start, cur, &encode),
+        );
+        written?;
         // Consecutive chunks that filled their slots lie back to back: one write for them.
         let (mut from, mut to) = (0, 0);
         let mut slot_at = 0;
@@ -1267,13 +1343,22 @@ fn write_chunks<W: std::io::Write + std::io::Seek>(
             table[b] = pos;
             pos += 8 + len as u64;
             if slot_at != to {
-                w.write_all(&buf[from..to])?;
+                pending.push((from, to));
                 from = slot_at;
             }
             to = slot_at + 8 + len;
             slot_at += 8 + blocks[b].1;
         }
-        w.write_all(&buf[from..to])?;
+        pending.push((from, to));
+    }
+    let [even, odd] = &rounds;
+    let last = if n.div_ceil(per_round) % 2 == 1 {
+        even
+    } else {
+        odd
+    };
+    for (from, to) in pending {
+        w.write_all(&last[from..to])?;
     }
     w.seek(std::io::SeekFrom::Start(table_at))?;
     let mut bytes = Vec::with_capacity(n * 8);
@@ -1283,6 +1368,38 @@ fn write_chunks<W: std::io::Write + std::io::Seek>(
     w.write_all(&bytes)?;
     w.flush()?;
     Ok(())
+}
+
+/// Encodes blocks `first..first + blocks.len()` in parallel into `buf`, each in its slot (its
+/// 8-byte chunk header, then room for the raw block); returns each block's chunk data length.
+fn encode_round(
+    header: &Header,
+    blocks: &[(IntegerBounds, usize)],
+    first: usize,
+    buf: &mut Vec<u8>,
+    encode: &(impl Fn(&Header, usize, IntegerBounds, &mut [u8]) -> Result<(i32, usize), String> + Sync),
+) -> Vec<Result<usize, String>> {
+    let size: usize = blocks.iter().map(|&(_, len)| 8 + len).sum();
+    let buf = sized(buf, size);
+    let mut slots = Vec::with_capacity(blocks.len());
+    let mut left = &mut buf[..];
+    for &(_, len) in blocks {
+        let (slot, more) = left.split_at_mut(8 + len);
+        slots.push(slot);
+        left = more;
+    }
+    slots
+        .into_par_iter()
+        .enumerate()
+        .map(|(k, slot)| {
+            let (head, out) = slot.split_at_mut(8);
+            let (y, len) = encode(header, first + k, blocks[k].0, out)?;
+            let len32 = i32::try_from(len).map_err(|_| "chunk too large".to_string())?;
+            head[..4].copy_from_slice(&y.to_le_bytes());
+            head[4..].copy_from_slice(&len32.to_le_bytes());
+            Ok(len)
+        })
+        .collect()
 }
 
 #[cfg(test)]

@@ -167,3 +167,25 @@ fn zip_preprocessing_matches_openexr() {
     // t = [10, 11, 13, 200, 201]
     assert_eq!(d, [10, 129, 130, 59, 129]);
 }
+
+#[test]
+fn grouped_gather_and_scatter_match_sample_by_sample() {
+    // Widths below, at and around the group of 8 pixels, and a row with a remainder.
+    for w in (0..=20).chain([37, 64, 65]) {
+        let row: Vec<f32> = (0..3 * w).map(|i| i as f32 * 0.37 - 5.0).collect();
+        let (mut r, mut g, mut b) = (vec![0u8; 4 * w], vec![0u8; 4 * w], vec![0u8; 4 * w]);
+        gather_f32(&row, &mut r, &mut g, &mut b);
+        for (c, plane) in [&r, &g, &b].into_iter().enumerate() {
+            let want: Vec<u8> = row
+                .iter()
+                .skip(c)
+                .step_by(3)
+                .flat_map(|v| v.to_le_bytes())
+                .collect();
+            assert_eq!(*plane, want, "width {w}, channel {c}");
+        }
+        let mut back = vec![f32::NAN; 3 * w];
+        scatter_f32(&r, &g, &b, &mut back);
+        assert_eq!(back, row, "width {w}");
+    }
+}

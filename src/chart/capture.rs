@@ -399,7 +399,7 @@ impl Capture {
         let d = self.detection.as_ref()?;
         let n = self.reference.chart.columns() * self.reference.chart.rows();
         (d.lattice > n + n / 4).then_some(match self.reference.chart {
-            ChartKind::Cc24 => ChartKind::Sg,
+            ChartKind::Cc24 | ChartKind::Spyder24 => ChartKind::Sg,
             ChartKind::Sg => ChartKind::Cc24,
         })
     }

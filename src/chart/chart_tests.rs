@@ -7,7 +7,7 @@ use super::detect::{detect, DetectOptions};
 use super::extract::{extract, verify, ExtractOptions, Extraction};
 use super::flat::from_neutrals as flat_from_neutrals;
 use super::flat::{apply as apply_flat, from_flat_frame as flat_from_frame};
-use super::scene::{render, ChartColours, Family, SceneOptions, SceneTruth};
+use super::scene::{self, render, ChartColours, Family, SceneOptions, SceneTruth};
 use super::{homography_from_corners, ChartKind, Reference};
 use crate::kit::skip_or_fail;
 use crate::Kind;
@@ -795,5 +795,74 @@ fn graded_colours_keep_their_hues_and_misplaced_ones_do_not() {
     for (what, rgb) in [("shifted", shifted), ("reversed", reversed)] {
         let errs = hue_errors(&rgb, &reference).unwrap();
         assert!(!hues_hold(&errs), "{what}: {errs:?}");
+    }
+}
+
+/// The SpyderCHECKR 24 simulated from the classic's spectra in its layout.
+fn spyder24() -> ChartColours {
+    ChartColours::simulate(ChartKind::Spyder24, "nikon-d5100", "D65", None).unwrap()
+}
+
+#[test]
+fn the_spyderchecker_layout_labels_and_reference_agree() {
+    let k = ChartKind::Spyder24;
+    assert_eq!((k.columns(), k.rows()), (6, 4));
+    assert_eq!(k.label(0, 0), "D1 bluish green");
+    assert_eq!(k.label(0, 3), "A1 white");
+    assert_eq!(k.label(5, 3), "A6 black");
+    for (spec, i) in [
+        ("A1", 18),
+        ("a1 white", 18),
+        ("white", 18),
+        ("D6", 5),
+        ("cyan", 12),
+    ] {
+        assert_eq!(k.index_of(spec), Some(i), "{spec}");
+    }
+    assert_eq!(k.index_of("19"), None);
+    assert_eq!(ChartKind::parse("SPYDER24").unwrap(), k);
+    // The map from the classic's cells is its own inverse and a permutation.
+    let mut seen = [false; 24];
+    for i in 0..24 {
+        let j = scene::spyder24_cell(i);
+        assert_eq!(scene::spyder24_cell(j), i);
+        seen[j] = true;
+    }
+    assert!(seen.iter().all(|&s| s));
+    // Its colours are the classic's: the classic's published values, put in the SpyderCHECKR's
+    // cells by that map, are within a few ΔE00 of the SpyderCHECKR's on every cell (a wrong
+    // map would put a red where a blue is).
+    let r = Reference::load(k.default_reference(), k, None).unwrap();
+    let cc = Reference::load("cc24-after2014", ChartKind::Cc24, None).unwrap();
+    let worst = (0..24)
+        .map(|i| {
+            crate::colorimetry::delta_e00_xyz(cc.xyz[scene::spyder24_cell(i)], r.xyz[i], r.white)
+        })
+        .fold(0.0, f64::max);
+    assert!(
+        worst < 6.0,
+        "worst cell {worst:.2} ΔE00 from the classic's colour"
+    );
+    assert_eq!(spyder24().rgb.len(), 24);
+}
+
+#[test]
+fn the_spyderchecker_is_read_as_itself_in_real_photo_families() {
+    let c = spyder24();
+    for f in [Family::Envelope, Family::Jpeg, Family::Tilt, Family::Small] {
+        let (ok, refused) = family_outcomes(&c, f, 1..4);
+        assert!(ok >= 2, "{}: {ok} of 3 found, {refused} refused", f.name());
+    }
+}
+
+/// Never another make for the SpyderCHECKR: a classic ColorChecker (the `spyder24` family's
+/// swap undone), random grids, the SpyderCHECKR's colours shuffled — all refused when a
+/// SpyderCHECKR is asked for.
+#[test]
+fn other_charts_are_refused_as_a_spyderchecker() {
+    let c = spyder24();
+    for f in Family::ALL.into_iter().filter(|f| f.negative()) {
+        let (ok, _) = family_outcomes(&c, f, 1..4);
+        assert_eq!(ok, 0, "{}", f.name());
     }
 }

@@ -58,8 +58,8 @@ use serde::{Deserialize, Serialize};
 /// Errors of chart reading.
 #[derive(Debug, thiserror::Error)]
 pub enum ChartError {
-    /// A chart name that is neither `cc24` nor `sg`.
-    #[error("unknown chart `{0}` (known: cc24, sg)")]
+    /// A chart name that is none of `cc24`, `sg` and `spyder24`.
+    #[error("unknown chart `{0}` (known: cc24, sg, spyder24)")]
     UnknownChart(String),
     /// A reference file or table that cannot be used (its header, labels or values).
     #[error("{0}")]
@@ -148,7 +148,41 @@ pub enum ChartKind {
     /// The Digital ColorChecker SG (140 patches, 14 × 10).
     #[cfg_attr(feature = "clap", value(name = "sg"))]
     Sg,
+    /// The Datacolor SpyderCHECKR 24 (24 patches, 6 × 4: the classic's colours in another
+    /// order, the grey ramp at the bottom).
+    #[cfg_attr(feature = "clap", value(name = "spyder24"))]
+    Spyder24,
 }
+
+/// SpyderCHECKR 24 patch names in reading order (top row first, the grey ramp at the bottom),
+/// with the rows lettered D … A from the top and the columns numbered from the left, as in
+/// darktable's table of the chart.
+const SPYDER24_NAMES: [&str; 24] = [
+    "bluish green",
+    "blue flower",
+    "foliage",
+    "blue sky",
+    "light skin",
+    "dark skin",
+    "orange",
+    "purplish blue",
+    "moderate red",
+    "purple",
+    "yellow green",
+    "orange yellow",
+    "cyan",
+    "magenta",
+    "yellow",
+    "red",
+    "green",
+    "blue",
+    "white",
+    "grey 80",
+    "grey 65",
+    "grey 50",
+    "grey 35",
+    "black",
+];
 
 /// CC24 patch names in reading order.
 const CC24_NAMES: [&str; 24] = [
@@ -179,27 +213,41 @@ const CC24_NAMES: [&str; 24] = [
 ];
 
 impl ChartKind {
-    /// `cc24` or `sg` (case-insensitive).
+    /// Every chart nsrm knows, in the order `--chart auto` tries them.
+    pub const ALL: [ChartKind; 3] = [ChartKind::Cc24, ChartKind::Sg, ChartKind::Spyder24];
+
+    /// `cc24`, `sg` or `spyder24` (case-insensitive).
     pub fn parse(s: &str) -> Result<ChartKind, ChartError> {
         match s.trim().to_ascii_lowercase().as_str() {
             "cc24" => Ok(ChartKind::Cc24),
             "sg" => Ok(ChartKind::Sg),
+            "spyder24" => Ok(ChartKind::Spyder24),
             _ => Err(ChartError::UnknownChart(s.to_string())),
         }
     }
 
-    /// The name `--chart` takes: `cc24` or `sg`.
+    /// The name `--chart` takes: `cc24`, `sg` or `spyder24`.
     pub fn name(self) -> &'static str {
         match self {
             ChartKind::Cc24 => "cc24",
             ChartKind::Sg => "sg",
+            ChartKind::Spyder24 => "spyder24",
+        }
+    }
+
+    /// The chart's name as its maker calls it.
+    pub fn title(self) -> &'static str {
+        match self {
+            ChartKind::Cc24 => "ColorChecker Classic",
+            ChartKind::Sg => "Digital ColorChecker SG",
+            ChartKind::Spyder24 => "Datacolor SpyderCHECKR 24",
         }
     }
 
     /// Columns of the patch grid (chart upright).
     pub fn columns(self) -> usize {
         match self {
-            ChartKind::Cc24 => 6,
+            ChartKind::Cc24 | ChartKind::Spyder24 => 6,
             ChartKind::Sg => 14,
         }
     }
@@ -207,7 +255,7 @@ impl ChartKind {
     /// Rows of the patch grid.
     pub fn rows(self) -> usize {
         match self {
-            ChartKind::Cc24 => 4,
+            ChartKind::Cc24 | ChartKind::Spyder24 => 4,
             ChartKind::Sg => 10,
         }
     }
@@ -221,6 +269,8 @@ impl ChartKind {
         match self {
             ChartKind::Cc24 => 0.84,
             ChartKind::Sg => 0.80,
+            // 26 mm patches at a 31 mm pitch.
+            ChartKind::Spyder24 => 0.84,
         }
     }
 
@@ -229,6 +279,8 @@ impl ChartKind {
         match self {
             ChartKind::Cc24 => 0.4,
             ChartKind::Sg => 0.6,
+            // 8 mm of card beyond the outer patches' edges (to the guide dots), 31 mm pitch.
+            ChartKind::Spyder24 => 0.35,
         }
     }
 
@@ -237,6 +289,7 @@ impl ChartKind {
         match self {
             ChartKind::Cc24 => "cc24-after2014",
             ChartKind::Sg => "sg-after2014",
+            ChartKind::Spyder24 => "spyder24-after2018",
         }
     }
 
@@ -248,6 +301,15 @@ impl ChartKind {
                 format!("{:02} {}", i + 1, CC24_NAMES[i])
             }
             ChartKind::Sg => format!("{}{}", (b'A' + c as u8) as char, r + 1),
+            ChartKind::Spyder24 => {
+                let i = r * 6 + c;
+                format!(
+                    "{}{} {}",
+                    (b'D' - r as u8) as char,
+                    c + 1,
+                    SPYDER24_NAMES[i]
+                )
+            }
         }
     }
 
@@ -283,9 +345,10 @@ impl ChartKind {
         [[-m, -m], [c + m, -m], [c + m, r + m], [-m, r + m]]
     }
 
-    /// The index of the patch a label names, accepting the full label (`01 dark skin`, `A1`),
-    /// and for CC24 also its number (`1`, `01`) or its name (`dark skin`); case and spaces
-    /// around are ignored, as is a parenthesised suffix (`white 9.5 (.05 D)`).
+    /// The index of the patch a label names, accepting the full label (`01 dark skin`, `A1`,
+    /// `A1 white`), for CC24 also its number (`1`, `01`) or its name (`dark skin`), for the
+    /// SpyderCHECKR its cell (`A1`) or its name (`white`); case and spaces around are ignored, as
+    /// is a parenthesised suffix (`white 9.5 (.05 D)`).
     pub(crate) fn index_of(self, label: &str) -> Option<usize> {
         let l = label.trim().trim_matches('"').trim().to_ascii_lowercase();
         let l = match l.find('(') {
@@ -311,6 +374,10 @@ impl ChartKind {
                 let r: usize = ch.as_str().trim().parse().ok()?;
                 (c < 14 && (1..=10).contains(&r)).then(|| (r - 1) * 14 + c)
             }
+            ChartKind::Spyder24 => (0..24).find(|&i| {
+                let full = self.label(i % 6, i / 6).to_ascii_lowercase();
+                l == full || l == SPYDER24_NAMES[i] || full.split(' ').next() == Some(l.as_str())
+            }),
         }
     }
 }

@@ -38,6 +38,16 @@ pub(crate) const BUILTIN: &[(&str, ChartKind, &str)] = &[
         ChartKind::Sg,
         include_str!("../../assets/chart_sg140_before2014_d50.csv"),
     ),
+    (
+        "spyder24-after2018",
+        ChartKind::Spyder24,
+        include_str!("../../assets/chart_spyder24_after2018_d50.csv"),
+    ),
+    (
+        "spyder24-before2018",
+        ChartKind::Spyder24,
+        include_str!("../../assets/chart_spyder24_before2018_d50.csv"),
+    ),
 ];
 
 /// Reference colours of every patch of a chart.
@@ -54,6 +64,11 @@ pub struct Reference {
 }
 
 impl Reference {
+    /// The names of the built-in references, as `--reference` takes them.
+    pub fn builtin_names() -> Vec<&'static str> {
+        BUILTIN.iter().map(|b| b.0).collect()
+    }
+
     /// A built-in reference by name, or a file (`.cie`/`.txt`/`.cgats`/`.ti3`: CGATS; else
     /// CSV). `white` is the reference white of a file's values (needed for Lab; XYZ files
     /// default to D50, the white of chart makers' tables).

@@ -40,7 +40,10 @@ pub struct ChartColours {
 
 impl ChartColours {
     /// Simulates the chart: CC24 from the built-in BabelColor spectra (`reflectances` = `None`
-    /// or `cc24`), SG from a spectra file whose columns are the labels `A1` … `N10`.
+    /// or `cc24`), SG from a spectra file whose columns are the labels `A1` … `N10`, the
+    /// SpyderCHECKR 24 from 24 spectra in the classic's order (by default the classic's, as its
+    /// colours are the classic's: no spectra of the SpyderCHECKR are published) or from a file
+    /// whose columns are its labels.
     pub fn simulate(
         chart: ChartKind,
         camera: &str,
@@ -50,7 +53,9 @@ impl ChartColours {
         let err = |e: crate::spectral::SpectralError| ChartError::Invalid(e.to_string());
         let refl_name = match (chart, reflectances) {
             (_, Some(r)) => r.to_string(),
-            (ChartKind::Cc24, None) => "cc24".to_string(),
+            // No spectra of the SpyderCHECKR are published: its colours are the classic's, so
+            // the classic's spectra in its layout stand in for them ([`spyder24_cell`]).
+            (ChartKind::Cc24 | ChartKind::Spyder24, None) => "cc24".to_string(),
             (ChartKind::Sg, None) => {
                 return Err(ChartError::Param {
                     concern: Concern::Remedy(Param::Reflectances),
@@ -67,12 +72,12 @@ impl ChartColours {
         let data = simulate(&cam, &ill, &refl, &grid).map_err(err)?;
         let mut rgb = vec![None; chart.cells()];
         let mut xyz = vec![[0.0; 3]; chart.cells()];
-        let by_index = chart == ChartKind::Cc24 && data.len() == 24;
+        let by_index = chart.cells() == 24 && data.len() == 24;
         for (j, label) in data.labels.iter().enumerate() {
-            let i = if by_index {
-                Some(j)
-            } else {
-                chart.index_of(label)
+            let i = match chart {
+                ChartKind::Cc24 if by_index => Some(j),
+                ChartKind::Spyder24 if by_index => Some(spyder24_cell(j)),
+                _ => chart.index_of(label),
             };
             if let Some(i) = i {
                 rgb[i] = Some(data.rgb[j]);
@@ -1455,7 +1460,7 @@ fn impostor(colours: &ChartColours, family: Family, g: &mut Gaussian) -> ChartCo
     match (family, colours.chart) {
         (Family::Nested, _) => nested(colours, g),
         (Family::Spyder24, _) => spyder24(colours, g),
-        (_, ChartKind::Cc24) => cc24_impostor(colours, family, g),
+        (_, ChartKind::Cc24 | ChartKind::Spyder24) => cc24_impostor(colours, family, g),
         (_, ChartKind::Sg) => sg_impostor(colours, family, g),
     }
 }
@@ -1492,7 +1497,7 @@ fn nested(colours: &ChartColours, g: &mut Gaussian) -> ChartColours {
                 .collect(),
             ..colours.clone()
         },
-        ChartKind::Cc24 => {
+        ChartKind::Cc24 | ChartKind::Spyder24 => {
             let (cols, rows) = (sg.columns(), sg.rows());
             let mut rgb: Vec<[f64; 3]> = (0..sg.cells())
                 .map(|i| {
@@ -1525,7 +1530,8 @@ fn nested(colours: &ChartColours, g: &mut Gaussian) -> ChartColours {
 /// the grey ramp as the classic's — 12 of its 24 cells agree with a CC24 read the same way up
 /// (its colours still miss the CC24's by a median ΔE00 of 15.9–23.0 after the best map, 60
 /// scenes: refused by colour, the limit being 8). For an SG's colours, that chart
-/// made of the SG's E2–J5 block (the CC24 of [`nested`], so reordered).
+/// made of the SG's E2–J5 block (the CC24 of [`nested`], so reordered). For a SpyderCHECKR's
+/// colours, the same swap undone: a classic ColorChecker, the other make.
 fn spyder24(colours: &ChartColours, g: &mut Gaussian) -> ChartColours {
     if colours.chart == ChartKind::Sg {
         return spyder24(&nested(colours, g), g);
@@ -1540,6 +1546,18 @@ fn spyder24(colours: &ChartColours, g: &mut Gaussian) -> ChartColours {
         }
     }
     c
+}
+
+/// The SpyderCHECKR 24 cell that holds the colour of classic cell `i` (and the classic cell of
+/// SpyderCHECKR cell `i`: the map is its own inverse): the top and third rows reversed, the
+/// second row and the grey ramp in place.
+pub(crate) fn spyder24_cell(i: usize) -> usize {
+    let (c, r) = (i % 6, i / 6);
+    if r % 2 == 0 {
+        r * 6 + 5 - c
+    } else {
+        i
+    }
 }
 
 /// Shuffles `v` in place (Fisher–Yates on the seeded generator).

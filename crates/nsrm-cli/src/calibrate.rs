@@ -138,7 +138,7 @@ pub(crate) fn run(mut a: Args) -> Result<ExitCode> {
     let candidates = parse_candidates(&a.candidates)?;
     let opts = a.fit.options()?;
     if a.chart.chart.is_none() {
-        a.chart.chart = Some(nsrm::chart::ChartKind::Cc24);
+        a.chart.chart = Some(nsrm::chart::ChartKind::Cc24.into());
     }
     let formats: Vec<nsrm::export::Format> = a.export.clone();
     std::fs::create_dir_all(&a.output)

@@ -18,17 +18,20 @@ use std::sync::Arc;
 /// How the chart in a frame is read.
 #[derive(Debug, Clone, clap::Args)]
 pub(crate) struct CaptureOptions {
-    /// The chart photographed: cc24 (ColorChecker Classic) or sg (Digital ColorChecker SG).
+    /// The chart photographed: cc24 (ColorChecker Classic, Passport), sg (Digital ColorChecker
+    /// SG), spyder24 (Datacolor SpyderCHECKR 24), or auto (every one is tried; the one found is
+    /// named).
     #[arg(
         help_heading = "Chart in a photograph",
         long,
-        value_enum,
-        ignore_case = true
+        value_name = "cc24|sg|spyder24|auto",
+        value_parser = parse_chart_pick
     )]
-    pub(crate) chart: Option<nsrm::chart::ChartKind>,
+    pub(crate) chart: Option<ChartPick>,
     /// Reference values: cc24-after2014 (default for cc24), cc24-before2014, sg-after2014
-    /// (default for sg), sg-before2014, or a file: CSV `label` + `X,Y,Z` or `L,a,b`, or CGATS
-    /// (.cie/.txt: SAMPLE_ID + XYZ_X/Y/Z or LAB_L/A/B).
+    /// (default for sg), sg-before2014, spyder24-after2018 (default for spyder24),
+    /// spyder24-before2018, or a file: CSV `label` + `X,Y,Z` or `L,a,b`, or CGATS (.cie/.txt:
+    /// SAMPLE_ID + XYZ_X/Y/Z or LAB_L/A/B).
     #[arg(help_heading = "Chart in a photograph", long, value_name = "NAME|FILE")]
     pub(crate) reference: Option<String>,
     /// White of a reference file's values, in the forms `--white` takes: `X,Y,Z`, `x,y`, D50 or
@@ -99,16 +102,49 @@ impl From<EncodingArg> for Encoding {
     }
 }
 
+/// What `--chart` names: one chart, or `auto` (every chart nsrm knows).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) enum ChartPick {
+    /// Try every chart ([`ChartKind::ALL`]); read the one found.
+    Auto,
+    /// This chart.
+    Kind(ChartKind),
+}
+
+impl From<ChartKind> for ChartPick {
+    fn from(k: ChartKind) -> ChartPick {
+        ChartPick::Kind(k)
+    }
+}
+
+/// `--chart`'s value: a chart's name or `auto` (case-insensitive).
+fn parse_chart_pick(s: &str) -> Result<ChartPick, String> {
+    if s.trim().eq_ignore_ascii_case("auto") {
+        return Ok(ChartPick::Auto);
+    }
+    ChartKind::parse(s).map(ChartPick::Kind).map_err(|_| {
+        let names: Vec<&str> = ChartKind::ALL.iter().map(|k| k.name()).collect();
+        format!("`{s}` is not a chart: {} or auto", names.join(", "))
+    })
+}
+
 /// A read chart (the library's reading, with the frame it was read from).
 pub(crate) use nsrm::chart::capture::Capture;
 
 impl CaptureOptions {
-    /// The chart kind (usage error when missing or unknown).
-    pub(crate) fn kind(&self) -> Result<ChartKind> {
-        let c = self
-            .chart
-            .ok_or_else(|| UsageError("--chart cc24|sg is required".into()))?;
-        Ok(c)
+    /// The charts to try: the one `--chart` names, or every one for `auto` (usage error when
+    /// `--chart` is missing, or when `auto` meets a `--reference` file, which is one chart's).
+    pub(crate) fn kinds(&self) -> Result<Vec<ChartKind>> {
+        match self.chart {
+            None => Err(UsageError("--chart cc24|sg|spyder24|auto is required".into()).into()),
+            Some(ChartPick::Kind(k)) => Ok(vec![k]),
+            Some(ChartPick::Auto) if self.reference.is_some() => Err(UsageError(
+                "--reference holds one chart's values: name that chart with --chart instead of auto"
+                    .into(),
+            )
+            .into()),
+            Some(ChartPick::Auto) => Ok(ChartKind::ALL.to_vec()),
+        }
     }
 
     /// True when any capture option is given.
@@ -122,9 +158,16 @@ impl CaptureOptions {
             || self.flat.is_some()
     }
 
-    /// Loads the reference (cheap; done before reading frames).
-    pub(crate) fn reference(&self) -> Result<Reference> {
-        let kind = self.kind()?;
+    /// Loads the reference of the one chart `--chart` names (not `auto`).
+    pub(crate) fn the_reference(&self) -> Result<Reference> {
+        match self.kinds()?.as_slice() {
+            [k] => self.reference(*k),
+            _ => Err(UsageError("name the chart: cc24, sg or spyder24, not auto".into()).into()),
+        }
+    }
+
+    /// Loads the reference of chart `kind` (cheap; done before reading frames).
+    pub(crate) fn reference(&self, kind: ChartKind) -> Result<Reference> {
         let white = self
             .reference_white
             .as_deref()
@@ -193,14 +236,19 @@ impl CaptureOptions {
         }
     }
 
-    /// Reads the chart in `path`. On failure with `failure_overlay`, the frame and the rejected
-    /// detection candidates are drawn there (committed on its own in `session`).
+    /// Reads the chart in `path` (under `--chart auto`, each chart in turn; the one found is
+    /// named). On failure with `failure_overlay`, the frame and the rejected detection
+    /// candidates are drawn there (committed on its own in `session`).
     pub(crate) fn read(
         &self,
         path: &Path,
         failure_overlay: Option<(&Path, &Session)>,
     ) -> Result<Capture> {
-        let reference = self.reference()?;
+        let kinds = self.kinds()?;
+        let references = kinds
+            .iter()
+            .map(|&k| self.reference(k))
+            .collect::<Result<Vec<_>>>()?;
         let corners = self.corners.as_deref().map(parse_corners).transpose()?;
         if let Some(w) = self.white_level {
             ExtractOptions {
@@ -221,7 +269,12 @@ impl CaptureOptions {
             white_level: self.white_level,
             flat,
         };
-        let cap = nsrm::chart::capture::read(&frame, &reference, &opts).map_err(|e| {
+        let cap = if references.len() > 1 {
+            pick_chart(&frame, &references, &opts).map_err(|e| *e)
+        } else {
+            nsrm::chart::capture::read(&frame, &references[0], &opts)
+        };
+        let cap = cap.map_err(|e| {
             if let (CaptureError::NotFound { candidates, .. }, Some((p, session))) =
                 (&e, failure_overlay)
             {
@@ -249,6 +302,64 @@ impl CaptureOptions {
         }
         Ok(cap)
     }
+}
+
+/// The innermost cause of an error: the reason a chart was not found, without the frame's name
+/// and the step that every chart tried shares.
+fn innermost(e: &dyn std::error::Error) -> String {
+    let mut cur = e;
+    while let Some(next) = cur.source() {
+        cur = next;
+    }
+    cur.to_string()
+}
+
+/// `--chart auto`: reads `frame` as each chart of `references` and keeps the reading that
+/// matches best among those whose lattice is not clearly a larger chart's
+/// ([`Capture::other_chart`]); prints which chart it found and why the others were not taken.
+/// When none is found, the first chart's error (its rejected candidates), naming every chart
+/// tried.
+fn pick_chart(
+    frame: &Arc<CaptureFrame>,
+    references: &[Reference],
+    opts: &ReadingOptions<'_>,
+) -> Result<Capture, Box<CaptureError>> {
+    let mut found = Vec::new();
+    let mut first_err = None;
+    let mut notes = Vec::new();
+    for r in references {
+        match nsrm::chart::capture::read(frame, r, opts) {
+            Ok(c) => found.push(c),
+            Err(e) => {
+                notes.push(format!("not a {}: {}", r.chart.name(), innermost(&e)));
+                first_err.get_or_insert(e);
+            }
+        }
+    }
+    let whole = found.iter().any(|c| c.other_chart().is_none());
+    found.retain(|c| !whole || c.other_chart().is_none());
+    found.sort_by(|a, b| a.score.total_cmp(&b.score));
+    let mut found = found.into_iter();
+    let Some(best) = found.next() else {
+        let names: Vec<&str> = references.iter().map(|r| r.chart.name()).collect();
+        eprintln!("--chart auto: none of {} found", names.join(", "));
+        return Err(Box::new(first_err.expect("a reference was tried")));
+    };
+    for other in found {
+        notes.push(format!(
+            "also read as a {} (median ΔE00 {:.2}), a worse match",
+            other.reference.chart.name(),
+            other.score
+        ));
+    }
+    eprintln!(
+        "--chart auto: a {} ({}) found, median ΔE00 {:.2}{}",
+        best.reference.chart.name(),
+        best.reference.chart.title(),
+        best.score,
+        notes.iter().map(|n| format!("; {n}")).collect::<String>()
+    );
+    Ok(best)
 }
 
 /// The CLI's words about a reading (they name its flags).

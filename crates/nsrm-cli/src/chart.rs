@@ -31,7 +31,7 @@ pub(crate) struct TimeArgs {
     /// The frames.
     #[arg(value_name = "FRAME", required = true)]
     frames: Vec<PathBuf>,
-    /// cc24 or sg.
+    /// cc24, sg or spyder24.
     #[arg(long, value_enum, ignore_case = true)]
     chart: nsrm::chart::ChartKind,
     /// How the frames' values are encoded (as in `chart extract`).
@@ -68,7 +68,7 @@ pub(crate) struct ExtractArgs {
 
 #[derive(Debug, clap::Args)]
 pub(crate) struct RateArgs {
-    /// The chart: cc24 or sg.
+    /// The chart: cc24, sg or spyder24.
     #[arg(long, value_enum, ignore_case = true)]
     chart: nsrm::chart::ChartKind,
     /// Spectra of the chart (SG: e.g. ../shared/data/colorchecker_sg_140.csv).
@@ -219,7 +219,7 @@ fn run_time(a: TimeArgs) -> Result<ExitCode> {
 }
 
 fn run_extract(a: ExtractArgs) -> Result<ExitCode> {
-    a.capture.kind()?;
+    a.capture.kinds()?;
     if let Some(o) = &a.overlay {
         if !o.extension().is_some_and(|e| e.eq_ignore_ascii_case("png")) {
             return Err(UsageError(format!("--overlay {}: must be a .png", o.display())).into());

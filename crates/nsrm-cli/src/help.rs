@@ -104,6 +104,7 @@ pub(crate) const EXAMPLES: &[(&str, &[&str])] = &[
             "nsrm calibrate chart.dng -o calibration",
             "nsrm calibrate chart.dng -o calibration --export dcp,icc",
             "nsrm calibrate chart.exr -o calibration --chart sg --kind nsrm --order 3",
+            "nsrm calibrate spyder.dng -o calibration --chart spyder24",
         ],
     ),
     (
@@ -111,6 +112,7 @@ pub(crate) const EXAMPLES: &[(&str, &[&str])] = &[
         &[
             "nsrm chart extract chart.dng --chart cc24 -o patches.csv",
             "nsrm chart extract shot.exr --chart cc24 --flat greycard.exr -o patches.csv --overlay reading.png",
+            "nsrm chart extract photo.jpg --chart auto -o patches.csv",
         ],
     ),
     (

@@ -102,7 +102,7 @@ enum Command {
     /// model, the patches, the overlay and a report (text and HTML); --export dcp,icc,… adds
     /// the profiles.
     Calibrate(calibrate::Args),
-    /// Read a photographed chart: `nsrm chart extract FRAME --chart cc24|sg -o patches.csv`;
+    /// Read a photographed chart: `nsrm chart extract FRAME --chart cc24|sg|spyder24|auto -o patches.csv`;
     /// `nsrm chart rate` measures detection on synthetic scenes.
     #[command(subcommand)]
     Chart(chart::Command),

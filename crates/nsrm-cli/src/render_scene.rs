@@ -10,7 +10,8 @@ use std::process::ExitCode;
 
 #[derive(Debug, clap::Args)]
 pub(crate) struct Args {
-    /// cc24 (built-in BabelColor spectra) or sg (spectra from --reflectances).
+    /// cc24 (built-in BabelColor spectra), sg (spectra from --reflectances) or spyder24 (the
+    /// classic's built-in spectra in the SpyderCHECKR's layout, or --reflectances).
     #[arg(long, value_enum, ignore_case = true)]
     chart: nsrm::chart::ChartKind,
     /// Chart spectra: columns named by chart labels (SG: A1..N10, e.g.

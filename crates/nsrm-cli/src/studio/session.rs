@@ -38,12 +38,9 @@ const MAX_OPEN: usize = 6;
 const FORMAT_CANDIDATES: [&str; 6] = ["clf", "cube", "ocio", "dcp", "icc", "icm"];
 
 /// The built-in references (`--reference`).
-const REFERENCES: [&str; 4] = [
-    "cc24-after2014",
-    "cc24-before2014",
-    "sg-after2014",
-    "sg-before2014",
-];
+fn references() -> Vec<&'static str> {
+    nsrm::chart::reference::Reference::builtin_names()
+}
 
 pub(crate) struct Studio {
     pub(crate) token: String,
@@ -325,8 +322,8 @@ impl Studio {
                 "index": i,
                 "name": p.display().to_string(),
             })).collect::<Vec<_>>(),
-            "charts": ["cc24", "sg"],
-            "references": REFERENCES,
+            "charts": nsrm::chart::ChartKind::ALL.map(|k| k.name()),
+            "references": references(),
             "formats": formats(),
             "spaces": OutputSpace::ALL.iter().map(|(_, n)| *n).collect::<Vec<_>>(),
             "kinds": ["lrm", "prm", "rprm", "nsrm"],
@@ -581,10 +578,10 @@ fn parse_space(s: &str) -> Result<OutputSpace> {
 fn check_no_path(s: &Settings) -> Result<()> {
     if let Some(r) = s.reference.as_deref().filter(|r| !r.trim().is_empty()) {
         let r = r.trim();
-        if r != "upload" && !REFERENCES.iter().any(|b| b.eq_ignore_ascii_case(r)) {
+        if r != "upload" && !references().iter().any(|b| b.eq_ignore_ascii_case(r)) {
             bail!(BadRequest(format!(
                 "reference: one of {}, or upload (a reference file uploaded for this frame; the page reads no file a request names)",
-                REFERENCES.join(", ")
+                references().join(", ")
             )));
         }
     }
@@ -611,8 +608,10 @@ impl FrameState {
     fn options(&self) -> Result<CaptureOptions> {
         let s = &self.settings;
         check_no_path(s)?;
-        let chart = nsrm::chart::ChartKind::from_str(&s.chart, true)
-            .map_err(|_| BadRequest(format!("chart `{}`: cc24 or sg", s.chart)))?;
+        let chart = nsrm::chart::ChartKind::from_str(&s.chart, true).map_err(|_| {
+            let names = nsrm::chart::ChartKind::ALL.map(|k| k.name());
+            BadRequest(format!("chart `{}`: one of {}", s.chart, names.join(", ")))
+        })?;
         let flat = match s.flat.as_deref().map(str::trim) {
             None | Some("") | Some("none") => None,
             Some(f) if f.eq_ignore_ascii_case("neutrals") => Some("neutrals".to_string()),
@@ -656,7 +655,7 @@ impl FrameState {
             Some(r) => Some(r.to_string()),
         };
         Ok(CaptureOptions {
-            chart: Some(chart),
+            chart: Some(chart.into()),
             reference,
             reference_white: s.reference_white.clone().filter(|r| !r.trim().is_empty()),
             corners: s.corners.map(corners_text),
@@ -689,7 +688,7 @@ impl FrameState {
 
     fn read_inner(&mut self) -> Result<Capture> {
         let o = self.options()?;
-        let reference = o.reference()?;
+        let reference = o.the_reference()?;
         let layer = o.layer.clone();
         if layer != self.frame_layer {
             // Another EXR layer: the only setting that needs the file decoded again.
@@ -733,7 +732,7 @@ impl FrameState {
             .unwrap_or_default();
         let mut o = self.options()?;
         o.reference = Some(path.display().to_string());
-        if let Err(e) = o.reference() {
+        if let Err(e) = o.the_reference() {
             let why = format!("{e:#}").replace(&path.display().to_string(), &name);
             bail!(BadRequest(format!(
                 "{name}: not a reference nsrm can read for this chart: {why}"

@@ -1,6 +1,11 @@
 //! Batches: expanding command-line inputs into a sorted list of frames, slicing it for
-//! `--shard`, and naming (and checking) outputs.
+//! `--shard`, and naming (and checking) outputs; and the executor that runs a plan (decode →
+//! correct → encode on threads, events to the caller: [`execute`]).
 
+pub use super::batch_exec::{
+    execute, Correct, CorrectError, Event, ExecOptions, Executed, FrameError, FrameOutcome,
+    ModelCorrector, Timing,
+};
 use super::{FileFormat, IoError};
 use std::collections::{HashMap, HashSet};
 use std::ffi::{OsStr, OsString};

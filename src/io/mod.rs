@@ -16,10 +16,11 @@
 //! move it into place only when complete ([`crate::output`]).
 //!
 //! Crate-private beside them: the batch plan (`batch`: command-line inputs expanded, sliced for
-//! `--shard`, outputs named), display-referred chart frames (`display`), camera raw decoding
-//! (`raw`), sRGB PNG previews (`preview`) and the frame pool.
+//! `--shard`, outputs named) and its executor (`batch::execute`), display-referred chart frames
+//! (`display`), camera raw decoding (`raw`), sRGB PNG previews (`preview`) and the frame pool.
 
 pub mod batch;
+mod batch_exec;
 pub mod display;
 mod jpeg;
 mod openexr;

@@ -1,33 +1,36 @@
 //! `nsrm apply`: batch colour correction of camera raw files and linear EXR/TIFF frames.
 //!
-//! Why one file (about 1,300 lines): the batch pipeline (decode workers, the correction stage,
-//! encode workers, permits, interrupt, tally) is one unit whose parts share the bounded channels
-//! and the output session; moving it into the library as a batch executor is issue 41's item 2. The
-//! tests are in `apply_tests.rs`.
+//! The batch executor (`--jobs` decode workers → one correction stage → `--jobs` encode workers)
+//! is the library's [`nsrm::io::batch::execute`]; this file holds the command: its flags, the
+//! plan, the correction step it hands the executor (the device opened, or the CPU mix of a
+//! two-illuminant model's parts, or `--white as-shot`), the interrupt, the progress bar and log
+//! drawn from the executor's events, and the summary. The tests are in `apply_tests.rs`.
 //!
-//! Pipeline: `--jobs` decode workers → one correction stage (the GPU engine, or the multi-threaded
-//! fast CPU path) → `--jobs` encode workers, joined by bounded channels so decoding, correcting
-//! and encoding overlap and at most a few frames are held in memory.
+//! Why one file (about 1,150 lines): the flags (a third of it, each documented for `--help`),
+//! the plan, the correction step and the report are one command's steps, and `nsrm farm` takes
+//! the same flags apart (`farm_parts`, `settings_argv`); the batch pipeline itself (workers,
+//! permits, the stop) is in the library since issue 41.
 
 use super::common::UsageError;
 use super::values;
 use anyhow::{Context, Result};
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
-use nsrm::gpu::{DeviceChoice, Engine, GpuOptions};
-use nsrm::io::batch::{self, Action, BatchPlan, Existing, Job, PlanOptions, Shard};
+use nsrm::gpu::{DeviceChoice, GpuOptions};
+use nsrm::io::batch::{self, Action, BatchPlan, Existing, PlanOptions, Shard};
+use nsrm::io::batch::{Correct, CorrectError, Event, ExecOptions, FrameError, FrameOutcome};
+use nsrm::io::batch::{ModelCorrector, Timing};
 use nsrm::io::{
-    self as fio, preview, Decoded, ExrCompression, FileFormat, Limits, ReadOptions, WriteOptions,
+    self as fio, Decoded, ExrCompression, FileFormat, Limits, ReadOptions, WriteOptions,
 };
 use nsrm::output::Session;
 use nsrm::Model;
+use nsrm::OutputSpace;
 use nsrm::{FastModel, Threads};
 use nsrm::{FrameHighlights, Highlights};
-use nsrm::{Mat3, OutputSpace};
 use std::io::IsTerminal;
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
-use std::sync::mpsc::{sync_channel, Receiver, SyncSender};
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
@@ -141,16 +144,17 @@ enum Outcome {
     Failed(String),
 }
 
-/// The correction step: one engine, driven from one thread (the GPU engine takes `&mut`).
+/// The correction step handed to the executor: one engine, driven from one thread (the GPU
+/// engine takes `&mut`).
 enum Corrector {
-    /// The multi-threaded f32 CPU path (rebuilt when a frame's highlight policy differs).
-    Cpu(Box<FastModel>, Option<Highlights>),
+    /// One model: the library's multi-threaded f32 CPU path (rebuilt when a frame's highlight
+    /// policy differs) or the GPU engine.
+    One(Box<ModelCorrector>),
     /// A two-illuminant model at a white between its illuminants: two models, outputs summed.
     Mix(Vec<FastModel>),
     /// `--white as-shot`: the model set combined for each frame's as-shot neutral (the parts
     /// kept per neutral seen), then as `Mix`.
     AsShot(Box<AsShot>),
-    Gpu(Box<Engine>),
 }
 
 /// The state of `--white as-shot`: the model set, the output space, the parts built for each
@@ -210,7 +214,7 @@ impl Corrector {
                         e.adapter_name()
                     );
                 }
-                Corrector::Gpu(e)
+                Corrector::One(Box::new(ModelCorrector::gpu(model.clone(), e)))
             }
             nsrm::gpu::Opened::Cpu(why) => {
                 if device == DeviceChoice::Auto {
@@ -223,14 +227,44 @@ impl Corrector {
                         }
                     );
                 }
-                Corrector::Cpu(Box::new(FastModel::new(model)), None)
+                Corrector::One(Box::new(ModelCorrector::cpu(model.clone())))
             }
         })
     }
+}
 
+impl AsShot {
+    /// Readies the model set combined for the as-shot neutral of `d` (an error when it has
+    /// none); returns a line describing a white not seen before.
+    fn prepare(&mut self, d: &Decoded) -> Result<Option<String>> {
+        let neutral = d.camera().and_then(|c| c.as_shot_neutral);
+        if let Some(i) = self.built.iter().position(|(n, _)| Some(*n) == neutral) {
+            self.current = i;
+            return Ok(None);
+        }
+        let c = super::white::for_as_shot(&self.profile, neutral)?;
+        let parts = c
+            .parts
+            .iter()
+            .map(|m| nsrm::output_model(m, self.space).map(|m| FastModel::new(&m)))
+            .collect::<Result<Vec<_>, _>>()?;
+        let line = format!(
+            "nsrm apply: {}: as-shot {}",
+            d.path.display(),
+            super::white::describe(&self.profile, &c)
+        );
+        self.built
+            .push((neutral.expect("checked by for_as_shot"), parts));
+        self.xyz_parts.push(c.parts);
+        self.current = self.built.len() - 1;
+        Ok(Some(line))
+    }
+}
+
+impl Correct for Corrector {
     fn describe(&self) -> String {
         match self {
-            Corrector::Cpu(f, _) => format!("CPU ({} kernel)", f.kernel_name()),
+            Corrector::One(c) => c.describe(),
             Corrector::Mix(f) => format!("CPU, {} models summed", f.len()),
             Corrector::AsShot(a) => format!(
                 "CPU, {} combined for each frame's as-shot neutral",
@@ -240,100 +274,57 @@ impl Corrector {
                     "the model"
                 }
             ),
-            Corrector::Gpu(e) => format!("GPU {}", e.adapter_name()),
         }
     }
 
-    /// Readies the correction for one frame: with `--white as-shot`, the model set combined for
-    /// its as-shot neutral (an error when it has none); returns a line describing a white not
-    /// seen before.
-    fn prepare(&mut self, d: &Decoded) -> Result<Option<String>> {
+    /// With `--white as-shot`, the model set combined for the frame's as-shot neutral.
+    fn prepare(&mut self, d: &Decoded) -> Result<Option<String>, CorrectError> {
         let Corrector::AsShot(a) = self else {
             return Ok(None);
         };
-        let neutral = d.camera().and_then(|c| c.as_shot_neutral);
-        if let Some(i) = a.built.iter().position(|(n, _)| Some(*n) == neutral) {
-            a.current = i;
-            return Ok(None);
-        }
-        let c = super::white::for_as_shot(&a.profile, neutral)?;
-        let parts = c
-            .parts
-            .iter()
-            .map(|m| nsrm::output_model(m, a.space).map(|m| FastModel::new(&m)))
-            .collect::<Result<Vec<_>, _>>()?;
-        let line = format!(
-            "nsrm apply: {}: as-shot {}",
-            d.path.display(),
-            super::white::describe(&a.profile, &c)
-        );
-        a.built
-            .push((neutral.expect("checked by for_as_shot"), parts));
-        a.xyz_parts.push(c.parts);
-        a.current = a.built.len() - 1;
-        Ok(Some(line))
+        a.prepare(d)
+            .map_err(|e| CorrectError::Other(format!("{e:#}")))
     }
 
-    /// Corrects the frames of `d` with `model` (folded into the output space), the highlight
-    /// policy of `h` (see [`FrameHighlights`]) before it.
-    fn apply(&mut self, model: &Model, d: &mut Decoded, h: &FrameHighlights) -> Result<()> {
-        let parts = match self {
-            Corrector::AsShot(a) => a.xyz_parts.get(a.current).map(Vec::as_slice),
-            _ => None,
+    /// Corrects the frames of `d` (one model: the library's; summed models: the highlight
+    /// policy of `h` run once before them).
+    fn correct(&mut self, d: &mut Decoded, h: &FrameHighlights) -> Result<(), CorrectError> {
+        let (parts, xyz_parts) = match self {
+            Corrector::One(c) => return c.correct(d, h),
+            Corrector::Mix(parts) => (&parts[..], None),
+            Corrector::AsShot(a) => (
+                &a.built[a.current].1[..],
+                a.xyz_parts.get(a.current).map(Vec::as_slice),
+            ),
         };
-        let policy = h
-            .policy(d.camera().and_then(|c| c.clip_level), parts)
-            .context("--highlights, --clip-level")?;
-        let with_policy = || model.clone().with_policy(policy);
+        let policy = h.policy(d.camera().and_then(|c| c.clip_level), xyz_parts)?;
         for f in d.frames_mut() {
-            match self {
-                Corrector::Cpu(fast, built) => {
-                    if *built != policy {
-                        **fast = FastModel::new(&with_policy());
-                        *built = policy;
-                    }
-                    fast.apply(f, Threads::All)
-                }
-                Corrector::Mix(parts) => {
-                    prepass(policy, f);
-                    apply_sum(parts, f)
-                }
-                Corrector::AsShot(a) => {
-                    prepass(policy, f);
-                    apply_sum(&a.built[a.current].1, f)
-                }
-                Corrector::Gpu(e) => e.apply(&with_policy(), f)?,
-            }
+            prepass(policy, f);
+            apply_sum(parts, f)
         }
         Ok(())
     }
 }
 
-/// Seconds spent in each stage (summed over workers) and pixels converted.
-#[derive(Debug, Default)]
-struct Timing {
-    decode: Duration,
-    correct: Duration,
-    encode: Duration,
-    pixels: usize,
-    frames: usize,
-}
-
 use super::outputs::STOP_SIGNALS;
 
-/// Set by SIGINT, SIGTERM or SIGHUP (to the signal's number): no new file is started, frames
-/// being decoded or corrected are dropped, a frame being written is aborted at its next buffer
-/// write (its temporary removed, nothing committed: [`nsrm::output::AbortHandle::flag`]), this run's
-/// temporaries are removed, the summary is printed and the exit status is 128 + the signal.
-/// Outputs committed before the signal stay. A second signal ends the process at once.
+/// Set by SIGINT, SIGTERM or SIGHUP (to the signal's number; the executor's stop flag with
+/// it): no new file is started, frames being decoded or corrected are dropped, a frame being
+/// written is aborted at its next buffer write (its temporary removed, nothing committed:
+/// [`nsrm::output::AbortHandle::flag`]), this run's temporaries are removed, the summary is
+/// printed and the exit status is 128 + the signal. Outputs committed before the signal stay. A
+/// second signal ends the process at once.
 #[derive(Clone)]
 struct Interrupt {
     signal: Arc<AtomicUsize>,
+    /// The executor's stop flag ([`ExecOptions::stop`]), set with `signal`.
+    stop: Arc<AtomicBool>,
 }
 
 impl Interrupt {
     fn install(session: &Session) -> Result<Interrupt> {
         let signal = Arc::new(AtomicUsize::new(0));
+        let stop = Arc::new(AtomicBool::new(false));
         let again = Arc::new(AtomicBool::new(false));
         for (sig, name) in STOP_SIGNALS {
             // Registered first, so it runs before the flag is set: only a second signal exits.
@@ -342,10 +333,11 @@ impl Interrupt {
                 .and_then(|_| {
                     signal_hook::flag::register_usize(sig, Arc::clone(&signal), sig as usize)
                 })
+                .and_then(|_| signal_hook::flag::register(sig, Arc::clone(&stop)))
                 .and_then(|_| signal_hook::flag::register(sig, session.abort_handle().flag()))
                 .with_context(|| format!("installing the {name} handler"))?;
         }
-        Ok(Interrupt { signal })
+        Ok(Interrupt { signal, stop })
     }
 
     /// The signal received, if any: its name and the exit status it gives.
@@ -478,29 +470,20 @@ pub(crate) fn run(a: Args) -> Result<ExitCode> {
     if (!early_failure || a.continue_on_error) && !interrupt.stopped() {
         let mut corrector = open_corrector(&req, &a, &out_model, &extra, as_shot.as_ref())?;
         corrector_name = corrector.describe();
-        log_device(plan.to_convert().len(), &corrector_name);
-        let todo = plan.to_convert();
-        let settings = Settings {
+        let todo = plan.to_convert().len();
+        log_device(todo, &corrector_name);
+        let opts = ExecOptions {
+            session: &session,
             highlights: frame_highlights(&a, &model, &parts),
             read: read_options(&a),
             write: write_options(&a, &req),
             to_srgb: nsrm::to_linear_srgb(model.white_xyz(), req.space),
-            workers: workers(a.jobs, todo.len()),
+            workers: workers(a.jobs, todo),
             continue_on_error: a.continue_on_error,
-            interrupt: interrupt.clone(),
-            session: &session,
+            stop: &interrupt.stop,
         };
-        let pb = progress_bar(todo.len());
-        let done = run_pipeline(
-            &plan.jobs,
-            &todo,
-            &mut corrector,
-            &out_model,
-            &settings,
-            &pb,
-            &mut timing,
-        );
-        pb.finish_and_clear();
+        let done;
+        (done, timing) = execute(&plan, &mut corrector, &opts, &out_model);
         for (i, o) in done {
             outcomes[i] = Some(o);
         }
@@ -802,18 +785,6 @@ fn report_stale(plan: &BatchPlan, remove: bool) {
     }
 }
 
-struct Settings<'s> {
-    session: &'s Session,
-    /// What each frame's clipped highlights become.
-    highlights: FrameHighlights,
-    read: ReadOptions,
-    write: WriteOptions,
-    to_srgb: Mat3,
-    workers: usize,
-    continue_on_error: bool,
-    interrupt: Interrupt,
-}
-
 fn progress_bar(n: usize) -> ProgressBar {
     if !std::io::stderr().is_terminal() {
         return ProgressBar::hidden();
@@ -829,217 +800,97 @@ fn progress_bar(n: usize) -> ProgressBar {
     pb
 }
 
-/// Runs `todo` (indices into `jobs`) through decode → correct → encode; returns each one's
-/// outcome (jobs not started after a stop are left out).
-fn run_pipeline(
-    jobs: &[Job],
-    todo: &[usize],
+/// Runs the plan's frames through the library's executor, drawing the progress bar (on a
+/// terminal) or the progress log (else) and the warnings from its events; returns each started
+/// frame's outcome and the timing.
+fn execute(
+    plan: &BatchPlan,
     corrector: &mut Corrector,
+    opts: &ExecOptions<'_>,
     model: &Model,
-    s: &Settings<'_>,
-    pb: &ProgressBar,
-    timing: &mut Timing,
-) -> Vec<(usize, Outcome)> {
-    // Frames alive at once (decoding, queued, correcting, encoding): `--jobs` + 1, so peak memory
-    // stays under (jobs + 2) decoded frames. Frame buffers of written frames are reused by the
-    // next decodes: never more buffers than frames alive at once, so the bound holds.
-    let p = Pipeline {
-        jobs,
-        todo,
-        s,
-        pb,
-        stop: AtomicBool::new(false),
-        next: AtomicUsize::new(0),
-        results: Mutex::new(Vec::new()),
-        timing: Mutex::new(Timing::default()),
-        started: Instant::now(),
-        permits: Permits::new(s.workers + 1),
-        pool: fio::FramePool::new(s.workers + 1),
-        log: (!std::io::stderr().is_terminal())
-            .then(|| crate::progress::ProgressLog::new(todo.len(), Duration::from_secs(1))),
-    };
-    let p = &p;
-    std::thread::scope(|scope| {
-        let (dec_tx, dec_rx) = sync_channel::<(usize, Decoded)>(s.workers);
-        let (enc_tx, enc_rx) = sync_channel::<(usize, Decoded)>(s.workers);
-        let enc_rx = Arc::new(Mutex::new(enc_rx));
-        for _ in 0..s.workers {
-            let tx = dec_tx.clone();
-            scope.spawn(move || p.decode_loop(tx));
-        }
-        drop(dec_tx);
-        for _ in 0..s.workers {
-            let rx = Arc::clone(&enc_rx);
-            scope.spawn(move || p.encode_loop(&rx));
-        }
-        p.correct_loop(dec_rx, enc_tx, corrector, model);
-    });
-    *timing = std::mem::take(&mut *lock(&p.timing));
-    let results = std::mem::take(&mut *lock(&p.results));
-    results
-}
-
-/// What the reader, corrector and writer threads of one run share.
-struct Pipeline<'a, 's> {
-    jobs: &'a [Job],
-    todo: &'a [usize],
-    s: &'a Settings<'s>,
-    pb: &'a ProgressBar,
-    /// Set by the first failure without `--continue-on-error`: no more frames are started.
-    stop: AtomicBool,
-    /// The next index into `todo` to read.
-    next: AtomicUsize,
-    results: Mutex<Vec<(usize, Outcome)>>,
-    timing: Mutex<Timing>,
-    started: Instant,
-    permits: Permits,
-    pool: fio::FramePool,
-    /// Without a terminal, a log line per finished frame (at most one a second).
-    log: Option<crate::progress::ProgressLog>,
-}
-
-impl Pipeline<'_, '_> {
-    /// Logs frame `i` finished (`ok`: written) when stderr is not a terminal.
-    fn logged(&self, i: usize, ok: bool, pixels: usize) {
-        if let Some(log) = &self.log {
-            let name = self.jobs[i].output.file_name().unwrap_or_default();
+) -> (Vec<(usize, Outcome)>, Timing) {
+    let todo = plan.to_convert().len();
+    let pb = progress_bar(todo);
+    // Without a terminal, a log line per finished frame (at most one a second).
+    let log = (!std::io::stderr().is_terminal())
+        .then(|| crate::progress::ProgressLog::new(todo, Duration::from_secs(1)));
+    let logged = |i: usize, ok: bool, pixels: usize| {
+        if let Some(log) = &log {
+            let name = plan.jobs[i].output.file_name().unwrap_or_default();
             if let Some(line) = log.frame(ok, pixels as u64, &name.to_string_lossy()) {
                 eprintln!("{line}");
             }
         }
-    }
-
-    fn fail(&self, i: usize, why: String) {
-        self.pb.suspend(|| eprintln!("nsrm apply: failed: {why}"));
-        if !self.s.continue_on_error {
-            self.stop.store(true, Ordering::SeqCst);
-        }
-        lock(&self.results).push((i, Outcome::Failed(why)));
-        self.pb.inc(1);
-        self.logged(i, false, 0);
-    }
-
-    /// A reader thread: takes the next frame to convert (when a permit is free) and decodes it.
-    fn decode_loop(&self, tx: SyncSender<(usize, Decoded)>) {
-        loop {
-            self.permits.acquire();
-            if self.stop.load(Ordering::SeqCst) || self.s.interrupt.stopped() {
-                self.permits.release();
-                break;
+    };
+    let fitted_on = model
+        .provenance()
+        .capture
+        .as_ref()
+        .and_then(|c| c.camera.clone());
+    let warned = Mutex::new(std::collections::HashSet::new());
+    let on_event = |e: Event<'_>| match e {
+        Event::Camera { input, camera, .. } => {
+            let Some(fitted) = &fitted_on else { return };
+            let mut warned = warned.lock().unwrap_or_else(|e| e.into_inner());
+            if let Some(w) = camera_warning(fitted, camera, input, &mut warned) {
+                pb.suspend(|| eprintln!("{w}"));
             }
-            let k = self.next.fetch_add(1, Ordering::SeqCst);
-            let Some(&i) = self.todo.get(k) else {
-                self.permits.release();
-                break;
+        }
+        Event::Note { text, .. } => pb.suspend(|| eprintln!("{text}")),
+        Event::Done {
+            index,
+            pixels,
+            pixels_per_second,
+            ..
+        } => {
+            pb.set_message(format!("{:.1} Mpixel/s", pixels_per_second / 1e6));
+            pb.inc(1);
+            logged(index, true, pixels);
+        }
+        Event::Failed { index, error, .. } => {
+            let why = failure_text(error);
+            pb.suspend(|| eprintln!("nsrm apply: failed: {why}"));
+            pb.inc(1);
+            logged(index, false, 0);
+        }
+        _ => {}
+    };
+    let run = batch::execute(plan, corrector, opts, &on_event);
+    pb.finish_and_clear();
+    let outcomes = run
+        .outcomes
+        .into_iter()
+        .map(|(i, o)| {
+            let o = match o {
+                FrameOutcome::Converted { .. } => Outcome::Converted,
+                FrameOutcome::Aborted => Outcome::Aborted,
+                FrameOutcome::Failed(e) => Outcome::Failed(failure_text(&e)),
             };
-            let t = Instant::now();
-            match Decoded::read_pooled(&self.jobs[i].input, &self.s.read, &self.pool) {
-                Ok(d) => {
-                    lock(&self.timing).decode += t.elapsed();
-                    if tx.send((i, d)).is_err() {
-                        self.permits.release();
-                        break;
-                    }
-                }
-                Err(e) => {
-                    self.permits.release();
-                    self.fail(i, super::common::explain_line(e.into()))
-                }
-            }
-        }
-    }
+            (i, o)
+        })
+        .collect();
+    (outcomes, run.timing)
+}
 
-    /// A writer thread: encodes corrected frames and records each outcome.
-    fn encode_loop(&self, rx: &Mutex<Receiver<(usize, Decoded)>>) {
-        let interrupt = &self.s.interrupt;
-        loop {
-            let msg = lock(rx).recv();
-            let Ok((i, d)) = msg else { break };
-            if interrupt.stopped() {
-                // Not started: left as not attempted.
-                drop(d);
-                self.permits.release();
-                continue;
-            }
-            let t = Instant::now();
-            let pixels = d.pixels();
-            let encoded = encode(&self.jobs[i], d, self.s, &self.pool);
-            self.permits.release();
-            match encoded {
-                Ok(()) => {
-                    let mut tm = lock(&self.timing);
-                    tm.encode += t.elapsed();
-                    tm.pixels += pixels;
-                    tm.frames += 1;
-                    let secs = self.started.elapsed().as_secs_f64().max(1e-9);
-                    let rate = tm.pixels as f64 / secs;
-                    drop(tm);
-                    lock(&self.results).push((i, Outcome::Converted));
-                    self.pb.set_message(format!("{:.1} Mpixel/s", rate / 1e6));
-                    self.pb.inc(1);
-                    self.logged(i, true, pixels);
-                }
-                // Stopped by a signal while writing: not a failure of the file.
-                Err(_) if interrupt.stopped() || self.s.session.is_aborted() => {
-                    lock(&self.results).push((i, Outcome::Aborted));
-                }
-                Err(e) => self.fail(i, super::common::explain_line(e.into())),
-            }
+/// A frame's failure as the summary and the log word it: the flag at fault or the hint
+/// (`common::explain`), the corrector's causes joined.
+fn failure_text(e: &FrameError) -> String {
+    use super::common::{error_chain, explain_line};
+    match e {
+        FrameError::Read(e) | FrameError::Write(e) => explain_line(e),
+        FrameError::Prepare { input, source } => {
+            format!("{}: {}", input.display(), error_chain(source))
         }
-    }
-
-    /// The correcting thread (the caller's): corrects each decoded frame and passes it on to
-    /// the writers; warns once per camera other than the one the model was fitted on.
-    fn correct_loop(
-        &self,
-        dec_rx: Receiver<(usize, Decoded)>,
-        enc_tx: SyncSender<(usize, Decoded)>,
-        corrector: &mut Corrector,
-        model: &Model,
-    ) {
-        let fitted_on = model
-            .provenance()
-            .capture
-            .as_ref()
-            .and_then(|c| c.camera.clone());
-        let mut warned = std::collections::HashSet::new();
-        for (i, mut d) in dec_rx {
-            if let (Some(fitted), Some(cam)) = (&fitted_on, d.camera()) {
-                if let Some(w) = camera_warning(fitted, &cam.camera(), &d.path, &mut warned) {
-                    self.pb.suspend(|| eprintln!("{w}"));
-                }
-            }
-            if self.s.interrupt.stopped() {
-                drop(d);
-                self.permits.release();
-                continue;
-            }
-            match corrector.prepare(&d) {
-                Ok(Some(line)) => self.pb.suspend(|| eprintln!("{line}")),
-                Ok(None) => {}
-                Err(e) => {
-                    drop(d);
-                    self.permits.release();
-                    self.fail(i, format!("{}: {e:#}", self.jobs[i].input.display()));
-                    continue;
-                }
-            }
-            let t = Instant::now();
-            match corrector.apply(model, &mut d, &self.s.highlights) {
-                Ok(()) => {
-                    lock(&self.timing).correct += t.elapsed();
-                    if enc_tx.send((i, d)).is_err() {
-                        self.permits.release();
-                        break;
-                    }
-                }
-                Err(e) => {
-                    drop(d);
-                    self.permits.release();
-                    let why = format!("{}: correcting: {e:#}", self.jobs[i].input.display());
-                    self.fail(i, why)
-                }
-            }
+        FrameError::Correct { input, source } => {
+            let flags = match source {
+                CorrectError::Highlights(_) => "--highlights, --clip-level: ",
+                _ => "",
+            };
+            format!(
+                "{}: correcting: {flags}{}",
+                input.display(),
+                error_chain(source)
+            )
         }
     }
 }
@@ -1060,59 +911,6 @@ fn camera_warning(
          its colours will be off unless the sensors match",
         path.display()
     ))
-}
-
-/// A counting semaphore: how many more frames may be decoded before one is written.
-struct Permits {
-    free: Mutex<usize>,
-    freed: std::sync::Condvar,
-}
-
-impl Permits {
-    fn new(n: usize) -> Permits {
-        Permits {
-            free: Mutex::new(n),
-            freed: std::sync::Condvar::new(),
-        }
-    }
-
-    fn acquire(&self) {
-        let mut free = lock(&self.free);
-        while *free == 0 {
-            free = self.freed.wait(free).unwrap_or_else(|e| e.into_inner());
-        }
-        *free -= 1;
-    }
-
-    fn release(&self) {
-        *lock(&self.free) += 1;
-        self.freed.notify_one();
-    }
-}
-
-fn lock<T>(m: &Mutex<T>) -> std::sync::MutexGuard<'_, T> {
-    m.lock().unwrap_or_else(|e| e.into_inner())
-}
-
-/// Writes the output and its preview together: both are staged (encoded into temporaries),
-/// then committed as one unit of the run's session, so both appear or neither.
-fn encode(
-    job: &Job,
-    d: Decoded,
-    s: &Settings<'_>,
-    pool: &fio::FramePool,
-) -> Result<(), fio::IoError> {
-    let png = match &job.preview {
-        Some(_) => Some(preview::encode_png(&d.frame, &s.to_srgb)?),
-        None => None,
-    };
-    let mut unit = s.session.unit();
-    d.write_recycling(&job.output, &s.write, &mut unit, pool)?;
-    if let (Some(path), Some(png)) = (&job.preview, png) {
-        unit.write_bytes(path, &png)?;
-    }
-    unit.commit()?;
-    Ok(())
 }
 
 fn print_timing(t: &Timing, wall: Duration) {
@@ -1225,6 +1023,11 @@ impl Args {
         opt("--jobs", &self.jobs.map(|j| j.to_string()));
         opt("--highlights", &self.highlights.map(name));
         opt("--clip-level", &self.clip_level.map(|v| v.to_string()));
+        opt("--white", &self.white);
+        opt(
+            "--demosaic",
+            &(self.demosaic != nsrm::io::Demosaic::Mhc).then(|| name(self.demosaic)),
+        );
         for (set, flag) in [
             (self.half, "--half"),
             (self.continue_on_error, "--continue-on-error"),
@@ -1253,6 +1056,14 @@ impl Args {
                 create_dirs: true,
             },
         )?)
+    }
+
+    /// A farm task's conversion of its unfinished `inputs` with these settings (parsed once
+    /// from its job's words): `apply` of those inputs, replacing what is there when `replace`.
+    pub(super) fn farm_convert(mut self, inputs: Vec<PathBuf>, replace: bool) -> Result<ExitCode> {
+        self.inputs = inputs;
+        self.overwrite.overwrite = replace;
+        run(self)
     }
 
     /// The pixel limit and layer a frame is read with (for a farm task's full read of an
@@ -1311,6 +1122,14 @@ mod farm_tests {
                 "--timing",
                 "--format",
                 "exr",
+                "--white",
+                "as-shot",
+                "--demosaic",
+                "half",
+                "--highlights",
+                "clip",
+                "--clip-level",
+                "0.5",
                 "x.exr",
             ],
         ] {

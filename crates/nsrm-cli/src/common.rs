@@ -218,10 +218,27 @@ pub(crate) fn explain(e: &anyhow::Error) -> (String, Option<String>) {
     }
 }
 
-/// [`explain`] on one line (a batch's per-file failures).
-pub(crate) fn explain_line(e: anyhow::Error) -> String {
-    match explain(&e) {
-        (msg, Some(hint)) => format!("{msg} (hint: {hint})"),
-        (msg, None) => msg,
+/// An error's message and its causes joined by `: ` (what `{:#}` prints of it as an `anyhow`
+/// error).
+pub(crate) fn error_chain(e: &(dyn std::error::Error + 'static)) -> String {
+    let mut text = e.to_string();
+    let mut cause = e.source();
+    while let Some(c) = cause {
+        text.push_str(": ");
+        text.push_str(&c.to_string());
+        cause = c.source();
+    }
+    text
+}
+
+/// [`explain`] on one line, of an error held by reference (a batch executor's per-frame
+/// failures): the flag at fault in front, or the hint after `(hint: …)`.
+pub(crate) fn explain_line(e: &(dyn std::error::Error + 'static)) -> String {
+    let concern = std::iter::successors(Some(e), |e| e.source()).find_map(super::errors::concern);
+    let text = error_chain(e);
+    match concern {
+        Some(Concern::Value(p)) => format!("{}: {text}", flag(p)),
+        Some(Concern::Remedy(p)) => format!("{text} (hint: {})", remedy(p)),
+        None => text,
     }
 }

@@ -540,13 +540,8 @@ fn run_shard(r: RunArgs) -> Result<ExitCode> {
     let t1 = Instant::now();
     let mut status = ExitCode::SUCCESS;
     if !todo.is_empty() {
-        let preview = a.farm_parts().preview.clone();
-        let inputs: Vec<&Path> = todo.iter().map(|j| j.input.as_path()).collect();
-        let words = convert_argv(&model_path, &out_dir, preview, &settings, replace, &inputs);
-        let args = ApplyCmd::try_parse_from(&words)
-            .map_err(|e| anyhow::anyhow!("internal: apply's arguments: {e}"))?
-            .a;
-        status = apply::run(args)?;
+        let inputs = todo.iter().map(|j| j.input.clone()).collect();
+        status = a.farm_convert(inputs, replace)?;
     }
     let convert_s = secs(t1);
 
@@ -661,31 +656,6 @@ fn remove_stale_temporaries(plan: &batch::BatchPlan) -> Vec<String> {
         }
     }
     removed
-}
-
-/// The `apply` command line that converts `inputs` with the task's model, output directory,
-/// preview directory and settings (replacing what is there when `replace`).
-fn convert_argv(
-    model: &Path,
-    out_dir: &Path,
-    preview: Option<PathBuf>,
-    settings: &[String],
-    replace: bool,
-    inputs: &[&Path],
-) -> Vec<std::ffi::OsString> {
-    let mut words: Vec<std::ffi::OsString> = vec!["nsrm farm run --".into()];
-    words.extend(["--model".into(), model.as_os_str().to_owned()]);
-    words.extend(["-o".into(), out_dir.as_os_str().to_owned()]);
-    if let Some(p) = preview {
-        words.extend(["--preview".into(), p.into_os_string()]);
-    }
-    words.extend(settings.iter().map(Into::into));
-    if replace {
-        words.push("--overwrite".into());
-    }
-    words.push("--".into());
-    words.extend(inputs.iter().map(|p| p.as_os_str().to_owned()));
-    words
 }
 
 /// The manifest's records of the shard's jobs after the conversion: what was kept, and for

@@ -12,28 +12,47 @@ fn job(dir: &Path, name: &str) -> batch::Job {
 }
 
 #[test]
-fn convert_argv_parses_as_apply_with_the_tasks_settings() {
-    let settings = vec!["--output-space".to_string(), "acescg".to_string()];
-    let inputs = [Path::new("a.exr"), Path::new("-b.exr")];
-    let words = convert_argv(
-        Path::new("m.json"),
-        Path::new("out"),
-        Some(PathBuf::from("prev")),
-        &settings,
-        true,
-        &inputs,
+fn a_tasks_settings_are_parsed_once_and_kept_whole() {
+    let words = [
+        "--model",
+        "m.json",
+        "-o",
+        "out",
+        "--white",
+        "5000",
+        "--demosaic",
+        "half",
+        "--output-space",
+        "acescg",
+        "--",
+        "a.exr",
+        "-b.exr",
+    ];
+    let mut r = RunArgs {
+        shard: "1/2".into(),
+        inputs_from: None,
+        path_map: Vec::new(),
+        path_mapping_rules: None,
+        batch: None,
+        apply: words.iter().map(Into::into).collect(),
+    };
+    let mut a = shard_apply_args(&r).unwrap();
+    // The settings the manifest records (and the job files carry) are the ones converted with.
+    let s = a.settings_argv();
+    assert!(
+        s.contains(&"--white=5000".to_string())
+            && s.contains(&"--demosaic=half".to_string())
+            && s.windows(2).any(|w| w == ["--output-space", "acescg"])
+            && s.contains(&"--continue-on-error".to_string()),
+        "{s:?}"
     );
-    let text: Vec<String> = words.iter().map(|w| w.to_string_lossy().into()).collect();
-    assert_eq!(text[1..5], ["--model", "m.json", "-o", "out"]);
-    assert!(text.contains(&"--overwrite".to_string()));
+    let p = a.farm_parts();
+    assert!(*p.continue_on_error && !p.overwrite);
     // The inputs come after `--`, so one that starts with `-` is an input.
-    assert_eq!(text[text.len() - 3..], ["--", "a.exr", "-b.exr"]);
-    let mut a = ApplyCmd::try_parse_from(&words).unwrap().a;
-    assert!(a.farm_parts().overwrite);
-    let back = a.settings_argv();
-    assert!(back.windows(2).any(|w| w == settings), "{back:?}");
-    let words = convert_argv(Path::new("m"), Path::new("o"), None, &[], false, &inputs);
-    assert!(!words.iter().any(|w| w == "--overwrite" || w == "--preview"));
+    assert_eq!(*p.inputs, [PathBuf::from("a.exr"), PathBuf::from("-b.exr")]);
+    // Replacing is the task's to decide.
+    r.apply.insert(0, "--overwrite".into());
+    assert!(shard_apply_args(&r).is_err());
 }
 
 #[test]

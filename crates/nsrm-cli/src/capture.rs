@@ -158,7 +158,8 @@ impl CaptureOptions {
             || self.flat.is_some()
     }
 
-    /// Loads the reference of the one chart `--chart` names (not `auto`).
+    /// Loads the reference of the one chart `--chart` names (not `auto`): the studio's reading.
+    #[cfg(feature = "studio")]
     pub(crate) fn the_reference(&self) -> Result<Reference> {
         match self.kinds()?.as_slice() {
             [k] => self.reference(*k),

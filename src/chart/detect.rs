@@ -683,7 +683,9 @@ fn refit_inside(
 /// (a jackknife over the lattice). Cells seen are pinned by their centroids; a cell not seen is
 /// placed by the fit alone, and when dropping a single point moves it, its projective terms are
 /// extrapolated from too little (seen: a lattice of 12 patches whose fit showed perspective 1.46
-/// where the chart's was 1.20, putting other rows most of a pitch off). 0 when every cell was seen.
+/// where the chart's was 1.20, putting other rows most of a pitch off). Or, where larger, how
+/// far the homography and an affine fit place such a cell apart when the lattice shows no
+/// perspective ([`unsupported_perspective`]). 0 when every cell was seen.
 fn extrapolation(blobs: &[Blob], lattice: &Lattice, p: &Placement, kind: super::ChartKind) -> f64 {
     let Some(to_chart) = p.map.inverse() else {
         return f64::INFINITY;
@@ -749,9 +751,6 @@ fn unsupported_perspective(
     unseen: &[[f64; 2]],
 ) -> f64 {
     let n = lattice.len();
-    if unseen.is_empty() {
-        return 0.0;
-    }
     if n < 5 {
         return f64::INFINITY;
     }
@@ -918,7 +917,7 @@ fn judge(
     let persp = perspective(kind, &best.hc);
     if !best.enclosed && extrapolation > EXTRAPOLATION_LIMIT {
         return Err(nf(format!(
-            "cells of the chart's outer ring were not seen as patches, and where they lie is uncertain (one moves {extrapolation:.3} pitch when the grid is fitted without one of its patches, limit {EXTRAPOLATION_LIMIT}): refused rather than risk misplaced patches; give the chart's corners"
+            "cells of the chart's outer ring were not seen as patches, and where they lie is uncertain (one moves {extrapolation:.3} pitch when the grid is fitted without one of its patches or without the perspective it does not show, limit {EXTRAPOLATION_LIMIT}): refused rather than risk misplaced patches; give the chart's corners"
         )));
     }
     if persp > PERSPECTIVE_LIMIT {

@@ -1537,13 +1537,10 @@ fn spyder24(colours: &ChartColours, g: &mut Gaussian) -> ChartColours {
         return spyder24(&nested(colours, g), g);
     }
     let mut c = colours.clone();
-    let cols = colours.chart.columns();
-    for r in [0, 2] {
-        for col in 0..cols {
-            let (i, j) = (r * cols + col, r * cols + cols - 1 - col);
-            c.rgb[i] = colours.rgb[j];
-            c.xyz[i] = colours.xyz[j];
-        }
+    for i in 0..c.rgb.len() {
+        let j = spyder24_cell(i);
+        c.rgb[i] = colours.rgb[j];
+        c.xyz[i] = colours.xyz[j];
     }
     c
 }

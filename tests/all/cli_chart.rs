@@ -447,23 +447,7 @@ fn srgb_oetf(v: f64) -> f64 {
 fn chart_auto_reads_the_chart_in_the_frame_and_a_named_chart_refuses_another() {
     let d = tempdir("chart-auto");
     let classic = scene(&d, "classic.exr", &[]);
-    let spyder = d.join("spyder.exr");
-    let (ok, err) = run(&[
-        "render-scene",
-        "--chart",
-        "spyder24",
-        "--width",
-        "800",
-        "--height",
-        "560",
-        "--seed",
-        "5",
-        "--min-area",
-        "0.2",
-        "-o",
-        s(&spyder),
-    ]);
-    assert!(ok, "{err}");
+    let spyder = common::chart_scene(&d, "spyder24", "spyder.exr", &[]);
     for (frame, kind, first_label) in [
         (&classic, "cc24", "01 dark skin"),
         (&spyder, "spyder24", "D1 bluish green"),

@@ -308,10 +308,15 @@ pub fn dual_nsrm_model(dir: &Path) {
 /// The tests' standard synthetic capture: `render-scene` of a CC24, 800×560, seed 5, chart at
 /// least a fifth of the frame, written as `dir/name` (plus `extra` flags, e.g. `--flat-output`).
 pub fn cc24_scene(dir: &Path, name: &str, extra: &[&str]) -> PathBuf {
+    chart_scene(dir, "cc24", name, extra)
+}
+
+/// [`cc24_scene`]'s capture of chart `chart` (`cc24`, `sg`, `spyder24`).
+pub fn chart_scene(dir: &Path, chart: &str, name: &str, extra: &[&str]) -> PathBuf {
     let mut args = vec![
         "render-scene",
         "--chart",
-        "cc24",
+        chart,
         "--width",
         "800",
         "--height",

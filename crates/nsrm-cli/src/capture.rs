@@ -122,10 +122,14 @@ fn parse_chart_pick(s: &str) -> Result<ChartPick, String> {
     if s.trim().eq_ignore_ascii_case("auto") {
         return Ok(ChartPick::Auto);
     }
-    ChartKind::parse(s).map(ChartPick::Kind).map_err(|_| {
-        let names: Vec<&str> = ChartKind::ALL.iter().map(|k| k.name()).collect();
-        format!("`{s}` is not a chart: {} or auto", names.join(", "))
-    })
+    ChartKind::parse(s)
+        .map(ChartPick::Kind)
+        .map_err(|_| format!("`{s}` is not a chart: {} or auto", chart_names()))
+}
+
+/// The charts `--chart` names, for messages: `cc24, sg, spyder24`.
+pub(crate) fn chart_names() -> String {
+    ChartKind::ALL.map(|k| k.name()).join(", ")
 }
 
 /// A read chart (the library's reading, with the frame it was read from).
@@ -163,7 +167,7 @@ impl CaptureOptions {
     pub(crate) fn the_reference(&self) -> Result<Reference> {
         match self.kinds()?.as_slice() {
             [k] => self.reference(*k),
-            _ => Err(UsageError("name the chart: cc24, sg or spyder24, not auto".into()).into()),
+            _ => Err(UsageError(format!("name the chart ({}), not auto", chart_names())).into()),
         }
     }
 

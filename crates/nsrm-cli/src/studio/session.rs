@@ -578,10 +578,11 @@ fn parse_space(s: &str) -> Result<OutputSpace> {
 fn check_no_path(s: &Settings) -> Result<()> {
     if let Some(r) = s.reference.as_deref().filter(|r| !r.trim().is_empty()) {
         let r = r.trim();
-        if r != "upload" && !references().iter().any(|b| b.eq_ignore_ascii_case(r)) {
+        let builtin = references();
+        if r != "upload" && !builtin.iter().any(|b| b.eq_ignore_ascii_case(r)) {
             bail!(BadRequest(format!(
                 "reference: one of {}, or upload (a reference file uploaded for this frame; the page reads no file a request names)",
-                references().join(", ")
+                builtin.join(", ")
             )));
         }
     }
@@ -609,8 +610,11 @@ impl FrameState {
         let s = &self.settings;
         check_no_path(s)?;
         let chart = nsrm::chart::ChartKind::from_str(&s.chart, true).map_err(|_| {
-            let names = nsrm::chart::ChartKind::ALL.map(|k| k.name());
-            BadRequest(format!("chart `{}`: one of {}", s.chart, names.join(", ")))
+            BadRequest(format!(
+                "chart `{}`: one of {}",
+                s.chart,
+                crate::capture::chart_names()
+            ))
         })?;
         let flat = match s.flat.as_deref().map(str::trim) {
             None | Some("") | Some("none") => None,

@@ -50,12 +50,11 @@ fn chart(c: &mut Criterion) {
             space: nsrm::OutputSpace::Xyz,
             ..Default::default()
         };
-        let session = nsrm::output::Session::new(true);
-        let mut unit = session.unit();
+        let mut file = std::io::BufWriter::new(std::fs::File::create(&path).unwrap());
         Decoded::from(frame)
-            .write(&path, &write, &mut unit)
+            .write_to(&path, &write, &mut file)
             .unwrap();
-        unit.commit().unwrap();
+        drop(file);
         let frame =
             Arc::new(CaptureFrame::open(&path, &ReadOptions::default(), Encoding::Linear).unwrap());
         let detected = ReadingOptions::default();

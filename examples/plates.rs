@@ -38,7 +38,6 @@ fn main() -> Result<()> {
         other => bail!("unknown compression `{other}`"),
     };
     std::fs::create_dir_all(&dir).with_context(|| format!("creating {}", dir.display()))?;
-    let session = nsrm::output::Session::new(true);
     for i in 0..count {
         let frame = plate(w, h, 1001 + u64::from(i));
         let path = dir.join(format!("plate.{}.exr", 1001 + i));
@@ -49,11 +48,15 @@ fn main() -> Result<()> {
             space: OutputSpace::Acescg,
             ..Default::default()
         };
-        let mut unit = session.unit();
+        // The library encodes into any `Write + Seek`; where the bytes land is the caller's
+        // (the `nsrm` command stages them in temporaries and commits them together).
+        let mut file = std::io::BufWriter::new(
+            std::fs::File::create(&path).with_context(|| format!("creating {}", path.display()))?,
+        );
         Decoded::from(frame)
-            .write(&path, &opts, &mut unit)
+            .write_to(&path, &opts, &mut file)
             .with_context(|| format!("writing {}", path.display()))?;
-        unit.commit()?;
+        std::io::Write::flush(&mut file)?;
         println!("{}", path.display());
     }
     Ok(())

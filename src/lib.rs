@@ -80,7 +80,6 @@ pub mod gpu;
 pub mod io;
 mod limits;
 mod model;
-pub mod output;
 mod spectral;
 mod training;
 mod training_set;

@@ -5,8 +5,7 @@
 
 use crate::error::{Concern, Param};
 use crate::frame::{Frame, Layout};
-use crate::io::IoError;
-use crate::output::Unit;
+use crate::io::{IoError, WriteSeek};
 use crate::training::{Provenance, TrainingSet};
 use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
@@ -303,21 +302,23 @@ pub fn render(data: &TrainingSet, opts: &ChartOptions) -> Result<(Frame, ChartLa
     ))
 }
 
-/// Writes a rendered chart: the frame at `dest` (camera RGB, so no `colorInteropID`) as a
-/// float EXR, or a 32-bit float TIFF when `dest` ends in `.tif`/`.tiff`, and its layout as JSON
-/// at [`layout_path`]. Both are staged in `unit` (committed together by its owner).
+/// A rendered chart's layout as the JSON written at [`layout_path`] beside its frame.
+pub fn layout_json(layout: &ChartLayout) -> Result<String, IoError> {
+    serde_json::to_string_pretty(layout)
+        .map_err(|e| IoError::Invalid(format!("serialising the chart layout: {e}")))
+}
+
+/// Encodes a rendered chart's frame into `w`: camera RGB (so no `colorInteropID`) as a float
+/// EXR whose header names its layout file ([`layout_path`] of `dest`), or a 32-bit float TIFF
+/// when `dest` ends in `.tif`/`.tiff`. The layout itself is [`layout_json`]; the caller writes
+/// both (the `nsrm` command commits them together).
 pub fn write(
     frame: &Frame,
     layout: &ChartLayout,
     dest: &Path,
-    unit: &mut Unit,
+    w: &mut dyn WriteSeek,
 ) -> Result<(), IoError> {
     let layout_file = layout_path(dest);
-    unit.check_clobber(dest)?;
-    unit.check_clobber(&layout_file)?;
-    let json = serde_json::to_string_pretty(layout)
-        .map_err(|e| IoError::Invalid(format!("serialising the chart layout: {e}")))?;
-    unit.write_bytes(&layout_file, json.as_bytes())?;
     let describe = format!(
         "nsrm chart: {} patches; camera {}; illuminant {}; reflectances {}; linear camera RGB (perfect white G = {})",
         layout.patches.len(),
@@ -334,19 +335,19 @@ pub fn write(
         frame,
         dest,
         &[("comments", &describe), ("nsrmChartLayout", &layout_name)],
-        unit,
+        w,
     )
 }
 
 /// Writes a camera-RGB frame (no colour space attribute) as a float EXR, or a 32-bit float TIFF
-/// when `dest` ends in `.tif`/`.tiff`, with `comments` in the EXR header; staged in `unit`.
+/// when `dest` ends in `.tif`/`.tiff`, with `comments` in the EXR header; encoded into `w`.
 pub fn write_camera_frame(
     frame: &Frame,
     dest: &Path,
     comments: &str,
-    unit: &mut Unit,
+    w: &mut dyn WriteSeek,
 ) -> Result<(), IoError> {
-    crate::io::write_camera_float(frame, dest, &[("comments", comments)], unit)
+    crate::io::write_camera_float(frame, dest, &[("comments", comments)], w)
 }
 
 /// Standard normal deviates from SplitMix64 and the Box–Muller transform: small, seeded and the

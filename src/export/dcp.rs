@@ -1320,7 +1320,7 @@ pub(crate) fn measure_unbalanced(
     Ok(report)
 }
 
-/// What [`export_to`] wrote and measured.
+/// What [`render`] built and measured.
 #[derive(Debug, Clone)]
 pub struct DcpWritten {
     /// The error of the profile against the model set, over every white measured, and for a
@@ -1356,24 +1356,6 @@ pub struct DcpTraining {
     pub rgb: Vec<[f64; 3]>,
     /// The camera response of the training white, when known.
     pub white_rgb: Option<[f64; 3]>,
-}
-
-/// Builds, measures and writes the DCP of a model set: [`render`], staged in `unit` (committed
-/// by the caller); the output is checked for clobbering first.
-pub fn export_to(
-    profile: &Profile,
-    training: &[DcpTraining],
-    opts: DcpOptions,
-    stops: [f64; 2],
-    max_de00: Option<f64>,
-    out: &std::path::Path,
-    unit: &mut crate::output::Unit,
-) -> Result<DcpWritten, ExportError> {
-    super::check_max_de00(max_de00)?;
-    unit.check_clobber(out)?;
-    let (bytes, written) = render(profile, training, opts, stops, max_de00)?;
-    unit.write_bytes(out, &bytes)?;
-    Ok(written)
 }
 
 /// Builds and measures the DCP of a model set and returns its bytes, writing nothing. The error

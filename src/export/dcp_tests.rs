@@ -1,5 +1,5 @@
 //! RawTherapee against nsrm's DNG evaluator (`Dcp::eval`, `Dcp::eval_weighted`: crate-private).
-//! A two-illuminant DCP the library writes ([`super::dcp::export_to`]: white-preserving NSRM 3
+//! A two-illuminant DCP the library builds ([`super::dcp::render`]: white-preserving NSRM 3
 //! under StdA and D65, as `common::dual_nsrm_model` fits it through the binary) is developed by
 //! `rawtherapee-cli` (the kit's harness, `kit::rt_develop`) on a chart lit by a 4000 K Planckian
 //! light. RawTherapee weights the two sides by its own white-balance temperature: the test finds
@@ -12,7 +12,7 @@
 //! (`.ci/install.d/40-profiles.sh`); without them the test prints `SKIP: …` and passes, except
 //! under `CI=true`, where it fails (`kit::skip_or_fail`).
 
-use super::dcp::{d50, export_to, prophoto_to_xyz, Dcp, DcpOptions, DcpTraining};
+use super::dcp::{d50, prophoto_to_xyz, render, Dcp, DcpOptions, DcpTraining};
 use crate::colorimetry::spaces;
 use crate::kit::{rawtherapee, rt_chart, rt_develop, skip_or_fail};
 use crate::{delta_e00_xyz, fit_with, simulate_named, FitOptions, Grid, Kind, Profile};
@@ -49,19 +49,15 @@ fn rawtherapee_weights_the_two_sides_and_the_evaluator_reproduces_it_there() {
     let a = models.pop().unwrap();
     let profile = Profile::dual(a, d65).unwrap();
     let path = dir.path().join("dual.dcp");
-    let session = crate::output::Session::new(false);
-    let mut unit = session.unit();
-    export_to(
+    let (bytes, _) = render(
         &profile,
         &training,
         DcpOptions::default(),
         [-6.0, 4.0],
         None,
-        &path,
-        &mut unit,
     )
     .unwrap();
-    unit.commit().unwrap();
+    std::fs::write(&path, bytes).unwrap();
 
     let (patches, neutral, white_y) = rt_chart("P4000");
     let d = rt_develop(dir.path(), "dual", &path, &patches, neutral);

@@ -33,7 +33,7 @@
 //! version 4), class input, colour space RGB, PCS XYZ.
 //!
 //! # Measured error
-//! [`export_to`] reads the written bytes back with Little CMS and evaluates them with its float
+//! [`render`] reads the written bytes back with Little CMS and evaluates them with its float
 //! transform (device RGB → `*XYZ`, relative colorimetric): the same code path `transicc`
 //! takes. A lut16 is evaluated by Little CMS in 16-bit steps (the input rounded to 1/65535 and
 //! the PCS XYZ to 1/32768), which is what limits the darkest exposures. The ΔE00 against the
@@ -565,7 +565,7 @@ pub(crate) fn measure(
     })
 }
 
-/// What [`export_to`] wrote and measured.
+/// What [`render`] built and measured.
 #[derive(Debug, Clone)]
 pub struct IccWritten {
     /// The error of the profile against the model.
@@ -582,23 +582,6 @@ pub struct IccWritten {
     pub lo: f64,
     /// The profile's size in bytes.
     pub bytes: usize,
-}
-
-/// Builds, measures and writes the ICC profile of `model`: [`render`], staged in `unit`
-/// (committed by the caller); the output is checked for clobbering first.
-pub fn export_to(
-    model: &Model,
-    opts: IccOptions,
-    training_rgb: &[[f64; 3]],
-    max_de00: Option<f64>,
-    out: &std::path::Path,
-    unit: &mut crate::output::Unit,
-) -> Result<IccWritten, ExportError> {
-    super::check_max_de00(max_de00)?;
-    unit.check_clobber(out)?;
-    let (bytes, written) = render(model, opts, training_rgb, max_de00)?;
-    unit.write_bytes(out, &bytes)?;
-    Ok(written)
 }
 
 /// Builds and measures the ICC profile of `model` and returns its bytes, writing nothing;

@@ -1,7 +1,9 @@
 //! Files other tools read: the Academy/SMPTE Common LUT Format (CLF v3), Resolve/OCIO `.cube`
-//! and a minimal OpenColorIO v2 config ([`export_to`] with a [`Format`]), DaVinci Resolve DCTL
-//! (`nsrm export-shader --lang dctl`), an Adobe DNG camera profile ([`export_dcp`]), an ICC input profile
-//! ([`export_icc`]) and, with the `gpu` feature, baked shaders (`export_shader`).
+//! and a minimal OpenColorIO v2 config ([`render`] with a [`Format`]), DaVinci Resolve DCTL
+//! (`nsrm export-shader --lang dctl`), an Adobe DNG camera profile ([`dcp::render`]), an ICC
+//! input profile ([`icc::render`]) and, with the `gpu` feature, baked shaders (`export_shader`).
+//! Each is built and measured in memory and returned as bytes: where they are written is the
+//! caller's (the `nsrm` command stages them in its output session).
 //!
 //! # What is written
 //! Every export maps linear camera RGB (the training white at `G = 1`) to the output space exactly
@@ -56,8 +58,8 @@ mod ocio_tests;
 pub mod shader;
 
 pub use self::{
-    dcp::{export_to as export_dcp, DcpOptions, DcpTraining, DcpWritten},
-    icc::{export_to as export_icc, IccOptions, IccWritten},
+    dcp::{DcpOptions, DcpTraining, DcpWritten},
+    icc::{IccOptions, IccWritten},
     nodes::Interpolation,
 };
 #[cfg(feature = "gpu")]
@@ -88,19 +90,12 @@ pub enum ExportError {
         /// Where it was measured (training patches or the dense set).
         where_: String,
     },
-    /// Writing a file failed or was refused.
-    #[error(transparent)]
-    Write(#[from] crate::output::WriteError),
 }
 
 impl ExportError {
     /// True for export options out of range.
     pub fn is_usage(&self) -> bool {
-        match self {
-            ExportError::Usage(_) => true,
-            ExportError::Write(w) => w.is_usage(),
-            _ => false,
-        }
+        matches!(self, ExportError::Usage(_))
     }
 }
 
@@ -649,24 +644,11 @@ pub fn companion_path(
     }
 }
 
-/// What [`export_to`] wrote.
-#[derive(Debug, Clone)]
-pub struct Written {
-    /// The files, in the order written (for OCIO: the CLF, then the config).
-    pub files: Vec<std::path::PathBuf>,
-    /// The error of the export against the model.
-    pub report: ErrorReport,
-    /// Whether the file is the model itself (an LRM as a CLF Matrix) rather than a LUT.
-    pub exact: bool,
-    /// The 3D LUT size, if there is one.
-    pub lut_size: Option<usize>,
-}
-
 /// An export built and measured in memory ([`render`]): the bytes of each file, nothing
 /// written.
 #[derive(Debug, Clone)]
 pub struct Rendered {
-    /// Each file's path (as [`export_to`] would write it) and bytes, in the order written (for
+    /// Each file's path (from [`render`]'s `out`) and bytes, in the order written (for
     /// OCIO: the CLF, then the config, which names the CLF by its file name).
     pub files: Vec<(std::path::PathBuf, Vec<u8>)>,
     /// The error of the export against the model.
@@ -690,8 +672,8 @@ pub(crate) fn check_max_de00(max_de00: Option<f64>) -> Result<(), ExportError> {
 /// Builds and measures an export of `model` in `format` and returns its files' bytes, writing
 /// nothing: `out` only names them (for OCIO, `out` is the config and the CLF is `<stem>.clf`
 /// beside it, named in the config). An embedder (the studio, a renderer) writes the bytes where
-/// it likes; [`export_to`] stages them in an output session. The error against the training
-/// patches is checked against `max_de00` first.
+/// it likes (the `nsrm` command stages them in its output session and commits them together).
+/// The error against the training patches is checked against `max_de00` first.
 pub fn render(
     model: &Model,
     format: Format,
@@ -744,43 +726,6 @@ pub fn render(
         report,
         exact: e.exact,
         lut_size: e.lut3d().map(|l| l.size),
-    })
-}
-
-/// Builds, measures and writes an export of `model` in `format` to `out` (for OCIO, `out` is the
-/// config and the CLF is written beside it as `<stem>.clf`): [`render`], staged in `unit`.
-///
-/// Every output is checked for clobbering and the error against `max_de00` before anything is
-/// written; the files are staged in `unit` ([`crate::output`]), whose owner commits them
-/// together, so a refused or failed export leaves no file behind.
-#[allow(clippy::too_many_arguments)]
-pub fn export_to(
-    model: &Model,
-    format: Format,
-    space: OutputSpace,
-    options: LutOptions,
-    training_rgb: &[[f64; 3]],
-    max_de00: Option<f64>,
-    out: &std::path::Path,
-    unit: &mut crate::output::Unit,
-) -> Result<Written, ExportError> {
-    check_max_de00(max_de00)?;
-    let clf_path = companion_path(format, out)?;
-    unit.check_clobber(out)?;
-    if let Some(p) = &clf_path {
-        unit.check_clobber(p)?;
-    }
-    let r = render(model, format, space, options, training_rgb, max_de00, out)?;
-    let mut files = Vec::new();
-    for (path, bytes) in &r.files {
-        unit.write_bytes(path, bytes)?;
-        files.push(path.clone());
-    }
-    Ok(Written {
-        files,
-        report: r.report,
-        exact: r.exact,
-        lut_size: r.lut_size,
     })
 }
 

@@ -1,5 +1,5 @@
 //! OpenColorIO against nsrm's evaluator of the written nodes (`LutExport::eval`, crate-private):
-//! each LUT export the library writes ([`super::export_to`]) is applied to a test EXR by OCIO's
+//! each LUT export the library builds ([`super::render`]) is applied to a test EXR by OCIO's
 //! own `ocioconvert --lut` and must agree with the evaluator to 2e-5 relative, which tells
 //! whether the interpolation the file declares (CLF) or is measured for (`.cube`) is the one OCIO
 //! uses. (Moved from `tests/all/export_ocio.rs`, where OCIO still judges the files `nsrm export`
@@ -12,7 +12,7 @@
 //! Needs `ocioconvert` (Debian: `apt-get install opencolorio-tools`); without it the test prints
 //! `SKIP: …` and passes, except under `CI=true`, where it fails (`kit::skip_or_fail`).
 
-use super::{dense_chromaticities, export_to, Format, LutExport, LutOptions};
+use super::{dense_chromaticities, render, Format, LutExport, LutOptions};
 use crate::kit::skip_or_fail;
 use crate::{fit, simulate_named, Grid, Kind, OutputSpace, TrainingSet};
 use std::path::{Path, PathBuf};
@@ -85,7 +85,6 @@ fn ocio_applies_the_written_nodes_as_nsrms_evaluator_does() {
     let data = simulate_named("nikon-d5100", "D65", "rawtoaces-190", &Grid::default()).unwrap();
     write(&dir.path().join("in.exr"), &test_frame(&data));
     let input = read(&dir.path().join("in.exr"));
-    let session = crate::output::Session::new(false);
     let opts = LutOptions::default();
     let (lo, hi) = (opts.stops[0].exp2(), opts.stops[1].exp2());
     for (kind, order, format, space) in [
@@ -95,8 +94,7 @@ fn ocio_applies_the_written_nodes_as_nsrms_evaluator_does() {
     ] {
         let model = fit(kind, order, &data).unwrap();
         let file = format!("{}{order}.{}", kind.name(), format.name());
-        let mut unit = session.unit();
-        let written = export_to(
+        let written = render(
             &model,
             format,
             space,
@@ -104,10 +102,11 @@ fn ocio_applies_the_written_nodes_as_nsrms_evaluator_does() {
             &data.rgb,
             None,
             &dir.path().join(&file),
-            &mut unit,
         )
         .unwrap();
-        unit.commit().unwrap();
+        for (path, bytes) in &written.files {
+            std::fs::write(path, bytes).unwrap();
+        }
         assert!(!written.exact, "{kind} is approximated, not exact");
         let out = format!("ocio_{file}.exr");
         let o = Command::new(&ocioconvert)

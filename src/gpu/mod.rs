@@ -120,9 +120,6 @@ pub enum GpuError {
     /// Waiting for submitted GPU work failed.
     #[error("waiting for the GPU failed: {0}")]
     Poll(#[from] wgpu::PollError),
-    /// Writing an output file failed.
-    #[error(transparent)]
-    Write(#[from] crate::output::WriteError),
 }
 
 impl GpuError {

@@ -3,8 +3,8 @@
 //! correct → encode on threads, events to the caller: [`execute`]).
 
 pub use super::batch_exec::{
-    execute, Correct, CorrectError, Event, ExecOptions, Executed, FrameError, FrameOutcome,
-    ModelCorrector, Timing,
+    execute, Correct, CorrectError, Encoder, Event, ExecOptions, Executed, Files, FrameError,
+    FrameOutcome, FrameSink, ModelCorrector, Timing,
 };
 use super::{FileFormat, IoError};
 use std::collections::{HashMap, HashSet};
@@ -600,9 +600,9 @@ pub struct BatchPlan {
     pub total_inputs: usize,
     /// This run's slice of the batch, if it is sharded.
     pub shard: Option<Shard>,
-    /// Temporaries of nsrm's form found in those directories (left by a killed run, or being
-    /// written by another one): reported, never removed unless asked.
-    pub stale_temporaries: Vec<PathBuf>,
+    /// The directories this run's outputs and previews go to, sorted (where a caller looks for
+    /// what an earlier, killed run left behind).
+    pub dirs: Vec<PathBuf>,
 }
 
 impl BatchPlan {
@@ -698,17 +698,20 @@ pub(crate) fn ensure_writable_dir(dir: &Path) -> Result<(), PlanError> {
             dir.display()
         ))
     })?;
-    let (_, probe) = crate::output::make_temp(&dir.join("nsrm-write-probe"), |p| {
-        std::fs::File::create_new(p)
-    })
-    .map_err(|e| {
-        PlanError::Setup(format!(
-            "cannot write in the output directory {}: {e}",
-            dir.display()
-        ))
-    })?;
-    std::fs::remove_file(&probe)
-        .map_err(|e| PlanError::Setup(format!("cannot remove {}: {e}", probe.display())))
+    // A fresh name (O_EXCL), removed when dropped.
+    let probe = tempfile::Builder::new()
+        .prefix(".nsrm-write-probe.")
+        .suffix(".tmp")
+        .tempfile_in(dir)
+        .map_err(|e| {
+            PlanError::Setup(format!(
+                "cannot write in the output directory {}: {e}",
+                dir.display()
+            ))
+        })?;
+    probe
+        .close()
+        .map_err(|e| PlanError::Setup(format!("cannot remove a probe in {}: {e}", dir.display())))
 }
 
 /// Plans a batch: pairs every input with its output (see [`output_path`]) and preview, creates
@@ -779,15 +782,11 @@ pub fn plan_batch(inputs: &[PathBuf], o: &PlanOptions) -> Result<BatchPlan, Plan
             }
         })
         .collect();
-    let stale_temporaries = dirs
-        .iter()
-        .flat_map(|d| crate::output::stale_temporaries(d))
-        .collect();
     Ok(BatchPlan {
         jobs,
         total_inputs: inputs.len(),
         shard: o.shard,
-        stale_temporaries,
+        dirs,
     })
 }
 

@@ -4,20 +4,19 @@
 //! `workers` decode threads take the next frame to convert (when a permit is free) and decode
 //! it; the caller's thread corrects each decoded frame with its [`Correct`] (the GPU engine
 //! takes `&mut`, so one thread drives it); `workers` encode threads write each frame and its
-//! preview as one unit of the output [`Session`]. Frames alive at once (decoding, queued,
+//! preview together through the caller's [`FrameSink`]. Frames alive at once (decoding, queued,
 //! correcting, encoding) are `workers + 1`, so peak memory stays under `workers + 2` decoded
 //! frames; the buffers of written frames are reused by the next decodes ([`FramePool`]).
 //!
 //! The executor prints nothing: what happens is told to the caller's event callback
 //! ([`Event`]), from any of the threads, and returned ([`Executed`]). A stop flag the caller
 //! sets (from its signal handler) stops it cleanly: no new frame is started, frames being
-//! decoded or corrected are dropped, a frame being written is aborted when the session's abort
-//! flag is set as well ([`crate::output::AbortHandle::flag`]), and those frames are left out
-//! of the outcomes (not attempted).
+//! decoded or corrected are dropped, a frame being written is aborted when the sink says so
+//! ([`FrameSink::is_aborted`]: the `nsrm` command's output session sets its abort flag from the
+//! same signal), and those frames are left out of the outcomes (not attempted).
 
 use super::batch::{BatchPlan, Job};
-use super::{preview, Decoded, FramePool, IoError, ReadOptions, WriteOptions};
-use crate::output::Session;
+use super::{preview, Decoded, FramePool, IoError, ReadOptions, WriteOptions, WriteSeek};
 use crate::{FastModel, FrameHighlights, Highlights, Mat3, Model, ModelError, Threads};
 use std::path::Path;
 use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
@@ -160,11 +159,60 @@ impl Correct for ModelCorrector {
     }
 }
 
+/// One file's encoder for a [`FrameSink`]: writes the file's bytes into the writer it is given
+/// (called at most once).
+pub type Encoder<'a> = Box<dyn FnOnce(&mut dyn WriteSeek) -> Result<(), IoError> + Send + 'a>;
+
+/// Where a batch puts each frame's files: the output and its preview are handed over together,
+/// so a sink that stages files can make them appear together or not at all. The `nsrm` command's
+/// output session (crate `nsrm-output`) is one: it stages each file in a temporary beside its
+/// destination and commits a frame's files as one unit; [`Files`] writes them directly.
+pub trait FrameSink: Sync {
+    /// Writes one frame's files, `(destination, encoder)` each, in order. An error is the
+    /// frame's failure (the batch goes on with `continue_on_error`).
+    fn write_together(&self, files: Vec<(&Path, Encoder<'_>)>) -> Result<(), IoError>;
+
+    /// Whether the sink was stopped (a signal): a frame whose write failed then is reported as
+    /// aborted, not failed. The default: never.
+    fn is_aborted(&self) -> bool {
+        false
+    }
+}
+
+/// The simplest [`FrameSink`]: each file created at its destination and written in place, with
+/// no staging. An existing file is refused unless `overwrite` is set; a frame that fails may
+/// leave a partial file (a sink that stages, such as the `nsrm` command's, does not).
+#[derive(Debug, Clone, Copy, Default)]
+pub struct Files {
+    /// Replace existing files.
+    pub overwrite: bool,
+}
+
+impl FrameSink for Files {
+    fn write_together(&self, files: Vec<(&Path, Encoder<'_>)>) -> Result<(), IoError> {
+        for (dest, encode) in files {
+            let io = |err| IoError::Write {
+                path: dest.to_path_buf(),
+                err,
+            };
+            let file = if self.overwrite {
+                std::fs::File::create(dest)
+            } else {
+                std::fs::File::create_new(dest)
+            }
+            .map_err(io)?;
+            let mut w = std::io::BufWriter::new(file);
+            encode(&mut w)?;
+            std::io::Write::flush(&mut w).map_err(io)?;
+        }
+        Ok(())
+    }
+}
+
 /// A batch run's settings.
-#[derive(Debug)]
 pub struct ExecOptions<'a> {
-    /// The run's output session: every output and preview declared in it.
-    pub session: &'a Session,
+    /// Where each frame's output and preview go.
+    pub sink: &'a dyn FrameSink,
     /// How inputs are read.
     pub read: ReadOptions,
     /// How outputs are written.
@@ -179,6 +227,18 @@ pub struct ExecOptions<'a> {
     pub continue_on_error: bool,
     /// Set by the caller (its signal handler) to stop the run.
     pub stop: &'a AtomicBool,
+}
+
+impl std::fmt::Debug for ExecOptions<'_> {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("ExecOptions")
+            .field("read", &self.read)
+            .field("write", &self.write)
+            .field("highlights", &self.highlights)
+            .field("workers", &self.workers)
+            .field("continue_on_error", &self.continue_on_error)
+            .finish_non_exhaustive()
+    }
 }
 
 /// What happens during a run, told as it happens (from any of its threads).
@@ -421,7 +481,7 @@ impl Pipeline<'_> {
                     });
                 }
                 // Stopped while writing: not a failure of the file.
-                Err(_) if self.stopped() || self.s.session.is_aborted() => {
+                Err(_) if self.stopped() || self.s.sink.is_aborted() => {
                     lock(&self.results).push((i, FrameOutcome::Aborted));
                     (self.on_event)(Event::Aborted { index: i, output });
                 }
@@ -526,13 +586,25 @@ fn encode(job: &Job, d: Decoded, s: &ExecOptions<'_>, pool: &FramePool) -> Resul
         Some(_) => Some(preview::encode_png(&d.frame, &s.to_srgb)?),
         None => None,
     };
-    let mut unit = s.session.unit();
-    d.write_recycling(&job.output, &s.write, &mut unit, pool)?;
+    let output = job.output.as_path();
+    let write = &s.write;
+    let mut files: Vec<(&Path, Encoder<'_>)> = vec![(
+        output,
+        Box::new(move |w: &mut dyn WriteSeek| d.write_to_recycling(output, write, w, pool)),
+    )];
     if let (Some(path), Some(png)) = (&job.preview, png) {
-        unit.write_bytes(path, &png)?;
+        let path = path.as_path();
+        files.push((
+            path,
+            Box::new(move |w: &mut dyn WriteSeek| {
+                w.write_all(&png).map_err(|err| IoError::Write {
+                    path: path.to_path_buf(),
+                    err,
+                })
+            }),
+        ));
     }
-    unit.commit()?;
-    Ok(())
+    s.sink.write_together(files)
 }
 
 #[cfg(test)]

@@ -7,7 +7,6 @@ use std::path::PathBuf;
 
 /// `n` small float TIFF inputs in `dir` (the third one, with `broken`, not a TIFF at all).
 fn inputs(dir: &Path, n: usize, broken: Option<usize>) -> Vec<PathBuf> {
-    let session = Session::new(false);
     (0..n)
         .map(|i| {
             let p = dir.join(format!("in{i}.tif"));
@@ -19,9 +18,8 @@ fn inputs(dir: &Path, n: usize, broken: Option<usize>) -> Vec<PathBuf> {
             for (k, v) in f.data.iter_mut().enumerate() {
                 *v = 0.05 + (k % 7) as f32 * 0.1;
             }
-            let mut unit = session.unit();
-            crate::io::tif::write(&f, None, &p, &mut unit).unwrap();
-            unit.commit().unwrap();
+            let mut w = std::io::BufWriter::new(std::fs::File::create_new(&p).unwrap());
+            crate::io::tif::write(&f, None, &p, &mut w).unwrap();
             p
         })
         .collect()
@@ -31,8 +29,8 @@ fn model() -> Model {
     crate::fit(Kind::Lrm, 1, crate::kit::training()).unwrap()
 }
 
-/// The plan of `inputs` into `out`, and a session with its outputs declared.
-fn planned(inputs: &[PathBuf], out: &Path) -> (BatchPlan, Session) {
+/// The plan of `inputs` into `out`, and a sink writing files directly.
+fn planned(inputs: &[PathBuf], out: &Path) -> (BatchPlan, Files) {
     let plan = plan_batch(
         inputs,
         &PlanOptions {
@@ -46,21 +44,17 @@ fn planned(inputs: &[PathBuf], out: &Path) -> (BatchPlan, Session) {
         },
     )
     .unwrap();
-    let mut session = Session::new(false);
-    for j in &plan.jobs {
-        session.output(&j.output).unwrap();
-    }
-    (plan, session)
+    (plan, Files::default())
 }
 
 fn options<'a>(
-    session: &'a Session,
+    sink: &'a Files,
     model: &Model,
     stop: &'a AtomicBool,
     go_on: bool,
 ) -> ExecOptions<'a> {
     ExecOptions {
-        session,
+        sink,
         read: ReadOptions::default(),
         write: WriteOptions {
             format: crate::io::FileFormat::Tiff,
@@ -126,7 +120,6 @@ fn a_stop_after_the_first_frame_leaves_the_rest_not_done_and_nothing_half_writte
     assert_eq!((run.timing.frames, run.timing.pixels), (1, 32));
     // The first output committed, and nothing else there: no other output, no temporary.
     assert_eq!(names(&out), ["in0_xyz.tif"]);
-    assert_eq!(session.remove_temporaries(), 0);
 }
 
 #[test]

@@ -34,6 +34,20 @@ pub use {
     raw::Demosaic,
 };
 
+/// What a path is, for messages: `a regular file`, `a directory`, `a FIFO`, … (the words of
+/// the library's own refusals, for a caller's).
+pub fn file_kind(meta: &std::fs::Metadata) -> &'static str {
+    crate::limits::file_kind(meta)
+}
+
+/// What the library's encoders write into: any seekable writer that can move between threads
+/// (a [`std::fs::File`], a `BufWriter` of one, a `Cursor<Vec<u8>>`). The library never decides
+/// where a file lands: [`Decoded::write_to`] encodes into one of these, and the caller (the
+/// `nsrm` command's output session, an embedder's own policy) owns the file.
+pub trait WriteSeek: std::io::Write + std::io::Seek + Send {}
+
+impl<T: std::io::Write + std::io::Seek + Send + ?Sized> WriteSeek for T {}
+
 /// The ZIP level written when none is asked for (libdeflate's levels, 0-12): 1, the fastest,
 /// which still compresses noisy float plates about as much as the higher levels. See
 /// BENCHMARKS.md.
@@ -44,7 +58,6 @@ pub const MAX_ZIP_LEVEL: u8 = 12;
 
 use crate::colorimetry::spaces::OutputSpace;
 use crate::frame::Frame;
-use crate::output::{Unit, WriteError};
 use std::path::{Path, PathBuf};
 
 /// Errors from reading, writing or listing frames. A cause is part of the message and not also
@@ -108,9 +121,24 @@ pub enum IoError {
         /// What the encoder refused.
         why: String,
     },
-    /// Writing an output failed or was refused (see [`WriteError`]).
-    #[error(transparent)]
-    Write(#[from] WriteError),
+    /// Writing an output's bytes failed.
+    #[error("{}: cannot write: {err}", path.display())]
+    Write {
+        /// The output file.
+        path: PathBuf,
+        /// The system's error.
+        err: std::io::Error,
+    },
+    /// Where the output goes refused it or failed (a [`batch::FrameSink`]'s own error: for the
+    /// `nsrm` command, an output that exists, a signal, a failed commit).
+    #[error("{err}")]
+    Output {
+        /// Whether the request itself is wrong (an output that is an input, two outputs that
+        /// are one file), not the file system.
+        usage: bool,
+        /// The sink's error.
+        err: Box<dyn std::error::Error + Send + Sync>,
+    },
     /// An input (a file, directory or glob) names no frame.
     #[error("input `{spec}`: {why}")]
     NoMatch {
@@ -172,11 +200,7 @@ impl IoError {
             self,
             IoError::NoMatch { .. }
                 | IoError::Shard { .. }
-                | IoError::Write(
-                    crate::output::WriteError::OutputIsInput { .. }
-                        | crate::output::WriteError::SameOutput { .. }
-                        | crate::output::WriteError::NoFileName(_)
-                )
+                | IoError::Output { usage: true, .. }
                 | IoError::Param {
                     concern: crate::error::Concern::Value(_),
                     ..
@@ -290,7 +314,7 @@ pub(crate) fn try_zeroed<T: bytemuck::Zeroable>(path: &Path, n: usize) -> Result
     })
 }
 
-/// Frame sample buffers handed back by [`Decoded::write_recycling`] for the next
+/// Frame sample buffers handed back by [`Decoded::write_to_recycling`] for the next
 /// [`Decoded::read_pooled`]: a batch then allocates only as many frame buffers as it holds
 /// frames at once, instead of one per frame (a fresh 24-Mpixel frame costs ~70 000 page faults,
 /// each zeroing a page, and its release as much again). Holds at most `max` buffers; the
@@ -692,33 +716,51 @@ impl Decoded {
         })
     }
 
-    /// Stages the (corrected) pixels for `dest` in `unit`, with the pass-through data of the
-    /// input. Writing a TIFF refuses an EXR input that has channels other than RGB(A), since a
-    /// TIFF cannot carry them.
-    pub fn write(self, dest: &Path, opts: &WriteOptions, unit: &mut Unit) -> Result<(), IoError> {
-        self.write_returning(dest, opts, unit).0
-    }
-
-    /// [`write`](Self::write), then gives the frame's buffer to `pool` (whether or not the
-    /// write succeeded) for a later [`read_pooled`](Self::read_pooled).
-    pub fn write_recycling(
+    /// Encodes the (corrected) pixels into `w`, with the pass-through data of the input, in
+    /// `opts.format`; `dest` names the output in errors. Writing a TIFF refuses an EXR input
+    /// that has channels other than RGB(A), since a TIFF cannot carry them. Where `w` leads is the
+    /// caller's: a file it created, a temporary it commits later, a buffer.
+    ///
+    /// ```
+    /// # fn main() -> Result<(), Box<dyn std::error::Error>> {
+    /// use nsrm::io::{Decoded, FileFormat, WriteOptions};
+    /// let data = vec![0.2, 0.3, 0.4, 0.5, 0.6, 0.7];
+    /// let frame = nsrm::Frame::from_data(2, 1, nsrm::Layout::Rgb, data).ok_or("size")?;
+    /// let mut bytes = std::io::Cursor::new(Vec::new());
+    /// let opts = WriteOptions { format: FileFormat::Tiff, ..WriteOptions::default() };
+    /// Decoded::from(frame).write_to(std::path::Path::new("out.tif"), &opts, &mut bytes)?;
+    /// assert!(bytes.into_inner().starts_with(b"II*\0"));
+    /// # Ok(()) }
+    /// ```
+    pub fn write_to(
         self,
         dest: &Path,
         opts: &WriteOptions,
-        unit: &mut Unit,
+        w: &mut dyn WriteSeek,
+    ) -> Result<(), IoError> {
+        self.write_returning(dest, opts, w).0
+    }
+
+    /// [`write_to`](Self::write_to), then gives the frame's buffer to `pool` (whether or not
+    /// the write succeeded) for a later [`read_pooled`](Self::read_pooled).
+    pub fn write_to_recycling(
+        self,
+        dest: &Path,
+        opts: &WriteOptions,
+        w: &mut dyn WriteSeek,
         pool: &FramePool,
     ) -> Result<(), IoError> {
-        let (r, buffer) = self.write_returning(dest, opts, unit);
+        let (r, buffer) = self.write_returning(dest, opts, w);
         pool.give(buffer);
         r
     }
 
-    /// [`write`](Self::write), and the frame's sample buffer.
+    /// [`write_to`](Self::write_to), and the frame's sample buffer.
     fn write_returning(
         self,
         dest: &Path,
         opts: &WriteOptions,
-        unit: &mut Unit,
+        w: &mut dyn WriteSeek,
     ) -> (Result<(), IoError>, Vec<f32>) {
         let Decoded {
             path,
@@ -727,7 +769,7 @@ impl Decoded {
             container,
             ..
         } = self;
-        let r = Decoded::write_parts(&path, &frame, &levels, container, dest, opts, unit);
+        let r = Decoded::write_parts(&path, &frame, &levels, container, dest, opts, w);
         (r, frame.data)
     }
 
@@ -738,17 +780,16 @@ impl Decoded {
         container: Container,
         dest: &Path,
         opts: &WriteOptions,
-        unit: &mut Unit,
+        w: &mut dyn WriteSeek,
     ) -> Result<(), IoError> {
-        unit.check_clobber(dest)?;
         match (opts.format, container) {
-            (FileFormat::Exr, Container::Exr(c)) => c.write(frame, levels, dest, opts, unit),
+            (FileFormat::Exr, Container::Exr(c)) => c.write(frame, levels, dest, opts, w),
             (FileFormat::Exr, Container::Tiff(c)) => openexr::write_new(
                 frame,
                 c.alpha.as_deref(),
                 dest,
                 &openexr::NewExr::output(opts),
-                unit,
+                w,
             ),
             (FileFormat::Tiff, Container::Exr(c)) => {
                 let extra = c.extra_channels();
@@ -763,10 +804,10 @@ impl Decoded {
                     });
                 }
                 let alpha = c.alpha_f32();
-                tif::write(frame, alpha.as_deref(), dest, unit)
+                tif::write(frame, alpha.as_deref(), dest, w)
             }
             (FileFormat::Tiff, Container::Tiff(c)) => {
-                tif::write(frame, c.alpha.as_deref(), dest, unit)
+                tif::write(frame, c.alpha.as_deref(), dest, w)
             }
             (FileFormat::Exr, Container::Raw(c)) => openexr::write_new(
                 frame,
@@ -776,9 +817,9 @@ impl Decoded {
                     camera: Some(&c),
                     ..openexr::NewExr::output(opts)
                 },
-                unit,
+                w,
             ),
-            (FileFormat::Tiff, Container::Raw(_)) => tif::write(frame, None, dest, unit),
+            (FileFormat::Tiff, Container::Raw(_)) => tif::write(frame, None, dest, w),
         }
     }
 }
@@ -805,17 +846,16 @@ impl From<Frame> for Decoded {
 
 /// Writes a frame of camera RGB (no colour space attribute): a 32-bit float TIFF when `dest`
 /// ends in `.tif`/`.tiff`, else a float EXR carrying the `text` attributes (name, value) in its
-/// header; staged in `unit`.
+/// header; encoded into `w`.
 #[cfg(feature = "chart")]
 pub(crate) fn write_camera_float(
     frame: &Frame,
     dest: &Path,
     text: &[(&str, &str)],
-    unit: &mut Unit,
+    w: &mut dyn WriteSeek,
 ) -> Result<(), IoError> {
-    unit.check_clobber(dest)?;
     if FileFormat::from_extension(dest) == Some(FileFormat::Tiff) {
-        tif::write(frame, None, dest, unit)
+        tif::write(frame, None, dest, w)
     } else {
         openexr::write_new(
             frame,
@@ -829,7 +869,7 @@ pub(crate) fn write_camera_float(
                 text,
                 camera: None,
             },
-            unit,
+            w,
         )
     }
 }
@@ -940,34 +980,5 @@ pub fn header_size(path: &Path) -> Option<HeaderSize> {
 }
 
 #[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn frame_pool_reuses_and_stays_bounded() {
-        let pool = FramePool::new(2);
-        assert!(pool.take(10).is_none());
-        pool.give(vec![1.0; 10]);
-        pool.give(vec![2.0; 20]);
-        pool.give(vec![3.0; 30]);
-        assert_eq!(pool.idle(), 2, "at most `max` idle buffers");
-        let v = pool.take(15).expect("the 20-sample buffer fits");
-        assert_eq!(v.len(), 15);
-        assert_eq!(pool.idle(), 1);
-        // Nothing fits: one idle buffer is released instead.
-        assert!(pool.take(100).is_none());
-        assert_eq!(pool.idle(), 0);
-        pool.give(Vec::new());
-        assert_eq!(pool.idle(), 0, "empty buffers are not kept");
-    }
-
-    #[test]
-    fn format_names() {
-        assert_eq!(FileFormat::parse("TIFF"), Some(FileFormat::Tiff));
-        assert_eq!(
-            FileFormat::from_extension(Path::new("a/b.EXR")),
-            Some(FileFormat::Exr)
-        );
-        assert_eq!(FileFormat::from_extension(Path::new("a/b.png")), None);
-    }
-}
+#[path = "mod_tests.rs"]
+mod tests;

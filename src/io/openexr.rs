@@ -13,10 +13,10 @@ mod piz;
 
 use crate::error::{Concern, Param};
 
+use super::WriteSeek;
 use super::{Container, Decoded, ExrCompression, FileFormat, IoError, ReadOptions, WriteOptions};
 use crate::colorimetry::spaces::OutputSpace;
 use crate::frame::{Frame, Layout};
-use crate::output::{Unit, WriteError};
 use ::exr::compression::Compression;
 use ::exr::image::{
     AnyChannel, AnyChannels, AnyImage, Blocks, Encoding, FlatSamples, Image, Layer, Levels,
@@ -177,10 +177,10 @@ impl ExrContainer {
         levels: &[Frame],
         dest: &Path,
         opts: &WriteOptions,
-        unit: &mut Unit,
+        w: &mut dyn WriteSeek,
     ) -> Result<(), IoError> {
         match self {
-            ExrContainer::Image(c) => (*c).write(frame, levels, dest, opts, unit),
+            ExrContainer::Image(c) => (*c).write(frame, levels, dest, opts, w),
             ExrContainer::Chunked(c) => {
                 if !levels.is_empty() {
                     return Err(IoError::Encode {
@@ -192,16 +192,14 @@ impl ExrContainer {
                     });
                 }
                 let compression = chosen(opts.compression, c.header.compression);
-                unit.write_with(dest, |w| {
-                    c.write(frame, w, compression, opts.half, opts.zip_level, |h| {
-                        set_header_colour(
-                            &mut h.shared_attributes,
-                            &mut h.own_attributes,
-                            Some(opts.space),
-                        )
-                    })
-                    .map_err(|e| encode_err(dest, e))
+                c.write(frame, w, compression, opts.half, opts.zip_level, |h| {
+                    set_header_colour(
+                        &mut h.shared_attributes,
+                        &mut h.own_attributes,
+                        Some(opts.space),
+                    )
                 })
+                .map_err(|e| encode_err(dest, e))
             }
         }
     }
@@ -209,10 +207,10 @@ impl ExrContainer {
 
 fn encode_err(dest: &Path, e: ::exr::error::Error) -> IoError {
     match e {
-        ::exr::error::Error::Io(err) => IoError::Write(WriteError::Io {
+        ::exr::error::Error::Io(err) => IoError::Write {
             path: dest.to_path_buf(),
             err,
-        }),
+        },
         other => IoError::Encode {
             path: dest.to_path_buf(),
             why: other.to_string(),
@@ -449,7 +447,7 @@ impl ImageContainer {
         levels: &[Frame],
         dest: &Path,
         opts: &WriteOptions,
-        unit: &mut Unit,
+        w: &mut dyn WriteSeek,
     ) -> Result<(), IoError> {
         let ImageContainer {
             mut image,
@@ -480,7 +478,7 @@ impl ImageContainer {
             l.encoding.compression = chosen(opts.compression, l.encoding.compression);
         }
         set_colour_attributes(&mut image, layer, Some(opts.space));
-        write_image(&image, dest, unit)
+        write_image(&image, dest, w)
     }
 }
 
@@ -586,7 +584,7 @@ pub(super) fn write_new(
     alpha: Option<&[f32]>,
     dest: &Path,
     how: &NewExr<'_>,
-    unit: &mut Unit,
+    w: &mut dyn WriteSeek,
 ) -> Result<(), IoError> {
     let split;
     let (rgb, alpha) = match rgb.layout {
@@ -638,11 +636,9 @@ pub(super) fn write_new(
     };
     let alpha_at = alpha.and(at("A"));
     let chunked = chunks::Chunked::new(header, [r, g, b], alpha_at, rest);
-    unit.write_with(dest, |w| {
-        chunked
-            .write(rgb, w, compression, how.half, how.zip_level, |_| {})
-            .map_err(|e| encode_err(dest, e))
-    })
+    chunked
+        .write(rgb, w, compression, how.half, how.zip_level, |_| {})
+        .map_err(|e| encode_err(dest, e))
 }
 
 /// The header the `exr` crate's writer makes for a single-part scanline image of `rgb`'s size
@@ -710,20 +706,18 @@ fn new_header(
     Ok(headers.remove(0))
 }
 
-/// Writes `image` to a temporary file beside `dest`, then moves it into place.
-fn write_image(image: &AnyImage, dest: &Path, unit: &mut Unit) -> Result<(), IoError> {
-    unit.write_with(dest, |w| {
-        // Attributes sorted by name: the same image gives the same bytes (canonical.rs).
-        let mut sorted = canonical::SortedHeader::new(w);
-        image
-            .write()
-            .to_buffered(&mut sorted)
-            .map_err(|e| encode_err(dest, e))?;
-        sorted
-            .finish()
-            .map(|_| ())
-            .map_err(|e| encode_err(dest, e.into()))
-    })
+/// Encodes `image` into `w` (`dest` names it in errors).
+fn write_image(image: &AnyImage, dest: &Path, w: &mut dyn WriteSeek) -> Result<(), IoError> {
+    // Attributes sorted by name: the same image gives the same bytes (canonical.rs).
+    let mut sorted = canonical::SortedHeader::new(w);
+    image
+        .write()
+        .to_buffered(&mut sorted)
+        .map_err(|e| encode_err(dest, e))?;
+    sorted
+        .finish()
+        .map(|_| ())
+        .map_err(|e| encode_err(dest, e.into()))
 }
 
 /// OpenEXR's standard attributes for what a raw file says (`cameraMake`, `cameraModel`,

@@ -1,8 +1,8 @@
 //! TIFF in (16-bit unsigned, 16/32/64-bit float; RGB or RGBA; linear) and out (32-bit float).
 
+use super::WriteSeek;
 use super::{Container, Decoded, FileFormat, IoError};
 use crate::frame::{Frame, Layout};
-use crate::output::{Unit, WriteError};
 use std::io::BufReader;
 use std::path::Path;
 use tiff::decoder::{Decoder, DecodingResult, Limits};
@@ -452,14 +452,13 @@ fn split_alpha(
     Ok((rgb, alpha))
 }
 
-/// Writes a 32-bit float RGB or RGBA TIFF (deflate), staged in `unit`.
+/// Encodes a 32-bit float RGB or RGBA TIFF (deflate) into `out` (`dest` names it in errors).
 pub(super) fn write(
     rgb: &Frame,
     alpha: Option<&[f32]>,
     dest: &Path,
-    unit: &mut Unit,
+    out: &mut dyn WriteSeek,
 ) -> Result<(), IoError> {
-    unit.check_clobber(dest)?;
     let encode_err = |why: String| IoError::Encode {
         path: dest.to_path_buf(),
         why,
@@ -470,11 +469,9 @@ pub(super) fn write(
             rgb.width, rgb.height
         )));
     };
-    let io_err = |err: std::io::Error| {
-        IoError::Write(WriteError::Io {
-            path: dest.to_path_buf(),
-            err,
-        })
+    let io_err = |err: std::io::Error| IoError::Write {
+        path: dest.to_path_buf(),
+        err,
     };
     let tiff_err = |e: tiff::TiffError| match e {
         tiff::TiffError::IoError(err) => io_err(err),
@@ -488,26 +485,24 @@ pub(super) fn write(
             .flat_map(|p| [p[0], p[1], p[2]])
             .collect(),
     };
-    unit.write_with(dest, |out| {
-        let mut enc = TiffEncoder::new(out)
-            .map_err(tiff_err)?
-            .with_compression(Compression::Deflate(DeflateLevel::Balanced));
-        match alpha {
-            None => enc
-                .write_image::<colortype::RGB32Float>(w, h, &rgb_data)
-                .map_err(tiff_err)?,
-            Some(a) => {
-                let mut data = Vec::with_capacity(a.len() * 4);
-                for (px, a) in rgb_data.chunks_exact(3).zip(a) {
-                    data.extend_from_slice(px);
-                    data.push(*a);
-                }
-                enc.write_image::<colortype::RGBA32Float>(w, h, &data)
-                    .map_err(tiff_err)?
+    let mut enc = TiffEncoder::new(out)
+        .map_err(tiff_err)?
+        .with_compression(Compression::Deflate(DeflateLevel::Balanced));
+    match alpha {
+        None => enc
+            .write_image::<colortype::RGB32Float>(w, h, &rgb_data)
+            .map_err(tiff_err)?,
+        Some(a) => {
+            let mut data = Vec::with_capacity(a.len() * 4);
+            for (px, a) in rgb_data.chunks_exact(3).zip(a) {
+                data.extend_from_slice(px);
+                data.push(*a);
             }
+            enc.write_image::<colortype::RGBA32Float>(w, h, &data)
+                .map_err(tiff_err)?
         }
-        Ok(())
-    })
+    }
+    Ok(())
 }
 
 #[cfg(test)]

@@ -282,7 +282,7 @@ fn crate_path_parser_reads_the_forms_used() {
         room_of(Path::new("io/openexr/chunks.rs")).as_deref(),
         Some("io")
     );
-    assert_eq!(room_of(Path::new("output.rs")).as_deref(), Some("output"));
+    assert_eq!(room_of(Path::new("limits.rs")).as_deref(), Some("limits"));
 }
 
 /// `text` with comments, string / raw string / byte string literals and character literals
@@ -375,8 +375,9 @@ fn blank_comments_and_literals(text: &str) -> String {
 /// options, events, outcomes, errors and timing, the `Correct` trait and `ModelCorrector` with
 /// its `cpu` and `gpu` constructors, and their re-export. 449: `Reference::builtin_names`, the
 /// charts' references for the studio's choice and `--chart auto`.)
-const PUBLIC_BUDGETS: [(&str, usize); 3] = [
+const PUBLIC_BUDGETS: [(&str, usize); 4] = [
     ("src", 449),
+    ("crates/nsrm-output/src", 22),
     ("crates/nsrm-cli/src", 1),
     ("crates/nsrm-py/src", 0),
 ];
@@ -459,7 +460,7 @@ fn the_library_keeps_no_process_wide_mutable_state() {
 #[test]
 fn long_files_say_why_they_are_one_file() {
     let mut long = Vec::new();
-    for dir in ["src", "crates/nsrm-cli/src"] {
+    for dir in ["src", "crates/nsrm-output/src", "crates/nsrm-cli/src"] {
         let mut files = Vec::new();
         rust_files(&Path::new(ROOT).join(dir), &mut files);
         for f in files {

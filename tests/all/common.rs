@@ -221,25 +221,48 @@ pub fn read_frame(path: &Path, opts: &nsrm::io::ReadOptions) -> Result<Frame, ns
     nsrm::io::Decoded::read(path, opts).map(nsrm::io::Decoded::into_frame)
 }
 
+/// A decoded frame written as the `nsrm` command writes it: the library's encoder
+/// ([`nsrm::io::Decoded::write_to`]) into a temporary staged in an output session's unit.
+pub trait WriteStaged {
+    /// Stages the frame for `dest` in `unit`.
+    fn write(
+        self,
+        dest: &Path,
+        opts: &nsrm::io::WriteOptions,
+        unit: &mut nsrm_output::Unit,
+    ) -> Result<(), nsrm::io::IoError>;
+}
+
+impl WriteStaged for nsrm::io::Decoded {
+    fn write(
+        self,
+        dest: &Path,
+        opts: &nsrm::io::WriteOptions,
+        unit: &mut nsrm_output::Unit,
+    ) -> Result<(), nsrm::io::IoError> {
+        unit.write_with(dest, |w| self.write_to(dest, opts, w))
+    }
+}
+
 /// Stages a new EXR holding `frame` in `unit` (a frame made in memory, written by `Decoded`).
 pub fn write_exr(
     frame: &Frame,
     dest: &Path,
     opts: &nsrm::io::WriteOptions,
-    unit: &mut nsrm::output::Unit,
+    unit: &mut nsrm_output::Unit,
 ) -> Result<(), nsrm::io::IoError> {
     let opts = nsrm::io::WriteOptions {
         format: nsrm::io::FileFormat::Exr,
         ..*opts
     };
-    nsrm::io::Decoded::from(frame.clone()).write(dest, &opts, unit)
+    WriteStaged::write(nsrm::io::Decoded::from(frame.clone()), dest, &opts, unit)
 }
 
 /// Stages a 32-bit float TIFF holding `frame` in `unit`.
 pub fn write_tiff(
     frame: &Frame,
     dest: &Path,
-    unit: &mut nsrm::output::Unit,
+    unit: &mut nsrm_output::Unit,
 ) -> Result<(), nsrm::io::IoError> {
     let opts = nsrm::io::WriteOptions {
         format: nsrm::io::FileFormat::Tiff,
@@ -248,16 +271,16 @@ pub fn write_tiff(
         space: nsrm::OutputSpace::Xyz,
         ..Default::default()
     };
-    nsrm::io::Decoded::from(frame.clone()).write(dest, &opts, unit)
+    WriteStaged::write(nsrm::io::Decoded::from(frame.clone()), dest, &opts, unit)
 }
 
 /// Runs library writers on one unit of a fresh output session (replacing existing files when
 /// `overwrite`) and commits it.
-pub fn committed<E: From<nsrm::output::WriteError>>(
+pub fn committed<E: From<nsrm_output::WriteError>>(
     overwrite: bool,
-    write: impl FnOnce(&mut nsrm::output::Unit) -> Result<(), E>,
+    write: impl FnOnce(&mut nsrm_output::Unit) -> Result<(), E>,
 ) -> Result<(), E> {
-    let session = nsrm::output::Session::new(overwrite);
+    let session = nsrm_output::Session::new(overwrite);
     let mut unit = session.unit();
     write(&mut unit)?;
     unit.commit()?;

@@ -2,7 +2,7 @@
 //! `ocioconvert` and compared with `nsrm apply` on the same frame (LRM to 1e-5 relative; LUT
 //! exports within the ΔE00 the export reports); `ociocheck` validates the exported config. Each
 //! LUT file the binary writes is the one the library writes for the same model
-//! (`export::export_to`), byte for byte: that file is judged against nsrm's evaluator of the
+//! (`export::render`), byte for byte: that file is judged against nsrm's evaluator of the
 //! written nodes through `ocioconvert` beside the evaluator (`src/export/ocio_tests.rs`).
 //!
 //! Needs `ocioconvert` and `ociocheck` (Debian: `apt-get install opencolorio-tools`; `.ci/run`
@@ -13,7 +13,7 @@ use crate::common;
 
 use crate::common::{read_frame, write_exr};
 use nsrm::delta_e00_xyz;
-use nsrm::export::{export_to, Format, LutOptions};
+use nsrm::export::{render, Format, LutOptions};
 use nsrm::io::{ExrCompression, FileFormat, ReadOptions, WriteOptions};
 use nsrm::OutputSpace;
 use nsrm::{fit, Kind};
@@ -273,7 +273,7 @@ fn lrm_clf_is_reproduced_by_ocio_to_1e5() {
 }
 
 /// OCIO applies each LUT export within the error `nsrm export` reported; the file is the
-/// library's (`export::export_to`) byte for byte, which `src/export/ocio_tests.rs` judges
+/// library's (`export::render`) byte for byte, which `src/export/ocio_tests.rs` judges
 /// against nsrm's own evaluator of the written nodes through OCIO (whether the declared
 /// interpolation is the one OCIO uses).
 #[test]
@@ -292,13 +292,11 @@ fn lut_exports_are_reproduced_by_ocio_within_the_reported_error() {
         // The library's export of the same model, from the same training patches (the binary
         // re-simulates them from the model's provenance).
         let library = c.dir.path().join(format!("library_{file}"));
-        crate::common::committed(false, |u| {
-            export_to(&model, format, space, opts, &c.data.rgb, None, &library, u).map(|_| ())
-        })
-        .unwrap();
+        let r = render(&model, format, space, opts, &c.data.rgb, None, &library).unwrap();
+        std::fs::write(&library, &r.files[0].1).unwrap();
         assert!(
             std::fs::read(c.dir.path().join(&file)).unwrap() == std::fs::read(&library).unwrap(),
-            "{kind}{order} {}: `nsrm export` wrote another file than `export::export_to`",
+            "{kind}{order} {}: `nsrm export` wrote another file than `export::render`",
             format.name()
         );
         let Some(ocio) = ocioconvert_lut(&c, &file, "ocio.exr") else {

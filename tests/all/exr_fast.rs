@@ -4,6 +4,7 @@
 //! with a printed reason only outside `CI=true`).
 
 use crate::common;
+use crate::common::WriteStaged;
 use exr::compression::Compression;
 use exr::image::Levels;
 use exr::image::{AnyChannel, AnyChannels, AnyImage, Blocks, Encoding, FlatSamples, Image, Layer};

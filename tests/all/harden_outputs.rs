@@ -127,7 +127,7 @@ fn only_regular_files_are_ever_replaced() {
         .is_fifo());
     assert!(d.join("b_xyz.exr").is_dir());
     // The library refuses as well, whoever calls it.
-    let e = nsrm::output::Session::new(true)
+    let e = nsrm_output::Session::new(true)
         .unit()
         .write_bytes(&d.join("a_xyz.exr"), b"x")
         .unwrap_err();

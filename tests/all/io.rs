@@ -3,7 +3,7 @@
 
 use crate::common;
 
-use crate::common::read_frame;
+use crate::common::{read_frame, WriteStaged};
 use exr::compression::Compression;
 use exr::image::{
     AnyChannel, AnyChannels, AnyImage, Blocks, Encoding, FlatSamples, Image, Layer, Levels,

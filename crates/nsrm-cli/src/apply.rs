@@ -22,11 +22,11 @@ use nsrm::io::batch::{ModelCorrector, Timing};
 use nsrm::io::{
     self as fio, Decoded, ExrCompression, FileFormat, Limits, ReadOptions, WriteOptions,
 };
-use nsrm::output::Session;
 use nsrm::Model;
 use nsrm::OutputSpace;
 use nsrm::{FastModel, Threads};
 use nsrm::{FrameHighlights, Highlights};
+use nsrm_output::Session;
 use std::io::IsTerminal;
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
@@ -311,7 +311,7 @@ use super::outputs::STOP_SIGNALS;
 /// Set by SIGINT, SIGTERM or SIGHUP (to the signal's number; the executor's stop flag with
 /// it): no new file is started, frames being decoded or corrected are dropped, a frame being
 /// written is aborted at its next buffer write (its temporary removed, nothing committed:
-/// [`nsrm::output::AbortHandle::flag`]), this run's temporaries are removed, the summary is
+/// [`nsrm_output::AbortHandle::flag`]), this run's temporaries are removed, the summary is
 /// printed and the exit status is 128 + the signal. Outputs committed before the signal stay. A
 /// second signal ends the process at once.
 #[derive(Clone)]
@@ -473,7 +473,7 @@ pub(crate) fn run(a: Args) -> Result<ExitCode> {
         let todo = plan.to_convert().len();
         log_device(todo, &corrector_name);
         let opts = ExecOptions {
-            session: &session,
+            sink: &session,
             highlights: frame_highlights(&a, &model, &parts),
             read: read_options(&a),
             write: write_options(&a, &req),
@@ -755,13 +755,14 @@ fn naming(input: &Path, why: &str) -> String {
 /// Reports nsrm temporaries found in the output directories (a killed run's), or removes them
 /// when asked.
 fn report_stale(plan: &BatchPlan, remove: bool) {
-    let n = plan.stale_temporaries.len();
+    let stale = super::outputs::stale_temporaries(plan);
+    let n = stale.len();
     if n == 0 {
         return;
     }
     if remove {
         let mut removed = 0;
-        for p in &plan.stale_temporaries {
+        for p in &stale {
             match std::fs::remove_file(p) {
                 Ok(()) => removed += 1,
                 Err(e) => eprintln!("nsrm apply: cannot remove {}: {e}", p.display()),
@@ -777,7 +778,7 @@ fn report_stale(plan: &BatchPlan, remove: bool) {
          that was killed or being written by another one now; kept (remove them with \
          --remove-stale-temporaries once no other nsrm writes there):"
     );
-    for p in plan.stale_temporaries.iter().take(10) {
+    for p in stale.iter().take(10) {
         eprintln!("  {}", p.display());
     }
     if n > 10 {

@@ -16,7 +16,7 @@ fn plan(actions: Vec<(Action, bool)>) -> BatchPlan {
             .collect(),
         total_inputs: 2,
         shard: None,
-        stale_temporaries: Vec::new(),
+        dirs: Vec::new(),
     }
 }
 

@@ -276,7 +276,7 @@ fn export_one(
     data: &TrainingSet,
     cap: &Capture,
     dir: &Path,
-    unit: &mut nsrm::output::Unit,
+    unit: &mut nsrm_output::Unit,
 ) -> Result<String> {
     use nsrm::export::Format;
     let out = dir.join(export_name(f));
@@ -296,16 +296,10 @@ fn export_one(
                 rgb: data.rgb.clone(),
                 white_rgb: None,
             };
-            let w = nsrm::export::dcp::export_to(
-                &profile,
-                &[t],
-                Default::default(),
-                stops,
-                None,
-                &out,
-                unit,
-            )
-            .with_context(ctx)?;
+            let (bytes, w) =
+                nsrm::export::dcp::render(&profile, &[t], Default::default(), stops, None)
+                    .with_context(ctx)?;
+            unit.write_bytes(&out, &bytes)?;
             format!(
                 "{} ({}): {}",
                 out.display(),
@@ -314,15 +308,9 @@ fn export_one(
             )
         }
         Format::Icc => {
-            let w = nsrm::export::icc::export_to(
-                model,
-                Default::default(),
-                &data.rgb,
-                None,
-                &out,
-                unit,
-            )
-            .with_context(ctx)?;
+            let (bytes, w) = nsrm::export::icc::render(model, Default::default(), &data.rgb, None)
+                .with_context(ctx)?;
+            unit.write_bytes(&out, &bytes)?;
             format!("{}: {}", out.display(), w.report.summary())
         }
         _ => {
@@ -330,7 +318,7 @@ fn export_one(
                 stops,
                 ..Default::default()
             };
-            let w = nsrm::export::export_to(
+            let w = nsrm::export::render(
                 model,
                 f,
                 nsrm::OutputSpace::Xyz,
@@ -338,9 +326,11 @@ fn export_one(
                 &data.rgb,
                 None,
                 &out,
-                unit,
             )
             .with_context(ctx)?;
+            for (path, bytes) in &w.files {
+                unit.write_bytes(path, bytes)?;
+            }
             format!("{}: {}", out.display(), w.report.summary())
         }
     };

@@ -10,8 +10,8 @@ use nsrm::chart::extract::{ExtractOptions, Extraction};
 use nsrm::chart::reference::Reference;
 use nsrm::chart::{overlay, parse_corners, ChartKind};
 use nsrm::io::display::Encoding;
-use nsrm::output::{Session, Unit};
 use nsrm::Frame;
+use nsrm_output::{Session, Unit};
 use std::path::Path;
 use std::sync::Arc;
 

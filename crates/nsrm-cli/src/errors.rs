@@ -21,7 +21,7 @@ pub(crate) fn is_usage(err: &(dyn std::error::Error + 'static)) -> bool {
         nsrm::SpectralError,
         nsrm::TrainingError,
         nsrm::ModelError,
-        nsrm::output::WriteError,
+        nsrm_output::WriteError,
         nsrm::io::IoError,
         nsrm::io::batch::PlanError,
         crate::farmlib::FarmError,

@@ -108,7 +108,7 @@ fn describe(name: &str, opts: &FitOptions, r: EvalResult) -> VariantResult {
 
 /// The output session: every file read (the capture, the chart's files, the spectra or patches)
 /// and the plot written, resolved before any work.
-fn open_session(a: &Args) -> Result<nsrm::output::Session> {
+fn open_session(a: &Args) -> Result<nsrm_output::Session> {
     let mut inputs: Vec<&Path> = Vec::new();
     inputs.extend(a.capture.as_deref());
     inputs.extend(a.chart.input_files());
@@ -230,10 +230,11 @@ pub(crate) fn run(a: Args) -> Result<ExitCode> {
     }
     if let Some(p) = &a.plot {
         let title = format!("ΔE00 per patch: {}", plot_title(&a, protocol));
-        let mut unit = session.unit();
-        plot::histograms(&plotted(&results), Some(&title), p, &mut unit)
+        let bytes = plot::histograms(&plotted(&results), Some(&title), p)
+            .with_context(|| format!("drawing the plot {}", p.display()))?;
+        session
+            .write_bytes(p, &bytes)
             .with_context(|| format!("writing the plot {}", p.display()))?;
-        unit.commit()?;
         if !a.json {
             println!("\nplot written to {}", p.display());
         }

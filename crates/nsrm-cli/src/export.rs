@@ -3,7 +3,7 @@
 
 use super::common::UsageError;
 use anyhow::{Context, Result};
-use nsrm::export::{export_to, ExportError, Format, LutOptions};
+use nsrm::export::{render, ExportError, Format, LutOptions};
 use nsrm::Model;
 use nsrm::TrainingSet;
 use std::path::PathBuf;
@@ -135,7 +135,7 @@ fn parse_map(s: &str) -> Result<nsrm::export::dcp::DcpOptions> {
 
 /// `--format dcp`: one or two illuminants, from the model file as it is.
 fn run_dcp(a: &Args, stops: [f64; 2]) -> Result<ExitCode> {
-    use nsrm::export::dcp::{export_to, DcpTraining};
+    use nsrm::export::dcp::{render, DcpTraining};
     use nsrm::Profile;
     let opts = parse_map(&a.dcp_map)?;
     let mut inputs = vec![a.model.as_path()];
@@ -157,10 +157,11 @@ fn run_dcp(a: &Args, stops: [f64; 2]) -> Result<ExitCode> {
         });
     }
     let mut unit = session.unit();
-    let w = match export_to(
-        &profile, &training, opts, stops, a.max_de00, &a.output, &mut unit,
-    ) {
-        Ok(w) => w,
+    let w = match render(&profile, &training, opts, stops, a.max_de00) {
+        Ok((bytes, w)) => {
+            unit.write_bytes(&a.output, &bytes)?;
+            w
+        }
         Err(e @ ExportError::TooInaccurate { limit, .. }) => {
             return Err(e).context(format!("--max-de00 {limit}"))
         }
@@ -208,7 +209,7 @@ fn run_dcp(a: &Args, stops: [f64; 2]) -> Result<ExitCode> {
 
 /// `--format icc`: one model, one illuminant.
 fn run_icc(a: &Args) -> Result<ExitCode> {
-    use nsrm::export::icc::{export_to, IccOptions};
+    use nsrm::export::icc::{render, IccOptions};
     let [lo, hi] = stops_or(a, [nsrm::export::icc::DEFAULT_LO, 0.0])?;
     if hi != 0.0 {
         return Err(UsageError(format!(
@@ -236,8 +237,11 @@ fn run_icc(a: &Args) -> Result<ExitCode> {
     let model = Model::load(&a.model)?;
     let data = training_set(a, &model)?;
     let mut unit = session.unit();
-    let w = match export_to(&model, opts, &data.rgb, a.max_de00, &a.output, &mut unit) {
-        Ok(w) => w,
+    let w = match render(&model, opts, &data.rgb, a.max_de00) {
+        Ok((bytes, w)) => {
+            unit.write_bytes(&a.output, &bytes)?;
+            w
+        }
         Err(e @ ExportError::TooInaccurate { limit, .. }) => {
             return Err(e).context(format!("--max-de00 {limit}"))
         }
@@ -321,10 +325,15 @@ pub(crate) fn run(a: Args) -> Result<ExitCode> {
     let model = Model::load(&a.model)?;
     let data = training_set(&a, &model)?;
     let mut unit = session.unit();
-    let written = match export_to(
-        &model, format, space, options, &data.rgb, a.max_de00, &a.output, &mut unit,
+    let written = match render(
+        &model, format, space, options, &data.rgb, a.max_de00, &a.output,
     ) {
-        Ok(w) => w,
+        Ok(r) => {
+            for (path, bytes) in &r.files {
+                unit.write_bytes(path, bytes)?;
+            }
+            r
+        }
         Err(e @ ExportError::TooInaccurate { limit, .. }) => {
             return Err(e).context(format!("--max-de00 {limit}"))
         }
@@ -349,7 +358,7 @@ pub(crate) fn run(a: Args) -> Result<ExitCode> {
         written
             .files
             .iter()
-            .map(|p| p.display().to_string())
+            .map(|(p, _)| p.display().to_string())
             .collect::<Vec<_>>()
             .join(", ")
     );

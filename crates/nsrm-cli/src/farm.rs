@@ -512,7 +512,7 @@ fn run_shard(r: RunArgs) -> Result<ExitCode> {
     let same_run = previous
         .as_ref()
         .is_some_and(|m| m.model.sha256 == model_sha && m.settings == settings);
-    let removed = remove_stale_temporaries(&plan);
+    let removed = remove_stale_temporaries(&plan, &super::outputs::stale_temporaries(&plan));
 
     // What is finished already.
     let read_opts = a.farm_read_options();
@@ -571,7 +571,7 @@ fn run_shard(r: RunArgs) -> Result<ExitCode> {
         },
     };
     let path = m
-        .write(&out_dir, &nsrm::output::Session::new(true))
+        .write(&out_dir, &nsrm_output::Session::new(true))
         .context("writing the shard manifest")?;
     eprintln!("{}", shard_summary(shard, &m, &path));
     if !m.failures.is_empty() && status == ExitCode::SUCCESS {
@@ -637,7 +637,7 @@ fn shard_apply_args(r: &RunArgs) -> Result<apply::Args> {
 
 /// Removes the stale temporaries (a killed run's) of this shard's own outputs and previews
 /// (none of another shard's); their names.
-fn remove_stale_temporaries(plan: &batch::BatchPlan) -> Vec<String> {
+fn remove_stale_temporaries(plan: &batch::BatchPlan, stale: &[PathBuf]) -> Vec<String> {
     let mine: Vec<String> = plan
         .jobs
         .iter()
@@ -646,7 +646,7 @@ fn remove_stale_temporaries(plan: &batch::BatchPlan) -> Vec<String> {
         .filter_map(|p| p.file_name().map(|n| format!(".{}.", n.to_string_lossy())))
         .collect();
     let mut removed = Vec::new();
-    for t in &plan.stale_temporaries {
+    for t in stale {
         let name = t.file_name().map(|n| n.to_string_lossy().into_owned());
         if let Some(name) = name.filter(|n| mine.iter().any(|m| n.starts_with(m.as_str()))) {
             match std::fs::remove_file(t) {

@@ -68,9 +68,13 @@ fn stale_temporaries_of_other_shards_are_left_alone() {
         jobs: vec![job(&dir, "a")],
         total_inputs: 2,
         shard: None,
-        stale_temporaries: vec![mine.clone(), theirs.clone()],
+        dirs: vec![dir.clone()],
     };
-    assert_eq!(remove_stale_temporaries(&plan), [".a.exr.nsrm-tmp-1"]);
+    let stale = [mine.clone(), theirs.clone()];
+    assert_eq!(
+        remove_stale_temporaries(&plan, &stale),
+        [".a.exr.nsrm-tmp-1"]
+    );
     assert!(!mine.exists() && theirs.exists());
     std::fs::remove_dir_all(&dir).unwrap();
 }

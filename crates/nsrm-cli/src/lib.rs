@@ -206,8 +206,8 @@ pub fn main() -> ExitCode {
             }
             if e.chain().any(|c| {
                 matches!(
-                    c.downcast_ref::<nsrm::output::WriteError>(),
-                    Some(nsrm::output::WriteError::Exists(_))
+                    c.downcast_ref::<nsrm_output::WriteError>(),
+                    Some(nsrm_output::WriteError::Exists(_))
                 )
             }) {
                 eprintln!("\n  hint: pass --overwrite to replace it");

@@ -1,17 +1,28 @@
-//! The binary's side of the output session ([`nsrm::output`]): every command opens one with its
-//! inputs and outputs before any work, and a signal handler that aborts it.
+//! The binary's side of the output session ([`nsrm_output`]): every command opens one with its
+//! inputs and outputs before any work, and a signal handler that aborts it. The library's
+//! encoders write into the session's staged temporaries (`unit.write_with(dest, |w|
+//! frame.write_to(dest, opts, w))`) or hand it bytes (the exports' `render`).
 //!
 //! ```text
 //! let session = outputs::open(a.overwrite, &[&a.model], &[&a.output])?;   // exit 2 on a collision
 //! … work …
 //! let mut unit = session.unit();
-//! unit.write_bytes(&a.output, text.as_bytes())?;  // or a library writer taking `&mut unit`
+//! unit.write_bytes(&a.output, text.as_bytes())?;  // or `unit.write_with(dest, encoder)`
 //! unit.commit()?;                                 // all outputs together, or none
 //! ```
 
 use anyhow::{Context, Result};
-use nsrm::output::Session;
-use std::path::Path;
+use nsrm_output::Session;
+use std::path::{Path, PathBuf};
+
+/// The session's temporaries found in a batch's output directories (left by a killed run, or
+/// being written by another one now), sorted.
+pub(crate) fn stale_temporaries(plan: &nsrm::io::batch::BatchPlan) -> Vec<PathBuf> {
+    plan.dirs
+        .iter()
+        .flat_map(|d| nsrm_output::stale_temporaries(d))
+        .collect()
+}
 
 /// The signals that abort a run, with their names.
 pub(crate) const STOP_SIGNALS: [(i32, &str); 3] = [

@@ -65,8 +65,12 @@ pub(crate) fn run(a: Args) -> Result<ExitCode> {
     )?;
     let data = a.training.load(&a.illuminant)?;
     let (frame, layout) = synthetic::render(&data, &opts).context("rendering the chart")?;
+    let json = synthetic::layout_json(&layout)?;
     let mut unit = session.unit();
-    synthetic::write(&frame, &layout, &a.output, &mut unit)?;
+    unit.write_bytes(&layout_file, json.as_bytes())?;
+    unit.write_with(&a.output, |w| {
+        synthetic::write(&frame, &layout, &a.output, w)
+    })?;
     unit.commit()?;
     eprintln!(
         "{} patches ({} columns, {} px) rendered to {} ({}×{}); layout in {}",

@@ -173,11 +173,15 @@ pub(crate) fn run(a: Args) -> Result<ExitCode> {
         }
     );
     let mut unit = session.unit();
-    nsrm::chart::synthetic::write_camera_frame(&frame, &a.output, &note, &mut unit)
-        .with_context(|| format!("writing {}", a.output.display()))?;
+    unit.write_with(&a.output, |w| {
+        nsrm::chart::synthetic::write_camera_frame(&frame, &a.output, &note, w)
+    })
+    .with_context(|| format!("writing {}", a.output.display()))?;
     if let Some(f) = &a.flat_output {
-        nsrm::chart::synthetic::write_camera_frame(&flat, f, "nsrm scene: flat frame", &mut unit)
-            .with_context(|| format!("writing {}", f.display()))?;
+        unit.write_with(f, |w| {
+            nsrm::chart::synthetic::write_camera_frame(&flat, f, "nsrm scene: flat frame", w)
+        })
+        .with_context(|| format!("writing {}", f.display()))?;
     }
     unit.write_bytes(&tpath, json.as_bytes())?;
     unit.commit()?;

@@ -6,8 +6,8 @@ use crate::model::{PyModel, Training};
 use nsrm::export::nodes::Interpolation;
 use nsrm::export::shader::ShaderLang;
 use nsrm::export::{ExportError, Format, LutOptions};
-use nsrm::output::Session;
 use nsrm::{Model, OutputSpace, Profile, TrainingSet};
+use nsrm_output::Session;
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 use std::path::PathBuf;
@@ -110,8 +110,14 @@ pub(crate) fn export<'py>(
     let m = model.inner.clone();
     let session = Session::new(overwrite);
     let mut unit = session.unit();
+    let write_err = |e: nsrm_output::WriteError| {
+        let usage = e.is_usage();
+        errors::lib(e, usage)
+    };
+    // Refused before the (slower) build when the file exists and may not be replaced.
+    unit.check_clobber(&path).map_err(write_err)?;
     let d = PyDict::new(py);
-    let (files, report) = match fmt {
+    let (files, report): (Vec<(PathBuf, Vec<u8>)>, _) = match fmt {
         Format::Icc => {
             let opts = nsrm::export::icc::IccOptions {
                 size: lut_size,
@@ -119,12 +125,10 @@ pub(crate) fn export<'py>(
             };
             opts.check()
                 .map_err(|e| errors::input(format!("lut_size/stops: {e}")))?;
-            let w = py
-                .detach(|| {
-                    nsrm::export::icc::export_to(&m, opts, &t.rgb, max_de00, &path, &mut unit)
-                })
+            let (bytes, w) = py
+                .detach(|| nsrm::export::icc::render(&m, opts, &t.rgb, max_de00))
                 .map_err(export_err)?;
-            (vec![path.clone()], w.report)
+            (vec![(path.clone(), bytes)], w.report)
         }
         Format::Dcp => {
             let opts = nsrm::export::dcp::DcpOptions {
@@ -139,14 +143,10 @@ pub(crate) fn export<'py>(
                 white_rgb: t.white_rgb,
             }];
             let stops = stops_arg(stops, [-6.0, 4.0]);
-            let w = py
-                .detach(|| {
-                    nsrm::export::dcp::export_to(
-                        &profile, &training, opts, stops, max_de00, &path, &mut unit,
-                    )
-                })
+            let (bytes, w) = py
+                .detach(|| nsrm::export::dcp::render(&profile, &training, opts, stops, max_de00))
                 .map_err(export_err)?;
-            (vec![path.clone()], w.report)
+            (vec![(path.clone(), bytes)], w.report)
         }
         _ => {
             let space = OutputSpace::parse(output_space).ok_or_else(|| {
@@ -173,19 +173,16 @@ pub(crate) fn export<'py>(
                 .check()
                 .map_err(|e| errors::input(format!("lut_size/shaper_size/stops: {e}")))?;
             let w = py
-                .detach(|| {
-                    nsrm::export::export_to(
-                        &m, fmt, space, options, &t.rgb, max_de00, &path, &mut unit,
-                    )
-                })
+                .detach(|| nsrm::export::render(&m, fmt, space, options, &t.rgb, max_de00, &path))
                 .map_err(export_err)?;
             (w.files, w.report)
         }
     };
-    unit.commit().map_err(|e| {
-        let usage = e.is_usage();
-        errors::lib(e, usage)
-    })?;
+    for (p, bytes) in &files {
+        unit.write_bytes(p, bytes).map_err(write_err)?;
+    }
+    unit.commit().map_err(write_err)?;
+    let files: Vec<PathBuf> = files.into_iter().map(|(p, _)| p).collect();
     d.set_item("files", files)?;
     d.set_item("max_de00", report.max())?;
     d.set_item("summary", report.summary())?;

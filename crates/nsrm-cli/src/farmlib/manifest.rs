@@ -150,7 +150,7 @@ impl ShardManifest {
     pub(crate) fn write(
         &self,
         dir: &Path,
-        session: &nsrm::output::Session,
+        session: &nsrm_output::Session,
     ) -> Result<PathBuf, FarmError> {
         let path = self.path_in(dir);
         let mut json = serde_json::to_vec_pretty(self).map_err(|e| FarmError::Format {

@@ -39,7 +39,7 @@ pub(crate) enum FarmError {
     Usage(String),
     /// Writing the manifest failed.
     #[error(transparent)]
-    Write(#[from] nsrm::output::WriteError),
+    Write(#[from] nsrm_output::WriteError),
 }
 
 impl FarmError {

@@ -443,7 +443,7 @@ fn check_preview(dir: Option<&Root>, pv: &super::manifest::Preview) -> Result<()
 }
 
 fn with_temporaries(mut r: Report, dir: &Path) -> Report {
-    for t in nsrm::output::stale_temporaries(dir) {
+    for t in nsrm_output::stale_temporaries(dir) {
         r.problems.push(format!(
             "{}: an nsrm temporary is left (a task was killed; re-run its shard, which removes it)",
             t.display()

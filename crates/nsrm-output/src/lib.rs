@@ -1,12 +1,18 @@
-//! The output session: one value per command run that knows the run's inputs and outputs,
-//! checks them against each other before any work, stages every output in a temporary file,
-//! commits outputs that belong together as one unit, and cleans up after a signal. Every writer
-//! of the library takes a [`Unit`] of it; nothing here is process-wide.
+//! The output session of the `nsrm` command and the Python package: one value per run that
+//! knows the run's inputs and outputs, checks them against each other before any work, stages
+//! every output in a temporary file, commits outputs that belong together as one unit, and
+//! cleans up after a signal. Nothing here is process-wide.
+//!
+//! The corrector (`nsrm`) writes nowhere by itself: its encoders take any `Write + Seek`
+//! ([`nsrm::io::Decoded::write_to`]) or return bytes (the exports' `render`), and its batch
+//! executor hands each frame's files to a [`nsrm::io::batch::FrameSink`]. This crate is the file
+//! policy above it: [`Unit::write_with`] gives an encoder a staged temporary, and [`Session`]
+//! is a `FrameSink` whose frames commit as one unit each.
 //!
 //! # How a command uses it
 //!
 //! ```
-//! use nsrm::output::Session;
+//! use nsrm_output::Session;
 //! # fn main() -> Result<(), Box<dyn std::error::Error>> {
 //! # let dir = tempfile::tempdir()?;
 //! # let model = dir.path().join("m.json");
@@ -50,6 +56,10 @@
 //! * After [`AbortHandle::abort`] (a signal), every write in progress fails at its next buffer
 //!   write, no temporary is created and nothing is committed ([`WriteError::Aborted`]); a unit
 //!   being committed finishes or is rolled back first (the commit holds the session's lock).
+
+#![forbid(unsafe_code)]
+#![deny(unreachable_pub)]
+#![warn(missing_docs)]
 
 use std::collections::BTreeSet;
 use std::ffi::OsStr;
@@ -339,7 +349,7 @@ impl Session {
 
     /// Fails with [`WriteError::Exists`] if `dest` exists and the session does not overwrite,
     /// and with [`WriteError::NotRegular`] if it exists and is not a regular file.
-    pub(crate) fn check_clobber(&self, dest: &Path) -> Result<(), WriteError> {
+    pub fn check_clobber(&self, dest: &Path) -> Result<(), WriteError> {
         check_clobber(dest, self.overwrite)
     }
 
@@ -411,7 +421,6 @@ pub(crate) fn make_temp<R>(
 
 /// Whether a file name has the form of this crate's temporaries (`.NAME.nsrm-PID-RANDOM.tmp`,
 /// [`TEMP_RANDOM`] letters and digits).
-#[cfg(any(feature = "io", test))]
 pub(crate) fn is_temp_name(name: &OsStr) -> bool {
     let b = name.as_encoded_bytes();
     let Some(rest) = b.strip_suffix(TEMP_END.as_bytes()) else {
@@ -437,7 +446,6 @@ pub(crate) fn is_temp_name(name: &OsStr) -> bool {
 /// The temporaries of this crate's form in `dir` (not recursive), sorted. Left behind by a run
 /// that was killed (SIGKILL, power loss); a running `nsrm` elsewhere may also own some, so they
 /// are reported, never removed.
-#[cfg(any(feature = "io", test))]
 pub fn stale_temporaries(dir: &Path) -> Vec<PathBuf> {
     let mut found: Vec<PathBuf> = std::fs::read_dir(dir)
         .into_iter()
@@ -457,7 +465,7 @@ fn check_clobber(dest: &Path, overwrite: bool) -> Result<(), WriteError> {
     match std::fs::metadata(dest) {
         Ok(meta) if !meta.is_file() => Err(WriteError::NotRegular {
             path: dest.to_path_buf(),
-            what: crate::limits::file_kind(&meta),
+            what: nsrm::io::file_kind(&meta),
         }),
         Ok(_) if !overwrite => Err(WriteError::Exists(dest.to_path_buf())),
         Ok(_) => Ok(()),
@@ -472,7 +480,7 @@ fn check_clobber(dest: &Path, overwrite: bool) -> Result<(), WriteError> {
 /// The temporary file an encoder writes into: a [`File`] whose writes fail once the session is
 /// aborted, so an interrupted encoder stops at its next buffer write.
 #[derive(Debug)]
-pub(crate) struct OutFile {
+pub struct OutFile {
     file: File,
     abort: Arc<AtomicBool>,
 }
@@ -527,7 +535,7 @@ pub struct Unit {
 
 impl Unit {
     /// Fails if `dest` exists and may not be replaced (see [`Session::check_clobber`]).
-    pub(crate) fn check_clobber(&self, dest: &Path) -> Result<(), WriteError> {
+    pub fn check_clobber(&self, dest: &Path) -> Result<(), WriteError> {
         check_clobber(dest, self.overwrite)
     }
 
@@ -574,7 +582,7 @@ impl Unit {
     /// Writes `dest`'s temporary through an encoder: `write` fills a buffered writer on a fresh
     /// temporary beside `dest`, which is then flushed, synced and staged in this unit. On any
     /// error the temporary is removed and `dest` is untouched.
-    pub(crate) fn write_with<E: From<WriteError>>(
+    pub fn write_with<E: From<WriteError>>(
         &mut self,
         dest: &Path,
         write: impl FnOnce(&mut BufWriter<OutFile>) -> Result<(), E>,
@@ -733,233 +741,35 @@ fn place(tmp: &Path, dest: &Path, overwrite: bool) -> Result<(), WriteError> {
     })
 }
 
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    fn leftovers(dir: &Path) -> usize {
-        std::fs::read_dir(dir)
-            .unwrap()
-            .filter(|e| {
-                e.as_ref()
-                    .unwrap()
-                    .file_name()
-                    .to_string_lossy()
-                    .ends_with(".tmp")
-            })
-            .count()
-    }
-
-    #[test]
-    fn refuses_to_clobber_and_leaves_no_temp() {
-        let dir = tempfile::tempdir().unwrap();
-        let dir = dir.path();
-        let f = dir.join("a.json");
-        Session::new(false).write_bytes(&f, b"one").unwrap();
-        let e = Session::new(false).write_bytes(&f, b"two").unwrap_err();
-        assert!(matches!(e, WriteError::Exists(_)));
-        assert_eq!(std::fs::read(&f).unwrap(), b"one");
-        Session::new(true).write_bytes(&f, b"two").unwrap();
-        assert_eq!(std::fs::read(&f).unwrap(), b"two");
-        assert_eq!(leftovers(dir), 0);
-        let e = Session::new(false)
-            .write_bytes(&dir.join("no/such/dir/x"), b"x")
-            .unwrap_err();
-        assert!(e.to_string().contains("cannot write"));
-        // A directory is never replaced, even with overwrite.
-        std::fs::create_dir(dir.join("d")).unwrap();
-        let e = Session::new(true)
-            .write_bytes(&dir.join("d"), b"x")
-            .unwrap_err();
-        assert!(
-            e.to_string()
-                .contains("not a regular file (it is a directory)"),
-            "{e}"
-        );
-    }
-
-    #[test]
-    fn temp_names_are_unique_and_recognised() {
-        let dir = tempfile::tempdir().unwrap();
-        let dest = dir.path().join("x.exr");
-        let (_, a) = make_temp(&dest, |p| File::create_new(p)).unwrap();
-        let (_, b) = make_temp(&dest, |p| File::create_new(p)).unwrap();
-        assert_ne!(a, b);
-        assert!(a.exists() && b.exists());
-        assert!(is_temp_name(a.file_name().unwrap()), "{a:?}");
-        assert!(a.starts_with(dir.path()), "{a:?}");
-        assert!(
-            a.file_name()
-                .unwrap()
-                .to_string_lossy()
-                .starts_with(".x.exr.nsrm-"),
-            "{a:?}"
-        );
-        // A taken name is never opened: `make` sees AlreadyExists and another name is drawn.
-        let mut tries = 0;
-        let (_, c) = make_temp(&dest, |p| {
-            tries += 1;
-            if tries == 1 {
-                File::create_new(&a)
-            } else {
-                File::create_new(p)
-            }
-        })
-        .unwrap();
-        assert!(tries == 2 && c != a);
-        for bad in [
-            "x.tmp",
-            ".x.nsrm-1-abc.tmp",
-            ".x.nsrm--0123456789abcdef.tmp",
-            ".x.nsrm-1-0123456789abcde_.tmp",
-            ".nsrm-1-0123456789abcdef.tmp",
-        ] {
-            assert!(!is_temp_name(OsStr::new(bad)), "{bad}");
+/// An output's refusal or failure as the library's frame error, so an encoder written for the
+/// library (`Result<(), IoError>`) runs inside [`Unit::write_with`].
+impl From<WriteError> for nsrm::io::IoError {
+    fn from(e: WriteError) -> Self {
+        nsrm::io::IoError::Output {
+            usage: e.is_usage(),
+            err: Box::new(e),
         }
-        assert!(is_temp_name(OsStr::new(
-            ".x.exr.nsrm-1-0123456789abcdef.tmp"
-        )));
-    }
-
-    #[test]
-    fn a_dropped_unit_removes_only_its_own_temporary() {
-        let dir = tempfile::tempdir().unwrap();
-        let dest = dir.path().join("x.bin");
-        // Someone else's file that looks like a temporary is never touched.
-        let other = dir.path().join(".x.bin.nsrm-1-0123456789abcdef.tmp");
-        std::fs::write(&other, b"theirs").unwrap();
-        let session = Session::new(false);
-        let mut unit = session.unit();
-        unit.write_bytes(&dest, b"mine").unwrap();
-        assert_eq!(session.temporaries_held(), 1);
-        assert_eq!(stale_temporaries(dir.path()).len(), 2);
-        drop(unit);
-        assert_eq!(session.temporaries_held(), 0);
-        assert!(!dest.exists());
-        assert_eq!(std::fs::read(&other).unwrap(), b"theirs");
-        assert_eq!(stale_temporaries(dir.path()), vec![other]);
-    }
-
-    #[test]
-    fn a_failing_encoder_leaves_nothing_behind() {
-        // A write failure (disk full, an encoder error) half-way through: simulated by the
-        // encoder, since a full filesystem cannot be made in CI.
-        let dir = tempfile::tempdir().unwrap();
-        let dest = dir.path().join("x.exr");
-        let session = Session::new(false);
-        let mut unit = session.unit();
-        let r: Result<(), WriteError> = unit.write_with(&dest, |w| {
-            w.write_all(&[0u8; 100_000]).unwrap();
-            Err(WriteError::Io {
-                path: dest.clone(),
-                err: std::io::Error::new(std::io::ErrorKind::StorageFull, "no space left"),
-            })
-        });
-        assert!(r.unwrap_err().to_string().contains("no space left"));
-        assert!(unit.is_empty());
-        unit.commit().unwrap();
-        assert!(!dest.exists());
-        assert_eq!(leftovers(dir.path()), 0);
-    }
-
-    #[test]
-    fn a_unit_places_all_or_none_and_restores_what_it_replaced() {
-        let dir = tempfile::tempdir().unwrap();
-        let (a, c) = (dir.path().join("a"), dir.path().join("c"));
-        let session = Session::new(false);
-        let mut unit = session.unit();
-        unit.write_bytes(&a, b"1").unwrap();
-        unit.write_bytes(&c, b"2").unwrap();
-        // a appears before the commit: c is not placed either.
-        std::fs::write(&a, b"raced").unwrap();
-        assert!(matches!(unit.commit(), Err(WriteError::Exists(_))));
-        assert!(!c.exists());
-        assert_eq!(std::fs::read(&a).unwrap(), b"raced");
-        assert_eq!(leftovers(dir.path()), 0);
-        // With overwrite: the first is replaced, the second fails (a directory appeared), the
-        // first's old content comes back.
-        let session = Session::new(true);
-        let mut unit = session.unit();
-        unit.write_bytes(&a, b"new").unwrap();
-        unit.write_bytes(&c, b"2").unwrap();
-        std::fs::create_dir(&c).unwrap();
-        assert!(unit.commit().is_err());
-        assert_eq!(std::fs::read(&a).unwrap(), b"raced");
-        assert_eq!(leftovers(dir.path()), 0);
-        assert_eq!(session.temporaries_held(), 0);
-    }
-
-    #[test]
-    fn outputs_are_checked_against_inputs_and_each_other() {
-        let dir = tempfile::tempdir().unwrap();
-        let d = dir.path();
-        let input = d.join("in.exr");
-        std::fs::write(&input, b"x").unwrap();
-        std::fs::create_dir(d.join("sub")).unwrap();
-        std::fs::hard_link(&input, d.join("link.exr")).unwrap();
-        #[cfg(unix)]
-        std::os::unix::fs::symlink(&input, d.join("sym.exr")).unwrap();
-        let mut s = Session::new(true);
-        s.input(&input).unwrap();
-        for bad in [
-            input.clone(),
-            d.join("sub/../in.exr"),
-            d.join("link.exr"),
-            #[cfg(unix)]
-            d.join("sym.exr"),
-        ] {
-            let e = s.output(&bad).unwrap_err();
-            assert!(
-                matches!(e, WriteError::OutputIsInput { .. }),
-                "{bad:?}: {e}"
-            );
-            assert!(e.is_usage());
-        }
-        s.output(&d.join("new/deep/o.csv")).unwrap();
-        assert!(d.join("new/deep").is_dir());
-        {
-            // A session that commits nothing takes back the directories it made.
-            let mut t = Session::new(false);
-            t.output(&d.join("gone/too/x")).unwrap();
-            assert!(d.join("gone/too").is_dir());
-        }
-        assert!(!d.join("gone").exists());
-        let e = s.output(&d.join("new/./deep/../deep/o.csv")).unwrap_err();
-        assert!(matches!(e, WriteError::SameOutput { .. }), "{e}");
-        assert!(matches!(
-            s.output(&d.join("sub/")),
-            Err(WriteError::NoFileName(_))
-        ));
-        // An input declared after the output is caught too.
-        let mut s = Session::new(false);
-        s.output(&d.join("o2")).unwrap();
-        assert!(s.input(&d.join("o2")).is_err());
-        // Existing outputs: refused without overwrite; never a directory.
-        assert!(matches!(
-            Session::new(false).output(&input),
-            Err(WriteError::Exists(_))
-        ));
-        assert!(matches!(
-            Session::new(true).output(&d.join("sub")),
-            Err(WriteError::NotRegular { .. })
-        ));
-    }
-
-    #[test]
-    fn an_abort_removes_temporaries_and_stops_writes() {
-        let dir = tempfile::tempdir().unwrap();
-        let session = Session::new(false);
-        let mut unit = session.unit();
-        unit.write_bytes(&dir.path().join("a"), b"1").unwrap();
-        let handle = session.abort_handle();
-        assert_eq!(handle.abort(), 1);
-        assert_eq!(leftovers(dir.path()), 0);
-        assert!(matches!(
-            unit.write_bytes(&dir.path().join("b"), b"2"),
-            Err(WriteError::Aborted(_))
-        ));
-        assert!(matches!(unit.commit(), Err(WriteError::Aborted(_))));
-        assert!(!dir.path().join("a").exists());
-        assert_eq!(leftovers(dir.path()), 0);
     }
 }
+
+/// A batch's frames through the session: each frame's files staged in one [`Unit`] and committed
+/// together; a signal's abort reported as such.
+impl nsrm::io::batch::FrameSink for Session {
+    fn write_together(
+        &self,
+        files: Vec<(&Path, nsrm::io::batch::Encoder<'_>)>,
+    ) -> Result<(), nsrm::io::IoError> {
+        let mut unit = self.unit();
+        for (dest, encode) in files {
+            unit.write_with(dest, |w| encode(w))?;
+        }
+        Ok(unit.commit()?)
+    }
+
+    fn is_aborted(&self) -> bool {
+        Session::is_aborted(self)
+    }
+}
+
+#[cfg(test)]
+mod tests;

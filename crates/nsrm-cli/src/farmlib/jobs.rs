@@ -7,8 +7,9 @@
 //! input list, the model, the output directory). Every file is generated text; nothing here
 //! runs anything.
 
-use super::yaml::{self, Node};
+use super::yaml;
 use super::FarmError;
+use serde::Serialize;
 
 /// One word of a worker's command line.
 #[derive(Debug, Clone, PartialEq, Eq)]
@@ -182,20 +183,17 @@ fn openjd_arg(a: &Arg, literals: &[String]) -> String {
 pub(crate) fn openjd(spec: &JobSpec) -> Result<Vec<JobFile>, FarmError> {
     spec.check()?;
     let literals = openjd_literals(spec)?;
-    let template = Node::map([
-        ("specificationVersion", Node::str("jobtemplate-2023-09")),
-        ("name", Node::str(&spec.name)),
-        (
-            "description",
-            Node::str(format!(
-                "nsrm: {} input(s) in {} shard(s); each shard writes a manifest beside its outputs, the Verify step checks the batch is whole",
-                spec.inputs.len(),
-                spec.shards
-            )),
+    let template = OpenjdTemplate {
+        specification_version: "jobtemplate-2023-09",
+        name: &spec.name,
+        description: format!(
+            "nsrm: {} input(s) in {} shard(s); each shard writes a manifest beside its outputs, the Verify step checks the batch is whole",
+            spec.inputs.len(),
+            spec.shards
         ),
-        ("parameterDefinitions", openjd_parameters(spec, &literals)),
-        ("steps", openjd_steps(spec, &literals)),
-    ]);
+        parameter_definitions: openjd_parameters(spec, &literals),
+        steps: openjd_steps(spec, &literals),
+    };
     let (bundle_values, json) = openjd_values(spec);
     let file = |name: &str, text: String| JobFile {
         name: name.into(),
@@ -203,36 +201,170 @@ pub(crate) fn openjd(spec: &JobSpec) -> Result<Vec<JobFile>, FarmError> {
         executable: false,
     };
     Ok(vec![
-        file("template.yaml", yaml::to_string(&template)),
-        file("parameter_values.yaml", yaml::to_string(&bundle_values)),
+        file("template.yaml", to_yaml(&template)?),
+        file("parameter_values.yaml", to_yaml(&bundle_values)?),
         file(OPENJD_RUN_VALUES, json),
         file(OPENJD_INPUT_LIST, spec.input_list()),
         file(
             "asset_references.yaml",
-            yaml::to_string(&openjd_asset_references(spec)),
+            to_yaml(&openjd_asset_references(spec))?,
         ),
     ])
 }
 
+/// A document's YAML text; a value the writer refuses is a request no job can carry.
+fn to_yaml<T: Serialize>(doc: &T) -> Result<String, FarmError> {
+    yaml::to_string(doc).map_err(|e| FarmError::Usage(e.to_string()))
+}
+
+/// An Open Job Description job template (`jobtemplate-2023-09`), as far as nsrm writes one.
+#[derive(Debug, Serialize)]
+#[serde(rename_all = "camelCase")]
+struct OpenjdTemplate<'a> {
+    specification_version: &'static str,
+    name: &'a str,
+    description: String,
+    parameter_definitions: Vec<OpenjdParameter<'a>>,
+    steps: Vec<OpenjdStep<'a>>,
+}
+
+/// A job parameter's definition: `INT` (a default and minimum), `PATH` (an object type and
+/// data flow) or `STRING` (a default).
+#[derive(Debug, Serialize)]
+#[serde(rename_all = "camelCase")]
+struct OpenjdParameter<'a> {
+    name: String,
+    #[serde(rename = "type")]
+    ty: &'static str,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    object_type: Option<&'static str>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    data_flow: Option<&'static str>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    default: Option<OpenjdDefault<'a>>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    min_value: Option<usize>,
+    description: &'static str,
+}
+
+/// A parameter's default value, of its type.
+#[derive(Debug, PartialEq, Serialize)]
+#[serde(untagged)]
+enum OpenjdDefault<'a> {
+    Int(usize),
+    Str(&'a str),
+}
+
+/// A step: `Apply` with its task parameter, `Verify` with its dependency.
+#[derive(Debug, Serialize)]
+#[serde(rename_all = "camelCase")]
+struct OpenjdStep<'a> {
+    name: &'static str,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    parameter_space: Option<OpenjdParameterSpace>,
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    dependencies: Vec<OpenjdDependency>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    host_requirements: Option<super::resources::HostRequirements<'a>>,
+    script: OpenjdScript,
+}
+
+#[derive(Debug, Serialize)]
+#[serde(rename_all = "camelCase")]
+struct OpenjdParameterSpace {
+    task_parameter_definitions: Vec<OpenjdTaskParameter>,
+}
+
+#[derive(Debug, Serialize)]
+struct OpenjdTaskParameter {
+    name: &'static str,
+    #[serde(rename = "type")]
+    ty: &'static str,
+    range: &'static str,
+}
+
+#[derive(Debug, Serialize)]
+#[serde(rename_all = "camelCase")]
+struct OpenjdDependency {
+    depends_on: &'static str,
+}
+
+#[derive(Debug, Serialize)]
+struct OpenjdScript {
+    actions: OpenjdActions,
+}
+
+#[derive(Debug, Serialize)]
+#[serde(rename_all = "camelCase")]
+struct OpenjdActions {
+    on_run: OpenjdAction,
+}
+
+/// The command a task runs, its arguments and its time limit in seconds.
+#[derive(Debug, PartialEq, Serialize)]
+struct OpenjdAction {
+    command: &'static str,
+    args: Vec<String>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    timeout: Option<u64>,
+}
+
+/// `asset_references.yaml` of a job bundle.
+#[derive(Debug, Serialize)]
+#[serde(rename_all = "camelCase")]
+struct OpenjdAssetReferences<'a> {
+    asset_references: OpenjdAssets<'a>,
+}
+
+#[derive(Debug, Serialize)]
+#[serde(rename_all = "camelCase")]
+struct OpenjdAssets<'a> {
+    inputs: OpenjdAssetInputs<'a>,
+    outputs: OpenjdAssetOutputs<'a>,
+    referenced_paths: Vec<&'a str>,
+}
+
+#[derive(Debug, Serialize)]
+struct OpenjdAssetInputs<'a> {
+    filenames: Vec<&'a str>,
+    directories: Vec<&'a str>,
+}
+
+#[derive(Debug, Serialize)]
+struct OpenjdAssetOutputs<'a> {
+    directories: Vec<&'a str>,
+}
+
+/// `parameter_values.yaml` of a job bundle.
+#[derive(Debug, Serialize)]
+#[serde(rename_all = "camelCase")]
+struct OpenjdParameterValues {
+    parameter_values: Vec<OpenjdParameterValue>,
+}
+
+#[derive(Debug, Serialize)]
+struct OpenjdParameterValue {
+    name: &'static str,
+    value: String,
+}
+
 /// `asset_references.yaml`: the inputs as files job attachments upload, the output (and
 /// preview) directories as those they download.
-fn openjd_asset_references(spec: &JobSpec) -> Node {
-    let mut outputs = vec![spec.output_dir.clone()];
-    outputs.extend(spec.preview_dir.iter().cloned());
-    Node::map([(
-        "assetReferences",
-        Node::map([
-            (
-                "inputs",
-                Node::map([
-                    ("filenames", Node::strs(spec.inputs.iter().cloned())),
-                    ("directories", Node::List(Vec::new())),
-                ]),
-            ),
-            ("outputs", Node::map([("directories", Node::strs(outputs))])),
-            ("referencedPaths", Node::List(Vec::new())),
-        ]),
-    )])
+fn openjd_asset_references(spec: &JobSpec) -> OpenjdAssetReferences<'_> {
+    let mut outputs = vec![spec.output_dir.as_str()];
+    outputs.extend(spec.preview_dir.as_deref());
+    OpenjdAssetReferences {
+        asset_references: OpenjdAssets {
+            inputs: OpenjdAssetInputs {
+                filenames: spec.inputs.iter().map(String::as_str).collect(),
+                directories: Vec::new(),
+            },
+            outputs: OpenjdAssetOutputs {
+                directories: outputs,
+            },
+            referenced_paths: Vec::new(),
+        },
+    }
 }
 
 /// The path of the bundle's input list as the submitter names it.
@@ -242,36 +374,31 @@ fn openjd_input_list_path(spec: &JobSpec) -> String {
 
 /// The template's job parameters: `Shards` (INT), `InputList`, `Model` and `OutputDir` (PATH),
 /// `NsrmProgram` and the `literals` (STRING).
-fn openjd_parameters(spec: &JobSpec, literals: &[String]) -> Node {
-    let param = |name: &str, ty: &str, extra: Vec<(&str, Node)>| {
-        let mut pairs = vec![("name", Node::str(name)), ("type", Node::str(ty))];
-        pairs.extend(extra);
-        Node::map(pairs)
+fn openjd_parameters<'a>(spec: &'a JobSpec, literals: &'a [String]) -> Vec<OpenjdParameter<'a>> {
+    let param = |name: &str, ty, default, description| OpenjdParameter {
+        name: name.into(),
+        ty,
+        object_type: None,
+        data_flow: None,
+        default,
+        min_value: None,
+        description,
     };
-    let path = |name: &str, object: &str, flow: &str, what: &str| {
-        param(
-            name,
-            "PATH",
-            vec![
-                ("objectType", Node::str(object)),
-                ("dataFlow", Node::str(flow)),
-                ("description", Node::str(what)),
-            ],
-        )
+    let path = |name, object, flow, description| OpenjdParameter {
+        object_type: Some(object),
+        data_flow: Some(flow),
+        ..param(name, "PATH", None, description)
     };
     let mut params = vec![
-        param(
-            "Shards",
-            "INT",
-            vec![
-                ("default", Node::Int(spec.shards as i64)),
-                ("minValue", Node::Int(1)),
-                (
-                    "description",
-                    Node::str("Shards the batch is split into (one task each)"),
-                ),
-            ],
-        ),
+        OpenjdParameter {
+            min_value: Some(1),
+            ..param(
+                "Shards",
+                "INT",
+                Some(OpenjdDefault::Int(spec.shards)),
+                "Shards the batch is split into (one task each)",
+            )
+        },
         path(
             "InputList",
             "FILE",
@@ -288,105 +415,68 @@ fn openjd_parameters(spec: &JobSpec, literals: &[String]) -> Node {
         param(
             "NsrmProgram",
             "STRING",
-            vec![
-                ("default", Node::str(&spec.program)),
-                ("description", Node::str("The nsrm program on the workers")),
-            ],
+            Some(OpenjdDefault::Str(&spec.program)),
+            "The nsrm program on the workers",
         ),
     ];
     for (i, l) in literals.iter().enumerate() {
         params.push(param(
             &format!("NsrmArg{}", i + 1),
             "STRING",
-            vec![
-                ("default", Node::str(l)),
-                (
-                    "description",
-                    Node::str("A word of nsrm's command line (a parameter, so that it is never read as a template)"),
-                ),
-            ],
+            Some(OpenjdDefault::Str(l)),
+            "A word of nsrm's command line (a parameter, so that it is never read as a template)",
         ));
     }
-    Node::List(params)
+    params
 }
 
 /// The action running `{{Param.NsrmProgram}}` with `list`'s arguments, stopped after
 /// `timeout_s` seconds when given.
-fn openjd_action(list: &[Arg], literals: &[String], timeout_s: Option<u64>) -> Node {
-    let args = Node::List(
-        list.iter()
-            .map(|a| Node::Str(openjd_arg(a, literals)))
-            .collect(),
-    );
-    let mut run = vec![
-        ("command", Node::str("{{Param.NsrmProgram}}")),
-        ("args", args),
-    ];
-    if let Some(t) = timeout_s {
-        run.push(("timeout", Node::Int(t as i64)));
+fn openjd_action(list: &[Arg], literals: &[String], timeout_s: Option<u64>) -> OpenjdScript {
+    OpenjdScript {
+        actions: OpenjdActions {
+            on_run: OpenjdAction {
+                command: "{{Param.NsrmProgram}}",
+                args: list.iter().map(|a| openjd_arg(a, literals)).collect(),
+                timeout: timeout_s,
+            },
+        },
     }
-    Node::map([("onRun", Node::map(run))])
 }
 
-/// A step's pairs with its `hostRequirements` (`task`: the Apply step's) before `script`.
-fn openjd_step(spec: &JobSpec, mut pairs: Vec<(&str, Node)>, task: bool) -> Node {
-    if let Some(h) = spec.resources.openjd_host_requirements(task) {
-        let at = pairs.len() - 1;
-        pairs.insert(at, ("hostRequirements", h));
-    }
-    Node::map(pairs)
-}
-
-/// The template's steps: `Apply` (a task per shard) and `Verify` after it.
-fn openjd_steps(spec: &JobSpec, literals: &[String]) -> Node {
-    let timeout = spec.resources.time_s;
-    Node::List(vec![
-        openjd_step(
-            spec,
-            vec![
-                ("name", Node::str("Apply")),
-                (
-                    "parameterSpace",
-                    Node::map([(
-                        "taskParameterDefinitions",
-                        Node::List(vec![Node::map([
-                            ("name", Node::str("Shard")),
-                            ("type", Node::str("INT")),
-                            ("range", Node::str("1-{{Param.Shards}}")),
-                        ])]),
-                    )]),
-                ),
-                (
-                    "script",
-                    Node::map([("actions", openjd_action(&spec.task, literals, timeout))]),
-                ),
-            ],
-            true,
-        ),
-        openjd_step(
-            spec,
-            vec![
-                ("name", Node::str("Verify")),
-                (
-                    "dependencies",
-                    Node::List(vec![Node::map([("dependsOn", Node::str("Apply"))])]),
-                ),
-                (
-                    "script",
-                    Node::map([(
-                        "actions",
-                        openjd_action(&spec.verify, literals, spec.resources.verify_time_s),
-                    )]),
-                ),
-            ],
-            false,
-        ),
-    ])
+/// The template's steps: `Apply` (a task per shard) and `Verify` after it, each with its host
+/// requirements.
+fn openjd_steps<'a>(spec: &'a JobSpec, literals: &[String]) -> Vec<OpenjdStep<'a>> {
+    let r = &spec.resources;
+    vec![
+        OpenjdStep {
+            name: "Apply",
+            parameter_space: Some(OpenjdParameterSpace {
+                task_parameter_definitions: vec![OpenjdTaskParameter {
+                    name: "Shard",
+                    ty: "INT",
+                    range: "1-{{Param.Shards}}",
+                }],
+            }),
+            dependencies: Vec::new(),
+            host_requirements: r.openjd_host_requirements(true),
+            script: openjd_action(&spec.task, literals, r.time_s),
+        },
+        OpenjdStep {
+            name: "Verify",
+            parameter_space: None,
+            dependencies: vec![OpenjdDependency {
+                depends_on: "Apply",
+            }],
+            host_requirements: r.openjd_host_requirements(false),
+            script: openjd_action(&spec.verify, literals, r.verify_time_s),
+        },
+    ]
 }
 
 /// The job parameters' values: in Deadline Cloud's job-bundle form (YAML) and as `openjd run`
 /// takes them (JSON text).
-fn openjd_values(spec: &JobSpec) -> (Node, String) {
+fn openjd_values(spec: &JobSpec) -> (OpenjdParameterValues, String) {
     let values = [
         ("Shards", spec.shards.to_string()),
         ("InputList", openjd_input_list_path(spec)),
@@ -394,21 +484,18 @@ fn openjd_values(spec: &JobSpec) -> (Node, String) {
         ("OutputDir", spec.output_dir.clone()),
         ("NsrmProgram", spec.program.clone()),
     ];
-    let bundle_values = Node::map([(
-        "parameterValues",
-        Node::List(
-            values
-                .iter()
-                .map(|(k, v)| Node::map([("name", Node::str(*k)), ("value", Node::str(v))]))
-                .collect(),
-        ),
-    )]);
     let json: serde_json::Map<String, serde_json::Value> = values
         .iter()
         .map(|(k, v)| (k.to_string(), serde_json::Value::String(v.clone())))
         .collect();
     let mut json = serde_json::to_string_pretty(&json).unwrap_or_default();
     json.push('\n');
+    let bundle_values = OpenjdParameterValues {
+        parameter_values: values
+            .into_iter()
+            .map(|(name, value)| OpenjdParameterValue { name, value })
+            .collect(),
+    };
     (bundle_values, json)
 }
 
@@ -560,18 +647,18 @@ pub(crate) fn kube(spec: &JobSpec, k: &Kube) -> Result<Vec<JobFile>, FarmError> 
     let task = sh_command(spec, &spec.task, "\"$shard\"", &list_path)?;
     let script = format!("set -eu\nshard=\"$((JOB_COMPLETION_INDEX + 1))/{n}\"\nexec {task}\n");
     let verify = sh_command(spec, &spec.verify, "", "")?;
-    let config = kube_config_map(spec);
-    let job = kube_indexed_job(spec, k, &script);
-    let verify_job = kube_verify_job(spec, k, &format!("exec {verify}"));
+    let verify = format!("exec {verify}");
+    let config = to_yaml(&kube_config_map(spec))?;
+    let job = to_yaml(&kube_indexed_job(spec, k, &script))?;
     Ok(vec![
         JobFile {
             name: "job.yaml".into(),
-            text: format!("{}---\n{}", yaml::to_string(&config), yaml::to_string(&job)),
+            text: format!("{config}---\n{job}"),
             executable: false,
         },
         JobFile {
             name: "verify.yaml".into(),
-            text: yaml::to_string(&verify_job),
+            text: to_yaml(&kube_verify_job(spec, k, &verify))?,
             executable: false,
         },
         JobFile {
@@ -583,7 +670,7 @@ pub(crate) fn kube(spec: &JobSpec, k: &Kube) -> Result<Vec<JobFile>, FarmError> 
 }
 
 /// Seconds a finished Job (and its pods' logs) is kept before Kubernetes deletes it.
-const KUBE_TTL_S: i64 = 7 * 24 * 3600;
+const KUBE_TTL_S: u64 = 7 * 24 * 3600;
 
 /// `wait.sh`: waits until the Job `name` is `Complete` or `Failed` (a `kubectl wait
 /// --for=condition=complete` alone waits forever on a failed Job), says which, and exits 0 only
@@ -607,178 +694,258 @@ fn kube_wait_script(name: &str) -> String {
 
 /// The labels of every object of a batch: the program, the job's name and the batch's own
 /// (`kubectl get jobs,pods,configmaps -l nsrm.batch=nsrm-…` finds all of one batch).
-fn kube_labels(spec: &JobSpec) -> Node {
-    Node::map([
-        ("app.kubernetes.io/name", Node::str("nsrm")),
-        ("app.kubernetes.io/instance", Node::str(&spec.name)),
-        ("nsrm.batch", Node::str(&spec.batch)),
-    ])
+#[derive(Debug, Clone, Serialize)]
+struct KubeLabels<'a> {
+    #[serde(rename = "app.kubernetes.io/name")]
+    app: &'static str,
+    #[serde(rename = "app.kubernetes.io/instance")]
+    instance: &'a str,
+    #[serde(rename = "nsrm.batch")]
+    batch: &'a str,
 }
 
-/// A pod's single container `name` running `script`, with the task's resources (`task`) or
-/// the verification's.
-fn kube_container(
-    spec: &JobSpec,
-    k: &Kube,
-    name: &str,
-    script: &str,
-    mounts: Node,
-    task: bool,
-) -> Node {
-    let mut pairs = vec![
-        ("name", Node::str(name)),
-        ("image", Node::str(&k.image)),
-        ("command", Node::strs(["/bin/sh", "-c", script])),
-    ];
-    if let Some(r) = spec.resources.kube_resources(task) {
-        pairs.push(("resources", r));
+fn kube_labels(spec: &JobSpec) -> KubeLabels<'_> {
+    KubeLabels {
+        app: "nsrm",
+        instance: &spec.name,
+        batch: &spec.batch,
     }
-    pairs.push(("volumeMounts", mounts));
-    Node::map(pairs)
 }
 
-/// A pod spec: never restarted in place, `container`, the volumes and the scheduling fields.
-fn kube_pod_spec(spec: &JobSpec, container: Node, volumes: Node, task: bool) -> Node {
-    let mut pairs = vec![
-        ("restartPolicy".to_string(), Node::str("Never")),
-        ("containers".to_string(), Node::List(vec![container])),
-        ("volumes".to_string(), volumes),
-    ];
-    pairs.extend(spec.resources.kube_pod_fields(task));
-    Node::map(pairs)
+/// An object's `metadata` (a pod template's has no name).
+#[derive(Debug, Serialize)]
+struct KubeMetadata<'a> {
+    #[serde(skip_serializing_if = "Option::is_none")]
+    name: Option<String>,
+    labels: KubeLabels<'a>,
+}
+
+/// The ConfigMap holding the input list.
+#[derive(Debug, Serialize)]
+#[serde(rename_all = "camelCase")]
+struct KubeConfigMap<'a> {
+    api_version: &'static str,
+    kind: &'static str,
+    metadata: KubeMetadata<'a>,
+    data: KubeConfigData,
+}
+
+#[derive(Debug, PartialEq, Serialize)]
+struct KubeConfigData {
+    #[serde(rename = "inputs.txt")]
+    inputs: String,
+}
+
+/// A Job: the Indexed Job of the shards (`completionMode` … `backoffLimitPerIndex`) or the
+/// verification's (`backoffLimit`).
+#[derive(Debug, Serialize)]
+#[serde(rename_all = "camelCase")]
+struct KubeJob<'a> {
+    api_version: &'static str,
+    kind: &'static str,
+    metadata: KubeMetadata<'a>,
+    spec: KubeJobSpec<'a>,
+}
+
+#[derive(Debug, Serialize)]
+#[serde(rename_all = "camelCase")]
+struct KubeJobSpec<'a> {
+    #[serde(skip_serializing_if = "Option::is_none")]
+    completion_mode: Option<&'static str>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    completions: Option<usize>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    parallelism: Option<usize>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    backoff_limit_per_index: Option<usize>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    backoff_limit: Option<usize>,
+    ttl_seconds_after_finished: u64,
+    template: KubePodTemplate<'a>,
+}
+
+#[derive(Debug, Serialize)]
+struct KubePodTemplate<'a> {
+    metadata: KubeMetadata<'a>,
+    spec: KubePodSpec<'a>,
+}
+
+/// A pod spec: never restarted in place, one container, the volumes, then the scheduling
+/// fields and the `--pod-spec` pass-through.
+#[derive(Debug, Serialize)]
+#[serde(rename_all = "camelCase")]
+struct KubePodSpec<'a> {
+    restart_policy: &'static str,
+    containers: Vec<KubeContainer<'a>>,
+    volumes: Vec<KubeVolume<'a>>,
+    #[serde(flatten)]
+    scheduling: super::resources::KubeScheduling<'a>,
+}
+
+#[derive(Debug, Serialize)]
+#[serde(rename_all = "camelCase")]
+struct KubeContainer<'a> {
+    name: &'static str,
+    image: &'a str,
+    command: [&'a str; 3],
+    #[serde(skip_serializing_if = "Option::is_none")]
+    resources: Option<super::resources::KubeResources<'a>>,
+    volume_mounts: Vec<KubeMount<'a>>,
+}
+
+#[derive(Debug, Serialize)]
+#[serde(rename_all = "camelCase")]
+struct KubeMount<'a> {
+    name: &'static str,
+    mount_path: &'a str,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    read_only: Option<bool>,
+}
+
+/// A volume: the claim or the input list's ConfigMap.
+#[derive(Debug, Serialize)]
+#[serde(rename_all = "camelCase")]
+struct KubeVolume<'a> {
+    name: &'static str,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    persistent_volume_claim: Option<KubeClaimRef<'a>>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    config_map: Option<KubeConfigMapRef>,
+}
+
+#[derive(Debug, Serialize)]
+#[serde(rename_all = "camelCase")]
+struct KubeClaimRef<'a> {
+    claim_name: &'a str,
+}
+
+#[derive(Debug, Serialize)]
+struct KubeConfigMapRef {
+    name: String,
 }
 
 /// A pod's volume mounts and volumes: the claim at `mount_path`, and with `with_list` the
 /// input list's ConfigMap at [`KUBE_LIST_DIR`].
-fn kube_volumes(spec: &JobSpec, k: &Kube, with_list: bool) -> (Node, Node) {
-    let mut mounts = vec![Node::map([
-        ("name", Node::str("data")),
-        ("mountPath", Node::str(&k.mount_path)),
-    ])];
-    let mut volumes = vec![Node::map([
-        ("name", Node::str("data")),
-        (
-            "persistentVolumeClaim",
-            Node::map([("claimName", Node::str(&k.claim))]),
-        ),
-    ])];
+fn kube_volumes<'a>(
+    spec: &JobSpec,
+    k: &'a Kube,
+    with_list: bool,
+) -> (Vec<KubeMount<'a>>, Vec<KubeVolume<'a>>) {
+    let mut mounts = vec![KubeMount {
+        name: "data",
+        mount_path: &k.mount_path,
+        read_only: None,
+    }];
+    let mut volumes = vec![KubeVolume {
+        name: "data",
+        persistent_volume_claim: Some(KubeClaimRef {
+            claim_name: &k.claim,
+        }),
+        config_map: None,
+    }];
     if with_list {
-        mounts.push(Node::map([
-            ("name", Node::str("batch")),
-            ("mountPath", Node::str(KUBE_LIST_DIR)),
-            ("readOnly", Node::Bool(true)),
-        ]));
-        volumes.push(Node::map([
-            ("name", Node::str("batch")),
-            (
-                "configMap",
-                Node::map([("name", Node::str(format!("{}-inputs", spec.name)))]),
-            ),
-        ]));
+        mounts.push(KubeMount {
+            name: "batch",
+            mount_path: KUBE_LIST_DIR,
+            read_only: Some(true),
+        });
+        volumes.push(KubeVolume {
+            name: "batch",
+            persistent_volume_claim: None,
+            config_map: Some(KubeConfigMapRef {
+                name: format!("{}-inputs", spec.name),
+            }),
+        });
     }
-    (Node::List(mounts), Node::List(volumes))
+    (mounts, volumes)
+}
+
+/// The pod template of a Job: its container `name` running the shell `script` with the task's
+/// resources (`task`) or the verification's, the claim and with `task` the input list.
+fn kube_pod_template<'a>(
+    spec: &'a JobSpec,
+    k: &'a Kube,
+    name: &'static str,
+    script: &'a str,
+    task: bool,
+) -> KubePodTemplate<'a> {
+    let (volume_mounts, volumes) = kube_volumes(spec, k, task);
+    KubePodTemplate {
+        metadata: KubeMetadata {
+            name: None,
+            labels: kube_labels(spec),
+        },
+        spec: KubePodSpec {
+            restart_policy: "Never",
+            containers: vec![KubeContainer {
+                name,
+                image: &k.image,
+                command: ["/bin/sh", "-c", script],
+                resources: spec.resources.kube_resources(task),
+                volume_mounts,
+            }],
+            volumes,
+            scheduling: spec.resources.kube_pod_fields(task),
+        },
+    }
 }
 
 /// The ConfigMap `NAME-inputs` holding the input list as `inputs.txt`.
-fn kube_config_map(spec: &JobSpec) -> Node {
-    Node::map([
-        ("apiVersion", Node::str("v1")),
-        ("kind", Node::str("ConfigMap")),
-        (
-            "metadata",
-            Node::map([
-                ("name", Node::str(format!("{}-inputs", spec.name))),
-                ("labels", kube_labels(spec)),
-            ]),
-        ),
-        (
-            "data",
-            Node::map([("inputs.txt", Node::str(spec.input_list()))]),
-        ),
-    ])
+fn kube_config_map(spec: &JobSpec) -> KubeConfigMap<'_> {
+    KubeConfigMap {
+        api_version: "v1",
+        kind: "ConfigMap",
+        metadata: KubeMetadata {
+            name: Some(format!("{}-inputs", spec.name)),
+            labels: kube_labels(spec),
+        },
+        data: KubeConfigData {
+            inputs: spec.input_list(),
+        },
+    }
 }
 
 /// The Indexed Job whose pods run the shell `script` (one shard each).
-fn kube_indexed_job(spec: &JobSpec, k: &Kube, script: &str) -> Node {
+fn kube_indexed_job<'a>(spec: &'a JobSpec, k: &'a Kube, script: &'a str) -> KubeJob<'a> {
     let n = spec.shards;
-    let (mounts, volumes) = kube_volumes(spec, k, true);
-    Node::map([
-        ("apiVersion", Node::str("batch/v1")),
-        ("kind", Node::str("Job")),
-        (
-            "metadata",
-            Node::map([
-                ("name", Node::str(&spec.name)),
-                ("labels", kube_labels(spec)),
-            ]),
-        ),
-        (
-            "spec",
-            Node::map([
-                ("completionMode", Node::str("Indexed")),
-                ("completions", Node::Int(n as i64)),
-                ("parallelism", Node::Int(k.parallelism.min(n) as i64)),
-                (
-                    "backoffLimitPerIndex",
-                    Node::Int(k.retries_per_index as i64),
-                ),
-                ("ttlSecondsAfterFinished", Node::Int(KUBE_TTL_S)),
-                (
-                    "template",
-                    Node::map([
-                        ("metadata", Node::map([("labels", kube_labels(spec))])),
-                        (
-                            "spec",
-                            kube_pod_spec(
-                                spec,
-                                kube_container(spec, k, "nsrm", script, mounts, true),
-                                volumes,
-                                true,
-                            ),
-                        ),
-                    ]),
-                ),
-            ]),
-        ),
-    ])
+    KubeJob {
+        api_version: "batch/v1",
+        kind: "Job",
+        metadata: KubeMetadata {
+            name: Some(spec.name.clone()),
+            labels: kube_labels(spec),
+        },
+        spec: KubeJobSpec {
+            completion_mode: Some("Indexed"),
+            completions: Some(n),
+            parallelism: Some(k.parallelism.min(n)),
+            backoff_limit_per_index: Some(k.retries_per_index),
+            backoff_limit: None,
+            ttl_seconds_after_finished: KUBE_TTL_S,
+            template: kube_pod_template(spec, k, "nsrm", script, true),
+        },
+    }
 }
 
 /// The Job `NAME-verify`, one pod running the shell `script` once, never retried.
-fn kube_verify_job(spec: &JobSpec, k: &Kube, script: &str) -> Node {
-    let (mounts, volumes) = kube_volumes(spec, k, false);
-    Node::map([
-        ("apiVersion", Node::str("batch/v1")),
-        ("kind", Node::str("Job")),
-        (
-            "metadata",
-            Node::map([
-                ("name", Node::str(format!("{}-verify", spec.name))),
-                ("labels", kube_labels(spec)),
-            ]),
-        ),
-        (
-            "spec",
-            Node::map([
-                ("backoffLimit", Node::Int(0)),
-                ("ttlSecondsAfterFinished", Node::Int(KUBE_TTL_S)),
-                (
-                    "template",
-                    Node::map([
-                        ("metadata", Node::map([("labels", kube_labels(spec))])),
-                        (
-                            "spec",
-                            kube_pod_spec(
-                                spec,
-                                kube_container(spec, k, "verify", script, mounts, false),
-                                volumes,
-                                false,
-                            ),
-                        ),
-                    ]),
-                ),
-            ]),
-        ),
-    ])
+fn kube_verify_job<'a>(spec: &'a JobSpec, k: &'a Kube, script: &'a str) -> KubeJob<'a> {
+    KubeJob {
+        api_version: "batch/v1",
+        kind: "Job",
+        metadata: KubeMetadata {
+            name: Some(format!("{}-verify", spec.name)),
+            labels: kube_labels(spec),
+        },
+        spec: KubeJobSpec {
+            completion_mode: None,
+            completions: None,
+            parallelism: None,
+            backoff_limit_per_index: None,
+            backoff_limit: Some(0),
+            ttl_seconds_after_finished: KUBE_TTL_S,
+            template: kube_pod_template(spec, k, "verify", script, false),
+        },
+    }
 }
 
 #[cfg(test)]

@@ -69,19 +69,10 @@ fn what_no_job_can_carry_is_refused() {
     assert!(openjd(&s).unwrap_err().is_usage());
 }
 
-/// The value under `key` in mapping `n`.
-fn get<'a>(n: &'a Node, key: &str) -> &'a Node {
-    match n {
-        Node::Map(pairs) => &pairs.iter().find(|(k, _)| k == key).expect(key).1,
-        _ => panic!("not a mapping: {n:?}"),
-    }
-}
-
-fn list(n: &Node) -> &[Node] {
-    match n {
-        Node::List(v) => v,
-        _ => panic!("not a list: {n:?}"),
-    }
+/// A document as JSON, to look into (serde_json's objects sort their keys; the YAML text keeps
+/// the fields' order).
+fn value<T: serde::Serialize>(doc: &T) -> serde_json::Value {
+    serde_json::to_value(doc).unwrap()
 }
 
 fn kube_place() -> Kube {
@@ -129,10 +120,10 @@ fn template_words_reach_openjd_workers_as_parameter_values() {
     }
     assert_eq!(files[3].name, OPENJD_INPUT_LIST);
     assert_eq!(files[3].text, s.input_list());
-    let refs = openjd_asset_references(&s);
+    let refs = value(&openjd_asset_references(&s));
     assert_eq!(
-        get(get(get(&refs, "assetReferences"), "inputs"), "filenames"),
-        &Node::strs(s.inputs.clone())
+        refs["assetReferences"]["inputs"]["filenames"],
+        serde_json::json!(s.inputs)
     );
 }
 
@@ -140,34 +131,36 @@ fn template_words_reach_openjd_workers_as_parameter_values() {
 fn openjd_parameters_values_and_actions() {
     let s = spec();
     let params = openjd_parameters(&s, &[]);
-    let named: Vec<(&Node, &Node)> = list(&params)
-        .iter()
-        .map(|p| (get(p, "name"), get(p, "type")))
-        .collect();
+    let named: Vec<(&str, &str)> = params.iter().map(|p| (p.name.as_str(), p.ty)).collect();
     assert_eq!(
         named,
         [
-            (&Node::str("Shards"), &Node::str("INT")),
-            (&Node::str("InputList"), &Node::str("PATH")),
-            (&Node::str("Model"), &Node::str("PATH")),
-            (&Node::str("OutputDir"), &Node::str("PATH")),
-            (&Node::str("NsrmProgram"), &Node::str("STRING")),
+            ("Shards", "INT"),
+            ("InputList", "PATH"),
+            ("Model", "PATH"),
+            ("OutputDir", "PATH"),
+            ("NsrmProgram", "STRING"),
         ]
     );
-    assert_eq!(get(&list(&params)[0], "default"), &Node::Int(3));
+    assert_eq!(params[0].default, Some(OpenjdDefault::Int(3)));
+    assert_eq!(value(&params)[0]["default"], 3);
     let (yaml_values, json) = openjd_values(&s);
     let v: serde_json::Value = serde_json::from_str(&json).unwrap();
     assert_eq!(v["Shards"], "3");
     assert_eq!(v["OutputDir"], "/out");
     assert_eq!(v["InputList"], "/job/inputs.txt");
-    assert_eq!(list(get(&yaml_values, "parameterValues")).len(), 5);
-    let action = openjd_action(&s.verify, &[], None);
+    assert_eq!(yaml_values.parameter_values.len(), 5);
+    let action = value(&openjd_action(&s.verify, &[], None));
     assert_eq!(
-        get(get(&action, "onRun"), "args"),
-        &Node::strs(["verify", "{{Param.OutputDir}}", "{{Param.Shards}}"])
+        action["actions"]["onRun"]["args"],
+        serde_json::json!(["verify", "{{Param.OutputDir}}", "{{Param.Shards}}"])
     );
-    let steps = openjd_steps(&s, &[]);
-    assert_eq!(get(&list(&steps)[1], "name"), &Node::str("Verify"));
+    assert!(action["actions"]["onRun"]["timeout"].is_null());
+    let steps = value(&openjd_steps(&s, &[]));
+    assert_eq!(steps[1]["name"], "Verify");
+    assert_eq!(steps[1]["dependencies"][0]["dependsOn"], "Apply");
+    // No resources asked: no host requirements, no dependencies of the first step.
+    assert!(steps[0].get("hostRequirements").is_none() && steps[0].get("dependencies").is_none());
 }
 
 /// `wait.sh` returns on `Failed` as on `Complete` and says which (a stub `kubectl` reports
@@ -209,27 +202,38 @@ fn the_kubernetes_wait_returns_on_failed_and_on_complete() {
 fn kubernetes_pods_mount_the_claim_and_the_shards_the_list() {
     let (s, k) = (spec(), kube_place());
     let (mounts, volumes) = kube_volumes(&s, &k, true);
-    assert_eq!(list(&mounts).len(), 2);
+    assert_eq!(mounts.len(), 2);
+    assert_eq!(value(&volumes)[1]["configMap"]["name"], "plates-inputs");
     assert_eq!(
-        get(get(&list(&volumes)[1], "configMap"), "name"),
-        &Node::str("plates-inputs")
+        value(&volumes)[0]["persistentVolumeClaim"]["claimName"],
+        "plates"
     );
     let (mounts, volumes) = kube_volumes(&s, &k, false);
-    assert_eq!((list(&mounts).len(), list(&volumes).len()), (1, 1));
-    let job = kube_indexed_job(&s, &k, "true");
-    assert_eq!(get(get(&job, "spec"), "parallelism"), &Node::Int(3));
-    assert_eq!(get(get(&job, "spec"), "completions"), &Node::Int(3));
+    assert_eq!((mounts.len(), volumes.len()), (1, 1));
+    let job = value(&kube_indexed_job(&s, &k, "true"));
+    assert_eq!(job["spec"]["parallelism"], 3);
+    assert_eq!(job["spec"]["completions"], 3);
+    assert_eq!(job["spec"]["ttlSecondsAfterFinished"], KUBE_TTL_S);
+    assert!(job["spec"].get("backoffLimit").is_none());
+    let verify = value(&kube_verify_job(&s, &k, "exec x"));
+    assert_eq!(verify["metadata"]["name"], "plates-verify");
+    assert_eq!(verify["spec"]["backoffLimit"], 0);
+    assert!(verify["spec"].get("completionMode").is_none());
     assert_eq!(
-        get(get(&job, "spec"), "ttlSecondsAfterFinished"),
-        &Node::Int(KUBE_TTL_S)
+        value(&kube_config_map(&s))["data"],
+        serde_json::json!({"inputs.txt": "/in/a b.exr\n/in/it's.exr\n"})
     );
-    let verify = kube_verify_job(&s, &k, "exec x");
-    assert_eq!(
-        get(get(&verify, "metadata"), "name"),
-        &Node::str("plates-verify")
+    // The YAML keeps the fields' order: a Kubernetes object starts with its kind.
+    let text = yaml::to_string(&kube_verify_job(&s, &k, "exec x")).unwrap();
+    assert!(
+        text.starts_with(
+            "apiVersion: \"batch/v1\"\nkind: \"Job\"\nmetadata:\n  name: \"plates-verify\"\n"
+        ),
+        "{text}"
     );
-    assert_eq!(
-        get(&kube_config_map(&s), "data"),
-        &Node::map([("inputs.txt", Node::str("/in/a b.exr\n/in/it's.exr\n"))])
+    let pod = text.split("    spec:\n").nth(1).unwrap();
+    assert!(
+        pod.starts_with("      restartPolicy: \"Never\"\n      containers:\n"),
+        "{text}"
     );
 }

@@ -12,8 +12,9 @@
 //! the characters their engine allows, and nothing can reach a script or a YAML document as
 //! anything but the value it is (no line break, no quote a Slurm directive would misread).
 
-use super::yaml::Node;
+use super::yaml::Pairs;
 use super::FarmError;
+use serde::Serialize;
 
 /// The most CPUs or GPUs one task asks for.
 pub(crate) const MAX_COUNT: u32 = 4096;
@@ -52,7 +53,7 @@ pub(crate) struct Resources {
     pub node_selector: Vec<(String, String)>,
     pub tolerations: Vec<Toleration>,
     /// Further pod-spec fields (`--pod-spec`), in the order given.
-    pub pod_fields: Vec<(String, Node)>,
+    pub pod_fields: Vec<(String, serde_json::Value)>,
     /// `attr.worker.os.family`: linux, windows or macos.
     pub os_family: Option<String>,
     /// Further Open Job Description host requirements.
@@ -298,8 +299,10 @@ const POD_SPEC_OWN: [(&str, &str); 6] = [
 /// digits, at most 64) given once and not one nsrm writes, JSON a value of at most
 /// [`MAX_POD_FIELD_BYTES`] (strings, whole numbers, booleans, lists and objects; a fraction or
 /// `null` is refused: no pod-spec field takes one).
-pub(crate) fn parse_pod_fields(args: &[String]) -> Result<Vec<(String, Node)>, FarmError> {
-    let mut out: Vec<(String, Node)> = Vec::new();
+pub(crate) fn parse_pod_fields(
+    args: &[String],
+) -> Result<Vec<(String, serde_json::Value)>, FarmError> {
+    let mut out: Vec<(String, serde_json::Value)> = Vec::new();
     for a in args {
         let Some((field, json)) = a.split_once('=') else {
             return usage(format!(
@@ -334,36 +337,26 @@ pub(crate) fn parse_pod_fields(args: &[String]) -> Result<Vec<(String, Node)>, F
                 "--pod-spec {field}: the value is not JSON ({e}); a string is quoted, e.g. '\"render\"'"
             ))
         })?;
-        let node = json_node(&value)
+        check_pod_value(&value)
             .map_err(|why| FarmError::Usage(format!("--pod-spec {field}: {why}")))?;
-        out.push((field.to_string(), node));
+        out.push((field.to_string(), value));
     }
     Ok(out)
 }
 
-/// A JSON value as a YAML node (serde_json bounds the nesting it parses; an object's keys
-/// come out sorted).
-fn json_node(v: &serde_json::Value) -> Result<Node, String> {
+/// Refuses what no pod-spec field takes: `null` and fractions, anywhere in a value (serde_json
+/// bounds the nesting it parses; an object's keys are written sorted).
+fn check_pod_value(v: &serde_json::Value) -> Result<(), String> {
     use serde_json::Value;
-    Ok(match v {
-        Value::Null => return Err("null is not a pod-spec value (leave the field out)".into()),
-        Value::Bool(b) => Node::Bool(*b),
-        Value::Number(n) => match n.as_i64() {
-            Some(i) => Node::Int(i),
-            None => {
-                return Err(format!(
-                    "{n}: pod-spec numbers are whole (a quantity such as \"1.5\" is a string)"
-                ))
-            }
-        },
-        Value::String(s) => Node::str(s),
-        Value::Array(a) => Node::List(a.iter().map(json_node).collect::<Result<_, _>>()?),
-        Value::Object(o) => Node::Map(
-            o.iter()
-                .map(|(k, v)| Ok((k.clone(), json_node(v)?)))
-                .collect::<Result<_, String>>()?,
-        ),
-    })
+    match v {
+        Value::Null => Err("null is not a pod-spec value (leave the field out)".into()),
+        Value::Number(n) if n.as_i64().is_none() => Err(format!(
+            "{n}: pod-spec numbers are whole (a quantity such as \"1.5\" is a string)"
+        )),
+        Value::Array(a) => a.iter().try_for_each(check_pod_value),
+        Value::Object(o) => o.values().try_for_each(check_pod_value),
+        _ => Ok(()),
+    }
 }
 
 /// An RFC 1123 DNS label: 1 to `max` (at most 63) lowercase letters, digits and `-`, starting
@@ -602,12 +595,80 @@ pub(crate) fn mib_text(mib: u64) -> String {
     }
 }
 
-fn yaml_num(v: f64) -> Node {
-    if v.fract() == 0.0 && v.abs() < 9e15 {
-        Node::Int(v as i64)
-    } else {
-        Node::Str(format!("{v}"))
+/// An Open Job Description amount's minimum: whole numbers as integers, others as the
+/// decimal text (`"1.5"`), which the specification's decimal fields take exactly.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+#[serde(untagged)]
+pub(crate) enum AmountMin {
+    Int(i64),
+    Text(String),
+}
+
+impl AmountMin {
+    fn of(v: f64) -> AmountMin {
+        if v.fract() == 0.0 && v.abs() < 9e15 {
+            AmountMin::Int(v as i64)
+        } else {
+            AmountMin::Text(format!("{v}"))
+        }
     }
+}
+
+/// An Open Job Description step's `hostRequirements`.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub(crate) struct HostRequirements<'a> {
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub amounts: Vec<AmountRequirement<'a>>,
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub attributes: Vec<AttributeRequirement<'a>>,
+}
+
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub(crate) struct AmountRequirement<'a> {
+    pub name: &'a str,
+    pub min: AmountMin,
+}
+
+#[derive(Debug, Clone, PartialEq, Serialize)]
+#[serde(rename_all = "camelCase")]
+pub(crate) struct AttributeRequirement<'a> {
+    pub name: &'a str,
+    pub any_of: Vec<&'a str>,
+}
+
+/// A container's `resources`: quantities by resource name, in the order written.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub(crate) struct KubeResources<'a> {
+    #[serde(skip_serializing_if = "Pairs::is_empty")]
+    pub requests: Pairs<&'a str, String>,
+    #[serde(skip_serializing_if = "Pairs::is_empty")]
+    pub limits: Pairs<&'a str, String>,
+}
+
+/// A pod spec's scheduling fields and the `--pod-spec` pass-through (flattened into the pod
+/// spec after its own fields).
+#[derive(Debug, Clone, PartialEq, Serialize)]
+#[serde(rename_all = "camelCase")]
+pub(crate) struct KubeScheduling<'a> {
+    #[serde(skip_serializing_if = "Pairs::is_empty")]
+    pub node_selector: Pairs<&'a str, &'a str>,
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub tolerations: Vec<KubeToleration<'a>>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub active_deadline_seconds: Option<u64>,
+    #[serde(flatten)]
+    pub pod_fields: Pairs<&'a str, &'a serde_json::Value>,
+}
+
+/// A toleration as a pod spec holds it.
+#[derive(Debug, Clone, PartialEq, Eq, Serialize)]
+pub(crate) struct KubeToleration<'a> {
+    pub key: &'a str,
+    pub operator: &'static str,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub value: Option<&'a str>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub effect: Option<&'a str>,
 }
 
 impl Resources {
@@ -694,8 +755,11 @@ impl Resources {
 
     /// An Open Job Description step's `hostRequirements` (`task`: the Apply step's, with the
     /// GPUs; else the Verify step's, one vCPU), or `None` when nothing is asked.
-    pub(crate) fn openjd_host_requirements(&self, task: bool) -> Option<Node> {
-        let amount = |name: &str, min: Node| Node::map([("name", Node::str(name)), ("min", min)]);
+    pub(crate) fn openjd_host_requirements(&self, task: bool) -> Option<HostRequirements<'_>> {
+        let amount = |name, min: u64| AmountRequirement {
+            name,
+            min: AmountMin::Int(min as i64),
+        };
         let mut amounts = Vec::new();
         let cpus = if task {
             self.cpus
@@ -703,44 +767,43 @@ impl Resources {
             self.cpus.map(|_| 1)
         };
         if let Some(c) = cpus {
-            amounts.push(amount("amount.worker.vcpu", Node::Int(i64::from(c))));
+            amounts.push(amount("amount.worker.vcpu", c.into()));
         }
         if let Some(m) = self.mem_mib {
-            amounts.push(amount("amount.worker.memory", Node::Int(m as i64)));
+            amounts.push(amount("amount.worker.memory", m));
         }
         if task && self.gpus > 0 {
-            amounts.push(amount("amount.worker.gpu", Node::Int(i64::from(self.gpus))));
+            amounts.push(amount("amount.worker.gpu", self.gpus.into()));
         }
         let mut attributes = Vec::new();
         if let Some(os) = &self.os_family {
-            attributes.push(Node::map([
-                ("name", Node::str("attr.worker.os.family")),
-                ("anyOf", Node::strs([os.as_str()])),
-            ]));
+            attributes.push(AttributeRequirement {
+                name: "attr.worker.os.family",
+                any_of: vec![os.as_str()],
+            });
         }
         for r in &self.host_requirements {
             match r {
-                HostRequirement::Amount { name, min } => amounts.push(amount(name, yaml_num(*min))),
-                HostRequirement::Attr { name, any_of } => attributes.push(Node::map([
-                    ("name", Node::str(name)),
-                    ("anyOf", Node::strs(any_of.iter().cloned())),
-                ])),
+                HostRequirement::Amount { name, min } => amounts.push(AmountRequirement {
+                    name,
+                    min: AmountMin::of(*min),
+                }),
+                HostRequirement::Attr { name, any_of } => attributes.push(AttributeRequirement {
+                    name,
+                    any_of: any_of.iter().map(String::as_str).collect(),
+                }),
             }
         }
-        let mut pairs = Vec::new();
-        if !amounts.is_empty() {
-            pairs.push(("amounts", Node::List(amounts)));
-        }
-        if !attributes.is_empty() {
-            pairs.push(("attributes", Node::List(attributes)));
-        }
-        (!pairs.is_empty()).then(|| Node::map(pairs))
+        (!amounts.is_empty() || !attributes.is_empty()).then_some(HostRequirements {
+            amounts,
+            attributes,
+        })
     }
 
     /// A container's `resources` (`task`: with the GPUs): requests of CPUs and memory, a
     /// memory limit equal to the request (a pod over it is killed, not the node), GPUs as
     /// limits (`--gpu-resource`, `nvidia.com/gpu` by default). `None` when nothing is asked.
-    pub(crate) fn kube_resources(&self, task: bool) -> Option<Node> {
+    pub(crate) fn kube_resources(&self, task: bool) -> Option<KubeResources<'_>> {
         let mut requests = Vec::new();
         let mut limits = Vec::new();
         let cpus = if task {
@@ -749,71 +812,55 @@ impl Resources {
             self.cpus.map(|_| 1)
         };
         if let Some(c) = cpus {
-            requests.push(("cpu", Node::str(c.to_string())));
+            requests.push(("cpu", c.to_string()));
         }
         if let Some(m) = self.mem_mib {
-            requests.push(("memory", Node::str(format!("{m}Mi"))));
-            limits.push(("memory", Node::str(format!("{m}Mi"))));
+            requests.push(("memory", format!("{m}Mi")));
+            limits.push(("memory", format!("{m}Mi")));
         }
         if task && self.gpus > 0 {
             let name = self.gpu_resource.as_deref().unwrap_or(KUBE_GPU);
-            limits.push((name, Node::str(self.gpus.to_string())));
+            limits.push((name, self.gpus.to_string()));
         }
-        let mut pairs = Vec::new();
-        if !requests.is_empty() {
-            pairs.push(("requests", Node::map(requests)));
-        }
-        if !limits.is_empty() {
-            pairs.push(("limits", Node::map(limits)));
-        }
-        (!pairs.is_empty()).then(|| Node::map(pairs))
+        (!requests.is_empty() || !limits.is_empty()).then_some(KubeResources {
+            requests: Pairs(requests),
+            limits: Pairs(limits),
+        })
     }
 
     /// A pod spec's scheduling fields: `nodeSelector`, `tolerations`, `activeDeadlineSeconds`
     /// (a task's `--time`: each pod, so each try of a shard, is stopped after it; the
     /// verification's `--verify-time`), then the `--pod-spec` pass-through.
-    pub(crate) fn kube_pod_fields(&self, task: bool) -> Vec<(String, Node)> {
-        let mut out = Vec::new();
-        if !self.node_selector.is_empty() {
-            out.push((
-                "nodeSelector".to_string(),
-                Node::map(
-                    self.node_selector
-                        .iter()
-                        .map(|(k, v)| (k.clone(), Node::str(v))),
-                ),
-            ));
-        }
-        if !self.tolerations.is_empty() {
-            let list = self
+    pub(crate) fn kube_pod_fields(&self, task: bool) -> KubeScheduling<'_> {
+        KubeScheduling {
+            node_selector: Pairs(
+                self.node_selector
+                    .iter()
+                    .map(|(k, v)| (k.as_str(), v.as_str()))
+                    .collect(),
+            ),
+            tolerations: self
                 .tolerations
                 .iter()
-                .map(|t| {
-                    let mut p = vec![("key", Node::str(&t.key))];
-                    match &t.value {
-                        Some(v) => {
-                            p.push(("operator", Node::str("Equal")));
-                            p.push(("value", Node::str(v)));
-                        }
-                        None => p.push(("operator", Node::str("Exists"))),
-                    }
-                    if let Some(e) = &t.effect {
-                        p.push(("effect", Node::str(e)));
-                    }
-                    Node::map(p)
+                .map(|t| KubeToleration {
+                    key: &t.key,
+                    operator: if t.value.is_some() { "Equal" } else { "Exists" },
+                    value: t.value.as_deref(),
+                    effect: t.effect.as_deref(),
                 })
-                .collect();
-            out.push(("tolerations".to_string(), Node::List(list)));
+                .collect(),
+            active_deadline_seconds: if task {
+                self.time_s
+            } else {
+                self.verify_time_s
+            },
+            pod_fields: Pairs(
+                self.pod_fields
+                    .iter()
+                    .map(|(k, v)| (k.as_str(), v))
+                    .collect(),
+            ),
         }
-        if let Some(t) = if task {
-            self.time_s
-        } else {
-            self.verify_time_s
-        } {
-            out.push(("activeDeadlineSeconds".to_string(), Node::Int(t as i64)));
-        }
-        out.extend(self.pod_fields.iter().cloned());
-        out
     }
 }
 

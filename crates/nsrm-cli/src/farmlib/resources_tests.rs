@@ -2,6 +2,20 @@
 
 use super::*;
 
+/// A value's YAML text, as the job files hold it.
+fn yaml<T: serde::Serialize>(v: &T) -> String {
+    crate::farmlib::yaml::to_string(v).unwrap()
+}
+
+/// The top-level keys of a mapping's YAML text, in order.
+fn keys<T: serde::Serialize>(v: &T) -> Vec<String> {
+    yaml(v)
+        .lines()
+        .filter(|l| !l.starts_with([' ', '-']))
+        .map(|l| l.split(':').next().unwrap().to_string())
+        .collect()
+}
+
 #[test]
 fn memory_takes_slurm_units_and_is_bounded() {
     assert_eq!(parse_mem("8G").unwrap(), 8192);
@@ -233,20 +247,22 @@ fn each_engine_gets_what_was_asked() {
     let verify = r.sbatch_lines(false);
     assert!(verify.contains("--cpus-per-task=1\n") && !verify.contains("--gpus"));
     assert!(!verify.contains("--time") && verify.contains("--constraint=avx2"));
-    assert_eq!(r.kube_pod_fields(false).len(), 2);
-    let text = crate::farmlib::yaml::to_string(&r.openjd_host_requirements(true).unwrap());
+    assert_eq!(
+        keys(&r.kube_pod_fields(false)),
+        ["nodeSelector", "tolerations"]
+    );
+    let text = yaml(&r.openjd_host_requirements(true).unwrap());
     assert!(text.contains("amount.worker.gpu"), "{text}");
     assert!(text.contains("attr.worker.os.family"), "{text}");
-    let k = crate::farmlib::yaml::to_string(&r.kube_resources(true).unwrap());
+    let k = yaml(&r.kube_resources(true).unwrap());
     assert!(k.contains("nvidia.com/gpu") && k.contains("6000Mi"), "{k}");
-    let pod: Vec<String> = r
-        .kube_pod_fields(true)
-        .into_iter()
-        .map(|(k, _)| k)
-        .collect();
     assert_eq!(
-        pod,
+        keys(&r.kube_pod_fields(true)),
         ["nodeSelector", "tolerations", "activeDeadlineSeconds"]
+    );
+    assert_eq!(
+        yaml(&r.kube_pod_fields(true).tolerations),
+        "- key: \"nvidia.com/gpu\"\n  operator: \"Exists\"\n  effect: \"NoSchedule\"\n"
     );
     assert_eq!(Resources::default().kube_resources(true), None);
     assert_eq!(Resources::default().openjd_host_requirements(true), None);
@@ -265,14 +281,13 @@ fn the_verification_has_its_own_time_limit() {
     };
     assert!(r.sbatch_lines(true).contains("--time=0-02:00:00\n"));
     assert!(r.sbatch_lines(false).contains("--time=0-00:10:00\n"));
-    let deadline = |task| {
-        r.kube_pod_fields(task)
-            .into_iter()
-            .find(|(k, _)| k == "activeDeadlineSeconds")
-            .map(|(_, v)| v)
-    };
-    assert_eq!(deadline(true), Some(Node::Int(7200)));
-    assert_eq!(deadline(false), Some(Node::Int(600)));
+    let deadline = |task| r.kube_pod_fields(task).active_deadline_seconds;
+    assert_eq!(deadline(true), Some(7200));
+    assert_eq!(deadline(false), Some(600));
+    assert_eq!(
+        yaml(&r.kube_pod_fields(false)),
+        "activeDeadlineSeconds: 600\n"
+    );
     assert!(r.summary().contains("verification time limit 0-00:10:00"));
     let e = parse_time_for("--verify-time", "0")
         .unwrap_err()
@@ -308,7 +323,7 @@ fn gpus_can_be_asked_for_by_another_resource_name() {
         gpu_resource: Some("amd.com/gpu".into()),
         ..Resources::default()
     };
-    let k = crate::farmlib::yaml::to_string(&r.kube_resources(true).unwrap());
+    let k = yaml(&r.kube_resources(true).unwrap());
     assert!(
         k.contains("amd.com/gpu: \"2\"") && !k.contains("nvidia"),
         "{k}"
@@ -325,26 +340,26 @@ fn pod_spec_fields_pass_through_as_typed_values() {
         r#"imagePullSecrets=[{"name":"registry"}]"#,
     ]))
     .unwrap();
-    assert_eq!(f[0], ("priorityClassName".into(), Node::str("render")));
+    assert_eq!(
+        f[0],
+        ("priorityClassName".into(), serde_json::json!("render"))
+    );
     assert_eq!(
         f[1].1,
-        Node::map([
-            ("runAsNonRoot", Node::Bool(true)),
-            ("runAsUser", Node::Int(1000))
-        ])
+        serde_json::json!({"runAsNonRoot": true, "runAsUser": 1000})
     );
     let r = Resources {
         pod_fields: f,
         ..Resources::default()
     };
-    let keys: Vec<String> = r
-        .kube_pod_fields(true)
-        .into_iter()
-        .map(|(k, _)| k)
-        .collect();
     assert_eq!(
-        keys,
+        keys(&r.kube_pod_fields(true)),
         ["priorityClassName", "securityContext", "imagePullSecrets"]
+    );
+    // Typed as given: a number, a boolean, a string that looks like another type.
+    assert_eq!(
+        yaml(&r.kube_pod_fields(true)),
+        "priorityClassName: \"render\"\nsecurityContext:\n  runAsNonRoot: true\n  runAsUser: 1000\nimagePullSecrets:\n  - name: \"registry\"\n"
     );
     for (bad, why) in [
         ("priorityClassName", "FIELD=JSON"),

@@ -540,6 +540,25 @@ fn uploads_hostile_input_and_cleanup() {
         let (code, b) = srv.call("POST", &path, body.as_bytes());
         assert_eq!(code, want, "{path} {body}: {}", String::from_utf8_lossy(&b));
     }
+    // A bad name (of the library's typed options) is refused naming the names allowed.
+    for (path, body, allowed) in [
+        ("fit", r#"{"kind": "xyz"}"#, "lrm, prm, rprm or nsrm"),
+        ("fit", r#"{"normalise": "x"}"#, "raw or white-balanced"),
+        (
+            "fit",
+            r#"{"ridge": "x"}"#,
+            "auto (GCV), auto-loo or a number",
+        ),
+        ("compare", r#"{"objective": "x"}"#, "ls, de00 or de00:P"),
+        ("reading", r#"{"chart": "x"}"#, "cc24, sg, spyder24"),
+        ("reading", r#"{"flat": "x"}"#, "none, neutrals, file:N"),
+    ] {
+        let path = format!("/api/frames/{id}/{path}");
+        let (code, b) = srv.call("POST", &path, body.as_bytes());
+        let text = String::from_utf8_lossy(&b);
+        assert_eq!(code, 400, "{path} {body}: {text}");
+        assert!(text.contains(allowed), "{path} {body}: {text}");
+    }
     // Corners that make no chart: the reading fails with the reason, shown in the page.
     let st = srv.json(
         "POST",

@@ -5,6 +5,7 @@
 use super::json;
 use super::server::Request;
 use super::session::Studio;
+use super::wire::{Closed, ErrorBody};
 use anyhow::{anyhow, bail, Context, Result};
 use std::io::{Read, Write};
 use std::path::Path;
@@ -175,11 +176,13 @@ pub(crate) fn serve(studio: &Studio, mut req: Request) {
                     let status = error_status(&e);
                     // In the page's words: no CLI flag named.
                     let msg = super::session::explain_for_page(e);
-                    json(status, &serde_json::json!({ "error": msg }))
+                    json(status, &ErrorBody { error: msg })
                 }
                 Err(_) => json(
                     500,
-                    &serde_json::json!({ "error": "internal error (a bug in nsrm studio): the server is still running; please report it" }),
+                    &ErrorBody {
+                        error: "internal error (a bug in nsrm studio): the server is still running; please report it".into(),
+                    },
                 ),
             }
         }
@@ -321,7 +324,7 @@ fn route_frame(
         ("GET", []) => Ok(json(200, &studio.frame(id)?.lock_state().state())),
         ("DELETE", []) => {
             studio.close(id)?;
-            Ok(json(200, &serde_json::json!({ "closed": id })))
+            Ok(json(200, &Closed { closed: id }))
         }
         ("POST", ["reading"]) => {
             let body = read_json(req)?;
@@ -353,7 +356,7 @@ fn route_frame(
             // The frame's lock is held only to take the patches: other requests on this frame
             // (a corner drag, a preview) go on while the models are evaluated.
             let plan = f.lock_state().compare_plan(body)?;
-            Ok(json(200, &plan.run()?))
+            Ok(json(200, &plan.run()))
         }
         ("GET", ["corrected.png"]) => {
             let f = studio.frame(id)?;
@@ -446,7 +449,7 @@ fn read_json(req: &mut Request) -> Result<serde_json::Value> {
         return Err(TooLarge(format!("a JSON body over {MAX_JSON} bytes")).into());
     }
     if buf.iter().all(u8::is_ascii_whitespace) {
-        return Ok(serde_json::json!({}));
+        return Ok(serde_json::Value::Object(serde_json::Map::new()));
     }
     serde_json::from_slice(&buf)
         .map_err(|e| BadRequest(format!("the request body is not JSON: {e}")).into())

@@ -12,6 +12,7 @@
 mod http;
 mod server;
 mod session;
+mod wire;
 
 use super::common::UsageError;
 use anyhow::{Context, Result};
@@ -127,8 +128,8 @@ fn open_browser(url: &str) {
     }
 }
 
-/// A JSON reply.
-fn json(status: u16, v: &serde_json::Value) -> Reply {
+/// A JSON reply: one of the answers of [`wire`].
+fn json(status: u16, v: &impl serde::Serialize) -> Reply {
     Reply::new(
         status,
         "application/json",

@@ -5,27 +5,27 @@
 //! --capture`), the exports from the library's in-memory `render` functions (the bytes `export`
 //! writes).
 //!
-//! Why one file (about 1,300 lines): the studio's state is one lock per frame, and every API answer
+//! Why one file (about 1,250 lines): the studio's state is one lock per frame, and every API answer
 //! (reading, fit, comparison, previews, exports) is computed under it from the same settings; the
-//! HTTP side is `http.rs`, the server `server.rs`, the tests `session_tests.rs`.
+//! HTTP side is `http.rs`, the server `server.rs`, the requests and answers (typed) `wire.rs`, the
+//! tests `session_tests.rs`.
 
 use super::super::capture::{self, Capture, CaptureOptions};
 use super::super::common::UsageError;
-use super::super::fit_args::FitVariantArgs;
 use super::http::{BadRequest, NotFound, Target};
+use super::wire::{self, Comparison, Evaluated, FitAnswer, FitRequest, Flat, Named, PatchFit};
+use super::wire::{Settings, State};
 use anyhow::{bail, Context, Result};
-use clap::ValueEnum;
 use nsrm::chart::capture::{CaptureFrame, FlatField, ReadingOptions};
 use nsrm::export::{render, Format, LutOptions};
 use nsrm::gpu::{DeviceChoice, Engine, GpuOptions, Opened};
 use nsrm::Kind;
 use nsrm::{apply_mat3 as mat_apply, OutputSpace};
 use nsrm::{delta_e00_xyz, output_matrix, srgb8, to_linear_srgb};
-use nsrm::{evaluate_with, EvalResult, Protocol, Stats};
-use nsrm::{fit_with, FitReport, Normalise};
+use nsrm::{evaluate_with, Protocol, Stats};
+use nsrm::{fit_with, FitOptions, FitReport, FitWhite, Normalise, Objective, Ridge};
 use nsrm::{Frame, Layout, Model};
-use serde::Deserialize;
-use serde_json::{json, Value};
+use serde_json::Value;
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::{Arc, Mutex, MutexGuard};
@@ -83,106 +83,32 @@ impl FrameSlot {
     }
 }
 
-/// How the chart in a frame is read (the page's controls; the CLI's capture flags).
-#[derive(Debug, Clone, Deserialize, serde::Serialize)]
-#[serde(deny_unknown_fields)]
-pub(crate) struct Settings {
-    #[serde(default = "default_chart")]
-    pub(crate) chart: String,
-    #[serde(default)]
-    pub(crate) reference: Option<String>,
-    #[serde(default)]
-    pub(crate) reference_white: Option<String>,
-    /// The four outer corners of the patch grid (first patch's corner first, clockwise); `None`:
-    /// detect.
-    #[serde(default)]
-    pub(crate) corners: Option<[[f64; 2]; 4]>,
-    /// Patches left out of the fit by hand (labels).
-    #[serde(default)]
-    pub(crate) exclude: Vec<String>,
-    /// `none`, `neutrals`, or `file:N` (a flat frame among the listed files).
-    #[serde(default)]
-    pub(crate) flat: Option<String>,
-    #[serde(default)]
-    pub(crate) white_level: Option<f64>,
-    #[serde(default)]
-    pub(crate) layer: Option<String>,
-}
-
-fn default_chart() -> String {
-    "cc24".into()
-}
-
-impl Default for Settings {
-    fn default() -> Self {
-        Settings {
-            chart: default_chart(),
-            reference: None,
-            reference_white: None,
-            corners: None,
-            exclude: Vec::new(),
-            flat: None,
-            white_level: None,
-            layer: None,
-        }
-    }
-}
-
-/// A fit request: the kind, the order and the variant fields (the `fit` flags).
-#[derive(Debug, Clone, Deserialize, serde::Serialize)]
-#[serde(deny_unknown_fields)]
-pub(crate) struct FitRequest {
-    #[serde(default = "default_kind")]
-    pub(crate) kind: String,
-    #[serde(default = "default_order")]
-    pub(crate) order: u8,
-    #[serde(default = "default_objective")]
-    pub(crate) objective: String,
-    #[serde(default)]
-    pub(crate) preserve_white: bool,
-    #[serde(default)]
-    pub(crate) white_patch: Option<String>,
-    #[serde(default)]
-    pub(crate) ridge: Option<String>,
-    #[serde(default = "default_normalise")]
-    pub(crate) normalise: String,
-}
-
-fn default_kind() -> String {
-    "nsrm".into()
-}
-fn default_order() -> u8 {
-    3
-}
-fn default_objective() -> String {
-    "ls".into()
-}
-fn default_normalise() -> String {
-    "raw".into()
-}
-
 impl FitRequest {
-    fn variant_args(&self) -> Result<FitVariantArgs> {
-        let normalise = nsrm::Normalise::from_str(&self.normalise, true).map_err(|_| {
-            BadRequest(format!(
-                "normalise `{}`: raw or white-balanced",
-                self.normalise
-            ))
-        })?;
-        Ok(FitVariantArgs {
-            objective: self.objective.clone(),
+    /// The fit options the request names, checked as `fit` checks its flags.
+    fn options(&self) -> Result<FitOptions> {
+        let white_patch = self.white_patch.clone().filter(|s| !s.trim().is_empty());
+        if white_patch.is_some() && !self.preserve_white && self.normalise == Normalise::Raw {
+            bail!(UsageError(
+                "--white-patch needs --preserve-white or --normalise white-balanced".into(),
+            ));
+        }
+        Ok(FitOptions {
+            objective: self.objective,
             preserve_white: self.preserve_white,
-            white_patch: self.white_patch.clone().filter(|s| !s.trim().is_empty()),
-            ridge: self.ridge.clone().filter(|s| !s.trim().is_empty()),
-            normalise,
+            white: white_patch.map_or(FitWhite::Perfect, FitWhite::Patch),
+            ridge: self.ridge.unwrap_or(Ridge::None),
+            normalise: self.normalise,
+            // An explicit ridge of 0 means no ridge anywhere: not even the f32 guard's.
+            f32_guard: self.ridge != Some(Ridge::None),
+            f32_also: None,
         })
     }
 
     /// The variant flags as `fit`/`eval` take them.
     fn flags(&self) -> Vec<String> {
         let mut v = Vec::new();
-        if self.objective != "ls" {
-            v.push(format!("--objective {}", quote(&self.objective)));
+        if self.objective != Objective::LeastSquares {
+            v.push(format!("--objective {}", quote(&self.objective.name())));
         }
         if self.preserve_white {
             v.push("--preserve-white".into());
@@ -190,11 +116,11 @@ impl FitRequest {
         if let Some(p) = self.white_patch.as_deref().filter(|s| !s.trim().is_empty()) {
             v.push(format!("--white-patch {}", quote(p)));
         }
-        if let Some(r) = self.ridge.as_deref().filter(|s| !s.trim().is_empty()) {
-            v.push(format!("--ridge {}", quote(r)));
+        if let Some(r) = &self.ridge {
+            v.push(format!("--ridge {}", quote(&r.name_of())));
         }
-        if !self.normalise.eq_ignore_ascii_case("raw") {
-            v.push(format!("--normalise {}", quote(&self.normalise)));
+        if self.normalise != Normalise::Raw {
+            v.push(format!("--normalise {}", quote(self.normalise.name())));
         }
         v
     }
@@ -226,7 +152,7 @@ pub(crate) struct FrameState {
     frame: Arc<CaptureFrame>,
     frame_layer: Option<String>,
     /// The decoded flat frame last used (`flat` setting of a listed file), by the setting.
-    flat_cache: Option<(String, Arc<Frame>)>,
+    flat_cache: Option<(Flat, Arc<Frame>)>,
     /// An uploaded flat frame (its file name and pixels): the `upload` flat setting.
     flat_upload: Option<(String, Arc<Frame>)>,
     /// An uploaded reference file (its file name and the server's copy): the `upload` reference
@@ -315,22 +241,24 @@ impl Studio {
         Ok(dir)
     }
 
-    pub(crate) fn info(&self) -> Value {
-        json!({
-            "version": env!("CARGO_PKG_VERSION"),
-            "files": self.files.iter().enumerate().map(|(i, p)| json!({
-                "index": i,
-                "name": p.display().to_string(),
-            })).collect::<Vec<_>>(),
-            "charts": nsrm::chart::ChartKind::ALL.map(|k| k.name()),
-            "references": references(),
-            "formats": formats(),
-            "spaces": OutputSpace::ALL.iter().map(|(_, n)| *n).collect::<Vec<_>>(),
-            "kinds": ["lrm", "prm", "rprm", "nsrm"],
-            "max_pixels": self.max_pixels,
-            "max_upload_bytes": self.max_upload_bytes(),
-            "server_device": self.device.name(),
-        })
+    pub(crate) fn info(&self) -> wire::Info {
+        wire::Info {
+            version: env!("CARGO_PKG_VERSION"),
+            files: (self.files.iter().enumerate())
+                .map(|(index, p)| wire::ListedFile {
+                    index,
+                    name: p.display().to_string(),
+                })
+                .collect(),
+            charts: nsrm::chart::ChartKind::ALL.map(|k| k.name()).to_vec(),
+            references: references(),
+            formats: formats(),
+            spaces: OutputSpace::ALL.iter().map(|(_, n)| *n).collect(),
+            kinds: Kind::ALL.map(Kind::name).to_vec(),
+            max_pixels: self.max_pixels,
+            max_upload_bytes: self.max_upload_bytes(),
+            server_device: self.device.name(),
+        }
     }
 
     /// Applies `model` to `frame` on the server's device (opened on first use); where it ran.
@@ -415,7 +343,7 @@ impl Studio {
 
     /// Opens `path` (read as `chart extract` reads it) under `id`, reads its chart with the
     /// default settings, and returns its state.
-    pub(crate) fn open(&self, id: String, path: PathBuf, uploaded: bool) -> Result<Value> {
+    pub(crate) fn open(&self, id: String, path: PathBuf, uploaded: bool) -> Result<State> {
         let r = self.open_inner(&id, path, uploaded);
         if r.is_err() && uploaded {
             let _ = std::fs::remove_dir_all(self.tmp.join(&id));
@@ -609,35 +537,20 @@ impl FrameState {
     fn options(&self) -> Result<CaptureOptions> {
         let s = &self.settings;
         check_no_path(s)?;
-        let chart = nsrm::chart::ChartKind::from_str(&s.chart, true).map_err(|_| {
-            BadRequest(format!(
-                "chart `{}`: one of {}",
-                s.chart,
-                crate::capture::chart_names()
-            ))
-        })?;
-        let flat = match s.flat.as_deref().map(str::trim) {
-            None | Some("") | Some("none") => None,
-            Some(f) if f.eq_ignore_ascii_case("neutrals") => Some("neutrals".to_string()),
-            Some("upload") => Some(
+        let flat = match s.flat {
+            None | Some(Flat::None) => None,
+            Some(Flat::Neutrals) => Some("neutrals".to_string()),
+            Some(Flat::Upload) => Some(
                 self.flat_upload
                     .as_ref()
                     .map(|(name, _)| name.clone())
                     .ok_or_else(|| BadRequest("flat `upload`: no flat frame uploaded".into()))?,
             ),
-            Some(f) => {
-                let i: usize = f
-                    .strip_prefix("file:")
-                    .and_then(|n| n.parse().ok())
-                    .ok_or_else(|| {
-                        BadRequest(format!(
-                            "flat `{f}`: none, neutrals, file:N (a listed file) or upload (the uploaded flat frame)"
-                        ))
-                    })?;
+            Some(Flat::File(i)) => {
                 let p = self
                     .files
                     .get(i)
-                    .ok_or_else(|| BadRequest(format!("flat `{f}`: no listed file {i}")))?;
+                    .ok_or_else(|| BadRequest(format!("flat `file:{i}`: no listed file {i}")))?;
                 Some(p.display().to_string())
             }
         };
@@ -659,7 +572,7 @@ impl FrameState {
             Some(r) => Some(r.to_string()),
         };
         Ok(CaptureOptions {
-            chart: Some(chart.into()),
+            chart: Some(s.chart.into()),
             reference,
             reference_white: s.reference_white.clone().filter(|r| !r.trim().is_empty()),
             corners: s.corners.map(corners_text),
@@ -699,21 +612,23 @@ impl FrameState {
             self.frame = open_frame(&self.path, layer.clone(), self.max_pixels)?;
             self.frame_layer = layer;
         }
-        let flat = match o.flat.as_deref() {
-            None => None,
-            Some(_) if self.settings.flat.as_deref().map(str::trim) == Some("upload") => self
+        let flat = match self.settings.flat {
+            None | Some(Flat::None) => None,
+            Some(Flat::Upload) => self
                 .flat_upload
                 .as_ref()
                 .map(|(_, ff)| FlatField::Frame(ff)),
-            Some(f) if f.eq_ignore_ascii_case("neutrals") => Some(FlatField::Neutrals),
-            Some(f) => {
-                let key = self.settings.flat.clone().unwrap_or_default();
-                if self.flat_cache.as_ref().is_none_or(|(k, _)| *k != key) {
+            Some(Flat::Neutrals) => Some(FlatField::Neutrals),
+            Some(file @ Flat::File(_)) => {
+                if self.flat_cache.as_ref().is_none_or(|(k, _)| *k != file) {
                     self.flat_cache = None;
-                    let ff = o
-                        .flat_frame()?
-                        .ok_or_else(|| BadRequest(format!("flat `{f}`: not a flat frame")))?;
-                    self.flat_cache = Some((key, Arc::new(ff)));
+                    let ff = o.flat_frame()?.ok_or_else(|| {
+                        BadRequest(format!(
+                            "flat `{}`: not a flat frame",
+                            o.flat.as_deref().unwrap_or_default()
+                        ))
+                    })?;
+                    self.flat_cache = Some((file, Arc::new(ff)));
                 }
                 self.flat_cache.as_ref().map(|(_, ff)| FlatField::Frame(ff))
             }
@@ -767,7 +682,7 @@ impl FrameState {
         )
         .map_err(|e| BadRequest(format!("{name}: not a flat frame nsrm can read: {e}")))?;
         self.flat_upload = Some((name, Arc::new(ff)));
-        self.settings.flat = Some("upload".into());
+        self.settings.flat = Some(Flat::Upload);
         self.read();
         Ok(())
     }
@@ -832,25 +747,30 @@ impl FrameState {
     }
 
     /// The frame's state as the page shows it.
-    pub(crate) fn state(&self) -> Value {
-        let base = format!("/api/frames/{}", self.id);
-        let training = self.capture.as_ref().map(|c| self.patches_spec(c));
-        json!({
-            "id": self.id,
-            "name": self.shown,
-            "source": if self.uploaded { "upload" } else { "file" },
-            "width": self.width,
-            "height": self.height,
-            "preview": { "url": format!("{base}/preview.png"), "scale": self.preview_scale },
-            "settings": self.settings,
-            "error": self.error,
-            "reading": self.capture.as_ref().map(|c| c.report()),
-            "patches_spec": training,
-            "flat_upload": self.flat_upload.as_ref().map(|(name, _)| name),
-            "reference_upload": self.reference_upload.as_ref().map(|(name, _)| name),
-            "fitted": self.fitted.as_ref().map(|f| json!({"kind": f.model.kind().to_string(), "order": f.model.order(), "report": f.report})),
-            "command": self.command_text("clf", "xyz"),
-        })
+    pub(crate) fn state(&self) -> State {
+        State {
+            id: self.id.clone(),
+            name: self.shown.clone(),
+            source: if self.uploaded { "upload" } else { "file" },
+            width: self.width,
+            height: self.height,
+            preview: wire::Preview {
+                url: format!("/api/frames/{}/preview.png", self.id),
+                scale: self.preview_scale,
+            },
+            settings: self.settings.clone(),
+            error: self.error.clone(),
+            reading: self.capture.as_ref().map(|c| c.report()),
+            patches_spec: self.capture.as_ref().map(|c| self.patches_spec(c)),
+            flat_upload: self.flat_upload.as_ref().map(|(name, _)| name.clone()),
+            reference_upload: self.reference_upload.as_ref().map(|(name, _)| name.clone()),
+            fitted: self.fitted.as_ref().map(|f| wire::FittedBrief {
+                kind: f.model.kind().to_string(),
+                order: f.model.order(),
+                report: f.report.clone(),
+            }),
+            command: self.command_text("clf", "xyz"),
+        }
     }
 
     pub(crate) fn overlay_png(&self) -> Result<Vec<u8>> {
@@ -866,17 +786,17 @@ impl FrameState {
     }
 
     /// Fits as `fit --capture` does; the model file's text, its report and its errors.
-    pub(crate) fn fit(&mut self, body: Value) -> Result<Value> {
+    pub(crate) fn fit(&mut self, body: Value) -> Result<FitAnswer> {
         let req: FitRequest =
             serde_json::from_value(body).map_err(|e| BadRequest(format!("fit request: {e}")))?;
-        let kind = Kind::parse(&req.kind).map_err(|e| BadRequest(format!("kind: {e}")))?;
+        let kind = req.kind;
         if !(1..=4).contains(&req.order) {
             bail!(UsageError(format!(
                 "order {} is out of range (1..4)",
                 req.order
             )));
         }
-        let opts = req.variant_args()?.options()?;
+        let opts = req.options()?;
         if opts.normalise == Normalise::WhiteBalanced && kind != Kind::Nsrm {
             bail!(UsageError(format!(
                 "normalise white-balanced is defined for NSRM only, not {kind}"
@@ -894,7 +814,7 @@ impl FrameState {
         })?;
         let white = c.reference.white;
         let mut de = Vec::with_capacity(data.len());
-        let patches: Vec<Value> = data
+        let patches: Vec<PatchFit> = data
             .labels
             .iter()
             .zip(&data.rgb)
@@ -903,37 +823,38 @@ impl FrameState {
                 let out = fitted.apply_f64(*rgb);
                 let d = delta_e00_xyz(out, *xyz, data.white_xyz);
                 de.push(d);
-                json!({
-                    "label": l,
-                    "rgb": rgb,
-                    "reference_xyz": xyz,
-                    "corrected_xyz": out,
-                    "reference_srgb8": xyz_srgb8(*xyz, white),
-                    "corrected_srgb8": xyz_srgb8(out, white),
-                    "dE00": d,
-                })
+                PatchFit {
+                    label: l.clone(),
+                    rgb: *rgb,
+                    reference_xyz: *xyz,
+                    corrected_xyz: out,
+                    reference_srgb8: xyz_srgb8(*xyz, white),
+                    corrected_srgb8: xyz_srgb8(out, white),
+                    de00: d,
+                }
             })
             .collect();
         let stats = Stats::of(&de);
         let model_text = fitted.model.to_json();
         let model: Value = serde_json::from_str(&model_text)?;
+        let (order, terms) = (fitted.model.order(), fitted.model.len_terms());
         self.fitted = Some(Fitted {
             request: req,
             model: fitted.model,
             report: fitted.report.clone(),
         });
-        Ok(json!({
-            "model": model,
-            "kind": kind.to_string(),
-            "order": self.fitted.as_ref().map(|f| f.model.order()),
-            "terms": self.fitted.as_ref().map(|f| f.model.len_terms()),
-            "report": fitted.report,
-            "n_patches": data.len(),
-            "patches_spec": spec,
-            "in_sample": stats,
-            "patches": patches,
-            "command": self.command_text("clf", "xyz"),
-        }))
+        Ok(FitAnswer {
+            model,
+            kind: kind.to_string(),
+            order,
+            terms,
+            report: fitted.report,
+            n_patches: data.len(),
+            patches_spec: spec,
+            in_sample: stats,
+            patches,
+            command: self.command_text("clf", "xyz"),
+        })
     }
 
     /// Leave-one-out and in-sample ΔE00 of every kind and order with the request's variant (as
@@ -946,7 +867,7 @@ impl FrameState {
     pub(crate) fn compare_plan(&self, body: Value) -> Result<ComparePlan> {
         let req: FitRequest = serde_json::from_value(body)
             .map_err(|e| BadRequest(format!("compare request: {e}")))?;
-        let custom = req.variant_args()?.options()?;
+        let custom = req.options()?;
         let c = self.capture()?;
         let data = c.training_set().select(&self.patches_spec(c))?;
         let command_head = format!(
@@ -971,22 +892,18 @@ pub(crate) struct ComparePlan {
 }
 
 impl ComparePlan {
-    pub(crate) fn run(self) -> Result<Value> {
+    pub(crate) fn run(self) -> Comparison {
         let ComparePlan {
             custom,
             data,
             command_head,
         } = self;
-        let mut out = serde_json::Map::new();
-        let mut best: Option<EvalResult> = None;
+        let mut best: Option<wire::Best> = None;
         // The orders each kind could be fitted at (leave-one-out), for the command lines.
         let mut fitted_orders: Vec<(Kind, Vec<u8>)> = Vec::new();
-        for (name, protocol) in [
-            ("leave_one_out", Protocol::LeaveOneOut),
-            ("in_sample", Protocol::InSample),
-        ] {
-            let mut results: Vec<Value> = Vec::new();
-            for kind in [Kind::Lrm, Kind::Prm, Kind::Rprm, Kind::Nsrm] {
+        let mut evaluate = |protocol: Protocol| {
+            let mut results: Vec<Evaluated> = Vec::new();
+            for kind in Kind::ALL {
                 let mut done = Vec::new();
                 let mut ok_orders = Vec::new();
                 for order in 1..=4u8 {
@@ -1004,38 +921,38 @@ impl ComparePlan {
                     match evaluate_with(kind, order, &data, protocol, "capture", &o) {
                         Ok(r) => {
                             if protocol == Protocol::LeaveOneOut
-                                && best.as_ref().is_none_or(|b| r.stats.mean < b.stats.mean)
+                                && best.as_ref().is_none_or(|b| r.stats.mean < b.mean)
                             {
-                                best = Some(r.clone());
+                                best = Some(wire::Best {
+                                    model: r.model.clone(),
+                                    order: r.order,
+                                    mean: r.stats.mean,
+                                });
                             }
                             ok_orders.push(eff);
-                            results.push(serde_json::to_value(&r)?);
+                            results.push(Evaluated::Done(r));
                         }
-                        Err(e) => results.push(json!({
-                            "model": kind.to_string().to_ascii_lowercase(),
-                            "order": eff,
-                            "error": e.to_string(),
-                        })),
+                        Err(e) => results.push(Evaluated::Failed {
+                            model: kind.name().into(),
+                            order: eff,
+                            error: e.to_string(),
+                        }),
                     }
                 }
                 if protocol == Protocol::LeaveOneOut && !ok_orders.is_empty() {
                     fitted_orders.push((kind, ok_orders));
                 }
             }
-            out.insert(name.into(), Value::Array(results));
-        }
-        out.insert(
-            "best".into(),
-            best.map(|b| json!({"model": b.model, "order": b.order, "mean": b.stats.mean}))
-                .unwrap_or(Value::Null),
-        );
-        out.insert("n_patches".into(), json!(data.len()));
+            results
+        };
+        let leave_one_out = evaluate(Protocol::LeaveOneOut);
+        let in_sample = evaluate(Protocol::InSample);
         let lines: Vec<String> = fitted_orders
             .iter()
             .map(|(kind, orders)| {
                 format!(
                     "{command_head} --kinds {} --orders {} --json",
-                    kind.to_string().to_ascii_lowercase(),
+                    kind.name(),
                     orders
                         .iter()
                         .map(|o| o.to_string())
@@ -1044,8 +961,13 @@ impl ComparePlan {
                 )
             })
             .collect();
-        out.insert("command".into(), json!(lines.join("\n")));
-        Ok(Value::Object(out))
+        Comparison {
+            leave_one_out,
+            in_sample,
+            best,
+            n_patches: data.len(),
+            command: lines.join("\n"),
+        }
     }
 }
 
@@ -1093,18 +1015,18 @@ impl FrameState {
 
     /// The generated WGSL (the model with `space` folded in, as `export-shader --lang wgsl
     /// --layout rgb --output-space`) and the matrix from `space` to linear sRGB.
-    pub(crate) fn wgsl(&self, space: &str) -> Result<Value> {
+    pub(crate) fn wgsl(&self, space: &str) -> Result<wire::Shader> {
         let space = parse_space(space)?;
         let f = self.fitted()?;
         let out = nsrm::output_model(&self.with_highlights(&f.model)?, space)?;
         let wgsl = nsrm::export::shader::baked_wgsl(&out, Layout::Rgb)?;
-        Ok(json!({
-            "wgsl": wgsl,
-            "to_linear_srgb": to_linear_srgb(f.model.white_xyz(), space),
-            "width": self.small.width,
-            "height": self.small.height,
-            "workgroup_size": 256,
-        }))
+        Ok(wire::Shader {
+            wgsl,
+            to_linear_srgb: to_linear_srgb(f.model.white_xyz(), space),
+            width: self.small.width,
+            height: self.small.height,
+            workgroup_size: 256,
+        })
     }
 
     /// The preview-size linear frame as little-endian f32 RGB.
@@ -1182,7 +1104,7 @@ impl FrameState {
     /// The capture flags of the current settings.
     fn capture_flags(&self) -> Vec<String> {
         let s = &self.settings;
-        let mut v = vec![format!("--chart {}", quote(&s.chart.to_ascii_lowercase()))];
+        let mut v = vec![format!("--chart {}", s.chart.name())];
         match s.reference.as_deref().map(str::trim) {
             None | Some("") => {}
             Some("upload") => {
@@ -1235,7 +1157,7 @@ impl FrameState {
         )];
         if let Some(f) = &self.fitted {
             let m = &f.request;
-            let kind = m.kind.to_ascii_lowercase();
+            let kind = m.kind.name();
             lines.push(format!(
                 "nsrm fit --capture {frame} {cap}{} --kind {kind} --order {} -o model.json",
                 self.patches_flag(&m.flags()),

@@ -678,17 +678,6 @@ pub(crate) fn resolve(p: &Path) -> PathBuf {
     abs
 }
 
-#[cfg(unix)]
-fn file_id(meta: &std::fs::Metadata) -> Option<(u64, u64)> {
-    use std::os::unix::fs::MetadataExt;
-    Some((meta.dev(), meta.ino()))
-}
-
-#[cfg(not(unix))]
-fn file_id(_: &std::fs::Metadata) -> Option<(u64, u64)> {
-    None
-}
-
 /// Creates `dir` if needed and checks a file can be created in it (a probe with a temporary's
 /// name, removed at once).
 pub(crate) fn ensure_writable_dir(dir: &Path) -> Result<(), PlanError> {
@@ -800,7 +789,11 @@ fn check_destinations(
     let mut by_id: HashMap<(u64, u64), usize> = HashMap::with_capacity(inputs.len());
     for (i, input) in inputs.iter().enumerate() {
         by_path.insert(resolve(input), i);
-        if let Some(id) = std::fs::metadata(input).ok().as_ref().and_then(file_id) {
+        if let Some(id) = std::fs::metadata(input)
+            .ok()
+            .as_ref()
+            .and_then(super::file_id)
+        {
             by_id.insert(id, i);
         }
     }
@@ -809,7 +802,7 @@ fn check_destinations(
             std::fs::metadata(dest)
                 .ok()
                 .as_ref()
-                .and_then(file_id)
+                .and_then(super::file_id)
                 .and_then(|id| by_id.get(&id).copied())
         });
         match hit {

@@ -40,6 +40,21 @@ pub fn file_kind(meta: &std::fs::Metadata) -> &'static str {
     crate::limits::file_kind(meta)
 }
 
+/// A file's identity, `(device, inode)`, where the platform has one (Unix); `None` elsewhere.
+/// Two paths with the same identity are one file (a hard link, a symbolic link resolved): how
+/// the batch planner and the `nsrm` command's output session tell an output from an input.
+#[cfg(unix)]
+pub fn file_id(meta: &std::fs::Metadata) -> Option<(u64, u64)> {
+    use std::os::unix::fs::MetadataExt;
+    Some((meta.dev(), meta.ino()))
+}
+
+/// A file's identity, `(device, inode)`, where the platform has one (Unix); `None` elsewhere.
+#[cfg(not(unix))]
+pub fn file_id(_: &std::fs::Metadata) -> Option<(u64, u64)> {
+    None
+}
+
 /// What the library's encoders write into: any seekable writer that can move between threads
 /// (a [`std::fs::File`], a `BufWriter` of one, a `Cursor<Vec<u8>>`). The library never decides
 /// where a file lands: [`Decoded::write_to`] encodes into one of these, and the caller (the

@@ -212,17 +212,6 @@ impl Known {
     }
 }
 
-#[cfg(unix)]
-fn file_id(meta: &std::fs::Metadata) -> Option<(u64, u64)> {
-    use std::os::unix::fs::MetadataExt;
-    Some((meta.dev(), meta.ino()))
-}
-
-#[cfg(not(unix))]
-fn file_id(_: &std::fs::Metadata) -> Option<(u64, u64)> {
-    None
-}
-
 /// `path` made absolute without touching the filesystem (for paths that do not exist).
 fn absolute(path: &Path) -> PathBuf {
     std::path::absolute(path).unwrap_or_else(|_| path.to_path_buf())
@@ -271,7 +260,9 @@ impl Session {
         let known = Known {
             given: path.to_path_buf(),
             resolved: std::fs::canonicalize(path).unwrap_or_else(|_| absolute(path)),
-            id: std::fs::metadata(path).ok().and_then(|m| file_id(&m)),
+            id: std::fs::metadata(path)
+                .ok()
+                .and_then(|m| nsrm::io::file_id(&m)),
         };
         if let Some(o) = self.outputs.iter().find(|o| o.same(&known)) {
             return Err(WriteError::OutputIsInput {
@@ -307,7 +298,9 @@ impl Session {
         let known = Known {
             given: path.to_path_buf(),
             resolved,
-            id: std::fs::metadata(path).ok().and_then(|m| file_id(&m)),
+            id: std::fs::metadata(path)
+                .ok()
+                .and_then(|m| nsrm::io::file_id(&m)),
         };
         if let Some(i) = self.inputs.iter().find(|i| i.same(&known)) {
             return Err(WriteError::OutputIsInput {

@@ -114,8 +114,12 @@ pub(crate) fn export<'py>(
         let usage = e.is_usage();
         errors::lib(e, usage)
     };
-    // Refused before the (slower) build when the file exists and may not be replaced.
-    unit.check_clobber(&path).map_err(write_err)?;
+    // Refused before the (slower) build when a file exists and may not be replaced: the
+    // output, and for OCIO the CLF written beside it.
+    let companion = nsrm::export::companion_path(fmt, &path).map_err(export_err)?;
+    for p in std::iter::once(&path).chain(&companion) {
+        unit.check_clobber(p).map_err(write_err)?;
+    }
     let d = PyDict::new(py);
     let (files, report): (Vec<(PathBuf, Vec<u8>)>, _) = match fmt {
         Format::Icc => {

@@ -62,7 +62,7 @@ pub enum CsvError {
 
 /// A CSV text being read: its header, then its data rows one at a time (the row's storage is
 /// reused, so reading allocates nothing per row).
-pub(crate) struct Table<'a> {
+pub struct Table<'a> {
     source_name: &'a str,
     reader: csv::Reader<&'a [u8]>,
     /// The text read (after the byte-order mark), for line numbers: the `csv` crate counts
@@ -78,7 +78,7 @@ pub(crate) struct Table<'a> {
 }
 
 /// One data row of a [`Table`].
-pub(crate) struct Record<'r> {
+pub struct Record<'r> {
     source_name: &'r str,
     header: &'r [String],
     record: &'r csv::ByteRecord,
@@ -108,7 +108,7 @@ fn is_blank_or_comment(record: &csv::ByteRecord) -> bool {
 
 impl<'a> Table<'a> {
     /// Starts reading `text`; `None` when it holds no line with data (not even a header).
-    pub(crate) fn new(text: &'a str, source_name: &'a str) -> Result<Option<Self>, CsvError> {
+    pub fn new(text: &'a str, source_name: &'a str) -> Result<Option<Self>, CsvError> {
         let text = text.strip_prefix('\u{feff}').unwrap_or(text).as_bytes();
         let mut table = Table {
             source_name,
@@ -130,7 +130,7 @@ impl<'a> Table<'a> {
     }
 
     /// The header as one line, cells joined by `,` (for messages).
-    pub(crate) fn header_text(&self) -> String {
+    pub fn header_text(&self) -> String {
         self.header.join(",")
     }
 
@@ -197,7 +197,7 @@ impl<'a> Table<'a> {
     }
 
     /// The next data row, or `None` at the end of the text.
-    pub(crate) fn next_record(&mut self) -> Result<Option<Record<'_>>, CsvError> {
+    pub fn next_record(&mut self) -> Result<Option<Record<'_>>, CsvError> {
         if !self.advance()? {
             return Ok(None);
         }
@@ -243,7 +243,7 @@ impl<'r> Record<'r> {
     }
 
     /// Fails with [`CsvError::Ragged`] unless the row has `expected` cells.
-    pub(crate) fn expect_len(&self, expected: usize) -> Result<(), CsvError> {
+    pub fn expect_len(&self, expected: usize) -> Result<(), CsvError> {
         if self.record.len() == expected {
             Ok(())
         } else {
@@ -262,12 +262,12 @@ impl<'r> Record<'r> {
     }
 
     /// Cell `k` as text (empty past the end).
-    pub(crate) fn text(&self, k: usize) -> Result<&'r str, CsvError> {
+    pub fn text(&self, k: usize) -> Result<&'r str, CsvError> {
         cell(self.source_name, self.line, self.record, k)
     }
 
     /// Cell `k` as a finite number; the error names the header's column `k`.
-    pub(crate) fn number(&self, k: usize) -> Result<f64, CsvError> {
+    pub fn number(&self, k: usize) -> Result<f64, CsvError> {
         let bytes = self.bytes(k);
         if let Some(v) = finite(bytes) {
             return Ok(v);

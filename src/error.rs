@@ -9,7 +9,6 @@
 
 /// A parameter of a request that an error can be about, named for what it is (the option
 /// structs' fields), not for any front end's spelling of it.
-#[cfg(feature = "io")]
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
 pub enum Param {
     /// The most pixels a frame may have (`io::Limits::max_pixels`).
@@ -41,7 +40,6 @@ pub enum Param {
 }
 
 /// How an error concerns a [`Param`].
-#[cfg(feature = "io")]
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
 pub enum Concern {
     /// The value given for the parameter is malformed, out of range, or does not fit the data.

@@ -25,10 +25,12 @@
 //! # The API
 //! The colour-science core is one flat list of items at the crate root (below, grouped as the
 //! documentation lists them): frames, models (fit, file, apply), the CPU frame kernels,
-//! dual-illuminant profiles, colorimetry, spectral simulation, training sets and evaluation. The
-//! rooms behind optional features are modules, each with its own flat list and the modules of
-//! its steps: [`gpu`], `io`, `chart`, `export`, `plot`. The `nsrm` command line is the
-//! `nsrm-cli` package of this workspace (`crates/nsrm-cli`), built on this API only.
+//! dual-illuminant profiles, colorimetry, spectral simulation, training sets and evaluation;
+//! beside it the pixel program ([`pixel`]), the capped readers ([`limits`]) and the CSV reader
+//! ([`csv_table`]) the other crates of the workspace build on. The rooms behind optional features
+//! are modules: [`gpu`], `plot`. Frames in and out, chart reading and the exports are crates of
+//! their own over this one (`nsrm-io`, `nsrm-chart`, `nsrm-export`), and the `nsrm` command
+//! line is the `nsrm-cli` package (`crates/nsrm-cli`), built on their public APIs only.
 //!
 //! # Applying a model: one way per back end
 //! | back end | the way | notes |
@@ -48,13 +50,10 @@
 //!
 //! | feature | brings |
 //! |---|---|
-//! | `gpu` (default) | `gpu`: wgpu, the frame `gpu::Engine` and the embeddable `gpu::Corrector` |
-//! | `io` | `io`: OpenEXR / TIFF / raw / display-referred frames, the batch plan, PNG previews |
-//! | `export` | `export`: LUTs and profiles other tools read (CLF, `.cube`, OCIO, DCP, ICC); with `gpu` also DCTL and the baked shaders in WGSL, SPIR-V, GLSL, HLSL and MSL (naga's back ends) |
+//! | `gpu` (default) | `gpu`: wgpu, the frame `gpu::Engine` and the embeddable `gpu::Corrector`, the WGSL printer |
 //! | `plot` | `plot`: the paper's Fig. 1 as SVG or PNG |
-//! | `chart` | chart detection in captured frames, synthetic chart frames and scenes; implies `io` |
-//! | `raw` | camera raw files as frames (rawler); implies `io` |
-//! | `full` | all of the above: what the `nsrm` binary uses |
+//! | `clap` | clap's `ValueEnum` on the library's enums (the command line's flag values) |
+//! | `full` | `gpu` and `plot`: what the `nsrm` binary uses |
 //!
 //! A renderer embeds the correction pass with
 //! `nsrm = { version = "0.1", default-features = false, features = ["gpu"] }`.
@@ -63,22 +62,14 @@
 #![warn(missing_docs)]
 #![cfg_attr(docsrs, feature(doc_auto_cfg))]
 
-#[cfg(feature = "chart")]
-pub mod chart;
 mod colorimetry;
 pub mod csv_table;
-// `Param` and `Concern` are public through the `io` and `chart` errors (re-exported by `io`);
-// a build without `io` has neither.
 mod error;
 mod eval;
-#[cfg(feature = "export")]
-pub mod export;
 mod frame;
 #[cfg(feature = "gpu")]
 pub mod gpu;
-#[cfg(feature = "io")]
-pub mod io;
-mod limits;
+pub mod limits;
 mod model;
 mod spectral;
 mod training;
@@ -94,6 +85,10 @@ extern crate self as nsrm;
 mod kit;
 
 // The colour-science core (the names grouped as the documentation lists them).
+// What an error is about: the parameter at fault and how (`nsrm-io`'s and `nsrm-chart`'s
+// errors classify themselves with these).
+pub use error::{Concern, Param};
+
 // Frames: the pixels every apply path takes.
 pub use frame::{Frame, Layout};
 
@@ -104,8 +99,18 @@ pub use model::output::output_model;
 pub use model::terms::MAX_ORDER;
 pub use model::{fit, Kind, Model, ModelError};
 
+/// The pixel program: what every apply path does with a pixel (a kind's [`Step`](pixel::Step)s
+/// over its [`Term`](pixel::Term) list), the one description the fast kernels, the WGSL printer
+/// and the exports' code printers (`nsrm-export`'s DCTL) derive from.
+pub mod pixel {
+    pub use crate::model::pixel::{Program, Step};
+    pub use crate::model::terms::{term_factors, term_name, terms, Term};
+}
+
 // Dual-illuminant profiles: two models interpolated by the frame's white, as DNG does.
-pub use model::dual_illuminant::{Calibration, Combination, FrameWhite, Profile};
+pub use model::dual_illuminant::{
+    invert as invert_model, Calibration, Combination, FrameWhite, Profile,
+};
 
 // The CPU frame kernels: a model prepared once and applied to many frames, on chosen threads.
 pub use model::fast::{FastError, FastModel, Threads, CHUNK_PIXELS};
@@ -113,21 +118,26 @@ pub use model::highlights::{FrameHighlights, HighlightMode, Highlights, Highligh
 
 // Colorimetry: Lab, ΔE00, output spaces, the output and preview matrices, correlated colour
 // temperatures and chromatic adaptation.
-#[cfg(any(feature = "io", test))]
 pub use colorimetry::output::srgb8;
-pub use colorimetry::output::{output_matrix, to_linear_srgb};
-pub use colorimetry::spaces::{apply as apply_mat3, Mat3, OutputSpace};
-#[cfg(any(feature = "export", test))]
+pub use colorimetry::output::{output_matrix, srgb_oetf, to_linear_srgb};
+pub use colorimetry::spaces::{apply as apply_mat3, Mat3, OutputSpace, IDENTITY as MAT3_IDENTITY};
+pub use colorimetry::spaces::{
+    invert as invert_mat3, mul as mul_mat3, try_invert as try_invert_mat3,
+};
+pub use colorimetry::spaces::{rgb_to_xyz as primaries_to_xyz, xy_to_xyz};
 pub use colorimetry::temperature::temperature_xy;
-pub use colorimetry::temperature::{bradford_between, TemperatureError};
+pub use colorimetry::temperature::{
+    bradford_between, cct, dng_weight, neutral_to_xy, TemperatureError, D50_XY,
+};
 pub use colorimetry::{ciede2000, delta_e00_xyz, xyz_to_lab, D65_WHITE_XYZ};
+pub use colorimetry::{lab_to_xyz, xyy_to_xyz};
 
 // Spectral simulation: camera × illuminant × reflectances on a wavelength grid.
 pub use spectral::{display_name, simulate, white_xyz, Camera, Illuminant, Reflectances};
 pub use spectral::{simulate_named, Grid, SpectralError};
 
 // Training sets: patches with camera RGB and reference XYZ, and their white.
-pub use training::{fmt_white, parse_white, resolve_patch};
+pub use training::{d50_white, fmt_white, parse_white, resolve_patch, white_line};
 pub use training::{CaptureProvenance, Provenance, TrainingError, TrainingSet};
 
 // Evaluation: leave-one-out and in-sample ΔE00 statistics, and the paper's Fig. 1.

@@ -12,10 +12,10 @@ use std::path::Path;
 
 /// The largest text input read, in bytes: 64 MiB. A 10⁶-row measured CSV is about 50 MB; real
 /// spectral tables and models are kilobytes.
-pub(crate) const MAX_TEXT_BYTES: u64 = 64 << 20;
+pub const MAX_TEXT_BYTES: u64 = 64 << 20;
 
 /// What a path is, for messages: `a directory`, `a FIFO`, `a character device`, …
-pub(crate) fn file_kind(meta: &std::fs::Metadata) -> &'static str {
+pub fn file_kind(meta: &std::fs::Metadata) -> &'static str {
     let t = meta.file_type();
     if t.is_file() {
         return "a regular file";
@@ -45,9 +45,23 @@ pub(crate) fn file_kind(meta: &std::fs::Metadata) -> &'static str {
     "not a regular file"
 }
 
+/// A file's identity, `(device, inode)`, where the platform has one (Unix); `None` elsewhere.
+/// Two paths with the same identity are one file (a hard link, a symbolic link resolved): how
+/// the batch planner and the `nsrm` command's output session tell an output from an input.
+#[cfg(unix)]
+pub fn file_id(meta: &std::fs::Metadata) -> Option<(u64, u64)> {
+    use std::os::unix::fs::MetadataExt;
+    Some((meta.dev(), meta.ino()))
+}
+
+/// A file's identity, `(device, inode)`, where the platform has one (Unix); `None` elsewhere.
+#[cfg(not(unix))]
+pub fn file_id(_: &std::fs::Metadata) -> Option<(u64, u64)> {
+    None
+}
+
 /// An [`std::io::Error`] saying `path` is not a regular file (and what it is).
-#[cfg(feature = "io")]
-pub(crate) fn not_regular(meta: &std::fs::Metadata) -> Error {
+pub fn not_regular(meta: &std::fs::Metadata) -> Error {
     Error::new(
         ErrorKind::InvalidInput,
         format!("not a regular file (it is {})", file_kind(meta)),
@@ -56,8 +70,7 @@ pub(crate) fn not_regular(meta: &std::fs::Metadata) -> Error {
 
 /// Checks that `path` is a regular file (following symlinks) without opening it, so a FIFO is
 /// never opened (which would block) and a device never read.
-#[cfg(feature = "io")]
-pub(crate) fn check_regular(path: &Path) -> std::io::Result<std::fs::Metadata> {
+pub fn check_regular(path: &Path) -> std::io::Result<std::fs::Metadata> {
     let meta = std::fs::metadata(path)?;
     if !meta.is_file() {
         return Err(not_regular(&meta));
@@ -82,7 +95,7 @@ fn readable_text(meta: &std::fs::Metadata) -> bool {
 /// leading byte-order mark removed. The errors are plain [`std::io::Error`]s whose message says
 /// what is wrong (`not a regular file or pipe (it is a character device)`, `larger than the 64
 /// MiB limit for text inputs`, …); callers add the path.
-pub(crate) fn read_text_capped(path: &Path, cap: u64) -> std::io::Result<String> {
+pub fn read_text_capped(path: &Path, cap: u64) -> std::io::Result<String> {
     let not_text = |meta: &std::fs::Metadata| {
         Error::new(
             ErrorKind::InvalidInput,
@@ -132,12 +145,12 @@ pub(crate) fn read_text_capped(path: &Path, cap: u64) -> std::io::Result<String>
 }
 
 /// [`read_text_capped`] with [`MAX_TEXT_BYTES`].
-pub(crate) fn read_text(path: &Path) -> std::io::Result<String> {
+pub fn read_text(path: &Path) -> std::io::Result<String> {
     read_text_capped(path, MAX_TEXT_BYTES)
 }
 
 /// `64 MiB`, `1.5 GiB`, `512 bytes`.
-pub(crate) fn human_bytes(n: u64) -> String {
+pub fn human_bytes(n: u64) -> String {
     const UNITS: [&str; 4] = ["KiB", "MiB", "GiB", "TiB"];
     if n < 1024 {
         return format!("{n} bytes");

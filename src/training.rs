@@ -305,8 +305,7 @@ pub fn fmt_white(w: [f64; 3]) -> String {
 }
 
 /// The comment line that names a patch CSV's white, e.g. `# white: 96.42,100,82.49\n`.
-#[cfg(any(feature = "chart", test))]
-pub(crate) fn white_line(w: [f64; 3]) -> String {
+pub fn white_line(w: [f64; 3]) -> String {
     format!("# white: {}\n", fmt_white(w))
 }
 
@@ -357,7 +356,7 @@ pub(crate) fn white_in_header(
 
 /// The D50 white of chart makers' tables and ICC profiles (CIE 1931 2°, x 0.345703,
 /// y 0.358539), `Y = 100`.
-pub(crate) fn d50_white() -> [f64; 3] {
+pub fn d50_white() -> [f64; 3] {
     crate::colorimetry::xyy_to_xyz(0.345703, 0.358539, 100.0)
 }
 

@@ -18,7 +18,7 @@ stamp="$venv/nsrm-wheel.sha256"
 # The sources the wheel is built from: the library, the binding crate, the output session it
 # writes exports with, the Python package.
 sources_hash() {
-    find src shaders assets crates/nsrm-py crates/nsrm-output python/nsrm Cargo.toml Cargo.lock pyproject.toml \
+    find src shaders assets crates/nsrm-py crates/nsrm-io crates/nsrm-chart crates/nsrm-export crates/nsrm-output python/nsrm Cargo.toml Cargo.lock pyproject.toml \
         -type f ! -name '*.pyc' -print0 | LC_ALL=C sort -z | xargs -0 sha256sum | sha256sum | cut -d' ' -f1
 }
 

@@ -4,8 +4,8 @@
 #![no_main]
 
 use libfuzzer_sys::fuzz_target;
-use nsrm::chart::CaptureFrame;
-use nsrm::io::{Encoding, Limits, ReadOptions};
+use nsrm_chart::CaptureFrame;
+use nsrm_io::{Encoding, Limits, ReadOptions};
 
 fuzz_target!(|data: &[u8]| {
     let path = std::env::temp_dir().join(format!("nsrm-fuzz-{}.jpg", std::process::id()));

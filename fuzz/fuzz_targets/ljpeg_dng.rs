@@ -4,7 +4,7 @@
 #![no_main]
 
 use libfuzzer_sys::fuzz_target;
-use nsrm::io::{Demosaic, Limits, ReadOptions};
+use nsrm_io::{Demosaic, Limits, ReadOptions};
 
 fuzz_target!(|data: &[u8]| {
     let path = std::env::temp_dir().join(format!("nsrm-fuzz-{}.dng", std::process::id()));
@@ -19,5 +19,5 @@ fuzz_target!(|data: &[u8]| {
         },
         demosaic: Demosaic::Half,
     };
-    let _ = nsrm::io::Decoded::read(&path, &opts);
+    let _ = nsrm_io::Decoded::read(&path, &opts);
 });

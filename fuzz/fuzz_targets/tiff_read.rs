@@ -3,7 +3,7 @@
 #![no_main]
 
 use libfuzzer_sys::fuzz_target;
-use nsrm::io::{Decoded, Limits, ReadOptions};
+use nsrm_io::{Decoded, Limits, ReadOptions};
 
 fuzz_target!(|data: &[u8]| {
     // The readers take paths (they seek, map and bound by the file's size): one scratch file

@@ -10,8 +10,6 @@ pub(crate) mod spaces;
 pub(crate) mod temperature;
 
 pub(crate) use dual::{Dual, Real};
-#[cfg(feature = "io")]
-pub(crate) use output::srgb8;
 pub(crate) use output::{output_matrix, output_matrix_exact};
 
 /// CIE D65 white point (2° observer), Y = 100; used when measured XYZ data names no white.
@@ -21,7 +19,7 @@ const EPS: f64 = 216.0 / 24389.0;
 const KAPPA: f64 = 24389.0 / 27.0;
 
 /// CIE xyY → XYZ (same scale as `big_y`). A chromaticity with `y = 0` gives zeros.
-pub(crate) fn xyy_to_xyz(x: f64, y: f64, big_y: f64) -> [f64; 3] {
+pub fn xyy_to_xyz(x: f64, y: f64, big_y: f64) -> [f64; 3] {
     if y == 0.0 {
         return [0.0; 3];
     }
@@ -55,7 +53,7 @@ pub(crate) fn xyz_to_lab_generic<T: Real>(xyz: [T; 3], white: [f64; 3]) -> [T; 3
 }
 
 /// CIELAB → CIE XYZ, the inverse of [`xyz_to_lab`].
-pub(crate) fn lab_to_xyz(lab: [f64; 3], white: [f64; 3]) -> [f64; 3] {
+pub fn lab_to_xyz(lab: [f64; 3], white: [f64; 3]) -> [f64; 3] {
     let fy = (lab[0] + 16.0) / 116.0;
     let fx = fy + lab[1] / 500.0;
     let fz = fy - lab[2] / 200.0;

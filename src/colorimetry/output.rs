@@ -31,8 +31,7 @@ pub fn to_linear_srgb(white_xyz: [f64; 3], space: OutputSpace) -> Mat3 {
 }
 
 /// The sRGB opto-electronic transfer function (IEC 61966-2-1) of a linear value in `[0, 1]`.
-#[cfg(any(feature = "io", test))]
-pub(crate) fn srgb_oetf(v: f64) -> f64 {
+pub fn srgb_oetf(v: f64) -> f64 {
     if v <= 0.003_130_8 {
         12.92 * v
     } else {
@@ -41,7 +40,6 @@ pub(crate) fn srgb_oetf(v: f64) -> f64 {
 }
 
 /// A linear value as an 8-bit sRGB code: clipped to `[0, 1]`, [`srgb_oetf`], rounded; NaN is 0.
-#[cfg(any(feature = "io", test))]
 pub fn srgb8(v: f64) -> u8 {
     let v = if v.is_nan() { 0.0 } else { v.clamp(0.0, 1.0) };
     (srgb_oetf(v) * 255.0).round() as u8

@@ -125,15 +125,15 @@ pub(crate) const D65_XY: [f64; 2] = [0.3127, 0.3290];
 pub(crate) const D65_XY_TOLERANCE: f64 = 1e-3;
 
 /// The identity matrix.
-pub(crate) const IDENTITY: Mat3 = [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]];
+pub const IDENTITY: Mat3 = [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]];
 
 /// xy chromaticity → XYZ with Y = 1.
-pub(crate) fn xy_to_xyz(xy: [f64; 2]) -> [f64; 3] {
+pub fn xy_to_xyz(xy: [f64; 2]) -> [f64; 3] {
     [xy[0] / xy[1], 1.0, (1.0 - xy[0] - xy[1]) / xy[1]]
 }
 
 /// The normalised primary matrix (RGB → XYZ, white maps to Y = 1).
-pub(crate) fn rgb_to_xyz(prim: [[f64; 2]; 3], white: [f64; 2]) -> Mat3 {
+pub fn rgb_to_xyz(prim: [[f64; 2]; 3], white: [f64; 2]) -> Mat3 {
     let cols: Vec<[f64; 3]> = prim.iter().map(|p| xy_to_xyz(*p)).collect();
     let p = [
         [cols[0][0], cols[1][0], cols[2][0]],
@@ -177,7 +177,7 @@ pub fn apply(m: &Mat3, v: [f64; 3]) -> [f64; 3] {
 }
 
 /// `a · b`.
-pub(crate) fn mul(a: &Mat3, b: &Mat3) -> Mat3 {
+pub fn mul(a: &Mat3, b: &Mat3) -> Mat3 {
     let mut m = [[0.0; 3]; 3];
     for (i, row) in m.iter_mut().enumerate() {
         for (j, v) in row.iter_mut().enumerate() {
@@ -190,7 +190,7 @@ pub(crate) fn mul(a: &Mat3, b: &Mat3) -> Mat3 {
 /// The inverse of a 3×3 matrix (nalgebra's), or `None` when it is singular or too close to
 /// singular to be worth inverting: a non-finite entry, or `|det|` at most `1e-12` of the product
 /// of its row norms (Hadamard's bound on `|det|`, so the test does not depend on the scale).
-pub(crate) fn try_invert(m: &Mat3) -> Option<Mat3> {
+pub fn try_invert(m: &Mat3) -> Option<Mat3> {
     let a = nalgebra::Matrix3::from_fn(|i, j| m[i][j]);
     let hadamard: f64 = m
         .iter()
@@ -208,7 +208,7 @@ pub(crate) fn try_invert(m: &Mat3) -> Option<Mat3> {
 /// [`try_invert`] for the matrices that are invertible by construction (primaries, Bradford, the
 /// output matrices of a checked white): should one be singular after all, every entry is NaN
 /// (never a silently huge inverse), which the callers' finiteness checks refuse.
-pub(crate) fn invert(m: &Mat3) -> Mat3 {
+pub fn invert(m: &Mat3) -> Mat3 {
     try_invert(m).unwrap_or([[f64::NAN; 3]; 3])
 }
 

@@ -33,12 +33,10 @@ pub(crate) const MAX_CCT: f64 = 25000.0;
 pub(crate) const DAYLIGHT_FROM: f64 = 4000.0;
 
 /// Second radiation constant c2 = hc/k (m·K), CODATA 2018 (what CIE 15:2018 uses).
-#[cfg(any(feature = "export", test))]
 const C2: f64 = 1.438_776_877e-2;
 
 /// CIE 1931 chromaticity `(x, y)` of a Planckian radiator at `t` kelvin, integrated over the
 /// built-in CIE 1931 2° colour-matching functions ([`super::observer`], 360–830 nm, 1 nm).
-#[cfg(any(feature = "export", test))]
 pub(crate) fn planckian_xy(t: f64) -> Result<[f64; 2], TemperatureError> {
     check_t(t, MIN_CCT, 100_000.0)?;
     let cmf = super::observer::cie1931();
@@ -68,7 +66,6 @@ pub(crate) fn daylight_xy(t: f64) -> Result<[f64; 2], TemperatureError> {
 
 /// The chromaticity a bare temperature names: Planckian below 4000 K, CIE daylight from
 /// it up.
-#[cfg(any(feature = "export", test))]
 pub fn temperature_xy(t: f64) -> Result<[f64; 2], TemperatureError> {
     check_t(t, MIN_CCT, MAX_CCT)?;
     if t < DAYLIGHT_FROM {
@@ -128,7 +125,7 @@ const ROBERTSON: [[f64; 4]; 31] = [
 /// the DNG SDK's `dng_temperature::Set_xy` (so a DCP reader and nsrm weight a white the same).
 /// Chromaticities beyond the table's hottest line give its end (≈ 1667 K); an `x, y` that is not
 /// a chromaticity is refused.
-pub(crate) fn cct(xy: [f64; 2]) -> Result<f64, TemperatureError> {
+pub fn cct(xy: [f64; 2]) -> Result<f64, TemperatureError> {
     let [x, y] = xy;
     let den = 1.5 - x + 6.0 * y;
     if !(x.is_finite() && y.is_finite() && x > 0.0 && y > 0.0 && x + y < 1.0 && den > 0.0) {
@@ -161,7 +158,7 @@ pub(crate) fn cct(xy: [f64; 2]) -> Result<f64, TemperatureError> {
 
 /// The weight of the first of two calibration illuminants (temperatures `t1 < t2`) at temperature
 /// `t`, by the DNG rule: linear in `1/t` between them, clamped to 1 below `t1` and 0 above `t2`.
-pub(crate) fn dng_weight(t: f64, t1: f64, t2: f64) -> f64 {
+pub fn dng_weight(t: f64, t1: f64, t2: f64) -> f64 {
     if t <= t1 {
         1.0
     } else if t >= t2 {
@@ -183,13 +180,13 @@ pub(crate) fn xyz_to_xy(xyz: [f64; 3]) -> Option<[f64; 2]> {
 }
 
 /// D50 as the DNG SDK names it (`D50_xy`), where its neutral iteration starts.
-pub(crate) const D50_XY: [f64; 2] = [0.3457, 0.3585];
+pub const D50_XY: [f64; 2] = [0.3457, 0.3585];
 
 /// The chromaticity of a camera neutral by the DNG fixed-point iteration (`NeutralToXY`): start at
 /// D50, map the neutral to XYZ with the camera model interpolated for the current guess's
 /// temperature (`camera_to_xyz(neutral, weight)`), take that XYZ's chromaticity, and repeat until
 /// it moves less than 1e-7, at most 30 passes (the last one averaged, as the SDK does).
-pub(crate) fn neutral_to_xy(
+pub fn neutral_to_xy(
     neutral: [f64; 3],
     temperatures: [f64; 2],
     mut camera_to_xyz: impl FnMut([f64; 3], f64) -> Option<[f64; 3]>,

@@ -92,7 +92,7 @@ impl Corrector {
     /// A corrector for any well-formed pixel program, a kind's or not (the printer's numeric
     /// tests): `matrix` is 3×L row-major over the program's terms, `gains` its input gains. Its
     /// order is 0, so [`set_model`](Self::set_model) refuses every model.
-    #[cfg(all(test, feature = "io"))]
+    #[cfg(test)]
     pub(crate) fn for_program(
         device: &wgpu::Device,
         program: &crate::model::pixel::Program<'_>,

@@ -155,7 +155,7 @@ impl Engine {
     }
 
     /// The adapter, device and queue (the unit tests build [`Corrector`]s on them).
-    #[cfg(all(test, feature = "io"))]
+    #[cfg(test)]
     pub(crate) fn context(&self) -> &GpuContext {
         &self.ctx
     }

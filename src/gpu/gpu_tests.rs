@@ -619,10 +619,7 @@ fn exported_wgsl_runs_and_matches_the_reference() {
         } else {
             model(kind, order)
         };
-        let src = String::from_utf8(
-            nsrm::export::export_shader(&m, layout, nsrm::export::ShaderLang::Wgsl).unwrap(),
-        )
-        .unwrap();
+        let src = gpu::baked_wgsl(&m, layout);
         let input = random_frame(300, 5, layout, 77);
         let mut reference = input.clone();
         common::apply_reference(&m, &mut reference);

@@ -33,19 +33,26 @@ mod context;
 mod corrector;
 mod engine;
 // The engine's and the program's tests share `gpu_tests`' adapter and frames, which need `io`.
-#[cfg(all(test, feature = "io"))]
+#[cfg(test)]
 mod engine_tests;
-#[cfg(all(test, feature = "io"))]
+#[cfg(test)]
 mod gpu_tests;
-#[cfg(all(test, feature = "io"))]
+#[cfg(test)]
 mod program_tests;
 pub(crate) mod shader;
 mod shader_check;
 
+/// The WGSL printer's baked shaders and the validation every shader here is held to (what
+/// `nsrm-export` translates to SPIR-V, GLSL, HLSL and MSL).
+pub use self::shader::{
+    baked_wgsl, validate as validate_wgsl, validate_module as validate_naga_module, ENTRY_POINT,
+};
 pub use self::{
     context::GpuContext, corrector::Corrector, engine::Engine, engine::GpuTiming, shader::Target,
     shader::TexelFormat, shader_check::ShaderCheck,
 };
+/// The naga this crate validates its WGSL with (the modules [`validate_wgsl`] returns).
+pub use naga;
 /// The wgpu this crate is built against: a renderer embedding a [`Corrector`] records into
 /// this version's encoders and textures.
 pub use wgpu;

@@ -34,7 +34,7 @@ pub(crate) const ROW_GROUPS: u32 = 256;
 /// Side of the square workgroup of the texture shader.
 pub(crate) const TILE_SIZE: u32 = 16;
 /// The entry point of every shader.
-pub(crate) const ENTRY_POINT: &str = "main";
+pub const ENTRY_POINT: &str = "main";
 
 /// The hand-written WGSL sources, by file name: none of them per kind.
 pub(crate) const SOURCES: [(&str, &str); 6] = [
@@ -196,9 +196,6 @@ pub(crate) enum Coefficients<'a> {
     /// The uniform of `shaders/model_uniform.wgsl` (binding 0), rewritten to swap models.
     Uniform,
     /// Baked into the shader as constants (exported, self-contained shaders).
-    // Only `export` (and the tests) bake; gating the variant would gate its three matches and
-    // the literal printing behind them.
-    #[cfg_attr(not(any(feature = "export", test)), allow(dead_code))]
     Baked(&'a Model),
 }
 
@@ -507,8 +504,23 @@ pub(crate) fn wgsl_program(
     s
 }
 
+/// The self-contained WGSL source of `model`'s correction on `layout` (the matrix as constants,
+/// no uniform): packed f32 pixels corrected in place in one storage buffer, group 0 binding 1;
+/// entry point [`ENTRY_POINT`], workgroup size 256. What `nsrm-export` bakes and translates.
+pub fn baked_wgsl(model: &Model, layout: crate::Layout) -> String {
+    wgsl(
+        model.kind(),
+        model.order(),
+        Target::Buffer {
+            layout,
+            in_place: true,
+        },
+        Coefficients::Baked(model),
+    )
+}
+
 /// Parses and validates WGSL with naga (all validation flags, default capabilities).
-pub(crate) fn validate(src: &str) -> Result<(naga::Module, naga::valid::ModuleInfo), GpuError> {
+pub fn validate(src: &str) -> Result<(naga::Module, naga::valid::ModuleInfo), GpuError> {
     let module = naga::front::wgsl::parse_str(src).map_err(|e| GpuError::Shader {
         stage: "WGSL parse",
         message: e.emit_to_string(src),
@@ -522,7 +534,7 @@ pub(crate) fn validate(src: &str) -> Result<(naga::Module, naga::valid::ModuleIn
 
 /// Validates a naga module (from any front end) with the flags every shader here is held to:
 /// all validation flags, default capabilities.
-pub(crate) fn validate_module(
+pub fn validate_module(
     module: &naga::Module,
 ) -> Result<naga::valid::ModuleInfo, Box<naga::WithSpan<naga::valid::ValidationError>>> {
     naga::valid::Validator::new(

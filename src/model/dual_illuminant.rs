@@ -44,7 +44,7 @@ pub(crate) const MIN_MIRED_APART: f64 = 20.0;
 /// The camera RGB that `model` maps to `xyz`: exact for LRM (its matrix inverted), a damped
 /// Newton iteration on the f64 model otherwise. `None` when there is none (no convergence, a
 /// non-finite or non-positive-signal answer).
-pub(crate) fn invert(model: &Model, xyz: [f64; 3]) -> Option<[f64; 3]> {
+pub fn invert(model: &Model, xyz: [f64; 3]) -> Option<[f64; 3]> {
     if !xyz.iter().all(|v| v.is_finite()) {
         return None;
     }
@@ -195,7 +195,7 @@ pub struct Calibration {
 impl Calibration {
     /// The calibration of a model: its white, and the camera response it maps to that white,
     /// which must be positive in every channel (a re-balance divides by it).
-    pub(crate) fn of(model: &Model) -> Result<Calibration, ModelError> {
+    pub fn of(model: &Model) -> Result<Calibration, ModelError> {
         let w = model.white_xyz();
         let xy = xyz_to_xy(w).ok_or_else(|| {
             ModelError::Invalid(format!("the model's white {w:?} is not a colour"))
@@ -332,7 +332,6 @@ impl Profile {
         &self.models
     }
 
-    #[cfg(feature = "export")]
     /// The models' calibration illuminants, in the order of [`Profile::models`].
     pub fn calibrations(&self) -> &[Calibration] {
         &self.calibrations

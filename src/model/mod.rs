@@ -25,8 +25,6 @@ mod policy_tests;
 mod refine;
 pub(crate) mod terms;
 
-#[cfg(feature = "export")]
-pub(crate) use output::output_model;
 pub(crate) use terms::MAX_ORDER;
 pub(crate) use terms::{term_name, terms, Term};
 
@@ -158,8 +156,7 @@ impl ModelError {
     }
 
     /// A fit that needs the camera response of a white the data lacks: naming a neutral patch
-    /// ([`crate::io::Param::WhitePatch`]) is the way out.
-    #[cfg(feature = "io")]
+    /// ([`crate::Param::WhitePatch`]) is the way out.
     pub fn concern(&self) -> Option<crate::error::Concern> {
         match self {
             ModelError::NoWhite => Some(crate::error::Concern::Remedy(
@@ -366,14 +363,14 @@ impl Model {
     }
 
     /// Whether the input gains are all 1 (every model but a white-balanced NSRM).
-    pub(crate) fn has_unit_gains(&self) -> bool {
+    pub fn has_unit_gains(&self) -> bool {
         self.input_gains == UNIT_GAINS
     }
 
     /// The model with per-channel input gains: only NSRM may have gains other than `[1, 1, 1]`
     /// (for LRM and RPRM they fold into the matrix; PRM's are not defined), and each must be
     /// finite, `> 0` and finite in f32 (the fast CPU path and the shaders take them in f32).
-    pub(crate) fn with_input_gains(mut self, gains: [f64; 3]) -> Result<Model, ModelError> {
+    pub fn with_input_gains(mut self, gains: [f64; 3]) -> Result<Model, ModelError> {
         check_gains(self.kind, gains)?;
         self.input_gains = gains;
         Ok(self)
@@ -388,7 +385,7 @@ impl Model {
 
     /// The model's pixel program: its kind's steps over its terms (the one description every
     /// apply path and printer follows, [`pixel::Program`]).
-    pub(crate) fn program(&self) -> pixel::Program<'_> {
+    pub fn program(&self) -> pixel::Program<'_> {
         pixel::Program::new(self.kind, &self.terms)
     }
 
@@ -442,7 +439,7 @@ impl Model {
     }
 
     /// Replaces the matrix (same kind and order), e.g. to swap a model at run time.
-    pub(crate) fn set_matrix(&mut self, matrix: Vec<f64>) -> Result<(), ModelError> {
+    pub fn set_matrix(&mut self, matrix: Vec<f64>) -> Result<(), ModelError> {
         let m = Model::from_matrix(self.kind, self.order, matrix)?;
         self.matrix = m.matrix;
         Ok(())

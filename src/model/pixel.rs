@@ -55,7 +55,7 @@ use super::Kind;
 
 /// One step of a pixel program. The variables `x` start as the camera's `(R, G, B)`.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
-pub(crate) enum Step {
+pub enum Step {
     /// `x ← (g_R·x₀, g_G·x₁, g_B·x₂)`: the model's input gains (1, 1, 1 unless white-balanced).
     Gain,
     /// The signal `s = x₀+x₁+x₂`. When `s ≤ 0` the program ends with `(0, 0, 0)` (the black
@@ -70,8 +70,7 @@ pub(crate) enum Step {
 
 impl Step {
     /// One line saying what the step does, for the comments of printed code.
-    #[cfg(any(feature = "gpu", all(test, feature = "export")))]
-    pub(crate) fn describe(self) -> &'static str {
+    pub fn describe(self) -> &'static str {
         match self {
             Step::Gain => "multiply R, G, B by the input gains (1, 1, 1 unless white-balanced)",
             Step::Normalise => {
@@ -91,18 +90,18 @@ const NORMALISED: &[Step] = &[Step::Gain, Step::Normalise, Step::Combine, Step::
 /// The per-pixel program of a model: its [`Step`]s over its term list. The one description every
 /// apply path and code printer follows (see the [module docs](self)).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub(crate) struct Program<'a> {
+pub struct Program<'a> {
     /// The kind (names the variables in printed comments: `R, G, B` or `r, g`).
-    pub(crate) kind: Kind,
+    pub kind: Kind,
     /// The steps, in order.
-    pub(crate) steps: &'static [Step],
+    pub steps: &'static [Step],
     /// The terms [`Step::Combine`] combines, in matrix-column order.
-    pub(crate) terms: &'a [Term],
+    pub terms: &'a [Term],
 }
 
 impl<'a> Program<'a> {
     /// The steps of `kind`: the pixel policy, written once.
-    pub(crate) fn steps_of(kind: Kind) -> &'static [Step] {
+    pub fn steps_of(kind: Kind) -> &'static [Step] {
         match kind {
             Kind::Lrm | Kind::Prm | Kind::Rprm => PLAIN,
             Kind::Nsrm => NORMALISED,
@@ -110,7 +109,7 @@ impl<'a> Program<'a> {
     }
 
     /// The program of `kind` over `terms` (its term list, from [`super::terms::terms`]).
-    pub(crate) fn new(kind: Kind, terms: &'a [Term]) -> Program<'a> {
+    pub fn new(kind: Kind, terms: &'a [Term]) -> Program<'a> {
         let p = Program {
             kind,
             steps: Program::steps_of(kind),
@@ -122,8 +121,7 @@ impl<'a> Program<'a> {
 
     /// Another policy over a term list: for tests that hold the printers to the description
     /// rather than to a kind.
-    #[cfg(test)]
-    pub(crate) fn custom(
+    pub fn custom(
         kind: Kind,
         steps: &'static [Step],
         terms: &'a [Term],
@@ -133,14 +131,14 @@ impl<'a> Program<'a> {
     }
 
     /// Whether the program has `step`.
-    pub(crate) fn has(&self, step: Step) -> bool {
+    pub fn has(&self, step: Step) -> bool {
         self.steps.contains(&step)
     }
 
     /// A program is well formed when its steps are, in this order, an optional `Gain`, an
     /// optional `Normalise`, `Combine`, and `Rescale` only if there is a `Normalise`; after
     /// `Normalise` the terms read `x₀, x₁` only; every root is 1..=4. Every printer relies on it.
-    pub(crate) fn check(&self) -> Result<(), String> {
+    pub fn check(&self) -> Result<(), String> {
         const ORDER: [Step; 4] = [Step::Gain, Step::Normalise, Step::Combine, Step::Rescale];
         let rank = |s: &Step| ORDER.iter().position(|o| o == s).unwrap_or(0);
         if !self.steps.windows(2).all(|w| rank(&w[0]) < rank(&w[1])) {
@@ -167,7 +165,7 @@ impl<'a> Program<'a> {
     /// The f64 evaluation up to the matrix: writes the term values of `rgb` into `p` (length L)
     /// and returns the output scale (`s` where the program rescales, else 1), or `None` when
     /// [`Step::Normalise`]'s black rule ends the program (the output is then `(0, 0, 0)`).
-    pub(crate) fn features(&self, gains: [f64; 3], rgb: [f64; 3], p: &mut [f64]) -> Option<f64> {
+    pub fn features(&self, gains: [f64; 3], rgb: [f64; 3], p: &mut [f64]) -> Option<f64> {
         let mut x = rgb;
         let mut s = 1.0;
         let mut scale = 1.0;
@@ -188,13 +186,7 @@ impl<'a> Program<'a> {
 
     /// The f64 evaluation of the program on one pixel: `matrix` row-major 3×L, `p` a term buffer
     /// (length L). The reference every other path is held to.
-    pub(crate) fn eval(
-        &self,
-        matrix: &[f64],
-        gains: [f64; 3],
-        rgb: [f64; 3],
-        p: &mut [f64],
-    ) -> [f64; 3] {
+    pub fn eval(&self, matrix: &[f64], gains: [f64; 3], rgb: [f64; 3], p: &mut [f64]) -> [f64; 3] {
         let Some(scale) = self.features(gains, rgb, p) else {
             return [0.0; 3];
         };
@@ -213,8 +205,7 @@ impl<'a> Program<'a> {
 
     /// The distinct per-channel roots `(channel, degree > 1)` the terms use, sorted: what a printer
     /// computes once before the terms.
-    #[cfg(any(feature = "gpu", test))]
-    pub(crate) fn roots(&self) -> Vec<(usize, u8)> {
+    pub fn roots(&self) -> Vec<(usize, u8)> {
         let mut v: Vec<(usize, u8)> = self
             .terms
             .iter()

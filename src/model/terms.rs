@@ -20,14 +20,16 @@ use super::Kind;
 /// For LRM, PRM and RPRM the variables `x` are `(R, G, B)`; for NSRM they are `(r, g)` and
 /// `exps[2]` is always 0.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
-pub(crate) struct Term {
+pub struct Term {
+    /// The exponents of the variables in the monomial.
     pub exps: [u8; 3],
+    /// The root taken of the monomial (1: none; RPRM's terms take the degree-th root).
     pub root: u8,
 }
 
 impl Term {
     /// The degree of the monomial under the root.
-    pub(crate) fn degree(&self) -> u8 {
+    pub fn degree(&self) -> u8 {
         self.exps.iter().sum()
     }
 }
@@ -126,7 +128,7 @@ fn gcd(a: u8, b: u8) -> u8 {
 /// The terms of `kind` at `order` (1..=[`MAX_ORDER`]; LRM ignores the order).
 ///
 /// Panics if `order` is out of range; [`super::Model`] and the fit check it first.
-pub(crate) fn terms(kind: Kind, order: u8) -> Vec<Term> {
+pub fn terms(kind: Kind, order: u8) -> Vec<Term> {
     assert!(
         (1..=MAX_ORDER).contains(&order),
         "order {order} out of range"
@@ -162,7 +164,7 @@ pub(crate) fn terms(kind: Kind, order: u8) -> Vec<Term> {
 
 /// A readable name for a term: `R`, `G*B`, `R^2*G`, `sqrt(R*G)`, `cbrt(R*G^2)`, `root4(R^3*G)`,
 /// `1`, `r`, `r*g^2`.
-pub(crate) fn term_name(kind: Kind, t: &Term) -> String {
+pub fn term_name(kind: Kind, t: &Term) -> String {
     let vars: [&str; 3] = if kind == Kind::Nsrm {
         ["r", "g", "-"]
     } else {
@@ -193,10 +195,9 @@ pub(crate) use super::pixel::signed_root;
 
 /// The factors of a term, one per unit of exponent, as `(variable, root)`: the term is the product
 /// of `signed_root(x[variable], root)` over them (1 for none), which is what [`expand`] computes.
-/// Code generators (the WGSL of `crate::gpu::shader`, the DCTL of `crate::export::dctl`) spell
-/// each factor in their language, so every back end follows this one definition.
-#[cfg(any(feature = "gpu", test))]
-pub(crate) fn term_factors(t: &Term) -> Vec<(usize, u8)> {
+/// Code generators (the WGSL of `gpu`'s printer, `nsrm-export`'s DCTL) spell each factor in
+/// their language, so every back end follows this one definition.
+pub fn term_factors(t: &Term) -> Vec<(usize, u8)> {
     t.exps
         .iter()
         .enumerate()

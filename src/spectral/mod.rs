@@ -290,6 +290,11 @@ impl SpectralTable {
 pub struct Camera(pub(crate) SpectralTable);
 
 impl Camera {
+    /// Where the sensitivities came from: a file path or `builtin:NAME`.
+    pub fn source_name(&self) -> &str {
+        &self.0.source_name
+    }
+
     pub(crate) fn new(table: SpectralTable) -> Result<Camera, SpectralError> {
         if table.names.len() != 3 {
             return Err(SpectralError::CameraColumns {
@@ -315,6 +320,11 @@ impl Camera {
 pub struct Illuminant(pub(crate) SpectralTable);
 
 impl Illuminant {
+    /// Where the spectrum came from: a file path or `builtin:NAME`.
+    pub fn source_name(&self) -> &str {
+        &self.0.source_name
+    }
+
     pub(crate) fn new(table: SpectralTable) -> Result<Illuminant, SpectralError> {
         if table.names.len() != 1 {
             return Err(SpectralError::IlluminantColumns {
@@ -352,6 +362,18 @@ impl Illuminant {
 pub struct Reflectances(pub(crate) SpectralTable);
 
 impl Reflectances {
+    /// A perfect white: reflectance 1 at every wavelength (300–900 nm).
+    pub fn perfect_white() -> Reflectances {
+        let table = csv::parse_csv("wavelength_nm,white\n300,1\n900,1\n", "perfect white")
+            .expect("a well-formed built-in table");
+        Reflectances(table)
+    }
+
+    /// Where the spectra came from: a file path or `builtin:NAME`.
+    pub fn source_name(&self) -> &str {
+        &self.0.source_name
+    }
+
     /// A built-in name (`rawtoaces-190`, `cc24`) or a CSV path.
     pub fn from_name_or_path(spec: &str) -> Result<Reflectances, SpectralError> {
         let table = match builtin_reflectances(spec) {

@@ -2,10 +2,10 @@
 
 use crate::common::mat::apply as mat_apply;
 use crate::common::read_frame;
-use nsrm::chart::ChartLayout;
 use nsrm::delta_e00_xyz;
-use nsrm::io::ReadOptions;
 use nsrm::OutputSpace;
+use nsrm_chart::ChartLayout;
+use nsrm_io::ReadOptions;
 use std::path::{Path, PathBuf};
 
 use crate::common;

@@ -1,12 +1,12 @@
-//! The capture workflow as a library call (`nsrm::chart::capture`): `chart extract` writes the
+//! The capture workflow as a library call (`nsrm_chart::capture`): `chart extract` writes the
 //! bytes the library's reading gives (patches CSV and reading JSON), on a synthetic scene with a
 //! flat frame, on an SG scene, and on the real raw frame `../shared/data/colorchart.dng`; and a
 //! reading taken again from the decoded frame equals a fresh one.
 
 use crate::common::{chart_dng, nsrm_ok, skip, tempdir};
-use nsrm::chart::{read, CaptureFrame, ChartKind, FlatField, ReadingOptions, Reference};
-use nsrm::io::Encoding;
-use nsrm::io::ReadOptions;
+use nsrm_chart::{read, CaptureFrame, ChartKind, FlatField, ReadingOptions, Reference};
+use nsrm_io::Encoding;
+use nsrm_io::ReadOptions;
 use std::path::Path;
 use std::sync::Arc;
 
@@ -16,7 +16,7 @@ fn open(path: &Path) -> Arc<CaptureFrame> {
         CaptureFrame::open(
             path,
             &ReadOptions {
-                demosaic: nsrm::io::Demosaic::Half,
+                demosaic: nsrm_io::Demosaic::Half,
                 ..Default::default()
             },
             Encoding::Auto,
@@ -48,7 +48,7 @@ fn cli(dir: &Path, frame: &Path, kind: &str, extra: &[&str]) -> (Vec<u8>, Vec<u8
     )
 }
 
-fn lib_bytes(c: &nsrm::chart::Capture) -> (Vec<u8>, Vec<u8>) {
+fn lib_bytes(c: &nsrm_chart::Capture) -> (Vec<u8>, Vec<u8>) {
     (
         c.to_csv().into_bytes(),
         serde_json::to_string_pretty(&c.report())

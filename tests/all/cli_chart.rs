@@ -57,7 +57,7 @@ fn extract_fit_apply_reproduces_the_reference() {
     assert!(ok, "{err}");
     let text = std::fs::read_to_string(&csv).unwrap();
     // A comment line, the white line (D50, the reference's), then the header and the patches.
-    let w = nsrm::chart::Reference::load("cc24-after2014", nsrm::chart::ChartKind::Cc24, None)
+    let w = nsrm_chart::Reference::load("cc24-after2014", nsrm_chart::ChartKind::Cc24, None)
         .unwrap()
         .white;
     let white = format!("# white: {},{},{}\n", w[0], w[1], w[2]);

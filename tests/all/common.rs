@@ -205,7 +205,7 @@ pub fn frame(w: usize, h: usize) -> Frame {
 
 /// Writes a small EXR frame at `path`.
 pub fn exr(path: &Path, w: usize, h: usize) {
-    use nsrm::io::{ExrCompression, FileFormat, WriteOptions};
+    use nsrm_io::{ExrCompression, FileFormat, WriteOptions};
     let opts = WriteOptions {
         format: FileFormat::Exr,
         half: false,
@@ -217,29 +217,29 @@ pub fn exr(path: &Path, w: usize, h: usize) {
 }
 
 /// Reads an EXR, TIFF or raw file into one frame with its alpha (`Decoded::into_frame`).
-pub fn read_frame(path: &Path, opts: &nsrm::io::ReadOptions) -> Result<Frame, nsrm::io::IoError> {
-    nsrm::io::Decoded::read(path, opts).map(nsrm::io::Decoded::into_frame)
+pub fn read_frame(path: &Path, opts: &nsrm_io::ReadOptions) -> Result<Frame, nsrm_io::IoError> {
+    nsrm_io::Decoded::read(path, opts).map(nsrm_io::Decoded::into_frame)
 }
 
 /// A decoded frame written as the `nsrm` command writes it: the library's encoder
-/// ([`nsrm::io::Decoded::write_to`]) into a temporary staged in an output session's unit.
+/// ([`nsrm_io::Decoded::write_to`]) into a temporary staged in an output session's unit.
 pub trait WriteStaged {
     /// Stages the frame for `dest` in `unit`.
     fn write(
         self,
         dest: &Path,
-        opts: &nsrm::io::WriteOptions,
+        opts: &nsrm_io::WriteOptions,
         unit: &mut nsrm_output::Unit,
-    ) -> Result<(), nsrm::io::IoError>;
+    ) -> Result<(), nsrm_io::IoError>;
 }
 
-impl WriteStaged for nsrm::io::Decoded {
+impl WriteStaged for nsrm_io::Decoded {
     fn write(
         self,
         dest: &Path,
-        opts: &nsrm::io::WriteOptions,
+        opts: &nsrm_io::WriteOptions,
         unit: &mut nsrm_output::Unit,
-    ) -> Result<(), nsrm::io::IoError> {
+    ) -> Result<(), nsrm_io::IoError> {
         unit.write_with(dest, |w| self.write_to(dest, opts, w))
     }
 }
@@ -248,14 +248,14 @@ impl WriteStaged for nsrm::io::Decoded {
 pub fn write_exr(
     frame: &Frame,
     dest: &Path,
-    opts: &nsrm::io::WriteOptions,
+    opts: &nsrm_io::WriteOptions,
     unit: &mut nsrm_output::Unit,
-) -> Result<(), nsrm::io::IoError> {
-    let opts = nsrm::io::WriteOptions {
-        format: nsrm::io::FileFormat::Exr,
+) -> Result<(), nsrm_io::IoError> {
+    let opts = nsrm_io::WriteOptions {
+        format: nsrm_io::FileFormat::Exr,
         ..*opts
     };
-    WriteStaged::write(nsrm::io::Decoded::from(frame.clone()), dest, &opts, unit)
+    WriteStaged::write(nsrm_io::Decoded::from(frame.clone()), dest, &opts, unit)
 }
 
 /// Stages a 32-bit float TIFF holding `frame` in `unit`.
@@ -263,15 +263,15 @@ pub fn write_tiff(
     frame: &Frame,
     dest: &Path,
     unit: &mut nsrm_output::Unit,
-) -> Result<(), nsrm::io::IoError> {
-    let opts = nsrm::io::WriteOptions {
-        format: nsrm::io::FileFormat::Tiff,
+) -> Result<(), nsrm_io::IoError> {
+    let opts = nsrm_io::WriteOptions {
+        format: nsrm_io::FileFormat::Tiff,
         half: false,
-        compression: nsrm::io::ExrCompression::Keep,
+        compression: nsrm_io::ExrCompression::Keep,
         space: nsrm::OutputSpace::Xyz,
         ..Default::default()
     };
-    WriteStaged::write(nsrm::io::Decoded::from(frame.clone()), dest, &opts, unit)
+    WriteStaged::write(nsrm_io::Decoded::from(frame.clone()), dest, &opts, unit)
 }
 
 /// Runs library writers on one unit of a fresh output session (replacing existing files when

@@ -13,12 +13,12 @@ use crate::common;
 
 use crate::common::{read_frame, write_exr};
 use nsrm::delta_e00_xyz;
-use nsrm::export::{render, Format, LutOptions};
-use nsrm::io::{ExrCompression, FileFormat, ReadOptions, WriteOptions};
 use nsrm::OutputSpace;
 use nsrm::{fit, Kind};
 use nsrm::{simulate_named, Grid};
 use nsrm::{Frame, Layout, Model, TrainingSet};
+use nsrm_export::{render, Format, LutOptions};
+use nsrm_io::{ExrCompression, FileFormat, ReadOptions, WriteOptions};
 use std::path::{Path, PathBuf};
 use std::process::Command;
 

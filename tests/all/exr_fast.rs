@@ -12,8 +12,8 @@ use exr::math::Vec2;
 use exr::meta::attribute::{AttributeValue, IntegerBounds, LineOrder, Text};
 use exr::meta::header::{ImageAttributes, LayerAttributes};
 use exr::prelude::{f16, SmallVec, WritableImage};
-use nsrm::io::{Decoded, ExrCompression, FileFormat, ReadOptions, WriteOptions};
 use nsrm::OutputSpace;
+use nsrm_io::{Decoded, ExrCompression, FileFormat, ReadOptions, WriteOptions};
 use std::path::Path;
 use std::process::Command;
 

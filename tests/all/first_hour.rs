@@ -117,7 +117,7 @@ fn export_shader_writes_what_apply_writes_in_every_language() {
     // And that is not the model file's own scale (white at Y = 100): the WGSL matrix is 1/100 of it.
     let m = nsrm::Model::load(&d.join("m.json")).unwrap();
     let raw =
-        nsrm::export::export_shader(&m, nsrm::Layout::Rgb, nsrm::export::ShaderLang::Wgsl).unwrap();
+        nsrm_export::export_shader(&m, nsrm::Layout::Rgb, nsrm_export::ShaderLang::Wgsl).unwrap();
     assert_ne!(raw, std::fs::read(d.join("default.wgsl")).unwrap());
 }
 

@@ -6,11 +6,11 @@
 
 use crate::common::{self, Rng};
 use crate::common::{read_frame, write_tiff};
-use nsrm::io::ReadOptions;
 use nsrm::{delta_e00_xyz, OutputSpace};
 use nsrm::{simulate_named, Grid};
 use nsrm::{Frame, Layout, TrainingSet};
 use nsrm::{Kind, Model};
+use nsrm_io::ReadOptions;
 use std::fmt::Write as _;
 use std::path::Path;
 

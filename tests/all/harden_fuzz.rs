@@ -3,8 +3,8 @@
 //! result is a value or an error, never a panic, an abort or an allocation the limits do not
 //! allow; whatever is accepted is well formed.
 
-use nsrm::io::{Decoded, Limits, ReadOptions};
 use nsrm::{parse_white, TrainingSet};
+use nsrm_io::{Decoded, Limits, ReadOptions};
 use proptest::prelude::*;
 use std::sync::OnceLock;
 

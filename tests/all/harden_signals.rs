@@ -279,10 +279,10 @@ fn a_frame_being_written_at_sigterm_is_aborted_not_finished() {
     let mut rng = Rng(7);
     let noise = (0..2048 * 2048 * 3).map(|_| rng.unit()).collect();
     let big = nsrm::Frame::from_data(2048, 2048, nsrm::Layout::Rgb, noise).unwrap();
-    let opts = nsrm::io::WriteOptions {
-        format: nsrm::io::FileFormat::Exr,
+    let opts = nsrm_io::WriteOptions {
+        format: nsrm_io::FileFormat::Exr,
         half: false,
-        compression: nsrm::io::ExrCompression::None,
+        compression: nsrm_io::ExrCompression::None,
         space: nsrm::OutputSpace::Xyz,
         ..Default::default()
     };

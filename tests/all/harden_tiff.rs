@@ -4,7 +4,7 @@
 
 use crate::common;
 use common::*;
-use nsrm::io::{Decoded, Limits, ReadOptions};
+use nsrm_io::{Decoded, Limits, ReadOptions};
 use std::path::Path;
 
 /// A valid uncompressed 16-bit RGB TIFF of `w`×`h`, 8 rows per strip.

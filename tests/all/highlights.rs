@@ -8,8 +8,8 @@
 
 use crate::common::{self, chart_dng, nsrm_in, nsrm_ok as ok, read_frame, stderr};
 use crate::raw::{judge_available, write_dng};
-use nsrm::io::ReadOptions;
 use nsrm::xyz_to_lab;
+use nsrm_io::ReadOptions;
 use std::path::Path;
 
 /// D65 at Y = 1: the white of `--output-space xyz`.

@@ -5,7 +5,7 @@
 
 use crate::common;
 
-use nsrm::io::{Decoded, IoError, Limits, ReadOptions};
+use nsrm_io::{Decoded, IoError, Limits, ReadOptions};
 use proptest::prelude::*;
 use std::path::Path;
 use std::process::Command;
@@ -147,7 +147,7 @@ fn a_huge_header_costs_an_error() {
     assert!(e.to_string().contains("limit of 268435456 pixels"), "{e}");
     assert_eq!(
         e.concern(),
-        Some(nsrm::io::Concern::Remedy(nsrm::io::Param::MaxPixels))
+        Some(nsrm_io::Concern::Remedy(nsrm_io::Param::MaxPixels))
     );
     // Even with no pixel limit, the file is too small for its own offset table.
     let opts = ReadOptions {

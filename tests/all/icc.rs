@@ -12,10 +12,10 @@ use crate::common::mat::{bradford, output_matrix, ICC_D50 as D50};
 use crate::common::{self, nsrm_in, nsrm_ok, stderr, tempdir};
 use crate::common::{read_frame, write_tiff};
 use nsrm::delta_e00_xyz;
-use nsrm::export::{icc, IccOptions};
-use nsrm::io::ReadOptions;
 use nsrm::OutputSpace;
 use nsrm::{Frame, Layout, Model};
+use nsrm_export::{icc, IccOptions};
+use nsrm_io::ReadOptions;
 use std::path::Path;
 use std::process::{Command, Stdio};
 

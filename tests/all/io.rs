@@ -1,4 +1,4 @@
-//! Round trips and refusals of `nsrm::io`: EXR (half/float/uint, RGB/RGBA, tiled, layers, parts,
+//! Round trips and refusals of `nsrm_io`: EXR (half/float/uint, RGB/RGBA, tiled, layers, parts,
 //! mip levels, extra channels, attributes) and TIFF (u16/f32 in, f32 out).
 
 use crate::common;
@@ -12,10 +12,10 @@ use exr::math::{RoundingMode, Vec2};
 use exr::meta::attribute::{AttributeValue, Chromaticities, IntegerBounds, LineOrder, Text};
 use exr::meta::header::{ImageAttributes, LayerAttributes};
 use exr::prelude::{f16, SmallVec, WritableImage};
-use nsrm::io::{Concern, Param};
-use nsrm::io::{Decoded, FileFormat, IoError, ReadOptions, WriteOptions};
 use nsrm::OutputSpace;
 use nsrm::{Frame, Layout};
+use nsrm_io::{Concern, Param};
+use nsrm_io::{Decoded, FileFormat, IoError, ReadOptions, WriteOptions};
 use std::path::Path;
 
 fn halves(n: usize, seed: f32) -> Vec<f16> {
@@ -72,7 +72,7 @@ fn opts(format: FileFormat, half: bool, space: OutputSpace) -> WriteOptions {
     WriteOptions {
         format,
         half,
-        compression: nsrm::io::ExrCompression::Keep,
+        compression: nsrm_io::ExrCompression::Keep,
         space,
         ..Default::default()
     }
@@ -661,9 +661,9 @@ fn compression_is_kept_when_lossless_and_chosen_on_request() {
     .to_file(&src)
     .unwrap();
     for (want, got) in [
-        (nsrm::io::ExrCompression::Keep, Compression::ZIP16),
-        (nsrm::io::ExrCompression::None, Compression::Uncompressed),
-        (nsrm::io::ExrCompression::Piz, Compression::PIZ),
+        (nsrm_io::ExrCompression::Keep, Compression::ZIP16),
+        (nsrm_io::ExrCompression::None, Compression::Uncompressed),
+        (nsrm_io::ExrCompression::Piz, Compression::PIZ),
     ] {
         let d = Decoded::read(&src, &ReadOptions::default()).unwrap();
         let dest = dir.path().join(format!("out_{got:?}.exr"));

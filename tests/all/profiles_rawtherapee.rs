@@ -14,9 +14,9 @@ use crate::common::mat::{self, D50_XY};
 use crate::common::{nsrm_ok, read_frame, skip, tempdir};
 use crate::common::{rawtherapee, rt_chart as chart, rt_develop};
 use nsrm::delta_e00_xyz;
-use nsrm::io::ReadOptions;
 use nsrm::OutputSpace;
 use nsrm::{FrameWhite, Profile};
+use nsrm_io::ReadOptions;
 use std::path::Path;
 
 /// The dense-set maximum ΔE00 `export` printed ("… max X ΔE00 over N samples" is last).

@@ -7,8 +7,8 @@
 
 use crate::common::read_frame;
 use crate::common::{self, chart_dng, no_crash, nsrm_in, stderr};
-use nsrm::io::Demosaic;
-use nsrm::io::{Limits, ReadOptions};
+use nsrm_io::Demosaic;
+use nsrm_io::{Limits, ReadOptions};
 use std::ffi::{OsStr, OsString};
 use std::path::{Path, PathBuf};
 use std::process::Command;
@@ -558,7 +558,7 @@ fn bad_raw_files_are_refused_and_the_batch_goes_on() {
         },
     );
     assert!(
-        matches!(r, Err(nsrm::io::IoError::OverLimit { .. })),
+        matches!(r, Err(nsrm_io::IoError::OverLimit { .. })),
         "{r:?}"
     );
 }
@@ -945,7 +945,7 @@ fn a_raf_naming_a_superccd_camera_is_bounded_whatever_its_layout_tag_says() {
         &raf_naming("FUJIFILM", "FinePix E900", 3000, 3000, not_superccd),
     );
     match r {
-        Err(nsrm::io::IoError::OverLimit { why, .. }) => {
+        Err(nsrm_io::IoError::OverLimit { why, .. }) => {
             assert!(why.contains("4500×4500"), "{why}")
         }
         r => panic!("{r:?}"),
@@ -971,7 +971,7 @@ fn a_raf_naming_a_superccd_camera_is_bounded_whatever_its_layout_tag_says() {
         "xt2.raf",
         &raf_naming("FUJIFILM", "X-T2", 3000, 3000, not_superccd),
     );
-    assert!(matches!(r, Err(nsrm::io::IoError::Corrupt { .. })), "{r:?}");
+    assert!(matches!(r, Err(nsrm_io::IoError::Corrupt { .. })), "{r:?}");
 }
 
 /// An IFD's entries: (tag, type, count, value field position).

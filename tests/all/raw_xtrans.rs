@@ -5,7 +5,7 @@
 //! demosaic; `bilinear` matches LibRaw's LINEAR demosaic (`lin_interpolate`) in the interior.
 
 use crate::raw::{f32s, judge, judge_available, read, write_dng};
-use nsrm::io::Demosaic;
+use nsrm_io::Demosaic;
 use std::ffi::OsStr;
 use std::path::{Path, PathBuf};
 

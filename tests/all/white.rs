@@ -47,7 +47,7 @@ fn both_routes_from_one_frame_give_the_same_model() {
         .map(|v| v.parse().unwrap())
         .collect();
     // The built-in reference's white: D50.
-    let d50 = nsrm::chart::Reference::load("cc24-after2014", nsrm::chart::ChartKind::Cc24, None)
+    let d50 = nsrm_chart::Reference::load("cc24-after2014", nsrm_chart::ChartKind::Cc24, None)
         .unwrap()
         .white;
     assert_close(&w, &d50, "the CSV's white is D50");

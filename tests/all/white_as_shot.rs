@@ -5,7 +5,7 @@
 
 use crate::common::read_frame;
 use crate::common::{chart_dng, nsrm_in, nsrm_ok, skip, stderr, tempdir};
-use nsrm::io::ReadOptions;
+use nsrm_io::ReadOptions;
 
 /// The numbers after `camera neutral ` in apply's line about the white.
 fn neutral_printed(err: &str) -> [f64; 3] {

@@ -1,7 +1,7 @@
 //! `nsrm apply`: batch colour correction of camera raw files and linear EXR/TIFF frames.
 //!
 //! The batch executor (`--jobs` decode workers → one correction stage → `--jobs` encode workers)
-//! is the library's [`nsrm::io::batch::execute`]; this file holds the command: its flags, the
+//! is the library's [`nsrm_io::batch::execute`]; this file holds the command: its flags, the
 //! plan, the correction step it hands the executor (the device opened, or the CPU mix of a
 //! two-illuminant model's parts, or `--white as-shot`), the interrupt, the progress bar and log
 //! drawn from the executor's events, and the summary. The tests are in `apply_tests.rs`.
@@ -16,16 +16,16 @@ use super::values;
 use anyhow::{Context, Result};
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 use nsrm::gpu::{DeviceChoice, GpuOptions};
-use nsrm::io::batch::{self, Action, BatchPlan, Existing, PlanOptions, Shard};
-use nsrm::io::batch::{Correct, CorrectError, Event, ExecOptions, FrameError, FrameOutcome};
-use nsrm::io::batch::{ModelCorrector, Timing};
-use nsrm::io::{
-    self as fio, Decoded, ExrCompression, FileFormat, Limits, ReadOptions, WriteOptions,
-};
 use nsrm::Model;
 use nsrm::OutputSpace;
 use nsrm::{FastModel, Threads};
 use nsrm::{FrameHighlights, Highlights};
+use nsrm_io::batch::{self, Action, BatchPlan, Existing, PlanOptions, Shard};
+use nsrm_io::batch::{Correct, CorrectError, Event, ExecOptions, FrameError, FrameOutcome};
+use nsrm_io::batch::{ModelCorrector, Timing};
+use nsrm_io::{
+    self as fio, Decoded, ExrCompression, FileFormat, Limits, ReadOptions, WriteOptions,
+};
 use nsrm_output::Session;
 use std::io::IsTerminal;
 use std::path::{Path, PathBuf};
@@ -54,8 +54,8 @@ pub(crate) struct Args {
     suffix: Option<String>,
     /// Output file format: `exr` (float, or half with --half; keeps every channel and
     /// attribute of an EXR input) or `tiff` (32-bit float RGB/RGBA).
-    #[arg(help_heading = "Outputs", long, value_enum, ignore_case = true, default_value_t = nsrm::io::FileFormat::Exr)]
-    format: nsrm::io::FileFormat,
+    #[arg(help_heading = "Outputs", long, value_enum, ignore_case = true, default_value_t = nsrm_io::FileFormat::Exr)]
+    format: nsrm_io::FileFormat,
     #[command(flatten)]
     overwrite: super::values::OverwriteArg,
     /// Skip inputs whose output already exists (for re-running a partly done batch).
@@ -80,8 +80,8 @@ pub(crate) struct Args {
     /// EXR compression: `keep` (the input's if lossless, else zip; zip for TIFF and camera raw
     /// inputs), none, rle, zips, zip, piz. Noisy float data compresses little; `none` or `piz`
     /// encode fastest.
-    #[arg(help_heading = "Outputs", long, value_enum, ignore_case = true, default_value_t = nsrm::io::ExrCompression::Keep)]
-    compression: nsrm::io::ExrCompression,
+    #[arg(help_heading = "Outputs", long, value_enum, ignore_case = true, default_value_t = nsrm_io::ExrCompression::Keep)]
+    compression: nsrm_io::ExrCompression,
     /// Deflate level (libdeflate's, 0-12) of ZIP and ZIPS outputs. The default, 1, is the
     /// fastest, and compresses noisy float data about as much as the higher levels do; 0
     /// stores the chunks raw.
@@ -110,8 +110,8 @@ pub(crate) struct Args {
     max_pixels: super::values::MaxPixelsArg,
     /// How camera raw inputs are demosaiced: mhc (Malvar-He-Cutler, full resolution), bilinear
     /// (LibRaw's), or half (one pixel per 2×2 CFA block: half width and height).
-    #[arg(help_heading = "Inputs", long, value_enum, ignore_case = true, default_value_t = nsrm::io::Demosaic::Mhc)]
-    demosaic: nsrm::io::Demosaic,
+    #[arg(help_heading = "Inputs", long, value_enum, ignore_case = true, default_value_t = nsrm_io::Demosaic::Mhc)]
+    demosaic: nsrm_io::Demosaic,
     /// Clipped highlights: clip (pixels at the sensor's clip level go to the corrected white of
     /// the brightest grey it records, blended in from 0.9 of the level, as RawTherapee and
     /// darktable do) or keep (the raw mapping: a blown window can turn cyan). Default: clip
@@ -1027,7 +1027,7 @@ impl Args {
         opt("--white", &self.white);
         opt(
             "--demosaic",
-            &(self.demosaic != nsrm::io::Demosaic::Mhc).then(|| name(self.demosaic)),
+            &(self.demosaic != nsrm_io::Demosaic::Mhc).then(|| name(self.demosaic)),
         );
         for (set, flag) in [
             (self.half, "--half"),

@@ -548,7 +548,7 @@ fn parse_size(spec: &str) -> Result<(usize, usize)> {
         return Err(bad().into());
     }
     // The bench holds several f32 RGBA copies of the frame: bound it like a frame read.
-    let limit = nsrm::io::DEFAULT_MAX_PIXELS;
+    let limit = nsrm_io::DEFAULT_MAX_PIXELS;
     if (w as u64).checked_mul(h as u64).is_none_or(|p| p > limit) {
         return Err(UsageError(format!(
             "--size `{spec}`: {w}×{h} is more than the limit of {limit} pixels (16384×16384)"

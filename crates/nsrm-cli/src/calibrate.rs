@@ -9,11 +9,11 @@ use super::capture::{CaptureOptions, CaptureText};
 use super::common::UsageError;
 use super::fit_args::FitVariantArgs;
 use anyhow::{Context, Result};
-use nsrm::chart::capture::Capture;
 use nsrm::Kind;
 use nsrm::TrainingSet;
 use nsrm::{evaluate_with, Protocol};
 use nsrm::{fit_with, FitOptions};
+use nsrm_chart::capture::Capture;
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 
@@ -54,7 +54,7 @@ pub(crate) struct Args {
         value_delimiter = ',',
         value_name = "LIST"
     )]
-    export: Vec<nsrm::export::Format>,
+    export: Vec<nsrm_export::Format>,
     /// Subtract the veiling glare measured on the neutral ramp (a uniform camera-RGB term: the
     /// ramp's positive intercepts) from every patch before the fit. Off by default; the report
     /// measures the glare either way.
@@ -118,8 +118,8 @@ fn parse_candidates(s: &str) -> Result<Vec<(Kind, u8)>> {
 }
 
 /// The export file names in DIR (for OCIO: the config; its CLF is `config.clf` beside it).
-fn export_name(f: nsrm::export::Format) -> &'static str {
-    use nsrm::export::Format;
+fn export_name(f: nsrm_export::Format) -> &'static str {
+    use nsrm_export::Format;
     match f {
         Format::Dcp => "profile.dcp",
         Format::Icc => "profile.icc",
@@ -138,9 +138,9 @@ pub(crate) fn run(mut a: Args) -> Result<ExitCode> {
     let candidates = parse_candidates(&a.candidates)?;
     let opts = a.fit.options()?;
     if a.chart.chart.is_none() {
-        a.chart.chart = Some(nsrm::chart::ChartKind::Cc24.into());
+        a.chart.chart = Some(nsrm_chart::ChartKind::Cc24.into());
     }
-    let formats: Vec<nsrm::export::Format> = a.export.clone();
+    let formats: Vec<nsrm_export::Format> = a.export.clone();
     std::fs::create_dir_all(&a.output)
         .with_context(|| format!("creating the folder {}", a.output.display()))?;
     let dir = a.output.clone();
@@ -150,7 +150,7 @@ pub(crate) fn run(mut a: Args) -> Result<ExitCode> {
         .collect();
     for f in &formats {
         outputs.push(dir.join(export_name(*f)));
-        if *f == nsrm::export::Format::Ocio {
+        if *f == nsrm_export::Format::Ocio {
             outputs.push(dir.join("config.clf"));
         }
     }
@@ -165,13 +165,13 @@ pub(crate) fn run(mut a: Args) -> Result<ExitCode> {
     if let Some(w) = cap.other_chart_warning() {
         eprintln!("{w}");
     }
-    let findings = nsrm::chart::diagnose::diagnose(
+    let findings = nsrm_chart::diagnose::diagnose(
         &cap.extraction,
         &cap.reference,
         cap.flat.as_ref().map(|f| f.nonuniformity),
         cap.score,
     );
-    let ramp = nsrm::chart::diagnose::Ramp::of(&cap.extraction, cap.reference.white);
+    let ramp = nsrm_chart::diagnose::Ramp::of(&cap.extraction, cap.reference.white);
     let glare = if a.glare_compensation {
         cap.compensate_glare()
     } else {
@@ -207,13 +207,13 @@ pub(crate) fn run(mut a: Args) -> Result<ExitCode> {
     unit.write_bytes(&dir.join(MODEL), fitted.model.to_json().as_bytes())?;
     unit.write_bytes(&dir.join(PATCHES), cap.to_csv().as_bytes())?;
     let sw = super::capture::swatches(&cap, &fitted.model);
-    let overlay_img = nsrm::chart::overlay::render(
+    let overlay_img = nsrm_chart::overlay::render(
         cap.frame.frame(),
         Some(&cap.extraction),
         &[],
         Some((&sw, cap.reference.white)),
     );
-    let png = nsrm::chart::overlay::encode(&overlay_img)?;
+    let png = nsrm_chart::overlay::encode(&overlay_img)?;
     unit.write_bytes(&dir.join(OVERLAY), &png)?;
     let mut export_lines = Vec::new();
     for f in &formats {
@@ -271,14 +271,14 @@ fn choose(
 
 /// Writes one export of `model` into `dir` (staged in `unit`); its line for the report.
 fn export_one(
-    f: nsrm::export::Format,
+    f: nsrm_export::Format,
     model: &nsrm::Model,
     data: &TrainingSet,
     cap: &Capture,
     dir: &Path,
     unit: &mut nsrm_output::Unit,
 ) -> Result<String> {
-    use nsrm::export::Format;
+    use nsrm_export::Format;
     let out = dir.join(export_name(f));
     let ctx = || format!("exporting the model as {}", f.name());
     // The LUT range in camera units around the capture's white (camera RGB as recorded).
@@ -292,12 +292,12 @@ fn export_one(
     let summary = match f {
         Format::Dcp => {
             let profile = nsrm::Profile::single(model.clone())?;
-            let t = nsrm::export::dcp::DcpTraining {
+            let t = nsrm_export::dcp::DcpTraining {
                 rgb: data.rgb.clone(),
                 white_rgb: None,
             };
             let (bytes, w) =
-                nsrm::export::dcp::render(&profile, &[t], Default::default(), stops, None)
+                nsrm_export::dcp::render(&profile, &[t], Default::default(), stops, None)
                     .with_context(ctx)?;
             unit.write_bytes(&out, &bytes)?;
             format!(
@@ -308,17 +308,17 @@ fn export_one(
             )
         }
         Format::Icc => {
-            let (bytes, w) = nsrm::export::icc::render(model, Default::default(), &data.rgb, None)
+            let (bytes, w) = nsrm_export::icc::render(model, Default::default(), &data.rgb, None)
                 .with_context(ctx)?;
             unit.write_bytes(&out, &bytes)?;
             format!("{}: {}", out.display(), w.report.summary())
         }
         _ => {
-            let options = nsrm::export::LutOptions {
+            let options = nsrm_export::LutOptions {
                 stops,
                 ..Default::default()
             };
-            let w = nsrm::export::render(
+            let w = nsrm_export::render(
                 model,
                 f,
                 nsrm::OutputSpace::Xyz,

@@ -3,12 +3,12 @@
 //! (no network, no external file: the overlay as an inline PNG, the plots as inline SVG).
 
 use super::calibrate::Candidate;
-use nsrm::chart::capture::Capture;
-use nsrm::chart::diagnose::{Finding, Ramp, Severity};
 use nsrm::{apply_mat3 as apply, OutputSpace};
 use nsrm::{delta_e00_xyz, xyz_to_lab};
 use nsrm::{output_matrix, srgb8};
 use nsrm::{EvalResult, Stats};
+use nsrm_chart::capture::Capture;
+use nsrm_chart::diagnose::{Finding, Ramp, Severity};
 use std::fmt::Write as _;
 use std::path::Path;
 
@@ -76,7 +76,7 @@ impl<'a> Report<'a> {
                     .map(|f| format!("excluded: {}", f.name()))
                     .collect();
                 if let Some(l) = level {
-                    let near = nsrm::chart::diagnose::NEAR_CLIP * l;
+                    let near = nsrm_chart::diagnose::NEAR_CLIP * l;
                     if p.usable() && p.rgb.iter().any(|&v| v >= near) {
                         flags.push("near clipping".into());
                     }

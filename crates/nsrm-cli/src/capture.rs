@@ -4,13 +4,13 @@
 
 use super::common::UsageError;
 use anyhow::{Context, Result};
-use nsrm::chart::capture::{CaptureError, CaptureFrame, FlatField, ReadingOptions};
-use nsrm::chart::detect::Candidate;
-use nsrm::chart::extract::{ExtractOptions, Extraction};
-use nsrm::chart::reference::Reference;
-use nsrm::chart::{overlay, parse_corners, ChartKind};
-use nsrm::io::display::Encoding;
 use nsrm::Frame;
+use nsrm_chart::capture::{CaptureError, CaptureFrame, FlatField, ReadingOptions};
+use nsrm_chart::detect::Candidate;
+use nsrm_chart::extract::{ExtractOptions, Extraction};
+use nsrm_chart::reference::Reference;
+use nsrm_chart::{overlay, parse_corners, ChartKind};
+use nsrm_io::display::Encoding;
 use nsrm_output::{Session, Unit};
 use std::path::Path;
 use std::sync::Arc;
@@ -80,8 +80,8 @@ pub(crate) struct CaptureOptions {
     /// How a camera raw frame (and flat frame) is demosaiced: half (one pixel per 2×2 CFA block,
     /// no interpolation: the chart reading of profiling tools), bilinear (LibRaw's), or mhc
     /// (Malvar-He-Cutler).
-    #[arg(help_heading = "Chart in a photograph", long, value_enum, ignore_case = true, default_value_t = nsrm::io::Demosaic::Half)]
-    pub(crate) demosaic: nsrm::io::Demosaic,
+    #[arg(help_heading = "Chart in a photograph", long, value_enum, ignore_case = true, default_value_t = nsrm_io::Demosaic::Half)]
+    pub(crate) demosaic: nsrm_io::Demosaic,
 }
 
 /// `--encoding`.
@@ -133,7 +133,7 @@ pub(crate) fn chart_names() -> String {
 }
 
 /// A read chart (the library's reading, with the frame it was read from).
-pub(crate) use nsrm::chart::capture::Capture;
+pub(crate) use nsrm_chart::capture::Capture;
 
 impl CaptureOptions {
     /// The charts to try: the one `--chart` names, or every one for `auto` (usage error when
@@ -204,7 +204,7 @@ impl CaptureOptions {
     pub(crate) fn open_frame(&self, path: &Path) -> Result<Arc<CaptureFrame>> {
         Ok(Arc::new(CaptureFrame::open(
             path,
-            &nsrm::io::ReadOptions {
+            &nsrm_io::ReadOptions {
                 layer: self.layer.clone(),
                 limits: self.limits(),
                 demosaic: self.demosaic,
@@ -213,8 +213,8 @@ impl CaptureOptions {
         )?))
     }
 
-    fn limits(&self) -> nsrm::io::Limits {
-        nsrm::io::Limits {
+    fn limits(&self) -> nsrm_io::Limits {
+        nsrm_io::Limits {
             max_pixels: self.max_pixels.max_pixels,
         }
     }
@@ -226,9 +226,9 @@ impl CaptureOptions {
             None => Ok(None),
             Some(s) if s.eq_ignore_ascii_case("neutrals") => Ok(None),
             Some(f) => Ok(Some(
-                nsrm::io::display::read_chart_frame(
+                nsrm_io::display::read_chart_frame(
                     Path::new(f),
-                    &nsrm::io::ReadOptions {
+                    &nsrm_io::ReadOptions {
                         limits: self.limits(),
                         demosaic: self.demosaic,
                         ..Default::default()
@@ -277,7 +277,7 @@ impl CaptureOptions {
         let cap = if references.len() > 1 {
             pick_chart(&frame, &references, &opts).map_err(|e| *e)
         } else {
-            nsrm::chart::capture::read(&frame, &references[0], &opts)
+            nsrm_chart::capture::read(&frame, &references[0], &opts)
         };
         let cap = cap.map_err(|e| {
             if let (CaptureError::NotFound { candidates, .. }, Some((p, session))) =
@@ -333,7 +333,7 @@ fn pick_chart(
     let mut first_err = None;
     let mut notes = Vec::new();
     for r in references {
-        match nsrm::chart::capture::read(frame, r, opts) {
+        match nsrm_chart::capture::read(frame, r, opts) {
             Ok(c) => found.push(c),
             Err(e) => {
                 notes.push(format!("not a {}: {}", r.chart.name(), innermost(&e)));

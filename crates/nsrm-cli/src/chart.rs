@@ -4,11 +4,11 @@
 use super::capture::{write_overlay, CaptureOptions, CaptureText};
 use super::common::UsageError;
 use anyhow::{Context, Result};
-use nsrm::chart::detect::{detect, DetectFailure, DetectOptions, Detection};
-use nsrm::chart::extract::{extract, ExtractOptions, Extraction, PatchReading};
-use nsrm::chart::reference::Reference;
-use nsrm::chart::scene::{render, ChartColours, Family, SceneOptions, SceneTruth, TruePatch};
-use nsrm::chart::{ChartError, ChartKind};
+use nsrm_chart::detect::{detect, DetectFailure, DetectOptions, Detection};
+use nsrm_chart::extract::{extract, ExtractOptions, Extraction, PatchReading};
+use nsrm_chart::reference::Reference;
+use nsrm_chart::scene::{render, ChartColours, Family, SceneOptions, SceneTruth, TruePatch};
+use nsrm_chart::{ChartError, ChartKind};
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 use std::time::Instant;
@@ -33,7 +33,7 @@ pub(crate) struct TimeArgs {
     frames: Vec<PathBuf>,
     /// cc24, sg or spyder24.
     #[arg(long, value_enum, ignore_case = true)]
-    chart: nsrm::chart::ChartKind,
+    chart: nsrm_chart::ChartKind,
     /// How the frames' values are encoded (as in `chart extract`).
     #[arg(long, value_enum, ignore_case = true, default_value = "auto")]
     encoding: super::capture::EncodingArg,
@@ -70,7 +70,7 @@ pub(crate) struct ExtractArgs {
 pub(crate) struct RateArgs {
     /// The chart: cc24, sg or spyder24.
     #[arg(long, value_enum, ignore_case = true)]
-    chart: nsrm::chart::ChartKind,
+    chart: nsrm_chart::ChartKind,
     /// Spectra of the chart (SG: e.g. ../shared/data/colorchecker_sg_140.csv).
     #[arg(long, value_name = "FILE")]
     reflectances: Option<String>,
@@ -158,15 +158,15 @@ pub(crate) fn run(c: Command) -> Result<ExitCode> {
 fn run_time(a: TimeArgs) -> Result<ExitCode> {
     let kind = a.chart;
     let reference = Reference::load(kind.default_reference(), kind, None)?;
-    let opts = nsrm::io::ReadOptions {
-        limits: nsrm::io::Limits {
+    let opts = nsrm_io::ReadOptions {
+        limits: nsrm_io::Limits {
             max_pixels: a.max_pixels.max_pixels,
         },
         ..Default::default()
     };
     let mut failed = 0;
     for path in &a.frames {
-        let read = match nsrm::io::display::read_chart_frame(path, &opts, a.encoding.into()) {
+        let read = match nsrm_io::display::read_chart_frame(path, &opts, a.encoding.into()) {
             Ok(r) => r,
             Err(e) => {
                 eprintln!("error: {e}");
@@ -175,7 +175,7 @@ fn run_time(a: TimeArgs) -> Result<ExitCode> {
             }
         };
         let ex_opts = ExtractOptions {
-            quantisation: nsrm::chart::extract::Quantisation::of(&read),
+            quantisation: nsrm_chart::extract::Quantisation::of(&read),
             ..Default::default()
         };
         let mut times = Vec::new();
@@ -186,7 +186,7 @@ fn run_time(a: TimeArgs) -> Result<ExitCode> {
                 .map_err(|f| f.error)
                 .and_then(|d| {
                     extract(&read.frame, &reference, &d.homography, &ex_opts)
-                        .and_then(|ex| nsrm::chart::extract::verify(&ex, &reference).map(|_| ex))
+                        .and_then(|ex| nsrm_chart::extract::verify(&ex, &reference).map(|_| ex))
                 });
             times.push(t0.elapsed().as_secs_f64());
             outcome = match r {
@@ -430,7 +430,7 @@ fn misplaced(patches: &[PatchReading], truth: &[TruePatch], pitch: f64) -> (usiz
 /// said with `--verbose`.
 fn judge_positive(a: &RateArgs, seed: u64, truth: &SceneTruth, result: RateResult) -> Verdict {
     // The perspective of the true pose, as the detector's limit measures it.
-    let true_persp = nsrm::chart::detect::perspective(truth.chart, &truth.homography);
+    let true_persp = nsrm_chart::detect::perspective(truth.chart, &truth.homography);
     match result {
         Ok((d, Ok(ex))) => {
             let (bad, worst) = misplaced(&ex.patches, &truth.patches, pitch_px(truth));
@@ -537,7 +537,7 @@ fn check_rate_ranges(a: &RateArgs) -> Result<()> {
 }
 
 /// The patch pitch in frame pixels near the chart's centre.
-pub(crate) fn pitch_px(t: &nsrm::chart::scene::SceneTruth) -> f64 {
+pub(crate) fn pitch_px(t: &nsrm_chart::scene::SceneTruth) -> f64 {
     let c = [t.chart.columns() as f64 / 2.0, t.chart.rows() as f64 / 2.0];
     let a = t.homography.apply(c);
     let b = t.homography.apply([c[0] + 1.0, c[1]]);

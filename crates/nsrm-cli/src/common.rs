@@ -2,10 +2,10 @@
 
 use anyhow::{Context, Result};
 use clap::Args as ClapArgs;
-use nsrm::io::{Concern, Param};
 use nsrm::Kind;
 use nsrm::{parse_white, TrainingSet};
 use nsrm::{simulate, Camera, Grid, Illuminant, Reflectances};
+use nsrm_io::{Concern, Param};
 use std::path::PathBuf;
 
 /// An error in how the command was called (exit status 2).

@@ -2,7 +2,7 @@
 //! about, asked of any link of an `anyhow` chain: the one place that knows every room's error
 //! type (each type classifies itself with its own `is_usage` / `concern` methods).
 
-use nsrm::io::Concern;
+use nsrm_io::Concern;
 
 /// True when `err` is one of this crate's errors and a usage error (see each type's
 /// `is_usage`).
@@ -22,12 +22,12 @@ pub(crate) fn is_usage(err: &(dyn std::error::Error + 'static)) -> bool {
         nsrm::TrainingError,
         nsrm::ModelError,
         nsrm_output::WriteError,
-        nsrm::io::IoError,
-        nsrm::io::batch::PlanError,
+        nsrm_io::IoError,
+        nsrm_io::batch::PlanError,
         crate::farmlib::FarmError,
-        nsrm::export::ExportError,
-        nsrm::chart::ChartError,
-        nsrm::chart::capture::CaptureError,
+        nsrm_export::ExportError,
+        nsrm_chart::ChartError,
+        nsrm_chart::capture::CaptureError,
         nsrm::plot::PlotError,
         nsrm::gpu::GpuError,
     );
@@ -40,13 +40,13 @@ pub(crate) fn concern(err: &(dyn std::error::Error + 'static)) -> Option<Concern
     if let Some(e) = err.downcast_ref::<nsrm::ModelError>() {
         return e.concern();
     }
-    if let Some(e) = err.downcast_ref::<nsrm::io::IoError>() {
+    if let Some(e) = err.downcast_ref::<nsrm_io::IoError>() {
         return e.concern();
     }
-    if let Some(e) = err.downcast_ref::<nsrm::chart::ChartError>() {
+    if let Some(e) = err.downcast_ref::<nsrm_chart::ChartError>() {
         return e.concern();
     }
-    if let Some(e) = err.downcast_ref::<nsrm::chart::capture::CaptureError>() {
+    if let Some(e) = err.downcast_ref::<nsrm_chart::capture::CaptureError>() {
         return e.concern();
     }
     None
@@ -55,7 +55,7 @@ pub(crate) fn concern(err: &(dyn std::error::Error + 'static)) -> Option<Concern
 #[cfg(test)]
 mod tests {
     use super::*;
-    use nsrm::io::Param;
+    use nsrm_io::Param;
 
     #[test]
     fn concerns_name_the_parameter() {
@@ -63,14 +63,14 @@ mod tests {
         assert_eq!(concern(&m), Some(Concern::Remedy(Param::WhitePatch)));
         assert_eq!(concern(&nsrm::ModelError::Degenerate), None);
         {
-            let e = nsrm::chart::synthetic::check_exposure_noise(f64::INFINITY, 0.0).unwrap_err();
+            let e = nsrm_chart::synthetic::check_exposure_noise(f64::INFINITY, 0.0).unwrap_err();
             assert_eq!(concern(&e), Some(Concern::Value(Param::Exposure)));
             assert!(is_usage(&e), "{e}");
-            let e = nsrm::chart::synthetic::check_exposure_noise(1.0, -1.0).unwrap_err();
+            let e = nsrm_chart::synthetic::check_exposure_noise(1.0, -1.0).unwrap_err();
             assert_eq!(concern(&e), Some(Concern::Value(Param::Noise)));
         }
         {
-            let e = nsrm::chart::parse_corners("1,2 3,4").unwrap_err();
+            let e = nsrm_chart::parse_corners("1,2 3,4").unwrap_err();
             assert_eq!(concern(&e), Some(Concern::Value(Param::Corners)));
             assert!(is_usage(&e), "{e}");
         }
@@ -89,9 +89,9 @@ mod tests {
         // Not one of the crate's errors.
         assert!(!is_usage(&std::io::Error::other("x")));
         {
-            let shard = nsrm::io::batch::Shard::parse("0/3").unwrap_err();
+            let shard = nsrm_io::batch::Shard::parse("0/3").unwrap_err();
             assert!(is_usage(&shard), "{shard}");
-            let suffix = nsrm::io::batch::validate_suffix("a/b").unwrap_err();
+            let suffix = nsrm_io::batch::validate_suffix("a/b").unwrap_err();
             assert!(is_usage(&suffix), "{suffix}");
         }
     }

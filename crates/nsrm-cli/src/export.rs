@@ -3,9 +3,9 @@
 
 use super::common::UsageError;
 use anyhow::{Context, Result};
-use nsrm::export::{render, ExportError, Format, LutOptions};
 use nsrm::Model;
 use nsrm::TrainingSet;
+use nsrm_export::{render, ExportError, Format, LutOptions};
 use std::path::PathBuf;
 use std::process::ExitCode;
 
@@ -19,7 +19,7 @@ pub(crate) struct Args {
     /// camera profile for Lightroom/ACR and RawTherapee; one or two illuminants) or icc (an ICC v2
     /// input profile: camera RGB → PCS XYZ D50; matrix/TRC for LRM, shaper + CLUT otherwise).
     #[arg(long, value_enum, ignore_case = true)]
-    format: nsrm::export::Format,
+    format: nsrm_export::Format,
     #[command(flatten)]
     output_space: super::values::OutputSpaceArg,
     /// Lattice points per axis of the 3D LUT (PRM, RPRM, NSRM; and every .cube; the ICC CLUT), 2..129.
@@ -30,8 +30,8 @@ pub(crate) struct Args {
     shaper_size: usize,
     /// The 3D LUT interpolation, declared in the CLF and measured: tetrahedral (OpenColorIO's
     /// best; what `ocioconvert --lut` uses for .cube) or trilinear (Resolve's default for .cube).
-    #[arg(long, value_enum, ignore_case = true, default_value_t = nsrm::export::nodes::Interpolation::Tetrahedral)]
-    interpolation: nsrm::export::nodes::Interpolation,
+    #[arg(long, value_enum, ignore_case = true, default_value_t = nsrm_export::nodes::Interpolation::Tetrahedral)]
+    interpolation: nsrm_export::nodes::Interpolation,
     /// The LUT's accurate range, log2 of camera units (training white G = 1): LO:HI (default
     /// -6:4). icc: log2 of device units, where the model's white has its largest channel at 1 and
     /// an ICC CLUT has no headroom above it: LO:0 (default -6:0).
@@ -121,10 +121,10 @@ fn no_training_message(model: &std::path::Path, p: &nsrm::Provenance) -> String 
     }
 }
 
-fn parse_map(s: &str) -> Result<nsrm::export::dcp::DcpOptions> {
+fn parse_map(s: &str) -> Result<nsrm_export::dcp::DcpOptions> {
     let bad = || UsageError(format!("--dcp-map `{s}`: expected HUExSAT, e.g. 90x30"));
     let (h, sat) = s.split_once(['x', 'X']).ok_or_else(bad)?;
-    let o = nsrm::export::dcp::DcpOptions {
+    let o = nsrm_export::dcp::DcpOptions {
         hue_divisions: h.trim().parse().map_err(|_| bad())?,
         sat_divisions: sat.trim().parse().map_err(|_| bad())?,
     };
@@ -135,8 +135,8 @@ fn parse_map(s: &str) -> Result<nsrm::export::dcp::DcpOptions> {
 
 /// `--format dcp`: one or two illuminants, from the model file as it is.
 fn run_dcp(a: &Args, stops: [f64; 2]) -> Result<ExitCode> {
-    use nsrm::export::dcp::{render, DcpTraining};
     use nsrm::Profile;
+    use nsrm_export::dcp::{render, DcpTraining};
     let opts = parse_map(&a.dcp_map)?;
     let mut inputs = vec![a.model.as_path()];
     inputs.extend(a.training.as_deref());
@@ -209,8 +209,8 @@ fn run_dcp(a: &Args, stops: [f64; 2]) -> Result<ExitCode> {
 
 /// `--format icc`: one model, one illuminant.
 fn run_icc(a: &Args) -> Result<ExitCode> {
-    use nsrm::export::icc::{render, IccOptions};
-    let [lo, hi] = stops_or(a, [nsrm::export::icc::DEFAULT_LO, 0.0])?;
+    use nsrm_export::icc::{render, IccOptions};
+    let [lo, hi] = stops_or(a, [nsrm_export::icc::DEFAULT_LO, 0.0])?;
     if hi != 0.0 {
         return Err(UsageError(format!(
             "--stops {lo}:{hi}: an ICC CLUT has no headroom above its white (the white's largest channel is device 1.0), so HI must be 0"
@@ -316,7 +316,7 @@ pub(crate) fn run(a: Args) -> Result<ExitCode> {
             );
         }
     }
-    let companion = nsrm::export::companion_path(format, &a.output)?;
+    let companion = nsrm_export::companion_path(format, &a.output)?;
     let mut inputs = vec![a.model.as_path()];
     inputs.extend(a.training.as_deref());
     let mut outputs = vec![a.output.as_path()];

@@ -3,9 +3,9 @@
 
 use super::values;
 use anyhow::{Context, Result};
-use nsrm::export::shader::export;
 use nsrm::Model;
 use nsrm::OutputSpace;
+use nsrm_export::shader::export;
 
 use std::path::PathBuf;
 use std::process::ExitCode;
@@ -53,14 +53,14 @@ fn run_dctl(a: &Args) -> Result<ExitCode> {
     let header = vec![
         format!(
             "nsrm DCTL: {} to {} ({}), scene-linear, training white at Y = 1 (as nsrm apply --output-space {})",
-            nsrm::export::camera_space_name(&model),
+            nsrm_export::camera_space_name(&model),
             space.name(),
             space.interop_id(),
             space.name()
         ),
-        nsrm::export::provenance_line(&model),
+        nsrm_export::provenance_line(&model),
     ];
-    let text = nsrm::export::dctl::generate(&folded, &header)
+    let text = nsrm_export::dctl::generate(&folded, &header)
         .with_context(|| format!("exporting {} as DCTL", a.model.display()))?;
     session.write_bytes(&a.output, text.as_bytes())?;
     eprintln!(

@@ -17,7 +17,7 @@ use crate::farmlib::resources as farm_resources;
 use crate::farmlib::verify::{self, Expect};
 use anyhow::{Context, Result};
 use clap::Parser;
-use nsrm::io::batch::{self, Shard};
+use nsrm_io::batch::{self, Shard};
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 use std::time::{Instant, SystemTime, UNIX_EPOCH};
@@ -745,7 +745,7 @@ fn check_existing(
     j: &batch::Job,
     previous: Option<&ShardManifest>,
     same_run: bool,
-    read: &nsrm::io::ReadOptions,
+    read: &nsrm_io::ReadOptions,
 ) -> Result<Found> {
     let there = j.output.is_file() && j.preview.as_ref().is_none_or(|p| p.is_file());
     if !j.output.exists() && j.preview.as_ref().is_none_or(|p| !p.exists()) {
@@ -772,7 +772,7 @@ fn check_existing(
         (Some(_), false) => Ok(Found::Todo(true)),
         (None, _) if previous.is_some() && !same_run => Ok(Found::Todo(true)),
         (None, _) => {
-            let complete = nsrm::io::Decoded::read(&j.output, read).is_ok();
+            let complete = nsrm_io::Decoded::read(&j.output, read).is_ok();
             Ok(if complete {
                 match entry(j, How::Adopted) {
                     Ok(e) => Found::Done(e),

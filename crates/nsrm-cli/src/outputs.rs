@@ -17,7 +17,7 @@ use std::path::{Path, PathBuf};
 
 /// The session's temporaries found in a batch's output directories (left by a killed run, or
 /// being written by another one now), sorted.
-pub(crate) fn stale_temporaries(plan: &nsrm::io::batch::BatchPlan) -> Vec<PathBuf> {
+pub(crate) fn stale_temporaries(plan: &nsrm_io::batch::BatchPlan) -> Vec<PathBuf> {
     plan.dirs
         .iter()
         .flat_map(|d| nsrm_output::stale_temporaries(d))

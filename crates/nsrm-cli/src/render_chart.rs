@@ -2,7 +2,7 @@
 
 use super::common::{TrainingArgs, UsageError};
 use anyhow::{Context, Result};
-use nsrm::chart::synthetic::{self, ChartOptions};
+use nsrm_chart::synthetic::{self, ChartOptions};
 use std::path::PathBuf;
 use std::process::ExitCode;
 
@@ -40,7 +40,7 @@ pub(crate) struct Args {
 }
 
 pub(crate) fn run(a: Args) -> Result<ExitCode> {
-    if nsrm::io::FileFormat::from_extension(&a.output).is_none() {
+    if nsrm_io::FileFormat::from_extension(&a.output).is_none() {
         return Err(UsageError(format!(
             "{}: the chart must be written as .exr, .tif or .tiff",
             a.output.display()

@@ -3,8 +3,8 @@
 
 use super::common::UsageError;
 use anyhow::{Context, Result};
-use nsrm::chart::parse_corners;
-use nsrm::chart::scene::{render, truth_path, ChartColours, SceneOptions};
+use nsrm_chart::parse_corners;
+use nsrm_chart::scene::{render, truth_path, ChartColours, SceneOptions};
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 
@@ -13,7 +13,7 @@ pub(crate) struct Args {
     /// cc24 (built-in BabelColor spectra), sg (spectra from --reflectances) or spyder24 (the
     /// classic's built-in spectra in the SpyderCHECKR's layout, or --reflectances).
     #[arg(long, value_enum, ignore_case = true)]
-    chart: nsrm::chart::ChartKind,
+    chart: nsrm_chart::ChartKind,
     /// Chart spectra: columns named by chart labels (SG: A1..N10, e.g.
     /// ../shared/data/colorchecker_sg_140.csv); default for cc24: the built-in cc24.
     #[arg(long, value_name = "FILE")]
@@ -44,7 +44,7 @@ pub(crate) struct Args {
     /// the SG's E2–J5 block), spyder24 (a SpyderCHECKR 24). A jpeg-look scene is written as the
     /// values nsrm decodes from the camera JPEG (sRGB decoded, tone curve kept).
     #[arg(long, value_parser = super::chart::parse_family, conflicts_with = "envelope")]
-    family: Option<nsrm::chart::scene::Family>,
+    family: Option<nsrm_chart::scene::Family>,
     /// Seed of the random pose, clutter and noise (and, with --envelope, of everything).
     #[arg(long, default_value_t = 1, value_name = "N")]
     seed: u64,
@@ -100,7 +100,7 @@ pub(crate) struct Args {
 pub(crate) fn run(a: Args) -> Result<ExitCode> {
     let kind = a.chart;
     for p in std::iter::once(&a.output).chain(&a.flat_output) {
-        if nsrm::io::FileFormat::from_extension(p).is_none() {
+        if nsrm_io::FileFormat::from_extension(p).is_none() {
             return Err(UsageError(format!("{}: must be .exr, .tif or .tiff", p.display())).into());
         }
     }
@@ -174,12 +174,12 @@ pub(crate) fn run(a: Args) -> Result<ExitCode> {
     );
     let mut unit = session.unit();
     unit.write_with(&a.output, |w| {
-        nsrm::chart::synthetic::write_camera_frame(&frame, &a.output, &note, w)
+        nsrm_chart::synthetic::write_camera_frame(&frame, &a.output, &note, w)
     })
     .with_context(|| format!("writing {}", a.output.display()))?;
     if let Some(f) = &a.flat_output {
         unit.write_with(f, |w| {
-            nsrm::chart::synthetic::write_camera_frame(&flat, f, "nsrm scene: flat frame", w)
+            nsrm_chart::synthetic::write_camera_frame(&flat, f, "nsrm scene: flat frame", w)
         })
         .with_context(|| format!("writing {}", f.display()))?;
     }

@@ -20,8 +20,8 @@ pub(crate) enum Lang {
 
 impl Lang {
     /// The compute-shader language; `None` for DCTL.
-    pub(crate) fn shader(self) -> Option<nsrm::export::shader::ShaderLang> {
-        use nsrm::export::shader::ShaderLang as S;
+    pub(crate) fn shader(self) -> Option<nsrm_export::shader::ShaderLang> {
+        use nsrm_export::shader::ShaderLang as S;
         Some(match self {
             Lang::Wgsl => S::Wgsl,
             Lang::Glsl => S::Glsl,
@@ -77,7 +77,7 @@ pub(crate) struct MaxPixelsArg {
     /// Most pixels a frame may have (width × height): a file whose header claims more is
     /// refused before anything is allocated; flat frames and the studio's uploads are held to it
     /// too. Default 268435456 (16384 × 16384).
-    #[arg(long, value_name = "N", default_value_t = nsrm::io::DEFAULT_MAX_PIXELS,
+    #[arg(long, value_name = "N", default_value_t = nsrm_io::DEFAULT_MAX_PIXELS,
           value_parser = clap::value_parser!(u64).range(1..))]
     pub(crate) max_pixels: u64,
 }
@@ -121,16 +121,16 @@ mod tests {
         names_parse_back(nsrm::HighlightMode::parse);
         names_parse_back(nsrm::Layout::parse);
         {
-            names_parse_back(nsrm::io::FileFormat::parse);
-            names_parse_back(nsrm::io::ExrCompression::parse);
-            names_parse_back(nsrm::io::Demosaic::parse);
+            names_parse_back(nsrm_io::FileFormat::parse);
+            names_parse_back(nsrm_io::ExrCompression::parse);
+            names_parse_back(nsrm_io::Demosaic::parse);
         }
         names_parse_back(nsrm::gpu::DeviceChoice::parse);
         {
-            names_parse_back(nsrm::export::Format::parse);
-            names_parse_back(nsrm::export::nodes::Interpolation::parse);
+            names_parse_back(nsrm_export::Format::parse);
+            names_parse_back(nsrm_export::nodes::Interpolation::parse);
         }
-        names_parse_back(|s| nsrm::chart::ChartKind::parse(s).ok());
+        names_parse_back(|s| nsrm_chart::ChartKind::parse(s).ok());
     }
 
     #[test]
@@ -141,8 +141,8 @@ mod tests {
         for k in nsrm::Kind::ALL {
             assert_eq!(nsrm::Kind::from_str(k.name(), true), Ok(k));
         }
-        for (c, name) in nsrm::io::ExrCompression::ALL {
-            assert_eq!(nsrm::io::ExrCompression::from_str(name, false), Ok(c));
+        for (c, name) in nsrm_io::ExrCompression::ALL {
+            assert_eq!(nsrm_io::ExrCompression::from_str(name, false), Ok(c));
         }
     }
 
@@ -151,11 +151,7 @@ mod tests {
         for v in Lang::value_variants() {
             let p = v.to_possible_value().unwrap();
             for n in p.get_name_and_aliases() {
-                assert_eq!(
-                    nsrm::export::shader::ShaderLang::parse(n),
-                    v.shader(),
-                    "{n}"
-                );
+                assert_eq!(nsrm_export::shader::ShaderLang::parse(n), v.shader(), "{n}");
             }
         }
     }

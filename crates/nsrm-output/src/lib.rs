@@ -4,8 +4,8 @@
 //! cleans up after a signal. Nothing here is process-wide.
 //!
 //! The corrector (`nsrm`) writes nowhere by itself: its encoders take any `Write + Seek`
-//! ([`nsrm::io::Decoded::write_to`]) or return bytes (the exports' `render`), and its batch
-//! executor hands each frame's files to a [`nsrm::io::batch::FrameSink`]. This crate is the file
+//! ([`nsrm_io::Decoded::write_to`]) or return bytes (the exports' `render`), and its batch
+//! executor hands each frame's files to a [`nsrm_io::batch::FrameSink`]. This crate is the file
 //! policy above it: [`Unit::write_with`] gives an encoder a staged temporary, and [`Session`]
 //! is a `FrameSink` whose frames commit as one unit each.
 //!
@@ -262,7 +262,7 @@ impl Session {
             resolved: std::fs::canonicalize(path).unwrap_or_else(|_| absolute(path)),
             id: std::fs::metadata(path)
                 .ok()
-                .and_then(|m| nsrm::io::file_id(&m)),
+                .and_then(|m| nsrm::limits::file_id(&m)),
         };
         if let Some(o) = self.outputs.iter().find(|o| o.same(&known)) {
             return Err(WriteError::OutputIsInput {
@@ -300,7 +300,7 @@ impl Session {
             resolved,
             id: std::fs::metadata(path)
                 .ok()
-                .and_then(|m| nsrm::io::file_id(&m)),
+                .and_then(|m| nsrm::limits::file_id(&m)),
         };
         if let Some(i) = self.inputs.iter().find(|i| i.same(&known)) {
             return Err(WriteError::OutputIsInput {
@@ -458,7 +458,7 @@ fn check_clobber(dest: &Path, overwrite: bool) -> Result<(), WriteError> {
     match std::fs::metadata(dest) {
         Ok(meta) if !meta.is_file() => Err(WriteError::NotRegular {
             path: dest.to_path_buf(),
-            what: nsrm::io::file_kind(&meta),
+            what: nsrm::limits::file_kind(&meta),
         }),
         Ok(_) if !overwrite => Err(WriteError::Exists(dest.to_path_buf())),
         Ok(_) => Ok(()),
@@ -736,9 +736,9 @@ fn place(tmp: &Path, dest: &Path, overwrite: bool) -> Result<(), WriteError> {
 
 /// An output's refusal or failure as the library's frame error, so an encoder written for the
 /// library (`Result<(), IoError>`) runs inside [`Unit::write_with`].
-impl From<WriteError> for nsrm::io::IoError {
+impl From<WriteError> for nsrm_io::IoError {
     fn from(e: WriteError) -> Self {
-        nsrm::io::IoError::Output {
+        nsrm_io::IoError::Output {
             usage: e.is_usage(),
             err: Box::new(e),
         }
@@ -747,11 +747,11 @@ impl From<WriteError> for nsrm::io::IoError {
 
 /// A batch's frames through the session: each frame's files staged in one [`Unit`] and committed
 /// together; a signal's abort reported as such.
-impl nsrm::io::batch::FrameSink for Session {
+impl nsrm_io::batch::FrameSink for Session {
     fn write_together(
         &self,
-        files: Vec<(&Path, nsrm::io::batch::Encoder<'_>)>,
-    ) -> Result<(), nsrm::io::IoError> {
+        files: Vec<(&Path, nsrm_io::batch::Encoder<'_>)>,
+    ) -> Result<(), nsrm_io::IoError> {
         let mut unit = self.unit();
         for (dest, encode) in files {
             unit.write_with(dest, |w| encode(w))?;

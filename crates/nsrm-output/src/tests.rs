@@ -234,10 +234,10 @@ fn an_abort_removes_temporaries_and_stops_writes() {
 /// goes on), leaving no temporary.
 #[test]
 fn a_batch_commits_each_frame_through_the_session() {
-    use nsrm::io::batch::{
+    use nsrm_io::batch::{
         execute, plan_batch, ExecOptions, Existing, FrameOutcome, ModelCorrector, PlanOptions,
     };
-    use nsrm::io::{FileFormat, ReadOptions, WriteOptions};
+    use nsrm_io::{FileFormat, ReadOptions, WriteOptions};
     let dir = tempfile::tempdir().unwrap();
     let (src, out, prev) = (dir.path(), dir.path().join("out"), dir.path().join("prev"));
     let mut inputs = Vec::new();
@@ -251,8 +251,8 @@ fn a_batch_commits_each_frame_through_the_session() {
         };
         Session::new(false)
             .unit()
-            .write_with(&p, |w| nsrm::io::Decoded::from(f).write_to(&p, &opts, w))
-            .map_err(|e: nsrm::io::IoError| e.to_string())
+            .write_with(&p, |w| nsrm_io::Decoded::from(f).write_to(&p, &opts, w))
+            .map_err(|e: nsrm_io::IoError| e.to_string())
             .unwrap();
         inputs.push(p);
     }
@@ -267,8 +267,8 @@ fn a_batch_commits_each_frame_through_the_session() {
             ..WriteOptions::default()
         };
         let mut unit = Session::new(false).unit();
-        unit.write_with(p, |w| nsrm::io::Decoded::from(f).write_to(p, &opts, w))
-            .map_err(|e: nsrm::io::IoError| e.to_string())
+        unit.write_with(p, |w| nsrm_io::Decoded::from(f).write_to(p, &opts, w))
+            .map_err(|e: nsrm_io::IoError| e.to_string())
             .unwrap();
         unit.commit().unwrap();
     }

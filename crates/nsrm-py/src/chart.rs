@@ -2,10 +2,10 @@
 
 use crate::arrays;
 use crate::errors;
-use nsrm::chart::capture::{read, CaptureFrame, FlatField, ReadingOptions};
-use nsrm::chart::reference::Reference;
-use nsrm::chart::ChartKind;
-use nsrm::io::{Demosaic, Encoding, Limits, ReadOptions};
+use nsrm_chart::capture::{read, CaptureFrame, FlatField, ReadingOptions};
+use nsrm_chart::reference::Reference;
+use nsrm_chart::ChartKind;
+use nsrm_io::{Demosaic, Encoding, Limits, ReadOptions};
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 use std::path::{Path, PathBuf};
@@ -13,7 +13,7 @@ use std::path::{Path, PathBuf};
 /// `corners=`: the CLI's `"X,Y X,Y X,Y X,Y"` or four `(x, y)` pairs.
 fn corners_arg(obj: &Bound<'_, PyAny>) -> PyResult<[[f64; 2]; 4]> {
     if let Ok(s) = obj.extract::<String>() {
-        return nsrm::chart::parse_corners(&s).map_err(|e| errors::input(format!("corners: {e}")));
+        return nsrm_chart::parse_corners(&s).map_err(|e| errors::input(format!("corners: {e}")));
     }
     let v: Vec<[f64; 2]> = obj
         .extract()
@@ -79,7 +79,7 @@ fn frame_arg(obj: &Bound<'_, PyAny>, max_pixels: u64) -> PyResult<nsrm::Frame> {
         .ok_or_else(|| errors::input("path: an empty array"))
 }
 
-fn capture_err(e: nsrm::chart::capture::CaptureError) -> PyErr {
+fn capture_err(e: nsrm_chart::capture::CaptureError) -> PyErr {
     let usage = e.is_usage();
     errors::lib(e, usage)
 }
@@ -94,7 +94,7 @@ fn capture_err(e: nsrm::chart::capture::CaptureError) -> PyErr {
 #[pyfunction]
 #[pyo3(signature = (path, chart="cc24", *, reference=None, reference_white=None, corners=None,
     white_level=None, flat=None, encoding="auto", demosaic="half", layer=None,
-    max_pixels=nsrm::io::DEFAULT_MAX_PIXELS))]
+    max_pixels=nsrm_io::DEFAULT_MAX_PIXELS))]
 #[allow(clippy::too_many_arguments)]
 pub(crate) fn read_chart<'py>(
     py: Python<'py>,
@@ -137,7 +137,7 @@ pub(crate) fn read_chart<'py>(
             None => None,
             Some(s) if s.eq_ignore_ascii_case("neutrals") => None,
             Some(f) => Some(
-                nsrm::io::display::read_chart_frame(Path::new(f), &read_opts, encoding)
+                nsrm_io::display::read_chart_frame(Path::new(f), &read_opts, encoding)
                     .map_err(|e| {
                         let usage = e.is_usage();
                         errors::lib(e, usage)
@@ -159,7 +159,7 @@ pub(crate) fn read_chart<'py>(
     })?;
     let patches = &cap.extraction.patches;
     let n = patches.len();
-    let flat3 = |f: &dyn Fn(&nsrm::chart::extract::PatchReading) -> [f64; 3]| {
+    let flat3 = |f: &dyn Fn(&nsrm_chart::extract::PatchReading) -> [f64; 3]| {
         patches.iter().flat_map(f).collect::<Vec<f64>>()
     };
     let d = PyDict::new(py);

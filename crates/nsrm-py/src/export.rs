@@ -3,10 +3,10 @@
 
 use crate::errors;
 use crate::model::{PyModel, Training};
-use nsrm::export::nodes::Interpolation;
-use nsrm::export::shader::ShaderLang;
-use nsrm::export::{ExportError, Format, LutOptions};
 use nsrm::{Model, OutputSpace, Profile, TrainingSet};
+use nsrm_export::nodes::Interpolation;
+use nsrm_export::shader::ShaderLang;
+use nsrm_export::{ExportError, Format, LutOptions};
 use nsrm_output::Session;
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
@@ -116,39 +116,39 @@ pub(crate) fn export<'py>(
     };
     // Refused before the (slower) build when a file exists and may not be replaced: the
     // output, and for OCIO the CLF written beside it.
-    let companion = nsrm::export::companion_path(fmt, &path).map_err(export_err)?;
+    let companion = nsrm_export::companion_path(fmt, &path).map_err(export_err)?;
     for p in std::iter::once(&path).chain(&companion) {
         unit.check_clobber(p).map_err(write_err)?;
     }
     let d = PyDict::new(py);
     let (files, report): (Vec<(PathBuf, Vec<u8>)>, _) = match fmt {
         Format::Icc => {
-            let opts = nsrm::export::icc::IccOptions {
+            let opts = nsrm_export::icc::IccOptions {
                 size: lut_size,
-                lo: stops_arg(stops, [nsrm::export::icc::DEFAULT_LO, 0.0])[0],
+                lo: stops_arg(stops, [nsrm_export::icc::DEFAULT_LO, 0.0])[0],
             };
             opts.check()
                 .map_err(|e| errors::input(format!("lut_size/stops: {e}")))?;
             let (bytes, w) = py
-                .detach(|| nsrm::export::icc::render(&m, opts, &t.rgb, max_de00))
+                .detach(|| nsrm_export::icc::render(&m, opts, &t.rgb, max_de00))
                 .map_err(export_err)?;
             (vec![(path.clone(), bytes)], w.report)
         }
         Format::Dcp => {
-            let opts = nsrm::export::dcp::DcpOptions {
+            let opts = nsrm_export::dcp::DcpOptions {
                 hue_divisions: dcp_map.0,
                 sat_divisions: dcp_map.1,
             };
             opts.check()
                 .map_err(|e| errors::input(format!("dcp_map: {e}")))?;
             let profile = Profile::single(m).map_err(errors::model)?;
-            let training = [nsrm::export::dcp::DcpTraining {
+            let training = [nsrm_export::dcp::DcpTraining {
                 rgb: t.rgb,
                 white_rgb: t.white_rgb,
             }];
             let stops = stops_arg(stops, [-6.0, 4.0]);
             let (bytes, w) = py
-                .detach(|| nsrm::export::dcp::render(&profile, &training, opts, stops, max_de00))
+                .detach(|| nsrm_export::dcp::render(&profile, &training, opts, stops, max_de00))
                 .map_err(export_err)?;
             (vec![(path.clone(), bytes)], w.report)
         }
@@ -177,7 +177,7 @@ pub(crate) fn export<'py>(
                 .check()
                 .map_err(|e| errors::input(format!("lut_size/shaper_size/stops: {e}")))?;
             let w = py
-                .detach(|| nsrm::export::render(&m, fmt, space, options, &t.rgb, max_de00, &path))
+                .detach(|| nsrm_export::render(&m, fmt, space, options, &t.rgb, max_de00, &path))
                 .map_err(export_err)?;
             (w.files, w.report)
         }
@@ -214,7 +214,7 @@ fn code<'py>(
     let m = &model.inner;
     let folded = nsrm::output_model(m, space).map_err(errors::model)?;
     let bytes = match ShaderLang::parse(format) {
-        Some(lang) => nsrm::export::shader::export(&folded, layout, lang).map_err(|e| {
+        Some(lang) => nsrm_export::shader::export(&folded, layout, lang).map_err(|e| {
             let usage = e.is_usage();
             errors::lib(e, usage)
         })?,
@@ -222,14 +222,14 @@ fn code<'py>(
             let header = vec![
                 format!(
                     "nsrm DCTL: {} to {} ({}), scene-linear, training white at Y = 1 (as nsrm apply --output-space {})",
-                    nsrm::export::camera_space_name(m),
+                    nsrm_export::camera_space_name(m),
                     space.name(),
                     space.interop_id(),
                     space.name()
                 ),
-                nsrm::export::provenance_line(m),
+                nsrm_export::provenance_line(m),
             ];
-            nsrm::export::dctl::generate(&folded, &header)
+            nsrm_export::dctl::generate(&folded, &header)
                 .map_err(export_err)?
                 .into_bytes()
         }

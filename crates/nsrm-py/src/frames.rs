@@ -2,7 +2,7 @@
 
 use crate::arrays;
 use crate::errors;
-use nsrm::io::{Decoded, Limits, ReadOptions};
+use nsrm_io::{Decoded, Limits, ReadOptions};
 use numpy::PyArrayDyn;
 use pyo3::prelude::*;
 use std::path::PathBuf;
@@ -11,7 +11,7 @@ use std::path::PathBuf;
 /// `nsrm apply` does: `(height, width, 3)` float32 camera RGB (an EXR's or TIFF's alpha is
 /// not returned).
 #[pyfunction]
-#[pyo3(signature = (path, *, demosaic="mhc", layer=None, max_pixels=nsrm::io::DEFAULT_MAX_PIXELS))]
+#[pyo3(signature = (path, *, demosaic="mhc", layer=None, max_pixels=nsrm_io::DEFAULT_MAX_PIXELS))]
 pub(crate) fn read_frame<'py>(
     py: Python<'py>,
     path: PathBuf,

@@ -12,7 +12,7 @@ use std::path::PathBuf;
 use std::sync::Mutex;
 
 /// The default `max_pixels` of `apply`: the CLI's `--max-pixels` default (16384 × 16384).
-const DEFAULT_MAX_PIXELS: u64 = nsrm::io::DEFAULT_MAX_PIXELS;
+const DEFAULT_MAX_PIXELS: u64 = nsrm_io::DEFAULT_MAX_PIXELS;
 
 /// A fitted colour-correction model (camera RGB → CIE XYZ).
 #[pyclass(name = "Model", module = "nsrm", frozen)]

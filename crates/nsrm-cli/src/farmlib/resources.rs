@@ -1212,8 +1212,8 @@ pub(crate) fn probe_frames(inputs: &[std::path::PathBuf], max_probed: usize) -> 
     let mut best: Option<FrameProbe> = None;
     let mut unread = 0;
     for &i in picks.iter().filter(|&&i| i < n) {
-        match nsrm::io::header_size(&inputs[i]) {
-            Some(nsrm::io::HeaderSize {
+        match nsrm_io::header_size(&inputs[i]) {
+            Some(nsrm_io::HeaderSize {
                 width: w,
                 height: h,
                 extra_bytes_per_pixel: stored,

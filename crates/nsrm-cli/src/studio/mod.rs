@@ -58,7 +58,7 @@ pub(crate) fn run(a: Args) -> Result<ExitCode> {
     let files = if a.inputs.is_empty() {
         Vec::new()
     } else {
-        nsrm::io::batch::expand_inputs(&a.inputs).context("the frames to open")?
+        nsrm_io::batch::expand_inputs(&a.inputs).context("the frames to open")?
     };
     let listener = std::net::TcpListener::bind(("127.0.0.1", a.port)).map_err(|e| {
         UsageError(format!(

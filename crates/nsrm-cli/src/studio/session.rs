@@ -16,8 +16,6 @@ use super::http::{BadRequest, NotFound, Target};
 use super::wire::{self, Comparison, Evaluated, FitAnswer, FitRequest, Flat, Named, PatchFit};
 use super::wire::{Settings, State};
 use anyhow::{bail, Context, Result};
-use nsrm::chart::capture::{CaptureFrame, FlatField, ReadingOptions};
-use nsrm::export::{render, Format, LutOptions};
 use nsrm::gpu::{DeviceChoice, Engine, GpuOptions, Opened};
 use nsrm::Kind;
 use nsrm::{apply_mat3 as mat_apply, OutputSpace};
@@ -25,6 +23,8 @@ use nsrm::{delta_e00_xyz, output_matrix, srgb8, to_linear_srgb};
 use nsrm::{evaluate_with, Protocol, Stats};
 use nsrm::{fit_with, FitOptions, FitReport, FitWhite, Normalise, Objective, Ridge};
 use nsrm::{Frame, Layout, Model};
+use nsrm_chart::capture::{CaptureFrame, FlatField, ReadingOptions};
+use nsrm_export::{render, Format, LutOptions};
 use serde_json::Value;
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicU64, Ordering};
@@ -39,7 +39,7 @@ const FORMAT_CANDIDATES: [&str; 6] = ["clf", "cube", "ocio", "dcp", "icc", "icm"
 
 /// The built-in references (`--reference`).
 fn references() -> Vec<&'static str> {
-    nsrm::chart::reference::Reference::builtin_names()
+    nsrm_chart::reference::Reference::builtin_names()
 }
 
 pub(crate) struct Studio {
@@ -250,7 +250,7 @@ impl Studio {
                     name: p.display().to_string(),
                 })
                 .collect(),
-            charts: nsrm::chart::ChartKind::ALL.map(|k| k.name()).to_vec(),
+            charts: nsrm_chart::ChartKind::ALL.map(|k| k.name()).to_vec(),
             references: references(),
             formats: formats(),
             spaces: OutputSpace::ALL.iter().map(|(_, n)| *n).collect(),
@@ -365,9 +365,9 @@ impl Studio {
         // the chart (a corner drag, an exclusion) is taken from this frame.
         let decoded = open_frame(&path, None, self.max_pixels)?;
         let frame = decoded.frame();
-        let img = nsrm::chart::overlay::picture(frame, None);
+        let img = nsrm_chart::overlay::picture(frame, None);
         let scale = frame.width.div_ceil(img.width().max(1) as usize).max(1);
-        let preview_png = nsrm::chart::overlay::encode(&img)?;
+        let preview_png = nsrm_chart::overlay::encode(&img)?;
         let small = downsample(frame, scale);
         let shown = if uploaded {
             path.file_name()
@@ -402,8 +402,8 @@ impl Studio {
         // Shown white-balanced as the overlay is: on the chart's neutrals once it is read (the
         // grey world of the frame until then, or when no chart is found).
         if let Some(c) = &st.capture {
-            let img = nsrm::chart::overlay::picture(st.frame.frame(), Some(&c.extraction));
-            st.preview_png = nsrm::chart::overlay::encode(&img)?;
+            let img = nsrm_chart::overlay::picture(st.frame.frame(), Some(&c.extraction));
+            st.preview_png = nsrm_chart::overlay::encode(&img)?;
         }
         Ok(Arc::new(FrameSlot(Mutex::new(st))))
     }
@@ -422,12 +422,12 @@ fn formats() -> Vec<&'static str> {
 fn open_frame(path: &Path, layer: Option<String>, max_pixels: u64) -> Result<Arc<CaptureFrame>> {
     CaptureFrame::open(
         path,
-        &nsrm::io::ReadOptions {
+        &nsrm_io::ReadOptions {
             layer,
-            limits: nsrm::io::Limits { max_pixels },
-            demosaic: nsrm::io::Demosaic::Half,
+            limits: nsrm_io::Limits { max_pixels },
+            demosaic: nsrm_io::Demosaic::Half,
         },
-        nsrm::io::display::Encoding::Auto,
+        nsrm_io::display::Encoding::Auto,
     )
     .map(Arc::new)
     .map_err(|e| {
@@ -580,7 +580,7 @@ impl FrameState {
             white_level: s.white_level,
             flat,
             encoding: capture::EncodingArg::Auto,
-            demosaic: nsrm::io::Demosaic::Half,
+            demosaic: nsrm_io::Demosaic::Half,
             max_pixels: crate::values::MaxPixelsArg {
                 max_pixels: self.max_pixels,
             },
@@ -638,7 +638,7 @@ impl FrameState {
             white_level: self.settings.white_level,
             flat,
         };
-        Ok(nsrm::chart::capture::read(&self.frame, &reference, &opts)?)
+        Ok(nsrm_chart::capture::read(&self.frame, &reference, &opts)?)
     }
 
     /// An uploaded reference file (read as `--reference` reads one, for the frame's chart and
@@ -670,13 +670,13 @@ impl FrameState {
             .file_name()
             .map(|s| s.to_string_lossy().into_owned())
             .unwrap_or_default();
-        let ff = nsrm::io::read_frame(
+        let ff = nsrm_io::read_frame(
             path,
-            &nsrm::io::ReadOptions {
-                limits: nsrm::io::Limits {
+            &nsrm_io::ReadOptions {
+                limits: nsrm_io::Limits {
                     max_pixels: self.max_pixels,
                 },
-                demosaic: nsrm::io::Demosaic::Half,
+                demosaic: nsrm_io::Demosaic::Half,
                 ..Default::default()
             },
         )
@@ -776,13 +776,13 @@ impl FrameState {
     pub(crate) fn overlay_png(&self) -> Result<Vec<u8>> {
         let c = self.capture()?;
         let sw = self.fitted.as_ref().map(|f| capture::swatches(c, &f.model));
-        let img = nsrm::chart::overlay::render(
+        let img = nsrm_chart::overlay::render(
             c.frame.frame(),
             Some(&c.extraction),
             &[],
             sw.as_deref().map(|s| (s, c.reference.white)),
         );
-        Ok(nsrm::chart::overlay::encode(&img)?)
+        Ok(nsrm_chart::overlay::encode(&img)?)
     }
 
     /// Fits as `fit --capture` does; the model file's text, its report and its errors.
@@ -1009,7 +1009,7 @@ impl FrameState {
         let mut frame = self.small.clone();
         let computed = studio.correct(&out, &mut frame)?;
         let png =
-            nsrm::io::preview::encode_png(&frame, &to_linear_srgb(f.model.white_xyz(), space))?;
+            nsrm_io::preview::encode_png(&frame, &to_linear_srgb(f.model.white_xyz(), space))?;
         Ok((png, computed))
     }
 
@@ -1019,7 +1019,7 @@ impl FrameState {
         let space = parse_space(space)?;
         let f = self.fitted()?;
         let out = nsrm::output_model(&self.with_highlights(&f.model)?, space)?;
-        let wgsl = nsrm::export::shader::baked_wgsl(&out, Layout::Rgb)?;
+        let wgsl = nsrm_export::shader::baked_wgsl(&out, Layout::Rgb)?;
         Ok(wire::Shader {
             wgsl,
             to_linear_srgb: to_linear_srgb(f.model.white_xyz(), space),
@@ -1075,19 +1075,19 @@ impl FrameState {
             // As `export --format dcp` does for a one-illuminant model file: the model as a
             // profile, its training patches, the default map and stops, no accuracy limit.
             let profile = nsrm::Profile::single(f.model.clone())?;
-            let t = nsrm::export::dcp::DcpTraining {
+            let t = nsrm_export::dcp::DcpTraining {
                 rgb: training.rgb.clone(),
                 white_rgb: training.white_rgb,
             };
-            let dcp = nsrm::export::dcp::DcpOptions::default();
-            nsrm::export::dcp::render(&profile, &[t], dcp, options.stops, None)?.0
+            let dcp = nsrm_export::dcp::DcpOptions::default();
+            nsrm_export::dcp::render(&profile, &[t], dcp, options.stops, None)?.0
         } else if format == Format::Icc {
             // As `export --format icc` does: the LUT size asked for, the default stops.
-            let icc = nsrm::export::icc::IccOptions {
+            let icc = nsrm_export::icc::IccOptions {
                 size: options.size,
-                lo: nsrm::export::icc::DEFAULT_LO,
+                lo: nsrm_export::icc::DEFAULT_LO,
             };
-            nsrm::export::icc::render(&f.model, icc, &training.rgb, None)?.0
+            nsrm_export::icc::render(&f.model, icc, &training.rgb, None)?.0
         } else {
             // The file the page downloads (for OCIO, the config; its CLF is named in it).
             let out = Path::new(&name);
@@ -1135,7 +1135,7 @@ impl FrameState {
                 v.push(format!("--flat {}", quote(&f)));
             }
         }
-        if self.max_pixels != nsrm::io::DEFAULT_MAX_PIXELS {
+        if self.max_pixels != nsrm_io::DEFAULT_MAX_PIXELS {
             v.push(format!("--max-pixels {}", self.max_pixels));
         }
         v
@@ -1176,7 +1176,7 @@ impl FrameState {
 /// An error as the page shows it: the page's way out (drag the corners, pick a setting) where the
 /// CLI's hint would name a flag.
 pub(crate) fn explain_for_page(e: anyhow::Error) -> String {
-    use nsrm::io::{Concern, Param};
+    use nsrm_io::{Concern, Param};
     let page_remedy = |p: Param| {
         match p {
         Param::Corners => Some(

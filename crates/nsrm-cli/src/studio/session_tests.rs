@@ -21,7 +21,7 @@ fn page_messages_name_no_flags() {
         "objective `x`: use white patch D4 or ridge auto"
     );
     assert_eq!(unflag("a -- b --1 c"), "a -- b --1 c");
-    let e = anyhow::Error::new(nsrm::io::IoError::OverLimit {
+    let e = anyhow::Error::new(nsrm_io::IoError::OverLimit {
         path: "big.exr".into(),
         why: "10 pixels, more than the limit of 5".into(),
     });

@@ -4,8 +4,8 @@
 //! bad name is refused with the names allowed. Answers are these structs serialised, so that the
 //! format the page reads is checked by the compiler.
 
-use nsrm::chart::ChartKind;
 use nsrm::{EvalResult, FitReport, Kind, Mat3, Normalise, Objective, Ridge, Stats};
+use nsrm_chart::ChartKind;
 use serde::de::Error as _;
 use serde::{Deserialize, Deserializer, Serialize, Serializer};
 use serde_json::Value;

@@ -5,7 +5,7 @@
 //!   `<(cat m.json)`); a device such as `/dev/zero`, a socket or a directory is refused by
 //!   name, before it is opened; at most [`MAX_TEXT_BYTES`] (64 MiB) whatever the file claims,
 //!   valid UTF-8, a leading UTF-8 byte-order mark dropped.
-//! * **Frames** are bounded by `io::Limits` (pixels per frame, `--max-pixels`).
+//! * **Frames** are bounded by `nsrm_io::Limits` (pixels per frame, `--max-pixels`).
 
 use std::io::{Error, ErrorKind, Read};
 use std::path::Path;

@@ -2,7 +2,7 @@
 //! [`Corrector`] (one model's pipeline and uniform, recording into a caller's encoder), the
 //! frame [`Engine`] built on it (tiling, double-buffered upload / compute / read-back), shader
 //! generation (`shader`; the self-contained shaders other programs load are written by
-//! `export::shader`).
+//! `nsrm_export::shader`).
 //!
 //! The shaders follow the pixel policy of `model::pixel` (the README's *Pixel policy*) exactly: NaN / Inf propagate, NSRM
 //! with `s = R+G+B ≤ 0` gives 0, negative channels are allowed (RPRM's roots keep the sign),

@@ -474,15 +474,15 @@ fn blank_comments_and_literals(text: &str) -> String {
 /// the Python module). (430: the f32 guard's second evaluator, the GPU shader, is an extension
 /// point: `F32Evaluator`, `gpu::ShaderCheck`; and `FastModel::apply_slices`, the kernels on a
 /// caller's buffers, and `CaptureFrame::from_frame`, a chart read from an array: both for the
-/// bindings. 435: the exports' in-memory forms, `export::{render, Rendered}`, `dcp::render` and
+/// bindings. 435: the exports' in-memory forms, `nsrm_export::{render, Rendered}`, `dcp::render` and
 /// `icc::render`, so that an embedder gets bytes without an output session. 448: the batch
-/// executor moved from the command line into `io::batch`, 13 declarations: `execute`, its
+/// executor moved from the command line into `nsrm_io::batch`, 13 declarations: `execute`, its
 /// options, events, outcomes, errors and timing, the `Correct` trait and `ModelCorrector` with
 /// its `cpu` and `gpu` constructors, and their re-export. 449: `Reference::builtin_names`, the
 /// charts' references for the studio's choice and `--chart auto`. 434: the output session moved
 /// out into `nsrm-output` (its own budget), the three `export_to` and `Written` gone; added the
 /// `WriteSeek` trait, `FrameSink` with its `Encoder` and the plain `Files` sink, `layout_json`,
-/// and `io::file_kind` and `io::file_id` (one per platform), which the session shares with the
+/// and `nsrm_io::file_kind` and `nsrm_io::file_id` (one per platform), which the session shares with the
 /// batch planner instead of keeping twins. The rooms as crates: the corrector 278, `nsrm-io`
 /// 77, `nsrm-chart` 103, `nsrm-export` 40, 498 in all, the 64 more being what the rooms took
 /// from inside the core, now its documented API: docs/ARCHITECTURE.md.)
@@ -593,5 +593,58 @@ fn long_files_say_why_they_are_one_file() {
     assert!(
         long.is_empty(),
         "split these at their seams, or say at the top why each is one file: {long:?}"
+    );
+}
+
+/// The library crates' messages name no flag of the binary (`--layer`, `--corners`, …): a scan
+/// of every non-comment line of their sources (another program's flag, `sbatch --array`, is
+/// allowed). A front end names its own flags (the command line's table of parameter → flag).
+#[test]
+fn library_messages_name_no_flags() {
+    fn walk(dir: &Path, out: &mut Vec<PathBuf>) {
+        for e in std::fs::read_dir(dir).unwrap() {
+            let p = e.unwrap().path();
+            if p.is_dir() {
+                walk(&p, out);
+            } else if p.extension().is_some_and(|x| x == "rs")
+                // A room's unit tests in their own file (`ocio_tests.rs`) run programs
+                // with flags; they print no library message.
+                && !p.file_stem().is_some_and(|s| s.to_string_lossy().ends_with("_tests"))
+            {
+                out.push(p);
+            }
+        }
+    }
+    let mut files = Vec::new();
+    for dir in LIBRARY_DIRS {
+        walk(&Path::new(ROOT).join(dir), &mut files);
+    }
+    assert!(files.len() > 30, "{} files", files.len());
+    let mut found = Vec::new();
+    for f in &files {
+        // A file's unit-test module (`mod tests {`, last in the file) holds no library message.
+        let text = std::fs::read_to_string(f).unwrap();
+        let lines = text.lines().take_while(|l| l.trim() != "mod tests {");
+        for (i, line) in lines.enumerate() {
+            let code = line.trim_start();
+            if code.starts_with("//") || line.contains("sbatch --") {
+                continue;
+            }
+            let b = code.as_bytes();
+            let flag = (0..b.len().saturating_sub(2)).any(|k| {
+                b[k] == b'-'
+                    && b[k + 1] == b'-'
+                    && b[k + 2].is_ascii_lowercase()
+                    && (k == 0 || !(b[k - 1].is_ascii_alphanumeric() || b[k - 1] == b'-'))
+            });
+            if flag {
+                found.push(format!("{}:{}: {}", f.display(), i + 1, code));
+            }
+        }
+    }
+    assert!(
+        found.is_empty(),
+        "flag names in library code:\n{}",
+        found.join("\n")
     );
 }

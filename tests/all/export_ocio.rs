@@ -2,8 +2,8 @@
 //! `ocioconvert` and compared with `nsrm apply` on the same frame (LRM to 1e-5 relative; LUT
 //! exports within the ΔE00 the export reports); `ociocheck` validates the exported config. Each
 //! LUT file the binary writes is the one the library writes for the same model
-//! (`export::render`), byte for byte: that file is judged against nsrm's evaluator of the
-//! written nodes through `ocioconvert` beside the evaluator (`src/export/ocio_tests.rs`).
+//! (`nsrm_export::render`), byte for byte: that file is judged against nsrm's evaluator of the
+//! written nodes through `ocioconvert` beside the evaluator (`crates/nsrm-export/src/ocio_tests.rs`).
 //!
 //! Needs `ocioconvert` and `ociocheck` (Debian: `apt-get install opencolorio-tools`; `.ci/run`
 //! installs it). Without them each test prints `SKIP: …` and passes, except under `CI=true`,
@@ -273,7 +273,7 @@ fn lrm_clf_is_reproduced_by_ocio_to_1e5() {
 }
 
 /// OCIO applies each LUT export within the error `nsrm export` reported; the file is the
-/// library's (`export::render`) byte for byte, which `src/export/ocio_tests.rs` judges
+/// library's (`nsrm_export::render`) byte for byte, which `crates/nsrm-export/src/ocio_tests.rs` judges
 /// against nsrm's own evaluator of the written nodes through OCIO (whether the declared
 /// interpolation is the one OCIO uses).
 #[test]
@@ -296,7 +296,7 @@ fn lut_exports_are_reproduced_by_ocio_within_the_reported_error() {
         std::fs::write(&library, &r.files[0].1).unwrap();
         assert!(
             std::fs::read(c.dir.path().join(&file)).unwrap() == std::fs::read(&library).unwrap(),
-            "{kind}{order} {}: `nsrm export` wrote another file than `export::render`",
+            "{kind}{order} {}: `nsrm export` wrote another file than `nsrm_export::render`",
             format.name()
         );
         let Some(ocio) = ocioconvert_lut(&c, &file, "ocio.exr") else {

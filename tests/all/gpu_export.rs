@@ -172,7 +172,7 @@ fn export_shader_usage_errors_exit_2() {
 /// `nsrm export-shader --lang dctl` writes the DCTL of the model with its output space folded in
 /// (compiled as C by the kit's DCTL harness and checked against the f64 model), refuses to
 /// overwrite, and refuses an unknown space with exit 2 leaving no file. (From
-/// `tests/all/export_dctl.rs`, whose library test moved to `src/export/dctl_tests.rs`.)
+/// `tests/all/export_dctl.rs`, whose library test moved to `crates/nsrm-export/src/dctl_tests.rs`.)
 #[test]
 fn export_shader_writes_dctl_through_the_cli() {
     let dir = tempfile::tempdir().unwrap();

@@ -453,7 +453,7 @@ pub fn planar_tiled_f32(w: u32, h: u32, tile: u32) -> Vec<u8> {
 /// tiles are partial. Reproduced on the crate alone, contained by `catch_unwind` as
 /// `Decoded::read` contains every decoder panic; nsrm reads the same bytes chunk by chunk,
 /// sample for sample. When this fails because the crate no longer panics, the report is
-/// resolved and the chunk-by-chunk path of `src/io/tif.rs` may serve only extra samples.
+/// resolved and the chunk-by-chunk path of `crates/nsrm-io/src/tif.rs` may serve only extra samples.
 #[test]
 fn the_tiff_crates_planar_edge_tile_panic_is_reproduced_and_contained() {
     let (w, h) = (20u32, 18u32);

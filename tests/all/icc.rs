@@ -4,7 +4,7 @@
 //! from its D65-referred XYZ to the PCS's D50 with the tests' own Bradford, `common::mat`, as
 //! the profile's PCS is defined: `Bradford(W → D50) · XYZ / Y(W)`) within the error the export
 //! reported. The device values are camera RGB over the scale the library reports for the same
-//! model (`export::icc::render`), whose profile the binary's is, byte for byte but the creation
+//! model (`nsrm_export::icc::render`), whose profile the binary's is, byte for byte but the creation
 //! date. Both are installed by `.ci/install.d/40-profiles.sh`; a missing one is a SKIP, and a
 //! failure under `CI=true`.
 
@@ -240,7 +240,7 @@ fn transicc_and_xicclu_reproduce_apply() {
         theirs[24..36].fill(0);
         assert!(
             ours == theirs,
-            "{name}: `nsrm export` wrote another profile than `export::icc::render`"
+            "{name}: `nsrm export` wrote another profile than `nsrm_export::icc::render`"
         );
         let s = written.scale;
         // The samples inside the range the export measured (every channel within 2^lo..1 of the

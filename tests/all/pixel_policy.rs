@@ -4,7 +4,7 @@
 //!
 //! Every path is a printer or evaluator of the one pixel program (`src/model/pixel.rs`). Paths
 //! here: the GPU's printed WGSL (lavapipe; skipped with a loud line when there is no adapter,
-//! failed under `CI=true`) and, in `src/export/dctl_tests.rs`, the printed DCTL (compiled as C by the kit's harness),
+//! failed under `CI=true`) and, in `crates/nsrm-export/src/dctl_tests.rs`, the printed DCTL (compiled as C by the kit's harness),
 //! on every kind at every order 1–4 and white-balanced NSRM (non-unit input gains) at every order;
 //! the f64 reference and the fast CPU kernels (the clone detected for this CPU and the baseline
 //! clone without FMA, the hand-written kernel at order 3 and the generic plan at the other orders)

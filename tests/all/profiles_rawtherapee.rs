@@ -8,7 +8,7 @@
 //! kit's (`rt_develop`); the colorimetry that takes both to XYZ D50 is the tests' own
 //! (`common::mat`: ROMM's primaries, Bradford). Which weight RawTherapee gave the two sides, and
 //! that nsrm's DNG evaluator reproduces RawTherapee at that weight, is judged beside the
-//! evaluator (`src/export/dcp_tests.rs`). Installed by `.ci/install.d/40-profiles.sh`.
+//! evaluator (`crates/nsrm-export/src/dcp_tests.rs`). Installed by `.ci/install.d/40-profiles.sh`.
 
 use crate::common::mat::{self, D50_XY};
 use crate::common::{nsrm_ok, read_frame, skip, tempdir};
@@ -161,7 +161,7 @@ fn rawtherapee_develops_the_dcp_as_nsrm_applies_the_model() {
 
 /// The tolerance of RawTherapee against the error `export` reports (ΔE00): RawTherapee's own
 /// float pipeline (its DNG reader, the DCP's matrices and map, ProPhoto and back) beside nsrm's
-/// DNG evaluator, which `src/export/dcp_tests.rs` holds to RawTherapee at 0.02.
+/// DNG evaluator, which `crates/nsrm-export/src/dcp_tests.rs` holds to RawTherapee at 0.02.
 const RT_TOLERANCE: f64 = 0.05;
 
 /// Applies `model` to the patches of `rt` with `nsrm apply` and no `--white` (the model as

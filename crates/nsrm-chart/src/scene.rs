@@ -142,7 +142,7 @@ pub struct SceneOptions {
     pub min_tilt_deg: f64,
     /// Random pose: `None` puts the camera 1.6 chart diagonals from the chart's centre;
     /// `Some(P)` brings it as close as needed (a wide-angle camera) for the patch scale to vary
-    /// by `P` across the chart (1..=4; the measure of `chart::detect`'s perspective limit), but
+    /// by `P` across the chart (1..=4; the measure of `nsrm_chart::detect`'s perspective limit), but
     /// no closer than a tenth of a diagonal in front of the chart's nearest corner: the pose's
     /// tilt must allow `P` (from 30° on, that camera shows at least 2.2 whatever the tilt's axis).
     pub perspective: Option<f64>,

@@ -291,7 +291,7 @@ pub fn mutate(base: &str, edits: &[(usize, u8)]) -> String {
     String::from_utf8_lossy(&bytes).into_owned()
 }
 
-// The one DCTL harness (the unit tests of `src/export/dctl.rs` and `dctl_tests.rs`, and the CLI
+// The one DCTL harness (the unit tests of `crates/nsrm-export/src/dctl.rs` and `dctl_tests.rs`, and the CLI
 // test in `tests/all/gpu_export.rs`): Resolve is not available here, so a DCTL is compiled as C
 // with a shim for its built-ins and run on test pixels.
 
@@ -451,7 +451,7 @@ pub fn check_dctl(model: &Model, px: &[[f64; 3]], got: &[[f64; 3]], what: &str) 
 }
 
 // The one RawTherapee harness (the DCP judges: `tests/all/profiles_rawtherapee.rs` develops the
-// DCPs the binary writes and compares with `nsrm apply`; `src/export/dcp_tests.rs` finds the
+// DCPs the binary writes and compares with `nsrm apply`; `crates/nsrm-export/src/dcp_tests.rs` finds the
 // weight RawTherapee gave the two sides of a DCP the library writes and compares with nsrm's DNG
 // evaluator): a synthetic chart DNG (written with tifffile: a Bayer mosaic of flat patches whose
 // camera RGB is known, AsShotNeutral set, and the DCP's own ColorMatrix and

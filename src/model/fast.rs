@@ -26,21 +26,26 @@
 //!   divisions `r = R/s`, `g = G/s` into five per-pixel arrays (`[R, G, s, r, g]`, 1.25 KiB on
 //!   the stack); the second reads them back whole vectors at a time (the offsets they were
 //!   written at: no store-forwarding stalls), applies the matrix and the black rule and writes
-//!   the interleaved output (two half-blocks per iteration). The arithmetic is the single-pass kernel's, in the same order (the
-//!   same bits); the last partial block goes pixel by pixel. Why: in one pass, the ~85 vector
-//!   operations of 8 pixels hang on one long chain (de-interleave → sum → division, 11 cycles →
-//!   a chain of four multiply-adds → interleave), and too few of them fit the out-of-order
-//!   window to overlap the next pixels' chains. On an AMD EPYC (Zen 3, no AVX-512) with the data
-//!   in L2 it went from ~6.1 to ~4.3 cycles a pixel (about 505 → 690–720 Mpixel/s a thread):
-//!   the first pass ~1.5 cycles a pixel, the second ~2.8 (the stride-3 interleave of its three
-//!   results about 0.9 of it). Measured there and not kept (each slower or no better): one
-//!   reciprocal per pixel (`r = R·(1/s)`, one division, with a block test that sends a block with
-//!   a positive sum below 2⁻⁶⁴ to the divisions: the divider was not the limit), the product
-//!   `R·g` or the black rule moved into the first pass, the three sums split into two half sums,
-//!   four quarter-blocks per iteration, blocks of 32 or 128 pixels. The homogeneous form
-//!   (`s²·XYZ` a cubic form in R, G, s: one division per pixel) costs about 15 multiply-adds per
-//!   output against 10. A gain of 1 skips its multiplication. The AVX-512 clone keeps the single
-//!   pass (32 registers hold the 30 coefficients; the two passes are not measured there).
+//!   the interleaved output (two half-blocks per iteration). The arithmetic is the single-pass
+//!   kernel's, in the same order (the same bits); the last partial block goes pixel by pixel. Why: in one pass the ~95
+//!   instructions of 8 pixels hang on one long chain (de-interleave → sum → division, ~11
+//!   cycles → four dependent multiply-adds → interleave), most likely too long for the
+//!   out-of-order window to overlap enough of the next pixels' chains: the single pass ran at
+//!   about 6 cycles a pixel, over twice its port bound. On an AMD EPYC (Zen 3, AVX2 + FMA, no
+//!   AVX-512; no cycle counters in its VM, cycles at ~3.1 GHz measured with an FMA loop) with
+//!   the data in L2 it went from ~6.2 to ~4.4 cycles a pixel (500–520 → 600–740 Mpixel/s a
+//!   thread on a shared, noisy host: best run 1.41×, median 1.32×); of that the first pass is
+//!   ~1.5 cycles a pixel, the second ~2.9, of which ~0.9 the stride-3 interleave of its three
+//!   results (diagnostic builds that skipped one pass or wrote planar output). Measured there
+//!   and not kept (each slower or no better): one reciprocal per pixel (`r = R·(1/s)`, one
+//!   division, with a block test that sends a block with a positive sum below 2⁻⁶⁴, where `1/s`
+//!   overflows, to the divisions: twice 10–15 % slower, the divider is not the limit), the
+//!   product `R·g` or the black rule moved into the first pass, the three sums split into two
+//!   half sums, four quarter-blocks per iteration, blocks of 32 or 128 pixels. Not built: the
+//!   homogeneous form (`s²·XYZ` a cubic form in R, G, s: one division per pixel and no
+//!   normalising) counts about 15 multiply-adds an output against 10, on the pipes that are
+//!   already the busiest. A gain of 1 skips its multiplication (about 1 %). The AVX-512 clone keeps the single pass (32
+//!   registers hold the 30 coefficients; the two passes are not measured there).
 //! * PRM 3's nested form is only right on finite pixels: its loop goes 16 pixels at a time with
 //!   one cheap test (every value below `f32::MAX / 4`, no shuffles); a block of [`LANES`] pixels
 //!   with a non-finite pixel, or one whose `R + G + B` overflows, takes the term sums instead.

@@ -14,13 +14,14 @@
 //! done in the fast path's 64 Ki-pixel chunks on the same threads. `cargo bench --bench kernels`;
 //! `nsrm bench` measures the crate's kernels (into a second frame) in one run and prints ratios.
 //!
-//! The kernels' own cost, without memory: `l2/…/1t` corrects a 256×128 frame (384 KiB of packed
-//! RGB f32, in the per-core L2 with its destination) into a second frame on the calling thread
-//! ([`FastModel::apply_into`], what `nsrm bench` times). For `perf stat`/`perf record`, the same
-//! loop runs without criterion when `NSRM_L2_REPS` is set: `NSRM_L2_REPS=20000
-//! NSRM_L2_KIND=nsrm3 target/release/deps/kernels-… --bench` fits the model, runs that many
-//! repetitions and prints the pixels and the time (cycles per pixel: the cycles of a run minus
-//! those of a run with `NSRM_L2_REPS=0`, over the pixels).
+//! The kernels' own cost, without memory: `l2_256x128_rgb/…/1t` corrects a 256×128 frame (384 KiB
+//! of packed RGB f32, in the per-core L2 with its destination) into a second frame on the calling
+//! thread ([`FastModel::apply_into`], what `nsrm bench` times), for the hand-written kernels. For
+//! `perf record`/`perf stat`, the same loop runs without criterion when `NSRM_L2_REPS` is set:
+//! `NSRM_L2_REPS=20000 NSRM_L2_KIND=nsrm3 target/release/deps/kernels-…` fits the model, runs that
+//! many repetitions and prints the pixels, the time and Mpixel/s (cycles per pixel, where the CPU
+//! exposes cycle counters: the cycles of a run minus those of a run with `NSRM_L2_REPS=0`, over
+//! the pixels).
 
 use criterion::{criterion_group, BatchSize, Criterion, Throughput};
 use nsrm::{fit_with, simulate_named, FitOptions, Grid, Kind, Normalise};

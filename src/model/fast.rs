@@ -21,31 +21,6 @@
 //!   lane arrays and interleaving those back, as this module did before, made LLVM spill the
 //!   results to the stack and reload them at odd offsets: store-forwarding stalls that cost more
 //!   than PRM 3's arithmetic.)
-//! * NSRM 3 (the AVX2 + FMA and baseline clones) runs in two passes over blocks of
-//!   [`NSRM_BLOCK`] pixels (issue 38): the first de-interleaves R, G, B, forms `s` and the two
-//!   divisions `r = R/s`, `g = G/s` into five per-pixel arrays (`[R, G, s, r, g]`, 1.25 KiB on
-//!   the stack); the second reads them back whole vectors at a time (the offsets they were
-//!   written at: no store-forwarding stalls), applies the matrix and the black rule and writes
-//!   the interleaved output (two half-blocks per iteration). The arithmetic is the single-pass
-//!   kernel's, in the same order (the same bits); the last partial block goes pixel by pixel. Why: in one pass the ~95
-//!   instructions of 8 pixels hang on one long chain (de-interleave → sum → division, ~11
-//!   cycles → four dependent multiply-adds → interleave), most likely too long for the
-//!   out-of-order window to overlap enough of the next pixels' chains: the single pass ran at
-//!   about 6 cycles a pixel, over twice its port bound. On an AMD EPYC (Zen 3, AVX2 + FMA, no
-//!   AVX-512; no cycle counters in its VM, cycles at ~3.1 GHz measured with an FMA loop) with
-//!   the data in L2 it went from ~6.2 to ~4.4 cycles a pixel (500–520 → 600–740 Mpixel/s a
-//!   thread on a shared, noisy host: best run 1.41×, median 1.32×); of that the first pass is
-//!   ~1.5 cycles a pixel, the second ~2.9, of which ~0.9 the stride-3 interleave of its three
-//!   results (diagnostic builds that skipped one pass or wrote planar output). Measured there
-//!   and not kept (each slower or no better): one reciprocal per pixel (`r = R·(1/s)`, one
-//!   division, with a block test that sends a block with a positive sum below 2⁻⁶⁴, where `1/s`
-//!   overflows, to the divisions: twice 10–15 % slower, the divider is not the limit), the
-//!   product `R·g` or the black rule moved into the first pass, the three sums split into two
-//!   half sums, four quarter-blocks per iteration, blocks of 32 or 128 pixels. Not built: the
-//!   homogeneous form (`s²·XYZ` a cubic form in R, G, s: one division per pixel and no
-//!   normalising) counts about 15 multiply-adds an output against 10, on the pipes that are
-//!   already the busiest. A gain of 1 skips its multiplication (about 1 %). The AVX-512 clone keeps the single pass (32
-//!   registers hold the 30 coefficients; the two passes are not measured there).
 //! * PRM 3's nested form is only right on finite pixels: its loop goes 16 pixels at a time with
 //!   one cheap test (every value below `f32::MAX / 4`, no shuffles); a block of [`LANES`] pixels
 //!   with a non-finite pixel, or one whose `R + G + B` overflows, takes the term sums instead.
@@ -411,10 +386,8 @@ trait Chunks: Sync {
     /// kernels; the block kernels' lane arrays of 8 measured 20–30 % slower there than in the
     /// AVX2 clone, so they stop at AVX2.
     const AVX512: bool;
-    /// `fma` as in [`PixelKernel::pixel`]; `wide`: the AVX-512 clone (a compile-time constant
-    /// there too).
-    fn run_in_place<const C: usize>(&self, data: &mut [f32], fma: bool, wide: bool);
-    fn run_into<const C: usize>(&self, src: &[f32], dst: &mut [f32], fma: bool, wide: bool);
+    fn run_in_place<const C: usize>(&self, data: &mut [f32], fma: bool);
+    fn run_into<const C: usize>(&self, src: &[f32], dst: &mut [f32], fma: bool);
 }
 
 /// A kernel written for one pixel: the chunk loops call it pixel by pixel, reading and writing
@@ -442,24 +415,6 @@ trait PixelKernel: Sync {
         Self: Sized,
     {
         map_in_place::<Self, C, false>(self, blk, fma)
-    }
-    /// The chunk loop of a kernel that is not stepped, in place: [`map_in_place`] unless the
-    /// kernel has its own (NSRM 3's two passes).
-    #[inline(always)]
-    fn plain_in_place<const C: usize>(&self, data: &mut [f32], fma: bool, _wide: bool)
-    where
-        Self: Sized,
-    {
-        map_in_place::<Self, C, false>(self, data, fma)
-    }
-    /// [`plain_in_place`](Self::plain_in_place) into a second chunk: [`map_into`] unless the
-    /// kernel has its own.
-    #[inline(always)]
-    fn plain_into<const C: usize>(&self, src: &[f32], dst: &mut [f32], fma: bool, _wide: bool)
-    where
-        Self: Sized,
-    {
-        map_into::<Self, C, false>(self, src, dst, fma)
     }
     /// The block path of [`guarded_block`] (PRM 3's term sums; unused otherwise).
     fn fallback(&self, x: &[Lanes; 3], fma: bool) -> [Lanes; 3] {
@@ -588,9 +543,9 @@ impl<K: PixelKernel> Chunks for K {
     const AVX512: bool = true;
 
     #[inline(always)]
-    fn run_in_place<const C: usize>(&self, data: &mut [f32], fma: bool, wide: bool) {
+    fn run_in_place<const C: usize>(&self, data: &mut [f32], fma: bool) {
         if !K::STEPPED {
-            return self.plain_in_place::<C>(data, fma, wide);
+            return map_in_place::<K, C, false>(self, data, fma);
         }
         let mut steps = data.chunks_exact_mut(C * PIXEL_BLOCK);
         for s in &mut steps {
@@ -604,9 +559,9 @@ impl<K: PixelKernel> Chunks for K {
     }
 
     #[inline(always)]
-    fn run_into<const C: usize>(&self, src: &[f32], dst: &mut [f32], fma: bool, wide: bool) {
+    fn run_into<const C: usize>(&self, src: &[f32], dst: &mut [f32], fma: bool) {
         if !K::STEPPED {
-            return self.plain_into::<C>(src, dst, fma, wide);
+            return map_into::<K, C, false>(self, src, dst, fma);
         }
         let n = C * PIXEL_BLOCK;
         let mut s_steps = src.chunks_exact(n);
@@ -633,7 +588,7 @@ impl<K: BlockKernel> Chunks for Blocks<'_, K> {
     const AVX512: bool = false;
 
     #[inline(always)]
-    fn run_in_place<const C: usize>(&self, data: &mut [f32], fma: bool, _wide: bool) {
+    fn run_in_place<const C: usize>(&self, data: &mut [f32], fma: bool) {
         let k = self.0;
         let mut scratch = k.scratch();
         let mut blocks = data.chunks_exact_mut(C * LANES);
@@ -655,7 +610,7 @@ impl<K: BlockKernel> Chunks for Blocks<'_, K> {
     }
 
     #[inline(always)]
-    fn run_into<const C: usize>(&self, src: &[f32], dst: &mut [f32], fma: bool, _wide: bool) {
+    fn run_into<const C: usize>(&self, src: &[f32], dst: &mut [f32], fma: bool) {
         let k = self.0;
         let mut scratch = k.scratch();
         let mut s_blocks = src.chunks_exact(C * LANES);
@@ -693,7 +648,7 @@ fn in_place<K: Chunks, const C: usize>(
         match code {
             Code::Detected if K::AVX512 => chunk_in_place::<K, C>(k, chunk),
             Code::Detected => chunk_in_place_avx2::<K, C>(k, chunk),
-            Code::Baseline => k.run_in_place::<C>(chunk, false, false),
+            Code::Baseline => k.run_in_place::<C>(chunk, false),
         }
     };
     match threads {
@@ -725,32 +680,28 @@ fn into<K: Chunks, const C: usize>(k: &K, src: &[f32], dst: &mut [f32], threads:
 #[multiversion::multiversion(targets("x86_64+avx2+fma+avx512f+avx512vl", "x86_64+avx2+fma"))]
 fn chunk_in_place<K: Chunks, const C: usize>(k: &K, data: &mut [f32]) {
     const FMA: bool = multiversion::target::selected_target!().supports_feature_str("fma");
-    const WIDE: bool = multiversion::target::selected_target!().supports_feature_str("avx512f");
-    k.run_in_place::<C>(data, FMA, WIDE)
+    k.run_in_place::<C>(data, FMA)
 }
 
 /// [`chunk_in_place`] into a second chunk (the same clones).
 #[multiversion::multiversion(targets("x86_64+avx2+fma+avx512f+avx512vl", "x86_64+avx2+fma"))]
 fn chunk_into<K: Chunks, const C: usize>(k: &K, src: &[f32], dst: &mut [f32]) {
     const FMA: bool = multiversion::target::selected_target!().supports_feature_str("fma");
-    const WIDE: bool = multiversion::target::selected_target!().supports_feature_str("avx512f");
-    k.run_into::<C>(src, dst, FMA, WIDE)
+    k.run_into::<C>(src, dst, FMA)
 }
 
 /// [`chunk_in_place`] without the AVX-512 clone (kernels with `AVX512 = false`).
 #[multiversion::multiversion(targets("x86_64+avx2+fma"))]
 fn chunk_in_place_avx2<K: Chunks, const C: usize>(k: &K, data: &mut [f32]) {
     const FMA: bool = multiversion::target::selected_target!().supports_feature_str("fma");
-    const WIDE: bool = multiversion::target::selected_target!().supports_feature_str("avx512f");
-    k.run_in_place::<C>(data, FMA, WIDE)
+    k.run_in_place::<C>(data, FMA)
 }
 
 /// [`chunk_into`] without the AVX-512 clone.
 #[multiversion::multiversion(targets("x86_64+avx2+fma"))]
 fn chunk_into_avx2<K: Chunks, const C: usize>(k: &K, src: &[f32], dst: &mut [f32]) {
     const FMA: bool = multiversion::target::selected_target!().supports_feature_str("fma");
-    const WIDE: bool = multiversion::target::selected_target!().supports_feature_str("avx512f");
-    k.run_into::<C>(src, dst, FMA, WIDE)
+    k.run_into::<C>(src, dst, FMA)
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -1167,101 +1118,13 @@ impl Declared for Nsrm3 {
 impl PixelKernel for Nsrm3 {
     #[inline(always)]
     fn pixel<const STEP_OK: bool>(&self, x: [f32; 3], fma: bool) -> [f32; 3] {
-        let (cr, cg, s, r, g) = self.split_pixel::<false>(x);
-        self.combine_pixel([cr, cg, s, r, g], fma)
-    }
-
-    #[inline(always)]
-    fn plain_in_place<const C: usize>(&self, data: &mut [f32], fma: bool, wide: bool) {
-        if wide {
-            map_in_place::<Self, C, false>(self, data, fma)
-        } else if self.gain == [1.0; 3] {
-            self.blocks_in_place::<C, true>(data, fma)
-        } else {
-            self.blocks_in_place::<C, false>(data, fma)
-        }
-    }
-
-    #[inline(always)]
-    fn plain_into<const C: usize>(&self, src: &[f32], dst: &mut [f32], fma: bool, wide: bool) {
-        if wide {
-            map_into::<Self, C, false>(self, src, dst, fma)
-        } else if self.gain == [1.0; 3] {
-            self.blocks_into::<C, true>(src, dst, fma)
-        } else {
-            self.blocks_into::<C, false>(src, dst, fma)
-        }
-    }
-}
-
-/// Pixels per block of NSRM 3's two passes.
-const NSRM_BLOCK: usize = 64;
-
-/// NSRM 3's first pass over a block: the gained R and G, `s` and `r = R/s`, `g = G/s`, one
-/// array each (`[R, G, s, r, g]`).
-struct NsrmSplit([[f32; NSRM_BLOCK]; 5]);
-
-impl Default for NsrmSplit {
-    fn default() -> Self {
-        NsrmSplit([[0.0; NSRM_BLOCK]; 5])
-    }
-}
-
-impl Nsrm3 {
-    /// The chunk loop in place: whole blocks through the two passes, the rest pixel by pixel.
-    /// `UNIT`: every input gain is 1 (the multiplications are skipped: the same values).
-    #[inline(always)]
-    fn blocks_in_place<const C: usize, const UNIT: bool>(&self, data: &mut [f32], fma: bool) {
-        let mut t = NsrmSplit::default();
-        let mut blocks = data.chunks_exact_mut(C * NSRM_BLOCK);
-        for blk in &mut blocks {
-            self.split_block::<C, UNIT>(blk, &mut t);
-            self.combine_block::<C, false>(&t, &[], blk, fma);
-        }
-        map_in_place::<Self, C, false>(self, blocks.into_remainder(), fma);
-    }
-
-    /// [`blocks_in_place`](Self::blocks_in_place) into a second chunk (alpha copied).
-    #[inline(always)]
-    fn blocks_into<const C: usize, const UNIT: bool>(
-        &self,
-        src: &[f32],
-        dst: &mut [f32],
-        fma: bool,
-    ) {
-        let mut t = NsrmSplit::default();
-        let n = C * NSRM_BLOCK;
-        let mut s_blocks = src.chunks_exact(n);
-        let mut d_blocks = dst.chunks_exact_mut(n);
-        for (s, d) in (&mut s_blocks).zip(&mut d_blocks) {
-            self.split_block::<C, UNIT>(s, &mut t);
-            self.combine_block::<C, true>(&t, s, d, fma);
-        }
-        map_into::<Self, C, false>(self, s_blocks.remainder(), d_blocks.into_remainder(), fma);
-    }
-
-    /// `(R, G, s, r, g)` with `R, G, B` times the input gains (white-balanced NSRM; skipped when
-    /// `UNIT`: a gain of 1 is exact), `s = R+G+B`, `r = R/s`, `g = G/s` (two divisions).
-    #[inline(always)]
-    fn split_pixel<const UNIT: bool>(&self, x: [f32; 3]) -> (f32, f32, f32, f32, f32) {
-        let (cr, cg, cb) = if UNIT {
-            (x[0], x[1], x[2])
-        } else {
-            (
-                x[0] * self.gain[0],
-                x[1] * self.gain[1],
-                x[2] * self.gain[2],
-            )
-        };
-        let s = cr + cg + cb;
-        (cr, cg, s, cr / s, cg / s)
-    }
-
-    /// The output of one pixel from `[R, G, s, r, g]` ([`split_pixel`](Self::split_pixel)).
-    #[inline(always)]
-    fn combine_pixel(&self, [cr, cg, s, r, g]: [f32; 5], fma: bool) -> [f32; 3] {
-        // NaN is not ≤ 0: it goes through and propagates.
-        let black = s <= 0.0;
+        // The input gains (white-balanced NSRM; exact for a gain of 1), then s, r, g.
+        let (cr, cg, cb) = (
+            x[0] * self.gain[0],
+            x[1] * self.gain[1],
+            x[2] * self.gain[2],
+        );
+        let (s, r, g, black) = nsrm_signal(cr, cg, cb);
         let rg = cr * g;
         let mut y = [0.0; 3];
         for (yk, m) in y.iter_mut().zip(&self.m) {
@@ -1274,51 +1137,10 @@ impl Nsrm3 {
             let v = madd(cr, a, m[0] * s, fma);
             let v = madd(cg, b, v, fma);
             let v = madd(rg, c, v, fma);
+            // NaN is not ≤ 0: it goes through and propagates.
             *yk = if black { 0.0 } else { v };
         }
         y
-    }
-
-    /// The first pass over one block of [`NSRM_BLOCK`] pixels: de-interleave, gains, `s` and the
-    /// two divisions, into `t`.
-    #[inline(always)]
-    fn split_block<const C: usize, const UNIT: bool>(&self, src: &[f32], t: &mut NsrmSplit) {
-        let src = &src[..C * NSRM_BLOCK];
-        for i in 0..NSRM_BLOCK {
-            let (cr, cg, s, r, g) =
-                self.split_pixel::<UNIT>([src[i * C], src[i * C + 1], src[i * C + 2]]);
-            for (tk, xk) in t.0.iter_mut().zip([cr, cg, s, r, g]) {
-                tk[i] = xk;
-            }
-        }
-    }
-
-    /// The second pass: the matrix, the black rule and the interleaved store into `dst`
-    /// (alpha copied from `src` when `COPY_ALPHA`, else left alone). Pixels `i` and
-    /// `i + NSRM_BLOCK/2` in one iteration: a few per cent faster than one pixel (measured),
-    /// four quarter-blocks slower.
-    #[inline(always)]
-    fn combine_block<const C: usize, const COPY_ALPHA: bool>(
-        &self,
-        t: &NsrmSplit,
-        src: &[f32],
-        dst: &mut [f32],
-        fma: bool,
-    ) {
-        let dst = &mut dst[..C * NSRM_BLOCK];
-        const H: usize = NSRM_BLOCK / 2;
-        for i in 0..H {
-            for j in [i, i + H] {
-                let x = [t.0[0][j], t.0[1][j], t.0[2][j], t.0[3][j], t.0[4][j]];
-                let y = self.combine_pixel(x, fma);
-                dst[j * C] = y[0];
-                dst[j * C + 1] = y[1];
-                dst[j * C + 2] = y[2];
-                if C == 4 && COPY_ALPHA {
-                    dst[j * C + 3] = src[j * C + 3];
-                }
-            }
-        }
     }
 }
 

@@ -296,65 +296,6 @@ fn nsrm_policy_and_exposure_scaling() {
 }
 
 #[test]
-fn nsrm3_blocks_give_the_pixel_kernels_bits() {
-    // NSRM 3 runs whole blocks of pixels in two passes and the rest of a chunk pixel by pixel:
-    // both must give the same bits, so a pixel's result does not depend on where it sits. The
-    // policy's pixels and awkward ones, over several blocks, with and without input gains, RGB
-    // and RGBA, detected and baseline clones; each pixel against itself alone in a frame.
-    let wb3 = white_balanced_nsrm().swap_remove(2);
-    for model in [fit(Kind::Nsrm, 3, training()).unwrap(), wb3] {
-        let fast = FastModel::new(&model);
-        assert_eq!(fast.kernel_name(), "nsrm3");
-        let mut pixels: Vec<[f32; 3]> = common::policy_pixels(Kind::Nsrm)
-            .into_iter()
-            .map(|(_, p)| p)
-            .collect();
-        let awkward = random_frame(300, 1, Layout::Rgb, 38);
-        pixels.extend(awkward.data.chunks_exact(3).map(|p| [p[0], p[1], p[2]]));
-        for layout in [Layout::Rgb, Layout::Rgba] {
-            let ch = layout.channels();
-            let data: Vec<f32> = pixels
-                .iter()
-                .flat_map(|p| [p[0], p[1], p[2], 0.5].into_iter().take(ch))
-                .collect();
-            let frame = Frame::from_data(pixels.len(), 1, layout, data).unwrap();
-            for baseline in [false, true] {
-                let run = |f: &mut Frame| {
-                    if baseline {
-                        fast.apply_baseline(f, Threads::Single)
-                    } else {
-                        fast.apply(f, Threads::Single)
-                    }
-                };
-                let mut whole = frame.clone();
-                run(&mut whole);
-                for (i, (px, got)) in frame
-                    .data
-                    .chunks_exact(ch)
-                    .zip(whole.data.chunks_exact(ch))
-                    .enumerate()
-                {
-                    let mut one = Frame::from_data(1, 1, layout, px.to_vec()).unwrap();
-                    run(&mut one);
-                    let same = one
-                        .data
-                        .iter()
-                        .zip(got)
-                        .all(|(a, b)| a.to_bits() == b.to_bits() || (a.is_nan() && b.is_nan()));
-                    assert!(
-                        same,
-                        "pixel {i} {px:?} ({}, baseline {baseline}, gains {:?}): alone {:?}, in the frame {got:?}",
-                        layout.name(),
-                        model.input_gains(),
-                        one.data
-                    );
-                }
-            }
-        }
-    }
-}
-
-#[test]
 fn empty_frame_is_fine() {
     let model = fit(Kind::Rprm, 3, training()).unwrap();
     let mut f = Frame::new(0, 0, Layout::Rgba);

@@ -58,12 +58,6 @@ impl ShaderLang {
     }
 }
 
-/// The self-contained WGSL source (the matrix as constants) for `model` on `layout`: the
-/// corrector's own printer ([`nsrm::gpu::baked_wgsl`]).
-pub fn baked_wgsl(model: &Model, layout: Layout) -> Result<String, GpuError> {
-    Ok(nsrm::gpu::baked_wgsl(model, layout))
-}
-
 fn err(lang: ShaderLang, e: impl std::fmt::Display) -> GpuError {
     GpuError::Export {
         lang: lang.name().into(),
@@ -89,7 +83,7 @@ fn err(lang: ShaderLang, e: impl std::fmt::Display) -> GpuError {
 /// # Ok::<(), Box<dyn std::error::Error>>(())
 /// ```
 pub fn export(model: &Model, layout: Layout, lang: ShaderLang) -> Result<Vec<u8>, GpuError> {
-    let src = baked_wgsl(model, layout)?;
+    let src = nsrm::gpu::baked_wgsl(model, layout);
     let (module, info) = validate_wgsl(&src)?;
     let stage = naga::ShaderStage::Compute;
     let out = match lang {

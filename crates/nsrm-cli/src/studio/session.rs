@@ -1019,7 +1019,7 @@ impl FrameState {
         let space = parse_space(space)?;
         let f = self.fitted()?;
         let out = nsrm::output_model(&self.with_highlights(&f.model)?, space)?;
-        let wgsl = nsrm_export::shader::baked_wgsl(&out, Layout::Rgb)?;
+        let wgsl = nsrm::gpu::baked_wgsl(&out, Layout::Rgb);
         Ok(wire::Shader {
             wgsl,
             to_linear_srgb: to_linear_srgb(f.model.white_xyz(), space),

@@ -65,6 +65,29 @@ use crate::model::Model;
 use rayon::prelude::*;
 use std::collections::HashMap;
 
+#[cfg(target_arch = "x86_64")]
+mod nsrm_avx2;
+#[cfg(target_arch = "x86_64")]
+use nsrm_avx2::Avx2;
+
+/// No explicit-vector NSRM 3 kernel off x86-64 (the per-pixel kernel runs).
+#[cfg(not(target_arch = "x86_64"))]
+#[derive(Debug, Clone, Copy)]
+enum Avx2 {}
+
+#[cfg(not(target_arch = "x86_64"))]
+impl Avx2 {
+    fn detect() -> Option<Avx2> {
+        None
+    }
+    fn into(self, _: &Nsrm3, _: &[f32], _: &mut [f32]) {
+        match self {}
+    }
+    fn in_place(self, _: &Nsrm3, _: &mut [f32]) {
+        match self {}
+    }
+}
+
 /// Pixels per block: one `[f32; LANES]` array per channel (one AVX or two SSE registers).
 pub(crate) const LANES: usize = 8;
 
@@ -149,6 +172,10 @@ enum Code {
     /// The baseline clone: no fused multiply-add, so the same bits on every CPU.
     #[cfg_attr(not(test), allow(dead_code))] // only the tests run the baseline clone directly
     Baseline,
+    /// The detected clone of the per-pixel kernels, never the explicit-vector NSRM 3 kernel
+    /// ([`Avx2`]): what the tests hold that kernel's bits to.
+    #[cfg_attr(not(test), allow(dead_code))]
+    PixelLoop,
 }
 
 /// Which monomorphised kernel a model runs.
@@ -203,6 +230,19 @@ impl FastModel {
     #[cfg(test)]
     pub(crate) fn apply_baseline(&self, frame: &mut Frame, threads: Threads) {
         self.apply_code(frame, threads, Code::Baseline)
+    }
+
+    /// [`apply`](Self::apply) through the per-pixel kernels' detected clone only (never the
+    /// explicit-vector NSRM 3 kernel, which must give the same bits).
+    #[cfg(test)]
+    pub(crate) fn apply_pixel_loop(&self, frame: &mut Frame, threads: Threads) {
+        self.apply_code(frame, threads, Code::PixelLoop)
+    }
+
+    /// Whether NSRM 3 on packed RGB runs the explicit-vector kernel on this CPU.
+    #[cfg(test)]
+    pub(crate) fn runs_explicit_vectors(&self) -> bool {
+        matches!(&self.kernel, Kernel::Nsrm3(k) if k.avx2.is_some())
     }
 
     fn apply_code(&self, frame: &mut Frame, threads: Threads, code: Code) {
@@ -277,7 +317,12 @@ impl FastModel {
             Kernel::Linear(k) => in_place::<_, C>(k, h, data, threads, code),
             Kernel::Prm3(k) => in_place::<_, C>(k, h, data, threads, code),
             Kernel::Rprm3(k) => in_place::<_, C>(k, h, data, threads, code),
-            Kernel::Nsrm3(k) => in_place::<_, C>(k, h, data, threads, code),
+            Kernel::Nsrm3(k) => match (C, code, k.avx2) {
+                (3, Code::Detected, Some(v)) => {
+                    chunked_in_place::<C>(h, data, threads, |c| v.in_place(k, c))
+                }
+                _ => in_place::<_, C>(k, h, data, threads, code),
+            },
             Kernel::Plan(k) => in_place::<_, C>(&Blocks(&**k), h, data, threads, code),
         }
     }
@@ -292,7 +337,10 @@ impl FastModel {
             Kernel::Linear(k) => into::<_, C>(k, src, dst, threads),
             Kernel::Prm3(k) => into::<_, C>(k, src, dst, threads),
             Kernel::Rprm3(k) => into::<_, C>(k, src, dst, threads),
-            Kernel::Nsrm3(k) => into::<_, C>(k, src, dst, threads),
+            Kernel::Nsrm3(k) => match (C, k.avx2) {
+                (3, Some(v)) => chunked_into::<C>(src, dst, threads, |s, d| v.into(k, s, d)),
+                _ => into::<_, C>(k, src, dst, threads),
+            },
             Kernel::Plan(k) => into::<_, C>(&Blocks(&**k), src, dst, threads),
         }
     }
@@ -315,6 +363,7 @@ impl Kernel {
             Kernel::Nsrm3(Nsrm3 {
                 m,
                 gain: gains.map(|v| v as f32),
+                avx2: Avx2::detect(),
             })
         } else {
             Kernel::Plan(Box::new(Plan::new(program, matrix, gains)))
@@ -640,16 +689,27 @@ fn in_place<K: Chunks, const C: usize>(
     threads: Threads,
     code: Code,
 ) {
+    chunked_in_place::<C>(highlights, data, threads, |chunk| match code {
+        Code::Detected | Code::PixelLoop if K::AVX512 => chunk_in_place::<K, C>(k, chunk),
+        Code::Detected | Code::PixelLoop => chunk_in_place_avx2::<K, C>(k, chunk),
+        Code::Baseline => k.run_in_place::<C>(chunk, false),
+    })
+}
+
+/// `run` on each [`CHUNK_PIXELS`]-pixel chunk of `data` (after the highlight policy), on the
+/// calling thread or rayon's pool.
+fn chunked_in_place<const C: usize>(
+    highlights: Option<&super::highlights::HighlightsF32>,
+    data: &mut [f32],
+    threads: Threads,
+    run: impl Fn(&mut [f32]) + Sync,
+) {
     let n = CHUNK_PIXELS * C;
     let run = |chunk: &mut [f32]| {
         if let Some(h) = highlights {
             h.apply::<C>(chunk);
         }
-        match code {
-            Code::Detected if K::AVX512 => chunk_in_place::<K, C>(k, chunk),
-            Code::Detected => chunk_in_place_avx2::<K, C>(k, chunk),
-            Code::Baseline => k.run_in_place::<C>(chunk, false),
-        }
+        run(chunk)
     };
     match threads {
         Threads::All => data.par_chunks_mut(n).for_each(run),
@@ -658,14 +718,24 @@ fn in_place<K: Chunks, const C: usize>(
 }
 
 fn into<K: Chunks, const C: usize>(k: &K, src: &[f32], dst: &mut [f32], threads: Threads) {
-    let n = CHUNK_PIXELS * C;
-    let run = |(s, d): (&[f32], &mut [f32])| {
+    chunked_into::<C>(src, dst, threads, |s, d| {
         if K::AVX512 {
             chunk_into::<K, C>(k, s, d)
         } else {
             chunk_into_avx2::<K, C>(k, s, d)
         }
-    };
+    })
+}
+
+/// `run` on each pair of [`CHUNK_PIXELS`]-pixel chunks of `src` and `dst`.
+fn chunked_into<const C: usize>(
+    src: &[f32],
+    dst: &mut [f32],
+    threads: Threads,
+    run: impl Fn(&[f32], &mut [f32]) + Sync,
+) {
+    let n = CHUNK_PIXELS * C;
+    let run = |(s, d): (&[f32], &mut [f32])| run(s, d);
     match threads {
         Threads::All => src.par_chunks(n).zip(dst.par_chunks_mut(n)).for_each(run),
         Threads::Single => src.chunks(n).zip(dst.chunks_mut(n)).for_each(run),
@@ -1097,6 +1167,8 @@ impl PixelKernel for Rprm3 {
 struct Nsrm3 {
     m: [[f32; 10]; 3],
     gain: [f32; 3],
+    /// The explicit-vector kernel for packed RGB, where this CPU runs it.
+    avx2: Option<Avx2>,
 }
 
 impl Declared for Nsrm3 {
@@ -1508,7 +1580,11 @@ mod tests {
         check::<Linear, 3>(|m| Linear { m });
         check::<Prm3, 19>(|m| Prm3 { m });
         check::<Rprm3, 13>(|m| Rprm3 { m });
-        check::<Nsrm3, 10>(|m| Nsrm3 { m, gain: [1.0; 3] });
+        check::<Nsrm3, 10>(|m| Nsrm3 {
+            m,
+            gain: [1.0; 3],
+            avx2: None,
+        });
     }
 
     /// Runs `kernel` (baseline and detected code) on [`PIXELS`] and holds it to `program`.

@@ -304,6 +304,62 @@ fn empty_frame_is_fine() {
     assert!(f.data.is_empty());
 }
 
+/// NSRM 3 on packed RGB through the explicit-vector kernel (`fast/nsrm_avx2.rs`, where this
+/// CPU runs it) gives the per-pixel kernel's bits: every size around its 8-pixel blocks and the
+/// chunk edge, awkward pixels (NaN, ±∞, subnormals, `s ≤ 0`, huge values), unit and white-balance
+/// gains, in place and into, one thread and all.
+#[test]
+fn nsrm3_explicit_vectors_give_the_per_pixel_kernels_bits() {
+    let bits = |f: &Frame| f.data.iter().map(|v| v.to_bits()).collect::<Vec<u32>>();
+    let models = [
+        fit(Kind::Nsrm, 3, training()).unwrap(),
+        white_balanced_nsrm().remove(2),
+    ];
+    let chunk = super::fast::CHUNK_PIXELS;
+    let sizes = [
+        1,
+        7,
+        8,
+        9,
+        15,
+        16,
+        17,
+        24,
+        25,
+        1000,
+        chunk - 1,
+        chunk + 5,
+        3 * chunk + 13,
+    ];
+    for model in &models {
+        let fast = FastModel::new(model);
+        assert_eq!(fast.kernel_name(), "nsrm3");
+        println!(
+            "{} {}: explicit vectors {}",
+            model.kind(),
+            model.order(),
+            if fast.runs_explicit_vectors() {
+                "run here"
+            } else {
+                "do not run on this CPU"
+            }
+        );
+        for (n, &w) in sizes.iter().enumerate() {
+            let input = random_frame(w, 1, Layout::Rgb, 7000 + n as u64);
+            let mut want = input.clone();
+            fast.apply_pixel_loop(&mut want, Threads::Single);
+            for threads in [Threads::Single, Threads::All] {
+                let mut got = input.clone();
+                fast.apply(&mut got, threads);
+                assert_eq!(bits(&got), bits(&want), "in place, {w} pixels");
+                let mut into = Frame::new(w, 1, Layout::Rgb);
+                fast.apply_into(&input, &mut into, threads).unwrap();
+                assert_eq!(bits(&into), bits(&want), "into, {w} pixels");
+            }
+        }
+    }
+}
+
 mod properties {
     use super::*;
     use proptest::prelude::*;

@@ -66,24 +66,29 @@ use rayon::prelude::*;
 use std::collections::HashMap;
 
 #[cfg(target_arch = "x86_64")]
-mod nsrm_avx2;
+mod avx2;
 #[cfg(target_arch = "x86_64")]
-use nsrm_avx2::Avx2;
+use avx2::{Avx2, Halves};
 
-/// No explicit-vector NSRM 3 kernel off x86-64 (the per-pixel kernel runs).
+/// No explicit-vector kernels off x86-64 (the per-pixel kernels run).
 #[cfg(not(target_arch = "x86_64"))]
 #[derive(Debug, Clone, Copy)]
 enum Avx2 {}
+
+#[cfg(not(target_arch = "x86_64"))]
+trait Halves {}
+#[cfg(not(target_arch = "x86_64"))]
+impl<K> Halves for K {}
 
 #[cfg(not(target_arch = "x86_64"))]
 impl Avx2 {
     fn detect() -> Option<Avx2> {
         None
     }
-    fn into(self, _: &Nsrm3, _: &[f32], _: &mut [f32]) {
+    fn into<K>(self, _: &K, _: &[f32], _: &mut [f32]) {
         match self {}
     }
-    fn in_place(self, _: &Nsrm3, _: &mut [f32]) {
+    fn in_place<K>(self, _: &K, _: &mut [f32]) {
         match self {}
     }
 }
@@ -172,8 +177,8 @@ enum Code {
     /// The baseline clone: no fused multiply-add, so the same bits on every CPU.
     #[cfg_attr(not(test), allow(dead_code))] // only the tests run the baseline clone directly
     Baseline,
-    /// The detected clone of the per-pixel kernels, never the explicit-vector NSRM 3 kernel
-    /// ([`Avx2`]): what the tests hold that kernel's bits to.
+    /// The detected clone of the per-pixel kernels, never the explicit-vector kernels
+    /// ([`Avx2`]): what the tests hold their bits to.
     #[cfg_attr(not(test), allow(dead_code))]
     PixelLoop,
 }
@@ -233,16 +238,20 @@ impl FastModel {
     }
 
     /// [`apply`](Self::apply) through the per-pixel kernels' detected clone only (never the
-    /// explicit-vector NSRM 3 kernel, which must give the same bits).
+    /// explicit-vector kernels, which must give the same bits).
     #[cfg(test)]
     pub(crate) fn apply_pixel_loop(&self, frame: &mut Frame, threads: Threads) {
         self.apply_code(frame, threads, Code::PixelLoop)
     }
 
-    /// Whether NSRM 3 on packed RGB runs the explicit-vector kernel on this CPU.
+    /// Whether this model on packed RGB runs an explicit-vector kernel on this CPU.
     #[cfg(test)]
     pub(crate) fn runs_explicit_vectors(&self) -> bool {
-        matches!(&self.kernel, Kernel::Nsrm3(k) if k.avx2.is_some())
+        match &self.kernel {
+            Kernel::Nsrm3(k) => k.avx2.is_some(),
+            Kernel::Prm3(k) => k.avx2.is_some(),
+            _ => false,
+        }
     }
 
     fn apply_code(&self, frame: &mut Frame, threads: Threads, code: Code) {
@@ -315,14 +324,9 @@ impl FastModel {
         let h = self.highlights.as_ref();
         match &self.kernel {
             Kernel::Linear(k) => in_place::<_, C>(k, h, data, threads, code),
-            Kernel::Prm3(k) => in_place::<_, C>(k, h, data, threads, code),
+            Kernel::Prm3(k) => in_place_explicit::<_, C>(k, k.avx2, h, data, threads, code),
             Kernel::Rprm3(k) => in_place::<_, C>(k, h, data, threads, code),
-            Kernel::Nsrm3(k) => match (C, code, k.avx2) {
-                (3, Code::Detected, Some(v)) => {
-                    chunked_in_place::<C>(h, data, threads, |c| v.in_place(k, c))
-                }
-                _ => in_place::<_, C>(k, h, data, threads, code),
-            },
+            Kernel::Nsrm3(k) => in_place_explicit::<_, C>(k, k.avx2, h, data, threads, code),
             Kernel::Plan(k) => in_place::<_, C>(&Blocks(&**k), h, data, threads, code),
         }
     }
@@ -335,12 +339,9 @@ impl FastModel {
         }
         match &self.kernel {
             Kernel::Linear(k) => into::<_, C>(k, src, dst, threads),
-            Kernel::Prm3(k) => into::<_, C>(k, src, dst, threads),
+            Kernel::Prm3(k) => into_explicit::<_, C>(k, k.avx2, src, dst, threads),
             Kernel::Rprm3(k) => into::<_, C>(k, src, dst, threads),
-            Kernel::Nsrm3(k) => match (C, k.avx2) {
-                (3, Some(v)) => chunked_into::<C>(src, dst, threads, |s, d| v.into(k, s, d)),
-                _ => into::<_, C>(k, src, dst, threads),
-            },
+            Kernel::Nsrm3(k) => into_explicit::<_, C>(k, k.avx2, src, dst, threads),
             Kernel::Plan(k) => into::<_, C>(&Blocks(&**k), src, dst, threads),
         }
     }
@@ -355,7 +356,10 @@ impl Kernel {
         if let Some(m) = columns::<Linear, 3>(program, matrix) {
             Kernel::Linear(Linear { m })
         } else if let Some(m) = columns::<Prm3, 19>(program, matrix) {
-            Kernel::Prm3(Prm3 { m })
+            Kernel::Prm3(Prm3 {
+                m,
+                avx2: Avx2::detect(),
+            })
         } else if let Some(m) = columns::<Rprm3, 13>(program, matrix) {
             Kernel::Rprm3(Rprm3 { m })
         } else if let Some(m) = columns::<Nsrm3, 10>(program, matrix) {
@@ -717,6 +721,38 @@ fn chunked_in_place<const C: usize>(
     }
 }
 
+/// [`in_place`], through the explicit-vector kernel where the CPU has one (`avx2`), the data is
+/// packed RGB and the detected code runs.
+fn in_place_explicit<K: Chunks + Halves, const C: usize>(
+    k: &K,
+    avx2: Option<Avx2>,
+    highlights: Option<&super::highlights::HighlightsF32>,
+    data: &mut [f32],
+    threads: Threads,
+    code: Code,
+) {
+    match (C, code, avx2) {
+        (3, Code::Detected, Some(v)) => {
+            chunked_in_place::<C>(highlights, data, threads, |c| v.in_place(k, c))
+        }
+        _ => in_place::<_, C>(k, highlights, data, threads, code),
+    }
+}
+
+/// [`into`], through the explicit-vector kernel where the CPU has one and the data is packed RGB.
+fn into_explicit<K: Chunks + Halves, const C: usize>(
+    k: &K,
+    avx2: Option<Avx2>,
+    src: &[f32],
+    dst: &mut [f32],
+    threads: Threads,
+) {
+    match (C, avx2) {
+        (3, Some(v)) => chunked_into::<C>(src, dst, threads, |s, d| v.into(k, s, d)),
+        _ => into::<_, C>(k, src, dst, threads),
+    }
+}
+
 fn into<K: Chunks, const C: usize>(k: &K, src: &[f32], dst: &mut [f32], threads: Threads) {
     chunked_into::<C>(src, dst, threads, |s, d| {
         if K::AVX512 {
@@ -786,6 +822,56 @@ fn madd(a: f32, b: f32, c: f32, fma: bool) -> f32 {
         a.mul_add(b, c)
     } else {
         a * b + c
+    }
+}
+
+/// The arithmetic the hand-written kernels' formulas are written in, so that one text serves the
+/// per-pixel loop (`f32`, which LLVM's loop vectoriser widens) and the explicit-vector kernels
+/// (`fast/avx2.rs`: a register of 8 pixels): the same operations in the same order give the same
+/// bits.
+trait Arith: Copy {
+    /// Per-lane truth: `bool` for `f32`, a lane mask for a register.
+    type Mask: Copy;
+    fn mul(self, b: Self) -> Self;
+    fn add(self, b: Self) -> Self;
+    fn div(self, b: Self) -> Self;
+    /// `self·b + c`: fused where `fma` ([`madd`]; a register is always fused).
+    fn madd(self, b: Self, c: Self, fma: bool) -> Self;
+    /// `self ≤ 0` (false for NaN).
+    fn le_zero(self) -> Self::Mask;
+    /// `0` where `mask`, else `self`.
+    fn zero_where(self, mask: Self::Mask) -> Self;
+}
+
+impl Arith for f32 {
+    type Mask = bool;
+    #[inline(always)]
+    fn mul(self, b: f32) -> f32 {
+        self * b
+    }
+    #[inline(always)]
+    fn add(self, b: f32) -> f32 {
+        self + b
+    }
+    #[inline(always)]
+    fn div(self, b: f32) -> f32 {
+        self / b
+    }
+    #[inline(always)]
+    fn madd(self, b: f32, c: f32, fma: bool) -> f32 {
+        madd(self, b, c, fma)
+    }
+    #[inline(always)]
+    fn le_zero(self) -> bool {
+        self <= 0.0
+    }
+    #[inline(always)]
+    fn zero_where(self, mask: bool) -> f32 {
+        if mask {
+            0.0
+        } else {
+            self
+        }
     }
 }
 
@@ -972,6 +1058,8 @@ impl PixelKernel for Linear {
 #[derive(Debug, Clone)]
 struct Prm3 {
     m: [[f32; 19]; 3],
+    /// The explicit-vector kernel for packed RGB, where this CPU runs it.
+    avx2: Option<Avx2>,
 }
 
 impl Declared for Prm3 {
@@ -1020,24 +1108,7 @@ impl PixelKernel for Prm3 {
 
     #[inline(always)]
     fn pixel<const STEP_OK: bool>(&self, [r, g, b]: [f32; 3], fma: bool) -> [f32; 3] {
-        // The nested (multivariate Horner) form, one multiply-add per coefficient and one
-        // multiply per channel:
-        //   y = R·(m0 + R(m3 + R·m9 + G·m15 + B·m16) + G(m6 + G·m12 + B·m18) + B(m8 + B·m13))
-        //     + G·(m1 + G(m4 + G·m10 + B·m17) + B(m7 + B·m14)) + B·(m2 + B(m5 + B·m11))
-        // (term indices of the eq. (3) order: 15 R²G, 16 R²B, 17 G²B).
-        let mut y = [0.0; 3];
-        for (yk, m) in y.iter_mut().zip(&self.m) {
-            let a = madd(b, m[16], madd(g, m[15], madd(r, m[9], m[3], fma), fma), fma);
-            let bb = madd(b, m[18], madd(g, m[12], m[6], fma), fma);
-            let c = madd(b, m[13], m[8], fma);
-            let pr = madd(b, c, madd(g, bb, madd(r, a, m[0], fma), fma), fma);
-            let d = madd(b, m[17], madd(g, m[10], m[4], fma), fma);
-            let e = madd(b, m[14], m[7], fma);
-            let pg = madd(b, e, madd(g, d, m[1], fma), fma);
-            let pb = madd(b, madd(b, m[11], m[5], fma), m[2], fma);
-            *yk = madd(r, pr, madd(g, pg, b * pb, fma), fma);
-        }
-        y
+        prm3_nested(&self.m, [r, g, b], fma)
     }
 
     /// The 19 terms, then their sums in term order.
@@ -1086,6 +1157,28 @@ fn all_finite(x: &[Lanes; 3]) -> bool {
         ok &= (x[0][i] + x[1][i] + x[2][i]) * 0.0 == 0.0;
     }
     ok
+}
+
+/// PRM 3 in the nested (multivariate Horner) form, one multiply-add per coefficient and one
+/// multiply per channel:
+///   y = R·(m0 + R(m3 + R·m9 + G·m15 + B·m16) + G(m6 + G·m12 + B·m18) + B(m8 + B·m13))
+///     + G·(m1 + G(m4 + G·m10 + B·m17) + B(m7 + B·m14)) + B·(m2 + B(m5 + B·m11))
+/// (term indices of the eq. (3) order: 15 R²G, 16 R²B, 17 G²B). Right on finite pixels only.
+#[inline(always)]
+fn prm3_nested<A: Arith>(m: &[[A; 19]; 3], [r, g, b]: [A; 3], fma: bool) -> [A; 3] {
+    let mut y = [r; 3];
+    for (yk, m) in y.iter_mut().zip(m) {
+        let a = b.madd(m[16], g.madd(m[15], r.madd(m[9], m[3], fma), fma), fma);
+        let bb = b.madd(m[18], g.madd(m[12], m[6], fma), fma);
+        let c = b.madd(m[13], m[8], fma);
+        let pr = b.madd(c, g.madd(bb, r.madd(a, m[0], fma), fma), fma);
+        let d = b.madd(m[17], g.madd(m[10], m[4], fma), fma);
+        let e = b.madd(m[14], m[7], fma);
+        let pg = b.madd(e, g.madd(d, m[1], fma), fma);
+        let pb = b.madd(b.madd(m[11], m[5], fma), m[2], fma);
+        *yk = r.madd(pr, g.madd(pg, b.mul(pb), fma), fma);
+    }
+    y
 }
 
 /// RPRM 3: `R G B √(RG) √(GB) √(RB) ∛(RG²) ∛(RB²) ∛(GB²) ∛(GR²) ∛(BG²) ∛(BR²) ∛(RGB)`, from three
@@ -1190,30 +1283,65 @@ impl Declared for Nsrm3 {
 impl PixelKernel for Nsrm3 {
     #[inline(always)]
     fn pixel<const STEP_OK: bool>(&self, x: [f32; 3], fma: bool) -> [f32; 3] {
-        // The input gains (white-balanced NSRM; exact for a gain of 1), then s, r, g.
-        let (cr, cg, cb) = (
-            x[0] * self.gain[0],
-            x[1] * self.gain[1],
-            x[2] * self.gain[2],
-        );
-        let (s, r, g, black) = nsrm_signal(cr, cg, cb);
-        let rg = cr * g;
-        let mut y = [0.0; 3];
-        for (yk, m) in y.iter_mut().zip(&self.m) {
-            // s·(m0 + r·A + g·B + r·g·C) with s·r = R, s·g = G: the terms 1 r g r² g² rg r³ g³
-            // rg² r²g as m0·s + R·A + G·B + (R·g)·C, A = m1 + r(m3 + r·m6),
-            // B = m2 + g(m4 + g·m7), C = m5 + g·m8 + r·m9: 9 multiply-adds and 1 multiply.
-            let a = madd(r, madd(r, m[6], m[3], fma), m[1], fma);
-            let b = madd(g, madd(g, m[7], m[4], fma), m[2], fma);
-            let c = madd(r, m[9], madd(g, m[8], m[5], fma), fma);
-            let v = madd(cr, a, m[0] * s, fma);
-            let v = madd(cg, b, v, fma);
-            let v = madd(rg, c, v, fma);
-            // NaN is not ≤ 0: it goes through and propagates.
-            *yk = if black { 0.0 } else { v };
-        }
-        y
+        nsrm3_back(&self.m, nsrm3_front(&self.gain, x), fma)
     }
+}
+
+/// What NSRM 3's first half leaves for its second: the input channels times their gains
+/// (`R`, `G`), `s`, `r`, `g` and whether the pixel takes the `s ≤ 0 → 0` rule.
+#[derive(Clone, Copy)]
+struct NsrmSignal<A: Arith> {
+    cr: A,
+    cg: A,
+    s: A,
+    r: A,
+    g: A,
+    black: A::Mask,
+}
+
+/// NSRM 3's first half: the input gains (white-balanced NSRM; exact for a gain of 1),
+/// `s = R+G+B`, `r = R/s`, `g = G/s` and the `s ≤ 0` rule (NaN is not ≤ 0: it goes through and
+/// propagates). The explicit-vector kernel issues the next block's first half before this
+/// block's second, so its divisions overlap the multiply-adds.
+#[inline(always)]
+fn nsrm3_front<A: Arith>(gain: &[A; 3], x: [A; 3]) -> NsrmSignal<A> {
+    let (cr, cg, cb) = (x[0].mul(gain[0]), x[1].mul(gain[1]), x[2].mul(gain[2]));
+    let s = cr.add(cg).add(cb);
+    NsrmSignal {
+        cr,
+        cg,
+        s,
+        r: cr.div(s),
+        g: cg.div(s),
+        black: s.le_zero(),
+    }
+}
+
+/// NSRM 3's second half: `s·(m0 + r·A + g·B + r·g·C)` with `s·r = R`, `s·g = G`, i.e. the terms
+/// 1 r g r² g² rg r³ g³ rg² r²g as `m0·s + R·A + G·B + (R·g)·C`, `A = m1 + r(m3 + r·m6)`,
+/// `B = m2 + g(m4 + g·m7)`, `C = m5 + g·m8 + r·m9`: 9 multiply-adds and 1 multiply a channel.
+#[inline(always)]
+fn nsrm3_back<A: Arith>(m: &[[A; 10]; 3], p: NsrmSignal<A>, fma: bool) -> [A; 3] {
+    let NsrmSignal {
+        cr,
+        cg,
+        s,
+        r,
+        g,
+        black,
+    } = p;
+    let rg = cr.mul(g);
+    let mut y = [s; 3];
+    for (yk, m) in y.iter_mut().zip(m) {
+        let a = r.madd(r.madd(m[6], m[3], fma), m[1], fma);
+        let b = g.madd(g.madd(m[7], m[4], fma), m[2], fma);
+        let c = r.madd(m[9], g.madd(m[8], m[5], fma), fma);
+        let v = cr.madd(a, m[0].mul(s), fma);
+        let v = cg.madd(b, v, fma);
+        let v = rg.madd(c, v, fma);
+        *yk = v.zero_where(black);
+    }
+    y
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -1578,7 +1706,7 @@ mod tests {
             }
         }
         check::<Linear, 3>(|m| Linear { m });
-        check::<Prm3, 19>(|m| Prm3 { m });
+        check::<Prm3, 19>(|m| Prm3 { m, avx2: None });
         check::<Rprm3, 13>(|m| Rprm3 { m });
         check::<Nsrm3, 10>(|m| Nsrm3 {
             m,

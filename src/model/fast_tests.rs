@@ -304,16 +304,18 @@ fn empty_frame_is_fine() {
     assert!(f.data.is_empty());
 }
 
-/// NSRM 3 on packed RGB through the explicit-vector kernel (`fast/nsrm_avx2.rs`, where this
-/// CPU runs it) gives the per-pixel kernel's bits: every size around its 8-pixel blocks and the
-/// chunk edge, awkward pixels (NaN, ±∞, subnormals, `s ≤ 0`, huge values), unit and white-balance
-/// gains, in place and into, one thread and all.
+/// NSRM 3 and PRM 3 on packed RGB through the explicit-vector kernels (`fast/avx2.rs`, where this
+/// CPU runs them) give the per-pixel kernels' bits: every size around their 8-pixel blocks and
+/// the chunk edge, awkward pixels (NaN, ±∞, subnormals, `s ≤ 0`, huge values: PRM 3's blocks
+/// that take the exact path), unit and white-balance gains, in place and into, one thread and
+/// all.
 #[test]
-fn nsrm3_explicit_vectors_give_the_per_pixel_kernels_bits() {
+fn explicit_vectors_give_the_per_pixel_kernels_bits() {
     let bits = |f: &Frame| f.data.iter().map(|v| v.to_bits()).collect::<Vec<u32>>();
     let models = [
         fit(Kind::Nsrm, 3, training()).unwrap(),
         white_balanced_nsrm().remove(2),
+        fit(Kind::Prm, 3, training()).unwrap(),
     ];
     let chunk = super::fast::CHUNK_PIXELS;
     let sizes = [
@@ -333,7 +335,7 @@ fn nsrm3_explicit_vectors_give_the_per_pixel_kernels_bits() {
     ];
     for model in &models {
         let fast = FastModel::new(model);
-        assert_eq!(fast.kernel_name(), "nsrm3");
+        assert!(["nsrm3", "prm3"].contains(&fast.kernel_name()));
         println!(
             "{} {}: explicit vectors {}",
             model.kind(),

@@ -1,12 +1,15 @@
 //! Criterion benches of the CPU frame path (`Model::apply_frame`, the fast f32 kernels of
 //! `src/model/fast.rs`) on one thread (a one-thread rayon pool) and on rayon's global pool,
 //! beside a memcpy of the same bytes (the ceiling a per-pixel kernel can reach). Throughput is in
-//! pixels (`elem/s`). Two families:
+//! pixels (`elem/s`). Two families, and the baseline code:
 //! * `hand/…`: the programs a hand-written kernel declares (LRM, PRM 3, RPRM 3, NSRM 3);
 //! * `plan/…`: programs no hand-written kernel matches, run by the generic product plan
 //!   (`BlockKernel for Plan`): PRM, RPRM and NSRM at orders 2 and 4, and white-balanced NSRM 2
 //!   (its gain step). Which kernel each model gets is pinned by the unit test
 //!   `every_standard_model_gets_a_kernel_and_plans_fit` in `src/model/fast.rs`.
+//! * `baseline/…`: the hand-written kernels' baseline code on one thread (no FMA; NSRM 3 and
+//!   PRM 3 run their SSE2 kernels), what a CPU without AVX2 + FMA runs and what
+//!   `FastModel::apply_baseline` runs on any CPU.
 //!
 //! The frame (2048×2048 packed RGB f32, 48 MiB) is larger than the caches. Each kernel run
 //! corrects a fresh copy of it in place (the copy is made, and its pages faulted, outside the
@@ -16,7 +19,7 @@
 
 use criterion::{criterion_group, criterion_main, BatchSize, Criterion, Throughput};
 use nsrm::{fit_with, simulate_named, FitOptions, Grid, Kind, Normalise};
-use nsrm::{Frame, Layout};
+use nsrm::{FastModel, Frame, Layout, Threads};
 use std::hint::black_box;
 use std::time::Duration;
 
@@ -82,6 +85,18 @@ fn kernels(c: &mut Criterion) {
                 b.iter_batched_ref(
                     || src.clone(),
                     |frame| pool.install(|| model.apply_frame(black_box(frame))),
+                    BatchSize::LargeInput,
+                )
+            });
+        }
+        if family == "hand" {
+            // The baseline code (no FMA; SSE2 kernels for NSRM 3 and PRM 3): what a CPU without
+            // AVX2 + FMA runs, and what `FastModel::apply_baseline` runs on any CPU.
+            let fast = FastModel::new(&model);
+            g.bench_function(format!("baseline/{}{order}/1t", kind.name()), |b| {
+                b.iter_batched_ref(
+                    || src.clone(),
+                    |frame| fast.apply_baseline(black_box(frame), Threads::Single),
                     BatchSize::LargeInput,
                 )
             });

@@ -66,14 +66,14 @@ use rayon::prelude::*;
 use std::collections::HashMap;
 
 #[cfg(target_arch = "x86_64")]
-mod avx2;
+mod explicit;
 #[cfg(target_arch = "x86_64")]
-use avx2::{Avx2, Halves};
+use explicit::{Explicit, Halves};
 
 /// No explicit-vector kernels off x86-64 (the per-pixel kernels run).
 #[cfg(not(target_arch = "x86_64"))]
 #[derive(Debug, Clone, Copy)]
-enum Avx2 {}
+enum Explicit {}
 
 #[cfg(not(target_arch = "x86_64"))]
 trait Halves {}
@@ -81,9 +81,16 @@ trait Halves {}
 impl<K> Halves for K {}
 
 #[cfg(not(target_arch = "x86_64"))]
-impl Avx2 {
-    fn detect() -> Option<Avx2> {
+impl Explicit {
+    fn detect() -> Option<Explicit> {
         None
+    }
+    fn baseline() -> Option<Explicit> {
+        None
+    }
+    #[cfg(test)]
+    fn name(self) -> &'static str {
+        match self {}
     }
     fn into<K>(self, _: &K, _: &[f32], _: &mut [f32]) {
         match self {}
@@ -177,10 +184,13 @@ enum Code {
     /// The baseline clone: no fused multiply-add, so the same bits on every CPU.
     #[cfg_attr(not(test), allow(dead_code))] // only the tests run the baseline clone directly
     Baseline,
-    /// The detected clone of the per-pixel kernels, never the explicit-vector kernels
-    /// ([`Avx2`]): what the tests hold their bits to.
+    /// [`Detected`](Self::Detected) through the per-pixel kernels only, never the explicit-vector
+    /// ones ([`Explicit`]): what the tests hold their bits to.
     #[cfg_attr(not(test), allow(dead_code))]
     PixelLoop,
+    /// [`Baseline`](Self::Baseline) through the per-pixel kernels only.
+    #[cfg_attr(not(test), allow(dead_code))]
+    BaselinePixelLoop,
 }
 
 /// Which monomorphised kernel a model runs.
@@ -230,10 +240,12 @@ impl FastModel {
     }
 
     /// [`apply`](Self::apply) with the baseline code on any CPU: no fused multiply-add, so the
-    /// output is the same bits on every machine (the detected AVX2 + FMA clone rounds some
-    /// multiply-adds once instead of twice). Both stay within the bounds of `fast_tests.rs`.
-    #[cfg(test)]
-    pub(crate) fn apply_baseline(&self, frame: &mut Frame, threads: Threads) {
+    /// output is the same bits on every x86-64 machine (the detected AVX2 + FMA code rounds some
+    /// multiply-adds once instead of twice), for a render farm whose hosts must agree bit for
+    /// bit. Both stay within the bounds of the f64 reference that `fast_tests.rs` holds them to.
+    /// On packed RGB, NSRM 3 and PRM 3 run their SSE2 kernels here; the others their per-pixel
+    /// code compiled for baseline x86-64.
+    pub fn apply_baseline(&self, frame: &mut Frame, threads: Threads) {
         self.apply_code(frame, threads, Code::Baseline)
     }
 
@@ -244,13 +256,20 @@ impl FastModel {
         self.apply_code(frame, threads, Code::PixelLoop)
     }
 
-    /// Whether this model on packed RGB runs an explicit-vector kernel on this CPU.
+    /// [`apply_baseline`](Self::apply_baseline) through the per-pixel kernels only.
     #[cfg(test)]
-    pub(crate) fn runs_explicit_vectors(&self) -> bool {
+    pub(crate) fn apply_baseline_pixel_loop(&self, frame: &mut Frame, threads: Threads) {
+        self.apply_code(frame, threads, Code::BaselinePixelLoop)
+    }
+
+    /// The explicit-vector kernel this model runs on packed RGB on this CPU, if any.
+    #[cfg(test)]
+    pub(crate) fn explicit_vectors(&self) -> Option<&'static str> {
         match &self.kernel {
-            Kernel::Nsrm3(k) => k.avx2.is_some(),
-            Kernel::Prm3(k) => k.avx2.is_some(),
-            _ => false,
+            Kernel::Nsrm3(Nsrm3 { explicit, .. }) | Kernel::Prm3(Prm3 { explicit, .. }) => {
+                explicit.map(Explicit::name)
+            }
+            _ => None,
         }
     }
 
@@ -324,9 +343,9 @@ impl FastModel {
         let h = self.highlights.as_ref();
         match &self.kernel {
             Kernel::Linear(k) => in_place::<_, C>(k, h, data, threads, code),
-            Kernel::Prm3(k) => in_place_explicit::<_, C>(k, k.avx2, h, data, threads, code),
+            Kernel::Prm3(k) => in_place_explicit::<_, C>(k, k.explicit, h, data, threads, code),
             Kernel::Rprm3(k) => in_place::<_, C>(k, h, data, threads, code),
-            Kernel::Nsrm3(k) => in_place_explicit::<_, C>(k, k.avx2, h, data, threads, code),
+            Kernel::Nsrm3(k) => in_place_explicit::<_, C>(k, k.explicit, h, data, threads, code),
             Kernel::Plan(k) => in_place::<_, C>(&Blocks(&**k), h, data, threads, code),
         }
     }
@@ -339,9 +358,9 @@ impl FastModel {
         }
         match &self.kernel {
             Kernel::Linear(k) => into::<_, C>(k, src, dst, threads),
-            Kernel::Prm3(k) => into_explicit::<_, C>(k, k.avx2, src, dst, threads),
+            Kernel::Prm3(k) => into_explicit::<_, C>(k, k.explicit, src, dst, threads),
             Kernel::Rprm3(k) => into::<_, C>(k, src, dst, threads),
-            Kernel::Nsrm3(k) => into_explicit::<_, C>(k, k.avx2, src, dst, threads),
+            Kernel::Nsrm3(k) => into_explicit::<_, C>(k, k.explicit, src, dst, threads),
             Kernel::Plan(k) => into::<_, C>(&Blocks(&**k), src, dst, threads),
         }
     }
@@ -358,7 +377,7 @@ impl Kernel {
         } else if let Some(m) = columns::<Prm3, 19>(program, matrix) {
             Kernel::Prm3(Prm3 {
                 m,
-                avx2: Avx2::detect(),
+                explicit: Explicit::detect(),
             })
         } else if let Some(m) = columns::<Rprm3, 13>(program, matrix) {
             Kernel::Rprm3(Rprm3 { m })
@@ -367,7 +386,7 @@ impl Kernel {
             Kernel::Nsrm3(Nsrm3 {
                 m,
                 gain: gains.map(|v| v as f32),
-                avx2: Avx2::detect(),
+                explicit: Explicit::detect(),
             })
         } else {
             Kernel::Plan(Box::new(Plan::new(program, matrix, gains)))
@@ -696,7 +715,7 @@ fn in_place<K: Chunks, const C: usize>(
     chunked_in_place::<C>(highlights, data, threads, |chunk| match code {
         Code::Detected | Code::PixelLoop if K::AVX512 => chunk_in_place::<K, C>(k, chunk),
         Code::Detected | Code::PixelLoop => chunk_in_place_avx2::<K, C>(k, chunk),
-        Code::Baseline => k.run_in_place::<C>(chunk, false),
+        Code::Baseline | Code::BaselinePixelLoop => k.run_in_place::<C>(chunk, false),
     })
 }
 
@@ -721,34 +740,38 @@ fn chunked_in_place<const C: usize>(
     }
 }
 
-/// [`in_place`], through the explicit-vector kernel where the CPU has one (`avx2`), the data is
-/// packed RGB and the detected code runs.
+/// [`in_place`], through an explicit-vector kernel where the data is packed RGB and one stands
+/// for the code that runs: `detected` (this CPU's, [`Explicit::detect`]) for the detected code,
+/// SSE2 for the baseline.
 fn in_place_explicit<K: Chunks + Halves, const C: usize>(
     k: &K,
-    avx2: Option<Avx2>,
+    detected: Option<Explicit>,
     highlights: Option<&super::highlights::HighlightsF32>,
     data: &mut [f32],
     threads: Threads,
     code: Code,
 ) {
-    match (C, code, avx2) {
-        (3, Code::Detected, Some(v)) => {
-            chunked_in_place::<C>(highlights, data, threads, |c| v.in_place(k, c))
-        }
+    let explicit = match code {
+        Code::Detected => detected,
+        Code::Baseline => Explicit::baseline(),
+        Code::PixelLoop | Code::BaselinePixelLoop => None,
+    };
+    match (C, explicit) {
+        (3, Some(e)) => chunked_in_place::<C>(highlights, data, threads, |c| e.in_place(k, c)),
         _ => in_place::<_, C>(k, highlights, data, threads, code),
     }
 }
 
-/// [`into`], through the explicit-vector kernel where the CPU has one and the data is packed RGB.
+/// [`into`], through this CPU's explicit-vector kernel (`detected`) where the data is packed RGB.
 fn into_explicit<K: Chunks + Halves, const C: usize>(
     k: &K,
-    avx2: Option<Avx2>,
+    detected: Option<Explicit>,
     src: &[f32],
     dst: &mut [f32],
     threads: Threads,
 ) {
-    match (C, avx2) {
-        (3, Some(v)) => chunked_into::<C>(src, dst, threads, |s, d| v.into(k, s, d)),
+    match (C, detected) {
+        (3, Some(e)) => chunked_into::<C>(src, dst, threads, |s, d| e.into(k, s, d)),
         _ => into::<_, C>(k, src, dst, threads),
     }
 }
@@ -827,7 +850,7 @@ fn madd(a: f32, b: f32, c: f32, fma: bool) -> f32 {
 
 /// The arithmetic the hand-written kernels' formulas are written in, so that one text serves the
 /// per-pixel loop (`f32`, which LLVM's loop vectoriser widens) and the explicit-vector kernels
-/// (`fast/avx2.rs`: a register of 8 pixels): the same operations in the same order give the same
+/// (`fast/explicit.rs`: a register of 8 pixels): the same operations in the same order give the same
 /// bits.
 trait Arith: Copy {
     /// Per-lane truth: `bool` for `f32`, a lane mask for a register.
@@ -1058,8 +1081,8 @@ impl PixelKernel for Linear {
 #[derive(Debug, Clone)]
 struct Prm3 {
     m: [[f32; 19]; 3],
-    /// The explicit-vector kernel for packed RGB, where this CPU runs it.
-    avx2: Option<Avx2>,
+    /// This CPU's explicit-vector kernel for packed RGB, if any.
+    explicit: Option<Explicit>,
 }
 
 impl Declared for Prm3 {
@@ -1260,8 +1283,8 @@ impl PixelKernel for Rprm3 {
 struct Nsrm3 {
     m: [[f32; 10]; 3],
     gain: [f32; 3],
-    /// The explicit-vector kernel for packed RGB, where this CPU runs it.
-    avx2: Option<Avx2>,
+    /// This CPU's explicit-vector kernel for packed RGB, if any.
+    explicit: Option<Explicit>,
 }
 
 impl Declared for Nsrm3 {
@@ -1706,12 +1729,12 @@ mod tests {
             }
         }
         check::<Linear, 3>(|m| Linear { m });
-        check::<Prm3, 19>(|m| Prm3 { m, avx2: None });
+        check::<Prm3, 19>(|m| Prm3 { m, explicit: None });
         check::<Rprm3, 13>(|m| Rprm3 { m });
         check::<Nsrm3, 10>(|m| Nsrm3 {
             m,
             gain: [1.0; 3],
-            avx2: None,
+            explicit: None,
         });
     }
 

@@ -304,11 +304,11 @@ fn empty_frame_is_fine() {
     assert!(f.data.is_empty());
 }
 
-/// NSRM 3 and PRM 3 on packed RGB through the explicit-vector kernels (`fast/avx2.rs`, where this
-/// CPU runs them) give the per-pixel kernels' bits: every size around their 8-pixel blocks and
-/// the chunk edge, awkward pixels (NaN, ±∞, subnormals, `s ≤ 0`, huge values: PRM 3's blocks
-/// that take the exact path), unit and white-balance gains, in place and into, one thread and
-/// all.
+/// NSRM 3 and PRM 3 on packed RGB through the explicit-vector kernels (`fast/explicit.rs`) give
+/// the per-pixel kernels' bits, for the detected code (AVX2 + FMA where this CPU runs it) and the
+/// baseline (SSE2): every size around their 8-pixel blocks and the chunk edge, awkward pixels
+/// (NaN, ±∞, subnormals, `s ≤ 0`, huge values: PRM 3's blocks that take the exact path), unit and
+/// white-balance gains, in place and into, one thread and all.
 #[test]
 fn explicit_vectors_give_the_per_pixel_kernels_bits() {
     let bits = |f: &Frame| f.data.iter().map(|v| v.to_bits()).collect::<Vec<u32>>();
@@ -337,19 +337,17 @@ fn explicit_vectors_give_the_per_pixel_kernels_bits() {
         let fast = FastModel::new(model);
         assert!(["nsrm3", "prm3"].contains(&fast.kernel_name()));
         println!(
-            "{} {}: explicit vectors {}",
+            "{} {}: explicit vectors for the detected code here: {:?}",
             model.kind(),
             model.order(),
-            if fast.runs_explicit_vectors() {
-                "run here"
-            } else {
-                "do not run on this CPU"
-            }
+            fast.explicit_vectors()
         );
         for (n, &w) in sizes.iter().enumerate() {
             let input = random_frame(w, 1, Layout::Rgb, 7000 + n as u64);
             let mut want = input.clone();
             fast.apply_pixel_loop(&mut want, Threads::Single);
+            let mut want_baseline = input.clone();
+            fast.apply_baseline_pixel_loop(&mut want_baseline, Threads::Single);
             for threads in [Threads::Single, Threads::All] {
                 let mut got = input.clone();
                 fast.apply(&mut got, threads);
@@ -357,6 +355,13 @@ fn explicit_vectors_give_the_per_pixel_kernels_bits() {
                 let mut into = Frame::new(w, 1, Layout::Rgb);
                 fast.apply_into(&input, &mut into, threads).unwrap();
                 assert_eq!(bits(&into), bits(&want), "into, {w} pixels");
+                let mut baseline = input.clone();
+                fast.apply_baseline(&mut baseline, threads);
+                assert_eq!(
+                    bits(&baseline),
+                    bits(&want_baseline),
+                    "baseline, {w} pixels"
+                );
             }
         }
     }

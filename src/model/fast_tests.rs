@@ -307,8 +307,8 @@ fn empty_frame_is_fine() {
 /// NSRM 3 and PRM 3 on packed RGB through the explicit-vector kernels (`fast/explicit.rs`) give
 /// the per-pixel kernels' bits, for the detected code (AVX2 + FMA where this CPU runs it) and the
 /// baseline (SSE2): every size around their 8-pixel blocks and the chunk edge, awkward pixels
-/// (NaN, ±∞, subnormals, `s ≤ 0`, huge values: PRM 3's blocks that take the exact path), unit and
-/// white-balance gains, in place and into, one thread and all.
+/// (NaN, ±∞, subnormals, `s ≤ 0`, huge values: the PRM 3 blocks that take the exact path), unit
+/// and white-balance gains, in place and into, one thread and all.
 #[test]
 fn explicit_vectors_give_the_per_pixel_kernels_bits() {
     let bits = |f: &Frame| f.data.iter().map(|v| v.to_bits()).collect::<Vec<u32>>();
@@ -342,8 +342,23 @@ fn explicit_vectors_give_the_per_pixel_kernels_bits() {
             model.order(),
             fast.explicit_vectors()
         );
-        for (n, &w) in sizes.iter().enumerate() {
-            let input = random_frame(w, 1, Layout::Rgb, 7000 + n as u64);
+        // Awkward pixels throughout, and ordinary ones (camera values, some negative, with one
+        // awkward pixel in about 50) so that most blocks take the register path.
+        let frames = sizes.iter().enumerate().flat_map(|(n, &w)| {
+            let awkward = random_frame(w, 1, Layout::Rgb, 7000 + n as u64);
+            let mut rng = Rng(9000 + n as u64);
+            let mut ordinary = awkward.clone();
+            for p in ordinary.data.chunks_exact_mut(3) {
+                if rng.below(50) != 0 {
+                    for v in p {
+                        *v = rng.range(-0.05, 4.0);
+                    }
+                }
+            }
+            [awkward, ordinary]
+        });
+        for input in frames {
+            let w = input.width;
             let mut want = input.clone();
             fast.apply_pixel_loop(&mut want, Threads::Single);
             let mut want_baseline = input.clone();

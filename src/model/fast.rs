@@ -33,6 +33,14 @@
 //!   The generic kernel stops at AVX2: its lane arrays ran 20–30 % slower in the AVX-512 clone.
 //!   Only the FMA clones fuse multiply-adds (`madd`); the baseline never calls libm's software
 //!   `fmaf`.
+//! * NSRM 3 and PRM 3 on packed RGB have explicit-vector kernels (`fast/explicit.rs`, x86-64):
+//!   AVX2 + FMA on a CPU without AVX-512, SSE2 where the CPU has no AVX2 + FMA and for the
+//!   baseline code. They de-interleave with in-lane shuffles only and issue the next block's
+//!   divisions before this block's multiply-adds (1.7× NSRM 3's per-pixel loop, 1.3× PRM 3's, a
+//!   thread in L2 on AMD Zen 3; see BENCHMARKS.md). Their arithmetic is the per-pixel kernels'
+//!   own text — [`nsrm3_front`], [`nsrm3_back`] and [`prm3_nested`] are generic over [`Arith`]:
+//!   `f32`, or a register of 8 pixels — so they give the same bits. The intrinsics are `pulp`'s
+//!   safe wrappers.
 //! * What a kernel computes is read from the model's pixel program ([`super::pixel::Program`],
 //!   the one description of the per-pixel policy and terms). LRM (also PRM 1 and RPRM 1, the same
 //!   three terms), PRM 3, RPRM 3 and NSRM 3 have hand-written kernels; each declares the steps and

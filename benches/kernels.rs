@@ -14,7 +14,8 @@
 //! The frame (2048×2048 packed RGB f32, 48 MiB) is larger than the caches. Each kernel run
 //! corrects a fresh copy of it in place (the copy is made, and its pages faulted, outside the
 //! timing), so a run reads and writes 48 MiB like the memcpy into a separate pre-faulted buffer,
-//! done in the fast path's 64 Ki-pixel chunks on the same threads. `cargo bench --bench kernels`;
+//! done in the fast path's 64 Ki-pixel chunks on the same threads (`memcpy/…`; `memcpy-fresh/…`
+//! copies out of a fresh copy, in the cache state the kernels' input is in). `cargo bench --bench kernels`;
 //! `nsrm bench` measures the crate's kernels (into a second frame) in one run and prints ratios.
 
 use criterion::{criterion_group, criterion_main, BatchSize, Criterion, Throughput};
@@ -58,6 +59,19 @@ fn kernels(c: &mut Criterion) {
                     memcpy_chunked(black_box(&src.data), &mut dst.data, CHUNK_FLOATS, true)
                 })
             })
+        });
+        // The same copy out of a fresh copy of the frame, as the kernels below get theirs: its
+        // last-written lines are still in the caches, dirty, and evicting them is in the timing.
+        g.bench_function(format!("memcpy-fresh/{name}"), |b| {
+            b.iter_batched_ref(
+                || src.clone(),
+                |frame| {
+                    pool.install(|| {
+                        memcpy_chunked(black_box(&frame.data), &mut dst.data, CHUNK_FLOATS, true)
+                    })
+                },
+                BatchSize::LargeInput,
+            )
         });
     }
     let plain = FitOptions::default();

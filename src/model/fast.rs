@@ -1,9 +1,11 @@
-//! The fast CPU apply path: f32, vectorised by the compiler, multi-threaded with rayon.
+//! The fast CPU apply path: f32, vectorised (by the compiler, and by hand for NSRM 3 and PRM 3),
+//! multi-threaded with rayon.
 //!
-//! Why one file (about 1,600 lines): the four kernels (LRM, PRM, RPRM, NSRM) share the chunking,
+//! Why one file (about 1,850 lines): the four kernels (LRM, PRM, RPRM, NSRM) share the chunking,
 //! the pixel policy and the prepared-matrix layout, and are checked against each other and against
 //! the f64 reference by the same tests (`fast_tests.rs` and the module below); splitting them would
-//! put the one pixel policy in four places.
+//! put the one pixel policy in four places. What is apart is what has its own subject: the
+//! explicit-vector drivers and registers (`fast/explicit.rs`), which call the formulas here.
 //!
 //! [`apply_frame`] (every thread of rayon's global pool) and [`apply_frame_single`] (the calling
 //! thread only) correct a [`Frame`] in place; [`FastModel`] holds the prepared kernel for repeated
@@ -21,15 +23,16 @@
 //!   lane arrays and interleaving those back, as this module did before, made LLVM spill the
 //!   results to the stack and reload them at odd offsets: store-forwarding stalls that cost more
 //!   than PRM 3's arithmetic.)
-//! * PRM 3's nested form is only right on finite pixels: its loop goes 16 pixels at a time with
-//!   one cheap test (every value below `f32::MAX / 4`, no shuffles); a block of [`LANES`] pixels
+//! * PRM 3's nested form is only right on finite pixels: its per-pixel loop goes 16 pixels at a
+//!   time with one cheap test (every value below `f32::MAX / 4`, no shuffles); a block of [`LANES`] pixels
 //!   with a non-finite pixel, or one whose `R + G + B` overflows, takes the term sums instead.
 //! * The generic kernel (`BlockKernel`) works on blocks of [`LANES`] pixels de-interleaved into
 //!   one fixed-size array per channel (`[f32; LANES]`); its last partial block goes through a
 //!   zero-padded copy.
 //! * The chunk loops are compiled with the `multiversion` crate for baseline x86-64, AVX2 + FMA
 //!   and (the per-pixel kernels only) AVX-512 (F + VL: 16 pixels per register, two-source permutes
-//!   for the de-interleave), and the CPU is detected once at run time (safe code: no intrinsics).
+//!   for the de-interleave), and the CPU is detected once at run time (safe code, no intrinsics:
+//!   the loop vectoriser does the rest).
 //!   The generic kernel stops at AVX2: its lane arrays ran 20–30 % slower in the AVX-512 clone.
 //!   Only the FMA clones fuse multiply-adds (`madd`); the baseline never calls libm's software
 //!   `fmaf`.
@@ -39,8 +42,9 @@
 //!   divisions before this block's multiply-adds (1.7× NSRM 3's per-pixel loop, 1.3× PRM 3's, a
 //!   thread in L2 on AMD Zen 3; see BENCHMARKS.md). Their arithmetic is the per-pixel kernels'
 //!   own text — [`nsrm3_front`], [`nsrm3_back`] and [`prm3_nested`] are generic over [`Arith`]:
-//!   `f32`, or a register of 8 pixels — so they give the same bits. The intrinsics are `pulp`'s
-//!   safe wrappers.
+//!   `f32`, or a register of 8 pixels — so they give the same bits (NaN payloads aside: where two
+//!   different NaNs meet, which one comes out is the compiler's choice on either path; a NaN stays
+//!   a NaN). The intrinsics are `pulp`'s safe wrappers, so the crate still has no `unsafe`.
 //! * What a kernel computes is read from the model's pixel program ([`super::pixel::Program`],
 //!   the one description of the per-pixel policy and terms). LRM (also PRM 1 and RPRM 1, the same
 //!   three terms), PRM 3, RPRM 3 and NSRM 3 have hand-written kernels; each declares the steps and
@@ -94,6 +98,9 @@ impl Explicit {
         None
     }
     fn baseline() -> Option<Explicit> {
+        None
+    }
+    fn avx2() -> Option<Explicit> {
         None
     }
     #[cfg(test)]
@@ -189,8 +196,9 @@ pub(crate) fn apply_frame_single(model: &Model, frame: &mut Frame) {
 enum Code {
     /// The clone for this CPU, detected at run time (AVX2 + FMA where present).
     Detected,
-    /// The baseline clone: no fused multiply-add, so the same bits on every CPU.
-    #[cfg_attr(not(test), allow(dead_code))] // only the tests run the baseline clone directly
+    /// The baseline code: no fused multiply-add, so the same bits on every CPU (the per-pixel
+    /// kernels' baseline clone, the SSE2 explicit-vector kernels for NSRM 3 and PRM 3 on packed
+    /// RGB); [`FastModel::apply_baseline`].
     Baseline,
     /// [`Detected`](Self::Detected) through the per-pixel kernels only, never the explicit-vector
     /// ones ([`Explicit`]): what the tests hold their bits to.
@@ -199,6 +207,11 @@ enum Code {
     /// [`Baseline`](Self::Baseline) through the per-pixel kernels only.
     #[cfg_attr(not(test), allow(dead_code))]
     BaselinePixelLoop,
+    /// The AVX2 + FMA explicit-vector kernels wherever the CPU has AVX2 + FMA, AVX-512 included
+    /// (where [`Detected`](Self::Detected) does not choose them): so the tests hold their bits to
+    /// the per-pixel FMA code's on every such CPU. Else as `Detected`.
+    #[cfg_attr(not(test), allow(dead_code))]
+    ForcedAvx2,
 }
 
 /// Which monomorphised kernel a model runs.
@@ -268,6 +281,15 @@ impl FastModel {
     #[cfg(test)]
     pub(crate) fn apply_baseline_pixel_loop(&self, frame: &mut Frame, threads: Threads) {
         self.apply_code(frame, threads, Code::BaselinePixelLoop)
+    }
+
+    /// [`apply`](Self::apply) through the AVX2 + FMA explicit-vector kernels even where they are
+    /// not chosen (an AVX-512 CPU); false (and [`apply`](Self::apply)'s code) where the CPU has
+    /// no AVX2 + FMA.
+    #[cfg(test)]
+    pub(crate) fn apply_forced_avx2(&self, frame: &mut Frame, threads: Threads) -> bool {
+        self.apply_code(frame, threads, Code::ForcedAvx2);
+        Explicit::avx2().is_some()
     }
 
     /// The explicit-vector kernel this model runs on packed RGB on this CPU, if any.
@@ -460,7 +482,8 @@ fn columns<K: Declared, const L: usize>(
 // ---------------------------------------------------------------------------------------------
 
 /// How a kernel runs over one chunk. Every implementation is `#[inline(always)]`, so it is
-/// compiled into each multiversioned clone of [`chunk_in_place`] / [`chunk_into`].
+/// compiled into each multiversioned clone of [`chunk_in_place`] / [`chunk_into`] (and, for the
+/// explicit-vector kernels' slow path, into their `vectorize` functions).
 trait Chunks: Sync {
     /// Whether the AVX-512 clone runs this kernel where the CPU has it: true for the pixel
     /// kernels; the block kernels' lane arrays of 8 measured 20–30 % slower there than in the
@@ -721,8 +744,12 @@ fn in_place<K: Chunks, const C: usize>(
     code: Code,
 ) {
     chunked_in_place::<C>(highlights, data, threads, |chunk| match code {
-        Code::Detected | Code::PixelLoop if K::AVX512 => chunk_in_place::<K, C>(k, chunk),
-        Code::Detected | Code::PixelLoop => chunk_in_place_avx2::<K, C>(k, chunk),
+        Code::Detected | Code::PixelLoop | Code::ForcedAvx2 if K::AVX512 => {
+            chunk_in_place::<K, C>(k, chunk)
+        }
+        Code::Detected | Code::PixelLoop | Code::ForcedAvx2 => {
+            chunk_in_place_avx2::<K, C>(k, chunk)
+        }
         Code::Baseline | Code::BaselinePixelLoop => k.run_in_place::<C>(chunk, false),
     })
 }
@@ -762,6 +789,7 @@ fn in_place_explicit<K: Chunks + Halves, const C: usize>(
     let explicit = match code {
         Code::Detected => detected,
         Code::Baseline => Explicit::baseline(),
+        Code::ForcedAvx2 => Explicit::avx2().or(detected),
         Code::PixelLoop | Code::BaselinePixelLoop => None,
     };
     match (C, explicit) {
@@ -813,7 +841,8 @@ fn chunked_into<const C: usize>(
 // (F + VL, which add two-source permutes and 32 vector registers), chosen at run time (the
 // `multiversion` crate detects the CPU once; no `unsafe` here). The baseline body is also called
 // directly (`fma = false`, not inlined into a feature-enabled clone): that is what
-// [`FastModel::apply_baseline`] runs.
+// [`FastModel::apply_baseline`] runs (but for NSRM 3 and PRM 3 on packed RGB, whose SSE2 kernels
+// give the same bits).
 #[multiversion::multiversion(targets("x86_64+avx2+fma+avx512f+avx512vl", "x86_64+avx2+fma"))]
 fn chunk_in_place<K: Chunks, const C: usize>(k: &K, data: &mut [f32]) {
     const FMA: bool = multiversion::target::selected_target!().supports_feature_str("fma");
@@ -866,7 +895,8 @@ trait Arith: Copy {
     fn mul(self, b: Self) -> Self;
     fn add(self, b: Self) -> Self;
     fn div(self, b: Self) -> Self;
-    /// `self·b + c`: fused where `fma` ([`madd`]; a register is always fused).
+    /// `self·b + c`: fused where `fma` ([`madd`]); a register is fused or not by its kind (the
+    /// AVX2 + FMA one always, the SSE2 one never), as the code it stands for.
     fn madd(self, b: Self, c: Self, fma: bool) -> Self;
     /// `self ≤ 0` (false for NaN).
     fn le_zero(self) -> Self::Mask;

@@ -305,13 +305,27 @@ fn empty_frame_is_fine() {
 }
 
 /// NSRM 3 and PRM 3 on packed RGB through the explicit-vector kernels (`fast/explicit.rs`) give
-/// the per-pixel kernels' bits, for the detected code (AVX2 + FMA where this CPU runs it) and the
-/// baseline (SSE2): every size around their 8-pixel blocks and the chunk edge, awkward pixels
+/// the per-pixel kernels' bits (NaN payloads aside: NaN where they give NaN), for the detected
+/// code, the AVX2 + FMA kernels wherever the CPU has AVX2 + FMA (forced on an AVX-512 CPU, where
+/// they are not chosen) and the baseline (SSE2): every size around their 8-pixel blocks and the chunk edge, awkward pixels
 /// (NaN, ±∞, subnormals, `s ≤ 0`, huge values: the PRM 3 blocks that take the exact path), unit
 /// and white-balance gains, in place and into, one thread and all.
 #[test]
 fn explicit_vectors_give_the_per_pixel_kernels_bits() {
-    let bits = |f: &Frame| f.data.iter().map(|v| v.to_bits()).collect::<Vec<u32>>();
+    // Every NaN one value: where two different NaNs meet, which comes out is the compiler's
+    // choice on either path.
+    let bits = |f: &Frame| {
+        f.data
+            .iter()
+            .map(|v| if v.is_nan() { u32::MAX } else { v.to_bits() })
+            .collect::<Vec<u32>>()
+    };
+    let mixed = [
+        [f32::INFINITY, f32::NEG_INFINITY, f32::NAN],
+        [f32::NAN, -f32::NAN, 1.0],
+        [f32::NEG_INFINITY, f32::NAN, -f32::NAN],
+        [f32::INFINITY, f32::INFINITY, f32::NEG_INFINITY],
+    ];
     let models = [
         fit(Kind::Nsrm, 3, training()).unwrap(),
         white_balanced_nsrm().remove(2),
@@ -343,16 +357,19 @@ fn explicit_vectors_give_the_per_pixel_kernels_bits() {
             fast.explicit_vectors()
         );
         // Awkward pixels throughout, and ordinary ones (camera values, some negative, with one
-        // awkward pixel in about 50) so that most blocks take the register path.
+        // awkward pixel in about 50, some with two or three different non-finite values) so that
+        // most blocks take the register path.
         let frames = sizes.iter().enumerate().flat_map(|(n, &w)| {
             let awkward = random_frame(w, 1, Layout::Rgb, 7000 + n as u64);
             let mut rng = Rng(9000 + n as u64);
             let mut ordinary = awkward.clone();
             for p in ordinary.data.chunks_exact_mut(3) {
                 if rng.below(50) != 0 {
-                    for v in p {
+                    for v in p.iter_mut() {
                         *v = rng.range(-0.05, 4.0);
                     }
+                } else if rng.below(2) == 0 {
+                    p.copy_from_slice(&mixed[rng.below(mixed.len() as u64)]);
                 }
             }
             [awkward, ordinary]
@@ -377,6 +394,10 @@ fn explicit_vectors_give_the_per_pixel_kernels_bits() {
                     bits(&want_baseline),
                     "baseline, {w} pixels"
                 );
+                let mut forced = input.clone();
+                if fast.apply_forced_avx2(&mut forced, threads) {
+                    assert_eq!(bits(&forced), bits(&want), "AVX2 + FMA, {w} pixels");
+                }
             }
         }
     }

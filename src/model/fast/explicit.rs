@@ -22,20 +22,22 @@
 //! operation is the per-pixel code's, in the same order — fused multiply-adds where the
 //! per-pixel code would run its AVX2 + FMA clone, a multiply and an add where it would run its
 //! baseline code — and the output is the same bits (`fast_tests.rs` checks both on frames of
-//! awkward pixels). A chunk's last partial block goes through the per-pixel code.
+//! awkward pixels; NaN payloads aside: where two different NaNs meet, which one comes out is the
+//! compiler's choice on either path). A chunk's last partial block goes through the per-pixel
+//! code.
 //!
 //! The intrinsics are [`pulp`]'s safe wrappers: `V3::try_new` / `V1::try_new` check the CPU
 //! once, and `vectorize` runs the loop inside a function compiled for that instruction set, so
 //! this crate keeps `forbid(unsafe_code)`. The loop is a [`NullaryFnOnce`] operation and
 //! everything it calls is `#[inline(always)]`, with no closures: a closure that LLVM does not
 //! inline is a function of its own, compiled without the instruction set, and every intrinsic in
-//! it stays a call (20–60× slower). On a CPU with AVX-512 the per-pixel kernels' AVX-512 clone
-//! (16 pixels a register, 32 registers) runs instead: these kernels were measured only where
-//! AVX-512 is absent.
+//! it stays a call (20–60× slower). On a CPU with AVX-512 F + VL the per-pixel kernels' own
+//! clone runs instead (the AVX-512 one, 16 pixels a register and 32 registers, where the CPU has
+//! everything that clone needs): these kernels were measured only where AVX-512 is absent.
 
 use super::{
-    chunk_in_place_avx2, chunk_into_avx2, guarded_block, nsrm3_back, nsrm3_front, prm3_nested,
-    Arith, Chunks, Nsrm3, NsrmSignal, Prm3, SUM_SAFE,
+    chunk_in_place_avx2, chunk_into_avx2, guarded_block, map_in_place, nsrm3_back, nsrm3_front,
+    prm3_nested, Arith, Chunks, Nsrm3, NsrmSignal, Prm3, SUM_SAFE,
 };
 use pulp::x86::{V1, V3};
 use pulp::NullaryFnOnce;
@@ -317,9 +319,9 @@ pub(super) trait Halves: Chunks {
     }
     fn front<R: Reg>(k: &Self::Splat<R>, x: [R; 3]) -> Self::Front<R>;
     fn back<R: Reg>(k: &Self::Splat<R>, f: Self::Front<R>) -> [R; 3];
-    /// A block that failed [`block_ok`](Self::block_ok), in place (`fma` as the registers').
-    #[inline(always)]
-    fn slow(&self, _blk: &mut [f32; FLOATS], _fma: bool) {}
+    /// A block that failed [`block_ok`](Self::block_ok), in place, as the per-pixel code does it
+    /// (`fma` as the registers').
+    fn slow(&self, blk: &mut [f32; FLOATS], fma: bool);
 }
 
 /// Broadcasts each of `m`'s values to a register.
@@ -352,6 +354,11 @@ impl Halves for Nsrm3 {
     #[inline(always)]
     fn back<R: Reg>((m, _): &Self::Splat<R>, f: NsrmSignal<R>) -> [R; 3] {
         nsrm3_back(m, f, R::FMA)
+    }
+    /// Never called (every block takes the register path); the per-pixel code all the same.
+    #[inline(always)]
+    fn slow(&self, blk: &mut [f32; FLOATS], fma: bool) {
+        map_in_place::<Nsrm3, 3, false>(self, blk, fma)
     }
 }
 
@@ -413,6 +420,12 @@ impl Explicit {
             Explicit::Avx2(_) => "AVX2 + FMA",
             Explicit::Sse2(_) => "SSE2",
         }
+    }
+
+    /// The AVX2 + FMA kernels wherever the CPU has what they need, AVX-512 or not (what the
+    /// tests run on an AVX-512 CPU).
+    pub(super) fn avx2() -> Option<Explicit> {
+        V3::try_new().map(Explicit::Avx2)
     }
 
     /// The kernels of the baseline code (no FMA: the same bits on every CPU).

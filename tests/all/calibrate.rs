@@ -25,7 +25,8 @@ fn calibrated() -> Option<&'static (PathBuf, String)> {
         if !dng.exists() {
             return None;
         }
-        let work = tempdir("calibrate");
+        // Shared by every test here, so never removed.
+        let work = tempdir("calibrate").keep();
         let out = nsrm_ok(
             &work,
             &[

@@ -149,16 +149,57 @@ pub fn stderr(o: &Output) -> String {
     String::from_utf8_lossy(&o.stderr).into_owned()
 }
 
-/// A fresh directory under the system's temporary directory, named for the test.
-pub fn tempdir(name: &str) -> PathBuf {
-    // Unique per call: tests run in parallel in one process, and two of them giving the same
-    // name once removed each other's files (`cli_chart` and `cli_eval_fit` both said "bad").
-    static NEXT: std::sync::atomic::AtomicUsize = std::sync::atomic::AtomicUsize::new(0);
-    let n = NEXT.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
-    let d = std::env::temp_dir().join(format!("nsrm-{name}-{}-{n}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&d);
-    std::fs::create_dir_all(&d).unwrap();
-    d
+/// A fresh directory under the system's temporary directory, named for the test, removed when
+/// the test ends (kept, and its path printed, when the test fails, to look at what it left).
+pub fn tempdir(name: &str) -> TestDir {
+    // Unique per call (tempfile's random suffix): tests run in parallel in one process, and two
+    // of them giving the same name once removed each other's files.
+    let dir = tempfile::Builder::new()
+        .prefix(&format!("nsrm-{name}-"))
+        .tempdir()
+        .unwrap();
+    TestDir(Some(dir))
+}
+
+/// [`tempdir`]'s directory: a [`Path`] that removes itself on drop unless the thread is
+/// panicking.
+pub struct TestDir(Option<tempfile::TempDir>);
+
+impl std::ops::Deref for TestDir {
+    type Target = Path;
+    fn deref(&self) -> &Path {
+        self.0.as_ref().expect("present until drop").path()
+    }
+}
+
+impl AsRef<Path> for TestDir {
+    fn as_ref(&self) -> &Path {
+        self
+    }
+}
+
+impl AsRef<std::ffi::OsStr> for TestDir {
+    fn as_ref(&self) -> &std::ffi::OsStr {
+        self.as_os_str()
+    }
+}
+
+impl TestDir {
+    /// The directory, never removed: for a fixture made once and shared by many tests through a
+    /// static, which outlives every test.
+    pub fn keep(mut self) -> PathBuf {
+        self.0.take().expect("present until drop").keep()
+    }
+}
+
+impl Drop for TestDir {
+    fn drop(&mut self) {
+        if let Some(dir) = self.0.take() {
+            if std::thread::panicking() {
+                eprintln!("kept for a failed test: {}", dir.keep().display());
+            }
+        }
+    }
 }
 
 /// Asserts no panic (101) and no abort (134 / SIGABRT) happened.

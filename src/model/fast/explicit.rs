@@ -428,7 +428,8 @@ pub(in crate::model) enum Explicit {
 impl Explicit {
     /// The kernels for the code this CPU runs ([`Code::Detected`](super::Code)): AVX2 + FMA
     /// where the CPU has it and not AVX-512, SSE2 where it has no AVX2 + FMA (so the per-pixel
-    /// code would run its baseline), none on an AVX-512 CPU (its per-pixel clone runs).
+    /// code would run its baseline), none on an AVX-512 CPU (its per-pixel clone runs: on an AMD
+    /// Zen 5 host the two ran NSRM 3 and PRM 3 alike, in L2 and on a frame; BENCHMARKS.md).
     pub(super) fn detect() -> Option<Explicit> {
         use std::arch::is_x86_feature_detected as has;
         if !(has!("avx2") && has!("fma")) {

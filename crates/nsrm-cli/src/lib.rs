@@ -193,6 +193,8 @@ pub fn main() -> ExitCode {
         #[cfg(feature = "studio")]
         Command::Studio(a) => studio::run(a),
     };
+    // A stop signal ends the process with 128 + the signal, whatever the work returned.
+    outputs::defer_to_signal_thread();
     match result {
         Ok(code) => code,
         Err(e) => {

@@ -14,6 +14,7 @@
 use anyhow::{Context, Result};
 use nsrm_output::Session;
 use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicI32, Ordering};
 
 /// The session's temporaries found in a batch's output directories (left by a killed run, or
 /// being written by another one now), sorted.
@@ -49,6 +50,24 @@ pub(crate) fn open(overwrite: bool, inputs: &[&Path], outputs: &[&Path]) -> Resu
     Ok(session)
 }
 
+/// The signal the signal thread took, once it has taken one (0 before).
+static SIGNAL: AtomicI32 = AtomicI32::new(0);
+
+/// Once a stop signal has come, the signal thread owns the end of the process: the main thread's
+/// work fails at its next write ([`nsrm_output::WriteError::Aborted`]), and returning from
+/// `main` then would end the process with that error's status (1), perhaps before the thread
+/// has removed every temporary. So the main thread calls this before it returns: when a signal
+/// has come it waits for the thread's exit (128 + the signal), and exits so itself if the thread
+/// has not done it within a few seconds.
+pub(crate) fn defer_to_signal_thread() {
+    let sig = SIGNAL.load(Ordering::SeqCst);
+    if sig == 0 {
+        return;
+    }
+    std::thread::sleep(std::time::Duration::from_secs(10));
+    std::process::exit(128 + sig);
+}
+
 /// Starts the thread that aborts `session` and exits with 128 + the signal (see [`open`]).
 pub(crate) fn exit_on_signal(session: &Session) -> Result<()> {
     let handle = session.abort_handle();
@@ -58,6 +77,7 @@ pub(crate) fn exit_on_signal(session: &Session) -> Result<()> {
         .name("nsrm-signals".into())
         .spawn(move || {
             if let Some(sig) = signals.forever().next() {
+                SIGNAL.store(sig, Ordering::SeqCst);
                 let removed = handle.abort();
                 let name = STOP_SIGNALS
                     .iter()

@@ -178,6 +178,9 @@ pub(crate) fn tiff(f: &mut File, base: u64, end: u64) -> std::io::Result<Declare
         read_at(f, base + off + 2, end, &mut entries)?;
         let (mut w, mut h, mut photometric) = (0u64, 0u64, 0u32);
         let (mut fw, mut fh, mut pw, mut ph) = (0u64, 0u64, 0u64, 0u64);
+        // Samples per pixel and the tile size: the decoder allocates (width rounded up to whole
+        // tiles) × samples × (height rounded up likewise).
+        let (mut cpp, mut tw, mut tl) = (1u64, 0u64, 0u64);
         for (i, e) in entries[..(count * 12) as usize]
             .chunks_exact(12)
             .enumerate()
@@ -193,14 +196,23 @@ pub(crate) fn tiff(f: &mut File, base: u64, end: u64) -> std::io::Result<Declare
             if bytes > 4 && u64::from(u32_of(&e[8..12])) + bytes > len {
                 d.damage(|| format!("tag {tag} claims {bytes} bytes, past the end of the file"));
             }
+            let panasonic = root && magic == MAGIC_PANASONIC;
+            let size_tag = matches!(tag, 256 | 257 | 277 | 322 | 323 | 0xF001 | 0xF002)
+                || (panasonic && matches!(tag, 2 | 3));
+            if size_tag {
+                size_in_entry(&mut d, tag, typ, n);
+            }
             match tag {
                 256 => w = u64::from(value),
                 257 => h = u64::from(value),
                 262 => photometric = value,
                 0xF001 => fw = u64::from(value),
                 0xF002 => fh = u64::from(value),
-                2 if root && magic == MAGIC_PANASONIC => pw = u64::from(value),
-                3 if root && magic == MAGIC_PANASONIC => ph = u64::from(value),
+                277 => cpp = u64::from(value),
+                322 => tw = u64::from(value),
+                323 => tl = u64::from(value),
+                2 if panasonic => pw = u64::from(value),
+                3 if panasonic => ph = u64::from(value),
                 50706 => d.raw_marker = true,
                 // SubIFDs, EXIF, GPS, interoperability and Fuji's raw IFD: the decoder parses
                 // them too, from the offsets `sub_ifds` derives as it does.
@@ -216,7 +228,14 @@ pub(crate) fn tiff(f: &mut File, base: u64, end: u64) -> std::io::Result<Declare
         if photometric == 32803 || photometric == 34892 {
             d.raw_marker = true;
         }
-        d.take(w, h);
+        let whole = |v: u64, t: u64| {
+            if t > 0 {
+                v.div_ceil(t).saturating_mul(t)
+            } else {
+                v
+            }
+        };
+        d.take(whole(w, tw).saturating_mul(cpp.max(1)), whole(h, tl));
         d.take(fw, fh);
         d.take(pw, ph);
         let next = u64::from(u32_of(&entries[(count * 12) as usize..]));
@@ -225,6 +244,19 @@ pub(crate) fn tiff(f: &mut File, base: u64, end: u64) -> std::io::Result<Declare
         }
     }
     Ok(d)
+}
+
+/// A size is one BYTE, SHORT or LONG in the entry itself. Another count or type puts the value
+/// elsewhere, where the decoder reads it and [`tiff`] would not: damage.
+fn size_in_entry(d: &mut Declared, tag: u16, typ: u16, n: u32) {
+    if n != 1 || !matches!(typ, 1 | 3 | 4 | 6 | 8 | 9) {
+        d.damage(|| {
+            format!(
+                "tag {tag}, a size, holds {n} value(s) of TIFF type {typ} (one SHORT or LONG \
+                 expected)"
+            )
+        });
+    }
 }
 
 /// The offsets (relative to `base`) at which the decoder parses the sub-IFDs of one entry of
@@ -1102,6 +1134,50 @@ pub(crate) mod tests {
         for (name, bytes) in [("r.raf", raf), ("c.cr3", cr3), ("m.mrw", mrw)] {
             let (_, d) = declared(&write(dir.path(), name, bytes));
             assert!(d.bad.is_some(), "{name} not refused: {d:?}");
+        }
+    }
+
+    /// A DNG-like TIFF's sizes as the decoder allocates them: samples per pixel and whole tiles
+    /// count, and a size held anywhere but in its entry (where the decoder would read a value
+    /// this scan did not) is refused. A mutated DNG whose ImageWidth count became 2 made the
+    /// decoder read 135,332,483 from the offset 1888 and ask for 320 GB.
+    #[test]
+    fn tiff_sizes_count_samples_tiles_and_refuse_values_held_elsewhere() {
+        let dir = tempfile::tempdir().unwrap();
+        let scan = |name: &str, entries: &[(u16, u16, u32, u32)]| {
+            let mut e = vec![(50706, 1, 4, 0x0001_0401)];
+            e.extend_from_slice(entries);
+            let p = write(dir.path(), name, &tiff_le(42, &e));
+            let len = std::fs::metadata(&p).unwrap().len();
+            tiff(&mut File::open(&p).unwrap(), 0, len).unwrap()
+        };
+        let d = scan(
+            "plain.dng",
+            &[(256, 4, 1, 1888), (257, 4, 1, 1182), (277, 3, 1, 1)],
+        );
+        assert_eq!((d.largest, d.bad), (Some((1888, 1182)), None));
+        let d = scan(
+            "cpp.dng",
+            &[(256, 4, 1, 1888), (257, 4, 1, 1182), (277, 3, 1, 60000)],
+        );
+        assert_eq!(d.largest, Some((1888 * 60000, 1182)));
+        let tiles = [
+            (256, 4, 1, 100),
+            (257, 4, 1, 100),
+            (322, 4, 1, 1 << 20),
+            (323, 4, 1, 256),
+        ];
+        assert_eq!(scan("tiles.dng", &tiles).largest, Some((1 << 20, 256)));
+        for (name, entry) in [
+            ("count.dng", (256, 4, 2, 40)),
+            ("rational.dng", (257, 5, 1, 40)),
+            ("cppcount.dng", (277, 3, 3, 40)),
+        ] {
+            let d = scan(name, &[(256, 4, 1, 64), (257, 4, 1, 64), entry]);
+            assert!(
+                d.bad.as_deref().is_some_and(|b| b.contains("a size")),
+                "{name}: {d:?}"
+            );
         }
     }
 

@@ -158,17 +158,17 @@ pub fn tempdir(name: &str) -> TestDir {
         .prefix(&format!("nsrm-{name}-"))
         .tempdir()
         .unwrap();
-    TestDir(Some(dir))
+    TestDir(dir)
 }
 
 /// [`tempdir`]'s directory: a [`Path`] that removes itself on drop unless the thread is
 /// panicking.
-pub struct TestDir(Option<tempfile::TempDir>);
+pub struct TestDir(tempfile::TempDir);
 
 impl std::ops::Deref for TestDir {
     type Target = Path;
     fn deref(&self) -> &Path {
-        self.0.as_ref().expect("present until drop").path()
+        self.0.path()
     }
 }
 
@@ -188,16 +188,16 @@ impl TestDir {
     /// The directory, never removed: for a fixture made once and shared by many tests through a
     /// static, which outlives every test.
     pub fn keep(mut self) -> PathBuf {
-        self.0.take().expect("present until drop").keep()
+        self.0.disable_cleanup(true);
+        self.0.path().to_path_buf()
     }
 }
 
 impl Drop for TestDir {
     fn drop(&mut self) {
-        if let Some(dir) = self.0.take() {
-            if std::thread::panicking() {
-                eprintln!("kept for a failed test: {}", dir.keep().display());
-            }
+        if std::thread::panicking() {
+            self.0.disable_cleanup(true);
+            eprintln!("kept for a failed test: {}", self.0.path().display());
         }
     }
 }

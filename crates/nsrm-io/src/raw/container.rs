@@ -181,6 +181,7 @@ pub(crate) fn tiff(f: &mut File, base: u64, end: u64) -> std::io::Result<Declare
         // Samples per pixel and the tile size: the decoder allocates (width rounded up to whole
         // tiles) × samples × (height rounded up likewise).
         let (mut cpp, mut tw, mut tl) = (1u64, 0u64, 0u64);
+        let panasonic = root && magic == MAGIC_PANASONIC;
         for (i, e) in entries[..(count * 12) as usize]
             .chunks_exact(12)
             .enumerate()
@@ -196,7 +197,6 @@ pub(crate) fn tiff(f: &mut File, base: u64, end: u64) -> std::io::Result<Declare
             if bytes > 4 && u64::from(u32_of(&e[8..12])) + bytes > len {
                 d.damage(|| format!("tag {tag} claims {bytes} bytes, past the end of the file"));
             }
-            let panasonic = root && magic == MAGIC_PANASONIC;
             let size_tag = matches!(tag, 256 | 257 | 277 | 322 | 323 | 0xF001 | 0xF002)
                 || (panasonic && matches!(tag, 2 | 3));
             if size_tag {
